@@ -1,0 +1,428 @@
+//! The validated DDF model: what both dialects mean, with the byte layout of every set.
+
+use std::fmt;
+
+use serde::Serialize;
+
+use super::layout::SetLayout;
+use super::Pos;
+
+/// A validated Data Description File.
+#[derive(Debug, Clone, Serialize)]
+pub struct Model {
+    /// The path the model was read from, as given.
+    pub source: String,
+    pub domains: Vec<Domain>,
+}
+
+impl Model {
+    pub fn domain(&self, name: &str) -> Option<&Domain> {
+        self.domains.iter().find(|d| d.name == name)
+    }
+}
+
+/// The QoS flags of a domain (SPEC section 2).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+pub struct Flags {
+    pub synchronous: bool,
+    pub multiple_publish_allowed: bool,
+    pub states: bool,
+}
+
+/// A named data space with a PUBLISH set (written by the framework) and a SUBSCRIBE set
+/// (written by external participants).
+#[derive(Debug, Clone, Serialize)]
+pub struct Domain {
+    pub name: String,
+    pub flags: Flags,
+    /// The optional `<connection …/>` element, kept as written.
+    pub connection: Option<Connection>,
+    pub publish: Set,
+    pub subscribe: Set,
+    /// Stable hash of the flags and of the byte layout of both sets.
+    pub layout_hash: u64,
+    #[serde(skip)]
+    pub pos: Pos,
+}
+
+impl Domain {
+    pub fn set(&self, role: Role) -> &Set {
+        match role {
+            Role::Publish => &self.publish,
+            Role::Subscribe => &self.subscribe,
+        }
+    }
+
+    /// All leaves of the domain, PUBLISH first; the index is the RTAPI item key.
+    pub fn leaves(&self) -> impl Iterator<Item = (Role, &Leaf)> {
+        self.publish
+            .layout
+            .leaves
+            .iter()
+            .map(|l| (Role::Publish, l))
+            .chain(self.subscribe.layout.leaves.iter().map(|l| (Role::Subscribe, l)))
+    }
+
+    /// The item key of a leaf: its index in [`Domain::leaves`].
+    pub fn item_key(&self, role: Role, path: &str) -> Option<u16> {
+        let base = match role {
+            Role::Publish => 0,
+            Role::Subscribe => self.publish.layout.leaves.len(),
+        };
+        let idx = self.set(role).layout.leaves.iter().position(|l| l.path == path)?;
+        u16::try_from(base + idx).ok()
+    }
+
+    /// The leaf behind an item key.
+    pub fn leaf_by_key(&self, key: u16) -> Option<(Role, &Leaf)> {
+        self.leaves().nth(usize::from(key))
+    }
+}
+
+/// The `<connection>` element of the product dialect: attributes in document order.
+#[derive(Debug, Clone, PartialEq, Eq, Serialize)]
+pub struct Connection {
+    pub attributes: Vec<(String, String)>,
+}
+
+/// Which side writes a set.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize)]
+#[serde(rename_all = "UPPERCASE")]
+pub enum Role {
+    /// Written by the framework, read by external participants.
+    Publish,
+    /// Written by external participants, read by the framework.
+    Subscribe,
+}
+
+impl Role {
+    pub const ALL: [Role; 2] = [Role::Publish, Role::Subscribe];
+
+    pub fn as_str(self) -> &'static str {
+        match self {
+            Role::Publish => "PUBLISH",
+            Role::Subscribe => "SUBSCRIBE",
+        }
+    }
+
+    /// Lower-case name, as used in topic names.
+    pub fn lower(self) -> &'static str {
+        match self {
+            Role::Publish => "publish",
+            Role::Subscribe => "subscribe",
+        }
+    }
+}
+
+impl fmt::Display for Role {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self.as_str())
+    }
+}
+
+/// One set of a domain: its items as a tree, and their byte layout.
+#[derive(Debug, Clone, Serialize)]
+pub struct Set {
+    pub role: Role,
+    pub items: Vec<Item>,
+    pub layout: SetLayout,
+    /// Where the set was declared (`None` when the DDF omits it: the set is empty).
+    #[serde(skip)]
+    pub pos: Option<Pos>,
+}
+
+/// An item: a scalar or array of a scalar type, or a bus of nested items.
+#[derive(Debug, Clone, Serialize)]
+pub struct Item {
+    pub name: String,
+    #[serde(flatten)]
+    pub kind: ItemKind,
+    #[serde(skip)]
+    pub pos: Pos,
+}
+
+#[derive(Debug, Clone, Serialize)]
+#[serde(tag = "kind", rename_all = "lowercase")]
+pub enum ItemKind {
+    Scalar {
+        #[serde(rename = "type")]
+        ty: ScalarType,
+        /// Element count (1 for a scalar).
+        length: u16,
+        default: Option<Value>,
+    },
+    Bus { items: Vec<Item> },
+}
+
+/// The scalar types of SPEC section 1, canonical names.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize)]
+pub enum ScalarType {
+    #[serde(rename = "boolean")]
+    Boolean,
+    #[serde(rename = "int8")]
+    Int8,
+    #[serde(rename = "int16")]
+    Int16,
+    #[serde(rename = "int32")]
+    Int32,
+    #[serde(rename = "int64")]
+    Int64,
+    #[serde(rename = "unsigned int8")]
+    UInt8,
+    #[serde(rename = "unsigned int16")]
+    UInt16,
+    #[serde(rename = "unsigned int32")]
+    UInt32,
+    #[serde(rename = "unsigned int64")]
+    UInt64,
+    #[serde(rename = "float32")]
+    Float32,
+    #[serde(rename = "float64")]
+    Float64,
+}
+
+/// What a `<type>` names.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum TypeName {
+    Scalar(ScalarType),
+    Bus,
+}
+
+impl TypeName {
+    /// Parses a type name: canonical names, `uintN`, and the C aliases. Case-insensitive,
+    /// inner whitespace folded (`unsigned  int8`).
+    pub fn parse(text: &str) -> Option<TypeName> {
+        let folded = text.split_whitespace().collect::<Vec<_>>().join(" ").to_ascii_lowercase();
+        use ScalarType::*;
+        Some(TypeName::Scalar(match folded.as_str() {
+            "bus" => return Some(TypeName::Bus),
+            "boolean" | "bool" => Boolean,
+            "int8" | "char" => Int8,
+            "int16" | "short" => Int16,
+            "int32" | "int" => Int32,
+            "int64" | "long" => Int64,
+            "unsigned int8" | "uint8" | "uchar" => UInt8,
+            "unsigned int16" | "uint16" => UInt16,
+            "unsigned int32" | "uint32" => UInt32,
+            "unsigned int64" | "uint64" => UInt64,
+            "float32" | "float" => Float32,
+            "float64" | "double" => Float64,
+            _ => return None,
+        }))
+    }
+}
+
+impl ScalarType {
+    pub const ALL: [ScalarType; 11] = [
+        ScalarType::Boolean,
+        ScalarType::Int8,
+        ScalarType::Int16,
+        ScalarType::Int32,
+        ScalarType::Int64,
+        ScalarType::UInt8,
+        ScalarType::UInt16,
+        ScalarType::UInt32,
+        ScalarType::UInt64,
+        ScalarType::Float32,
+        ScalarType::Float64,
+    ];
+
+    /// Size in bytes of one element (also its alignment, as in C on LP64).
+    pub fn size(self) -> u32 {
+        use ScalarType::*;
+        match self {
+            Boolean | Int8 | UInt8 => 1,
+            Int16 | UInt16 => 2,
+            Int32 | UInt32 | Float32 => 4,
+            Int64 | UInt64 | Float64 => 8,
+        }
+    }
+
+    pub fn canonical(self) -> &'static str {
+        use ScalarType::*;
+        match self {
+            Boolean => "boolean",
+            Int8 => "int8",
+            Int16 => "int16",
+            Int32 => "int32",
+            Int64 => "int64",
+            UInt8 => "unsigned int8",
+            UInt16 => "unsigned int16",
+            UInt32 => "unsigned int32",
+            UInt64 => "unsigned int64",
+            Float32 => "float32",
+            Float64 => "float64",
+        }
+    }
+
+    /// The C type of one element.
+    pub fn c_type(self) -> &'static str {
+        use ScalarType::*;
+        match self {
+            Boolean => "bool",
+            Int8 => "int8_t",
+            Int16 => "int16_t",
+            Int32 => "int32_t",
+            Int64 => "int64_t",
+            UInt8 => "uint8_t",
+            UInt16 => "uint16_t",
+            UInt32 => "uint32_t",
+            UInt64 => "uint64_t",
+            Float32 => "float",
+            Float64 => "double",
+        }
+    }
+
+    pub fn is_float(self) -> bool {
+        matches!(self, ScalarType::Float32 | ScalarType::Float64)
+    }
+
+    pub fn is_signed_int(self) -> bool {
+        use ScalarType::*;
+        matches!(self, Int8 | Int16 | Int32 | Int64)
+    }
+
+    /// Parses a `<default>` text for this type; `None` when it does not fit.
+    pub fn parse_value(self, text: &str) -> Option<Value> {
+        use ScalarType::*;
+        let t = text.trim();
+        match self {
+            Boolean => match t.to_ascii_lowercase().as_str() {
+                "yes" | "1" => Some(Value::Bool(true)),
+                "no" | "0" => Some(Value::Bool(false)),
+                _ => None,
+            },
+            Int8 => t.parse::<i8>().ok().map(|v| Value::Int(v.into())),
+            Int16 => t.parse::<i16>().ok().map(|v| Value::Int(v.into())),
+            Int32 => t.parse::<i32>().ok().map(|v| Value::Int(v.into())),
+            Int64 => t.parse::<i64>().ok().map(Value::Int),
+            UInt8 => t.parse::<u8>().ok().map(|v| Value::UInt(v.into())),
+            UInt16 => t.parse::<u16>().ok().map(|v| Value::UInt(v.into())),
+            UInt32 => t.parse::<u32>().ok().map(|v| Value::UInt(v.into())),
+            UInt64 => t.parse::<u64>().ok().map(Value::UInt),
+            Float32 => t.parse::<f32>().ok().filter(|v| v.is_finite()).map(|v| Value::Float(v.into())),
+            Float64 => t.parse::<f64>().ok().filter(|v| v.is_finite()).map(Value::Float),
+        }
+    }
+
+    /// Encodes `value` as one element of this type, native endianness.
+    pub fn encode(self, value: Value, out: &mut [u8]) {
+        use ScalarType::*;
+        let n = self.size() as usize;
+        let bytes: [u8; 8] = match (self, value) {
+            (Boolean, v) => [u8::from(v.as_f64() != 0.0), 0, 0, 0, 0, 0, 0, 0],
+            (Float32, v) => pad((v.as_f64() as f32).to_ne_bytes()),
+            (Float64, v) => v.as_f64().to_ne_bytes(),
+            (Int8, v) => pad((v.as_i64() as i8).to_ne_bytes()),
+            (Int16, v) => pad((v.as_i64() as i16).to_ne_bytes()),
+            (Int32, v) => pad((v.as_i64() as i32).to_ne_bytes()),
+            (Int64, v) => v.as_i64().to_ne_bytes(),
+            (UInt8, v) => pad((v.as_u64() as u8).to_ne_bytes()),
+            (UInt16, v) => pad((v.as_u64() as u16).to_ne_bytes()),
+            (UInt32, v) => pad((v.as_u64() as u32).to_ne_bytes()),
+            (UInt64, v) => v.as_u64().to_ne_bytes(),
+        };
+        out[..n].copy_from_slice(&bytes[..n]);
+    }
+
+    /// Decodes one element of this type (native endianness) from `bytes`.
+    pub fn decode(self, bytes: &[u8]) -> Value {
+        use ScalarType::*;
+        fn arr<const N: usize>(b: &[u8]) -> [u8; N] {
+            let mut a = [0u8; N];
+            a.copy_from_slice(&b[..N]);
+            a
+        }
+        match self {
+            Boolean => Value::Bool(bytes[0] != 0),
+            Int8 => Value::Int(i8::from_ne_bytes(arr(bytes)).into()),
+            Int16 => Value::Int(i16::from_ne_bytes(arr(bytes)).into()),
+            Int32 => Value::Int(i32::from_ne_bytes(arr(bytes)).into()),
+            Int64 => Value::Int(i64::from_ne_bytes(arr(bytes))),
+            UInt8 => Value::UInt(u8::from_ne_bytes(arr(bytes)).into()),
+            UInt16 => Value::UInt(u16::from_ne_bytes(arr(bytes)).into()),
+            UInt32 => Value::UInt(u32::from_ne_bytes(arr(bytes)).into()),
+            UInt64 => Value::UInt(u64::from_ne_bytes(arr(bytes))),
+            Float32 => Value::Float(f32::from_ne_bytes(arr(bytes)).into()),
+            Float64 => Value::Float(f64::from_ne_bytes(arr(bytes))),
+        }
+    }
+}
+
+fn pad<const N: usize>(b: [u8; N]) -> [u8; 8] {
+    let mut out = [0u8; 8];
+    out[..N].copy_from_slice(&b);
+    out
+}
+
+/// A scalar value: a default, or a decoded element.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+#[serde(untagged)]
+pub enum Value {
+    Bool(bool),
+    Int(i64),
+    UInt(u64),
+    Float(f64),
+}
+
+impl Value {
+    pub fn as_f64(self) -> f64 {
+        match self {
+            Value::Bool(b) => f64::from(u8::from(b)),
+            Value::Int(i) => i as f64,
+            Value::UInt(u) => u as f64,
+            Value::Float(f) => f,
+        }
+    }
+
+    pub fn as_i64(self) -> i64 {
+        match self {
+            Value::Bool(b) => i64::from(b),
+            Value::Int(i) => i,
+            Value::UInt(u) => u as i64,
+            Value::Float(f) => f as i64,
+        }
+    }
+
+    pub fn as_u64(self) -> u64 {
+        match self {
+            Value::Bool(b) => u64::from(b),
+            Value::Int(i) => i as u64,
+            Value::UInt(u) => u,
+            Value::Float(f) => f as u64,
+        }
+    }
+}
+
+impl fmt::Display for Value {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            Value::Bool(b) => f.write_str(if *b { "yes" } else { "no" }),
+            Value::Int(i) => write!(f, "{i}"),
+            Value::UInt(u) => write!(f, "{u}"),
+            Value::Float(x) => write!(f, "{x}"),
+        }
+    }
+}
+
+/// One scalar or array item of a set, flattened: its `/`-joined path and its place in the
+/// set's bytes.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Leaf {
+    pub path: String,
+    #[serde(rename = "type")]
+    pub ty: ScalarType,
+    pub length: u16,
+    /// Byte offset within the set.
+    pub offset: u32,
+    /// Total bytes (`length` × element size).
+    pub size: u32,
+    pub default: Option<Value>,
+}
+
+impl Leaf {
+    /// The bytes of this leaf within a set buffer.
+    pub fn range(&self) -> std::ops::Range<usize> {
+        self.offset as usize..(self.offset + self.size) as usize
+    }
+}

@@ -1,0 +1,415 @@
+//! Step two of reading a DDF: raw elements to the validated [`Model`], checking every rule
+//! of SPEC section 1 and collecting every violation with its position.
+
+use std::collections::HashMap;
+
+use super::layout::{self, SetLayout, MAX_SET_BYTES};
+use super::model::{Connection, Domain, Flags, Item, ItemKind, Model, Role, Set, TypeName};
+use super::raw::RawElement;
+use super::{Diagnostic, Pos};
+
+/// Deepest bus nesting accepted (a bus inside a bus inside … counts one level each).
+pub const MAX_BUS_DEPTH: usize = 16;
+/// Longest name accepted, in characters.
+pub const MAX_NAME_LEN: usize = 63;
+/// Largest `<length>`.
+pub const MAX_LENGTH: u32 = 65535;
+
+#[derive(Debug, Default)]
+struct Diags(Vec<Diagnostic>);
+
+impl Diags {
+    fn at(&mut self, pos: Pos, message: impl Into<String>) {
+        self.0.push(Diagnostic { pos, message: message.into() });
+    }
+}
+
+/// Checks a name (domain or item): 1–63 characters, no whitespace, `,`, `#`, or `/` (the
+/// path separator). Returns the problem, if any.
+pub fn name_problem(name: &str) -> Option<String> {
+    let n = name.chars().count();
+    if n == 0 {
+        return Some("is empty".into());
+    }
+    if n > MAX_NAME_LEN {
+        return Some(format!("is {n} characters long; the limit is {MAX_NAME_LEN}"));
+    }
+    if let Some(c) = name.chars().find(|c| c.is_whitespace() || matches!(c, ',' | '#' | '/') || c.is_control()) {
+        let shown = if c.is_whitespace() || c.is_control() { format!("{:?}", c) } else { format!("'{c}'") };
+        return Some(format!("contains {shown}; names may not contain whitespace, ',', '#' or '/'"));
+    }
+    None
+}
+
+/// Validates a parsed tree; `source` is only recorded in the model.
+pub fn validate(root: &RawElement, source: &str) -> Result<Model, Vec<Diagnostic>> {
+    let mut d = Diags::default();
+    if root.name != "orchestra" {
+        d.at(root.pos, format!("the root element is <{}>; a DDF's root element is <orchestra>", root.name));
+        return Err(d.0);
+    }
+    no_attrs(root, &mut d);
+    no_text(root, &mut d);
+    let mut domains = Vec::new();
+    let mut seen: HashMap<String, Pos> = HashMap::new();
+    for child in &root.children {
+        if child.name != "domain" {
+            d.at(child.pos, format!("unknown element <{}> in <orchestra>; expected <domain>", child.name));
+            continue;
+        }
+        if let Some(domain) = domain(child, &mut d) {
+            if let Some(first) = seen.get(&domain.name) {
+                d.at(
+                    child.pos,
+                    format!("duplicate domain name '{}' (first defined at line {}, column {})", domain.name, first.line, first.col),
+                );
+            } else {
+                seen.insert(domain.name.clone(), child.pos);
+                domains.push(domain);
+            }
+        }
+    }
+    if root.children.is_empty() {
+        d.at(root.pos, "<orchestra> contains no <domain>: the file describes no data");
+    }
+    if d.0.is_empty() {
+        Ok(Model { source: source.to_string(), domains })
+    } else {
+        d.0.sort_by_key(|x| (x.pos.line, x.pos.col));
+        Err(d.0)
+    }
+}
+
+fn no_attrs(el: &RawElement, d: &mut Diags) {
+    for a in &el.attrs {
+        d.at(el.pos, format!("unknown attribute '{}' on <{}>", a.name, el.name));
+    }
+}
+
+fn only_attrs(el: &RawElement, allowed: &[&str], d: &mut Diags) {
+    for a in &el.attrs {
+        if !allowed.contains(&a.name.as_str()) {
+            d.at(el.pos, format!("unknown attribute '{}' on <{}>", a.name, el.name));
+        }
+    }
+}
+
+fn no_text(el: &RawElement, d: &mut Diags) {
+    if !el.text().is_empty() {
+        d.at(el.text_pos.unwrap_or(el.pos), format!("unexpected text '{}' in <{}>", shorten(el.text()), el.name));
+    }
+}
+
+fn leaf_element(el: &RawElement, d: &mut Diags) {
+    no_attrs(el, d);
+    for c in &el.children {
+        d.at(c.pos, format!("unexpected element <{}> inside <{}>", c.name, el.name));
+    }
+}
+
+fn shorten(s: &str) -> String {
+    let mut out: String = s.chars().take(40).collect();
+    if s.chars().count() > 40 {
+        out.push('…');
+    }
+    out
+}
+
+/// The `name` attribute, checked; reports and returns `None` when missing or invalid.
+fn name_attr(el: &RawElement, what: &str, d: &mut Diags) -> Option<String> {
+    match el.attr("name") {
+        None => {
+            d.at(el.pos, format!("<{}> has no name attribute", el.name));
+            None
+        }
+        Some(name) => match name_problem(name) {
+            Some(problem) => {
+                d.at(el.pos, format!("{what} name '{}' {problem}", shorten(name)));
+                None
+            }
+            None => Some(name.to_string()),
+        },
+    }
+}
+
+fn yes_no(el: &RawElement, d: &mut Diags) -> Option<bool> {
+    leaf_element(el, d);
+    match el.text().to_ascii_lowercase().as_str() {
+        "yes" => Some(true),
+        "no" => Some(false),
+        other => {
+            d.at(el.text_pos.unwrap_or(el.pos), format!("<{}> must be yes or no, found '{}'", el.name, shorten(other)));
+            None
+        }
+    }
+}
+
+fn domain(el: &RawElement, d: &mut Diags) -> Option<Domain> {
+    only_attrs(el, &["name"], d);
+    no_text(el, d);
+    let name = name_attr(el, "domain", d);
+    let label = name.clone().unwrap_or_else(|| "?".into());
+    let mut flags = Flags { synchronous: false, multiple_publish_allowed: true, states: false };
+    let mut flag_seen: HashMap<&str, Pos> = HashMap::new();
+    let mut connection = None;
+    let mut sets: [Option<(Set, Pos)>; 2] = [None, None];
+    for child in &el.children {
+        match child.name.as_str() {
+            flag @ ("synchronous" | "multiplePublishAllowed" | "states") => {
+                if let Some(first) = flag_seen.get(flag) {
+                    d.at(
+                        child.pos,
+                        format!("domain '{label}' has a second <{flag}> (the first is at line {}, column {})", first.line, first.col),
+                    );
+                    continue;
+                }
+                flag_seen.insert(flag, child.pos);
+                if let Some(v) = yes_no(child, d) {
+                    match flag {
+                        "synchronous" => flags.synchronous = v,
+                        "multiplePublishAllowed" => flags.multiple_publish_allowed = v,
+                        _ => flags.states = v,
+                    }
+                }
+            }
+            "connection" => {
+                no_text(child, d);
+                for c in &child.children {
+                    d.at(c.pos, format!("unexpected element <{}> inside <connection>", c.name));
+                }
+                if connection.is_some() {
+                    d.at(child.pos, format!("domain '{label}' has a second <connection>"));
+                }
+                if let Some(t) = child.attr("type") {
+                    if !matches!(t.to_ascii_lowercase().as_str(), "local" | "remote") {
+                        d.at(child.pos, format!("<connection> type must be local or remote, found '{}'", shorten(t)));
+                    }
+                }
+                connection = Some(Connection {
+                    attributes: child.attrs.iter().map(|a| (a.name.clone(), a.value.clone())).collect(),
+                });
+            }
+            "block" | "set" => {
+                let Some(role) = set_role(child, d) else { continue };
+                let set = set(child, role, &label, d);
+                let slot = &mut sets[role as usize];
+                if let Some((_, first)) = slot {
+                    d.at(
+                        child.pos,
+                        format!(
+                            "domain '{label}' has a second {role} set (the first is at line {}, column {}); a domain has at most one set of each role",
+                            first.line, first.col
+                        ),
+                    );
+                } else if let Some(set) = set {
+                    *slot = Some((set, child.pos));
+                }
+            }
+            other => {
+                d.at(
+                    child.pos,
+                    format!(
+                        "unknown element <{other}> in domain '{label}'; expected <synchronous>, <multiplePublishAllowed>, <states>, <connection>, <set> or <block>"
+                    ),
+                );
+            }
+        }
+    }
+    let name = name?;
+    let [publish, subscribe] = sets;
+    let empty = |role| Set { role, items: Vec::new(), layout: SetLayout { size: 0, align: 1, leaves: Vec::new() }, pos: None };
+    let publish = publish.map(|(s, _)| s).unwrap_or_else(|| empty(Role::Publish));
+    let subscribe = subscribe.map(|(s, _)| s).unwrap_or_else(|| empty(Role::Subscribe));
+    let layout_hash = layout::layout_hash(&name, flags, &publish.layout, &subscribe.layout);
+    Some(Domain { name, flags, connection, publish, subscribe, layout_hash, pos: el.pos })
+}
+
+fn set_role(el: &RawElement, d: &mut Diags) -> Option<Role> {
+    only_attrs(el, &["name"], d);
+    let Some(name) = el.attr("name") else {
+        d.at(el.pos, format!("<{}> has no name attribute", el.name));
+        return None;
+    };
+    // Paper dialect: "DOMAIN/Publish"; product dialect: "PUBLISH". Either way the last
+    // path segment names the role.
+    let last = name.rsplit('/').next().unwrap_or(name);
+    match last.to_ascii_lowercase().as_str() {
+        "publish" => Some(Role::Publish),
+        "subscribe" => Some(Role::Subscribe),
+        _ => {
+            let expected =
+                if el.name == "block" { "a block name must end in /Publish or /Subscribe" } else { "a set is named PUBLISH or SUBSCRIBE" };
+            d.at(el.pos, format!("<{}> name '{}' names no role: {expected}", el.name, shorten(name)));
+            None
+        }
+    }
+}
+
+fn set(el: &RawElement, role: Role, domain: &str, d: &mut Diags) -> Option<Set> {
+    no_text(el, d);
+    let before = d.0.len();
+    let mut items = Vec::new();
+    item_list(el, &el.children, role, domain, "", 0, &mut items, d);
+    if d.0.len() != before {
+        return None;
+    }
+    match layout::compute(&items) {
+        Ok(layout) => Some(Set { role, items, layout, pos: Some(el.pos) }),
+        Err(bytes) => {
+            d.at(
+                el.pos,
+                format!("set {role} of domain '{domain}' would take {bytes} bytes; the limit is {} MiB", MAX_SET_BYTES >> 20),
+            );
+            None
+        }
+    }
+}
+
+#[allow(clippy::too_many_arguments)]
+fn item_list(
+    parent: &RawElement,
+    children: &[RawElement],
+    role: Role,
+    domain: &str,
+    prefix: &str,
+    depth: usize,
+    out: &mut Vec<Item>,
+    d: &mut Diags,
+) {
+    let mut seen: HashMap<String, Pos> = HashMap::new();
+    for child in children {
+        if child.name != "item" {
+            // Inside an item, its own <type>/<length>/<default> are handled by `item`.
+            if parent.name == "item" && matches!(child.name.as_str(), "type" | "length" | "default") {
+                continue;
+            }
+            d.at(child.pos, format!("unknown element <{}> in <{}>; expected <item>", child.name, parent.name));
+            continue;
+        }
+        let Some(item) = item(child, role, domain, prefix, depth, d) else { continue };
+        let path = if prefix.is_empty() { item.name.clone() } else { format!("{prefix}/{}", item.name) };
+        if let Some(first) = seen.get(&item.name) {
+            d.at(
+                child.pos,
+                format!(
+                    "item path '{path}' appears twice in set {role} of domain '{domain}' (first at line {}, column {})",
+                    first.line, first.col
+                ),
+            );
+            continue;
+        }
+        seen.insert(item.name.clone(), child.pos);
+        out.push(item);
+    }
+}
+
+fn item(el: &RawElement, role: Role, domain: &str, prefix: &str, depth: usize, d: &mut Diags) -> Option<Item> {
+    only_attrs(el, &["name"], d);
+    no_text(el, d);
+    let name = name_attr(el, "item", d);
+    let label = match &name {
+        Some(n) if prefix.is_empty() => n.clone(),
+        Some(n) => format!("{prefix}/{n}"),
+        None => format!("{prefix}/?"),
+    };
+    let mut ty_el = None;
+    let mut length_el = None;
+    let mut default_el = None;
+    for child in &el.children {
+        let slot = match child.name.as_str() {
+            "type" => &mut ty_el,
+            "length" => &mut length_el,
+            "default" => &mut default_el,
+            "item" => continue,
+            other => {
+                d.at(
+                    child.pos,
+                    format!("unknown element <{other}> in item '{label}'; expected <type>, <length>, <default> or nested <item>"),
+                );
+                continue;
+            }
+        };
+        if slot.is_some() {
+            d.at(child.pos, format!("item '{label}' has a second <{}>", child.name));
+            continue;
+        }
+        leaf_element(child, d);
+        *slot = Some(child);
+    }
+    let Some(ty_el) = ty_el else {
+        d.at(el.pos, format!("item '{label}' has no <type>"));
+        return None;
+    };
+    let Some(ty) = TypeName::parse(ty_el.text()) else {
+        d.at(
+            ty_el.text_pos.unwrap_or(ty_el.pos),
+            format!(
+                "item '{label}' has unknown type '{}'; expected boolean, int8…int64, unsigned int8…unsigned int64, float32, float64 or bus",
+                shorten(ty_el.text())
+            ),
+        );
+        return None;
+    };
+    let length = match length_el {
+        None => Some(1u16),
+        Some(l) => match l.text().parse::<u64>() {
+            Ok(n) if (1..=u64::from(MAX_LENGTH)).contains(&n) => Some(n as u16),
+            _ => {
+                d.at(
+                    l.text_pos.unwrap_or(l.pos),
+                    format!("item '{label}' has length '{}'; a length is a whole number from 1 to {MAX_LENGTH}", shorten(l.text())),
+                );
+                None
+            }
+        },
+    };
+    let nested: Vec<&RawElement> = el.children.iter().filter(|c| c.name == "item").collect();
+    match ty {
+        TypeName::Bus => {
+            if let Some(def) = default_el {
+                d.at(def.pos, format!("bus item '{label}' cannot have a <default>; give defaults to its members"));
+            }
+            if length.is_some_and(|l| l != 1) {
+                d.at(length_el.map_or(el.pos, |l| l.pos), format!("bus item '{label}' must have length 1; arrays of buses are not supported"));
+            }
+            if nested.is_empty() {
+                d.at(el.pos, format!("bus item '{label}' has no nested <item>"));
+                return None;
+            }
+            if depth + 1 > MAX_BUS_DEPTH {
+                d.at(el.pos, format!("bus item '{label}' is nested deeper than {MAX_BUS_DEPTH} levels"));
+                return None;
+            }
+            let mut items = Vec::new();
+            item_list(el, &el.children, role, domain, &label, depth + 1, &mut items, d);
+            Some(Item { name: name?, kind: ItemKind::Bus { items }, pos: el.pos })
+        }
+        TypeName::Scalar(ty) => {
+            for n in nested {
+                d.at(n.pos, format!("item '{label}' has type {} and cannot contain items; only a bus can", ty.canonical()));
+            }
+            let default = match default_el {
+                None => None,
+                Some(def) => match ty.parse_value(def.text()) {
+                    Some(v) => Some(v),
+                    None => {
+                        let expected = if ty == super::model::ScalarType::Boolean {
+                            "yes or no".to_string()
+                        } else {
+                            format!("a {} value", ty.canonical())
+                        };
+                        d.at(
+                            def.text_pos.unwrap_or(def.pos),
+                            format!("default '{}' of item '{label}' does not fit its type: expected {expected}", shorten(def.text())),
+                        );
+                        None
+                    }
+                },
+            };
+            if default_el.is_some() && default.is_none() {
+                return None;
+            }
+            Some(Item { name: name?, kind: ItemKind::Scalar { ty, length: length?, default }, pos: el.pos })
+        }
+    }
+}

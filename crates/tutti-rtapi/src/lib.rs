@@ -1,0 +1,1 @@
+//! RTAPI C library (see docs/rtapi.md).

@@ -1,0 +1,78 @@
+//! Subcommands of `tutti`, one module each. Exit status: 0 success, 2 invalid input or
+//! usage, 1 runtime failure (SPEC section 4).
+
+use std::process::ExitCode;
+
+use clap::{Parser, Subcommand};
+
+mod bench;
+mod check;
+mod idl;
+mod show;
+
+/// Exit status for invalid input or usage.
+pub const EXIT_INVALID: u8 = 2;
+/// Exit status for a runtime failure.
+pub const EXIT_FAILURE: u8 = 1;
+
+#[derive(Debug, Parser)]
+#[command(
+    name = "tutti",
+    version,
+    about = "Real-time co-simulation data layer: shared-memory domains described by a DDF, an RTAPI for C, Rust and Python components, and a DDS / ROS 2 gateway",
+    after_help = "Examples:\n  tutti check ddf/multiuav.ddf\n  tutti show ddf/multiuav.ddf --json\n  tutti idl ddf/multiuav.ddf --out idl/multiuav\n\nEnvironment:\n  TUTTI_NAMESPACE   namespace of the shared-memory segments (default: tutti)\n  ROS_DOMAIN_ID     DDS domain of the gateway when --ros-domain-id is absent"
+)]
+pub struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Debug, Subcommand)]
+enum Command {
+    Check(check::Args),
+    Show(show::Args),
+    Idl(idl::Args),
+    Bench(bench::Args),
+}
+
+/// A failure with the exit status it maps to.
+#[derive(Debug)]
+pub struct Failure {
+    pub code: u8,
+    pub error: anyhow::Error,
+}
+
+impl Failure {
+    pub fn invalid(error: impl Into<anyhow::Error>) -> Self {
+        Failure { code: EXIT_INVALID, error: error.into() }
+    }
+}
+
+impl From<anyhow::Error> for Failure {
+    fn from(error: anyhow::Error) -> Self {
+        Failure { code: EXIT_FAILURE, error }
+    }
+}
+
+pub type CliResult = Result<(), Failure>;
+
+pub fn run(cli: Cli) -> ExitCode {
+    let result = match cli.command {
+        Command::Check(a) => check::run(a),
+        Command::Show(a) => show::run(a),
+        Command::Idl(a) => idl::run(a),
+        Command::Bench(a) => bench::run(a),
+    };
+    match result {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(f) => {
+            eprintln!("{:#}", f.error);
+            ExitCode::from(f.code)
+        }
+    }
+}
+
+/// Loads a DDF, mapping its diagnostics to exit status 2.
+pub fn load_ddf(path: &std::path::Path) -> Result<tutti_core::ddf::Model, Failure> {
+    tutti_core::ddf::load(path).map_err(Failure::invalid)
+}
