@@ -8,3 +8,5 @@
 pub mod ddf;
 pub mod idl;
 pub mod mapping;
+pub mod shm;
+pub mod sync;

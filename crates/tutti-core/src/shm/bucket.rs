@@ -1,0 +1,194 @@
+//! The bucket: a set's latest value, in two slots guarded by seqlocks.
+//!
+//! A writer (one at a time: the framework for PUBLISH, the holder of the writer lock for
+//! SUBSCRIBE) fills the slot that is *not* current, then makes it current. A reader copies
+//! the current slot and keeps the copy only if the slot's sequence number was even and
+//! unchanged across the copy. Writers never wait for readers; a reader retries only when a
+//! writer lapped it (two commits during one copy). All accesses to the data are relaxed
+//! atomic word accesses, so the code is free of data races even in the Rust memory model,
+//! and loom checks it (`tests/loom.rs`).
+
+use crate::sync::{fence, spin_hint, AtomicU64, Ordering};
+
+/// A view of one bucket in memory: the two sequence numbers, the generation counter (its
+/// low bit names the current slot) and the two slots' words.
+#[derive(Debug, Clone, Copy)]
+pub struct Bucket<'a> {
+    pub seq: &'a [AtomicU64; 2],
+    pub current: &'a AtomicU64,
+    pub slots: [&'a [AtomicU64]; 2],
+}
+
+/// Copies `src` bytes into shared words (relaxed stores).
+pub fn store_bytes(dst: &[AtomicU64], src: &[u8]) {
+    let mut chunks = src.chunks_exact(8);
+    for (word, chunk) in dst.iter().zip(&mut chunks) {
+        word.store(u64::from_ne_bytes(chunk.try_into().unwrap_or([0; 8])), Ordering::Relaxed);
+    }
+    let rest = chunks.remainder();
+    if !rest.is_empty() {
+        if let Some(word) = dst.get(src.len() / 8) {
+            let mut b = word.load(Ordering::Relaxed).to_ne_bytes();
+            b[..rest.len()].copy_from_slice(rest);
+            word.store(u64::from_ne_bytes(b), Ordering::Relaxed);
+        }
+    }
+}
+
+/// Copies shared words into `dst` bytes (relaxed loads).
+pub fn load_bytes(src: &[AtomicU64], dst: &mut [u8]) {
+    let len = dst.len();
+    let mut chunks = dst.chunks_exact_mut(8);
+    for (word, chunk) in src.iter().zip(&mut chunks) {
+        chunk.copy_from_slice(&word.load(Ordering::Relaxed).to_ne_bytes());
+    }
+    let rest = chunks.into_remainder();
+    if !rest.is_empty() {
+        if let Some(word) = src.get(len / 8) {
+            let n = rest.len();
+            rest.copy_from_slice(&word.load(Ordering::Relaxed).to_ne_bytes()[..n]);
+        }
+    }
+}
+
+/// Stores `src` at byte `offset` of shared words, keeping the bytes around it (relaxed
+/// accesses; the caller is the only writer).
+pub fn store_range(dst: &[AtomicU64], offset: usize, src: &[u8]) {
+    let end = offset + src.len();
+    let mut w = offset / 8;
+    while w * 8 < end {
+        let Some(word) = dst.get(w) else { return };
+        let lo = (w * 8).max(offset);
+        let hi = (w * 8 + 8).min(end);
+        let mut b = if lo == w * 8 && hi == w * 8 + 8 { [0u8; 8] } else { word.load(Ordering::Relaxed).to_ne_bytes() };
+        b[lo - w * 8..hi - w * 8].copy_from_slice(&src[lo - offset..hi - offset]);
+        word.store(u64::from_ne_bytes(b), Ordering::Relaxed);
+        w += 1;
+    }
+}
+
+impl Bucket<'_> {
+    /// Writes a new value: `fill(previous, next)` is called with the current slot's words and
+    /// the slot being written; it typically copies the previous value and overlays changes.
+    /// Returns the new generation. The caller guarantees there is one writer at a time.
+    pub fn write_with(&self, fill: impl FnOnce(&[AtomicU64], &[AtomicU64])) -> u64 {
+        let generation = self.current.load(Ordering::Relaxed);
+        let cur = (generation & 1) as usize;
+        let next = cur ^ 1;
+        let seq = &self.seq[next];
+        let s = seq.load(Ordering::Relaxed);
+        // Odd: writing. (A writer that died mid-write left it odd; start from the next odd.)
+        let writing = if s & 1 == 1 { s.wrapping_add(2) } else { s.wrapping_add(1) };
+        seq.store(writing, Ordering::Relaxed);
+        fence(Ordering::Release);
+        fill(self.slots[cur], self.slots[next]);
+        seq.store(writing.wrapping_add(1), Ordering::Release);
+        self.current.store(generation.wrapping_add(1), Ordering::Release);
+        generation.wrapping_add(1)
+    }
+
+    /// Writes `src` as the new value (bytes past `src.len()` keep the previous value).
+    pub fn write(&self, src: &[u8]) -> u64 {
+        self.write_with(|prev, next| {
+            if src.len() < next.len() * 8 {
+                for (p, n) in prev.iter().zip(next) {
+                    n.store(p.load(Ordering::Relaxed), Ordering::Relaxed);
+                }
+            }
+            store_bytes(next, src);
+        })
+    }
+
+    /// One attempt at a consistent copy: `Some(generation)` when `dst` holds a whole value.
+    pub fn try_read(&self, dst: &mut [u8]) -> Option<u64> {
+        let generation = self.current.load(Ordering::Acquire);
+        let slot = (generation & 1) as usize;
+        let s1 = self.seq[slot].load(Ordering::Acquire);
+        if s1 & 1 == 1 {
+            return None;
+        }
+        load_bytes(self.slots[slot], dst);
+        fence(Ordering::Acquire);
+        let s2 = self.seq[slot].load(Ordering::Relaxed);
+        (s1 == s2).then_some(generation)
+    }
+
+    /// A consistent copy of the latest value; returns its generation. Retries while a
+    /// writer laps the reader; `None` after `max_tries` failed attempts (only a writer that
+    /// commits continuously faster than one copy, or a corrupted segment, does that).
+    pub fn read(&self, dst: &mut [u8], max_tries: u32) -> Option<u64> {
+        for _ in 0..max_tries {
+            if let Some(g) = self.try_read(dst) {
+                return Some(g);
+            }
+            spin_hint();
+        }
+        None
+    }
+
+    /// After the writer died mid-write: make the abandoned slot's sequence even again. The
+    /// slot was not current, so no reader trusted its contents.
+    pub fn recover(&self) {
+        for seq in self.seq {
+            let s = seq.load(Ordering::Relaxed);
+            if s & 1 == 1 {
+                seq.store(s.wrapping_add(1), Ordering::Release);
+            }
+        }
+    }
+}
+
+#[cfg(all(test, not(tutti_loom)))]
+mod tests {
+    use super::*;
+
+    fn words(n: usize) -> Vec<AtomicU64> {
+        (0..n).map(|_| AtomicU64::new(0)).collect()
+    }
+
+    #[test]
+    fn bytes_round_trip_through_words_with_tails() {
+        let w = words(2);
+        store_bytes(&w, &[1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11]);
+        let mut out = [0u8; 11];
+        load_bytes(&w, &mut out);
+        assert_eq!(out, [1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11]);
+        // A short store keeps the bytes after it.
+        store_bytes(&w, &[0xaa; 9]);
+        load_bytes(&w, &mut out);
+        assert_eq!(out, [0xaa, 0xaa, 0xaa, 0xaa, 0xaa, 0xaa, 0xaa, 0xaa, 0xaa, 10, 11]);
+    }
+
+    #[test]
+    fn ranges_are_stored_without_touching_neighbours() {
+        let w = words(3);
+        store_bytes(&w, &[0x11; 24]);
+        store_range(&w, 5, &[1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12]);
+        let mut out = [0u8; 24];
+        load_bytes(&w, &mut out);
+        let mut want = [0x11u8; 24];
+        want[5..17].copy_from_slice(&[1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12]);
+        assert_eq!(out, want);
+    }
+
+    #[test]
+    fn writes_alternate_slots_and_reads_see_the_latest() {
+        let seq = [AtomicU64::new(0), AtomicU64::new(0)];
+        let current = AtomicU64::new(0);
+        let (a, b) = (words(1), words(1));
+        let bucket = Bucket { seq: &seq, current: &current, slots: [&a, &b] };
+        let mut out = [0u8; 8];
+        assert_eq!(bucket.write(&7u64.to_ne_bytes()), 1);
+        assert_eq!(bucket.read(&mut out, 10), Some(1));
+        assert_eq!(u64::from_ne_bytes(out), 7);
+        bucket.write(&9u64.to_ne_bytes());
+        assert_eq!(bucket.read(&mut out, 10), Some(2));
+        assert_eq!(u64::from_ne_bytes(out), 9);
+        // A writer that died mid-write: the next slot stays odd until recovered.
+        seq[1].store(5, Ordering::Relaxed);
+        current.store(3, Ordering::Relaxed);
+        assert_eq!(bucket.try_read(&mut out), None);
+        bucket.recover();
+        assert!(bucket.try_read(&mut out).is_some());
+    }
+}

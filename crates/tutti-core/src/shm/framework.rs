@@ -1,0 +1,295 @@
+//! The framework role: creates the domains of a model, publishes the PUBLISH set, steps
+//! synchronous domains in lock-step, reads the SUBSCRIBE set, and notices dead participants.
+
+use std::time::{Duration, Instant};
+
+use super::handshake::CONN_WRITER;
+use super::segment::{self, namespace_from_env, DomainInfo, DomainStatus, Segment, WaitMode, Waited, Waiter, STATE_STOPPED};
+use super::{os, ShmError};
+use crate::ddf::{Model, Role};
+use crate::sync::Ordering;
+
+/// How the framework creates and steps its domains.
+#[derive(Debug, Clone)]
+pub struct FrameworkOptions {
+    /// Namespace of the segments (default: `TUTTI_NAMESPACE`, else `tutti`).
+    pub namespace: String,
+    /// Longest wait for participants in one synchronous step, and for the seed.
+    pub timeout: Duration,
+    /// How the framework waits for participants.
+    pub wait: WaitMode,
+    /// Connection slots per domain.
+    pub connections: u32,
+    /// Permission bits of the segments (default 0600: the creating user only).
+    pub mode: u32,
+    /// Start with wait-to-go held: participants block in connect until `release`.
+    pub hold: bool,
+    /// How often dead participants are looked for.
+    pub sweep_every: Duration,
+}
+
+impl Default for FrameworkOptions {
+    fn default() -> Self {
+        FrameworkOptions {
+            namespace: namespace_from_env(),
+            timeout: Duration::from_secs(1),
+            wait: WaitMode::Block,
+            connections: segment::DEFAULT_CONNECTIONS,
+            mode: 0o600,
+            hold: false,
+            sweep_every: Duration::from_millis(10),
+        }
+    }
+}
+
+/// The framework of a whole model: one [`DomainHost`] per domain.
+#[derive(Debug)]
+pub struct Framework {
+    pub domains: Vec<DomainHost>,
+}
+
+impl Framework {
+    /// Creates every domain of `model`. On error nothing is left behind.
+    pub fn create(model: &Model, opts: &FrameworkOptions) -> Result<Framework, ShmError> {
+        let mut domains = Vec::with_capacity(model.domains.len());
+        for d in &model.domains {
+            let seg = Segment::create(&opts.namespace, d, opts.connections, opts.mode)?;
+            domains.push(DomainHost::new(seg, opts.clone()));
+        }
+        Ok(Framework { domains })
+    }
+
+    pub fn domain(&mut self, name: &str) -> Option<&mut DomainHost> {
+        self.domains.iter_mut().find(|d| d.info().name == name)
+    }
+}
+
+/// What one step did.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct StepReport {
+    /// The step number published (1, 2, …).
+    pub step: u64,
+    /// Connections that owed a read or a commit when the timeout expired (synchronous only).
+    pub timed_out: usize,
+    /// Dead connections removed during the step.
+    pub removed: usize,
+}
+
+/// The framework side of one domain.
+#[derive(Debug)]
+pub struct DomainHost {
+    seg: Segment,
+    opts: FrameworkOptions,
+    step: u64,
+    subscribe: Vec<u8>,
+    last_sweep: Instant,
+    seed_waited: bool,
+}
+
+impl DomainHost {
+    fn new(seg: Segment, opts: FrameworkOptions) -> Self {
+        let subscribe = seg.info.subscribe.default_bytes();
+        if opts.hold {
+            seg.header().hold.store(1, Ordering::Release);
+        }
+        DomainHost { seg, opts, step: 0, subscribe, last_sweep: Instant::now(), seed_waited: false }
+    }
+
+    pub fn info(&self) -> &DomainInfo {
+        &self.seg.info
+    }
+
+    pub fn segment(&self) -> &Segment {
+        &self.seg
+    }
+
+    /// The last step published.
+    pub fn current_step(&self) -> u64 {
+        self.step
+    }
+
+    /// The SUBSCRIBE set as read by the last step (defaults until an external writer seeds).
+    pub fn subscribe(&self) -> &[u8] {
+        &self.subscribe
+    }
+
+    /// Whether an external writer has published at least once.
+    pub fn seeded(&self) -> bool {
+        self.seg.header().seeded.load(Ordering::Acquire) != 0
+    }
+
+    pub fn connection_count(&self) -> u32 {
+        self.seg.header().conn_count.load(Ordering::Acquire)
+    }
+
+    pub fn status(&self) -> DomainStatus {
+        self.seg.status()
+    }
+
+    /// One step: publish `publish` (the whole PUBLISH set) as step `current_step() + 1`; in
+    /// a synchronous domain wait (at most the timeout) until every participant has read it
+    /// and every writer has committed for it; then read the SUBSCRIBE set. In a synchronous
+    /// domain with `states=yes` the first step first waits for the seed.
+    pub fn step(&mut self, publish: &[u8], sim_time: f64) -> Result<StepReport, ShmError> {
+        let info = &self.seg.info;
+        if publish.len() != info.publish.size as usize {
+            return Err(ShmError::SizeMismatch {
+                domain: info.name.clone(),
+                role: Role::Publish,
+                expected: info.publish.size as usize,
+                got: publish.len(),
+            });
+        }
+        let (sync, states) = (info.flags.synchronous, info.flags.states);
+        let mut removed = self.maybe_sweep();
+        if sync && states && !self.seed_waited {
+            self.seed_waited = true;
+            let (waited, r) = self.wait_acks(|seg| seg.header().seeded.load(Ordering::Acquire) != 0)?;
+            removed += r;
+            if waited == Waited::TimedOut {
+                self.seg.header().timeouts.fetch_add(1, Ordering::Relaxed);
+            }
+        }
+        let h = self.seg.header();
+        let k = self.step + 1;
+        self.seg.bucket(Role::Publish)?.write(publish);
+        h.sim_time_bits.store(sim_time.to_bits(), Ordering::Relaxed);
+        h.heartbeat_ns.store(os::now_ns(), Ordering::Relaxed);
+        h.steps.fetch_add(1, Ordering::Relaxed);
+        self.seg.step_ctl().publish(k);
+        self.step = k;
+        segment::wake(&h.step_seq, &h.step_waiters);
+        let mut timed_out = 0;
+        if sync {
+            let (waited, r) = self.wait_acks(move |seg| !(0..seg.scan_len()).any(|i| seg.conn_ctl(i).is_some_and(|c| c.owes(k))))?;
+            removed += r;
+            if waited == Waited::TimedOut {
+                for i in 0..self.seg.scan_len() {
+                    if let (Some(ctl), Some(slot)) = (self.seg.conn_ctl(i), self.seg.conn(i)) {
+                        if ctl.owes(k) {
+                            slot.missed.fetch_add(1, Ordering::Relaxed);
+                            timed_out += 1;
+                        }
+                    }
+                }
+                self.seg.header().timeouts.fetch_add(1, Ordering::Relaxed);
+            }
+        }
+        self.read_subscribe()?;
+        Ok(StepReport { step: k, timed_out, removed })
+    }
+
+    /// Reads the latest SUBSCRIBE set without stepping (asynchronous domains, or between steps).
+    pub fn read_subscribe(&mut self) -> Result<&[u8], ShmError> {
+        let bucket = self.seg.bucket(Role::Subscribe)?;
+        if bucket.read(&mut self.subscribe, 1 << 20).is_none() {
+            return Err(ShmError::Corrupt { domain: self.seg.info.name.clone(), detail: "SUBSCRIBE set never settles".into() });
+        }
+        Ok(&self.subscribe)
+    }
+
+    /// Waits until `done` holds, sweeping dead connections meanwhile; gives up at the timeout.
+    fn wait_acks(&mut self, done: impl Fn(&Segment) -> bool) -> Result<(Waited, usize), ShmError> {
+        let h = self.seg.header();
+        let waiter = Waiter { mode: self.opts.wait, futex: &h.ack_seq, waiters: &h.ack_waiters, check_every: self.opts.sweep_every.min(Duration::from_millis(2)) };
+        let deadline = Instant::now() + self.opts.timeout;
+        let mut removed = 0;
+        let seg = &self.seg;
+        let waited = waiter.wait::<ShmError>(
+            deadline,
+            || Ok(done(seg)),
+            || {
+                removed += sweep(seg);
+                Ok(())
+            },
+        )?;
+        if removed > 0 {
+            self.last_sweep = Instant::now();
+        }
+        Ok((waited, removed))
+    }
+
+    fn maybe_sweep(&mut self) -> usize {
+        if self.last_sweep.elapsed() >= self.opts.sweep_every {
+            self.last_sweep = Instant::now();
+            sweep(&self.seg)
+        } else {
+            0
+        }
+    }
+
+    /// Removes the connections of dead processes now; returns how many.
+    pub fn sweep(&mut self) -> usize {
+        self.last_sweep = Instant::now();
+        sweep(&self.seg)
+    }
+
+    /// Holds (`true`) or releases (`false`) the wait-to-go signal.
+    pub fn set_hold(&self, hold: bool) {
+        let h = self.seg.header();
+        h.hold.store(u32::from(hold), Ordering::Release);
+        if !hold {
+            os::futex_wake_all(&h.hold);
+        }
+    }
+
+    /// Waits until at least `n` connections have declared themselves writers, or the
+    /// timeout. Returns the number of writers seen.
+    pub fn wait_for_writers(&mut self, n: usize, timeout: Duration) -> Result<usize, ShmError> {
+        let deadline = Instant::now() + timeout;
+        loop {
+            self.sweep();
+            let writers = (0..self.seg.scan_len())
+                .filter_map(|i| self.seg.conn(i))
+                .filter(|c| c.active.load(Ordering::Acquire) != 0 && c.flags.load(Ordering::Acquire) & CONN_WRITER != 0)
+                .count();
+            if writers >= n || Instant::now() >= deadline {
+                return Ok(writers);
+            }
+            std::thread::sleep(Duration::from_millis(1));
+        }
+    }
+
+    /// Records timing of the real-time loop, shown by `tutti status`.
+    pub fn record_timing(&self, period: Duration, late: Duration, overrun: bool) {
+        let h = self.seg.header();
+        h.period_ns.store(period.as_nanos() as u64, Ordering::Relaxed);
+        let late = late.as_nanos() as u64;
+        h.last_late_ns.store(late, Ordering::Relaxed);
+        h.max_late_ns.fetch_max(late, Ordering::Relaxed);
+        if overrun {
+            h.overruns.fetch_add(1, Ordering::Relaxed);
+        }
+    }
+}
+
+/// Removes every connection whose process is gone; returns how many.
+fn sweep(seg: &Segment) -> usize {
+    let mut removed = 0;
+    for i in 0..seg.scan_len() {
+        let Some(c) = seg.conn(i) else { break };
+        let pid = c.active.load(Ordering::Acquire);
+        if pid == 0 {
+            continue;
+        }
+        let id = os::ProcessId { pid, start_time: c.start_time.load(Ordering::Acquire) };
+        if !os::is_alive(id) && seg.release_slot(i, pid) {
+            removed += 1;
+        }
+    }
+    removed
+}
+
+impl Drop for DomainHost {
+    fn drop(&mut self) {
+        let h = self.seg.header();
+        h.state.store(STATE_STOPPED, Ordering::Release);
+        h.step_seq.fetch_add(1, Ordering::Release);
+        h.ack_seq.fetch_add(1, Ordering::Release);
+        h.hold.store(0, Ordering::Release);
+        os::futex_wake_all(&h.step_seq);
+        os::futex_wake_all(&h.ack_seq);
+        os::futex_wake_all(&h.hold);
+        let _ = os::shm_unlink(&self.seg.shm_name);
+    }
+}

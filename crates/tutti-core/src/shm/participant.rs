@@ -1,0 +1,453 @@
+//! The external participant role: connect to a domain by name, snapshot the PUBLISH set,
+//! stage and commit the SUBSCRIBE set. The RTAPI (C and Python) is a thin layer over this.
+
+use std::time::{Duration, Instant};
+
+use super::bucket::store_range;
+use super::handshake::{CONN_SYNC_READER, CONN_WRITER};
+use super::segment::{self, namespace_from_env, DomainInfo, Segment, WaitMode, Waited, Waiter, STATE_RUNNING};
+use super::{os, ShmError};
+use crate::ddf::{Domain, Leaf, Role};
+use crate::sync::{AtomicU32, Ordering};
+
+/// How a participant connects and waits.
+#[derive(Debug, Clone)]
+pub struct ConnectOptions {
+    /// Namespace of the segments (default: `TUTTI_NAMESPACE`, else `tutti`).
+    pub namespace: String,
+    /// Shown in `tutti status` (default: the program name).
+    pub name: String,
+    /// How long `connect` waits for the domain to appear and for wait-to-go.
+    pub connect_timeout: Duration,
+    /// How long a lock waits for the framework's next step.
+    pub timeout: Duration,
+    /// Spin, poll every N µs ("flag delay"), or block.
+    pub wait: WaitMode,
+    /// Do not wait for the framework's wait-to-go signal in `connect`.
+    pub skip_wait_to_go: bool,
+    /// This connection stands for a DDS-side participant (set by the gateway).
+    pub remote: bool,
+}
+
+impl Default for ConnectOptions {
+    fn default() -> Self {
+        let name = std::env::args().next().map(|a| a.rsplit('/').next().unwrap_or(&a).to_string()).unwrap_or_default();
+        ConnectOptions {
+            namespace: namespace_from_env(),
+            name,
+            connect_timeout: Duration::from_secs(5),
+            timeout: Duration::from_secs(5),
+            wait: WaitMode::Block,
+            skip_wait_to_go: false,
+            remote: false,
+        }
+    }
+}
+
+/// A connection to one domain.
+#[derive(Debug)]
+pub struct Participant {
+    seg: Segment,
+    slot: usize,
+    id: u64,
+    me: os::ProcessId,
+    opts: ConnectOptions,
+    /// Own copy of the PUBLISH set, refreshed by `subscribe_lock`.
+    snapshot: Vec<u8>,
+    /// SUBSCRIBE values being staged; committed by `commit`.
+    staging: Vec<u8>,
+    /// The SUBSCRIBE values as this connection last committed them (to find changes).
+    shadow: Vec<u8>,
+    /// Leaves staged explicitly (committed even when unchanged).
+    marked: Vec<bool>,
+    last_read: u64,
+    last_commit: u64,
+    locked_step: u64,
+    connected: bool,
+}
+
+impl Participant {
+    /// Connects to domain `domain`: waits (up to `connect_timeout`) for its framework, then
+    /// for wait-to-go unless skipped.
+    pub fn connect(domain: &str, opts: ConnectOptions) -> Result<Participant, ShmError> {
+        let deadline = Instant::now() + opts.connect_timeout;
+        let seg = loop {
+            let err = match Segment::open(&opts.namespace, domain) {
+                Ok(seg) if seg.framework_alive() => break seg,
+                Ok(_) => ShmError::FrameworkStopped { domain: domain.to_string() },
+                Err(e @ (ShmError::NoSuchDomain { .. } | ShmError::NotReady { .. })) => e,
+                Err(e) => return Err(e),
+            };
+            if Instant::now() >= deadline {
+                return Err(err);
+            }
+            std::thread::sleep(Duration::from_millis(5));
+        };
+        let me = os::current_process();
+        let slot = seg.claim_slot(me, &opts.name, opts.remote)?;
+        let id = seg.conn_id(slot);
+        let (pub_size, sub_size) = (seg.info.publish.size as usize, seg.info.subscribe.size as usize);
+        let mut p = Participant {
+            snapshot: vec![0; pub_size],
+            staging: vec![0; sub_size],
+            shadow: vec![0; sub_size],
+            marked: vec![false; seg.info.subscribe.leaves.len()],
+            last_read: 0,
+            last_commit: 0,
+            locked_step: 0,
+            connected: true,
+            seg,
+            slot,
+            id,
+            me,
+            opts,
+        };
+        if let Some(c) = p.seg.conn(slot) {
+            p.last_read = c.last_read.load(Ordering::Relaxed);
+            p.last_commit = p.last_read;
+        }
+        // Start from the SUBSCRIBE values as they are: a commit changes only what we change.
+        let bucket = p.seg.bucket(Role::Subscribe)?;
+        bucket.read(&mut p.staging, 1 << 20).ok_or_else(|| p.corrupt("SUBSCRIBE set never settles"))?;
+        p.shadow.copy_from_slice(&p.staging);
+        bucket_read_publish(&p.seg, &mut p.snapshot)?;
+        if !p.opts.skip_wait_to_go {
+            p.wait_ready_to_go_until(deadline)?;
+        }
+        Ok(p)
+    }
+
+    /// Connects and checks that the running domain has the layout `domain` (from a DDF).
+    pub fn connect_checked(domain: &Domain, opts: ConnectOptions) -> Result<Participant, ShmError> {
+        let p = Participant::connect(&domain.name, opts)?;
+        if p.seg.info.layout_hash != domain.layout_hash {
+            return Err(ShmError::LayoutMismatch { domain: domain.name.clone(), expected: domain.layout_hash, found: p.seg.info.layout_hash });
+        }
+        Ok(p)
+    }
+
+    fn corrupt(&self, detail: &str) -> ShmError {
+        ShmError::Corrupt { domain: self.seg.info.name.clone(), detail: detail.to_string() }
+    }
+
+    /// The domain as the segment describes it.
+    pub fn info(&self) -> &DomainInfo {
+        &self.seg.info
+    }
+
+    pub fn segment(&self) -> &Segment {
+        &self.seg
+    }
+
+    /// The connection's slot and id (slot + generation).
+    pub fn slot(&self) -> (usize, u64) {
+        (self.slot, self.id)
+    }
+
+    pub fn set_wait_mode(&mut self, mode: WaitMode) {
+        self.opts.wait = mode;
+    }
+
+    pub fn set_timeout(&mut self, timeout: Duration) {
+        self.opts.timeout = timeout;
+    }
+
+    /// The framework's state word (1 running, 2 stopped): a live status for the RTAPI.
+    pub fn state_word(&self) -> &AtomicU32 {
+        &self.seg.header().state
+    }
+
+    /// Connections now in the domain (this one included).
+    pub fn connection_count(&self) -> u32 {
+        self.seg.header().conn_count.load(Ordering::Acquire)
+    }
+
+    /// The step of the last snapshot (0 before any), and the framework's simulated time.
+    pub fn last_step(&self) -> u64 {
+        self.last_read
+    }
+
+    pub fn sim_time(&self) -> f64 {
+        f64::from_bits(self.seg.header().sim_time_bits.load(Ordering::Relaxed))
+    }
+
+    /// Whether the connection is still in place (the framework removes connections it
+    /// judges dead) and the framework runs.
+    pub fn check(&self) -> Result<(), ShmError> {
+        let domain = || self.seg.info.name.clone();
+        if !self.connected {
+            return Err(ShmError::ConnectionLost { domain: domain() });
+        }
+        let h = self.seg.header();
+        if h.state.load(Ordering::Acquire) != STATE_RUNNING {
+            return Err(ShmError::FrameworkStopped { domain: domain() });
+        }
+        let c = self.seg.conn(self.slot).ok_or_else(|| ShmError::ConnectionLost { domain: domain() })?;
+        if c.active.load(Ordering::Acquire) != self.me.pid || self.seg.conn_id(self.slot) != self.id {
+            return Err(ShmError::ConnectionLost { domain: domain() });
+        }
+        Ok(())
+    }
+
+    fn check_alive(&self) -> Result<(), ShmError> {
+        self.check()?;
+        if !os::is_alive(self.seg.framework_id()) {
+            return Err(ShmError::FrameworkStopped { domain: self.seg.info.name.clone() });
+        }
+        Ok(())
+    }
+
+    fn timeout(&self, what: &'static str, after: Duration) -> ShmError {
+        ShmError::Timeout { domain: self.seg.info.name.clone(), what, ms: after.as_millis() as u64 }
+    }
+
+    fn waiter(&self, futex: &'static str) -> Waiter<'_> {
+        let h = self.seg.header();
+        let (futex, waiters) = match futex {
+            "hold" => (&h.hold, &h.go_waiters),
+            _ => (&h.step_seq, &h.step_waiters),
+        };
+        Waiter { mode: self.opts.wait, futex, waiters, check_every: Duration::from_millis(20) }
+    }
+
+    /// Blocks while the framework holds its wait-to-go signal (at most the connect timeout).
+    pub fn wait_ready_to_go(&self) -> Result<(), ShmError> {
+        self.wait_ready_to_go_until(Instant::now() + self.opts.connect_timeout)
+    }
+
+    fn wait_ready_to_go_until(&self, deadline: Instant) -> Result<(), ShmError> {
+        let h = self.seg.header();
+        let w = self.waiter("hold");
+        match w.wait(deadline, || Ok(h.hold.load(Ordering::Acquire) == 0), || self.check_alive())? {
+            Waited::Ready => Ok(()),
+            Waited::TimedOut => Err(self.timeout("wait-to-go", self.opts.connect_timeout)),
+        }
+    }
+
+    /// Takes a consistent snapshot of the PUBLISH set into this connection's own buffer. In
+    /// a synchronous domain, waits for the next step (each step is read exactly once) and
+    /// acknowledges it. Returns the step read (asynchronous: the framework's latest).
+    pub fn subscribe_lock(&mut self) -> Result<u64, ShmError> {
+        self.check()?;
+        let seg = &self.seg;
+        let c = seg.conn(self.slot).ok_or_else(|| ShmError::ConnectionLost { domain: seg.info.name.clone() })?;
+        if seg.info.flags.synchronous {
+            c.flags.fetch_or(CONN_SYNC_READER, Ordering::AcqRel);
+            let ctl = seg.step_ctl();
+            let last = self.last_read;
+            let deadline = Instant::now() + self.opts.timeout;
+            match self.waiter("step").wait(deadline, || Ok(ctl.next_step(last).is_some()), || self.check_alive())? {
+                Waited::Ready => {}
+                Waited::TimedOut => return Err(self.timeout("the framework's next step", self.opts.timeout)),
+            }
+            self.check()?;
+            let generation = bucket_read_publish(&self.seg, &mut self.snapshot)?;
+            // The PUBLISH generation counts the framework's publishes, i.e. its steps.
+            let step = generation.max(last + 1);
+            self.last_read = step;
+            let seg = &self.seg;
+            let conn = seg.conn_ctl(self.slot).ok_or_else(|| ShmError::ConnectionLost { domain: seg.info.name.clone() })?;
+            seg.step_ctl().ack_read(&conn, step);
+            let h = seg.header();
+            segment::wake(&h.ack_seq, &h.ack_waiters);
+        } else {
+            self.last_read = bucket_read_publish(&self.seg, &mut self.snapshot)?;
+        }
+        if let Some(c) = self.seg.conn(self.slot) {
+            c.reads.fetch_add(1, Ordering::Relaxed);
+        }
+        Ok(self.last_read)
+    }
+
+    /// The PUBLISH set as of the last `subscribe_lock`.
+    pub fn snapshot(&self) -> &[u8] {
+        &self.snapshot
+    }
+
+    /// Mutable access to the snapshot buffer (the RTAPI hands out pointers into it).
+    pub fn snapshot_mut(&mut self) -> &mut [u8] {
+        &mut self.snapshot
+    }
+
+    /// Starts a SUBSCRIBE write: declares this connection a writer, claims exclusive
+    /// ownership where the domain allows one writer, and in a synchronous domain waits for
+    /// the step this commit answers (the seed needs no step).
+    pub fn publish_lock(&mut self) -> Result<(), ShmError> {
+        self.check()?;
+        self.claim_writer()?;
+        let seg = &self.seg;
+        let h = seg.header();
+        if seg.info.flags.synchronous {
+            let last = self.last_commit;
+            let states = seg.info.flags.states;
+            let ready = || {
+                let k = h.pub_step.load(Ordering::Acquire);
+                Ok(k > last || (states && k == 0 && h.seeded.load(Ordering::Acquire) == 0))
+            };
+            let deadline = Instant::now() + self.opts.timeout;
+            match self.waiter("step").wait(deadline, ready, || self.check_alive())? {
+                Waited::Ready => {}
+                Waited::TimedOut => return Err(self.timeout("a step to publish for", self.opts.timeout)),
+            }
+            let k = h.pub_step.load(Ordering::Acquire);
+            self.locked_step = k;
+            // Waiting for step k counts as having seen it: a connection that only writes
+            // must not stall the framework for a read it never makes.
+            if self.last_read < k {
+                self.last_read = k;
+                if let Some(conn) = seg.conn_ctl(self.slot) {
+                    seg.step_ctl().ack_read(&conn, k);
+                }
+                segment::wake(&h.ack_seq, &h.ack_waiters);
+            }
+        }
+        Ok(())
+    }
+
+    fn claim_writer(&self) -> Result<(), ShmError> {
+        let seg = &self.seg;
+        let h = seg.header();
+        if let Some(c) = seg.conn(self.slot) {
+            c.flags.fetch_or(CONN_WRITER, Ordering::AcqRel);
+        }
+        if !seg.info.flags.multiple_publish_allowed {
+            match h.owner_conn.compare_exchange(0, self.id, Ordering::AcqRel, Ordering::Acquire) {
+                Ok(_) => {}
+                Err(owner) if owner == self.id => {}
+                Err(owner) => {
+                    h.rejected.fetch_add(1, Ordering::Relaxed);
+                    let owner_pid = seg.conn(((owner & 0xffff_ffff) as usize).wrapping_sub(1)).map_or(0, |c| c.active.load(Ordering::Relaxed));
+                    return Err(ShmError::NotOwner { domain: seg.info.name.clone(), owner_pid });
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// The SUBSCRIBE values being staged.
+    pub fn staging(&self) -> &[u8] {
+        &self.staging
+    }
+
+    /// Mutable staging buffer: whatever differs from the last commit is committed next.
+    pub fn staging_mut(&mut self) -> &mut [u8] {
+        &mut self.staging
+    }
+
+    /// Stages one item of the SUBSCRIBE set (committed even if unchanged).
+    pub fn stage(&mut self, path: &str, bytes: &[u8]) -> Result<(), ShmError> {
+        let (idx, leaf) = self.leaf(Role::Subscribe, path)?;
+        let range = leaf.range();
+        if bytes.len() != range.len() {
+            return Err(ShmError::SizeMismatch { domain: self.seg.info.name.clone(), role: Role::Subscribe, expected: range.len(), got: bytes.len() });
+        }
+        self.staging[range].copy_from_slice(bytes);
+        self.marked[idx] = true;
+        Ok(())
+    }
+
+    /// The leaf `path` of set `role`, with its index in that set.
+    pub fn leaf(&self, role: Role, path: &str) -> Result<(usize, Leaf), ShmError> {
+        self.seg
+            .info
+            .set(role)
+            .leaves
+            .iter()
+            .enumerate()
+            .find(|(_, l)| l.path == path)
+            .map(|(i, l)| (i, l.clone()))
+            .ok_or_else(|| ShmError::UnknownItem { domain: self.seg.info.name.clone(), role, item: path.to_string() })
+    }
+
+    /// Commits the staged SUBSCRIBE values atomically: the leaves staged or changed since the
+    /// last commit replace the current values; other writers' items are kept. In a
+    /// synchronous domain this is the connection's contribution to the locked step.
+    pub fn commit(&mut self) -> Result<(), ShmError> {
+        self.check()?;
+        self.claim_writer()?;
+        let seg = &self.seg;
+        let h = seg.header();
+        let changed: Vec<(usize, usize)> = seg
+            .info
+            .subscribe
+            .leaves
+            .iter()
+            .enumerate()
+            .filter(|(i, l)| self.marked[*i] || self.staging[l.range()] != self.shadow[l.range()])
+            .map(|(_, l)| (l.offset as usize, l.size as usize))
+            .collect();
+        // One SUBSCRIBE writer at a time; a holder that dies is cleared by the framework.
+        let deadline = Instant::now() + self.opts.timeout;
+        let mut turns = 0u32;
+        while h.writer_lock.compare_exchange(0, self.id, Ordering::AcqRel, Ordering::Relaxed).is_err() {
+            turns += 1;
+            if turns % 64 == 0 {
+                if Instant::now() >= deadline {
+                    return Err(self.timeout("another writer's commit", self.opts.timeout));
+                }
+                self.check_alive()?;
+                std::thread::yield_now();
+            }
+            std::hint::spin_loop();
+        }
+        let bucket = seg.bucket(Role::Subscribe);
+        if let Ok(bucket) = &bucket {
+            let staging = &self.staging;
+            bucket.write_with(|prev, next| {
+                for (p, n) in prev.iter().zip(next) {
+                    n.store(p.load(Ordering::Relaxed), Ordering::Relaxed);
+                }
+                for &(off, len) in &changed {
+                    store_range(next, off, &staging[off..off + len]);
+                }
+            });
+        }
+        h.writer_lock.store(0, Ordering::Release);
+        bucket?;
+        h.sets[Role::Subscribe as usize].commits.fetch_add(1, Ordering::Relaxed);
+        h.seeded.store(1, Ordering::Release);
+        for &(off, len) in &changed {
+            self.shadow[off..off + len].copy_from_slice(&self.staging[off..off + len]);
+        }
+        self.marked.iter_mut().for_each(|m| *m = false);
+        if let Some(c) = seg.conn(self.slot) {
+            c.commits.fetch_add(1, Ordering::Relaxed);
+        }
+        if seg.info.flags.synchronous {
+            let k = self.locked_step;
+            self.last_commit = k;
+            if let Some(conn) = seg.conn_ctl(self.slot) {
+                seg.step_ctl().ack_commit(&conn, k);
+            }
+            segment::wake(&h.ack_seq, &h.ack_waiters);
+        }
+        Ok(())
+    }
+
+    /// Leaves the domain: releases the slot, ownership and pending handshakes.
+    pub fn disconnect(mut self) {
+        self.release();
+    }
+
+    fn release(&mut self) {
+        if self.connected {
+            self.connected = false;
+            if self.seg.conn_id(self.slot) == self.id {
+                self.seg.release_slot(self.slot, self.me.pid);
+            }
+        }
+    }
+}
+
+/// Reads the PUBLISH set; returns its generation.
+fn bucket_read_publish(seg: &Segment, out: &mut [u8]) -> Result<u64, ShmError> {
+    seg.bucket(Role::Publish)?
+        .read(out, 1 << 20)
+        .ok_or_else(|| ShmError::Corrupt { domain: seg.info.name.clone(), detail: "PUBLISH set never settles".into() })
+}
+
+impl Drop for Participant {
+    fn drop(&mut self) {
+        self.release();
+    }
+}

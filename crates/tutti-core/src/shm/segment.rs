@@ -1,0 +1,856 @@
+//! One domain's shared-memory segment: a self-describing header (magic, version, layout
+//! hash, item directory), the connection table, and the two buckets.
+//!
+//! ```text
+//! 0        Header (HEADER_BYTES)
+//! conn_off ConnSlot × conn_capacity (128 bytes each)
+//! dir_off  directory: one 16-byte entry per leaf (PUBLISH leaves first)
+//! str_off  string table: domain name, then item paths (UTF-8)
+//! sets[r].slots_off  two slots of sets[r].words × 8 bytes, for each role r
+//! ```
+//!
+//! Everything in the segment is read and written through atomics. Every offset and length
+//! read from a segment is checked before use, and the directory is re-hashed and compared
+//! with the header's layout hash, so a corrupted or hostile segment gives [`ShmError`], never
+//! undefined behaviour.
+
+use std::fs::File;
+use std::io;
+use std::mem::size_of;
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+
+use memmap2::MmapRaw;
+use serde::Serialize;
+
+use super::bucket::{load_bytes, Bucket};
+use super::handshake::{ConnCtl, StepCtl, CONN_REMOTE, CONN_SYNC_READER, CONN_WRITER};
+use super::os::{self, ProcessId};
+use super::ShmError;
+use crate::ddf::layout::{layout_hash, MAX_SET_BYTES};
+use crate::ddf::{Domain, Flags, Leaf, Role, ScalarType, SetLayout};
+use crate::sync::{AtomicU32, AtomicU64, Ordering};
+
+/// `TUTTISHM`, little-endian.
+pub const MAGIC: u64 = u64::from_le_bytes(*b"TUTTISHM");
+/// Segment format version.
+pub const VERSION: u32 = 1;
+/// Bytes reserved for the header.
+pub const HEADER_BYTES: usize = 1024;
+/// Connection slots per domain.
+pub const DEFAULT_CONNECTIONS: u32 = 64;
+const MAX_CONNECTIONS: u32 = 4096;
+const CONN_BYTES: usize = 128;
+const DIR_ENTRY_BYTES: usize = 16;
+const ALIGN: usize = 64;
+
+/// Framework state values.
+pub const STATE_INIT: u32 = 0;
+pub const STATE_RUNNING: u32 = 1;
+pub const STATE_STOPPED: u32 = 2;
+
+/// The namespace from `TUTTI_NAMESPACE` (default `tutti`).
+pub fn namespace_from_env() -> String {
+    std::env::var("TUTTI_NAMESPACE").ok().filter(|s| !s.is_empty()).unwrap_or_else(|| "tutti".to_string())
+}
+
+/// Checks a namespace: 1–64 characters of `[A-Za-z0-9_.-]`.
+pub fn check_namespace(ns: &str) -> Result<(), ShmError> {
+    let ok = !ns.is_empty() && ns.len() <= 64 && ns.chars().all(|c| c.is_ascii_alphanumeric() || matches!(c, '_' | '.' | '-'));
+    if ok {
+        Ok(())
+    } else {
+        Err(ShmError::InvalidNamespace { namespace: ns.to_string() })
+    }
+}
+
+/// The shared-memory object name of a domain: `tutti.NAMESPACE.DOMAIN`.
+pub fn segment_name(ns: &str, domain: &str) -> String {
+    format!("tutti.{ns}.{domain}")
+}
+
+/// How a connection or the framework waits for the other side.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+pub enum WaitMode {
+    /// Busy-wait: lowest latency, one core at 100 %.
+    Spin,
+    /// Check every given interval (the product's "flag delay").
+    Poll(Duration),
+    /// Sleep in the kernel (futex) until woken: no CPU use, a wake-up costs tens of µs.
+    Block,
+}
+
+#[repr(C)]
+#[derive(Debug)]
+pub struct SetHeader {
+    pub size: AtomicU32,
+    pub align: AtomicU32,
+    /// Words (8 bytes) per slot.
+    pub words: AtomicU32,
+    pub _pad: AtomicU32,
+    pub slots_off: AtomicU64,
+    pub seq: [AtomicU64; 2],
+    pub current: AtomicU64,
+    pub commits: AtomicU64,
+}
+
+#[repr(C)]
+#[derive(Debug)]
+pub struct Header {
+    pub magic: AtomicU64,
+    pub version: AtomicU32,
+    pub header_bytes: AtomicU32,
+    pub total_size: AtomicU64,
+    pub layout_hash: AtomicU64,
+    pub flags: AtomicU32,
+    pub conn_capacity: AtomicU32,
+    pub owner_pid: AtomicU32,
+    pub state: AtomicU32,
+    pub owner_start: AtomicU64,
+    pub created_ns: AtomicU64,
+    pub name_off: AtomicU32,
+    pub name_len: AtomicU32,
+    pub dir_off: AtomicU32,
+    pub dir_count: AtomicU32,
+    pub str_off: AtomicU32,
+    pub str_len: AtomicU32,
+    pub conn_off: AtomicU32,
+    /// One past the highest connection slot ever used (bounds the scans).
+    pub conn_hwm: AtomicU32,
+    pub sets: [SetHeader; 2],
+    pub pub_step: AtomicU64,
+    pub step_seq: AtomicU32,
+    pub step_waiters: AtomicU32,
+    pub ack_seq: AtomicU32,
+    pub ack_waiters: AtomicU32,
+    /// Wait-to-go: 1 while the framework holds participants.
+    pub hold: AtomicU32,
+    pub seeded: AtomicU32,
+    pub conn_count: AtomicU32,
+    pub go_waiters: AtomicU32,
+    /// Exclusive SUBSCRIBE owner (connection id), 0 when none.
+    pub owner_conn: AtomicU64,
+    /// Connection id committing to SUBSCRIBE right now, 0 when none.
+    pub writer_lock: AtomicU64,
+    pub sim_time_bits: AtomicU64,
+    pub heartbeat_ns: AtomicU64,
+    pub period_ns: AtomicU64,
+    pub steps: AtomicU64,
+    pub overruns: AtomicU64,
+    pub timeouts: AtomicU64,
+    pub max_late_ns: AtomicU64,
+    pub last_late_ns: AtomicU64,
+    pub rejected: AtomicU64,
+}
+
+#[repr(C)]
+#[derive(Debug)]
+pub struct ConnSlot {
+    /// The owner's pid while in use, 0 when free.
+    pub active: AtomicU32,
+    pub generation: AtomicU32,
+    pub flags: AtomicU32,
+    pub ready: AtomicU32,
+    pub start_time: AtomicU64,
+    pub since_ns: AtomicU64,
+    pub first_step: AtomicU64,
+    pub last_read: AtomicU64,
+    pub last_commit: AtomicU64,
+    pub reads: AtomicU64,
+    pub commits: AtomicU64,
+    pub missed: AtomicU64,
+    pub name: [AtomicU64; 6],
+}
+
+const _: () = assert!(size_of::<Header>() <= HEADER_BYTES);
+const _: () = assert!(size_of::<ConnSlot>() == CONN_BYTES);
+
+/// What a segment says about its domain, decoded and checked.
+#[derive(Debug, Clone, PartialEq)]
+pub struct DomainInfo {
+    pub name: String,
+    pub flags: Flags,
+    pub layout_hash: u64,
+    pub publish: SetLayout,
+    pub subscribe: SetLayout,
+}
+
+impl DomainInfo {
+    pub fn from_domain(d: &Domain) -> Self {
+        DomainInfo {
+            name: d.name.clone(),
+            flags: d.flags,
+            layout_hash: d.layout_hash,
+            publish: d.publish.layout.clone(),
+            subscribe: d.subscribe.layout.clone(),
+        }
+    }
+
+    pub fn set(&self, role: Role) -> &SetLayout {
+        match role {
+            Role::Publish => &self.publish,
+            Role::Subscribe => &self.subscribe,
+        }
+    }
+
+    /// All leaves, PUBLISH first: the index is the RTAPI item key.
+    pub fn leaves(&self) -> impl Iterator<Item = (Role, &Leaf)> {
+        self.publish.leaves.iter().map(|l| (Role::Publish, l)).chain(self.subscribe.leaves.iter().map(|l| (Role::Subscribe, l)))
+    }
+}
+
+fn flags_bits(f: Flags) -> u32 {
+    u32::from(f.synchronous) | u32::from(f.multiple_publish_allowed) << 1 | u32::from(f.states) << 2
+}
+
+fn flags_from_bits(b: u32) -> Flags {
+    Flags { synchronous: b & 1 != 0, multiple_publish_allowed: b & 2 != 0, states: b & 4 != 0 }
+}
+
+fn round_up(n: usize, a: usize) -> usize {
+    n.div_ceil(a) * a
+}
+
+/// A mapped segment.
+#[derive(Debug)]
+pub struct Segment {
+    map: MmapRaw,
+    len: usize,
+    /// The shared-memory object name.
+    pub shm_name: String,
+    pub info: Arc<DomainInfo>,
+}
+
+// SAFETY: the mapping is only accessed through atomics (Header, ConnSlot, slot words), which
+// are Sync; the raw pointer is never used for plain reads or writes.
+unsafe impl Send for Segment {}
+// SAFETY: as above.
+unsafe impl Sync for Segment {}
+
+impl Segment {
+    /// Creates the segment of `domain` in namespace `ns`, reclaiming a stale one left by a
+    /// dead framework; a live one is refused with its owner's pid.
+    pub fn create(ns: &str, domain: &Domain, conn_capacity: u32, mode: u32) -> Result<Segment, ShmError> {
+        check_namespace(ns)?;
+        let shm_name = segment_name(ns, &domain.name);
+        let info = DomainInfo::from_domain(domain);
+        let file = match os::shm_open(&shm_name, true, mode) {
+            Ok(f) => f,
+            Err(e) if e.kind() == io::ErrorKind::AlreadyExists => {
+                reclaim_stale(&shm_name, &domain.name)?;
+                os::shm_open(&shm_name, true, mode).map_err(|e| ShmError::io(format!("creating {}/{shm_name}", os::SHM_DIR), e))?
+            }
+            Err(e) => return Err(ShmError::io(format!("creating {}/{shm_name}", os::SHM_DIR), e)),
+        };
+        match Self::init(file, &shm_name, info, conn_capacity.clamp(1, MAX_CONNECTIONS)) {
+            Ok(seg) => Ok(seg),
+            Err(e) => {
+                let _ = os::shm_unlink(&shm_name);
+                Err(e)
+            }
+        }
+    }
+
+    fn init(file: File, shm_name: &str, info: DomainInfo, cap: u32) -> Result<Segment, ShmError> {
+        let leaves: Vec<(Role, &Leaf)> = info.leaves().collect();
+        let mut strings = Vec::new();
+        strings.extend_from_slice(info.name.as_bytes());
+        let mut entries = Vec::with_capacity(leaves.len());
+        for (role, leaf) in &leaves {
+            let off = strings.len() as u64;
+            strings.extend_from_slice(leaf.path.as_bytes());
+            let ty = ScalarType::ALL.iter().position(|t| *t == leaf.ty).unwrap_or(0) as u64;
+            let w0 = off | (leaf.path.len() as u64) << 32 | (*role as u64) << 48 | ty << 56;
+            let w1 = u64::from(leaf.length) | u64::from(leaf.offset) << 16;
+            entries.push((w0, w1));
+        }
+        let conn_off = HEADER_BYTES;
+        let dir_off = conn_off + cap as usize * CONN_BYTES;
+        let str_off = dir_off + entries.len() * DIR_ENTRY_BYTES;
+        let mut end = round_up(str_off + strings.len(), ALIGN);
+        let mut set_geom = [(0usize, 0usize); 2];
+        for role in Role::ALL {
+            let words = round_up(info.set(role).size as usize, ALIGN) / 8;
+            set_geom[role as usize] = (end, words);
+            end += 2 * words * 8;
+        }
+        let total = end;
+        file.set_len(total as u64).map_err(|e| ShmError::io(format!("sizing {}/{shm_name}", os::SHM_DIR), e))?;
+        let map = os::map(&file).map_err(|e| ShmError::io(format!("mapping {}/{shm_name}", os::SHM_DIR), e))?;
+        let seg = Segment { map, len: total, shm_name: shm_name.to_string(), info: Arc::new(info) };
+        let h = seg.header();
+        let me = os::current_process();
+        h.owner_pid.store(me.pid, Ordering::Relaxed);
+        h.owner_start.store(me.start_time, Ordering::Relaxed);
+        h.version.store(VERSION, Ordering::Relaxed);
+        h.header_bytes.store(HEADER_BYTES as u32, Ordering::Relaxed);
+        h.total_size.store(total as u64, Ordering::Relaxed);
+        h.layout_hash.store(seg.info.layout_hash, Ordering::Relaxed);
+        h.flags.store(flags_bits(seg.info.flags), Ordering::Relaxed);
+        h.conn_capacity.store(cap, Ordering::Relaxed);
+        h.created_ns.store(os::now_ns(), Ordering::Relaxed);
+        h.name_off.store(0, Ordering::Relaxed);
+        h.name_len.store(seg.info.name.len() as u32, Ordering::Relaxed);
+        h.conn_off.store(conn_off as u32, Ordering::Relaxed);
+        h.dir_off.store(dir_off as u32, Ordering::Relaxed);
+        h.dir_count.store(entries.len() as u32, Ordering::Relaxed);
+        h.str_off.store(str_off as u32, Ordering::Relaxed);
+        h.str_len.store(strings.len() as u32, Ordering::Relaxed);
+        let dir = seg.words_at(dir_off, entries.len() * 2)?;
+        for (i, (w0, w1)) in entries.iter().enumerate() {
+            dir[2 * i].store(*w0, Ordering::Relaxed);
+            dir[2 * i + 1].store(*w1, Ordering::Relaxed);
+        }
+        let str_words = seg.words_at(str_off - str_off % 8, (str_off % 8 + strings.len()).div_ceil(8))?;
+        let mut padded = vec![0u8; str_off % 8];
+        padded.extend_from_slice(&strings);
+        super::bucket::store_bytes(str_words, &padded);
+        for role in Role::ALL {
+            let (off, words) = set_geom[role as usize];
+            let sh = &h.sets[role as usize];
+            let layout = seg.info.set(role);
+            sh.size.store(layout.size, Ordering::Relaxed);
+            sh.align.store(layout.align, Ordering::Relaxed);
+            sh.words.store(words as u32, Ordering::Relaxed);
+            sh.slots_off.store(off as u64, Ordering::Relaxed);
+            let defaults = layout.default_bytes();
+            let bucket = seg.bucket(role)?;
+            for slot in bucket.slots {
+                super::bucket::store_bytes(slot, &defaults);
+            }
+        }
+        h.hold.store(0, Ordering::Relaxed);
+        h.state.store(STATE_RUNNING, Ordering::Relaxed);
+        // Publish the header last: a participant trusts nothing before it sees the magic.
+        h.magic.store(MAGIC, Ordering::Release);
+        Ok(seg)
+    }
+
+    /// Opens the segment of `domain` in `ns` and checks everything in it.
+    pub fn open(ns: &str, domain: &str) -> Result<Segment, ShmError> {
+        check_namespace(ns)?;
+        let shm_name = segment_name(ns, domain);
+        let file = os::shm_open(&shm_name, false, 0).map_err(|e| {
+            if e.kind() == io::ErrorKind::NotFound {
+                ShmError::NoSuchDomain { domain: domain.to_string(), namespace: ns.to_string() }
+            } else {
+                ShmError::io(format!("opening {}/{shm_name}", os::SHM_DIR), e)
+            }
+        })?;
+        Self::open_file(file, &shm_name, domain)
+    }
+
+    fn open_file(file: File, shm_name: &str, domain: &str) -> Result<Segment, ShmError> {
+        let corrupt = |detail: String| ShmError::Corrupt { domain: domain.to_string(), detail };
+        let len = file.metadata().map_err(|e| ShmError::io(format!("inspecting {shm_name}"), e))?.len() as usize;
+        if len < HEADER_BYTES {
+            return Err(corrupt(format!("segment is {len} bytes, smaller than a header")));
+        }
+        let map = os::map(&file).map_err(|e| ShmError::io(format!("mapping {}/{shm_name}", os::SHM_DIR), e))?;
+        let placeholder = Arc::new(DomainInfo {
+            name: domain.to_string(),
+            flags: flags_from_bits(0),
+            layout_hash: 0,
+            publish: SetLayout::default(),
+            subscribe: SetLayout::default(),
+        });
+        let mut seg = Segment { map, len, shm_name: shm_name.to_string(), info: placeholder };
+        let h = seg.header();
+        let magic = h.magic.load(Ordering::Acquire);
+        if magic == 0 {
+            return Err(ShmError::NotReady { domain: domain.to_string() });
+        }
+        if magic != MAGIC {
+            return Err(ShmError::NotTuttiSegment { domain: domain.to_string(), path: format!("{}/{shm_name}", os::SHM_DIR) });
+        }
+        let version = h.version.load(Ordering::Relaxed);
+        if version != VERSION {
+            return Err(ShmError::VersionMismatch { domain: domain.to_string(), found: version, expected: VERSION });
+        }
+        if h.header_bytes.load(Ordering::Relaxed) as usize != HEADER_BYTES {
+            return Err(corrupt("header size field is wrong".into()));
+        }
+        if h.total_size.load(Ordering::Relaxed) != len as u64 {
+            return Err(corrupt(format!("header says {} bytes, segment has {len}", h.total_size.load(Ordering::Relaxed))));
+        }
+        let info = seg.decode_directory(domain)?;
+        seg.info = Arc::new(info);
+        Ok(seg)
+    }
+
+    /// Reads the directory and string table, validating every offset, and re-derives the
+    /// layout hash from them.
+    fn decode_directory(&self, domain: &str) -> Result<DomainInfo, ShmError> {
+        let corrupt = |detail: String| ShmError::Corrupt { domain: domain.to_string(), detail };
+        let h = self.header();
+        let ld = |a: &AtomicU32| a.load(Ordering::Relaxed) as usize;
+        let cap = h.conn_capacity.load(Ordering::Relaxed);
+        if cap == 0 || cap > MAX_CONNECTIONS {
+            return Err(corrupt(format!("connection capacity {cap} out of range")));
+        }
+        if ld(&h.conn_off) != HEADER_BYTES {
+            return Err(corrupt("connection table offset is wrong".into()));
+        }
+        self.check_range(HEADER_BYTES, cap as usize * CONN_BYTES, "connection table")?;
+        let (dir_off, dir_count) = (ld(&h.dir_off), ld(&h.dir_count));
+        if dir_off % 8 != 0 || dir_count > 2 * 65536 {
+            return Err(corrupt("directory position or size out of range".into()));
+        }
+        self.check_range(dir_off, dir_count * DIR_ENTRY_BYTES, "directory")?;
+        let (str_off, str_len) = (ld(&h.str_off), ld(&h.str_len));
+        self.check_range(str_off, str_len, "string table")?;
+        let base = str_off - str_off % 8;
+        let mut strings = vec![0u8; str_off % 8 + str_len];
+        load_bytes(self.words_at(base, strings.len().div_ceil(8))?, &mut strings);
+        let strings = &strings[str_off % 8..];
+        let text = |off: usize, len: usize, what: &str| -> Result<String, ShmError> {
+            let bytes = strings.get(off..off.checked_add(len).unwrap_or(usize::MAX)).ok_or_else(|| corrupt(format!("{what} outside the string table")))?;
+            String::from_utf8(bytes.to_vec()).map_err(|_| corrupt(format!("{what} is not UTF-8")))
+        };
+        let name = text(ld(&h.name_off), ld(&h.name_len), "domain name")?;
+        if name != domain {
+            return Err(corrupt(format!("segment names domain '{name}'")));
+        }
+        let flags = flags_from_bits(h.flags.load(Ordering::Relaxed));
+        let mut sets = [SetLayout::default(), SetLayout::default()];
+        for role in Role::ALL {
+            let sh = &h.sets[role as usize];
+            let size = sh.size.load(Ordering::Relaxed);
+            let align = sh.align.load(Ordering::Relaxed);
+            let words = sh.words.load(Ordering::Relaxed) as usize;
+            let off = sh.slots_off.load(Ordering::Relaxed);
+            if u64::from(size) > MAX_SET_BYTES || words * 8 < size as usize || !align.is_power_of_two() || align > 8 {
+                return Err(corrupt(format!("{role} set size fields are inconsistent")));
+            }
+            let off = usize::try_from(off).map_err(|_| corrupt(format!("{role} slots offset out of range")))?;
+            if off % ALIGN != 0 {
+                return Err(corrupt(format!("{role} slots are misaligned")));
+            }
+            self.check_range(off, 2 * words * 8, "set slots")?;
+            sets[role as usize] = SetLayout { size, align, leaves: Vec::new() };
+        }
+        let dir = self.words_at(dir_off, dir_count * 2)?;
+        for i in 0..dir_count {
+            let w0 = dir[2 * i].load(Ordering::Relaxed);
+            let w1 = dir[2 * i + 1].load(Ordering::Relaxed);
+            let path = text((w0 & 0xffff_ffff) as usize, ((w0 >> 32) & 0xffff) as usize, "item path")?;
+            let role = match (w0 >> 48) & 0xff {
+                0 => Role::Publish,
+                1 => Role::Subscribe,
+                r => return Err(corrupt(format!("item '{path}' has role {r}"))),
+            };
+            let ty = *ScalarType::ALL.get(((w0 >> 56) & 0xff) as usize).ok_or_else(|| corrupt(format!("item '{path}' has an unknown type")))?;
+            let length = (w1 & 0xffff) as u16;
+            let offset = ((w1 >> 16) & 0xffff_ffff) as u32;
+            let size = u32::from(length) * ty.size();
+            let set = &mut sets[role as usize];
+            if length == 0 || u64::from(offset) + u64::from(size) > u64::from(set.size) || offset % ty.size() != 0 {
+                return Err(corrupt(format!("item '{path}' lies outside its set")));
+            }
+            set.leaves.push(Leaf { path, ty, length, offset, size, default: None });
+        }
+        let [publish, subscribe] = sets;
+        let hash = layout_hash(&name, flags, &publish, &subscribe);
+        let stored = h.layout_hash.load(Ordering::Relaxed);
+        if hash != stored {
+            return Err(corrupt(format!("layout hash {stored:016x} does not match the directory ({hash:016x})")));
+        }
+        Ok(DomainInfo { name, flags, layout_hash: hash, publish, subscribe })
+    }
+
+    fn check_range(&self, off: usize, len: usize, what: &str) -> Result<(), ShmError> {
+        match off.checked_add(len) {
+            Some(end) if end <= self.len => Ok(()),
+            _ => Err(ShmError::Corrupt { domain: self.info.name.clone(), detail: format!("{what} lies outside the segment") }),
+        }
+    }
+
+    /// `n` words at byte offset `off`, bounds- and alignment-checked.
+    fn words_at(&self, off: usize, n: usize) -> Result<&[AtomicU64], ShmError> {
+        self.check_range(off, n * 8, "data")?;
+        if off % 8 != 0 {
+            return Err(ShmError::Corrupt { domain: self.info.name.clone(), detail: "misaligned data".into() });
+        }
+        // SAFETY: the range [off, off + 8n) lies inside the mapping (checked above), which
+        // lives as long as `self`; it is 8-aligned (mmap is page-aligned, `off` is a multiple
+        // of 8); AtomicU64 has the size and alignment of u64 and any bit pattern is valid.
+        Ok(unsafe { std::slice::from_raw_parts(self.map.as_mut_ptr().add(off).cast::<AtomicU64>(), n) })
+    }
+
+    pub fn header(&self) -> &Header {
+        // SAFETY: every segment is at least HEADER_BYTES long (created so, checked on open),
+        // the mapping is page-aligned, and Header consists of atomics only, valid for any
+        // bit pattern and safe to share between processes.
+        unsafe { &*self.map.as_mut_ptr().cast::<Header>() }
+    }
+
+    /// Connection slot `i` (`i < conn_capacity`, checked).
+    pub fn conn(&self, i: usize) -> Option<&ConnSlot> {
+        let cap = self.capacity();
+        if i >= cap {
+            return None;
+        }
+        // SAFETY: the table [HEADER_BYTES, HEADER_BYTES + cap·128) was bounds-checked on
+        // create/open (cap is re-clamped by `capacity`), slots are 128-byte aligned and made of
+        // atomics only.
+        Some(unsafe { &*self.map.as_mut_ptr().add(HEADER_BYTES + i * CONN_BYTES).cast::<ConnSlot>() })
+    }
+
+    /// Connection capacity, as validated on open.
+    pub fn capacity(&self) -> usize {
+        let cap = self.header().conn_capacity.load(Ordering::Relaxed) as usize;
+        cap.min((self.len.saturating_sub(HEADER_BYTES)) / CONN_BYTES)
+    }
+
+    /// Slots to scan: up to the high-water mark.
+    pub fn scan_len(&self) -> usize {
+        (self.header().conn_hwm.load(Ordering::Acquire) as usize).min(self.capacity())
+    }
+
+    pub fn conn_ctl(&self, i: usize) -> Option<ConnCtl<'_>> {
+        self.conn(i).map(|c| ConnCtl {
+            active: &c.active,
+            flags: &c.flags,
+            first_step: &c.first_step,
+            last_read: &c.last_read,
+            last_commit: &c.last_commit,
+        })
+    }
+
+    pub fn step_ctl(&self) -> StepCtl<'_> {
+        let h = self.header();
+        StepCtl { pub_step: &h.pub_step, step_seq: &h.step_seq, ack_seq: &h.ack_seq }
+    }
+
+    /// The bucket of one set, with the geometry validated on create/open.
+    pub fn bucket(&self, role: Role) -> Result<Bucket<'_>, ShmError> {
+        let sh = &self.header().sets[role as usize];
+        let words = sh.words.load(Ordering::Relaxed) as usize;
+        let off = sh.slots_off.load(Ordering::Relaxed) as usize;
+        // Re-check: a hostile process could rewrite the geometry after open.
+        if words * 8 < self.info.set(role).size as usize {
+            return Err(ShmError::Corrupt { domain: self.info.name.clone(), detail: format!("{role} set geometry changed") });
+        }
+        Ok(Bucket { seq: &sh.seq, current: &sh.current, slots: [self.words_at(off, words)?, self.words_at(off + words * 8, words)?] })
+    }
+
+    pub fn framework_id(&self) -> ProcessId {
+        let h = self.header();
+        ProcessId { pid: h.owner_pid.load(Ordering::Relaxed), start_time: h.owner_start.load(Ordering::Relaxed) }
+    }
+
+    /// Whether the framework is running (state and process both alive).
+    pub fn framework_alive(&self) -> bool {
+        self.header().state.load(Ordering::Acquire) == STATE_RUNNING && os::is_alive(self.framework_id())
+    }
+
+    /// The id of connection slot `i` in its current generation (never 0).
+    pub fn conn_id(&self, i: usize) -> u64 {
+        let generation = self.conn(i).map_or(0, |c| c.generation.load(Ordering::Acquire));
+        u64::from(generation) << 32 | (i as u64 + 1)
+    }
+
+    /// Claims a free connection slot for this process; returns its index.
+    pub fn claim_slot(&self, me: ProcessId, name: &str, remote: bool) -> Result<usize, ShmError> {
+        let h = self.header();
+        for i in 0..self.capacity() {
+            let Some(c) = self.conn(i) else { break };
+            if c.active.compare_exchange(0, me.pid, Ordering::AcqRel, Ordering::Relaxed).is_err() {
+                continue;
+            }
+            c.start_time.store(me.start_time, Ordering::Relaxed);
+            c.since_ns.store(os::now_ns(), Ordering::Relaxed);
+            // In a synchronous domain a connection takes part in lock-step from the start.
+            let flags = if remote {
+                CONN_REMOTE
+            } else if self.info.flags.synchronous {
+                CONN_SYNC_READER
+            } else {
+                0
+            };
+            c.flags.store(flags, Ordering::Relaxed);
+            let step = h.pub_step.load(Ordering::Acquire);
+            c.first_step.store(step + 1, Ordering::Relaxed);
+            c.last_read.store(step, Ordering::Relaxed);
+            c.last_commit.store(step, Ordering::Relaxed);
+            c.reads.store(0, Ordering::Relaxed);
+            c.commits.store(0, Ordering::Relaxed);
+            c.missed.store(0, Ordering::Relaxed);
+            let mut bytes = [0u8; 48];
+            let n = name.len().min(47);
+            // Cut at a character boundary.
+            let n = (0..=n).rev().find(|&k| name.is_char_boundary(k)).unwrap_or(0);
+            bytes[..n].copy_from_slice(&name.as_bytes()[..n]);
+            super::bucket::store_bytes(&c.name, &bytes);
+            h.conn_hwm.fetch_max(i as u32 + 1, Ordering::AcqRel);
+            c.ready.store(1, Ordering::Release);
+            h.conn_count.fetch_add(1, Ordering::AcqRel);
+            h.ack_seq.fetch_add(1, Ordering::Release);
+            return Ok(i);
+        }
+        Err(ShmError::TooManyConnections { domain: self.info.name.clone(), capacity: self.capacity() })
+    }
+
+    /// Releases slot `i` held by `pid`: its ownership, its writer lock (repairing a commit
+    /// it abandoned half-way) and its pending handshakes. Returns false if someone else
+    /// released it first.
+    pub fn release_slot(&self, i: usize, pid: u32) -> bool {
+        let h = self.header();
+        let Some(c) = self.conn(i) else { return false };
+        if c.active.load(Ordering::Acquire) != pid {
+            return false;
+        }
+        let was_ready = c.ready.swap(0, Ordering::AcqRel);
+        if was_ready == 0 && os::is_alive(ProcessId { pid, start_time: 0 }) && pid != os::current_process().pid {
+            // Still claiming (alive) or being released by someone else.
+            return false;
+        }
+        let id = self.conn_id(i);
+        let _ = h.owner_conn.compare_exchange(id, 0, Ordering::AcqRel, Ordering::Relaxed);
+        if h.writer_lock.load(Ordering::Acquire) == id {
+            if let Ok(b) = self.bucket(Role::Subscribe) {
+                b.recover();
+            }
+            let _ = h.writer_lock.compare_exchange(id, 0, Ordering::AcqRel, Ordering::Relaxed);
+        }
+        c.flags.store(0, Ordering::Relaxed);
+        c.generation.fetch_add(1, Ordering::AcqRel);
+        if c.active.compare_exchange(pid, 0, Ordering::AcqRel, Ordering::Relaxed).is_err() {
+            return false;
+        }
+        if was_ready != 0 {
+            h.conn_count.fetch_sub(1, Ordering::AcqRel);
+        }
+        h.ack_seq.fetch_add(1, Ordering::Release);
+        wake(&h.ack_seq, &h.ack_waiters);
+        true
+    }
+
+    /// Status of the domain and its connections, for `tutti status`.
+    pub fn status(&self) -> DomainStatus {
+        let h = self.header();
+        let mut connections = Vec::new();
+        for i in 0..self.scan_len() {
+            let Some(c) = self.conn(i) else { break };
+            let pid = c.active.load(Ordering::Acquire);
+            if pid == 0 || c.ready.load(Ordering::Acquire) == 0 {
+                continue;
+            }
+            let mut name = [0u8; 48];
+            load_bytes(&c.name, &mut name);
+            let end = name.iter().position(|&b| b == 0).unwrap_or(name.len());
+            let flags = c.flags.load(Ordering::Relaxed);
+            connections.push(ConnectionInfo {
+                slot: i as u32,
+                pid,
+                name: String::from_utf8_lossy(&name[..end]).into_owned(),
+                writer: flags & CONN_WRITER != 0,
+                sync_reader: flags & CONN_SYNC_READER != 0,
+                remote: flags & CONN_REMOTE != 0,
+                since_ns: c.since_ns.load(Ordering::Relaxed),
+                reads: c.reads.load(Ordering::Relaxed),
+                commits: c.commits.load(Ordering::Relaxed),
+                missed_steps: c.missed.load(Ordering::Relaxed),
+                alive: os::is_alive(ProcessId { pid, start_time: c.start_time.load(Ordering::Relaxed) }),
+            });
+        }
+        let owner = h.owner_conn.load(Ordering::Acquire);
+        let owner_pid = (owner != 0)
+            .then(|| self.conn(((owner & 0xffff_ffff) as usize).wrapping_sub(1)).map(|c| c.active.load(Ordering::Relaxed)))
+            .flatten();
+        DomainStatus {
+            domain: self.info.name.clone(),
+            segment: format!("{}/{}", os::SHM_DIR, self.shm_name),
+            flags: self.info.flags,
+            framework_pid: h.owner_pid.load(Ordering::Relaxed),
+            framework_alive: self.framework_alive(),
+            step: h.pub_step.load(Ordering::Acquire),
+            sim_time: f64::from_bits(h.sim_time_bits.load(Ordering::Relaxed)),
+            period_ns: h.period_ns.load(Ordering::Relaxed),
+            steps: h.steps.load(Ordering::Relaxed),
+            overruns: h.overruns.load(Ordering::Relaxed),
+            step_timeouts: h.timeouts.load(Ordering::Relaxed),
+            max_late_ns: h.max_late_ns.load(Ordering::Relaxed),
+            last_late_ns: h.last_late_ns.load(Ordering::Relaxed),
+            publish_commits: h.sets[0].current.load(Ordering::Relaxed),
+            subscribe_commits: h.sets[1].current.load(Ordering::Relaxed),
+            rejected: h.rejected.load(Ordering::Relaxed),
+            seeded: h.seeded.load(Ordering::Relaxed) != 0,
+            waiting_to_go: h.hold.load(Ordering::Relaxed) != 0,
+            connection_count: h.conn_count.load(Ordering::Relaxed),
+            owner_pid,
+            connections,
+        }
+    }
+}
+
+/// One connection, as `tutti status` shows it.
+#[derive(Debug, Clone, Serialize)]
+pub struct ConnectionInfo {
+    pub slot: u32,
+    pub pid: u32,
+    pub name: String,
+    pub writer: bool,
+    pub sync_reader: bool,
+    /// Stands for a DDS-side participant bridged by the gateway.
+    pub remote: bool,
+    pub since_ns: u64,
+    pub reads: u64,
+    pub commits: u64,
+    pub missed_steps: u64,
+    pub alive: bool,
+}
+
+/// A live domain, as `tutti status` shows it.
+#[derive(Debug, Clone, Serialize)]
+pub struct DomainStatus {
+    pub domain: String,
+    pub segment: String,
+    pub flags: Flags,
+    pub framework_pid: u32,
+    pub framework_alive: bool,
+    pub step: u64,
+    pub sim_time: f64,
+    pub period_ns: u64,
+    pub steps: u64,
+    pub overruns: u64,
+    pub step_timeouts: u64,
+    pub max_late_ns: u64,
+    pub last_late_ns: u64,
+    pub publish_commits: u64,
+    pub subscribe_commits: u64,
+    pub rejected: u64,
+    pub seeded: bool,
+    pub waiting_to_go: bool,
+    pub connection_count: u32,
+    pub owner_pid: Option<u32>,
+    pub connections: Vec<ConnectionInfo>,
+}
+
+/// Every domain segment of namespace `ns`, opened and checked (a segment that fails its
+/// checks is reported as an error, not skipped).
+pub fn list_domains(ns: &str) -> Result<Vec<Result<DomainStatus, ShmError>>, ShmError> {
+    check_namespace(ns)?;
+    let prefix = format!("tutti.{ns}.");
+    let names = os::list_shm(&prefix).map_err(|e| ShmError::io(format!("listing {}", os::SHM_DIR), e))?;
+    Ok(names.iter().map(|n| Segment::open(ns, &n[prefix.len()..]).map(|s| s.status())).collect())
+}
+
+/// An existing segment with our name: reclaim it if its framework is dead, else refuse.
+fn reclaim_stale(shm_name: &str, domain: &str) -> Result<(), ShmError> {
+    let path = format!("{}/{shm_name}", os::SHM_DIR);
+    if let Ok(file) = os::shm_open(shm_name, false, 0) {
+        let len = file.metadata().map(|m| m.len()).unwrap_or(0) as usize;
+        if len >= HEADER_BYTES {
+            if let Ok(map) = os::map(&file) {
+                // SAFETY: the mapping is at least HEADER_BYTES long and page-aligned; Header is
+                // atomics only.
+                let h = unsafe { &*map.as_mut_ptr().cast::<Header>() };
+                let magic = h.magic.load(Ordering::Acquire);
+                let owner = ProcessId { pid: h.owner_pid.load(Ordering::Relaxed), start_time: h.owner_start.load(Ordering::Relaxed) };
+                if magic != MAGIC && magic != 0 {
+                    return Err(ShmError::NotTuttiSegment { domain: domain.to_string(), path });
+                }
+                if h.state.load(Ordering::Acquire) != STATE_STOPPED && os::is_alive(owner) {
+                    return Err(ShmError::DomainBusy { domain: domain.to_string(), pid: owner.pid, path });
+                }
+            }
+        }
+    }
+    match os::shm_unlink(shm_name) {
+        Ok(()) => Ok(()),
+        Err(e) if e.kind() == io::ErrorKind::NotFound => Ok(()),
+        Err(e) => Err(ShmError::io(format!("removing stale {path}"), e)),
+    }
+}
+
+/// Waits for a condition, spinning, polling or blocking on a futex word, with a deadline
+/// and a periodic liveness check. One mechanism serves every wait of the crate.
+///
+/// `ready` is tested first and after every wake-up; `futex`/`waiters` are the word the other
+/// side bumps and the count of sleepers it checks before waking; `check` runs about every
+/// `check_every` and may abort the wait.
+pub(crate) struct Waiter<'a> {
+    pub mode: WaitMode,
+    pub futex: &'a AtomicU32,
+    pub waiters: &'a AtomicU32,
+    pub check_every: Duration,
+}
+
+/// Outcome of a wait.
+#[derive(Debug, PartialEq, Eq)]
+pub(crate) enum Waited {
+    Ready,
+    TimedOut,
+}
+
+impl Waiter<'_> {
+    pub fn wait<E>(
+        &self,
+        deadline: Instant,
+        mut ready: impl FnMut() -> Result<bool, E>,
+        mut check: impl FnMut() -> Result<(), E>,
+    ) -> Result<Waited, E> {
+        let mut next_check = Instant::now() + self.check_every;
+        let mut spins: u32 = 0;
+        loop {
+            let seen = self.futex.load(Ordering::Acquire);
+            if ready()? {
+                return Ok(Waited::Ready);
+            }
+            // Time is read once every 64 turns while spinning: Instant::now costs ~25 ns.
+            spins = spins.wrapping_add(1);
+            let now = if self.mode == WaitMode::Spin && spins % 64 != 0 { None } else { Some(Instant::now()) };
+            if let Some(now) = now {
+                if now >= deadline {
+                    return Ok(Waited::TimedOut);
+                }
+                if now >= next_check {
+                    check()?;
+                    next_check = now + self.check_every;
+                }
+                match self.mode {
+                    // Give the core away now and then: on an overloaded machine a pure spin
+                    // can starve the very process it waits for.
+                    WaitMode::Spin if spins % 4096 == 0 => std::thread::yield_now(),
+                    WaitMode::Spin => std::hint::spin_loop(),
+                    WaitMode::Poll(d) => std::thread::sleep(d.min(deadline - now)),
+                    WaitMode::Block => {
+                        self.waiters.fetch_add(1, Ordering::SeqCst);
+                        // Re-test after announcing ourselves: the other side bumps the word
+                        // and then checks the waiter count, so one of us sees the other.
+                        if !ready()? {
+                            let limit = (deadline - now).min(next_check.saturating_duration_since(now)).max(Duration::from_micros(50));
+                            os::futex_wait(self.futex, seen, limit);
+                        }
+                        self.waiters.fetch_sub(1, Ordering::SeqCst);
+                    }
+                }
+            } else {
+                std::hint::spin_loop();
+            }
+        }
+    }
+}
+
+/// Wakes the sleepers of a futex word after bumping it (the bump is the caller's).
+pub(crate) fn wake(futex: &AtomicU32, waiters: &AtomicU32) {
+    crate::sync::fence(Ordering::SeqCst);
+    if waiters.load(Ordering::SeqCst) > 0 {
+        os::futex_wake_all(futex);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn namespaces_are_checked() {
+        assert!(check_namespace("tutti").is_ok());
+        assert!(check_namespace("t-1.x_y").is_ok());
+        assert!(check_namespace("").is_err());
+        assert!(check_namespace("a/b").is_err());
+        assert!(check_namespace(&"x".repeat(65)).is_err());
+    }
+}

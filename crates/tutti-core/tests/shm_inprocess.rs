@@ -1,0 +1,136 @@
+//! Framework and participants in one process (threads): the semantics of SPEC section 2.
+
+use std::time::Duration;
+
+use tutti_core::ddf::{self, Model};
+use tutti_core::shm::{ConnectOptions, Framework, FrameworkOptions, Participant, ShmError, WaitMode};
+
+fn model(sync: bool, mpa: bool, states: bool) -> Model {
+    let yn = |b| if b { "yes" } else { "no" };
+    ddf::parse_str(
+        &format!(
+            r#"<orchestra><domain name="d"><synchronous>{}</synchronous><multiplePublishAllowed>{}</multiplePublishAllowed><states>{}</states>
+            <set name="PUBLISH"><item name="x"><type>float64</type></item></set>
+            <set name="SUBSCRIBE"><item name="a"><type>float64</type><default>2.5</default></item><item name="b"><type>int32</type></item></set>
+            </domain></orchestra>"#,
+            yn(sync),
+            yn(mpa),
+            yn(states)
+        ),
+        "test.ddf",
+    )
+    .unwrap()
+}
+
+fn ns(tag: &str) -> String {
+    format!("t{}-{tag}", std::process::id())
+}
+
+fn fopts(tag: &str) -> FrameworkOptions {
+    FrameworkOptions { namespace: ns(tag), timeout: Duration::from_secs(20), ..Default::default() }
+}
+
+fn copts(tag: &str) -> ConnectOptions {
+    ConnectOptions { namespace: ns(tag), name: "test".into(), timeout: Duration::from_secs(20), ..Default::default() }
+}
+
+#[test]
+fn async_values_flow_both_ways_and_defaults_apply() {
+    let mut fw = Framework::create(&model(false, true, false), &fopts("async")).unwrap();
+    let host = &mut fw.domains[0];
+    host.step(&1.5f64.to_ne_bytes(), 0.0).unwrap();
+    // Defaults before any writer.
+    assert_eq!(f64::from_ne_bytes(host.subscribe()[0..8].try_into().unwrap()), 2.5);
+    let mut p = Participant::connect("d", copts("async")).unwrap();
+    assert_eq!(host.connection_count(), 1);
+    p.subscribe_lock().unwrap();
+    assert_eq!(f64::from_ne_bytes(p.snapshot()[0..8].try_into().unwrap()), 1.5);
+    p.publish_lock().unwrap();
+    p.stage("b", &7i32.to_ne_bytes()).unwrap();
+    p.commit().unwrap();
+    host.step(&2.0f64.to_ne_bytes(), 0.1).unwrap();
+    let sub = host.subscribe();
+    assert_eq!(f64::from_ne_bytes(sub[0..8].try_into().unwrap()), 2.5, "unstaged item keeps its value");
+    assert_eq!(i32::from_ne_bytes(sub[8..12].try_into().unwrap()), 7);
+    assert!(matches!(p.stage("nope", &[0; 8]), Err(ShmError::UnknownItem { .. })));
+    assert!(matches!(p.stage("b", &[0; 8]), Err(ShmError::SizeMismatch { .. })));
+    p.disconnect();
+    assert_eq!(host.connection_count(), 0);
+}
+
+#[test]
+fn second_writer_on_exclusive_domain_is_refused_until_the_owner_leaves() {
+    let _fw = Framework::create(&model(false, false, false), &fopts("excl")).unwrap();
+    let mut a = Participant::connect("d", copts("excl")).unwrap();
+    let mut b = Participant::connect("d", copts("excl")).unwrap();
+    a.publish_lock().unwrap();
+    a.commit().unwrap();
+    let err = b.publish_lock().unwrap_err();
+    assert!(matches!(err, ShmError::NotOwner { .. }), "{err}");
+    a.disconnect();
+    b.publish_lock().unwrap();
+    b.commit().unwrap();
+}
+
+#[test]
+fn synchronous_steps_are_read_once_and_answered() {
+    let mut fw = Framework::create(&model(true, false, false), &fopts("sync")).unwrap();
+    let mut p = Participant::connect("d", copts("sync")).unwrap();
+    let t = std::thread::spawn(move || {
+        let mut seen = Vec::new();
+        for _ in 0..200 {
+            let step = p.subscribe_lock().unwrap();
+            let x = f64::from_ne_bytes(p.snapshot()[0..8].try_into().unwrap());
+            seen.push((step, x));
+            p.publish_lock().unwrap();
+            p.stage("a", &(x * 10.0).to_ne_bytes()).unwrap();
+            p.commit().unwrap();
+        }
+        seen
+    });
+    let host = &mut fw.domains[0];
+    for k in 1..=200u64 {
+        let r = host.step(&(k as f64).to_ne_bytes(), 0.0).unwrap();
+        assert_eq!(r.timed_out, 0);
+        // The answer of this very step is visible once the step returns (after the first,
+        // which may start before the participant's first read).
+        if k > 1 {
+            assert_eq!(f64::from_ne_bytes(host.subscribe()[0..8].try_into().unwrap()), k as f64 * 10.0);
+        }
+    }
+    let seen = t.join().unwrap();
+    for (i, (step, x)) in seen.iter().enumerate() {
+        assert_eq!(*step, i as u64 + 1);
+        assert_eq!(*x, *step as f64);
+    }
+}
+
+#[test]
+fn live_segment_is_refused_with_its_pid() {
+    let _fw = Framework::create(&model(false, true, false), &fopts("busy")).unwrap();
+    let err = Framework::create(&model(false, true, false), &fopts("busy")).unwrap_err();
+    match err {
+        ShmError::DomainBusy { pid, .. } => assert_eq!(pid, std::process::id()),
+        e => panic!("unexpected {e}"),
+    }
+}
+
+#[test]
+fn wait_modes_all_work() {
+    for mode in [WaitMode::Spin, WaitMode::Poll(Duration::from_micros(50)), WaitMode::Block] {
+        let tag = format!("mode{mode:?}").replace(|c: char| !c.is_ascii_alphanumeric(), "");
+        let mut fw = Framework::create(&model(true, true, false), &FrameworkOptions { wait: mode, ..fopts(&tag) }).unwrap();
+        let mut p = Participant::connect("d", ConnectOptions { wait: mode, ..copts(&tag) }).unwrap();
+        let t = std::thread::spawn(move || {
+            for _ in 0..50 {
+                p.subscribe_lock().unwrap();
+                p.publish_lock().unwrap();
+                p.commit().unwrap();
+            }
+        });
+        for k in 1..=50u64 {
+            fw.domains[0].step(&(k as f64).to_ne_bytes(), 0.0).unwrap();
+        }
+        t.join().unwrap();
+    }
+}
