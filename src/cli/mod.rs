@@ -7,6 +7,8 @@ use clap::{Parser, Subcommand};
 
 mod bench;
 mod check;
+mod host;
+mod status;
 mod idl;
 mod show;
 
@@ -32,6 +34,8 @@ enum Command {
     Check(check::Args),
     Show(show::Args),
     Idl(idl::Args),
+    Host(host::Args),
+    Status(status::Args),
     Bench(bench::Args),
 }
 
@@ -61,6 +65,8 @@ pub fn run(cli: Cli) -> ExitCode {
         Command::Check(a) => check::run(a),
         Command::Show(a) => show::run(a),
         Command::Idl(a) => idl::run(a),
+        Command::Host(a) => host::run(a),
+        Command::Status(a) => status::run(a),
         Command::Bench(a) => bench::run(a),
     };
     match result {

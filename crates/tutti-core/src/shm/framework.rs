@@ -131,6 +131,16 @@ impl DomainHost {
     /// and every writer has committed for it; then read the SUBSCRIBE set. In a synchronous
     /// domain with `states=yes` the first step first waits for the seed.
     pub fn step(&mut self, publish: &[u8], sim_time: f64) -> Result<StepReport, ShmError> {
+        let removed = self.publish_step(publish, sim_time)?;
+        let mut report = self.complete_step()?;
+        report.removed += removed;
+        Ok(report)
+    }
+
+    /// First half of [`step`](Self::step): publish the next step (after the seed, if one is
+    /// due). A host with many domains publishes to all, then completes all, so that their
+    /// participants work in parallel. Returns how many dead connections were removed.
+    pub fn publish_step(&mut self, publish: &[u8], sim_time: f64) -> Result<usize, ShmError> {
         let info = &self.seg.info;
         if publish.len() != info.publish.size as usize {
             return Err(ShmError::SizeMismatch {
@@ -159,8 +169,16 @@ impl DomainHost {
         self.seg.step_ctl().publish(k);
         self.step = k;
         segment::wake(&h.step_seq, &h.step_waiters);
+        Ok(removed)
+    }
+
+    /// Second half of [`step`](Self::step): in a synchronous domain wait for the
+    /// participants of the published step; then read the SUBSCRIBE set.
+    pub fn complete_step(&mut self) -> Result<StepReport, ShmError> {
+        let k = self.step;
         let mut timed_out = 0;
-        if sync {
+        let mut removed = 0;
+        if self.seg.info.flags.synchronous {
             let (waited, r) = self.wait_acks(move |seg| !(0..seg.scan_len()).any(|i| seg.conn_ctl(i).is_some_and(|c| c.owes(k))))?;
             removed += r;
             if waited == Waited::TimedOut {

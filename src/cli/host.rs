@@ -1,0 +1,221 @@
+//! `tutti host DDF`: a generic framework that creates every domain of a DDF and steps them
+//! at a fixed period; optionally records both sets of every domain to CSV.
+
+use std::fs::File;
+use std::io::{BufWriter, Write};
+use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+
+use anyhow::Context;
+use tutti_core::ddf::{Domain, Leaf, Role};
+use tutti_core::shm::{Framework, FrameworkOptions, WaitMode};
+
+use super::{load_ddf, CliResult, Failure};
+use crate::rt::Ticker;
+
+/// Run the framework of every domain in a DDF: create the segments, step at a fixed period.
+#[derive(Debug, clap::Args)]
+#[command(after_help = "Examples:\n  tutti host ddf/multiuav.ddf --step 10ms --duration 60s\n  tutti host ddf/product-sample.ddf --set grid_clock/tick=1 --record out/run.csv\n  TUTTI_NAMESPACE=lab2 tutti host ddf/large-1000.ddf --step 1ms\n\nStop with Ctrl-C: the segments are removed on exit.")]
+pub struct Args {
+    /// The DDF whose domains to host.
+    #[arg(value_name = "DDF")]
+    file: PathBuf,
+    /// Step period (e.g. 1ms, 500us, 0.1s).
+    #[arg(long, default_value = "10ms", value_parser = parse_duration)]
+    step: Duration,
+    /// Stop after this long (default: run until Ctrl-C).
+    #[arg(long, value_parser = parse_duration)]
+    duration: Option<Duration>,
+    /// Record both sets of every domain to CSV (one file per domain when there are several:
+    /// FILE's stem + '-DOMAIN.csv').
+    #[arg(long, value_name = "FILE")]
+    record: Option<PathBuf>,
+    /// Longest wait for the participants of a synchronous step, and for a seed.
+    #[arg(long, default_value = "1s", value_parser = parse_duration)]
+    timeout: Duration,
+    /// How the framework waits for participants: block, spin, or poll:DURATION.
+    #[arg(long, default_value = "block", value_parser = parse_wait)]
+    wait: WaitMode,
+    /// Give a PUBLISH item a value: DOMAIN/ITEM=VALUE (repeatable; arrays get it in every element).
+    #[arg(long = "set", value_name = "DOMAIN/ITEM=VALUE")]
+    sets: Vec<String>,
+    /// Hold participants in connect (wait-to-go) for this long after start.
+    #[arg(long, value_parser = parse_duration)]
+    hold: Option<Duration>,
+    /// Print no progress lines.
+    #[arg(short, long)]
+    quiet: bool,
+}
+
+pub fn parse_duration(s: &str) -> Result<Duration, String> {
+    humantime::parse_duration(s.trim()).map_err(|e| format!("'{s}' is not a duration like 10ms, 500us or 2s: {e}"))
+}
+
+pub fn parse_wait(s: &str) -> Result<WaitMode, String> {
+    match s {
+        "block" => Ok(WaitMode::Block),
+        "spin" => Ok(WaitMode::Spin),
+        _ => match s.strip_prefix("poll:") {
+            Some(d) => parse_duration(d).map(WaitMode::Poll),
+            None => Err(format!("'{s}': use block, spin or poll:DURATION (e.g. poll:50us)")),
+        },
+    }
+}
+
+struct Recorder {
+    out: BufWriter<File>,
+    leaves: Vec<(Role, Leaf)>,
+}
+
+impl Recorder {
+    fn create(path: &Path, d: &Domain) -> anyhow::Result<Recorder> {
+        if let Some(dir) = path.parent().filter(|p| !p.as_os_str().is_empty()) {
+            std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+        }
+        let file = File::create(path).with_context(|| format!("creating {}", path.display()))?;
+        let mut out = BufWriter::new(file);
+        let leaves: Vec<(Role, Leaf)> = d.leaves().map(|(r, l)| (r, l.clone())).collect();
+        let mut header = vec!["step".to_string(), "sim_time".into(), "wall_s".into(), "connections".into()];
+        for (role, leaf) in &leaves {
+            let prefix = role.lower();
+            if leaf.length == 1 {
+                header.push(format!("{prefix}.{}", leaf.path));
+            } else {
+                header.extend((0..leaf.length).map(|i| format!("{prefix}.{}[{i}]", leaf.path)));
+            }
+        }
+        writeln!(out, "{}", header.join(","))?;
+        Ok(Recorder { out, leaves })
+    }
+
+    fn row(&mut self, step: u64, sim: f64, wall: f64, conns: u32, publish: &[u8], subscribe: &[u8]) -> anyhow::Result<()> {
+        let mut row = format!("{step},{sim:.6},{wall:.6},{conns}");
+        for (role, leaf) in &self.leaves {
+            let buf = if *role == Role::Publish { publish } else { subscribe };
+            let n = leaf.ty.size() as usize;
+            for chunk in buf[leaf.range()].chunks_exact(n) {
+                row.push(',');
+                row.push_str(&leaf.ty.decode(chunk).to_string());
+            }
+        }
+        writeln!(self.out, "{row}")?;
+        Ok(())
+    }
+}
+
+fn record_path(base: &Path, domain: &str, several: bool) -> PathBuf {
+    if !several {
+        return base.to_path_buf();
+    }
+    let stem = base.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_else(|| "record".into());
+    base.with_file_name(format!("{stem}-{domain}.csv"))
+}
+
+/// Applies `--set DOMAIN/ITEM=VALUE` to the PUBLISH buffers.
+fn apply_sets(sets: &[String], domains: &[Domain], buffers: &mut [Vec<u8>]) -> Result<(), Failure> {
+    for s in sets {
+        let (target, value) = s.split_once('=').ok_or_else(|| Failure::invalid(anyhow::anyhow!("--set '{s}': expected DOMAIN/ITEM=VALUE")))?;
+        let (domain, item) = target.split_once('/').ok_or_else(|| Failure::invalid(anyhow::anyhow!("--set '{s}': expected DOMAIN/ITEM=VALUE")))?;
+        let idx = domains.iter().position(|d| d.name == domain).ok_or_else(|| Failure::invalid(anyhow::anyhow!("--set '{s}': no domain '{domain}' in the DDF")))?;
+        let leaf = domains[idx]
+            .publish
+            .layout
+            .leaf(item)
+            .ok_or_else(|| Failure::invalid(anyhow::anyhow!("--set '{s}': no item '{item}' in the PUBLISH set of domain '{domain}'")))?;
+        let v = leaf
+            .ty
+            .parse_value(value)
+            .ok_or_else(|| Failure::invalid(anyhow::anyhow!("--set '{s}': '{value}' is not a {} value", leaf.ty.canonical())))?;
+        let n = leaf.ty.size() as usize;
+        for chunk in buffers[idx][leaf.range()].chunks_exact_mut(n) {
+            leaf.ty.encode(v, chunk);
+        }
+    }
+    Ok(())
+}
+
+pub fn run(args: Args) -> CliResult {
+    let model = load_ddf(&args.file)?;
+    if args.step.is_zero() {
+        return Err(Failure::invalid(anyhow::anyhow!("--step must be longer than 0")));
+    }
+    let mut publish: Vec<Vec<u8>> = model.domains.iter().map(|d| d.publish.layout.default_bytes()).collect();
+    apply_sets(&args.sets, &model.domains, &mut publish)?;
+    let stop = Arc::new(AtomicBool::new(false));
+    {
+        let stop = stop.clone();
+        ctrlc::set_handler(move || stop.store(true, Ordering::SeqCst)).context("installing the signal handler")?;
+    }
+    let opts = FrameworkOptions { timeout: args.timeout, wait: args.wait, hold: args.hold.is_some(), ..Default::default() };
+    let started = Instant::now();
+    let mut fw = Framework::create(&model, &opts).with_context(|| format!("hosting {}", args.file.display()))?;
+    let several = model.domains.len() > 1;
+    let mut recorders = match &args.record {
+        None => Vec::new(),
+        Some(base) => model
+            .domains
+            .iter()
+            .map(|d| Recorder::create(&record_path(base, &d.name, several), d))
+            .collect::<anyhow::Result<Vec<_>>>()?,
+    };
+    if !args.quiet {
+        eprintln!(
+            "host: {} domain(s) of {} created in {:.1} ms (namespace {}), step {:?}",
+            fw.domains.len(),
+            args.file.display(),
+            started.elapsed().as_secs_f64() * 1e3,
+            opts.namespace,
+            args.step
+        );
+    }
+    let mut ticker = Ticker::new(args.step);
+    let run_start = Instant::now();
+    let mut last_report = Instant::now();
+    let mut held = args.hold.is_some();
+    let mut timeouts = 0u64;
+    while !stop.load(Ordering::SeqCst) {
+        if args.duration.is_some_and(|d| run_start.elapsed() >= d) {
+            break;
+        }
+        let tick = ticker.wait();
+        if held && args.hold.is_some_and(|h| run_start.elapsed() >= h) {
+            held = false;
+            fw.domains.iter().for_each(|d| d.set_hold(false));
+        }
+        let sim = tick.k as f64 * args.step.as_secs_f64();
+        for (host, data) in fw.domains.iter_mut().zip(&publish) {
+            host.publish_step(data, sim).with_context(|| format!("domain '{}'", host.info().name))?;
+        }
+        for (i, host) in fw.domains.iter_mut().enumerate() {
+            let report = host.complete_step().with_context(|| format!("domain '{}'", host.info().name))?;
+            timeouts += u64::from(report.timed_out > 0);
+            host.record_timing(args.step, tick.late, tick.overrun);
+            if let Some(rec) = recorders.get_mut(i) {
+                let conns = host.connection_count();
+                rec.row(report.step, sim, run_start.elapsed().as_secs_f64(), conns, &publish[i], host.subscribe())?;
+            }
+        }
+        if !args.quiet && last_report.elapsed() >= Duration::from_secs(1) {
+            last_report = Instant::now();
+            let conns: u32 = fw.domains.iter().map(|d| d.connection_count()).sum();
+            eprintln!(
+                "host: t={:.1}s step {} connections {} overruns {} late max {:?} step timeouts {}",
+                run_start.elapsed().as_secs_f64(),
+                tick.k + 1,
+                conns,
+                ticker.overruns,
+                ticker.max_late,
+                timeouts
+            );
+        }
+    }
+    for rec in &mut recorders {
+        rec.out.flush().context("writing the recording")?;
+    }
+    if !args.quiet {
+        eprintln!("host: stopped after {:.1}s, {} overruns, {} step timeouts", run_start.elapsed().as_secs_f64(), ticker.overruns, timeouts);
+    }
+    Ok(())
+}
