@@ -1,0 +1,628 @@
+//! `tutti idl`: the typed DDS / ROS 2 interface of a DDF (SPEC section 5) as source text.
+//!
+//! For a DDF whose ROS 2 package is `PKG`, every set of every domain becomes one struct type
+//! `TYPE` (`mapping::set_names`), with the fields `uint64 step`, `double sim_time` and then
+//! the set's items in DDF order (`mapping::field_names`), arrays as fixed-size arrays, each
+//! bus as a nested struct type of its own (`mapping::bus_type_name`). Every type is written
+//! three ways, all under the directory `PKG/`:
+//!
+//! * `msg/TYPE.idl`: OMG IDL 4 exactly as ROS 2's `rosidl_adapter` writes it from a `.msg`
+//!   (`module PKG { module msg { struct TYPE { … }; }; };`, nested types `#include`d as
+//!   `"PKG/msg/BUS.idl"`);
+//! * `msg/dds_/TYPE_.idl`: the same type under the name ROS 2 gives it on the wire
+//!   (`PKG::msg::dds_::TYPE_`, as `rosidl_generator_dds_idl` writes it), for plain DDS
+//!   programs that talk to the gateway's typed topics without ROS 2;
+//! * `msg/TYPE.msg`: the ROS 2 message, listed in `CMakeLists.txt` next to a format 3
+//!   `package.xml`, so that `PKG/` is an interface package `colcon build` builds.
+//!
+//! The IDL uses the IDL 4.2 integer keywords `int8`, `uint8`, … `uint64`, as rosidl does.
+//! Both code generators the tests run accept them: Cyclone DDS `idlc` 0.10 and eProsima
+//! `fastddsgen` 2.3. Defaults from the DDF become `.msg` default values and, for scalars,
+//! `@default` annotations as rosidl writes them (`idlc` accepts them and warns that its C
+//! generator ignores the value); rosidl writes an array's default as a string literal, which
+//! `idlc` rejects, so arrays have none in IDL. No extensibility annotation is written, as
+//! rosidl writes none: both tools then take `@final`, the plain CDR that ROS 2 sends.
+//!
+//! IDL identifiers are case-insensitive, so two type names that differ only in case, or a
+//! field named like a type, would make IDL that `idlc` rejects; [`generate`] refuses such a
+//! DDF with an error naming both culprits instead of writing it.
+
+use std::collections::HashMap;
+use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
+
+use crate::ddf::{Item, ItemKind, Model, Role, ScalarType, Value};
+use crate::mapping;
+
+/// The version written into `package.xml`. Fixed, so that the generated package only
+/// changes when the DDF does.
+pub const PACKAGE_VERSION: &str = "0.1.0";
+
+/// One file to write, relative to the output directory.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct GeneratedFile {
+    /// Relative path, e.g. `multiuav_msgs/msg/MultiuavUav1Publish.idl`.
+    pub path: PathBuf,
+    pub contents: String,
+}
+
+/// Why the interface of a DDF cannot be generated.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[error("{source_file}: {message}")]
+pub struct IdlError {
+    /// The DDF, as the model names it.
+    pub source_file: String,
+    pub message: String,
+}
+
+/// One struct type to generate: a set, or a bus inside a set.
+#[derive(Debug)]
+struct TypeDef<'a> {
+    /// Short type name, e.g. `GridFeederPublishMeter`.
+    name: String,
+    /// Where it comes from, for comments and errors: `domain grid_feeder, set PUBLISH, bus meter`.
+    origin: String,
+    /// `true` for a set type (which gets `step` and `sim_time`).
+    is_set: bool,
+    /// DDS topic of the set (set types only).
+    topic: Option<String>,
+    fields: Vec<Field<'a>>,
+}
+
+#[derive(Debug)]
+struct Field<'a> {
+    name: String,
+    item: &'a Item,
+    /// Type name of the nested struct, for a bus.
+    bus_type: Option<String>,
+}
+
+/// Generates every file of the interface package `package` (see the module documentation),
+/// in a stable order: per domain and set, the set's files then its buses' files; then
+/// `package.xml` and `CMakeLists.txt`.
+pub fn generate(model: &Model, package: &str) -> Result<Vec<GeneratedFile>, IdlError> {
+    let source_name = Path::new(&model.source)
+        .file_name()
+        .map(|n| n.to_string_lossy().into_owned())
+        .unwrap_or_else(|| model.source.clone());
+    let types = collect_types(model, package);
+    check_identifiers(&types).map_err(|message| IdlError { source_file: model.source.clone(), message })?;
+
+    let pkg_dir = PathBuf::from(package);
+    let mut files = Vec::new();
+    for ty in &types {
+        files.push(GeneratedFile {
+            path: pkg_dir.join("msg").join(format!("{}.idl", ty.name)),
+            contents: idl_file(package, ty, &source_name, Flavor::Rosidl),
+        });
+        files.push(GeneratedFile {
+            path: pkg_dir.join("msg").join("dds_").join(format!("{}_.idl", ty.name)),
+            contents: idl_file(package, ty, &source_name, Flavor::Dds),
+        });
+        files.push(GeneratedFile {
+            path: pkg_dir.join("msg").join(format!("{}.msg", ty.name)),
+            contents: msg_file(ty, &source_name),
+        });
+    }
+    files.push(GeneratedFile { path: pkg_dir.join("package.xml"), contents: package_xml(package, &source_name) });
+    files.push(GeneratedFile { path: pkg_dir.join("CMakeLists.txt"), contents: cmake_lists(package, &types) });
+    Ok(files)
+}
+
+/// Every struct type of the package: per domain, PUBLISH then SUBSCRIBE, each set followed
+/// by its buses depth-first.
+fn collect_types<'a>(model: &'a Model, package: &str) -> Vec<TypeDef<'a>> {
+    let mut types = Vec::new();
+    for domain in &model.domains {
+        for role in Role::ALL {
+            let names = mapping::set_names(package, &domain.name, role);
+            let set = SetContext { type_name: &names.type_name, origin: format!("domain {}, set {role}", domain.name) };
+            collect_struct(
+                &domain.set(role).items,
+                names.type_name.clone(),
+                &set,
+                "",
+                Some(names.topic.clone()),
+                &mut types,
+            );
+        }
+    }
+    types
+}
+
+/// The set a struct type belongs to.
+#[derive(Debug)]
+struct SetContext<'s> {
+    type_name: &'s str,
+    origin: String,
+}
+
+/// Pushes the struct `name` of `items` (the set itself when `bus_path` is empty), then the
+/// structs of its buses.
+fn collect_struct<'a>(
+    items: &'a [Item],
+    name: String,
+    set: &SetContext<'_>,
+    bus_path: &str,
+    topic: Option<String>,
+    out: &mut Vec<TypeDef<'a>>,
+) {
+    let mut nested = Vec::new();
+    let fields = items
+        .iter()
+        .zip(mapping::field_names(items))
+        .map(|(item, field)| {
+            let bus_type = match &item.kind {
+                ItemKind::Scalar { .. } => None,
+                ItemKind::Bus { items } => {
+                    let path =
+                        if bus_path.is_empty() { item.name.clone() } else { format!("{bus_path}/{}", item.name) };
+                    let ty = mapping::bus_type_name(set.type_name, &path);
+                    nested.push((items, ty.clone(), path));
+                    Some(ty)
+                }
+            };
+            Field { name: field, item, bus_type }
+        })
+        .collect();
+    let origin = if bus_path.is_empty() { set.origin.clone() } else { format!("{}, bus {bus_path}", set.origin) };
+    out.push(TypeDef { name, origin, is_set: topic.is_some(), topic, fields });
+    for (items, ty, path) in nested {
+        collect_struct(items, ty, set, &path, None, out);
+    }
+}
+
+/// IDL identifiers collide regardless of case (OMG IDL 4.2, 7.2.3): refuse type names that
+/// differ only in case, and fields named like a type.
+fn check_identifiers(types: &[TypeDef<'_>]) -> Result<(), String> {
+    let mut seen: HashMap<String, &TypeDef<'_>> = HashMap::new();
+    for ty in types {
+        if let Some(first) = seen.insert(ty.name.to_ascii_lowercase(), ty) {
+            return Err(format!(
+                "type name {} ({}) clashes with type name {} ({}): IDL names are case-insensitive; rename one of them in the DDF",
+                ty.name, ty.origin, first.name, first.origin
+            ));
+        }
+    }
+    for ty in types {
+        for field in &ty.fields {
+            if let Some(other) = seen.get(&field.name.to_ascii_lowercase()) {
+                return Err(format!(
+                    "field {} of {} ({}, item {}) is named like the type {} ({}): IDL names are case-insensitive; rename the item in the DDF",
+                    field.name, ty.name, ty.origin, field.item.name, other.name, other.origin
+                ));
+            }
+        }
+    }
+    Ok(())
+}
+
+/// The two spellings of a type in IDL.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Flavor {
+    /// `PKG::msg::TYPE`, in `PKG/msg/TYPE.idl` (what rosidl_adapter writes).
+    Rosidl,
+    /// `PKG::msg::dds_::TYPE_`, in `PKG/msg/dds_/TYPE_.idl` (the name on the wire).
+    Dds,
+}
+
+impl Flavor {
+    fn type_name(self, name: &str) -> String {
+        match self {
+            Flavor::Rosidl => name.to_string(),
+            Flavor::Dds => format!("{name}_"),
+        }
+    }
+
+    fn scoped(self, package: &str, name: &str) -> String {
+        match self {
+            Flavor::Rosidl => format!("{package}::msg::{name}"),
+            Flavor::Dds => mapping::mangled(package, name),
+        }
+    }
+
+    fn include(self, package: &str, name: &str) -> String {
+        match self {
+            Flavor::Rosidl => format!("{package}/msg/{name}.idl"),
+            Flavor::Dds => format!("{package}/msg/dds_/{name}_.idl"),
+        }
+    }
+}
+
+/// The IDL keyword of a scalar type.
+pub fn idl_type(ty: ScalarType) -> &'static str {
+    use ScalarType::*;
+    match ty {
+        Boolean => "boolean",
+        Int8 => "int8",
+        Int16 => "int16",
+        Int32 => "int32",
+        Int64 => "int64",
+        UInt8 => "uint8",
+        UInt16 => "uint16",
+        UInt32 => "uint32",
+        UInt64 => "uint64",
+        Float32 => "float",
+        Float64 => "double",
+    }
+}
+
+/// The ROS 2 `.msg` primitive type of a scalar type.
+pub fn msg_type(ty: ScalarType) -> &'static str {
+    use ScalarType::*;
+    match ty {
+        Boolean => "bool",
+        Int8 => "int8",
+        Int16 => "int16",
+        Int32 => "int32",
+        Int64 => "int64",
+        UInt8 => "uint8",
+        UInt16 => "uint16",
+        UInt32 => "uint32",
+        UInt64 => "uint64",
+        Float32 => "float32",
+        Float64 => "float64",
+    }
+}
+
+/// A default as a literal: `TRUE`/`FALSE` (IDL) or `true`/`false` (`.msg`) for booleans,
+/// the shortest round-tripping decimal for floats.
+fn literal(ty: ScalarType, value: Value, idl: bool) -> String {
+    match ty {
+        ScalarType::Boolean => {
+            let b = value.as_f64() != 0.0;
+            match (idl, b) {
+                (true, true) => "TRUE".into(),
+                (true, false) => "FALSE".into(),
+                (false, true) => "true".into(),
+                (false, false) => "false".into(),
+            }
+        }
+        ScalarType::Float32 => format!("{:?}", value.as_f64() as f32),
+        ScalarType::Float64 => format!("{:?}", value.as_f64()),
+        t if t.is_signed_int() => value.as_i64().to_string(),
+        _ => value.as_u64().to_string(),
+    }
+}
+
+/// The `@default` value of a scalar, when the IDL tools can read it: idlc 0.10 reports
+/// "Integer expression overflows" for a negative literal below -(2^31 - 1), even for an
+/// `int64`, so such a default is left to the `.msg` alone.
+fn idl_default(ty: ScalarType, value: Value) -> Option<String> {
+    if ty.is_signed_int() && value.as_i64() < -i64::from(i32::MAX) {
+        return None;
+    }
+    Some(literal(ty, value, true))
+}
+
+/// The `.msg` default of an array: every element takes the DDF's one value.
+fn array_literal(ty: ScalarType, value: Value, length: u16) -> String {
+    let one = literal(ty, value, false);
+    vec![one; usize::from(length)].join(", ")
+}
+
+fn idl_file(package: &str, ty: &TypeDef<'_>, source_name: &str, flavor: Flavor) -> String {
+    let mut s = String::new();
+    let _ = writeln!(s, "// generated by tutti idl from {source_name}");
+    let _ = writeln!(s, "// {}", ty.origin);
+    if let Some(topic) = &ty.topic {
+        let _ = writeln!(s, "// DDS topic {topic}, type {}", mapping::mangled(package, &ty.name));
+    }
+    let _ = writeln!(s, "// generated code does not contain a copyright notice");
+    s.push('\n');
+    let mut includes: Vec<&str> = ty.fields.iter().filter_map(|f| f.bus_type.as_deref()).collect();
+    includes.sort_unstable();
+    includes.dedup();
+    for inc in &includes {
+        let _ = writeln!(s, "#include \"{}\"", flavor.include(package, inc));
+    }
+    if !includes.is_empty() {
+        s.push('\n');
+    }
+    let _ = writeln!(s, "module {package} {{");
+    let _ = writeln!(s, "  module msg {{");
+    let indent = match flavor {
+        Flavor::Rosidl => "    ",
+        Flavor::Dds => {
+            let _ = writeln!(s, "    module dds_ {{");
+            "      "
+        }
+    };
+    let _ = writeln!(s, "{indent}struct {} {{", flavor.type_name(&ty.name));
+    let mut members = Vec::new();
+    if ty.is_set {
+        members.push(format!("{indent}  uint64 step;\n"));
+        members.push(format!("{indent}  double sim_time;\n"));
+    }
+    for field in &ty.fields {
+        let mut m = String::new();
+        match (&field.item.kind, &field.bus_type) {
+            (ItemKind::Scalar { ty, length, default }, _) => {
+                // Scalars only: rosidl writes an array default as a string literal
+                // (`@default (value="(1.0, 1.0)")`), which idlc rejects.
+                if let (Some(value), 1) = (default, length) {
+                    if let Some(value) = idl_default(*ty, *value) {
+                        let _ = writeln!(m, "{indent}  @default (value={value})");
+                    }
+                }
+                let dims = if *length == 1 { String::new() } else { format!("[{length}]") };
+                let _ = writeln!(m, "{indent}  {} {}{dims};", idl_type(*ty), field.name);
+            }
+            (ItemKind::Bus { .. }, Some(bus)) => {
+                let _ = writeln!(m, "{indent}  {} {};", flavor.scoped(package, bus), field.name);
+            }
+            (ItemKind::Bus { .. }, None) => unreachable!("every bus field has a type"),
+        }
+        members.push(m);
+    }
+    s.push_str(&members.join("\n"));
+    let _ = writeln!(s, "{indent}}};");
+    if flavor == Flavor::Dds {
+        let _ = writeln!(s, "    }};");
+    }
+    let _ = writeln!(s, "  }};");
+    let _ = writeln!(s, "}};");
+    s
+}
+
+fn msg_file(ty: &TypeDef<'_>, source_name: &str) -> String {
+    let mut s = String::new();
+    let _ = writeln!(s, "# generated by tutti idl from {source_name}");
+    let _ = writeln!(s, "# {}", ty.origin);
+    if let Some(topic) = &ty.topic {
+        let _ = writeln!(s, "# DDS topic {topic}");
+    }
+    s.push('\n');
+    if ty.is_set {
+        let _ = writeln!(s, "uint64 step");
+        let _ = writeln!(s, "float64 sim_time");
+    }
+    for field in &ty.fields {
+        match (&field.item.kind, &field.bus_type) {
+            (ItemKind::Scalar { ty, length, default }, _) => {
+                let array = if *length == 1 { String::new() } else { format!("[{length}]") };
+                let default = match default {
+                    None => String::new(),
+                    Some(v) if *length == 1 => format!(" {}", literal(*ty, *v, false)),
+                    Some(v) => format!(" [{}]", array_literal(*ty, *v, *length)),
+                };
+                let _ = writeln!(s, "{}{array} {}{default}", msg_type(*ty), field.name);
+            }
+            (ItemKind::Bus { .. }, Some(bus)) => {
+                let _ = writeln!(s, "{bus} {}", field.name);
+            }
+            (ItemKind::Bus { .. }, None) => unreachable!("every bus field has a type"),
+        }
+    }
+    s
+}
+
+fn package_xml(package: &str, source_name: &str) -> String {
+    format!(
+        r#"<?xml version="1.0"?>
+<?xml-model href="http://download.ros.org/schema/package_format3.xsd" schematypens="http://www.w3.org/2001/XMLSchema"?>
+<!-- generated by tutti idl from {source_name} -->
+<package format="3">
+  <name>{package}</name>
+  <version>{PACKAGE_VERSION}</version>
+  <description>ROS 2 messages of the tutti domains described by {source_name}: one message per set, as the tutti gateway publishes and subscribes them.</description>
+  <maintainer email="tutti@example.invalid">tutti</maintainer>
+  <license>Apache-2.0</license>
+
+  <buildtool_depend>ament_cmake</buildtool_depend>
+  <buildtool_depend>rosidl_default_generators</buildtool_depend>
+
+  <exec_depend>rosidl_default_runtime</exec_depend>
+
+  <member_of_group>rosidl_interface_packages</member_of_group>
+
+  <export>
+    <build_type>ament_cmake</build_type>
+  </export>
+</package>
+"#
+    )
+}
+
+fn cmake_lists(package: &str, types: &[TypeDef<'_>]) -> String {
+    let mut s = String::new();
+    let _ = writeln!(s, "# generated by tutti idl");
+    let _ = writeln!(s, "cmake_minimum_required(VERSION 3.8)");
+    let _ = writeln!(s, "project({package})");
+    s.push('\n');
+    let _ = writeln!(s, "find_package(ament_cmake REQUIRED)");
+    let _ = writeln!(s, "find_package(rosidl_default_generators REQUIRED)");
+    s.push('\n');
+    let _ = writeln!(s, "rosidl_generate_interfaces(${{PROJECT_NAME}}");
+    for ty in types {
+        let _ = writeln!(s, "  \"msg/{}.msg\"", ty.name);
+    }
+    let _ = writeln!(s, ")");
+    s.push('\n');
+    let _ = writeln!(s, "ament_export_dependencies(rosidl_default_runtime)");
+    let _ = writeln!(s, "ament_package()");
+    s
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::ddf::parse_str;
+
+    const FIGURE2: &str = include_str!("../../../ddf/paper-figure2.ddf");
+    const PRODUCT: &str = include_str!("../../../ddf/product-sample.ddf");
+
+    fn files(text: &str, source: &str) -> Vec<GeneratedFile> {
+        let model = parse_str(text, source).unwrap();
+        let pkg = mapping::package_name(Path::new(source));
+        generate(&model, &pkg).unwrap()
+    }
+
+    fn file<'a>(files: &'a [GeneratedFile], path: &str) -> &'a str {
+        files
+            .iter()
+            .find(|f| f.path == Path::new(path))
+            .map(|f| f.contents.as_str())
+            .unwrap_or_else(|| panic!("no {path} among {:?}", files.iter().map(|f| &f.path).collect::<Vec<_>>()))
+    }
+
+    #[test]
+    fn figure2_publish_set_is_a_rosidl_struct() {
+        let f = files(FIGURE2, "ddf/paper-figure2.ddf");
+        let idl = file(&f, "paper_figure2_msgs/msg/MultiuavUav1Publish.idl");
+        assert_eq!(
+            idl,
+            "// generated by tutti idl from paper-figure2.ddf
+// domain multiuav_uav1, set PUBLISH
+// DDS topic rt/multiuav_uav1/publish, type paper_figure2_msgs::msg::dds_::MultiuavUav1Publish_
+// generated code does not contain a copyright notice
+
+module paper_figure2_msgs {
+  module msg {
+    struct MultiuavUav1Publish {
+      uint64 step;
+
+      double sim_time;
+
+      double autopilot;
+
+      double x;
+    };
+  };
+};
+"
+        );
+        let msg = file(&f, "paper_figure2_msgs/msg/MultiuavUav1Subscribe.msg");
+        assert!(
+            msg.ends_with("\nuint64 step\nfloat64 sim_time\nfloat64 latitude\nfloat64 longitude\nfloat64 elevation\n"),
+            "{msg}"
+        );
+        let dds = file(&f, "paper_figure2_msgs/msg/dds_/MultiuavUav1Subscribe_.idl");
+        assert!(dds.contains("module paper_figure2_msgs {\n  module msg {\n    module dds_ {\n      struct MultiuavUav1Subscribe_ {\n"), "{dds}");
+        assert!(dds.ends_with("      double elevation;\n      };\n    };\n  };\n};\n"), "{dds}");
+    }
+
+    #[test]
+    fn figure2_package_lists_every_message() {
+        let f = files(FIGURE2, "ddf/paper-figure2.ddf");
+        let paths: Vec<String> = f.iter().map(|f| f.path.display().to_string()).collect();
+        assert_eq!(
+            paths,
+            [
+                "paper_figure2_msgs/msg/MultiuavUav1Publish.idl",
+                "paper_figure2_msgs/msg/dds_/MultiuavUav1Publish_.idl",
+                "paper_figure2_msgs/msg/MultiuavUav1Publish.msg",
+                "paper_figure2_msgs/msg/MultiuavUav1Subscribe.idl",
+                "paper_figure2_msgs/msg/dds_/MultiuavUav1Subscribe_.idl",
+                "paper_figure2_msgs/msg/MultiuavUav1Subscribe.msg",
+                "paper_figure2_msgs/package.xml",
+                "paper_figure2_msgs/CMakeLists.txt",
+            ]
+        );
+        let cmake = file(&f, "paper_figure2_msgs/CMakeLists.txt");
+        assert!(cmake.contains(
+            "rosidl_generate_interfaces(${PROJECT_NAME}\n  \"msg/MultiuavUav1Publish.msg\"\n  \"msg/MultiuavUav1Subscribe.msg\"\n)\n"
+        ));
+        let xml = file(&f, "paper_figure2_msgs/package.xml");
+        assert!(xml.contains("<package format=\"3\">"));
+        assert!(xml.contains("<name>paper_figure2_msgs</name>"));
+        assert!(xml.contains("<buildtool_depend>rosidl_default_generators</buildtool_depend>"));
+        assert!(xml.contains("<member_of_group>rosidl_interface_packages</member_of_group>"));
+    }
+
+    #[test]
+    fn product_bus_is_a_nested_struct_with_defaults_and_arrays() {
+        let f = files(PRODUCT, "ddf/product-sample.ddf");
+        let set = file(&f, "product_sample_msgs/msg/GridFeederPublish.idl");
+        assert!(
+            set.contains(
+                "\n#include \"product_sample_msgs/msg/GridFeederPublishMeter.idl\"\n\nmodule product_sample_msgs {\n"
+            ),
+            "{set}"
+        );
+        assert!(set.contains("      @default (value=TRUE)\n      boolean breaker_closed;\n"), "{set}");
+        assert!(set.contains("      double voltage_abc[3];\n"), "{set}");
+        assert!(set.contains("      product_sample_msgs::msg::GridFeederPublishMeter meter;\n    };\n"), "{set}");
+        let bus = file(&f, "product_sample_msgs/msg/GridFeederPublishMeter.idl");
+        assert!(bus.contains("// domain grid_feeder, set PUBLISH, bus meter\n"), "{bus}");
+        assert!(
+            bus.contains(
+                "    struct GridFeederPublishMeter {\n      float power_kw;\n\n      uint32 samples;\n    };\n"
+            ),
+            "{bus}"
+        );
+        assert!(!bus.contains("step"), "a bus has no header fields: {bus}");
+        let dds = file(&f, "product_sample_msgs/msg/dds_/GridFeederPublish_.idl");
+        assert!(dds.contains("#include \"product_sample_msgs/msg/dds_/GridFeederPublishMeter_.idl\"\n"), "{dds}");
+        assert!(dds.contains("        product_sample_msgs::msg::dds_::GridFeederPublishMeter_ meter;\n"), "{dds}");
+        assert_eq!(
+            file(&f, "product_sample_msgs/msg/GridFeederPublish.msg")
+                .lines()
+                .skip_while(|l| l.starts_with('#') || l.is_empty())
+                .collect::<Vec<_>>(),
+            [
+                "uint64 step",
+                "float64 sim_time",
+                "bool breaker_closed true",
+                "float64[3] voltage_abc",
+                "GridFeederPublishMeter meter"
+            ]
+        );
+        assert_eq!(
+            file(&f, "product_sample_msgs/msg/GridFeederSubscribe.msg")
+                .lines()
+                .skip_while(|l| l.starts_with('#') || l.is_empty())
+                .collect::<Vec<_>>(),
+            ["uint64 step", "float64 sim_time", "float64 setpoint_kw 1.5", "int8 mode 0"]
+        );
+        assert!(file(&f, "product_sample_msgs/CMakeLists.txt").contains("  \"msg/GridFeederPublishMeter.msg\"\n"));
+    }
+
+    #[test]
+    fn every_type_nested_buses_and_array_defaults() {
+        let f = files(
+            r#"<orchestra><domain name="all"><set name="PUBLISH">
+                 <item name="b"><type>bool</type><length>2</length><default>no</default></item>
+                 <item name="i8"><type>int8</type><default>-3</default></item>
+                 <item name="i64"><type>int64</type><default>-9223372036854775808</default></item>
+                 <item name="u64"><type>uint64</type><default>18446744073709551615</default></item>
+                 <item name="f"><type>float</type><length>2</length><default>0.1</default></item>
+                 <item name="gps"><type>bus</type>
+                   <item name="fix"><type>bus</type><item name="Latitude"><type>double</type></item></item>
+                 </item>
+               </set></domain></orchestra>"#,
+            "t/All Types.ddf",
+        );
+        let set = file(&f, "all_types_msgs/msg/AllPublish.idl");
+        assert!(set.contains("      double sim_time;\n\n      boolean b[2];\n"), "{set}");
+        assert!(set.contains("      @default (value=-3)\n      int8 i8;\n"), "{set}");
+        assert!(set.contains("      int8 i8;\n\n      int64 i64;\n"), "{set}");
+        assert!(set.contains("      @default (value=18446744073709551615)\n      uint64 u64;\n"), "{set}");
+        assert!(set.contains("      uint64 u64;\n\n      float f[2];\n"), "{set}");
+        let msg = file(&f, "all_types_msgs/msg/AllPublish.msg");
+        assert!(msg.contains("\nbool[2] b [false, false]\nint8 i8 -3\nint64 i64 -9223372036854775808\nuint64 u64 18446744073709551615\nfloat32[2] f [0.1, 0.1]\nAllPublishGps gps\n"), "{msg}");
+        let gps = file(&f, "all_types_msgs/msg/AllPublishGps.idl");
+        assert!(gps.contains("#include \"all_types_msgs/msg/AllPublishGpsFix.idl\""), "{gps}");
+        assert!(file(&f, "all_types_msgs/msg/AllPublishGpsFix.msg").ends_with("\nfloat64 latitude\n"));
+        // The SUBSCRIBE set is absent: an empty set still has its header fields.
+        assert!(file(&f, "all_types_msgs/msg/AllSubscribe.msg").ends_with("\nuint64 step\nfloat64 sim_time\n"));
+    }
+
+    #[test]
+    fn names_that_clash_in_idl_are_refused() {
+        let clash = |text: &str| {
+            let model = parse_str(text, "c.ddf").unwrap();
+            generate(&model, "c_msgs").unwrap_err().to_string()
+        };
+        let e = clash(
+            r#"<orchestra><domain name="grid_feeder"><set name="PUBLISH"><item name="x"><type>double</type></item></set></domain>
+               <domain name="gridFeeder"><set name="PUBLISH"><item name="x"><type>double</type></item></set></domain></orchestra>"#,
+        );
+        assert!(e.contains("type name GridFeederPublish (domain gridFeeder, set PUBLISH) clashes"), "{e}");
+        let e = clash(
+            r#"<orchestra><domain name="a"><set name="PUBLISH"><item name="apublish"><type>double</type></item></set></domain></orchestra>"#,
+        );
+        assert!(e.starts_with("c.ddf: field apublish of APublish"), "{e}");
+        assert!(e.contains("item apublish) is named like the type APublish"), "{e}");
+    }
+}
