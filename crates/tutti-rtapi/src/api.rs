@@ -1,0 +1,487 @@
+//! The exported calls, with the product's names and C signatures (SPEC section 3). Each one
+//! checks its pointers, runs under [`guard`] and returns an `RTAPI_*` code; the semantics are
+//! in docs/rtapi.md.
+
+use std::ffi::{c_char, c_int, c_uint, c_ushort, c_void};
+use std::time::Duration;
+
+use tutti_core::ddf::Role;
+use tutti_core::shm::WaitMode;
+
+use crate::codes::*;
+use crate::ffi::{bytes_in, bytes_out, c_str, guard, last_detail_ptr, write_out, Failure};
+use crate::state::{check_size, leaf_by_key, leaf_by_path, leaf_in, state, Access};
+
+/// Creates a connection key (1, 2, …). Key 0 exists from the start and is the current
+/// connection until RTSetConnectionKey selects another.
+///
+/// # Safety
+/// `connKey` must be NULL or valid for writing one `unsigned int`.
+#[no_mangle]
+pub unsafe extern "C" fn RTNewConnectionKey(connKey: *mut c_uint) -> RTAPIReturn_t {
+    guard("RTNewConnectionKey", || {
+        crate::ffi::non_null(connKey.cast_const(), "connKey")?;
+        let key = state().new_key()?;
+        // SAFETY: the caller promises `connKey` is NULL (refused above) or writable.
+        unsafe { write_out(connKey, "connKey", key) }
+    })
+}
+
+/// Makes `connKey` the current connection: every call without a key argument works on it.
+#[no_mangle]
+pub extern "C" fn RTSetConnectionKey(connKey: c_uint) -> RTAPIReturn_t {
+    guard("RTSetConnectionKey", || state().set_current(connKey))
+}
+
+/// Connects the current connection to the running domain `domainName`, waiting up to
+/// `timeoutSeconds` for its framework and then (unless skipped) for wait-to-go. The layout
+/// is read from the live segment. `timeoutSeconds` is also the lock timeout (5 s if 0).
+///
+/// # Safety
+/// `domainName` must be NULL or a NUL-terminated string.
+#[no_mangle]
+pub unsafe extern "C" fn RTConnect(
+    domainName: *const c_char,
+    timeoutSeconds: c_int,
+) -> RTAPIReturn_t {
+    guard("RTConnect", || {
+        // SAFETY: the caller promises a NUL-terminated string or NULL.
+        let domain = unsafe { c_str(domainName, "domainName") }?;
+        state().connect(domain, None, timeoutSeconds)
+    })
+}
+
+/// As RTConnect, after loading the DDF at `ddfPath` and checking that it describes the live
+/// domain exactly (items, types, lengths, flags): RTAPI_ERROR_LAYOUT_MISMATCH otherwise.
+///
+/// # Safety
+/// `ddfPath` and `domainName` must be NULL or NUL-terminated strings.
+#[no_mangle]
+pub unsafe extern "C" fn RTConnectWithFile(
+    ddfPath: *const c_char,
+    domainName: *const c_char,
+    timeoutSeconds: c_int,
+) -> RTAPIReturn_t {
+    guard("RTConnectWithFile", || {
+        // SAFETY: the caller promises NUL-terminated strings or NULL.
+        let path = unsafe { c_str(ddfPath, "ddfPath") }?;
+        // SAFETY: as above.
+        let domain = unsafe { c_str(domainName, "domainName") }?;
+        state().connect(domain, Some(path), timeoutSeconds)
+    })
+}
+
+/// Disconnects the current connection. Its key stays valid (it can connect again); the
+/// pointers from RTGetBuffer, RTGetBufferInfo and RTGetConnectionStatusPtr become invalid.
+#[no_mangle]
+pub extern "C" fn RTDisconnect() -> RTAPIReturn_t {
+    guard("RTDisconnect", || state().disconnect())
+}
+
+/// Writes the SUBSCRIBE item `itemPath` (`sizeBytes` must equal its size). Inside
+/// RTPublishLock/RTPublishUnlock it is staged and committed at the unlock; outside a lock
+/// pair in an asynchronous domain it is committed at once; in a synchronous domain outside
+/// a lock pair it returns RTAPI_ERROR_OUT_OF_ORDER.
+///
+/// # Safety
+/// `itemPath` must be NULL or a NUL-terminated string; `value` NULL or valid for reading
+/// `sizeBytes` bytes.
+#[no_mangle]
+pub unsafe extern "C" fn RTPublish(
+    itemPath: *const c_char,
+    value: *const c_void,
+    sizeBytes: c_uint,
+) -> RTAPIReturn_t {
+    guard("RTPublish", || {
+        // SAFETY: the caller promises a NUL-terminated string or NULL.
+        let path = unsafe { c_str(itemPath, "itemPath") }?;
+        let mut st = state();
+        let (_, conn) = st.current()?;
+        let p = conn
+            .participant
+            .as_ref()
+            .ok_or_else(|| Failure::new(RTAPI_ERROR_INTERNAL, "no participant"))?;
+        let leaf = leaf_in(p, Role::Subscribe, path)?;
+        check_size(p, &leaf, sizeBytes)?;
+        // SAFETY: the caller promises `sizeBytes` readable bytes at `value` (or NULL).
+        let bytes = unsafe { bytes_in(value.cast(), sizeBytes as usize, "value") }?;
+        let locked = conn.pub_locked;
+        if !locked && p.info().flags.synchronous {
+            return Err(Failure::new(RTAPI_ERROR_OUT_OF_ORDER, format!("domain '{}' is synchronous: call RTPublish between RTPublishLock and RTPublishUnlock", p.info().name)));
+        }
+        st.exchange(Access::Publish, |c| {
+            let Some(p) = c.participant.as_mut() else {
+                return Ok(());
+            };
+            if locked {
+                p.stage(path, bytes)
+            } else {
+                p.publish_lock()?;
+                p.stage(path, bytes)?;
+                p.commit()
+            }
+        })
+    })
+}
+
+/// Reads the PUBLISH item `itemPath` into `value` (`sizeBytes` must equal its size). Inside
+/// RTSubscribeLock/RTSubscribeUnlock it reads the lock's snapshot; outside a lock pair in an
+/// asynchronous domain it takes a fresh snapshot; in a synchronous domain outside a lock
+/// pair it returns RTAPI_ERROR_OUT_OF_ORDER.
+///
+/// # Safety
+/// `itemPath` must be NULL or a NUL-terminated string; `value` NULL or valid for writing
+/// `sizeBytes` bytes.
+#[no_mangle]
+pub unsafe extern "C" fn RTSubscribe(
+    itemPath: *const c_char,
+    value: *mut c_void,
+    sizeBytes: c_uint,
+) -> RTAPIReturn_t {
+    guard("RTSubscribe", || {
+        // SAFETY: the caller promises a NUL-terminated string or NULL.
+        let path = unsafe { c_str(itemPath, "itemPath") }?;
+        let mut st = state();
+        let (_, conn) = st.current()?;
+        let p = conn
+            .participant
+            .as_ref()
+            .ok_or_else(|| Failure::new(RTAPI_ERROR_INTERNAL, "no participant"))?;
+        let leaf = leaf_in(p, Role::Publish, path)?;
+        check_size(p, &leaf, sizeBytes)?;
+        // SAFETY: the caller promises `sizeBytes` writable bytes at `value` (or NULL).
+        let out = unsafe { bytes_out(value.cast(), sizeBytes as usize, "value") }?;
+        let locked = conn.sub_locked;
+        if !locked && p.info().flags.synchronous {
+            return Err(Failure::new(RTAPI_ERROR_OUT_OF_ORDER, format!("domain '{}' is synchronous: call RTSubscribe between RTSubscribeLock and RTSubscribeUnlock", p.info().name)));
+        }
+        st.exchange(Access::Subscribe, |c| {
+            let Some(p) = c.participant.as_mut() else {
+                return Ok(());
+            };
+            if !locked {
+                p.subscribe_lock()?;
+            }
+            out.copy_from_slice(&p.snapshot()[leaf.range()]);
+            Ok(())
+        })
+    })
+}
+
+/// Starts a write of the SUBSCRIBE set: claims it where one writer is allowed (else
+/// RTAPI_ERROR_NOT_OWNER) and, in a synchronous domain, waits for the step to answer.
+#[no_mangle]
+pub extern "C" fn RTPublishLock() -> RTAPIReturn_t {
+    guard("RTPublishLock", || {
+        let mut st = state();
+        if st.current()?.1.pub_locked {
+            return Err(Failure::new(
+                RTAPI_ERROR_OUT_OF_ORDER,
+                "RTPublishLock called twice without RTPublishUnlock",
+            ));
+        }
+        st.exchange(Access::Publish, |c| {
+            let Some(p) = c.participant.as_mut() else {
+                return Ok(());
+            };
+            p.publish_lock()?;
+            c.pub_locked = true;
+            Ok(())
+        })
+    })
+}
+
+/// Commits what was staged since RTPublishLock (RTPublish calls and writes through the
+/// SUBSCRIBE buffers) atomically; in a synchronous domain this is the connection's
+/// contribution to the step.
+#[no_mangle]
+pub extern "C" fn RTPublishUnlock() -> RTAPIReturn_t {
+    guard("RTPublishUnlock", || {
+        let mut st = state();
+        let (_, conn) = st.current()?;
+        if !conn.pub_locked {
+            return Err(Failure::new(
+                RTAPI_ERROR_OUT_OF_ORDER,
+                "RTPublishUnlock without RTPublishLock",
+            ));
+        }
+        conn.pub_locked = false;
+        st.exchange(Access::Publish, |c| {
+            c.participant.as_mut().map_or(Ok(()), |p| p.commit())
+        })
+    })
+}
+
+/// Takes a consistent snapshot of the PUBLISH set into the connection's own buffer; in a
+/// synchronous domain waits for the framework's next step (each step is read once).
+#[no_mangle]
+pub extern "C" fn RTSubscribeLock() -> RTAPIReturn_t {
+    guard("RTSubscribeLock", || {
+        let mut st = state();
+        if st.current()?.1.sub_locked {
+            return Err(Failure::new(
+                RTAPI_ERROR_OUT_OF_ORDER,
+                "RTSubscribeLock called twice without RTSubscribeUnlock",
+            ));
+        }
+        st.exchange(Access::Subscribe, |c| {
+            let Some(p) = c.participant.as_mut() else {
+                return Ok(());
+            };
+            p.subscribe_lock()?;
+            c.sub_locked = true;
+            Ok(())
+        })
+    })
+}
+
+/// Ends a read started by RTSubscribeLock (the snapshot stays readable until the next lock).
+#[no_mangle]
+pub extern "C" fn RTSubscribeUnlock() -> RTAPIReturn_t {
+    guard("RTSubscribeUnlock", || {
+        let mut st = state();
+        let (_, conn) = st.current()?;
+        if !conn.sub_locked {
+            return Err(Failure::new(
+                RTAPI_ERROR_OUT_OF_ORDER,
+                "RTSubscribeUnlock without RTSubscribeLock",
+            ));
+        }
+        conn.sub_locked = false;
+        Ok(())
+    })
+}
+
+/// The item key of `itemPath` in the current connection's domain: its index among the
+/// PUBLISH items, then the SUBSCRIBE items, in DDF order.
+///
+/// # Safety
+/// `itemPath` must be NULL or a NUL-terminated string; `itemKey` NULL or writable.
+#[no_mangle]
+pub unsafe extern "C" fn RTGetKeyForItem(
+    itemPath: *const c_char,
+    itemKey: *mut c_ushort,
+) -> RTAPIReturn_t {
+    guard("RTGetKeyForItem", || {
+        // SAFETY: the caller promises a NUL-terminated string or NULL.
+        let path = unsafe { c_str(itemPath, "itemPath") }?;
+        crate::ffi::non_null(itemKey.cast_const(), "itemKey")?;
+        let mut st = state();
+        let (key, _, _) = leaf_by_path(
+            st.current()?
+                .1
+                .participant
+                .as_ref()
+                .ok_or_else(|| Failure::new(RTAPI_ERROR_INTERNAL, "no participant"))?,
+            path,
+        )?;
+        // SAFETY: the caller promises `itemKey` is writable (NULL was refused above).
+        unsafe { write_out(itemKey, "itemKey", key) }
+    })
+}
+
+/// The element size in bytes and the element count of `itemPath`.
+///
+/// # Safety
+/// `itemPath` must be NULL or a NUL-terminated string; `typeSize` and `length` NULL or
+/// writable.
+#[no_mangle]
+pub unsafe extern "C" fn RTGetInfoForItem(
+    itemPath: *const c_char,
+    typeSize: *mut c_uint,
+    length: *mut c_ushort,
+) -> RTAPIReturn_t {
+    guard("RTGetInfoForItem", || {
+        // SAFETY: the caller promises a NUL-terminated string or NULL.
+        let path = unsafe { c_str(itemPath, "itemPath") }?;
+        crate::ffi::non_null(typeSize.cast_const(), "typeSize")?;
+        crate::ffi::non_null(length.cast_const(), "length")?;
+        let mut st = state();
+        let (_, _, leaf) = leaf_by_path(
+            st.current()?
+                .1
+                .participant
+                .as_ref()
+                .ok_or_else(|| Failure::new(RTAPI_ERROR_INTERNAL, "no participant"))?,
+            path,
+        )?;
+        // SAFETY: both pointers are writable as the caller promises (NULL refused above).
+        unsafe {
+            write_out(typeSize, "typeSize", leaf.ty.size())?;
+            write_out(length, "length", leaf.length)
+        }
+    })
+}
+
+/// A pointer to item `itemKey` in connection `connKey`'s own buffers: the snapshot of the
+/// PUBLISH set (refreshed by RTSubscribeLock) for PUBLISH items, the staging buffer of the
+/// SUBSCRIBE set (committed by RTPublishUnlock) for SUBSCRIBE items. Elements are
+/// contiguous, typeSize apart, in native byte order. Valid until RTDisconnect.
+///
+/// # Safety
+/// `buffer` must be NULL or writable.
+#[no_mangle]
+pub unsafe extern "C" fn RTGetBuffer(
+    connKey: c_uint,
+    itemKey: c_ushort,
+    buffer: *mut *mut c_void,
+) -> RTAPIReturn_t {
+    guard("RTGetBuffer", || {
+        crate::ffi::non_null(buffer.cast_const(), "buffer")?;
+        let mut st = state();
+        let p = st.participant(connKey)?;
+        let (role, leaf) = leaf_by_key(p, itemKey)?;
+        let set = match role {
+            Role::Publish => p.snapshot_mut(),
+            Role::Subscribe => p.staging_mut(),
+        };
+        let ptr = set[leaf.range()].as_mut_ptr().cast::<c_void>();
+        // SAFETY: `buffer` is writable as the caller promises (NULL refused above).
+        unsafe { write_out(buffer, "buffer", ptr) }
+    })
+}
+
+/// The connection's whole PUBLISH snapshot and SUBSCRIBE staging buffers, with their sizes
+/// (a NULL pointer and size 0 for an empty set). Valid until RTDisconnect.
+///
+/// # Safety
+/// The four out-pointers must be NULL or writable.
+#[no_mangle]
+pub unsafe extern "C" fn RTGetBufferInfo(
+    connKey: c_uint,
+    pubBuffer: *mut *mut c_char,
+    pubSize: *mut c_uint,
+    subBuffer: *mut *mut c_char,
+    subSize: *mut c_uint,
+) -> RTAPIReturn_t {
+    guard("RTGetBufferInfo", || {
+        crate::ffi::non_null(pubBuffer.cast_const(), "pubBuffer")?;
+        crate::ffi::non_null(pubSize.cast_const(), "pubSize")?;
+        crate::ffi::non_null(subBuffer.cast_const(), "subBuffer")?;
+        crate::ffi::non_null(subSize.cast_const(), "subSize")?;
+        let mut st = state();
+        let p = st.participant(connKey)?;
+        let whole = |b: &mut [u8]| -> (*mut c_char, c_uint) {
+            if b.is_empty() {
+                (std::ptr::null_mut(), 0)
+            } else {
+                (b.as_mut_ptr().cast(), b.len() as c_uint)
+            }
+        };
+        let (pb, ps) = whole(p.snapshot_mut());
+        let (sb, ss) = whole(p.staging_mut());
+        // SAFETY: the four pointers are writable as the caller promises (NULL refused above).
+        unsafe {
+            write_out(pubBuffer, "pubBuffer", pb)?;
+            write_out(pubSize, "pubSize", ps)?;
+            write_out(subBuffer, "subBuffer", sb)?;
+            write_out(subSize, "subSize", ss)
+        }
+    })
+}
+
+/// A pointer to the live status word of connection `connKey`'s domain: 1 while the
+/// framework runs, 2 once it has stopped (0 while it initialises). Read it as `volatile`
+/// (another process writes it); valid until RTDisconnect.
+///
+/// # Safety
+/// `status` must be NULL or writable.
+#[no_mangle]
+pub unsafe extern "C" fn RTGetConnectionStatusPtr(
+    connKey: c_uint,
+    status: *mut *mut c_uint,
+) -> RTAPIReturn_t {
+    guard("RTGetConnectionStatusPtr", || {
+        crate::ffi::non_null(status.cast_const(), "status")?;
+        let mut st = state();
+        let word = st.participant(connKey)?.state_word().as_ptr();
+        // SAFETY: `status` is writable as the caller promises (NULL refused above).
+        unsafe { write_out(status, "status", word) }
+    })
+}
+
+/// Blocks while the framework holds its wait-to-go signal (at most the connect timeout).
+#[no_mangle]
+pub extern "C" fn RTWaitReadyToGo() -> RTAPIReturn_t {
+    guard("RTWaitReadyToGo", wait_ready)
+}
+
+fn wait_ready() -> Result<(), Failure> {
+    let mut st = state();
+    st.current()?;
+    st.exchange(Access::Subscribe, |c| {
+        c.participant
+            .as_ref()
+            .map_or(Ok(()), |p| p.wait_ready_to_go())
+    })
+}
+
+/// Whether the next RTConnect / RTConnectWithFile returns without waiting for wait-to-go.
+#[no_mangle]
+pub extern "C" fn RTSetSkipWaitToGoAtConnection(skip: bool) -> RTAPIReturn_t {
+    guard("RTSetSkipWaitToGoAtConnection", || {
+        state().set_skip_wait_to_go(skip);
+        Ok(())
+    })
+}
+
+fn flag_delay(microseconds: c_uint) -> WaitMode {
+    if microseconds == 0 {
+        WaitMode::Spin
+    } else {
+        WaitMode::Poll(Duration::from_micros(u64::from(microseconds)))
+    }
+}
+
+/// Waits by polling every `microseconds` µs instead of sleeping in the kernel (0 = spin).
+/// Applies to every connection of the process, now and later.
+#[no_mangle]
+pub extern "C" fn RTDefineFlagDelay(microseconds: c_uint) -> RTAPIReturn_t {
+    guard("RTDefineFlagDelay", || {
+        state().set_wait(flag_delay(microseconds));
+        Ok(())
+    })
+}
+
+/// Same effect as RTDefineFlagDelay in this implementation (the product distinguishes a
+/// tool-side flag; here there is one waiting mechanism).
+#[no_mangle]
+pub extern "C" fn RTUseFlagWithTool(microseconds: c_uint) -> RTAPIReturn_t {
+    guard("RTUseFlagWithTool", || {
+        state().set_wait(flag_delay(microseconds));
+        Ok(())
+    })
+}
+
+/// The number of connections now in domain `domainName` (this process's included). Works
+/// without being connected, from the domain's segment (in TUTTI_NAMESPACE).
+///
+/// # Safety
+/// `domainName` must be NULL or a NUL-terminated string; `count` NULL or writable.
+#[no_mangle]
+pub unsafe extern "C" fn RTGetConnectionCount(
+    domainName: *const c_char,
+    count: *mut c_uint,
+) -> RTAPIReturn_t {
+    guard("RTGetConnectionCount", || {
+        // SAFETY: the caller promises a NUL-terminated string or NULL.
+        let domain = unsafe { c_str(domainName, "domainName") }?;
+        crate::ffi::non_null(count.cast_const(), "count")?;
+        let n = state().connection_count(domain)?;
+        // SAFETY: `count` is writable as the caller promises (NULL refused above).
+        unsafe { write_out(count, "count", n) }
+    })
+}
+
+/// The static text of a return code (a text saying so for an unknown code). Never NULL.
+#[no_mangle]
+pub extern "C" fn RTGetErrorMessage(code: RTAPIReturn_t) -> *const c_char {
+    message(code).as_ptr()
+}
+
+/// Details of this thread's last failed call (domain, item, sizes, what to do), or "" —
+/// not in the product. Valid until this thread's next failing call. Never NULL.
+#[no_mangle]
+pub extern "C" fn RTGetLastErrorDetail() -> *const c_char {
+    std::panic::catch_unwind(last_detail_ptr).unwrap_or(c"".as_ptr())
+}

@@ -1,0 +1,322 @@
+//! The library's state: the connection table and the "current connection", as in the
+//! product. It is process-wide (one `Mutex`), so a client may connect in one thread and
+//! exchange in another, but calls must not overlap: the RTAPI is single-threaded, and a
+//! call that blocks (a lock in a synchronous domain) holds the state until it returns.
+
+use std::collections::BTreeMap;
+use std::sync::{Mutex, MutexGuard};
+use std::time::Duration;
+
+use tutti_core::ddf::{self, Leaf, Role};
+use tutti_core::shm::{ConnectOptions, Participant, ShmError, WaitMode};
+
+use crate::codes::{self, *};
+use crate::ffi::{CallResult, Failure};
+
+/// The key that exists from the start and is current until `RTSetConnectionKey`: a client
+/// that never asks for a key (the paper's `RTConnect`/`RTPublish`/`RTSubscribe`) uses it.
+pub const DEFAULT_KEY: u32 = 0;
+
+/// Lock timeout when `RTConnect` is given 0 seconds.
+const DEFAULT_LOCK_TIMEOUT: Duration = Duration::from_secs(5);
+
+/// One connection key.
+#[derive(Debug, Default)]
+pub struct Conn {
+    pub participant: Option<Participant>,
+    pub sub_locked: bool,
+    pub pub_locked: bool,
+}
+
+#[derive(Debug)]
+pub struct State {
+    conns: BTreeMap<u32, Conn>,
+    next_key: u32,
+    current: u32,
+    skip_wait_to_go: bool,
+    wait: WaitMode,
+}
+
+static STATE: Mutex<State> = Mutex::new(State {
+    conns: BTreeMap::new(),
+    next_key: DEFAULT_KEY + 1,
+    current: DEFAULT_KEY,
+    skip_wait_to_go: false,
+    wait: WaitMode::Block,
+});
+
+/// The state, locked. A panic in an earlier call (caught by the guard) poisons the mutex;
+/// the state stays usable, so the poison is ignored.
+pub fn state() -> MutexGuard<'static, State> {
+    STATE
+        .lock()
+        .unwrap_or_else(|poisoned| poisoned.into_inner())
+}
+
+fn not_connected(key: u32) -> Failure {
+    Failure::new(
+        RTAPI_ERROR_NOT_CONNECTED,
+        format!("connection key {key} is not connected (call RTConnect first)"),
+    )
+}
+
+/// Which part of the exchange a connected call uses.
+pub enum Access {
+    Subscribe,
+    Publish,
+}
+
+impl State {
+    pub fn new_key(&mut self) -> CallResult<u32> {
+        let key = self.next_key;
+        self.next_key = key.checked_add(1).ok_or_else(|| {
+            Failure::new(RTAPI_ERROR_INVALID_ARGUMENT, "connection keys exhausted")
+        })?;
+        self.conns.insert(key, Conn::default());
+        Ok(key)
+    }
+
+    pub fn set_current(&mut self, key: u32) -> CallResult {
+        if key != DEFAULT_KEY && !self.conns.contains_key(&key) {
+            return Err(Failure::new(
+                RTAPI_ERROR_UNKNOWN_CONNECTION_KEY,
+                format!("no connection key {key}"),
+            ));
+        }
+        self.current = key;
+        Ok(())
+    }
+
+    /// The connection behind `key` (connected or not).
+    pub fn conn(&mut self, key: u32) -> CallResult<&mut Conn> {
+        if key == DEFAULT_KEY {
+            return Ok(self.conns.entry(DEFAULT_KEY).or_default());
+        }
+        self.conns.get_mut(&key).ok_or_else(|| {
+            Failure::new(
+                RTAPI_ERROR_UNKNOWN_CONNECTION_KEY,
+                format!("no connection key {key}"),
+            )
+        })
+    }
+
+    /// The participant behind `key`; fails if it is not connected.
+    pub fn participant(&mut self, key: u32) -> CallResult<&mut Participant> {
+        self.conn(key)?
+            .participant
+            .as_mut()
+            .ok_or_else(|| not_connected(key))
+    }
+
+    /// The current connection, which must be connected.
+    pub fn current(&mut self) -> CallResult<(u32, &mut Conn)> {
+        let key = self.current;
+        let conn = self.conn(key)?;
+        if conn.participant.is_none() {
+            return Err(not_connected(key));
+        }
+        Ok((key, conn))
+    }
+
+    pub fn set_skip_wait_to_go(&mut self, skip: bool) {
+        self.skip_wait_to_go = skip;
+    }
+
+    /// Sets how every connection waits, now and for later connections.
+    pub fn set_wait(&mut self, wait: WaitMode) {
+        self.wait = wait;
+        for p in self
+            .conns
+            .values_mut()
+            .filter_map(|c| c.participant.as_mut())
+        {
+            p.set_wait_mode(wait);
+        }
+    }
+
+    /// Connects the current connection; with a DDF, checks that it matches the live domain.
+    pub fn connect(
+        &mut self,
+        domain: &str,
+        ddf_path: Option<&str>,
+        timeout_seconds: i32,
+    ) -> CallResult {
+        let timeout = u64::try_from(timeout_seconds)
+            .map(Duration::from_secs)
+            .map_err(|_| {
+                Failure::new(
+                    RTAPI_ERROR_INVALID_ARGUMENT,
+                    format!("timeout {timeout_seconds} s is negative"),
+                )
+            })?;
+        if domain.is_empty() {
+            return Err(Failure::new(
+                RTAPI_ERROR_INVALID_ARGUMENT,
+                "the domain name is empty",
+            ));
+        }
+        let key = self.current;
+        let (skip, wait) = (self.skip_wait_to_go, self.wait);
+        let conn = self.conn(key)?;
+        if conn.participant.is_some() {
+            return Err(Failure::new(
+                RTAPI_ERROR_ALREADY_CONNECTED,
+                format!("connection key {key} is already connected"),
+            ));
+        }
+        let opts = ConnectOptions {
+            connect_timeout: timeout,
+            timeout: if timeout.is_zero() {
+                DEFAULT_LOCK_TIMEOUT
+            } else {
+                timeout
+            },
+            wait,
+            skip_wait_to_go: skip,
+            ..ConnectOptions::default()
+        };
+        let shm = |e: ShmError| Failure::shm(&e, Side::Connect);
+        let participant = match ddf_path {
+            None => Participant::connect(domain, opts).map_err(shm)?,
+            Some(path) => {
+                let model = ddf::load(path)
+                    .map_err(|e| Failure::new(RTAPI_ERROR_DDF_INVALID, e.to_string()))?;
+                let d = model.domain(domain).ok_or_else(|| {
+                    Failure::new(
+                        RTAPI_ERROR_DDF_INVALID,
+                        format!("{path} does not describe domain '{domain}'"),
+                    )
+                })?;
+                Participant::connect_checked(d, opts).map_err(shm)?
+            }
+        };
+        *conn = Conn {
+            participant: Some(participant),
+            sub_locked: false,
+            pub_locked: false,
+        };
+        Ok(())
+    }
+
+    pub fn disconnect(&mut self) -> CallResult {
+        let (_, conn) = self.current()?;
+        if let Some(p) = conn.participant.take() {
+            p.disconnect();
+        }
+        *conn = Conn::default();
+        Ok(())
+    }
+
+    /// Runs one core operation on the current connection; when it fails because the other
+    /// side is gone, the connection is closed (see docs/rtapi.md, "Errors").
+    pub fn exchange<T>(
+        &mut self,
+        access: Access,
+        op: impl FnOnce(&mut Conn) -> Result<T, ShmError>,
+    ) -> CallResult<T> {
+        let (_, conn) = self.current()?;
+        let side = match access {
+            Access::Subscribe => Side::Subscribe,
+            Access::Publish => Side::Publish,
+        };
+        op(conn).map_err(|e| {
+            if codes::disconnects(&e) {
+                if let Some(p) = conn.participant.take() {
+                    p.disconnect();
+                }
+                *conn = Conn::default();
+            }
+            Failure::shm(&e, side)
+        })
+    }
+
+    /// Connection count of `domain`: from a connection of this process if one is connected
+    /// to it, else from the segment.
+    pub fn connection_count(&self, domain: &str) -> CallResult<u32> {
+        if let Some(p) = self
+            .conns
+            .values()
+            .filter_map(|c| c.participant.as_ref())
+            .find(|p| p.info().name == domain)
+        {
+            return Ok(p.connection_count());
+        }
+        let ns = tutti_core::shm::segment::namespace_from_env();
+        let seg = tutti_core::shm::segment::Segment::open(&ns, domain)
+            .map_err(|e| Failure::shm(&e, Side::Connect))?;
+        Ok(seg
+            .header()
+            .conn_count
+            .load(std::sync::atomic::Ordering::Acquire))
+    }
+}
+
+/// The leaf with key `key` (PUBLISH leaves first, then SUBSCRIBE).
+pub fn leaf_by_key(p: &Participant, key: u16) -> CallResult<(Role, Leaf)> {
+    p.info()
+        .leaves()
+        .nth(usize::from(key))
+        .map(|(r, l)| (r, l.clone()))
+        .ok_or_else(|| {
+            Failure::new(
+                RTAPI_ERROR_UNKNOWN_ITEM,
+                format!("domain '{}' has no item key {key}", p.info().name),
+            )
+        })
+}
+
+/// The leaf at `path` in either set, with its item key.
+pub fn leaf_by_path(p: &Participant, path: &str) -> CallResult<(u16, Role, Leaf)> {
+    p.info()
+        .leaves()
+        .enumerate()
+        .find(|(_, (_, l))| l.path == path)
+        .and_then(|(i, (r, l))| Some((u16::try_from(i).ok()?, r, l.clone())))
+        .ok_or_else(|| {
+            Failure::new(
+                RTAPI_ERROR_UNKNOWN_ITEM,
+                format!("domain '{}' has no item '{path}'", p.info().name),
+            )
+        })
+}
+
+/// The leaf at `path` in set `role`; an item of the other set is named in the detail.
+pub fn leaf_in(p: &Participant, role: Role, path: &str) -> CallResult<Leaf> {
+    let (_, r, leaf) = leaf_by_path(p, path)?;
+    if r != role {
+        let hint = match role {
+            Role::Publish => {
+                "RTSubscribe reads the PUBLISH set; write SUBSCRIBE items with RTPublish"
+            }
+            Role::Subscribe => {
+                "RTPublish writes the SUBSCRIBE set; read PUBLISH items with RTSubscribe"
+            }
+        };
+        return Err(Failure::new(
+            RTAPI_ERROR_UNKNOWN_ITEM,
+            format!(
+                "item '{path}' of domain '{}' is in the {r} set: {hint}",
+                p.info().name
+            ),
+        ));
+    }
+    Ok(leaf)
+}
+
+/// Checks that `got` bytes fit leaf `leaf` exactly.
+pub fn check_size(p: &Participant, leaf: &Leaf, got: u32) -> CallResult {
+    if got != leaf.size {
+        return Err(Failure::new(
+            RTAPI_ERROR_WRONG_SIZE,
+            format!(
+                "item '{}' of domain '{}' is {} bytes ({} × {}), got {got}",
+                leaf.path,
+                p.info().name,
+                leaf.size,
+                leaf.length,
+                leaf.ty.canonical()
+            ),
+        ));
+    }
+    Ok(())
+}

@@ -1,0 +1,227 @@
+//! Real C (and C++) programs compiled against include/RTAPI.h and the built library, run
+//! against a live framework (stepping in a thread of this test process).
+
+mod common;
+
+use std::process::Command;
+use std::time::Duration;
+
+use common::*;
+use tutti_core::shm::FrameworkOptions;
+
+const LIMIT: Duration = Duration::from_secs(120);
+
+fn fopts(ns: &str) -> FrameworkOptions {
+    FrameworkOptions {
+        namespace: ns.to_string(),
+        timeout: Duration::from_secs(20),
+        ..Default::default()
+    }
+}
+
+fn f64_at(bytes: &[u8], off: usize) -> f64 {
+    f64::from_ne_bytes(bytes[off..off + 8].try_into().expect("8 bytes"))
+}
+
+/// The values `uav_reader` printed, in order.
+fn printed_values(stdout: &str) -> Vec<f64> {
+    stdout
+        .lines()
+        .filter_map(|l| l.split_whitespace().nth(1)?.split('=').nth(1)?.parse().ok())
+        .collect()
+}
+
+/// Runs uav_reader (built as `program`) for `steps` steps, optionally under a wrapper such
+/// as valgrind, and checks the exchange step by step.
+fn run_uav_reader(test: &str, program: &std::path::Path, wrapper: &[&str], steps: usize) {
+    let ns = namespace(test);
+    let host = Host::start(
+        &load("ddf/multiuav.ddf"),
+        fopts(&ns),
+        Duration::from_millis(1),
+    );
+    let ddf = root().join("ddf/multiuav.ddf");
+    let mut cmd = Command::new(
+        wrapper
+            .first()
+            .copied()
+            .unwrap_or(program.to_str().expect("path")),
+    );
+    if !wrapper.is_empty() {
+        cmd.args(&wrapper[1..]).arg(program);
+    }
+    cmd.env("TUTTI_NAMESPACE", &ns).arg(&ddf).args([
+        "multiuav_uav2",
+        "Z",
+        "Elevation",
+        &steps.to_string(),
+        "2",
+    ]);
+    let out = run(&mut cmd, LIMIT);
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        out.status.success(),
+        "uav_reader failed ({}):\n{stdout}\n{stderr}",
+        out.status
+    );
+    let values = printed_values(&stdout);
+    assert_eq!(values.len(), steps, "{stdout}");
+    // Lock-step: every step read once, none skipped. From the second value on: until its
+    // first commit a connection is not a writer, the framework may move on meanwhile, and the
+    // core's publish_lock then counts the newer step as read (see docs/rtapi.md, "Joining a
+    // synchronous domain").
+    for w in values[1..].windows(2) {
+        assert_eq!(w[1], w[0] + 1.0, "steps skipped or repeated: {values:?}");
+    }
+    assert!(stdout.lines().all(|l| l.ends_with("status=1")), "{stdout}");
+    let seen = host.seen();
+    drop(host);
+    // The framework's view: the answer to step k (Elevation, SUBSCRIBE offset 16) is 2k.
+    // The first step read is skipped: a connection counts as a writer from its first
+    // RTPublishLock, so the framework does not wait for that first answer (docs/rtapi.md).
+    for v in &values[1..] {
+        let step = *v as u64;
+        let s = seen
+            .iter()
+            .find(|s| s.domain == "multiuav_uav2" && s.step == step)
+            .expect("step seen by the framework");
+        assert_eq!(f64_at(&s.subscribe, 16), 2.0 * v, "step {step}");
+    }
+}
+
+#[test]
+fn product_pattern_client_exchanges_every_step_with_a_live_framework() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let program = compile(&root().join("examples/c/uav_reader.c"), dir.path());
+    run_uav_reader("uavreader", &program, &[], 200);
+}
+
+#[test]
+fn product_pattern_client_is_clean_under_valgrind() {
+    if Command::new("valgrind").arg("--version").output().is_err() {
+        eprintln!("valgrind not installed: skipped");
+        return;
+    }
+    let dir = tempfile::tempdir().expect("temp dir");
+    let program = compile(&root().join("examples/c/uav_reader.c"), dir.path());
+    run_uav_reader(
+        "valgrind",
+        &program,
+        &["valgrind", "--error-exitcode=99", "--leak-check=no", "-q"],
+        20,
+    );
+}
+
+#[test]
+fn static_library_links_and_runs() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let out = dir.path().join("uav_reader_static");
+    let lib = lib_dir().join("librtapi.a");
+    let mut cmd = Command::new("gcc");
+    cmd.args(["-std=c99", "-Wall", "-Werror"])
+        .arg(format!("-I{}", root().join("include").display()));
+    cmd.arg(root().join("examples/c/uav_reader.c"))
+        .arg(&lib)
+        .args(["-lpthread", "-ldl", "-lm", "-o"])
+        .arg(&out);
+    let o = run(&mut cmd, LIMIT);
+    assert!(
+        o.status.success(),
+        "static link failed:\n{}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    run_uav_reader("static", &out, &[], 20);
+}
+
+#[test]
+fn two_connections_to_two_domains_in_one_process() {
+    let ns = namespace("twodomains");
+    let dir = tempfile::tempdir().expect("temp dir");
+    let program = compile(&root().join("examples/c/two_domains.c"), dir.path());
+    let host = Host::start(
+        &load("ddf/multiuav.ddf"),
+        fopts(&ns),
+        Duration::from_millis(1),
+    );
+    let mut cmd = Command::new(&program);
+    cmd.env("TUTTI_NAMESPACE", &ns)
+        .args(["multiuav_uav1", "multiuav_uav3", "X", "Latitude", "40"]);
+    let out = run(&mut cmd, LIMIT);
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        out.status.success(),
+        "two_domains failed:\n{stdout}\n{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert!(
+        stdout.contains("multiuav_uav1 connections=1")
+            && stdout.contains("multiuav_uav3 connections=1"),
+        "{stdout}"
+    );
+    let steps: Vec<(f64, f64)> = stdout
+        .lines()
+        .filter(|l| l.starts_with("step "))
+        .filter_map(|l| {
+            let mut it = l
+                .split_whitespace()
+                .skip(2)
+                .filter_map(|kv| kv.split('=').nth(1)?.parse().ok());
+            Some((it.next()?, it.next()?))
+        })
+        .collect();
+    assert_eq!(steps.len(), 40, "{stdout}");
+    for w in steps[1..].windows(2) {
+        assert_eq!(w[1].0, w[0].0 + 1.0, "{stdout}");
+        assert_eq!(w[1].1, w[0].1 + 1.0, "{stdout}");
+    }
+    let seen = host.seen();
+    drop(host);
+    // Each domain got back the value it published that step (Latitude, SUBSCRIBE offset 0).
+    // (From the second step on: see run_uav_reader.)
+    for (domain, idx) in [("multiuav_uav1", 0), ("multiuav_uav3", 1)] {
+        for s in &steps[1..] {
+            let v = if idx == 0 { s.0 } else { s.1 };
+            let seen = seen
+                .iter()
+                .find(|x| x.domain == domain && x.step == v as u64)
+                .expect("step seen");
+            assert_eq!(f64_at(&seen.subscribe, 0), v, "{domain} step {v}");
+        }
+    }
+}
+
+#[test]
+fn header_compiles_as_c_and_inside_extern_c_in_cpp() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let c = dir.path().join("hdr_c.c");
+    std::fs::write(
+        &c,
+        "#include \"RTAPI.h\"\n#include \"RTAPI.h\"\n#include <stdio.h>\n\
+         int main(void) { RTAPIReturn_t rc = RTAPI_SUCCESS; unsigned int n; \
+         rc = RTGetConnectionCount(NULL, &n); \
+         printf(\"%d %s|%s\\n\", rc, RTGetErrorMessage(rc), RTGetErrorMessage(RTAPI_SUBSCRIBE_FAILED_RTLAB_SUBSYSTEM_UNMAPPED)); \
+         return rc == RTAPI_ERROR_NULL_POINTER ? 0 : 1; }\n",
+    )
+    .expect("writing");
+    let cpp = dir.path().join("hdr_cpp.cpp");
+    std::fs::write(
+        &cpp,
+        "extern \"C\" {\n#include \"RTAPI.h\"\n}\n#include <cstdio>\n\
+         int main() { bool skip = true; RTAPIReturn_t rc = RTSetSkipWaitToGoAtConnection(skip); \
+         std::printf(\"%d %s\\n\", rc, RTGetErrorMessage(RTAPI_PUBLISH_FAILED_RTLAB_SUBSYSTEM_UNMAPPED)); \
+         return rc == RTAPI_SUCCESS ? 0 : 1; }\n",
+    )
+    .expect("writing");
+    for src in [c, cpp] {
+        let program = compile(&src, dir.path());
+        let out = run(&mut Command::new(&program), LIMIT);
+        assert!(
+            out.status.success(),
+            "{}: {}",
+            src.display(),
+            String::from_utf8_lossy(&out.stdout)
+        );
+        assert!(String::from_utf8_lossy(&out.stdout).contains("framework has stopped"));
+    }
+}
