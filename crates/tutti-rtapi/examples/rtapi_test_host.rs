@@ -1,0 +1,84 @@
+//! A minimal framework for tests of RTAPI clients in other languages (the Python tests):
+//! hosts every domain of a DDF and steps them every PERIOD_MS; every float64 element of a
+//! PUBLISH set holds the step number. Prints `ready` once the domains exist, and after each
+//! step nothing. Stops, removing its segments, when its stdin closes or after MAX_SECONDS.
+//! With `--echo`, prints each domain's SUBSCRIBE float64 items after every step
+//! (`DOMAIN STEP ITEM=VALUE ...`).
+//!
+//!     rtapi_test_host DDF PERIOD_MS MAX_SECONDS [--echo]
+
+use std::io::{BufRead, Write};
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+
+use tutti_core::ddf::{self, Role, ScalarType};
+use tutti_core::shm::{Framework, FrameworkOptions};
+
+fn main() -> Result<(), Box<dyn std::error::Error>> {
+    let args: Vec<String> = std::env::args().collect();
+    if args.len() < 4 {
+        eprintln!("usage: rtapi_test_host DDF PERIOD_MS MAX_SECONDS [--echo]");
+        std::process::exit(2);
+    }
+    let model = ddf::load(&args[1])?;
+    let period = Duration::from_millis(args[2].parse()?);
+    let limit = Duration::from_secs(args[3].parse()?);
+    let echo = args.get(4).is_some_and(|a| a == "--echo");
+    let opts = FrameworkOptions {
+        timeout: Duration::from_secs(10),
+        ..Default::default()
+    };
+    let mut fw = Framework::create(&model, &opts)?;
+    let stop = Arc::new(AtomicBool::new(false));
+    let stop2 = stop.clone();
+    std::thread::spawn(move || {
+        for line in std::io::stdin().lock().lines() {
+            if line.is_err() {
+                break;
+            }
+        }
+        stop2.store(true, Ordering::Release);
+    });
+    let mut out = std::io::stdout().lock();
+    writeln!(out, "ready")?;
+    out.flush()?;
+    let start = Instant::now();
+    let mut k = 0u64;
+    while !stop.load(Ordering::Acquire) && start.elapsed() < limit {
+        k += 1;
+        for host in &mut fw.domains {
+            let info = host.info().clone();
+            let mut buf = vec![0u8; info.publish.size as usize];
+            for leaf in info
+                .set(Role::Publish)
+                .leaves
+                .iter()
+                .filter(|l| l.ty == ScalarType::Float64)
+            {
+                for e in 0..usize::from(leaf.length) {
+                    let off = leaf.offset as usize + 8 * e;
+                    buf[off..off + 8].copy_from_slice(&(k as f64).to_ne_bytes());
+                }
+            }
+            host.step(&buf, k as f64 * period.as_secs_f64())?;
+            if echo {
+                let sub = host.subscribe();
+                let mut line = format!("{} {}", info.name, host.current_step());
+                for leaf in info
+                    .set(Role::Subscribe)
+                    .leaves
+                    .iter()
+                    .filter(|l| l.ty == ScalarType::Float64 && l.length == 1)
+                {
+                    let v = f64::from_ne_bytes(sub[leaf.range()].try_into()?);
+                    line.push_str(&format!(" {}={v}", leaf.path));
+                }
+                writeln!(out, "{line}")?;
+            }
+        }
+        out.flush()?;
+        std::thread::sleep(period);
+    }
+    Ok(())
+}
