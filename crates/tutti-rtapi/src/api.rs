@@ -1,5 +1,5 @@
 //! The exported calls, with the product's names and C signatures (SPEC section 3). Each one
-//! checks its pointers, runs under [`guard`] and returns an `RTAPI_*` code; the semantics are
+//! checks its pointers, runs under a guard that catches panics, and returns an `RTAPI_*` code; the semantics are
 //! in docs/rtapi.md.
 
 use std::ffi::{c_char, c_int, c_uint, c_ushort, c_void};

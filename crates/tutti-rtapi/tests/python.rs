@@ -15,7 +15,7 @@ fn python_module_tests_pass() {
         return;
     }
     let lib = lib_dir();
-    let host = lib.join("examples/rtapi_test_host");
+    let host = profile_dir().join("examples/rtapi_test_host");
     assert!(
         host.exists(),
         "{} missing: cargo test builds it (or cargo build -p tutti-rtapi --examples)",

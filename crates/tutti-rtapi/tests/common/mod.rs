@@ -21,20 +21,29 @@ pub fn root() -> PathBuf {
         .expect("workspace root")
 }
 
-/// The directory holding librtapi.so / librtapi.a of this build (next to `deps/`).
-pub fn lib_dir() -> PathBuf {
+/// target/<profile> of this build.
+pub fn profile_dir() -> PathBuf {
     let exe = std::env::current_exe().expect("test exe");
-    let dir = exe
-        .parent()
+    exe.parent()
         .and_then(Path::parent)
         .expect("target/<profile>")
-        .to_path_buf();
-    assert!(
-        dir.join("librtapi.so").exists(),
-        "{} missing: run `cargo build -p tutti-rtapi` first",
-        dir.join("librtapi.so").display()
-    );
-    dir
+        .to_path_buf()
+}
+
+/// The directory holding librtapi.so / librtapi.a of this build: `deps/`, where `cargo test`
+/// builds them (it copies them up to target/<profile> only on `cargo build`), else
+/// target/<profile>.
+pub fn lib_dir() -> PathBuf {
+    let profile = profile_dir();
+    let dir = [profile.join("deps"), profile.clone()]
+        .into_iter()
+        .find(|d| d.join("librtapi.so").exists());
+    dir.unwrap_or_else(|| {
+        panic!(
+            "librtapi.so missing under {}: run `cargo build -p tutti-rtapi`",
+            profile.display()
+        )
+    })
 }
 
 /// A namespace unique to this process and test.
