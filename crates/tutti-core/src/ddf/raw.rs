@@ -6,6 +6,9 @@
 //! silently accept or reject unknown elements depending on struct attributes. See
 //! `docs/ddf.md`.
 
+use std::borrow::Cow;
+use std::cell::Cell;
+
 use quick_xml::events::Event;
 use quick_xml::Reader;
 
@@ -16,29 +19,31 @@ use super::Pos;
 /// refused before it can exhaust memory or stack.
 pub const MAX_XML_DEPTH: usize = 40;
 
-/// One XML element with its position (the `<` of its start tag).
+/// One XML element with its position (the `<` of its start tag). Names, attribute values
+/// and text borrow from the source where they can: a large DDF has tens of thousands of
+/// elements, and allocating each piece dominated the parse time.
 #[derive(Debug, Clone, PartialEq)]
-pub struct RawElement {
-    pub name: String,
+pub struct RawElement<'a> {
+    pub name: Cow<'a, str>,
     pub pos: Pos,
-    pub attrs: Vec<RawAttr>,
-    pub children: Vec<RawElement>,
+    pub attrs: Vec<RawAttr<'a>>,
+    pub children: Vec<RawElement<'a>>,
     /// Concatenated character data directly inside this element.
-    pub text: String,
+    pub text: Cow<'a, str>,
     /// Position of the first non-whitespace character data, if any.
     pub text_pos: Option<Pos>,
 }
 
 /// One attribute; its position is the one of the element that carries it.
 #[derive(Debug, Clone, PartialEq)]
-pub struct RawAttr {
-    pub name: String,
-    pub value: String,
+pub struct RawAttr<'a> {
+    pub name: Cow<'a, str>,
+    pub value: Cow<'a, str>,
 }
 
-impl RawElement {
-    fn new(name: String, pos: Pos) -> Self {
-        RawElement { name, pos, attrs: Vec::new(), children: Vec::new(), text: String::new(), text_pos: None }
+impl<'a> RawElement<'a> {
+    fn new(name: Cow<'a, str>, pos: Pos) -> Self {
+        RawElement { name, pos, attrs: Vec::new(), children: Vec::new(), text: Cow::Borrowed(""), text_pos: None }
     }
 
     /// The trimmed text content.
@@ -48,30 +53,57 @@ impl RawElement {
 
     /// The value of attribute `name`, if present.
     pub fn attr(&self, name: &str) -> Option<&str> {
-        self.attrs.iter().find(|a| a.name == name).map(|a| a.value.as_str())
+        self.attrs.iter().find(|a| a.name == name).map(|a| &*a.value)
     }
 }
 
 /// Maps byte offsets to 1-based line and column (columns count characters).
+///
+/// The parser asks for positions in increasing order, so the index keeps a cursor and only
+/// scans the bytes between the previous offset and the new one: linear in the file size
+/// even for a DDF written on one line. An offset before the cursor rescans from the start.
 #[derive(Debug)]
 pub struct LineIndex<'a> {
     src: &'a str,
-    starts: Vec<usize>,
+    cursor: Cell<Cursor>,
 }
+
+#[derive(Debug, Clone, Copy)]
+struct Cursor {
+    offset: usize,
+    /// 1-based line of `offset`.
+    line: u32,
+    /// Characters between the start of the line and `offset`.
+    col: u32,
+}
+
+const START: Cursor = Cursor { offset: 0, line: 1, col: 0 };
 
 impl<'a> LineIndex<'a> {
     pub fn new(src: &'a str) -> Self {
-        let mut starts = vec![0];
-        starts.extend(src.match_indices('\n').map(|(i, _)| i + 1));
-        LineIndex { src, starts }
+        LineIndex { src, cursor: Cell::new(START) }
     }
 
     pub fn pos(&self, offset: usize) -> Pos {
         let offset = offset.min(self.src.len());
-        let line = self.starts.partition_point(|&s| s <= offset).max(1);
-        let start = self.starts[line - 1];
-        let col = self.src.get(start..offset).map_or(offset - start, |s| s.chars().count()) + 1;
-        Pos { line: line as u32, col: col as u32 }
+        let mut c = self.cursor.get();
+        if offset < c.offset {
+            c = START;
+        }
+        let chunk = &self.src.as_bytes()[c.offset..offset];
+        // Characters are counted as bytes that do not continue a UTF-8 sequence, which also
+        // works for an offset inside a character.
+        let chars = |b: &[u8]| b.iter().filter(|&&x| x & 0xC0 != 0x80).count() as u32;
+        match chunk.iter().rposition(|&x| x == b'\n') {
+            Some(last) => {
+                c.line += chunk.iter().filter(|&&x| x == b'\n').count() as u32;
+                c.col = chars(&chunk[last + 1..]);
+            }
+            None => c.col += chars(chunk),
+        }
+        c.offset = offset;
+        self.cursor.set(c);
+        Pos { line: c.line, col: c.col + 1 }
     }
 }
 
@@ -87,7 +119,7 @@ fn err(pos: Pos, message: impl Into<String>) -> SyntaxError {
 }
 
 /// Parses XML text into its root element.
-pub fn parse(src: &str) -> Result<RawElement, SyntaxError> {
+pub fn parse(src: &str) -> Result<RawElement<'_>, SyntaxError> {
     let index = LineIndex::new(src);
     if src.trim().is_empty() {
         return Err(err(Pos { line: 1, col: 1 }, "the file is empty: expected an <orchestra> document"));
@@ -107,26 +139,28 @@ pub fn parse(src: &str) -> Result<RawElement, SyntaxError> {
             Ok(e) => e,
             Err(e) => {
                 let at = index.pos(reader.error_position() as usize);
-                return Err(err(at, format!("malformed XML: {e}")));
+                return Err(err(at, format!("malformed XML: {}", printable(&e.to_string(), 200))));
             }
         };
-        let here = index.pos(before);
+        // Positions are computed only where needed: they cost more than the XML reading.
+        let here = || index.pos(before);
         match event {
             Event::Start(start) | Event::Empty(start) if root.is_some() && stack.is_empty() => {
                 let _ = start;
-                return Err(err(here, "content after the root element: a DDF has one <orchestra> root"));
+                return Err(err(here(), "content after the root element: a DDF has one <orchestra> root"));
             }
             Event::Start(ref start) | Event::Empty(ref start) => {
+                let here = here();
                 if stack.len() >= MAX_XML_DEPTH {
                     return Err(err(here, format!("XML elements nested deeper than {MAX_XML_DEPTH} levels")));
                 }
-                let mut element = RawElement::new(start.name().as_ref().to_string(), here);
+                let mut element = RawElement::new(borrow(src, start.name().as_ref()), here);
                 for attr in start.attributes() {
-                    let attr = attr.map_err(|e| err(here, format!("malformed attribute: {e}")))?;
+                    let attr = attr.map_err(|e| err(here, format!("malformed attribute: {}", printable(&e.to_string(), 200))))?;
                     let value = attr
                         .normalized_value(quick_xml::XmlVersion::Implicit1_0)
-                        .map_err(|e| err(here, format!("malformed attribute value: {e}")))?;
-                    element.attrs.push(RawAttr { name: attr.key.as_ref().to_string(), value: value.into_owned() });
+                        .map_err(|e| err(here, format!("malformed attribute value: {}", printable(&e.to_string(), 200))))?;
+                    element.attrs.push(RawAttr { name: borrow(src, attr.key.as_ref()), value: borrow(src, &value) });
                 }
                 if matches!(event, Event::Empty(_)) {
                     close(element, &mut stack, &mut root);
@@ -142,25 +176,28 @@ pub fn parse(src: &str) -> Result<RawElement, SyntaxError> {
             }
             Event::Text(text) => {
                 let content = text.xml_content(quick_xml::XmlVersion::Implicit1_0);
-                add_text(&mut stack, &content, here, &index, before)?;
+                add_text(&mut stack, content, &index, before)?;
             }
             Event::CData(data) => {
                 let content = data.xml_content(quick_xml::XmlVersion::Implicit1_0);
-                add_text(&mut stack, &content, here, &index, before)?;
+                add_text(&mut stack, content, &index, before)?;
             }
             Event::GeneralRef(reference) => {
                 let resolved = match reference.resolve_char_ref() {
                     Ok(Some(c)) => c.to_string(),
                     Ok(None) => match quick_xml::escape::resolve_predefined_entity(&reference) {
                         Some(s) => s.to_string(),
-                        None => return Err(err(here, format!("unknown entity '&{};'", &*reference))),
+                        None => return Err(err(here(), format!("unknown entity '&{};'", printable(&reference, 40)))),
                     },
-                    Err(e) => return Err(err(here, format!("malformed character reference: {e}"))),
+                    Err(e) => return Err(err(here(), format!("malformed character reference: {}", printable(&e.to_string(), 200)))),
                 };
-                add_text(&mut stack, &resolved, here, &index, before)?;
+                add_text(&mut stack, Cow::Owned(resolved), &index, before)?;
             }
             Event::DocType(_) => {
-                return Err(err(here, "DOCTYPE declarations are not supported in a DDF"));
+                return Err(err(here(), "DOCTYPE declarations are not supported in a DDF"));
+            }
+            Event::Decl(_) if src.get(..before).is_some_and(|s| !s.trim().is_empty()) => {
+                return Err(err(here(), "the XML declaration <?xml …?> must come first in the file"));
             }
             Event::Decl(_) | Event::PI(_) | Event::Comment(_) => {}
             Event::Eof => break,
@@ -176,27 +213,70 @@ pub fn parse(src: &str) -> Result<RawElement, SyntaxError> {
     root.ok_or_else(|| err(Pos { line: 1, col: 1 }, "no XML element found: expected an <orchestra> document"))
 }
 
-fn close(element: RawElement, stack: &mut [RawElement], root: &mut Option<RawElement>) {
+/// `text` made fit for a one-line diagnostic: control characters (newlines included)
+/// escaped, cut to `max` characters with an ellipsis. Library error messages and
+/// user-written names or values can contain anything.
+pub fn printable(text: &str, max: usize) -> String {
+    let mut out = String::with_capacity(text.len().min(max * 2));
+    for (i, c) in text.chars().enumerate() {
+        if i == max {
+            out.push('…');
+            break;
+        }
+        if c.is_control() {
+            out.extend(c.escape_debug());
+        } else {
+            out.push(c);
+        }
+    }
+    out
+}
+
+/// `part` as a slice of `src` when it is one, else a copy. quick-xml hands out pieces of the
+/// input, but with the lifetime of the event rather than of the input; this recovers the
+/// longer borrow by position (safe code: a slice of `src` at the same address is the same
+/// bytes).
+fn borrow<'a>(src: &'a str, part: &str) -> Cow<'a, str> {
+    let start = (part.as_ptr() as usize).wrapping_sub(src.as_ptr() as usize);
+    match src.get(start..start.wrapping_add(part.len())) {
+        Some(s) if s.as_ptr() == part.as_ptr() => Cow::Borrowed(s),
+        _ => Cow::Owned(part.to_owned()),
+    }
+}
+
+fn close<'a>(element: RawElement<'a>, stack: &mut [RawElement<'a>], root: &mut Option<RawElement<'a>>) {
     match stack.last_mut() {
         Some(parent) => parent.children.push(element),
         None => *root = Some(element),
     }
 }
 
-fn add_text(stack: &mut [RawElement], content: &str, here: Pos, index: &LineIndex<'_>, offset: usize) -> Result<(), SyntaxError> {
+fn add_text<'a>(stack: &mut [RawElement<'a>], content: Cow<'a, str>, index: &LineIndex<'_>, offset: usize) -> Result<(), SyntaxError> {
     match stack.last_mut() {
         Some(parent) => {
+            // Blanks before any content are trimmed anyway; skipping them saves an allocation
+            // for every element that holds only child elements.
+            if parent.text.is_empty() && content.trim().is_empty() {
+                return Ok(());
+            }
             if parent.text_pos.is_none() {
                 if let Some(skip) = content.find(|c: char| !c.is_whitespace()) {
                     // Position of the first non-blank character (exact for unescaped text).
                     parent.text_pos = Some(index.pos(offset + skip));
                 }
             }
-            parent.text.push_str(content);
+            if parent.text.is_empty() {
+                parent.text = content;
+            } else {
+                parent.text.to_mut().push_str(&content);
+            }
             Ok(())
         }
-        None if content.trim().is_empty() => Ok(()),
-        None => Err(err(here, "text outside the root element")),
+        None => match content.find(|c: char| !c.is_whitespace()) {
+            None => Ok(()),
+            // Point at the text itself, not at the blank lines before it.
+            Some(skip) => Err(err(index.pos(offset + skip), "text outside the root element")),
+        },
     }
 }
 
@@ -211,6 +291,19 @@ mod tests {
         assert_eq!(idx.pos(3), Pos { line: 2, col: 1 });
         assert_eq!(idx.pos(7), Pos { line: 2, col: 4 });
         assert_eq!(idx.pos(8), Pos { line: 3, col: 1 });
+        // Backwards, and inside a character.
+        assert_eq!(idx.pos(2), Pos { line: 1, col: 3 });
+        assert_eq!(idx.pos(6), Pos { line: 2, col: 4 });
+        assert_eq!(idx.pos(100), Pos { line: 3, col: 2 });
+    }
+
+    #[test]
+    fn positions_on_one_long_line_take_linear_time() {
+        let src = "<a>".repeat(200_000);
+        let idx = LineIndex::new(&src);
+        for i in 0..200_000 {
+            assert_eq!(idx.pos(i * 3).col as usize, i * 3 + 1);
+        }
     }
 
     #[test]
@@ -223,6 +316,13 @@ mod tests {
         assert_eq!(b.attr("x"), Some("1 & 2"));
         assert_eq!(b.text(), "hi<");
         assert_eq!(root.children[1].pos, Pos { line: 3, col: 3 });
+    }
+
+    #[test]
+    fn syntax_errors_stay_on_one_line() {
+        let e = parse("<a></\"\n\">").unwrap_err();
+        assert!(!e.message.contains('\n'), "{}", e.message);
+        assert_eq!(printable("a\nb\u{7f}cd", 4), "a\\nb\\u{7f}…");
     }
 
     #[test]

@@ -88,7 +88,7 @@ fn no_attrs(el: &RawElement, d: &mut Diags) {
 
 fn only_attrs(el: &RawElement, allowed: &[&str], d: &mut Diags) {
     for a in &el.attrs {
-        if !allowed.contains(&a.name.as_str()) {
+        if !allowed.contains(&&*a.name) {
             d.at(el.pos, format!("unknown attribute '{}' on <{}>", a.name, el.name));
         }
     }
@@ -108,11 +108,7 @@ fn leaf_element(el: &RawElement, d: &mut Diags) {
 }
 
 fn shorten(s: &str) -> String {
-    let mut out: String = s.chars().take(40).collect();
-    if s.chars().count() > 40 {
-        out.push('…');
-    }
-    out
+    super::raw::printable(s, 40)
 }
 
 /// The `name` attribute, checked; reports and returns `None` when missing or invalid.
@@ -154,7 +150,7 @@ fn domain(el: &RawElement, d: &mut Diags) -> Option<Domain> {
     let mut connection = None;
     let mut sets: [Option<(Set, Pos)>; 2] = [None, None];
     for child in &el.children {
-        match child.name.as_str() {
+        match &*child.name {
             flag @ ("synchronous" | "multiplePublishAllowed" | "states") => {
                 if let Some(first) = flag_seen.get(flag) {
                     d.at(
@@ -186,7 +182,7 @@ fn domain(el: &RawElement, d: &mut Diags) -> Option<Domain> {
                     }
                 }
                 connection = Some(Connection {
-                    attributes: child.attrs.iter().map(|a| (a.name.clone(), a.value.clone())).collect(),
+                    attributes: child.attrs.iter().map(|a| (a.name.to_string(), a.value.to_string())).collect(),
                 });
             }
             "block" | "set" => {
@@ -279,8 +275,9 @@ fn item_list(
     let mut seen: HashMap<String, Pos> = HashMap::new();
     for child in children {
         if child.name != "item" {
-            // Inside an item, its own <type>/<length>/<default> are handled by `item`.
-            if parent.name == "item" && matches!(child.name.as_str(), "type" | "length" | "default") {
+            // Inside a bus item, its other children (<type>, <length>, <default> and unknown
+            // elements) are checked and reported by `item`.
+            if parent.name == "item" {
                 continue;
             }
             d.at(child.pos, format!("unknown element <{}> in <{}>; expected <item>", child.name, parent.name));
@@ -316,7 +313,7 @@ fn item(el: &RawElement, role: Role, domain: &str, prefix: &str, depth: usize, d
     let mut length_el = None;
     let mut default_el = None;
     for child in &el.children {
-        let slot = match child.name.as_str() {
+        let slot = match &*child.name {
             "type" => &mut ty_el,
             "length" => &mut length_el,
             "default" => &mut default_el,
@@ -396,7 +393,7 @@ fn item(el: &RawElement, role: Role, domain: &str, prefix: &str, depth: usize, d
                         let expected = if ty == super::model::ScalarType::Boolean {
                             "yes or no".to_string()
                         } else {
-                            format!("a {} value", ty.canonical())
+                            format!("a value of type {}", ty.canonical())
                         };
                         d.at(
                             def.text_pos.unwrap_or(def.pos),
