@@ -19,6 +19,7 @@ use serde::Serialize;
 pub mod layout;
 pub mod model;
 pub mod raw;
+pub mod synth;
 pub mod validate;
 
 pub use layout::SetLayout;
