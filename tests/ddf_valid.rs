@@ -1,0 +1,308 @@
+//! Valid DDFs: the committed samples pass `tutti check`, `tutti show --json` reports what
+//! they describe, both dialects read into the same model, the limits themselves are
+//! accepted, and the committed 1,000-domain file is what the generator produces.
+
+use std::io::Read;
+use std::path::{Path, PathBuf};
+use std::process::{Command, Stdio};
+use std::time::{Duration, Instant};
+
+use serde_json::Value;
+use tutti_core::ddf::{self, Model};
+
+const TIMEOUT: Duration = Duration::from_secs(60);
+
+fn repo(path: &str) -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join(path)
+}
+
+/// Runs `tutti ARGS` with a watchdog; returns (exit code, stdout, stderr).
+fn tutti(args: &[&str]) -> (i32, String, String) {
+    let mut child = Command::new(env!("CARGO_BIN_EXE_tutti"))
+        .args(args)
+        .current_dir(env!("CARGO_MANIFEST_DIR"))
+        .stdin(Stdio::null())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("spawn tutti");
+    let mut out = child.stdout.take().expect("stdout");
+    let mut err = child.stderr.take().expect("stderr");
+    let out = std::thread::spawn(move || {
+        let mut s = String::new();
+        let _ = out.read_to_string(&mut s);
+        s
+    });
+    let err = std::thread::spawn(move || {
+        let mut s = String::new();
+        let _ = err.read_to_string(&mut s);
+        s
+    });
+    let start = Instant::now();
+    let status = loop {
+        if let Some(status) = child.try_wait().expect("wait for tutti") {
+            break status;
+        }
+        if start.elapsed() > TIMEOUT {
+            let _ = child.kill();
+            let _ = child.wait();
+            panic!("tutti {args:?} did not finish within {TIMEOUT:?}");
+        }
+        std::thread::sleep(Duration::from_millis(5));
+    };
+    let out = out.join().expect("stdout reader");
+    let err = err.join().expect("stderr reader");
+    (status.code().unwrap_or(-1), out, err)
+}
+
+#[test]
+fn committed_samples_pass_check() {
+    for file in [
+        "ddf/paper-figure2.ddf",
+        "ddf/product-sample.ddf",
+        "ddf/multiuav.ddf",
+        "ddf/large-1000.ddf",
+    ] {
+        let (code, out, err) = tutti(&["check", file]);
+        assert_eq!(code, 0, "tutti check {file}: {err}");
+        assert!(out.starts_with(&format!("{file}: ok (")), "{out}");
+        assert!(err.is_empty(), "{err}");
+    }
+    // Several files in one run.
+    let (code, out, _) = tutti(&["check", "ddf/paper-figure2.ddf", "ddf/multiuav.ddf"]);
+    assert_eq!(code, 0);
+    assert_eq!(out.lines().count(), 2);
+    assert!(
+        out.contains("ddf/multiuav.ddf: ok (4 domains, 44 items)"),
+        "{out}"
+    );
+}
+
+fn leaf<'a>(set: &'a Value, path: &str) -> &'a Value {
+    set["items"]
+        .as_array()
+        .expect("items array")
+        .iter()
+        .find(|l| l["path"] == path)
+        .unwrap_or_else(|| panic!("no item {path} in {set}"))
+}
+
+#[test]
+fn show_json_lists_paths_lengths_and_defaults() {
+    let (code, out, err) = tutti(&["show", "--json", "ddf/product-sample.ddf"]);
+    assert_eq!(code, 0, "{err}");
+    let v: Value = serde_json::from_str(&out).expect("show --json prints JSON");
+    assert_eq!(v["schema"], "tutti-show/1");
+    let domains = v["domains"].as_array().expect("domains");
+    assert_eq!(domains.len(), 2);
+    let feeder = &domains[0];
+    assert_eq!(feeder["name"], "grid_feeder");
+    assert_eq!(feeder["synchronous"], false);
+    assert_eq!(feeder["states"], true);
+    assert_eq!(
+        feeder["connection"]["attributes"][0],
+        serde_json::json!(["type", "local"])
+    );
+    let sets = feeder["sets"].as_array().expect("sets");
+    let (publish, subscribe) = (&sets[0], &sets[1]);
+    assert_eq!(publish["role"], "PUBLISH");
+    assert_eq!(subscribe["role"], "SUBSCRIBE");
+
+    let paths: Vec<&str> = publish["items"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|l| l["path"].as_str().unwrap())
+        .collect();
+    assert_eq!(
+        paths,
+        [
+            "breaker_closed",
+            "voltage_abc",
+            "meter/power_kw",
+            "meter/samples"
+        ]
+    );
+    assert_eq!(leaf(publish, "breaker_closed")["default"], true);
+    assert_eq!(leaf(publish, "voltage_abc")["length"], 3);
+    assert_eq!(leaf(publish, "voltage_abc")["type"], "float64");
+    assert_eq!(leaf(publish, "voltage_abc")["size"], 24);
+    assert_eq!(leaf(publish, "meter/power_kw")["type"], "float32");
+    assert_eq!(leaf(publish, "meter/samples")["type"], "unsigned int32");
+    assert_eq!(leaf(subscribe, "setpoint_kw")["default"], 1.5);
+    assert_eq!(leaf(subscribe, "mode")["default"], 0);
+    assert_eq!(leaf(publish, "voltage_abc")["default"], Value::Null);
+    // C layout on LP64: bool @0, double[3] @8, {float @32, uint32 @36}, size 40.
+    let offsets: Vec<u64> = publish["items"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|l| l["offset"].as_u64().unwrap())
+        .collect();
+    assert_eq!(offsets, [0, 8, 32, 36]);
+    assert_eq!(publish["size"], 40);
+    assert_eq!(publish["align"], 8);
+    assert_eq!(subscribe["size"], 16);
+    let hash = feeder["layout_hash"].as_str().unwrap();
+    assert_eq!(hash.len(), 16);
+    assert!(hash.chars().all(|c| c.is_ascii_hexdigit()));
+}
+
+fn parse(text: &str) -> Model {
+    ddf::parse_str(text, "inline.ddf").unwrap_or_else(|e| panic!("{e}"))
+}
+
+/// The model without its source path, for comparing two files.
+fn meaning(model: &Model) -> Value {
+    let mut v = serde_json::to_value(model).expect("model serialises");
+    v.as_object_mut().expect("object").remove("source");
+    v
+}
+
+const PAPER: &str = r#"<?xml version="1.0" standalone="no" ?>
+<orchestra>
+<domain name="uav" >
+  <synchronous>yes</synchronous>
+  <multiplePublishAllowed>no</multiplePublishAllowed>
+  <states>no</states>
+  <block name="uav/Publish">
+    <item name="Autopilot"><type>double</type></item>
+    <item name="Mode"><type>int</type></item>
+    <item name="Armed"><type>bool</type></item>
+  </block>
+  <block name="uav/Subscribe">
+    <item name="Latitude"><type>double</type></item>
+    <item name="Count"><type>uchar</type></item>
+  </block>
+</domain>
+</orchestra>
+"#;
+
+const PRODUCT: &str = r#"<?xml version="1.0" encoding="UTF-8"?>
+<orchestra>
+  <domain name="uav">
+    <synchronous>YES</synchronous>
+    <multiplePublishAllowed>No</multiplePublishAllowed>
+    <states>no</states>
+    <set name="PUBLISH">
+      <item name="Autopilot"><type>float64</type><length>1</length></item>
+      <item name="Mode"><type>int32</type></item>
+      <item name="Armed"><type>boolean</type><length>1</length></item>
+    </set>
+    <set name="SUBSCRIBE">
+      <item name="Latitude"><type>float64</type></item>
+      <item name="Count"><type>unsigned  int8</type></item>
+    </set>
+  </domain>
+</orchestra>
+"#;
+
+#[test]
+fn both_dialects_read_into_the_same_model() {
+    let paper = parse(PAPER);
+    let product = parse(PRODUCT);
+    assert_eq!(meaning(&paper), meaning(&product));
+    assert_eq!(paper.domains[0].layout_hash, product.domains[0].layout_hash);
+    // The sets may also come in the other order, and set names are case-insensitive.
+    let swapped = PRODUCT
+        .replace("<set name=\"PUBLISH\">", "<set name=\"tmp\">")
+        .replace("<set name=\"SUBSCRIBE\">", "<set name=\"publish\">")
+        .replace("<set name=\"tmp\">", "<set name=\"Subscribe\">");
+    let swapped = parse(&swapped);
+    assert_eq!(swapped.domains[0].publish.layout.leaves[0].path, "Latitude");
+}
+
+#[test]
+fn paper_figure2_and_multiuav_have_the_expected_shape() {
+    let fig = ddf::load(repo("ddf/paper-figure2.ddf")).expect("paper-figure2.ddf is valid");
+    let d = &fig.domains[0];
+    assert_eq!(d.name, "multiuav_uav1");
+    assert!(d.flags.synchronous && !d.flags.multiple_publish_allowed && !d.flags.states);
+    assert_eq!(d.publish.layout.size, 16);
+    assert_eq!(d.subscribe.layout.size, 24);
+    let multi = ddf::load(repo("ddf/multiuav.ddf")).expect("multiuav.ddf is valid");
+    assert_eq!(multi.domains.len(), 4);
+    // Item keys: PUBLISH leaves first, then SUBSCRIBE.
+    let uav = &multi.domains[0];
+    assert_eq!(
+        uav.item_key(tutti_core::ddf::Role::Subscribe, "Latitude"),
+        Some(5)
+    );
+}
+
+#[test]
+fn the_limits_themselves_are_accepted() {
+    let name63 = "n".repeat(63);
+    let mut bus = String::new();
+    for i in 0..16 {
+        bus.push_str(&format!("<item name=\"b{i}\"><type>bus</type>\n"));
+    }
+    bus.push_str("<item name=\"leaf\"><type>int8</type></item>\n");
+    bus.push_str(&"</item>\n".repeat(16));
+    let text = format!(
+        r#"<orchestra><domain name="{name63}"><set name="PUBLISH">
+<item name="{name63}"><type>uint8</type><length>65535</length></item>
+<item name="lo"><type>int8</type><default>-128</default></item>
+<item name="hi"><type>int8</type><default>127</default></item>
+<item name="u"><type>uint64</type><default>18446744073709551615</default></item>
+<item name="i"><type>long</type><default>-9223372036854775808</default></item>
+<item name="f"><type>float</type><default>-3.4e38</default></item>
+<item name="b"><type>bool</type><default>NO</default></item>
+<item name="c"><type>char</type><length>1</length></item>
+<item name="s"><type>short</type></item>
+{bus}</set></domain></orchestra>"#
+    );
+    let model = parse(&text);
+    let set = &model.domains[0].publish.layout;
+    assert_eq!(set.leaves[0].size, 65535);
+    let deepest = set.leaves.last().unwrap();
+    assert_eq!(deepest.path.matches('/').count(), 16);
+    assert!(deepest.path.ends_with("b15/leaf"));
+    let ty = |p: &str| set.leaf(p).unwrap().ty.canonical();
+    assert_eq!(ty("i"), "int64");
+    assert_eq!(ty("f"), "float32");
+    assert_eq!(ty("b"), "boolean");
+    assert_eq!(ty("c"), "int8");
+    assert_eq!(ty("s"), "int16");
+}
+
+#[test]
+fn flags_are_optional_and_sets_may_be_absent() {
+    let model = parse(r#"<orchestra><domain name="d"/></orchestra>"#);
+    let d = &model.domains[0];
+    assert!(!d.flags.synchronous && d.flags.multiple_publish_allowed && !d.flags.states);
+    assert_eq!(d.publish.layout.size, 0);
+    assert_eq!(d.subscribe.layout.leaves.len(), 0);
+}
+
+#[test]
+fn xml_conveniences_are_accepted() {
+    // BOM, comments, CDATA, character references and entities in text and attributes.
+    let text = "\u{feff}<?xml version=\"1.0\"?>\n<!-- c --><orchestra><?pi x?><domain name=\"a&amp;b\"><set name='PUBLISH'>\
+                <item name=\"x\"><type><![CDATA[double]]></type><length>&#51;</length><!-- c --></item>\
+                </set></domain></orchestra>\n<!-- trailing comment -->\n";
+    let model = parse(text);
+    assert_eq!(model.domains[0].name, "a&b");
+    assert_eq!(model.domains[0].publish.layout.leaves[0].length, 3);
+}
+
+#[test]
+fn committed_large_ddf_is_the_generator_output() {
+    let path = repo("ddf/large-1000.ddf");
+    let generated = tutti_core::ddf::synth::large_ddf(1000, 20);
+    if std::env::var_os("TUTTI_REGENERATE").is_some() {
+        std::fs::write(&path, &generated).expect("write ddf/large-1000.ddf");
+    }
+    let committed = std::fs::read_to_string(&path).expect("read ddf/large-1000.ddf");
+    assert!(
+        committed == generated,
+        "ddf/large-1000.ddf differs from synth::large_ddf(1000, 20); regenerate it with \
+         TUTTI_REGENERATE=1 cargo test --test ddf_valid committed_large_ddf"
+    );
+    let model = ddf::load(&path).expect("large-1000.ddf is valid");
+    assert_eq!(model.domains.len(), 1000);
+    assert!(model.domains.iter().all(|d| d.leaves().count() == 20));
+    let (code, out, _) = tutti(&["check", "ddf/large-1000.ddf"]);
+    assert_eq!(code, 0);
+    assert!(out.contains("(1000 domains, 20000 items)"), "{out}");
+}
