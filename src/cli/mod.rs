@@ -7,6 +7,7 @@ use clap::{Parser, Subcommand};
 
 mod bench;
 mod check;
+mod gateway;
 mod host;
 mod status;
 mod idl;
@@ -37,6 +38,7 @@ enum Command {
     Host(host::Args),
     Status(status::Args),
     Bench(bench::Args),
+    Gateway(gateway::Args),
 }
 
 /// A failure with the exit status it maps to.
@@ -68,6 +70,7 @@ pub fn run(cli: Cli) -> ExitCode {
         Command::Host(a) => host::run(a),
         Command::Status(a) => status::run(a),
         Command::Bench(a) => bench::run(a),
+        Command::Gateway(a) => gateway::run(a),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

@@ -1,0 +1,323 @@
+//! Plain CDR (XCDR1, final structs) of the DDS types of a set: the typed struct that
+//! `tutti idl` writes (`uint64 step; double sim_time;` then the items in DDF order, arrays
+//! fixed-size, buses nested), and the stock `std_msgs` types of per-item mode.
+//!
+//! The typed struct has only fixed-size members, so its body is a fixed plan: every
+//! element aligned to its own size relative to the start of the body (right after the
+//! 4-byte encapsulation header), nested structs adding no padding of their own. The plan
+//! maps each leaf of the shared-memory layout ([`SetLayout`]) to its place in the body.
+//! [`SetCodec::encode`] writes a little-endian body by hand (sent as [`PreEncoded`]);
+//! [`SetSeed`] reads a body through rustdds' CDR deserializer, which handles both byte
+//! orders, and refuses a short one.
+
+use std::fmt;
+use std::sync::Arc;
+
+use serde::de::{DeserializeSeed, SeqAccess, Visitor};
+use serde::ser::SerializeTuple;
+use serde::{Deserialize, Serialize};
+use tutti_core::ddf::{ScalarType, SetLayout};
+
+/// One leaf of a set in the CDR body.
+#[derive(Debug, Clone, PartialEq, Eq)]
+struct Field {
+    ty: ScalarType,
+    /// Elements (1 for a scalar).
+    count: usize,
+    /// Offset in the shared-memory set.
+    shm: usize,
+    /// Offset in the CDR body.
+    cdr: usize,
+}
+
+/// Bytes of the `step` and `sim_time` header fields.
+const HEADER: usize = 16;
+
+/// The CDR plan of one set's typed struct.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct SetCodec {
+    fields: Vec<Field>,
+    shm_size: usize,
+    cdr_size: usize,
+}
+
+/// A decoded typed sample: the header fields and the set in shared-memory layout.
+#[derive(Debug, Clone, PartialEq)]
+pub struct TypedSample {
+    pub step: u64,
+    pub sim_time: f64,
+    pub data: Vec<u8>,
+}
+
+impl SetCodec {
+    /// The plan for a set laid out as `layout` (its leaves are in DDF order, depth first,
+    /// which is the member order of the struct and its nested bus structs).
+    pub fn new(layout: &SetLayout) -> SetCodec {
+        let mut pos = HEADER;
+        let fields = layout
+            .leaves
+            .iter()
+            .map(|leaf| {
+                let size = leaf.ty.size() as usize;
+                pos = pos.next_multiple_of(size);
+                let f = Field { ty: leaf.ty, count: usize::from(leaf.length), shm: leaf.offset as usize, cdr: pos };
+                pos += size * f.count;
+                f
+            })
+            .collect();
+        SetCodec { fields, shm_size: layout.size as usize, cdr_size: pos }
+    }
+
+    /// Bytes of the CDR body (without the encapsulation header).
+    pub fn cdr_size(&self) -> usize {
+        self.cdr_size
+    }
+
+    /// Bytes of the set in shared memory.
+    pub fn shm_size(&self) -> usize {
+        self.shm_size
+    }
+
+    /// Writes the little-endian CDR body of (`step`, `sim_time`, `shm`) into `out`
+    /// (cleared first). `shm` is the set in shared-memory layout, native (little-endian)
+    /// byte order.
+    pub fn encode(&self, step: u64, sim_time: f64, shm: &[u8], out: &mut Vec<u8>) {
+        out.clear();
+        out.resize(self.cdr_size, 0);
+        out[0..8].copy_from_slice(&step.to_le_bytes());
+        out[8..16].copy_from_slice(&sim_time.to_le_bytes());
+        for f in &self.fields {
+            let n = f.ty.size() as usize * f.count;
+            if let Some(src) = shm.get(f.shm..f.shm + n) {
+                out[f.cdr..f.cdr + n].copy_from_slice(src);
+                if cfg!(target_endian = "big") {
+                    for el in out[f.cdr..f.cdr + n].chunks_exact_mut(f.ty.size() as usize) {
+                        el.reverse();
+                    }
+                }
+            }
+        }
+    }
+}
+
+/// A CDR body already encoded, passed through ros2-client's serde-only publisher: a tuple
+/// of bytes is written verbatim (no length prefix, bytes need no alignment).
+#[derive(Debug, Clone, Default)]
+pub struct PreEncoded(pub Vec<u8>);
+
+impl Serialize for PreEncoded {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        let mut t = s.serialize_tuple(self.0.len())?;
+        for b in &self.0 {
+            t.serialize_element(b)?;
+        }
+        t.end()
+    }
+}
+
+/// Reads a typed sample of one set through a serde CDR deserializer.
+#[derive(Debug, Clone)]
+pub struct SetSeed(pub Arc<SetCodec>);
+
+impl<'de> DeserializeSeed<'de> for SetSeed {
+    type Value = TypedSample;
+    fn deserialize<D: serde::Deserializer<'de>>(self, d: D) -> Result<TypedSample, D::Error> {
+        let elements = 2 + self.0.fields.iter().map(|f| f.count).sum::<usize>();
+        d.deserialize_tuple(elements, self)
+    }
+}
+
+impl<'de> Visitor<'de> for SetSeed {
+    type Value = TypedSample;
+
+    fn expecting(&self, f: &mut fmt::Formatter) -> fmt::Result {
+        write!(f, "a typed set sample of {} CDR bytes", self.0.cdr_size)
+    }
+
+    fn visit_seq<A: SeqAccess<'de>>(self, mut seq: A) -> Result<TypedSample, A::Error> {
+        fn next<'de, T: Deserialize<'de>, A: SeqAccess<'de>>(seq: &mut A) -> Result<T, A::Error> {
+            seq.next_element::<T>()?.ok_or_else(|| serde::de::Error::custom("truncated sample"))
+        }
+        let step: u64 = next(&mut seq)?;
+        let sim_time: f64 = next(&mut seq)?;
+        let mut data = vec![0u8; self.0.shm_size];
+        for f in &self.0.fields {
+            let size = f.ty.size() as usize;
+            for i in 0..f.count {
+                let at = f.shm + i * size;
+                let out = &mut data[at..at + size];
+                use ScalarType::*;
+                match f.ty {
+                    Boolean => out[0] = u8::from(next::<bool, A>(&mut seq)?),
+                    Int8 => out.copy_from_slice(&next::<i8, A>(&mut seq)?.to_ne_bytes()),
+                    UInt8 => out.copy_from_slice(&next::<u8, A>(&mut seq)?.to_ne_bytes()),
+                    Int16 => out.copy_from_slice(&next::<i16, A>(&mut seq)?.to_ne_bytes()),
+                    UInt16 => out.copy_from_slice(&next::<u16, A>(&mut seq)?.to_ne_bytes()),
+                    Int32 => out.copy_from_slice(&next::<i32, A>(&mut seq)?.to_ne_bytes()),
+                    UInt32 => out.copy_from_slice(&next::<u32, A>(&mut seq)?.to_ne_bytes()),
+                    Int64 => out.copy_from_slice(&next::<i64, A>(&mut seq)?.to_ne_bytes()),
+                    UInt64 => out.copy_from_slice(&next::<u64, A>(&mut seq)?.to_ne_bytes()),
+                    Float32 => out.copy_from_slice(&next::<f32, A>(&mut seq)?.to_ne_bytes()),
+                    Float64 => out.copy_from_slice(&next::<f64, A>(&mut seq)?.to_ne_bytes()),
+                }
+            }
+        }
+        Ok(TypedSample { step, sim_time, data })
+    }
+}
+
+/// `std_msgs/msg/Float64`.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct Float64 {
+    pub data: f64,
+}
+
+/// `std_msgs/msg/Bool`.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct Bool {
+    pub data: bool,
+}
+
+/// `std_msgs/msg/MultiArrayDimension`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct MultiArrayDimension {
+    pub label: String,
+    pub size: u32,
+    pub stride: u32,
+}
+
+/// `std_msgs/msg/MultiArrayLayout`.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+pub struct MultiArrayLayout {
+    pub dim: Vec<MultiArrayDimension>,
+    pub data_offset: u32,
+}
+
+/// `std_msgs/msg/Float64MultiArray` (sent with an empty layout: a flat array).
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+pub struct Float64MultiArray {
+    pub layout: MultiArrayLayout,
+    pub data: Vec<f64>,
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use ros2_client::dds::rustdds::cdr_encoding::{from_bytes, to_vec};
+    use ros2_client::dds::rustdds::{CdrDeserializer, RepresentationIdentifier};
+    use tutti_core::ddf::parse_str;
+
+    type LE = ros2_client::dds::rustdds::bytes::Bytes;
+
+    fn codec(items: &str) -> (SetCodec, SetLayout) {
+        let ddf = format!(
+            r#"<orchestra><domain name="d"><synchronous>no</synchronous><multiplePublishAllowed>no</multiplePublishAllowed>
+               <states>no</states><block name="d/Publish">{items}</block></domain></orchestra>"#
+        );
+        let m = parse_str(&ddf, "t.ddf").unwrap();
+        let l = m.domains[0].publish.layout.clone();
+        (SetCodec::new(&l), l)
+    }
+
+    fn item(name: &str, ty: &str) -> String {
+        format!("<item name=\"{name}\"><type>{ty}</type></item>")
+    }
+
+    #[test]
+    fn alignment_is_relative_to_the_body_and_nested_structs_add_no_padding() {
+        // C layout: a@0 (bool) v@8..32 (3 doubles); CDR: step 0, sim_time 8, a@16, v@24.
+        let (c, _) = codec(
+            &(item("a", "boolean")
+                + "<item name=\"v\"><type>double</type><length>3</length></item>"
+                + &item("t", "int8")),
+        );
+        assert_eq!(c.fields.iter().map(|f| f.cdr).collect::<Vec<_>>(), vec![16, 24, 48]);
+        assert_eq!(c.cdr_size(), 49);
+    }
+
+    #[test]
+    fn encoding_matches_the_cdr_engine_of_rustdds() {
+        #[derive(Serialize)]
+        struct Bus {
+            p: f32,
+            c: i8,
+        }
+        #[derive(Serialize)]
+        struct Expected {
+            step: u64,
+            sim_time: f64,
+            a: bool,
+            b: Bus,
+            s: u16,
+            d: [f64; 2],
+        }
+        let items = item("a", "boolean")
+            + "<item name=\"b\"><type>bus</type>"
+            + &item("p", "float32")
+            + &item("c", "int8")
+            + "</item>"
+            + &item("s", "uint16")
+            + "<item name=\"d\"><type>double</type><length>2</length></item>";
+        let (c, l) = codec(&items);
+        let mut shm = vec![0u8; l.size as usize];
+        let put = |shm: &mut Vec<u8>, path: &str, b: &[u8]| {
+            let o = l.leaf(path).unwrap().offset as usize;
+            shm[o..o + b.len()].copy_from_slice(b);
+        };
+        put(&mut shm, "a", &[1]);
+        put(&mut shm, "b/p", &1.5f32.to_le_bytes());
+        put(&mut shm, "b/c", &(-3i8).to_le_bytes());
+        put(&mut shm, "s", &700u16.to_le_bytes());
+        put(&mut shm, "d", &[2.5f64.to_le_bytes(), (-1.0f64).to_le_bytes()].concat());
+        let mut body = Vec::new();
+        c.encode(42, 0.125, &shm, &mut body);
+        let want = Expected { step: 42, sim_time: 0.125, a: true, b: Bus { p: 1.5, c: -3 }, s: 700, d: [2.5, -1.0] };
+        let want = to_vec::<_, byteorder::LittleEndian>(&want).unwrap();
+        assert_eq!(&body[..], &want[..body.len()]);
+        assert!(want[body.len()..].iter().all(|&b| b == 0), "only trailing padding may differ");
+
+        // And back, in both byte orders.
+        let seed = SetSeed(Arc::new(c.clone()));
+        let got = seed.clone().deserialize(&mut CdrDeserializer::<byteorder::LittleEndian>::new(&body)).unwrap();
+        assert_eq!(got, TypedSample { step: 42, sim_time: 0.125, data: shm.clone() });
+        let be = to_vec::<_, byteorder::BigEndian>(&Expected {
+            step: 42,
+            sim_time: 0.125,
+            a: true,
+            b: Bus { p: 1.5, c: -3 },
+            s: 700,
+            d: [2.5, -1.0],
+        })
+        .unwrap();
+        let got = seed.deserialize(&mut CdrDeserializer::<byteorder::BigEndian>::new(&be)).unwrap();
+        assert_eq!(got.data, shm);
+        let _ = (RepresentationIdentifier::CDR_LE, LE::new());
+    }
+
+    #[test]
+    fn truncated_bodies_are_refused() {
+        let (c, _) = codec(&(item("x", "double") + &item("y", "double")));
+        let mut body = Vec::new();
+        c.encode(1, 0.0, &[0u8; 16], &mut body);
+        let seed = SetSeed(Arc::new(c));
+        for n in [0, 7, 16, 24, 31] {
+            let r = seed.clone().deserialize(&mut CdrDeserializer::<byteorder::LittleEndian>::new(&body[..n]));
+            assert!(r.is_err(), "{n} bytes accepted");
+        }
+    }
+
+    #[test]
+    fn std_msgs_layouts() {
+        let b = to_vec::<_, byteorder::LittleEndian>(&Float64MultiArray {
+            layout: Default::default(),
+            data: vec![1.0, 2.0],
+        })
+        .unwrap();
+        // dim length 0, data_offset 0, data length 2, pad, two doubles.
+        assert_eq!(&b[..12], &[0, 0, 0, 0, 0, 0, 0, 0, 2, 0, 0, 0]);
+        assert_eq!(b.len(), 32);
+        let back: Float64MultiArray = from_bytes::<Float64MultiArray, byteorder::LittleEndian>(&b).unwrap().0;
+        assert_eq!(back.data, vec![1.0, 2.0]);
+        assert_eq!(to_vec::<_, byteorder::LittleEndian>(&Bool { data: true }).unwrap(), vec![1]);
+    }
+}

@@ -1,0 +1,504 @@
+//! The route manager: builds every route of the model, then runs one `select!` loop that
+//! takes DDS samples from the reader tasks, compares discovery with the connections it
+//! holds, reports status and stops on request. Shared-memory work happens on the routes'
+//! own threads; this loop only hands samples over and never blocks.
+
+use std::collections::{BTreeSet, HashMap};
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+use std::sync::mpsc as std_mpsc;
+use std::sync::Arc;
+use std::thread::JoinHandle;
+use std::time::{Duration, Instant};
+
+use ros2_client::Gid;
+use tokio::sync::mpsc;
+use tracing::{info, warn};
+use tutti_core::ddf::{Domain, Role};
+use tutti_core::mapping::{self, Endpoint, Qos};
+use tutti_core::shm::{Framework, FrameworkOptions, Participant, ShmError};
+
+use crate::cdr::{PreEncoded, SetCodec, SetSeed, TypedSample};
+use crate::discovery::Remote;
+use crate::node::{short, Dds};
+use crate::routes::from_dds::{self, RemoteWriter};
+use crate::routes::per_item::{self, ItemWriters};
+use crate::routes::to_dds::{self, Activation, Outbound, SetWriter, Watched};
+use crate::routes::{mirror, Event, Payload, ShmConfig};
+use crate::stats::{LogLimit, Stats};
+use crate::{GatewayError, GatewayOptions, TypeMode};
+
+/// A route as the manager sees it.
+#[derive(Debug)]
+enum Route {
+    /// DDS -> shared memory (or -> the mirror's framework).
+    In { domain: usize, topic: String },
+    /// Shared memory -> DDS; `counts_readers`: its remote readers get connections.
+    Out { domain: usize, topics: Vec<String>, activation: Arc<Activation>, counts_readers: bool },
+}
+
+#[derive(Debug)]
+struct DomainState {
+    name: String,
+    own_commits: Arc<AtomicU64>,
+    /// Connections standing for the remote readers of the PUBLISH set (None: connecting).
+    readers: HashMap<Gid, Option<Participant>>,
+    mirror: Option<std_mpsc::Sender<TypedSample>>,
+}
+
+#[derive(Debug)]
+struct WriterEntry {
+    writer: RemoteWriter,
+    created: Instant,
+}
+
+/// What the caller sees of a running gateway.
+#[derive(Debug, Clone)]
+pub struct Status {
+    pub domains: usize,
+    pub topics: usize,
+    pub remote_writers: usize,
+    pub remote_readers: usize,
+}
+
+/// Serves `opts` until `shutdown` is set; `on_status` is called every `status_every` with
+/// a one-line summary (and once when the gateway is up).
+pub fn run(
+    opts: GatewayOptions,
+    shutdown: Arc<AtomicBool>,
+    status_every: Duration,
+    on_status: &mut dyn FnMut(&str),
+) -> Result<Arc<Stats>, GatewayError> {
+    if opts.mirror && opts.types == TypeMode::PerItem {
+        return Err(GatewayError::Invalid("--mirror needs --ros2-types typed: per-item samples carry no step".into()));
+    }
+    let rt = tokio::runtime::Builder::new_current_thread().enable_all().build().map_err(GatewayError::Runtime)?;
+    let stats = Arc::new(Stats::default());
+    let cfg = ShmConfig {
+        namespace: opts.namespace.clone(),
+        timeout: opts.timeout,
+        wait: opts.wait,
+        poll: opts.poll,
+        stop: Arc::new(AtomicBool::new(false)),
+    };
+    let mut m = Manager::build(&opts, cfg, stats.clone(), rt.handle())?;
+    on_status(&format!("up: {}", m.line()));
+    rt.block_on(m.serve(&opts, shutdown, status_every, on_status));
+    m.stop();
+    drop(rt);
+    Ok(stats)
+}
+
+struct Manager {
+    dds: Dds,
+    cfg: ShmConfig,
+    stats: Arc<Stats>,
+    routes: Vec<Route>,
+    domains: Vec<DomainState>,
+    writers: HashMap<(usize, Gid), WriterEntry>,
+    threads: Vec<JoinHandle<()>>,
+    events: mpsc::UnboundedReceiver<Event>,
+    connected_tx: mpsc::UnboundedSender<(usize, Gid, Result<Participant, ShmError>)>,
+    connected: mpsc::UnboundedReceiver<(usize, Gid, Result<Participant, ShmError>)>,
+    topics: usize,
+    bad_log: LogLimit,
+}
+
+impl std::fmt::Debug for Manager {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Manager").field("routes", &self.routes.len()).finish()
+    }
+}
+
+fn io(what: &str) -> impl Fn(std::io::Error) -> GatewayError + '_ {
+    move |e| GatewayError::Dds { what: what.to_string(), detail: e.to_string() }
+}
+
+impl Manager {
+    fn build(
+        opts: &GatewayOptions,
+        cfg: ShmConfig,
+        stats: Arc<Stats>,
+        rt: &tokio::runtime::Handle,
+    ) -> Result<Manager, GatewayError> {
+        let mut dds = Dds::open(opts)?;
+        let (tx, events) = mpsc::unbounded_channel();
+        let (connected_tx, connected) = mpsc::unbounded_channel();
+        let pkg = mapping::package_name(&opts.ddf_path);
+        let mut hosts = if opts.mirror {
+            let fo = FrameworkOptions {
+                namespace: opts.namespace.clone(),
+                timeout: opts.timeout,
+                wait: opts.wait,
+                ..Default::default()
+            };
+            Framework::create(&opts.model, &fo)?.domains.into_iter().map(Some).collect()
+        } else {
+            Vec::new()
+        };
+        let mut routes = Vec::new();
+        let mut domains = Vec::new();
+        let mut watched = Vec::new();
+        let mut threads = Vec::new();
+        let mut topics = 0usize;
+        for (di, d) in opts.model.domains.iter().enumerate() {
+            let wq = mapping::qos(d.flags, opts.profile, Endpoint::Writer, opts.strength);
+            let rq = mapping::qos(d.flags, opts.profile, Endpoint::Reader, opts.strength);
+            let own_commits = Arc::new(AtomicU64::new(0));
+            let mut state = DomainState {
+                name: d.name.clone(),
+                own_commits: own_commits.clone(),
+                readers: HashMap::new(),
+                mirror: None,
+            };
+            match (opts.types, opts.mirror) {
+                (TypeMode::Typed, false) => {
+                    topics += 2;
+                    let (pubn, subn) = (
+                        mapping::set_names(&pkg, &d.name, Role::Publish),
+                        mapping::set_names(&pkg, &d.name, Role::Subscribe),
+                    );
+                    // PUBLISH: shared memory -> DDS.
+                    let out = Outbound::Set(Box::new(set_writer(
+                        &mut dds,
+                        d,
+                        Role::Publish,
+                        &pubn.topic,
+                        &pubn.dds_type,
+                        &wq,
+                    )?));
+                    let activation = Arc::new(Activation::default());
+                    if d.flags.synchronous {
+                        let name = format!("{} sync reader", opts.node_name);
+                        threads.push(
+                            to_dds::spawn_sync_pump(
+                                d.name.clone(),
+                                out,
+                                activation.clone(),
+                                cfg.clone(),
+                                stats.clone(),
+                                name,
+                            )
+                            .map_err(io("a thread"))?,
+                        );
+                    } else {
+                        watched.push(Watched::new(d.name.clone(), Role::Publish, out, activation.clone(), None));
+                    }
+                    routes.push(Route::Out {
+                        domain: di,
+                        topics: vec![pubn.topic.clone()],
+                        activation,
+                        counts_readers: true,
+                    });
+                    // SUBSCRIBE: DDS -> shared memory, and shared-memory writers -> DDS.
+                    let codec = Arc::new(SetCodec::new(&d.subscribe.layout));
+                    let sub = dds.subscription::<TypedSample>(&subn.topic, &subn.dds_type, &rq)?;
+                    rt.spawn(from_dds::forward_typed(
+                        sub,
+                        SetSeed(codec),
+                        routes.len(),
+                        tx.clone(),
+                        stats.clone(),
+                        dds.own_prefix,
+                    ));
+                    routes.push(Route::In { domain: di, topic: subn.topic.clone() });
+                    let out = Outbound::Set(Box::new(set_writer(
+                        &mut dds,
+                        d,
+                        Role::Subscribe,
+                        &subn.topic,
+                        &subn.dds_type,
+                        &wq,
+                    )?));
+                    let activation = Arc::new(Activation::default());
+                    watched.push(Watched::new(
+                        d.name.clone(),
+                        Role::Subscribe,
+                        out,
+                        activation.clone(),
+                        Some(own_commits),
+                    ));
+                    routes.push(Route::Out { domain: di, topics: vec![subn.topic], activation, counts_readers: false });
+                }
+                (TypeMode::Typed, true) => {
+                    topics += 2;
+                    let (pubn, subn) = (
+                        mapping::set_names(&pkg, &d.name, Role::Publish),
+                        mapping::set_names(&pkg, &d.name, Role::Subscribe),
+                    );
+                    let codec = Arc::new(SetCodec::new(&d.publish.layout));
+                    let sub = dds.subscription::<TypedSample>(&pubn.topic, &pubn.dds_type, &rq)?;
+                    rt.spawn(from_dds::forward_typed(
+                        sub,
+                        SetSeed(codec),
+                        routes.len(),
+                        tx.clone(),
+                        stats.clone(),
+                        dds.own_prefix,
+                    ));
+                    routes.push(Route::In { domain: di, topic: pubn.topic.clone() });
+                    let out = Outbound::Set(Box::new(set_writer(
+                        &mut dds,
+                        d,
+                        Role::Subscribe,
+                        &subn.topic,
+                        &subn.dds_type,
+                        &wq,
+                    )?));
+                    let (mtx, mrx) = std_mpsc::channel();
+                    let host = hosts
+                        .get_mut(di)
+                        .and_then(Option::take)
+                        .ok_or_else(|| GatewayError::Invalid(format!("domain '{}' was not created", d.name)))?;
+                    threads.push(mirror::spawn(host, mrx, out, cfg.clone(), stats.clone()).map_err(io("a thread"))?);
+                    state.mirror = Some(mtx);
+                }
+                (TypeMode::PerItem, _) => {
+                    let pub_topics = mapping::item_topics(d, Role::Publish);
+                    let sub_topics = mapping::item_topics(d, Role::Subscribe);
+                    topics += pub_topics.len() + sub_topics.len();
+                    let out =
+                        Outbound::Items(ItemWriters::create(&mut dds, &pub_topics, &d.publish.layout.leaves, &wq)?);
+                    let activation = Arc::new(Activation::default());
+                    watched.push(Watched::new(d.name.clone(), Role::Publish, out, activation.clone(), None));
+                    routes.push(Route::Out {
+                        domain: di,
+                        topics: pub_topics.iter().map(|t| t.topic.clone()).collect(),
+                        activation,
+                        counts_readers: true,
+                    });
+                    for t in &sub_topics {
+                        let Some(leaf) = d.subscribe.layout.leaf(&t.path) else { continue };
+                        per_item::spawn_reader(&mut dds, t, leaf, &rq, routes.len(), tx.clone(), stats.clone(), rt)?;
+                        routes.push(Route::In { domain: di, topic: t.topic.clone() });
+                    }
+                    let out =
+                        Outbound::Items(ItemWriters::create(&mut dds, &sub_topics, &d.subscribe.layout.leaves, &wq)?);
+                    let activation = Arc::new(Activation::default());
+                    watched.push(Watched::new(
+                        d.name.clone(),
+                        Role::Subscribe,
+                        out,
+                        activation.clone(),
+                        Some(own_commits),
+                    ));
+                    routes.push(Route::Out {
+                        domain: di,
+                        topics: sub_topics.iter().map(|t| t.topic.clone()).collect(),
+                        activation,
+                        counts_readers: false,
+                    });
+                }
+            }
+            domains.push(state);
+        }
+        if !watched.is_empty() {
+            threads.push(to_dds::spawn_poller(watched, cfg.clone(), stats.clone()).map_err(io("a thread"))?);
+        }
+        Ok(Manager {
+            dds,
+            cfg,
+            stats,
+            routes,
+            domains,
+            writers: HashMap::new(),
+            threads,
+            events,
+            connected_tx,
+            connected,
+            topics,
+            bad_log: LogLimit::new(Duration::from_secs(5)),
+        })
+    }
+
+    fn line(&self) -> String {
+        let readers: usize = self.domains.iter().map(|d| d.readers.len()).sum();
+        format!(
+            "{} domains, {} topics, DDS domain {}, remote writers {}, remote readers {} | {}",
+            self.domains.len(),
+            self.topics,
+            self.dds.participant.domain_id(),
+            self.writers.len(),
+            readers,
+            self.stats
+        )
+    }
+
+    async fn serve(
+        &mut self,
+        opts: &GatewayOptions,
+        shutdown: Arc<AtomicBool>,
+        status_every: Duration,
+        on_status: &mut dyn FnMut(&str),
+    ) {
+        let mut discovery = tokio::time::interval(opts.discovery_every);
+        discovery.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Skip);
+        let mut status = tokio::time::interval_at(tokio::time::Instant::now() + status_every, status_every);
+        let mut check = tokio::time::interval(Duration::from_millis(50));
+        loop {
+            tokio::select! {
+                Some(ev) = self.events.recv() => self.on_event(ev),
+                Some((di, gid, r)) = self.connected.recv() => self.on_connected(di, gid, r),
+                _ = discovery.tick() => self.rediscover(),
+                _ = status.tick() => on_status(&self.line()),
+                _ = check.tick() => if shutdown.load(Ordering::Acquire) { break },
+            }
+        }
+    }
+
+    fn on_event(&mut self, ev: Event) {
+        match ev {
+            Event::Sample(inb) => {
+                let Some(Route::In { domain, .. }) = self.routes.get(inb.route) else { return };
+                let domain = *domain;
+                let state = &self.domains[domain];
+                if let Some(mtx) = &state.mirror {
+                    if let Payload::Set(s) = inb.payload {
+                        let _ = mtx.send(s);
+                    }
+                    return;
+                }
+                let key = (inb.route, inb.writer);
+                let mut payload = Some(inb.payload);
+                for _ in 0..2 {
+                    if !self.writers.contains_key(&key) {
+                        match self.spawn_writer(domain, inb.writer) {
+                            Some(w) => self.writers.insert(key, w),
+                            None => return,
+                        };
+                    }
+                    let Some(p) = payload.take() else { return };
+                    if self.writers.get(&key).is_some_and(|w| w.writer.send(p.clone())) {
+                        return;
+                    }
+                    self.writers.remove(&key);
+                    payload = Some(p);
+                }
+            }
+            Event::Bad { route, error } => {
+                Stats::add(&self.stats.bad_samples, 1);
+                let topic = match self.routes.get(route) {
+                    Some(Route::In { topic, .. }) => topic.as_str(),
+                    _ => "?",
+                };
+                if let Some(held) = self.bad_log.allow() {
+                    warn!(topic, "sample dropped ({held} more since the last report): {error}");
+                }
+            }
+        }
+    }
+
+    fn spawn_writer(&self, domain: usize, gid: Gid) -> Option<WriterEntry> {
+        let d = &self.domains[domain];
+        match RemoteWriter::spawn(d.name.clone(), gid, self.cfg.clone(), self.stats.clone(), d.own_commits.clone()) {
+            Ok(writer) => {
+                info!(domain = %d.name, "DDS writer {} joined", short(&gid));
+                Some(WriterEntry { writer, created: Instant::now() })
+            }
+            Err(e) => {
+                warn!("cannot start a thread: {e}");
+                None
+            }
+        }
+    }
+
+    fn on_connected(&mut self, di: usize, gid: Gid, r: Result<Participant, ShmError>) {
+        let Some(d) = self.domains.get_mut(di) else { return };
+        match (d.readers.get_mut(&gid), r) {
+            (Some(slot @ None), Ok(p)) => *slot = Some(p),
+            // Not wanted any more, or failed: dropped now; retried at the next discovery.
+            (Some(None), Err(_)) => {
+                d.readers.remove(&gid);
+            }
+            _ => {}
+        }
+    }
+
+    /// Compares discovery with the routes: (de)activates writers, gives new remote writers
+    /// and PUBLISH readers connections, releases those that left.
+    fn rediscover(&mut self) {
+        let remote = Remote::discover(&self.dds.participant, &self.dds.own_prefix);
+        let mut wanted_readers: Vec<BTreeSet<Gid>> = vec![BTreeSet::new(); self.domains.len()];
+        let mut matched_writers: BTreeSet<(usize, Gid)> = BTreeSet::new();
+        for (ri, route) in self.routes.iter().enumerate() {
+            match route {
+                Route::Out { domain, topics, activation, counts_readers } => {
+                    let readers = remote.readers_on(topics);
+                    activation.set(!readers.is_empty());
+                    if *counts_readers && self.domains[*domain].mirror.is_none() {
+                        wanted_readers[*domain].extend(readers);
+                    }
+                }
+                Route::In { domain, topic } => {
+                    if self.domains[*domain].mirror.is_none() {
+                        matched_writers.extend(remote.writers_on(std::slice::from_ref(topic)).map(|g| (ri, g)));
+                    }
+                }
+            }
+        }
+        // Remote writers: a connection each, from the moment they match.
+        for &(ri, gid) in &matched_writers {
+            if !self.writers.contains_key(&(ri, gid)) {
+                let Some(Route::In { domain, .. }) = self.routes.get(ri) else { continue };
+                if let Some(w) = self.spawn_writer(*domain, gid) {
+                    self.writers.insert((ri, gid), w);
+                }
+            }
+        }
+        let grace = Duration::from_secs(2);
+        self.writers.retain(|key, w| {
+            let keep = matched_writers.contains(key) || w.created.elapsed() < grace;
+            if !keep {
+                info!("DDS writer {} left: its connection is released", short(&key.1));
+            }
+            keep
+        });
+        // Remote readers of the PUBLISH set: a connection each.
+        for (di, wanted) in wanted_readers.into_iter().enumerate() {
+            let d = &mut self.domains[di];
+            d.readers.retain(|g, _| wanted.contains(g));
+            for gid in wanted {
+                if d.readers.contains_key(&gid) {
+                    continue;
+                }
+                d.readers.insert(gid, None);
+                let opts = self.cfg.connect_options(format!("dds-reader {}", short(&gid)), Duration::from_millis(100));
+                let (name, tx) = (d.name.clone(), self.connected_tx.clone());
+                tokio::task::spawn_blocking(move || {
+                    let _ = tx.send((di, gid, Participant::connect(&name, opts)));
+                });
+            }
+        }
+        self.stats.remote_writers.store(self.writers.len() as u64, Ordering::Relaxed);
+        let readers: usize = self.domains.iter().map(|d| d.readers.len()).sum();
+        self.stats.remote_readers.store(readers as u64, Ordering::Relaxed);
+    }
+
+    fn stop(&mut self) {
+        self.cfg.stop.store(true, Ordering::Release);
+        self.writers.clear();
+        for d in &mut self.domains {
+            d.readers.clear();
+            d.mirror = None;
+        }
+        for r in &self.routes {
+            if let Route::Out { activation, .. } = r {
+                activation.wake();
+            }
+        }
+        for t in self.threads.drain(..) {
+            let _ = t.join();
+        }
+    }
+}
+
+fn set_writer(
+    dds: &mut Dds,
+    d: &Domain,
+    role: Role,
+    topic: &str,
+    dds_type: &str,
+    q: &Qos,
+) -> Result<SetWriter, GatewayError> {
+    let codec = Arc::new(SetCodec::new(&d.set(role).layout));
+    Ok(SetWriter::new(codec, dds.publisher::<PreEncoded>(topic, dds_type, q)?))
+}

@@ -1,0 +1,72 @@
+//! What the gateway serves and how.
+
+use std::net::IpAddr;
+use std::path::PathBuf;
+use std::time::Duration;
+
+use tutti_core::ddf::Model;
+use tutti_core::mapping::Profile;
+use tutti_core::shm::WaitMode;
+
+/// The two type mappings of SPEC section 5.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum TypeMode {
+    /// One struct per set (`tutti idl`'s types), with `step` and `sim_time`.
+    #[default]
+    Typed,
+    /// One topic per item with stock `std_msgs` types.
+    PerItem,
+}
+
+/// Everything the gateway needs.
+#[derive(Debug, Clone)]
+pub struct GatewayOptions {
+    /// The DDF the model was read from (its stem names the ROS 2 package).
+    pub ddf_path: PathBuf,
+    pub model: Model,
+    /// DDS domain (ROS_DOMAIN_ID).
+    pub ros_domain_id: u16,
+    pub types: TypeMode,
+    pub profile: Profile,
+    /// OWNERSHIP_STRENGTH of the gateway's writers in the `dds` profile.
+    pub strength: i32,
+    /// Be the framework of local segments fed from DDS.
+    pub mirror: bool,
+    /// ROS 2 node name.
+    pub node_name: String,
+    /// Shared-memory namespace.
+    pub namespace: String,
+    /// Addresses DDS may use; empty: all interfaces.
+    pub interfaces: Vec<IpAddr>,
+    /// Longest shared-memory wait (a step, a commit's step, connecting); in mirror mode the
+    /// framework's step timeout.
+    pub timeout: Duration,
+    /// How shared-memory waits wait (spin for lowest latency, block for no CPU).
+    pub wait: WaitMode,
+    /// How often idle asynchronous sets are looked at for changes.
+    pub poll: Duration,
+    /// How often discovery data is compared with the routes' connections.
+    pub discovery_every: Duration,
+}
+
+impl GatewayOptions {
+    /// Defaults for `model` read from `ddf_path`.
+    pub fn new(ddf_path: impl Into<PathBuf>, model: Model) -> Self {
+        GatewayOptions {
+            ddf_path: ddf_path.into(),
+            model,
+            ros_domain_id: 0,
+            types: TypeMode::Typed,
+            profile: Profile::Ros2,
+            strength: 0,
+            mirror: false,
+            node_name: "tutti_gateway".into(),
+            namespace: tutti_core::shm::segment::namespace_from_env(),
+            interfaces: Vec::new(),
+            timeout: Duration::from_secs(1),
+            wait: WaitMode::Block,
+            poll: Duration::from_micros(500),
+            discovery_every: Duration::from_millis(200),
+        }
+    }
+}

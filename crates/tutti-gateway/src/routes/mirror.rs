@@ -1,0 +1,93 @@
+//! `--mirror`: the gateway is the framework of local copies of the domains, fed from DDS.
+//!
+//! Each PUBLISH sample from `rt/D/publish` is published to the local segment as one step
+//! (in a synchronous domain the step then waits, up to the timeout, for the local
+//! participants), and the local SUBSCRIBE set goes out on `rt/D/subscribe`: after each step
+//! in a synchronous domain (tagged with the step it answers, so the home gateway commits it
+//! for that step), whenever local writers commit in an asynchronous one. Nothing is sent
+//! before a local writer has published once, so an unseeded mirror never seeds the home side
+//! with defaults. DDS is the transport; there is no protocol of our own.
+
+use std::sync::atomic::Ordering;
+use std::sync::mpsc::{Receiver, RecvTimeoutError};
+use std::sync::Arc;
+use std::thread::{self, JoinHandle};
+use std::time::{Duration, Instant};
+
+use tracing::warn;
+use tutti_core::ddf::Role;
+use tutti_core::shm::DomainHost;
+
+use super::to_dds::Outbound;
+use super::ShmConfig;
+use crate::cdr::TypedSample;
+use crate::stats::{LogLimit, Stats};
+
+/// Starts the thread that hosts one mirrored domain.
+pub fn spawn(
+    mut host: DomainHost,
+    rx: Receiver<TypedSample>,
+    mut out: Outbound,
+    cfg: ShmConfig,
+    stats: Arc<Stats>,
+) -> std::io::Result<JoinHandle<()>> {
+    let name = host.info().name.clone();
+    thread::Builder::new().name("tutti-gw-mirror".into()).stack_size(512 << 10).spawn(move || {
+        let sync = host.info().flags.synchronous;
+        let mut last_step = 0u64;
+        let mut sim_time = 0.0;
+        let mut last_sub = host.segment().header().sets[Role::Subscribe as usize].current.load(Ordering::Acquire);
+        let mut last_sweep = Instant::now();
+        let mut log = LogLimit::new(Duration::from_secs(5));
+        let idle = if cfg.poll.is_zero() { Duration::from_micros(100) } else { cfg.poll };
+        while !cfg.stop.load(Ordering::Acquire) {
+            match rx.recv_timeout(idle) {
+                Ok(s) => {
+                    if s.data.len() != host.info().publish.size as usize {
+                        Stats::add(&stats.bad_samples, 1);
+                        continue;
+                    }
+                    let r = host.publish_step(&s.data, s.sim_time).and_then(|_| {
+                        if sync {
+                            host.complete_step().map(|_| ())
+                        } else {
+                            Ok(())
+                        }
+                    });
+                    if let Err(e) = r {
+                        Stats::add(&stats.errors, 1);
+                        if log.allow().is_some() {
+                            warn!(domain = %name, "mirror step failed: {e}");
+                        }
+                        continue;
+                    }
+                    Stats::add(&stats.from_dds, 1);
+                    last_step = s.step;
+                    sim_time = s.sim_time;
+                    if sync && host.seeded() {
+                        last_sub =
+                            host.segment().header().sets[Role::Subscribe as usize].current.load(Ordering::Acquire);
+                        let sub = host.subscribe().to_vec();
+                        out.send(last_step, sim_time, &sub, &stats);
+                    }
+                }
+                Err(RecvTimeoutError::Timeout) => {}
+                Err(RecvTimeoutError::Disconnected) => break,
+            }
+            if !sync {
+                let cur = host.segment().header().sets[Role::Subscribe as usize].current.load(Ordering::Acquire);
+                if cur != last_sub && host.seeded() {
+                    last_sub = cur;
+                    if let Ok(sub) = host.read_subscribe() {
+                        let sub = sub.to_vec();
+                        out.send(last_step, sim_time, &sub, &stats);
+                    }
+                }
+            }
+            if last_sweep.elapsed() > Duration::from_millis(50) {
+                host.sweep();
+                last_sweep = Instant::now();
+            }
+        }
+    })
+}

@@ -1,0 +1,75 @@
+//! Routes: one module per kind.
+//!
+//! * [`to_dds`]: a set in shared memory -> its DDS writer (typed), polled when asynchronous,
+//!   in lock-step through a remote connection when synchronous;
+//! * [`from_dds`]: a DDS reader -> shared memory, through one remote connection per
+//!   matched DDS writer (so role rules, exclusivity and seeding are the core's);
+//! * [`per_item`]: the same two directions with one stock-typed topic per item;
+//! * [`mirror`]: local segments whose framework is fed from DDS (`--mirror`).
+
+use std::sync::atomic::AtomicBool;
+use std::sync::Arc;
+use std::time::Duration;
+
+use ros2_client::Gid;
+use tutti_core::shm::{ConnectOptions, WaitMode};
+
+use crate::cdr::TypedSample;
+
+pub mod from_dds;
+pub mod mirror;
+pub mod per_item;
+pub mod to_dds;
+
+/// What a DDS sample carries into shared memory.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Payload {
+    /// A whole set (typed mode).
+    Set(TypedSample),
+    /// One item (per-item mode): its path and its bytes in shared-memory layout.
+    Item { path: Arc<str>, bytes: Vec<u8> },
+}
+
+/// A DDS sample from a remote writer, for route `route`.
+#[derive(Debug)]
+pub struct Inbound {
+    pub route: usize,
+    pub writer: Gid,
+    pub payload: Payload,
+}
+
+/// What reader tasks tell the manager.
+#[derive(Debug)]
+pub enum Event {
+    Sample(Inbound),
+    /// A sample that could not be decoded.
+    Bad {
+        route: usize,
+        error: String,
+    },
+}
+
+/// How routes connect to shared memory.
+#[derive(Debug, Clone)]
+pub struct ShmConfig {
+    pub namespace: String,
+    pub timeout: Duration,
+    pub wait: WaitMode,
+    pub poll: Duration,
+    pub stop: Arc<AtomicBool>,
+}
+
+impl ShmConfig {
+    /// Options of a connection standing for a DDS-side participant.
+    pub fn connect_options(&self, name: String, connect_timeout: Duration) -> ConnectOptions {
+        ConnectOptions {
+            namespace: self.namespace.clone(),
+            name,
+            connect_timeout,
+            timeout: self.timeout,
+            wait: self.wait,
+            skip_wait_to_go: true,
+            remote: true,
+        }
+    }
+}

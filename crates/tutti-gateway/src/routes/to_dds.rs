@@ -1,0 +1,313 @@
+//! Shared memory -> DDS: each set's writer.
+//!
+//! Asynchronous sets (and the SUBSCRIBE set of every domain, whose shared-memory writers
+//! DDS readers want to see) are watched by one poller thread: a set whose generation moved
+//! is read (a consistent seqlock copy) and written to DDS. A synchronous PUBLISH set is read
+//! in lock-step by a pump thread through its own remote connection, so every step goes out
+//! once and in order, tagged with its step number. Routes work only while a remote reader is
+//! matched ([`Activation`]).
+
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+use std::sync::Arc;
+use std::thread::{self, JoinHandle, Thread};
+use std::time::{Duration, Instant};
+
+use ros2_client::dds::Publisher;
+use tracing::{debug, info, warn};
+use tutti_core::ddf::Role;
+use tutti_core::shm::segment::Segment;
+use tutti_core::shm::{Participant, ShmError};
+
+use super::per_item::ItemWriters;
+use super::ShmConfig;
+use crate::cdr::{PreEncoded, SetCodec};
+use crate::stats::{LogLimit, Stats};
+
+/// The typed writer of one set.
+pub struct SetWriter {
+    codec: Arc<SetCodec>,
+    publisher: Publisher<PreEncoded>,
+    body: Vec<u8>,
+}
+
+impl std::fmt::Debug for SetWriter {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("SetWriter").field("codec", &self.codec).finish()
+    }
+}
+
+impl SetWriter {
+    pub fn new(codec: Arc<SetCodec>, publisher: Publisher<PreEncoded>) -> Self {
+        SetWriter { codec, publisher, body: Vec::new() }
+    }
+
+    /// Encodes and writes one sample; false when DDS refused it.
+    pub fn send(&mut self, step: u64, sim_time: f64, shm: &[u8]) -> bool {
+        self.codec.encode(step, sim_time, shm, &mut self.body);
+        let sample = PreEncoded(std::mem::take(&mut self.body));
+        match self.publisher.publish(sample) {
+            Ok(()) => true,
+            Err(e) => {
+                debug!("DDS write failed: {e:?}");
+                false
+            }
+        }
+    }
+}
+
+/// A DDS side of a set: typed or per item.
+#[derive(Debug)]
+pub enum Outbound {
+    Set(Box<SetWriter>),
+    Items(ItemWriters),
+}
+
+impl Outbound {
+    /// Writes the set `shm`; returns the samples written.
+    pub fn send(&mut self, step: u64, sim_time: f64, shm: &[u8], stats: &Stats) -> u64 {
+        let (sent, failed) = match self {
+            Outbound::Set(w) => {
+                if w.send(step, sim_time, shm) {
+                    (1, 0)
+                } else {
+                    (0, 1)
+                }
+            }
+            Outbound::Items(w) => w.send(shm),
+        };
+        Stats::add(&stats.to_dds, sent);
+        Stats::add(&stats.errors, failed);
+        sent
+    }
+
+    /// Forget what was sent (per-item writers then send every item again).
+    pub fn reset(&mut self) {
+        if let Outbound::Items(w) = self {
+            w.reset();
+        }
+    }
+}
+
+/// Whether a route has a remote reader to work for; wakes the thread that serves it.
+#[derive(Debug, Default)]
+pub struct Activation {
+    active: AtomicBool,
+    thread: std::sync::OnceLock<Thread>,
+}
+
+impl Activation {
+    pub fn set(&self, on: bool) {
+        if self.active.swap(on, Ordering::AcqRel) != on {
+            if let Some(t) = self.thread.get() {
+                t.unpark();
+            }
+        }
+    }
+
+    pub fn is_active(&self) -> bool {
+        self.active.load(Ordering::Acquire)
+    }
+
+    pub fn wake(&self) {
+        if let Some(t) = self.thread.get() {
+            t.unpark();
+        }
+    }
+}
+
+/// One set watched by the poller.
+#[derive(Debug)]
+pub struct Watched {
+    pub domain: String,
+    pub role: Role,
+    pub out: Outbound,
+    pub activation: Arc<Activation>,
+    /// SUBSCRIBE: commits made by the gateway itself (not sent back to DDS).
+    pub own_commits: Option<Arc<AtomicU64>>,
+    seg: Option<Segment>,
+    next_open: Instant,
+    last_gen: Option<u64>,
+    base: (u64, u64),
+    last_local: u64,
+    buf: Vec<u8>,
+}
+
+impl Watched {
+    pub fn new(
+        domain: String,
+        role: Role,
+        out: Outbound,
+        activation: Arc<Activation>,
+        own_commits: Option<Arc<AtomicU64>>,
+    ) -> Self {
+        Watched {
+            domain,
+            role,
+            out,
+            activation,
+            own_commits,
+            seg: None,
+            next_open: Instant::now(),
+            last_gen: None,
+            base: (0, 0),
+            last_local: 0,
+            buf: Vec::new(),
+        }
+    }
+
+    /// Looks at the set once; returns true when something was sent.
+    fn poll(&mut self, cfg: &ShmConfig, stats: &Stats) -> bool {
+        if !self.activation.is_active() {
+            if self.seg.is_some() {
+                self.seg = None;
+                self.last_gen = None;
+            }
+            return false;
+        }
+        if self.seg.as_ref().is_some_and(|s| !s.framework_alive()) {
+            info!(domain = %self.domain, "framework stopped; waiting for it to come back");
+            self.seg = None;
+            self.last_gen = None;
+        }
+        if self.seg.is_none() {
+            if Instant::now() < self.next_open {
+                return false;
+            }
+            self.next_open = Instant::now() + Duration::from_millis(200);
+            match Segment::open(&cfg.namespace, &self.domain) {
+                Ok(s) if s.framework_alive() => {
+                    self.buf = vec![0; s.info.set(self.role).size as usize];
+                    self.seg = Some(s);
+                    self.out.reset();
+                }
+                Ok(_) | Err(ShmError::NoSuchDomain { .. } | ShmError::NotReady { .. }) => return false,
+                Err(e) => {
+                    warn!(domain = %self.domain, "cannot open the domain: {e}");
+                    return false;
+                }
+            }
+        }
+        let Some(seg) = &self.seg else { return false };
+        let h = seg.header();
+        let gen = h.sets[self.role as usize].current.load(Ordering::Acquire);
+        if self.last_gen == Some(gen) {
+            return false;
+        }
+        let first = self.last_gen.is_none();
+        self.last_gen = Some(gen);
+        if let Some(own) = &self.own_commits {
+            // Commits the gateway made for DDS writers are not echoed back to DDS.
+            let own = own.load(Ordering::Acquire);
+            if first {
+                self.base = (gen, own);
+                self.last_local = 0;
+                if h.seeded.load(Ordering::Acquire) == 0 {
+                    return false;
+                }
+            } else {
+                let local = gen.wrapping_sub(self.base.0).saturating_sub(own.wrapping_sub(self.base.1));
+                if local <= self.last_local {
+                    return false;
+                }
+                self.last_local = local;
+            }
+        }
+        let Ok(bucket) = seg.bucket(self.role) else { return false };
+        if bucket.read(&mut self.buf, 1 << 16).is_none() {
+            return false;
+        }
+        let step = h.pub_step.load(Ordering::Acquire);
+        let sim_time = f64::from_bits(h.sim_time_bits.load(Ordering::Relaxed));
+        self.out.send(step, sim_time, &self.buf, stats) > 0
+    }
+}
+
+/// Starts the poller thread over `routes`.
+pub fn spawn_poller(mut routes: Vec<Watched>, cfg: ShmConfig, stats: Arc<Stats>) -> std::io::Result<JoinHandle<()>> {
+    thread::Builder::new().name("tutti-gw-poll".into()).spawn(move || {
+        let me = thread::current();
+        for r in &routes {
+            let _ = r.activation.thread.set(me.clone());
+        }
+        let mut idle_turns = 0u32;
+        while !cfg.stop.load(Ordering::Acquire) {
+            let mut busy = false;
+            let mut any_active = false;
+            for r in routes.iter_mut() {
+                any_active |= r.activation.is_active();
+                busy |= r.poll(&cfg, &stats);
+            }
+            if !any_active {
+                thread::park_timeout(Duration::from_millis(200));
+                continue;
+            }
+            // Stay hot for a while after traffic; then sleep the poll interval.
+            if busy {
+                idle_turns = 0;
+            } else {
+                idle_turns = idle_turns.saturating_add(1);
+            }
+            if cfg.poll.is_zero() || idle_turns < 64 {
+                thread::yield_now();
+            } else {
+                thread::sleep(cfg.poll);
+            }
+        }
+    })
+}
+
+/// Starts the lock-step pump of a synchronous PUBLISH set.
+pub fn spawn_sync_pump(
+    domain: String,
+    mut out: Outbound,
+    activation: Arc<Activation>,
+    cfg: ShmConfig,
+    stats: Arc<Stats>,
+    name: String,
+) -> std::io::Result<JoinHandle<()>> {
+    thread::Builder::new()
+        .name(format!("tutti-gw-sync-{}", domain.chars().take(10).collect::<String>()))
+        .stack_size(256 << 10)
+        .spawn(move || {
+            let _ = activation.thread.set(thread::current());
+            let mut p: Option<Participant> = None;
+            let mut warn_limit = LogLimit::new(Duration::from_secs(5));
+            while !cfg.stop.load(Ordering::Acquire) {
+                if !activation.is_active() {
+                    p = None;
+                    thread::park();
+                    continue;
+                }
+                let part = match &mut p {
+                    Some(part) => part,
+                    None => match Participant::connect(
+                        &domain,
+                        cfg.connect_options(name.clone(), Duration::from_millis(200)),
+                    ) {
+                        Ok(mut part) => {
+                            part.set_timeout(Duration::from_millis(200).min(cfg.timeout));
+                            p.insert(part)
+                        }
+                        Err(e) => {
+                            if warn_limit.allow().is_some() {
+                                debug!(domain = %domain, "waiting for the domain: {e}");
+                            }
+                            thread::sleep(Duration::from_millis(200));
+                            continue;
+                        }
+                    },
+                };
+                match part.subscribe_lock() {
+                    Ok(step) => {
+                        let sim_time = part.sim_time();
+                        out.send(step, sim_time, part.snapshot(), &stats);
+                    }
+                    Err(ShmError::Timeout { .. }) => {}
+                    Err(e) => {
+                        info!(domain = %domain, "lock-step reader lost: {e}");
+                        p = None;
+                    }
+                }
+            }
+        })
+}

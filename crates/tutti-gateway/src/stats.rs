@@ -1,0 +1,79 @@
+//! Counters of the gateway, shown in its periodic status line.
+
+use std::fmt;
+use std::sync::atomic::{AtomicU64, Ordering};
+
+/// What went through the gateway, and what it refused.
+#[derive(Debug, Default)]
+pub struct Stats {
+    /// Samples written to DDS.
+    pub to_dds: AtomicU64,
+    /// DDS samples committed to shared memory (or published by a mirror).
+    pub from_dds: AtomicU64,
+    /// DDS samples that could not be decoded (truncated, wrong encoding).
+    pub bad_samples: AtomicU64,
+    /// DDS samples refused by the role rules (a second writer on an exclusive set).
+    pub refused: AtomicU64,
+    /// DDS samples that came back from this gateway itself (dropped).
+    pub own_samples: AtomicU64,
+    /// Shared-memory or DDS write failures.
+    pub errors: AtomicU64,
+    /// Matched remote DDS writers and readers.
+    pub remote_writers: AtomicU64,
+    pub remote_readers: AtomicU64,
+}
+
+impl Stats {
+    pub fn add(counter: &AtomicU64, n: u64) {
+        counter.fetch_add(n, Ordering::Relaxed);
+    }
+
+    /// Counters as (name, value), for machine-readable output.
+    pub fn snapshot(&self) -> Vec<(&'static str, u64)> {
+        let g = |c: &AtomicU64| c.load(Ordering::Relaxed);
+        vec![
+            ("to_dds", g(&self.to_dds)),
+            ("from_dds", g(&self.from_dds)),
+            ("bad_samples", g(&self.bad_samples)),
+            ("refused", g(&self.refused)),
+            ("own_samples", g(&self.own_samples)),
+            ("errors", g(&self.errors)),
+            ("remote_writers", g(&self.remote_writers)),
+            ("remote_readers", g(&self.remote_readers)),
+        ]
+    }
+}
+
+impl fmt::Display for Stats {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let s = self.snapshot();
+        let parts: Vec<String> = s.iter().map(|(k, v)| format!("{k}={v}")).collect();
+        f.write_str(&parts.join(" "))
+    }
+}
+
+/// Lets a repeated warning through once per interval (a misbehaving peer must not flood
+/// the log); counts what it held back.
+#[derive(Debug)]
+pub struct LogLimit {
+    every: std::time::Duration,
+    last: Option<std::time::Instant>,
+    held: u64,
+}
+
+impl LogLimit {
+    pub fn new(every: std::time::Duration) -> Self {
+        LogLimit { every, last: None, held: 0 }
+    }
+
+    /// `Some(held back since the last one)` when this occurrence may be logged.
+    pub fn allow(&mut self) -> Option<u64> {
+        let now = std::time::Instant::now();
+        if self.last.is_some_and(|t| now.duration_since(t) < self.every) {
+            self.held += 1;
+            return None;
+        }
+        self.last = Some(now);
+        Some(std::mem::take(&mut self.held))
+    }
+}

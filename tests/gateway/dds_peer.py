@@ -1,0 +1,253 @@
+#!/usr/bin/env python3
+"""A Cyclone DDS peer for the gateway's tests: the stand-in for an rclpy node.
+
+Usage: dds_peer.py MODE --domain N [options]; types are given as JSON field lists,
+e.g. '[["step","uint64"],["sim_time","float64"],["x","float64"],["v","float64[3]"]]'.
+Every mode prints JSON lines on stdout and exits 0 on success, 3 on timeout.
+
+  sub    --topic T --type TN --fields F [--count N] [--timeout S] [--best-effort] [--exclusive]
+  pub    --topic T --type TN --fields F --values '[{...}, ...]' [--period-ms P] [--exclusive]
+         [--linger S]: waits for a matched reader, writes each sample
+  answer --topic T --type TN --fields F --reply-topic T2 --reply-type TN2 --reply-fields F2
+         --count N: for each sample read on T (a step k) writes one sample on T2 with step k
+         and every other field of F2 = the first data field of the sample + 1
+  qos    --topic T [--timeout S]: the QoS of the first remote writer on T (DCPSPublication)
+  nodes  --name NAME [--timeout S]: waits until ros_discovery_info lists node NAME
+"""
+import argparse
+import json
+import os
+import sys
+import time
+import types
+from dataclasses import dataclass
+
+LOOPBACK = (
+    '<CycloneDDS xmlns="https://cdds.io/config"><Domain id="any"><General><Interfaces>'
+    '<NetworkInterface name="lo"/></Interfaces><AllowMulticast>false</AllowMulticast></General>'
+    '<Discovery><Peers><Peer address="127.0.0.1"/></Peers><ParticipantIndex>auto</ParticipantIndex>'
+    '<MaxAutoParticipantIndex>20</MaxAutoParticipantIndex></Discovery></Domain></CycloneDDS>'
+)
+os.environ.setdefault("CYCLONEDDS_URI", LOOPBACK)
+
+from cyclonedds.builtin import BuiltinDataReader, BuiltinTopicDcpsPublication  # noqa: E402
+from cyclonedds.core import Listener  # noqa: E402
+from cyclonedds.domain import DomainParticipant  # noqa: E402
+from cyclonedds.idl import IdlStruct  # noqa: E402
+from cyclonedds.idl import types as T  # noqa: E402
+from cyclonedds.pub import DataWriter  # noqa: E402
+from cyclonedds.qos import Policy, Qos  # noqa: E402
+from cyclonedds.sub import DataReader  # noqa: E402
+from cyclonedds.topic import Topic  # noqa: E402
+from cyclonedds.util import duration  # noqa: E402
+
+SCALARS = {
+    "bool": bool, "boolean": bool, "int8": T.int8, "int16": T.int16, "int32": T.int32, "int64": T.int64,
+    "uint8": T.uint8, "uint16": T.uint16, "uint32": T.uint32, "uint64": T.uint64,
+    "float32": T.float32, "float64": T.float64, "string": str,
+}
+
+
+def field_type(spec):
+    if spec.endswith("]") and "[" in spec:
+        base, n = spec[:-1].split("[")
+        return T.sequence[SCALARS[base]] if n == "" else T.array[SCALARS[base], int(n)]
+    return SCALARS[spec]
+
+
+def make_type(typename, fields):
+    """An IdlStruct class named `typename` (the DDS type name) with `fields`."""
+    def body(ns):
+        ns["__annotations__"] = {name: field_type(spec) for name, spec in fields}
+    cls = types.new_class("T_" + typename.replace(":", "_"), (IdlStruct,), {"typename": typename}, body)
+    return dataclass(cls)
+
+
+def default(spec):
+    t = field_type(spec)
+    if spec.endswith("]"):
+        n = spec[:-1].split("[")[1]
+        return [] if n == "" else [0.0 if "float" in spec else 0] * int(n)
+    return False if t is bool else ("" if t is str else (0.0 if "float" in spec else 0))
+
+
+def reader_qos(a):
+    pol = [Policy.Reliability.BestEffort if a.best_effort else Policy.Reliability.Reliable(duration(milliseconds=100)),
+           Policy.History.KeepLast(100), Policy.Durability.Volatile]
+    pol.append(Policy.Ownership.Exclusive if a.exclusive else Policy.Ownership.Shared)
+    return Qos(*pol)
+
+
+def writer_qos(a):
+    pol = [Policy.Reliability.Reliable(duration(milliseconds=100)), Policy.History.KeepLast(100), Policy.Durability.Volatile]
+    if a.exclusive:
+        pol += [Policy.Ownership.Exclusive, Policy.OwnershipStrength(5)]
+    else:
+        pol.append(Policy.Ownership.Shared)
+    return Qos(*pol)
+
+
+def plain(v):
+    if isinstance(v, (list, tuple)):
+        return [plain(x) for x in v]
+    if hasattr(v, "__dataclass_fields__"):
+        return {k: plain(getattr(v, k)) for k in v.__dataclass_fields__}
+    return v
+
+
+def emit(obj):
+    print(json.dumps(obj), flush=True)
+
+
+def wait_matched(w, timeout):
+    end = time.time() + timeout
+    while time.time() < end:
+        if w.get_matched_subscriptions():
+            return True
+        time.sleep(0.05)
+    return False
+
+
+def cmd_sub(dp, a):
+    fields = json.loads(a.fields)
+    cls = make_type(a.type, fields)
+    rd = DataReader(dp, Topic(dp, a.topic, cls), qos=reader_qos(a))
+    end, n = time.time() + a.timeout, 0
+    emit({"ready": True})
+    while time.time() < end and n < a.count:
+        for s in rd.take(N=100):
+            if not s.sample_info.valid_data:
+                continue
+            emit(plain(s))
+            n += 1
+        time.sleep(0.002)
+    return 0 if n >= a.count else 3
+
+
+def cmd_pub(dp, a):
+    fields = json.loads(a.fields)
+    cls = make_type(a.type, fields)
+    w = DataWriter(dp, Topic(dp, a.topic, cls), qos=writer_qos(a))
+    if not wait_matched(w, a.timeout):
+        emit({"error": "no matched reader"})
+        return 3
+    emit({"matched": True})
+    time.sleep(0.2)
+    for v in json.loads(a.values):
+        full = {name: default(spec) for name, spec in fields}
+        full.update(v)
+        w.write(cls(**full))
+        emit({"wrote": v})
+        time.sleep(a.period_ms / 1000.0)
+    time.sleep(a.linger)
+    return 0
+
+
+def cmd_answer(dp, a):
+    f_in, f_out = json.loads(a.fields), json.loads(a.reply_fields)
+    cin, cout = make_type(a.type, f_in), make_type(a.reply_type, f_out)
+    rd = DataReader(dp, Topic(dp, a.topic, cin), qos=Qos(Policy.Reliability.Reliable(duration(milliseconds=100)),
+                                                           Policy.History.KeepAll, Policy.Durability.Volatile))
+    w = DataWriter(dp, Topic(dp, a.reply_topic, cout), qos=Qos(Policy.Reliability.Reliable(duration(milliseconds=100)),
+                                                                 Policy.History.KeepAll, Policy.Durability.Volatile))
+    emit({"ready": True})
+    end, n = time.time() + a.timeout, 0
+    first = f_in[2][0]
+    while time.time() < end and n < a.count:
+        for s in rd.take(N=100):
+            if not s.sample_info.valid_data:
+                continue
+            out = {name: default(spec) for name, spec in f_out}
+            for name, _ in f_out[2:]:
+                out[name] = getattr(s, first) + 1
+            out["step"], out["sim_time"] = s.step, s.sim_time
+            w.write(cout(**out))
+            emit({"step": s.step, "in": getattr(s, first)})
+            n += 1
+        time.sleep(0.001)
+    time.sleep(a.linger)
+    return 0 if n >= a.count else 3
+
+
+def cmd_qos(dp, a):
+    rd = BuiltinDataReader(dp, BuiltinTopicDcpsPublication)
+    end = time.time() + a.timeout
+    while time.time() < end:
+        for s in rd.take(N=200):
+            if not s.sample_info.valid_data or s.topic_name != a.topic:
+                continue
+            q = s.qos
+            emit({
+                "type_name": s.type_name,
+                "reliability": type(q[Policy.Reliability]).__name__,
+                "durability": str(q[Policy.Durability]).split(".")[-1],
+                "ownership": str(q[Policy.Ownership]).split(".")[-1],
+                "strength": q[Policy.OwnershipStrength].strength if Policy.OwnershipStrength in q else None,
+            })
+            return 0
+        time.sleep(0.05)
+    return 3
+
+
+@dataclass
+class Gid(IdlStruct, typename="rmw_dds_common::msg::dds_::Gid_"):
+    data: T.array[T.uint8, 16]
+
+
+@dataclass
+class NodeEntitiesInfo(IdlStruct, typename="rmw_dds_common::msg::dds_::NodeEntitiesInfo_"):
+    node_namespace: str
+    node_name: str
+    reader_gid_seq: T.sequence[Gid]
+    writer_gid_seq: T.sequence[Gid]
+
+
+@dataclass
+class ParticipantEntitiesInfo(IdlStruct, typename="rmw_dds_common::msg::dds_::ParticipantEntitiesInfo_"):
+    gid: Gid
+    node_entities_info_seq: T.sequence[NodeEntitiesInfo]
+
+
+def cmd_nodes(dp, a):
+    q = Qos(Policy.Reliability.Reliable(duration(milliseconds=100)), Policy.History.KeepLast(1),
+            Policy.Durability.TransientLocal)
+    rd = DataReader(dp, Topic(dp, "ros_discovery_info", ParticipantEntitiesInfo), qos=q)
+    end = time.time() + a.timeout
+    while time.time() < end:
+        for s in rd.take(N=100):
+            if not s.sample_info.valid_data:
+                continue
+            for n in s.node_entities_info_seq:
+                if n.node_name == a.name:
+                    emit({"namespace": n.node_namespace, "name": n.node_name,
+                          "readers": len(n.reader_gid_seq), "writers": len(n.writer_gid_seq)})
+                    return 0
+        time.sleep(0.05)
+    return 3
+
+
+def main():
+    p = argparse.ArgumentParser()
+    p.add_argument("mode", choices=["sub", "pub", "answer", "qos", "nodes"])
+    p.add_argument("--domain", type=int, required=True)
+    p.add_argument("--topic")
+    p.add_argument("--type")
+    p.add_argument("--fields")
+    p.add_argument("--values", default="[]")
+    p.add_argument("--reply-topic")
+    p.add_argument("--reply-type")
+    p.add_argument("--reply-fields")
+    p.add_argument("--name")
+    p.add_argument("--count", type=int, default=1)
+    p.add_argument("--timeout", type=float, default=20.0)
+    p.add_argument("--period-ms", type=float, default=50.0)
+    p.add_argument("--linger", type=float, default=0.5)
+    p.add_argument("--best-effort", action="store_true")
+    p.add_argument("--exclusive", action="store_true")
+    a = p.parse_args()
+    dp = DomainParticipant(a.domain)
+    sys.exit({"sub": cmd_sub, "pub": cmd_pub, "answer": cmd_answer, "qos": cmd_qos, "nodes": cmd_nodes}[a.mode](dp, a))
+
+
+if __name__ == "__main__":
+    main()
