@@ -179,7 +179,7 @@ def cmd_qos(dp, a):
             q = s.qos
             emit({
                 "type_name": s.type_name,
-                "reliability": type(q[Policy.Reliability]).__name__,
+                "reliability": type(q[Policy.Reliability]).__name__.split(".")[-1],
                 "durability": str(q[Policy.Durability]).split(".")[-1],
                 "ownership": str(q[Policy.Ownership]).split(".")[-1],
                 "strength": q[Policy.OwnershipStrength].strength if Policy.OwnershipStrength in q else None,

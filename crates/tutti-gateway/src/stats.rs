@@ -14,6 +14,8 @@ pub struct Stats {
     pub bad_samples: AtomicU64,
     /// DDS samples refused by the role rules (a second writer on an exclusive set).
     pub refused: AtomicU64,
+    /// Synchronous: DDS samples answering a step the framework had already left.
+    pub late: AtomicU64,
     /// DDS samples that came back from this gateway itself (dropped).
     pub own_samples: AtomicU64,
     /// Shared-memory or DDS write failures.
@@ -36,6 +38,7 @@ impl Stats {
             ("from_dds", g(&self.from_dds)),
             ("bad_samples", g(&self.bad_samples)),
             ("refused", g(&self.refused)),
+            ("late", g(&self.late)),
             ("own_samples", g(&self.own_samples)),
             ("errors", g(&self.errors)),
             ("remote_writers", g(&self.remote_writers)),

@@ -122,7 +122,8 @@ fn run(
             continue;
         };
         match commit(part, payload, &own_commits) {
-            Ok(()) => Stats::add(&stats.from_dds, 1),
+            Ok(Committed::Yes) => Stats::add(&stats.from_dds, 1),
+            Ok(Committed::Late) => Stats::add(&stats.late, 1),
             Err(e @ ShmError::NotOwner { .. }) => {
                 Stats::add(&stats.refused, 1);
                 if let Some(held) = refused_log.allow() {
@@ -149,10 +150,26 @@ fn run(
     }
 }
 
-fn commit(p: &mut Participant, payload: Payload, own_commits: &AtomicU64) -> Result<(), ShmError> {
+/// What became of a sample.
+enum Committed {
+    Yes,
+    /// It answers a step the framework has already left (it timed out waiting).
+    Late,
+}
+
+fn commit(p: &mut Participant, payload: Payload, own_commits: &AtomicU64) -> Result<Committed, ShmError> {
     if p.info().flags.synchronous {
-        // Waits for the step this sample answers (a seed needs none).
+        // Waits for the step this sample answers (a seed needs none). A sample answering an
+        // earlier step is not committed for the current one, or every later step would
+        // get its predecessor's answer; the lock alone makes the connection a writer, so
+        // the framework waits for the next answer.
         p.publish_lock()?;
+        let locked = p.segment().header().pub_step.load(Ordering::Acquire);
+        if let Payload::Set(s) = &payload {
+            if s.step != 0 && s.step < locked {
+                return Ok(Committed::Late);
+            }
+        }
     }
     match payload {
         Payload::Set(s) => {
@@ -168,5 +185,5 @@ fn commit(p: &mut Participant, payload: Payload, own_commits: &AtomicU64) -> Res
     if r.is_err() {
         own_commits.fetch_sub(1, Ordering::AcqRel);
     }
-    r
+    r.map(|()| Committed::Yes)
 }

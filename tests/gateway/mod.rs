@@ -1,0 +1,288 @@
+//! Helpers of the gateway tests: the Python venv with Cyclone DDS, child processes with a
+//! watchdog (killed on drop), a gateway process, an in-process framework.
+#![allow(dead_code)]
+
+use std::io::{BufRead, BufReader};
+use std::path::{Path, PathBuf};
+use std::process::{Child, Command, Stdio};
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::{Arc, Mutex};
+use std::thread::{self, JoinHandle};
+use std::time::{Duration, Instant};
+
+use tutti_core::ddf::{Model, Role};
+use tutti_core::shm::{ConnectOptions, Framework, FrameworkOptions, Participant};
+
+pub const DDF: &str = "tests/gateway/gw.ddf";
+pub const PEER: &str = "tests/gateway/dds_peer.py";
+
+pub fn root() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+}
+
+/// The venv's python with cyclonedds, created at the repo root if missing; None (skip)
+/// when TUTTI_SKIP_DDS=1.
+pub fn python() -> Option<PathBuf> {
+    if std::env::var("TUTTI_SKIP_DDS").is_ok_and(|v| v == "1") {
+        eprintln!("TUTTI_SKIP_DDS=1: DDS interop test skipped");
+        return None;
+    }
+    static LOCK: Mutex<()> = Mutex::new(());
+    let _g = LOCK.lock().unwrap_or_else(|e| e.into_inner());
+    let venv = root().join(".venv");
+    let py = venv.join("bin/python");
+    let ok = |py: &Path| Command::new(py).args(["-c", "import cyclonedds"]).status().is_ok_and(|s| s.success());
+    if !ok(&py) {
+        // Built aside and renamed, so that concurrent test binaries never see half a venv.
+        let tmp = root().join(format!(".venv.tmp-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&tmp);
+        let made = Command::new("python3").arg("-m").arg("venv").arg(&tmp).status().is_ok_and(|s| s.success())
+            && Command::new(tmp.join("bin/pip"))
+                .args(["install", "-q", "cyclonedds==11.0.1"])
+                .status()
+                .is_ok_and(|s| s.success());
+        if made && !ok(&py) {
+            let _ = std::fs::rename(&tmp, &venv);
+        }
+        let _ = std::fs::remove_dir_all(&tmp);
+    }
+    assert!(
+        ok(&py),
+        "{} with cyclonedds is missing: run `python3 -m venv .venv && .venv/bin/pip install -q cyclonedds==11.0.1`, or set TUTTI_SKIP_DDS=1",
+        py.display()
+    );
+    Some(py)
+}
+
+/// A child process killed (with its output kept) when dropped or when its watchdog fires.
+pub struct Proc {
+    child: Arc<Mutex<Child>>,
+    pub name: String,
+    lines: Arc<Mutex<Vec<String>>>,
+    done: Arc<AtomicBool>,
+    readers: Vec<JoinHandle<()>>,
+}
+
+impl Proc {
+    pub fn spawn(name: &str, mut cmd: Command, watchdog: Duration) -> Proc {
+        cmd.stdout(Stdio::piped()).stderr(Stdio::piped()).stdin(Stdio::null()).current_dir(root());
+        let mut child = cmd.spawn().unwrap_or_else(|e| panic!("starting {name}: {e}"));
+        let lines = Arc::new(Mutex::new(Vec::new()));
+        let mut readers = Vec::new();
+        let out = child.stdout.take().map(|s| Box::new(s) as Box<dyn std::io::Read + Send>);
+        let err = child.stderr.take().map(|s| Box::new(s) as Box<dyn std::io::Read + Send>);
+        for (tag, s) in [("", out), ("stderr: ", err)] {
+            let Some(s) = s else { continue };
+            let lines = lines.clone();
+            readers.push(thread::spawn(move || {
+                for l in BufReader::new(s).lines().map_while(Result::ok) {
+                    lines.lock().unwrap().push(format!("{tag}{l}"));
+                }
+            }));
+        }
+        let child = Arc::new(Mutex::new(child));
+        let done = Arc::new(AtomicBool::new(false));
+        {
+            let (child, done, name) = (child.clone(), done.clone(), name.to_string());
+            thread::spawn(move || {
+                let end = Instant::now() + watchdog;
+                while Instant::now() < end {
+                    if done.load(Ordering::Acquire) {
+                        return;
+                    }
+                    thread::sleep(Duration::from_millis(50));
+                }
+                eprintln!("watchdog: killing {name}");
+                let _ = child.lock().unwrap().kill();
+            });
+        }
+        Proc { child, name: name.to_string(), lines, done, readers }
+    }
+
+    /// Lines printed so far (stderr lines prefixed `stderr: `).
+    pub fn lines(&self) -> Vec<String> {
+        self.lines.lock().unwrap().clone()
+    }
+
+    /// Waits until a line contains `pat`; returns it.
+    pub fn wait_line(&self, pat: &str, timeout: Duration) -> Option<String> {
+        let end = Instant::now() + timeout;
+        while Instant::now() < end {
+            if let Some(l) = self.lines().into_iter().find(|l| l.contains(pat)) {
+                return Some(l);
+            }
+            thread::sleep(Duration::from_millis(20));
+        }
+        None
+    }
+
+    /// Waits for the exit (at most `timeout`, then kills); returns the status code.
+    pub fn wait(&mut self, timeout: Duration) -> Option<i32> {
+        let end = Instant::now() + timeout;
+        loop {
+            if let Ok(Some(s)) = self.child.lock().unwrap().try_wait() {
+                self.done.store(true, Ordering::Release);
+                for r in self.readers.drain(..) {
+                    let _ = r.join();
+                }
+                return s.code();
+            }
+            if Instant::now() >= end {
+                let _ = self.child.lock().unwrap().kill();
+            }
+            thread::sleep(Duration::from_millis(20));
+        }
+    }
+
+    /// Sends SIGINT (a clean stop) and waits.
+    pub fn interrupt(&mut self, timeout: Duration) -> Option<i32> {
+        let pid = self.child.lock().unwrap().id();
+        let _ = Command::new("kill").args(["-INT", &pid.to_string()]).status();
+        self.wait(timeout)
+    }
+
+    pub fn dump(&self) -> String {
+        format!("--- {} ---\n{}", self.name, self.lines().join("\n"))
+    }
+}
+
+impl Drop for Proc {
+    fn drop(&mut self) {
+        self.done.store(true, Ordering::Release);
+        let mut c = self.child.lock().unwrap();
+        if let Ok(None) = c.try_wait() {
+            let _ = c.kill();
+            let _ = c.wait();
+        }
+    }
+}
+
+/// `tutti gateway DDF` on loopback in DDS domain `domain_id`, namespace `ns`.
+pub fn gateway(ddf: &str, domain_id: u16, ns: &str, extra: &[&str]) -> Proc {
+    let mut cmd = Command::new(env!("CARGO_BIN_EXE_tutti"));
+    cmd.args([
+        "gateway",
+        ddf,
+        "--ros-domain-id",
+        &domain_id.to_string(),
+        "--interface",
+        "127.0.0.1",
+        "--status-every",
+        "300ms",
+    ])
+    .args(extra)
+    .env("TUTTI_NAMESPACE", ns)
+    .env("RUST_LOG", "info,rustdds=off,ros2_client=off");
+    let p = Proc::spawn(&format!("gateway {ns}"), cmd, Duration::from_secs(60));
+    assert!(p.wait_line("tutti gateway: up", Duration::from_secs(20)).is_some(), "gateway did not start\n{}", p.dump());
+    p
+}
+
+/// The Cyclone peer in `mode`.
+pub fn peer(py: &Path, name: &str, domain_id: u16, mode: &str, args: &[&str]) -> Proc {
+    let mut cmd = Command::new(py);
+    cmd.arg(PEER).arg(mode).args(["--domain", &domain_id.to_string()]).args(args);
+    Proc::spawn(name, cmd, Duration::from_secs(40))
+}
+
+/// The last gateway counter `name` printed in a status line.
+pub fn counter(p: &Proc, name: &str) -> u64 {
+    let key = format!(" {name}=");
+    p.lines()
+        .iter()
+        .rev()
+        .find_map(|l| l.split_once(&key).and_then(|(_, rest)| rest.split_whitespace().next()?.parse().ok()))
+        .unwrap_or(0)
+}
+
+pub fn model() -> Model {
+    tutti_core::ddf::load(root().join(DDF)).unwrap()
+}
+
+/// A framework hosting `model` in namespace `ns`, stepping every `period` in a thread;
+/// `publish(step)` gives each step's PUBLISH set of domain `domain`; every step's SUBSCRIBE
+/// set is kept as (step, bytes).
+pub struct Host {
+    stop: Arc<AtomicBool>,
+    pub seen: Arc<Mutex<Vec<(u64, Vec<u8>)>>>,
+    thread: Option<JoinHandle<()>>,
+}
+
+impl Host {
+    pub fn start(ns: &str, domain: &str, period: Duration, publish: impl Fn(u64) -> Vec<u8> + Send + 'static) -> Host {
+        let model = model();
+        let opts = FrameworkOptions { namespace: ns.into(), timeout: Duration::from_millis(500), ..Default::default() };
+        let mut fw = Framework::create(&model, &opts).expect("framework");
+        let stop = Arc::new(AtomicBool::new(false));
+        let seen = Arc::new(Mutex::new(Vec::new()));
+        let (s, v, domain) = (stop.clone(), seen.clone(), domain.to_string());
+        let thread = thread::spawn(move || {
+            let mut k = 0u64;
+            while !s.load(Ordering::Acquire) {
+                k += 1;
+                for d in fw.domains.iter_mut() {
+                    let size = d.info().publish.size as usize;
+                    let data = if d.info().name == domain { publish(k) } else { vec![0; size] };
+                    if let Ok(r) = d.step(&data, k as f64 * 0.01) {
+                        if d.info().name == domain {
+                            v.lock().unwrap().push((r.step, d.subscribe().to_vec()));
+                        }
+                    }
+                }
+                thread::sleep(period);
+            }
+        });
+        Host { stop, seen, thread: Some(thread) }
+    }
+
+    /// Waits until some step's SUBSCRIBE set satisfies `f`; returns that step.
+    pub fn wait_for(&self, timeout: Duration, f: impl Fn(u64, &[u8]) -> bool) -> Option<u64> {
+        let end = Instant::now() + timeout;
+        while Instant::now() < end {
+            if let Some((k, _)) = self.seen.lock().unwrap().iter().find(|(k, b)| f(*k, b)) {
+                return Some(*k);
+            }
+            thread::sleep(Duration::from_millis(20));
+        }
+        None
+    }
+}
+
+impl Drop for Host {
+    fn drop(&mut self) {
+        self.stop.store(true, Ordering::Release);
+        if let Some(t) = self.thread.take() {
+            let _ = t.join();
+        }
+    }
+}
+
+pub fn connect(ns: &str, domain: &str) -> Participant {
+    let opts = ConnectOptions {
+        namespace: ns.into(),
+        name: "test-component".into(),
+        connect_timeout: Duration::from_secs(15),
+        timeout: Duration::from_secs(2),
+        skip_wait_to_go: true,
+        ..Default::default()
+    };
+    Participant::connect(domain, opts).expect("connect")
+}
+
+pub fn f64_at(b: &[u8], off: usize) -> f64 {
+    f64::from_ne_bytes(b[off..off + 8].try_into().unwrap())
+}
+
+pub fn leaf_offset(domain: &str, role: Role, path: &str) -> usize {
+    model().domain(domain).unwrap().set(role).layout.leaf(path).unwrap().offset as usize
+}
+
+/// Parses the JSON lines of a peer's stdout that have `key`.
+pub fn json_lines(p: &Proc, key: &str) -> Vec<serde_json::Value> {
+    p.lines()
+        .iter()
+        .filter(|l| !l.starts_with("stderr: "))
+        .filter_map(|l| serde_json::from_str::<serde_json::Value>(l).ok())
+        .filter(|v| v.get(key).is_some())
+        .collect()
+}

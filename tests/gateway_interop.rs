@@ -1,0 +1,358 @@
+//! The gateway against Cyclone DDS (Python), the stand-in for an rclpy node: typed and
+//! per-item samples both ways, the QoS on the wire, the ROS 2 node, bad input, and a DDS
+//! writer in lock-step. Each test has its own DDS domain and namespace.
+
+mod gateway;
+
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
+use std::thread;
+use std::time::Duration;
+
+use gateway::*;
+use tutti_core::ddf::Role;
+
+const SECS: fn(u64) -> Duration = Duration::from_secs;
+const SUB_FIELDS: &str = r#"[["step","uint64"],["sim_time","float64"],["y","float64"],["n","int32"]]"#;
+const PUB_FIELDS: &str =
+    r#"[["step","uint64"],["sim_time","float64"],["x","float64"],["flag","bool"],["v","float64[3]"]]"#;
+
+/// A component commits SUBSCRIBE values through shared memory (repeatedly, until stopped).
+fn keep_committing(ns: &str, y: f64, n: i32) -> (Arc<AtomicBool>, thread::JoinHandle<()>) {
+    let stop = Arc::new(AtomicBool::new(false));
+    let (s, ns) = (stop.clone(), ns.to_string());
+    let t = thread::spawn(move || {
+        let mut p = connect(&ns, "gw_async");
+        p.stage("y", &y.to_ne_bytes()).unwrap();
+        p.stage("n", &n.to_ne_bytes()).unwrap();
+        p.commit().unwrap();
+        while !s.load(Ordering::Acquire) {
+            p.stage("y", &y.to_ne_bytes()).unwrap();
+            p.commit().unwrap();
+            thread::sleep(Duration::from_millis(50));
+        }
+    });
+    (stop, t)
+}
+
+fn async_publish(k: u64) -> Vec<u8> {
+    let mut b = vec![0u8; 40];
+    b[0..8].copy_from_slice(&4.5f64.to_ne_bytes());
+    b[8] = 1;
+    for i in 0..3 {
+        b[16 + 8 * i..24 + 8 * i].copy_from_slice(&(k as f64 + i as f64).to_ne_bytes());
+    }
+    b
+}
+
+#[test]
+fn shared_memory_values_reach_a_cyclone_reader_as_typed_samples() {
+    let Some(py) = python() else { return };
+    let (dom, ns) = (101, "gwtest101");
+    let _host = Host::start(ns, "gw_async", Duration::from_millis(10), async_publish);
+    let gw = gateway(DDF, dom, ns, &[]);
+    let (stop, t) = keep_committing(ns, 2.5, 7);
+    let mut sub = peer(
+        &py,
+        "sub subscribe",
+        dom,
+        "sub",
+        &[
+            "--topic",
+            "rt/gw_async/subscribe",
+            "--type",
+            "gw_msgs::msg::dds_::GwAsyncSubscribe_",
+            "--fields",
+            SUB_FIELDS,
+        ],
+    );
+    let mut pubs = peer(
+        &py,
+        "sub publish",
+        dom,
+        "sub",
+        &[
+            "--topic",
+            "rt/gw_async/publish",
+            "--type",
+            "gw_msgs::msg::dds_::GwAsyncPublish_",
+            "--fields",
+            PUB_FIELDS,
+            "--count",
+            "3",
+        ],
+    );
+    let rc = sub.wait(SECS(25));
+    let rc2 = pubs.wait(SECS(25));
+    stop.store(true, Ordering::Release);
+    t.join().unwrap();
+    assert_eq!(rc, Some(0), "{}\n{}", sub.dump(), gw.dump());
+    let got = json_lines(&sub, "y");
+    assert_eq!(got[0]["y"], 2.5, "{}", sub.dump());
+    assert_eq!(got[0]["n"], 7);
+    assert_eq!(rc2, Some(0), "{}\n{}", pubs.dump(), gw.dump());
+    let got = json_lines(&pubs, "x");
+    let s = &got[got.len() - 1];
+    assert_eq!(s["x"], 4.5);
+    assert_eq!(s["flag"], true);
+    let k = s["step"].as_u64().unwrap();
+    assert!(k > 0);
+    assert_eq!(
+        s["v"],
+        serde_json::json!([k as f64, k as f64 + 1.0, k as f64 + 2.0]),
+        "step and values from the same step"
+    );
+}
+
+#[test]
+fn per_item_mode_uses_stock_types_both_ways() {
+    let Some(py) = python() else { return };
+    let (dom, ns) = (102, "gwtest102");
+    let host = Host::start(ns, "gw_async", Duration::from_millis(10), async_publish);
+    let gw = gateway(DDF, dom, ns, &["--ros2-types", "per-item"]);
+    // A shared-memory writer's value reaches DDS; it then leaves, so that a DDS writer may
+    // own the (exclusive) SUBSCRIBE set.
+    let (stop, t) = keep_committing(ns, 6.25, 0);
+    let mut y = peer(
+        &py,
+        "sub y",
+        dom,
+        "sub",
+        &[
+            "--topic",
+            "rt/gw_async/subscribe/y",
+            "--type",
+            "std_msgs::msg::dds_::Float64_",
+            "--fields",
+            r#"[["data","float64"]]"#,
+        ],
+    );
+    let rc = y.wait(SECS(25));
+    stop.store(true, Ordering::Release);
+    t.join().unwrap();
+    assert_eq!(rc, Some(0), "{}\n{}", y.dump(), gw.dump());
+    assert_eq!(json_lines(&y, "data")[0]["data"], 6.25);
+    let mut v = peer(
+        &py,
+        "sub v",
+        dom,
+        "sub",
+        &[
+            "--topic",
+            "rt/gw_async/publish/v",
+            "--type",
+            "std_msgs::msg::dds_::Float64MultiArray_",
+            "--fields",
+            r#"[["dim_len","uint32"],["data_offset","uint32"],["data","float64[]"]]"#,
+        ],
+    );
+    let mut flag = peer(
+        &py,
+        "sub flag",
+        dom,
+        "sub",
+        &[
+            "--topic",
+            "rt/gw_async/publish/flag",
+            "--type",
+            "std_msgs::msg::dds_::Bool_",
+            "--fields",
+            r#"[["data","bool"]]"#,
+        ],
+    );
+    let mut w = peer(
+        &py,
+        "pub n",
+        dom,
+        "pub",
+        &[
+            "--topic",
+            "rt/gw_async/subscribe/n",
+            "--type",
+            "std_msgs::msg::dds_::Float64_",
+            "--fields",
+            r#"[["data","float64"]]"#,
+            "--values",
+            r#"[{"data": 41}, {"data": 42}, {"data": 42}, {"data": 42}]"#,
+        ],
+    );
+    let rcs = [v.wait(SECS(25)), flag.wait(SECS(25)), w.wait(SECS(25))];
+    assert_eq!(rcs, [Some(0); 3], "{}\n{}\n{}\n{}", v.dump(), flag.dump(), w.dump(), gw.dump());
+    assert_eq!(json_lines(&flag, "data")[0]["data"], true);
+    // Float64MultiArray: an empty layout (no dims), then the array.
+    let arr = &json_lines(&v, "data")[0];
+    assert_eq!(arr["dim_len"], 0);
+    assert_eq!(arr["data"].as_array().map(Vec::len), Some(3));
+    let off = leaf_offset("gw_async", Role::Subscribe, "n");
+    let k = host.wait_for(SECS(5), |_, b| i32::from_ne_bytes(b[off..off + 4].try_into().unwrap()) == 42);
+    assert!(k.is_some(), "the framework never read n=42\n{}", gw.dump());
+}
+
+#[test]
+fn a_cyclone_writer_is_read_by_the_framework_through_a_remote_connection() {
+    let Some(py) = python() else { return };
+    let (dom, ns) = (103, "gwtest103");
+    let host = Host::start(ns, "gw_async", Duration::from_millis(10), async_publish);
+    let gw = gateway(DDF, dom, ns, &[]);
+    let mut w = peer(
+        &py,
+        "pub subscribe",
+        dom,
+        "pub",
+        &[
+            "--topic",
+            "rt/gw_async/subscribe",
+            "--type",
+            "gw_msgs::msg::dds_::GwAsyncSubscribe_",
+            "--fields",
+            SUB_FIELDS,
+            "--values",
+            r#"[{"y": 9.5, "n": 3}, {"y": 9.5, "n": 3}, {"y": 9.5, "n": 3}, {"y": 9.5, "n": 3}]"#,
+            "--period-ms",
+            "200",
+        ],
+    );
+    let got =
+        host.wait_for(SECS(20), |_, b| f64_at(b, 0) == 9.5 && i32::from_ne_bytes(b[8..12].try_into().unwrap()) == 3);
+    // While the DDS writer is there, the domain lists it as a remote writer connection.
+    let seg = tutti_core::shm::segment::Segment::open(ns, "gw_async").unwrap();
+    let remote_writers = seg.status().connections.iter().filter(|c| c.remote && c.writer).count();
+    assert_eq!(w.wait(SECS(20)), Some(0), "{}\n{}", w.dump(), gw.dump());
+    assert!(got.is_some(), "the framework never read the DDS sample\n{}", gw.dump());
+    assert_eq!(remote_writers, 1, "{:?}", seg.status().connections);
+}
+
+#[test]
+fn the_gateway_writers_offer_the_qos_table_on_the_wire() {
+    let Some(py) = python() else { return };
+    for (dom, ns, profile) in [(104, "gwtest104", "ros2"), (105, "gwtest105", "dds")] {
+        let gw = gateway(DDF, dom, ns, &["--qos-profile", profile, "--strength", "9"]);
+        let q = |topic: &str| {
+            let mut p = peer(&py, &format!("qos {topic}"), dom, "qos", &["--topic", topic, "--timeout", "15"]);
+            assert_eq!(p.wait(SECS(20)), Some(0), "{}\n{}", p.dump(), gw.dump());
+            json_lines(&p, "reliability").remove(0)
+        };
+        let sync = q("rt/gw_sync/publish");
+        assert_eq!(sync["type_name"], "gw_msgs::msg::dds_::GwSyncPublish_");
+        assert_eq!(sync["reliability"], "Reliable");
+        assert_eq!(sync["durability"], "Volatile");
+        let states = q("rt/gw_states/subscribe");
+        assert_eq!(states["reliability"], "Reliable");
+        assert_eq!(states["durability"], "TransientLocal");
+        assert_eq!(states["ownership"], "Shared", "multiplePublishAllowed=yes is SHARED in both profiles");
+        let excl = q("rt/gw_async/publish");
+        if profile == "ros2" {
+            assert_eq!(excl["ownership"], "Shared");
+        } else {
+            assert_eq!(excl["ownership"], "Exclusive");
+            assert_eq!(excl["strength"], 9);
+        }
+    }
+}
+
+#[test]
+fn the_gateway_is_a_ros2_node_in_ros_discovery_info() {
+    let Some(py) = python() else { return };
+    let (dom, ns) = (106, "gwtest106");
+    let gw = gateway(DDF, dom, ns, &["--node-name", "tutti_gw_test"]);
+    let mut p = peer(&py, "nodes", dom, "nodes", &["--name", "tutti_gw_test", "--timeout", "15"]);
+    assert_eq!(p.wait(SECS(20)), Some(0), "{}\n{}", p.dump(), gw.dump());
+    let n = &json_lines(&p, "name")[0];
+    assert_eq!(n["namespace"], "/");
+    // 3 domains: 2 writers (PUBLISH, SUBSCRIBE) and 1 reader (SUBSCRIBE) each, besides
+    // the node's own (parameter events).
+    assert!(n["writers"].as_u64() >= Some(6), "{n}");
+    assert_eq!(n["readers"], 3, "{n}");
+}
+
+#[test]
+fn bad_samples_and_a_second_writer_are_dropped_and_counted() {
+    let Some(py) = python() else { return };
+    let (dom, ns) = (107, "gwtest107");
+    let host = Host::start(ns, "gw_async", Duration::from_millis(10), async_publish);
+    let mut gw = gateway(DDF, dom, ns, &[]);
+    // Truncated: the right type name, but only the header fields.
+    let mut bad = peer(
+        &py,
+        "pub truncated",
+        dom,
+        "pub",
+        &[
+            "--topic",
+            "rt/gw_async/subscribe",
+            "--type",
+            "gw_msgs::msg::dds_::GwAsyncSubscribe_",
+            "--fields",
+            r#"[["step","uint64"]]"#,
+            "--values",
+            r#"[{"step": 1}, {"step": 2}]"#,
+        ],
+    );
+    assert_eq!(bad.wait(SECS(20)), Some(0), "{}", bad.dump());
+    // Two writers on an exclusive set: the first to publish owns it.
+    let vals =
+        |y: f64| format!(r#"[{{"y": {y}}}, {{"y": {y}}}, {{"y": {y}}}, {{"y": {y}}}, {{"y": {y}}}, {{"y": {y}}}]"#);
+    let (v1, v2) = (vals(1.0), vals(2.0));
+    let a =
+        ["--topic", "rt/gw_async/subscribe", "--type", "gw_msgs::msg::dds_::GwAsyncSubscribe_", "--fields", SUB_FIELDS];
+    let mut first = peer(&py, "first writer", dom, "pub", &[&a[..], &["--values", &v1, "--period-ms", "300"]].concat());
+    assert!(host.wait_for(SECS(20), |_, b| f64_at(b, 0) == 1.0).is_some(), "{}\n{}", first.dump(), gw.dump());
+    let mut second =
+        peer(&py, "second writer", dom, "pub", &[&a[..], &["--values", &v2, "--period-ms", "100"]].concat());
+    assert_eq!(second.wait(SECS(20)), Some(0), "{}", second.dump());
+    assert_eq!(first.wait(SECS(20)), Some(0), "{}", first.dump());
+    thread::sleep(Duration::from_millis(700));
+    assert!(host.seen.lock().unwrap().iter().all(|(_, b)| f64_at(b, 0) != 2.0), "the second writer got through");
+    let rejected = tutti_core::shm::segment::Segment::open(ns, "gw_async").unwrap().status().rejected;
+    assert_eq!(gw.interrupt(SECS(10)), Some(0), "{}", gw.dump());
+    assert!(counter(&gw, "bad_samples") >= 1, "{}", gw.dump());
+    assert!(counter(&gw, "refused") >= 1, "{}", gw.dump());
+    assert!(rejected >= 1, "the domain header counts the refused commits");
+}
+
+#[test]
+fn a_dds_writer_takes_part_in_lock_step_through_the_gateway() {
+    let Some(py) = python() else { return };
+    let (dom, ns) = (108, "gwtest108");
+    let mut answer = peer(
+        &py,
+        "answer",
+        dom,
+        "answer",
+        &[
+            "--topic",
+            "rt/gw_sync/publish",
+            "--type",
+            "gw_msgs::msg::dds_::GwSyncPublish_",
+            "--fields",
+            r#"[["step","uint64"],["sim_time","float64"],["x","float64"]]"#,
+            "--reply-topic",
+            "rt/gw_sync/subscribe",
+            "--reply-type",
+            "gw_msgs::msg::dds_::GwSyncSubscribe_",
+            "--reply-fields",
+            r#"[["step","uint64"],["sim_time","float64"],["y","float64"]]"#,
+            "--count",
+            "100000",
+            "--timeout",
+            "30",
+        ],
+    );
+    let host = Host::start(ns, "gw_sync", Duration::from_millis(5), |k| (k as f64 * 10.0).to_ne_bytes().to_vec());
+    let gw = gateway(DDF, dom, ns, &[]);
+    // In lock-step, the SUBSCRIBE set read at the end of step k answers step k's PUBLISH set.
+    let answered = |k: u64, b: &[u8]| f64_at(b, 0) == k as f64 * 10.0 + 1.0;
+    let first = host.wait_for(SECS(25), answered);
+    assert!(first.is_some(), "no step was answered in lock-step\n{}\n{}", answer.dump(), gw.dump());
+    thread::sleep(Duration::from_millis(500));
+    let seen = host.seen.lock().unwrap().clone();
+    let after: Vec<_> = seen.iter().filter(|(k, _)| *k > first.unwrap() + 5).collect();
+    let in_step = after.iter().filter(|(k, b)| answered(*k, b)).count();
+    assert!(
+        !after.is_empty() && in_step * 10 >= after.len() * 9,
+        "{in_step} of {} steps answered in lock-step",
+        after.len()
+    );
+    drop(host);
+    drop(answer.interrupt(SECS(5)));
+}
