@@ -151,6 +151,12 @@ impl Drop for Proc {
         self.done.store(true, Ordering::Release);
         let mut c = self.child.lock().unwrap();
         if let Ok(None) = c.try_wait() {
+            // A clean stop first (a mirror removes its segments), then the hard way.
+            let _ = Command::new("kill").args(["-INT", &c.id().to_string()]).status();
+            let end = Instant::now() + Duration::from_secs(3);
+            while Instant::now() < end && matches!(c.try_wait(), Ok(None)) {
+                thread::sleep(Duration::from_millis(20));
+            }
             let _ = c.kill();
             let _ = c.wait();
         }

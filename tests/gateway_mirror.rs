@@ -1,0 +1,94 @@
+//! Two gateways, two namespaces (two "machines"): the home gateway bridges a framework's
+//! domains to DDS; the `--mirror` gateway hosts local copies fed from DDS. A component on
+//! the mirror side reads the PUBLISH set and writes the SUBSCRIBE set of the framework on
+//! the home side, asynchronously and in lock-step.
+
+mod gateway;
+
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
+use std::thread;
+use std::time::{Duration, Instant};
+
+use gateway::*;
+
+const SECS: fn(u64) -> Duration = Duration::from_secs;
+
+#[test]
+fn a_component_on_the_mirror_side_drives_an_asynchronous_domain() {
+    let Some(_py) = python() else { return };
+    let (dom, home, away) = (109, "gwtest109a", "gwtest109b");
+    let host = Host::start(home, "gw_async", Duration::from_millis(10), |_| {
+        let mut b = vec![0u8; 40];
+        b[0..8].copy_from_slice(&4.5f64.to_ne_bytes());
+        b
+    });
+    let gw_home = gateway(DDF, dom, home, &[]);
+    let gw_away = gateway(DDF, dom, away, &["--mirror"]);
+    let stop = Arc::new(AtomicBool::new(false));
+    let s = stop.clone();
+    let component = thread::spawn(move || {
+        let mut p = connect(away, "gw_async");
+        let end = Instant::now() + SECS(20);
+        let mut x = 0.0;
+        while Instant::now() < end && x != 4.5 {
+            p.subscribe_lock().unwrap();
+            x = f64_at(p.snapshot(), 0);
+            thread::sleep(Duration::from_millis(10));
+        }
+        while !s.load(Ordering::Acquire) {
+            p.stage("y", &(x + 4.0).to_ne_bytes()).unwrap();
+            p.commit().unwrap();
+            thread::sleep(Duration::from_millis(20));
+        }
+        x
+    });
+    let got = host.wait_for(SECS(25), |_, b| f64_at(b, 0) == 8.5);
+    stop.store(true, Ordering::Release);
+    let x = component.join().unwrap();
+    assert_eq!(x, 4.5, "the mirror side never read the PUBLISH set\n{}\n{}", gw_home.dump(), gw_away.dump());
+    assert!(got.is_some(), "the framework never read the mirror side's commit\n{}\n{}", gw_home.dump(), gw_away.dump());
+}
+
+#[test]
+fn a_component_on_the_mirror_side_takes_part_in_lock_step() {
+    let Some(_py) = python() else { return };
+    let (dom, home, away) = (110, "gwtest110a", "gwtest110b");
+    let host = Host::start(home, "gw_sync", Duration::from_millis(5), |k| (k as f64 * 10.0).to_ne_bytes().to_vec());
+    let gw_home = gateway(DDF, dom, home, &[]);
+    let gw_away = gateway(DDF, dom, away, &["--mirror", "--timeout", "500ms"]);
+    let stop = Arc::new(AtomicBool::new(false));
+    let s = stop.clone();
+    let component = thread::spawn(move || {
+        let mut p = connect(away, "gw_sync");
+        let mut steps = 0;
+        while !s.load(Ordering::Acquire) {
+            if p.subscribe_lock().is_err() {
+                continue;
+            }
+            let x = f64_at(p.snapshot(), 0);
+            if p.publish_lock().is_ok() {
+                p.stage("y", &(x + 1.0).to_ne_bytes()).unwrap();
+                p.commit().unwrap();
+                steps += 1;
+            }
+        }
+        steps
+    });
+    // In lock-step, the SUBSCRIBE set read at the end of step k answers step k's PUBLISH set.
+    let answered = |k: u64, b: &[u8]| f64_at(b, 0) == k as f64 * 10.0 + 1.0;
+    let first = host.wait_for(SECS(25), answered);
+    thread::sleep(Duration::from_millis(700));
+    stop.store(true, Ordering::Release);
+    let seen = host.seen.lock().unwrap().clone();
+    drop(host);
+    let steps = component.join().unwrap();
+    assert!(first.is_some(), "no step was answered ({steps} commits)\n{}\n{}", gw_home.dump(), gw_away.dump());
+    let after: Vec<_> = seen.iter().filter(|(k, _)| *k > first.unwrap() + 5).collect();
+    let in_step = after.iter().filter(|(k, b)| answered(*k, b)).count();
+    assert!(
+        !after.is_empty() && in_step * 10 >= after.len() * 9,
+        "{in_step} of {} steps answered in lock-step",
+        after.len()
+    );
+}
