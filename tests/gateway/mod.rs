@@ -216,7 +216,18 @@ pub struct Host {
 
 impl Host {
     pub fn start(ns: &str, domain: &str, period: Duration, publish: impl Fn(u64) -> Vec<u8> + Send + 'static) -> Host {
-        let model = model();
+        Host::start_with(DDF, ns, domain, period, publish)
+    }
+
+    /// As [`Host::start`], for the domains of DDF `ddf` (relative to the repo root).
+    pub fn start_with(
+        ddf: &str,
+        ns: &str,
+        domain: &str,
+        period: Duration,
+        publish: impl Fn(u64) -> Vec<u8> + Send + 'static,
+    ) -> Host {
+        let model = tutti_core::ddf::load(root().join(ddf)).unwrap();
         let opts = FrameworkOptions { namespace: ns.into(), timeout: Duration::from_millis(500), ..Default::default() };
         let mut fw = Framework::create(&model, &opts).expect("framework");
         let stop = Arc::new(AtomicBool::new(false));
