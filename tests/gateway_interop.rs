@@ -356,3 +356,36 @@ fn a_dds_writer_takes_part_in_lock_step_through_the_gateway() {
     drop(host);
     drop(answer.interrupt(SECS(5)));
 }
+
+#[test]
+fn the_cyclone_uav_listener_prints_the_states_a_uav_model_commits() {
+    let Some(py) = python() else { return };
+    let (dom, ns) = (112, "gwtest112");
+    let host = Host::start_with("ddf/multiuav.ddf", ns, "multiuav_uav1", Duration::from_millis(10), |_| vec![0; 40]);
+    let gw = gateway("ddf/multiuav.ddf", dom, ns, &[]);
+    // The UAV model: in lock-step, answers every step with its state.
+    let stop = Arc::new(AtomicBool::new(false));
+    let (s, ns2) = (stop.clone(), ns.to_string());
+    let uav = thread::spawn(move || {
+        let mut p = connect(&ns2, "multiuav_uav1");
+        while !s.load(Ordering::Acquire) {
+            if p.subscribe_lock().is_ok() && p.publish_lock().is_ok() {
+                p.stage("Latitude", &45.5f64.to_ne_bytes()).unwrap();
+                p.stage("Elevation", &120.0f64.to_ne_bytes()).unwrap();
+                p.commit().unwrap();
+            }
+        }
+    });
+    let mut cmd = std::process::Command::new(&py);
+    cmd.args(["launch-scripts/cyclone_uav_listener.py", "--domain", &dom.to_string(), "--uavs", "1", "--count", "2"]);
+    cmd.args(["--timeout", "20"]);
+    let mut l = Proc::spawn("uav listener", cmd, Duration::from_secs(30));
+    let rc = l.wait(SECS(25));
+    stop.store(true, Ordering::Release);
+    uav.join().unwrap();
+    drop(host);
+    assert_eq!(rc, Some(0), "{}\n{}", l.dump(), gw.dump());
+    let s = &json_lines(&l, "uav")[0];
+    assert_eq!(s["latitude"], 45.5);
+    assert_eq!(s["elevation"], 120.0);
+}
