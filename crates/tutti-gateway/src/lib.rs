@@ -13,6 +13,7 @@
 
 pub mod cdr;
 pub mod discovery;
+pub mod echo;
 mod error;
 pub mod manager;
 pub mod node;

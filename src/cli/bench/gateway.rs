@@ -1,0 +1,308 @@
+//! `tutti bench gateway`: the round trip shared memory -> gateway -> DDS -> echo peer ->
+//! DDS -> gateway -> shared memory, against Cyclone's `ddsperf` ping-pong in the same run
+//! and with the same core placement; the rate of an 8-item asynchronous set through the
+//! gateway; and the start-up and memory of a gateway serving ddf/large-1000.ddf.
+//!
+//! The framework is this process; the gateway and the echo peer (`--echo`, a second DDS
+//! participant using the gateway's codec) are child processes, pinned with `taskset`.
+
+use std::io::{BufRead, BufReader};
+use std::path::{Path, PathBuf};
+use std::process::{Child, Command, Stdio};
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+
+use anyhow::{bail, Context as _};
+use tutti_core::shm::{Framework, FrameworkOptions, WaitMode};
+use tutti_gateway::GatewayOptions;
+
+use super::super::{load_ddf, CliResult};
+
+const ITEMS: usize = 8;
+const LOOPBACK: &str = "<CycloneDDS xmlns=\"https://cdds.io/config\"><Domain id=\"any\"><General><Interfaces><NetworkInterface name=\"lo\"/></Interfaces><AllowMulticast>false</AllowMulticast></General><Discovery><Peers><Peer address=\"127.0.0.1\"/></Peers><ParticipantIndex>auto</ParticipantIndex><MaxAutoParticipantIndex>20</MaxAutoParticipantIndex></Discovery></Domain></CycloneDDS>";
+
+/// Round trip and throughput through the gateway, next to Cyclone's ddsperf.
+#[derive(Debug, clap::Args)]
+#[command(
+    after_help = "Example:\n  cargo build --release && target/release/tutti bench gateway\n\nNeeds ddsperf (apt-get install -y cyclonedds-tools) for the comparison; figures go to docs/benchmarks.md."
+)]
+pub struct Args {
+    /// Round trips timed per placement.
+    #[arg(long, default_value_t = 2000)]
+    samples: u32,
+    /// How long the throughput run lasts.
+    #[arg(long, default_value = "3s", value_parser = super::super::host::parse_duration)]
+    duration: Duration,
+    /// Core placements to run: same (everything on CPU 0), split (gateway on CPU 1), both.
+    #[arg(long, default_value = "both")]
+    placement: String,
+    /// DDS domain id of the runs.
+    #[arg(long, default_value_t = 230)]
+    ros_domain_id: u16,
+    /// Also start a gateway on this DDF and record its start-up time and memory.
+    #[arg(long, default_value = "ddf/large-1000.ddf")]
+    large: PathBuf,
+    /// Internal: run the echo peer for DDF (used by the benchmark itself).
+    #[arg(long, hide = true, value_name = "DDF")]
+    echo: Option<PathBuf>,
+}
+
+fn ddf_text() -> String {
+    let items: String = (0..ITEMS).map(|i| format!("<item name=\"v{i}\"><type>double</type></item>")).collect();
+    format!(
+        "<orchestra><domain name=\"gwbench\"><synchronous>no</synchronous><multiplePublishAllowed>yes</multiplePublishAllowed><states>no</states>\
+         <block name=\"gwbench/Publish\">{items}</block><block name=\"gwbench/Subscribe\">{items}</block></domain></orchestra>"
+    )
+}
+
+struct Kid(Child);
+
+impl Drop for Kid {
+    fn drop(&mut self) {
+        let _ = Command::new("kill").args(["-INT", &self.0.id().to_string()]).status();
+        let end = Instant::now() + Duration::from_secs(3);
+        while Instant::now() < end && matches!(self.0.try_wait(), Ok(None)) {
+            std::thread::sleep(Duration::from_millis(20));
+        }
+        let _ = self.0.kill();
+        let _ = self.0.wait();
+    }
+}
+
+fn pinned(cpu: usize, program: &Path) -> Command {
+    let mut c = Command::new("taskset");
+    c.arg("-c").arg(cpu.to_string()).arg(program);
+    c
+}
+
+fn pin_self(cpu: usize) {
+    let _ = Command::new("taskset").args(["-cp", &cpu.to_string(), &std::process::id().to_string()]).output();
+}
+
+fn percentile(sorted: &[f64], p: f64) -> f64 {
+    if sorted.is_empty() {
+        return f64::NAN;
+    }
+    sorted[((sorted.len() - 1) as f64 * p).round() as usize]
+}
+
+fn rss_kib(pid: u32) -> Option<u64> {
+    let s = std::fs::read_to_string(format!("/proc/{pid}/status")).ok()?;
+    s.lines().find_map(|l| l.strip_prefix("VmRSS:")).and_then(|v| v.split_whitespace().next()?.parse().ok())
+}
+
+pub fn run(args: Args) -> CliResult {
+    if let Some(ddf) = &args.echo {
+        return echo(ddf, args.ros_domain_id);
+    }
+    let exe = std::env::current_exe().context("locating tutti")?;
+    let dir = std::env::temp_dir().join(format!("tutti-bench-gw-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).context("creating a scratch directory")?;
+    let ddf = dir.join("gwbench.ddf");
+    std::fs::write(&ddf, ddf_text()).context("writing the benchmark DDF")?;
+    let placements: Vec<(&str, usize, usize)> = match args.placement.as_str() {
+        "same" => vec![("same core (all on CPU 0)", 0, 0)],
+        "split" => vec![("two cores (gateway CPU 1; framework, echo, ping CPU 0)", 0, 1)],
+        _ => vec![("same core (all on CPU 0)", 0, 0), ("two cores (gateway CPU 1; framework, echo, ping CPU 0)", 0, 1)],
+    };
+    println!("gateway round trip: shm -> gateway -> DDS -> echo -> DDS -> gateway -> shm, {ITEMS} x float64 async set");
+    println!("{:<58} {:>10} {:>10} {:>10} {:>12}", "placement / path", "p50 µs", "p99 µs", "lost", "samples/s");
+    for (name, main_cpu, gw_cpu) in placements {
+        let r = round_trip(&exe, &ddf, &args, main_cpu, gw_cpu).with_context(|| format!("placement {name}"))?;
+        println!("{name}");
+        println!(
+            "  {:<56} {:>10.1} {:>10.1} {:>10} {:>12.0}",
+            "gateway (rustdds) round trip", r.p50, r.p99, r.lost, r.rate
+        );
+        match ddsperf(main_cpu, gw_cpu) {
+            Ok((p50, p99)) => {
+                println!("  {:<56} {:>10.1} {:>10.1}", "ddsperf ping-pong round trip (2 x its half)", p50, p99);
+                println!("  {:<56} {:>10.2}", "ratio gateway / ddsperf, p50 (target <= 1.5)", r.p50 / p50);
+            }
+            Err(e) => println!("  ddsperf: not run ({e:#})"),
+        }
+    }
+    if args.large.exists() {
+        let (up, rss) = large(&exe, &args)?;
+        println!(
+            "gateway on {}: up in {:.2} s, RSS {:.1} MiB",
+            args.large.display(),
+            up.as_secs_f64(),
+            rss as f64 / 1024.0
+        );
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+    Ok(())
+}
+
+struct RoundTrip {
+    p50: f64,
+    p99: f64,
+    lost: u32,
+    rate: f64,
+}
+
+fn round_trip(exe: &Path, ddf: &Path, args: &Args, main_cpu: usize, gw_cpu: usize) -> anyhow::Result<RoundTrip> {
+    let ns = format!("gwbench{}", std::process::id());
+    let model = load_ddf(ddf).map_err(|f| f.error)?;
+    let opts = FrameworkOptions { namespace: ns.clone(), wait: WaitMode::Spin, ..Default::default() };
+    let mut fw = Framework::create(&model, &opts).context("creating the benchmark domain")?;
+    let host = &mut fw.domains[0];
+    let dom = args.ros_domain_id.to_string();
+    let _gw = Kid(pinned(gw_cpu, exe)
+        .args(["gateway", &ddf.to_string_lossy(), "--ros-domain-id", &dom, "--interface", "127.0.0.1"])
+        .args(["--poll", "0", "--wait", "spin", "-q"])
+        .env("TUTTI_NAMESPACE", &ns)
+        .env("RUST_LOG", "error,rustdds=off,ros2_client=off")
+        .stdin(Stdio::null())
+        .spawn()
+        .context("starting the gateway")?);
+    let _echo = Kid(pinned(main_cpu, exe)
+        .args(["bench", "gateway", "--echo", &ddf.to_string_lossy(), "--ros-domain-id", &dom])
+        .stdin(Stdio::null())
+        .spawn()
+        .context("starting the echo peer")?);
+    pin_self(main_cpu);
+    let mut data = vec![0u8; ITEMS * 8];
+    let mut seq = 0f64;
+    let mut send = |host: &mut tutti_core::shm::DomainHost, seq: f64| {
+        for c in data.chunks_exact_mut(8) {
+            c.copy_from_slice(&seq.to_ne_bytes());
+        }
+        host.publish_step(&data, seq).map(|_| ())
+    };
+    let back = |host: &mut tutti_core::shm::DomainHost| -> f64 {
+        host.read_subscribe().map(|b| f64::from_ne_bytes(b[0..8].try_into().unwrap_or_default())).unwrap_or(f64::NAN)
+    };
+    // Until the echo path works end to end.
+    let end = Instant::now() + Duration::from_secs(30);
+    loop {
+        seq += 1.0;
+        send(host, seq)?;
+        let t = Instant::now();
+        while t.elapsed() < Duration::from_millis(100) && back(host) != seq {
+            std::hint::spin_loop();
+        }
+        if back(host) == seq {
+            break;
+        }
+        if Instant::now() > end {
+            bail!("no echo within 30 s (is the loopback interface up?)");
+        }
+    }
+    let mut times = Vec::with_capacity(args.samples as usize);
+    let mut lost = 0;
+    for _ in 0..args.samples {
+        seq += 1.0;
+        let t = Instant::now();
+        send(host, seq)?;
+        while back(host) != seq && t.elapsed() < Duration::from_secs(1) {
+            std::hint::spin_loop();
+        }
+        if back(host) == seq {
+            times.push(t.elapsed().as_secs_f64() * 1e6);
+        } else {
+            lost += 1;
+        }
+    }
+    times.sort_by(f64::total_cmp);
+    // Throughput: publish flat out; count the samples that came back through the gateway.
+    let commits = |host: &tutti_core::shm::DomainHost| host.status().subscribe_commits;
+    let c0 = commits(host);
+    let t = Instant::now();
+    while t.elapsed() < args.duration {
+        seq += 1.0;
+        send(host, seq)?;
+        std::thread::yield_now();
+    }
+    let rate = (commits(host) - c0) as f64 / t.elapsed().as_secs_f64();
+    Ok(RoundTrip { p50: percentile(&times, 0.5), p99: percentile(&times, 0.99), lost, rate })
+}
+
+/// ddsperf ping-pong with the same placement; returns (p50, p99) of the round trip in µs.
+fn ddsperf(main_cpu: usize, other_cpu: usize) -> anyhow::Result<(f64, f64)> {
+    let domain = "229";
+    let _pong = Kid(Command::new("taskset")
+        .args(["-c", &other_cpu.to_string(), "ddsperf", "-i", domain, "-D8", "pong"])
+        .env("CYCLONEDDS_URI", LOOPBACK)
+        .stdout(Stdio::null())
+        .stderr(Stdio::null())
+        .spawn()
+        .context("starting ddsperf pong")?);
+    let out = Command::new("taskset")
+        .args([
+            "-c",
+            &main_cpu.to_string(),
+            "ddsperf",
+            "-i",
+            domain,
+            "-D5",
+            "-Qminmatch:1",
+            "-Qinitwait:5",
+            "ping",
+            "1kHz",
+        ])
+        .env("CYCLONEDDS_URI", LOOPBACK)
+        .stderr(Stdio::null())
+        .output()
+        .context("running ddsperf ping")?;
+    let mut p50s = Vec::new();
+    let mut p99s = Vec::new();
+    for line in String::from_utf8_lossy(&out.stdout).lines().filter(|l| l.contains(" 50% ")) {
+        let num = |key: &str| -> Option<f64> { line.split(key).nth(1)?.split("us").next()?.trim().parse().ok() };
+        if let (Some(a), Some(b)) = (num(" 50% "), num(" 99% ")) {
+            p50s.push(a);
+            p99s.push(b);
+        }
+    }
+    if p50s.is_empty() {
+        bail!("no ddsperf output (apt-get install -y cyclonedds-tools)");
+    }
+    p50s.sort_by(f64::total_cmp);
+    p99s.sort_by(f64::total_cmp);
+    // ddsperf prints half the round trip.
+    Ok((2.0 * percentile(&p50s, 0.5), 2.0 * percentile(&p99s, 0.5)))
+}
+
+/// Starts a gateway on the large DDF; returns its start-up time and RSS (KiB) once up.
+fn large(exe: &Path, args: &Args) -> anyhow::Result<(Duration, u64)> {
+    let t = Instant::now();
+    let mut child = Command::new(exe)
+        .args(["gateway", &args.large.to_string_lossy(), "--ros-domain-id", &(args.ros_domain_id - 1).to_string()])
+        .args(["--interface", "127.0.0.1", "--status-every", "1h"])
+        .env("TUTTI_NAMESPACE", format!("gwbenchlarge{}", std::process::id()))
+        .env("RUST_LOG", "error,rustdds=off,ros2_client=off")
+        .stdin(Stdio::null())
+        .stderr(Stdio::piped())
+        .spawn()
+        .context("starting the gateway on the large DDF")?;
+    let stderr = child.stderr.take();
+    let kid = Kid(child);
+    let mut up = None;
+    if let Some(s) = stderr {
+        for line in BufReader::new(s).lines().map_while(Result::ok) {
+            if line.contains("tutti gateway: up") {
+                up = Some(t.elapsed());
+                break;
+            }
+        }
+    }
+    let up = up.context("the gateway on the large DDF did not start")?;
+    std::thread::sleep(Duration::from_millis(500));
+    let rss = rss_kib(kid.0.id()).unwrap_or(0);
+    Ok((up, rss))
+}
+
+fn echo(ddf: &Path, domain_id: u16) -> CliResult {
+    let model = load_ddf(ddf)?;
+    let mut opts = GatewayOptions::new(ddf, model.clone());
+    opts.ros_domain_id = domain_id;
+    opts.interfaces = vec![std::net::IpAddr::V4(std::net::Ipv4Addr::LOCALHOST)];
+    let stop = Arc::new(AtomicBool::new(false));
+    let s = stop.clone();
+    ctrlc::set_handler(move || s.store(true, Ordering::SeqCst)).context("installing the signal handler")?;
+    let d = model.domains.first().context("the DDF has no domain")?;
+    tutti_gateway::echo::run(&opts, d, stop).map_err(anyhow::Error::new)?;
+    Ok(())
+}
