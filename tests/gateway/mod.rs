@@ -208,9 +208,12 @@ pub fn model() -> Model {
 /// A framework hosting `model` in namespace `ns`, stepping every `period` in a thread;
 /// `publish(step)` gives each step's PUBLISH set of domain `domain`; every step's SUBSCRIBE
 /// set is kept as (step, bytes).
+/// Each step's SUBSCRIBE set, as (step, bytes).
+pub type Seen = Arc<Mutex<Vec<(u64, Vec<u8>)>>>;
+
 pub struct Host {
     stop: Arc<AtomicBool>,
-    pub seen: Arc<Mutex<Vec<(u64, Vec<u8>)>>>,
+    pub seen: Seen,
     thread: Option<JoinHandle<()>>,
 }
 
