@@ -1,22 +1,29 @@
-//! The bucket: a set's latest value, in two slots guarded by seqlocks.
+//! The bucket: a set's latest value, in a ring of [`SLOTS`] slots guarded by seqlocks.
 //!
 //! A writer (one at a time: the framework for PUBLISH, the holder of the writer lock for
-//! SUBSCRIBE) fills the slot that is *not* current, then makes it current. A reader copies
+//! SUBSCRIBE) fills the slot after the current one, then makes it current. A reader copies
 //! the current slot and keeps the copy only if the slot's sequence number was even and
-//! unchanged across the copy. Writers never wait for readers; a reader retries only when a
-//! writer lapped it (two commits during one copy). All accesses to the data are relaxed
+//! unchanged across the copy. Writers never wait for readers; a reader retries only when
+//! the writer laps it (`SLOTS` commits during one copy), which a ring of four makes rare even
+//! under a writer that commits back to back. All accesses to the data are relaxed
 //! atomic word accesses, so the code is free of data races even in the Rust memory model,
 //! and loom checks it (`tests/loom.rs`).
 
 use crate::sync::{fence, spin_hint, AtomicU64, Ordering};
 
-/// A view of one bucket in memory: the two sequence numbers, the generation counter (its
-/// low bit names the current slot) and the two slots' words.
+/// Slots per bucket (a power of two: the generation's low bits name the current slot).
+pub const SLOTS: usize = 4;
+
+/// A view of one bucket in memory: the slots' sequence numbers, the generation counter (its
+/// low bits name the current slot) and the slots' words.
 #[derive(Debug, Clone, Copy)]
 pub struct Bucket<'a> {
-    pub seq: &'a [AtomicU64; 2],
+    pub seq: &'a [AtomicU64; SLOTS],
+    /// The generation each slot holds, written and read inside its seqlock, so that a
+    /// reader lapped between loading `current` and its copy still reports the right one.
+    pub gens: &'a [AtomicU64; SLOTS],
     pub current: &'a AtomicU64,
-    pub slots: [&'a [AtomicU64]; 2],
+    pub slots: [&'a [AtomicU64]; SLOTS],
 }
 
 /// Copies `src` bytes into shared words (relaxed stores).
@@ -73,14 +80,15 @@ impl Bucket<'_> {
     /// Returns the new generation. The caller guarantees there is one writer at a time.
     pub fn write_with(&self, fill: impl FnOnce(&[AtomicU64], &[AtomicU64])) -> u64 {
         let generation = self.current.load(Ordering::Relaxed);
-        let cur = (generation & 1) as usize;
-        let next = cur ^ 1;
+        let cur = generation as usize % SLOTS;
+        let next = (cur + 1) % SLOTS;
         let seq = &self.seq[next];
         let s = seq.load(Ordering::Relaxed);
         // Odd: writing. (A writer that died mid-write left it odd; start from the next odd.)
         let writing = if s & 1 == 1 { s.wrapping_add(2) } else { s.wrapping_add(1) };
         seq.store(writing, Ordering::Relaxed);
         fence(Ordering::Release);
+        self.gens[next].store(generation.wrapping_add(1), Ordering::Relaxed);
         fill(self.slots[cur], self.slots[next]);
         seq.store(writing.wrapping_add(1), Ordering::Release);
         self.current.store(generation.wrapping_add(1), Ordering::Release);
@@ -102,15 +110,16 @@ impl Bucket<'_> {
     /// One attempt at a consistent copy: `Some(generation)` when `dst` holds a whole value.
     pub fn try_read(&self, dst: &mut [u8]) -> Option<u64> {
         let generation = self.current.load(Ordering::Acquire);
-        let slot = (generation & 1) as usize;
+        let slot = generation as usize % SLOTS;
         let s1 = self.seq[slot].load(Ordering::Acquire);
         if s1 & 1 == 1 {
             return None;
         }
+        let held = self.gens[slot].load(Ordering::Relaxed);
         load_bytes(self.slots[slot], dst);
         fence(Ordering::Acquire);
         let s2 = self.seq[slot].load(Ordering::Relaxed);
-        (s1 == s2).then_some(generation)
+        (s1 == s2).then_some(held)
     }
 
     /// A consistent copy of the latest value; returns its generation. Retries while a
@@ -173,10 +182,11 @@ mod tests {
 
     #[test]
     fn writes_alternate_slots_and_reads_see_the_latest() {
-        let seq = [AtomicU64::new(0), AtomicU64::new(0)];
+        let seq: [AtomicU64; SLOTS] = std::array::from_fn(|_| AtomicU64::new(0));
+        let gens: [AtomicU64; SLOTS] = std::array::from_fn(|_| AtomicU64::new(0));
         let current = AtomicU64::new(0);
-        let (a, b) = (words(1), words(1));
-        let bucket = Bucket { seq: &seq, current: &current, slots: [&a, &b] };
+        let w: Vec<Vec<AtomicU64>> = (0..SLOTS).map(|_| words(1)).collect();
+        let bucket = Bucket { seq: &seq, gens: &gens, current: &current, slots: std::array::from_fn(|i| w[i].as_slice()) };
         let mut out = [0u8; 8];
         assert_eq!(bucket.write(&7u64.to_ne_bytes()), 1);
         assert_eq!(bucket.read(&mut out, 10), Some(1));
@@ -185,7 +195,7 @@ mod tests {
         assert_eq!(bucket.read(&mut out, 10), Some(2));
         assert_eq!(u64::from_ne_bytes(out), 9);
         // A writer that died mid-write: the next slot stays odd until recovered.
-        seq[1].store(5, Ordering::Relaxed);
+        seq[3].store(5, Ordering::Relaxed);
         current.store(3, Ordering::Relaxed);
         assert_eq!(bucket.try_read(&mut out), None);
         bucket.recover();

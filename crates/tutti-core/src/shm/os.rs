@@ -49,7 +49,8 @@ pub fn futex_wait(word: &AtomicU32, expected: u32, timeout: Duration) {
 
 /// Wakes every waiter on `word`.
 pub fn futex_wake_all(word: &AtomicU32) {
-    let _ = futex::wake(word, futex::Flags::empty(), u32::MAX);
+    // The kernel reads the count as an int: u32::MAX would be -1, which wakes only one.
+    let _ = futex::wake(word, futex::Flags::empty(), i32::MAX as u32);
 }
 
 /// A process identity that survives pid reuse: the pid and its start time (clock ticks

@@ -63,6 +63,8 @@ pub struct Participant {
     last_read: u64,
     last_commit: u64,
     locked_step: u64,
+    /// Whether `subscribe_lock` was ever called (the connection reads before it answers).
+    has_read: bool,
     connected: bool,
 }
 
@@ -95,6 +97,7 @@ impl Participant {
             last_read: 0,
             last_commit: 0,
             locked_step: 0,
+            has_read: false,
             connected: true,
             seg,
             slot,
@@ -256,6 +259,7 @@ impl Participant {
         if let Some(c) = self.seg.conn(self.slot) {
             c.reads.fetch_add(1, Ordering::Relaxed);
         }
+        self.has_read = true;
         Ok(self.last_read)
     }
 
@@ -278,6 +282,11 @@ impl Participant {
         let seg = &self.seg;
         let h = seg.header();
         if seg.info.flags.synchronous {
+            if self.has_read && self.last_read > self.last_commit {
+                // Answer the step this connection read and has not answered yet.
+                self.locked_step = self.last_read;
+                return Ok(());
+            }
             let last = self.last_commit;
             let states = seg.info.flags.states;
             let ready = || {
@@ -291,8 +300,8 @@ impl Participant {
             }
             let k = h.pub_step.load(Ordering::Acquire);
             self.locked_step = k;
-            // Waiting for step k counts as having seen it: a connection that only writes
-            // must not stall the framework for a read it never makes.
+            // Waiting for step k counts as having seen it: a connection that writes before
+            // it reads (or never reads) must not stall the framework for a read it never makes.
             if self.last_read < k {
                 self.last_read = k;
                 if let Some(conn) = seg.conn_ctl(self.slot) {
@@ -307,19 +316,33 @@ impl Participant {
     fn claim_writer(&self) -> Result<(), ShmError> {
         let seg = &self.seg;
         let h = seg.header();
-        if let Some(c) = seg.conn(self.slot) {
-            c.flags.fetch_or(CONN_WRITER, Ordering::AcqRel);
-        }
         if !seg.info.flags.multiple_publish_allowed {
-            match h.owner_conn.compare_exchange(0, self.id, Ordering::AcqRel, Ordering::Acquire) {
-                Ok(_) => {}
-                Err(owner) if owner == self.id => {}
-                Err(owner) => {
-                    h.rejected.fetch_add(1, Ordering::Relaxed);
-                    let owner_pid = seg.conn(((owner & 0xffff_ffff) as usize).wrapping_sub(1)).map_or(0, |c| c.active.load(Ordering::Relaxed));
-                    return Err(ShmError::NotOwner { domain: seg.info.name.clone(), owner_pid });
+            loop {
+                match h.owner_conn.compare_exchange(0, self.id, Ordering::AcqRel, Ordering::Acquire) {
+                    Ok(_) => break,
+                    Err(owner) if owner == self.id => break,
+                    Err(owner) => {
+                        let slot = ((owner & 0xffff_ffff) as usize).wrapping_sub(1);
+                        let owner_pid = seg.conn(slot).map_or(0, |c| c.active.load(Ordering::Acquire));
+                        let start = seg.conn(slot).map_or(0, |c| c.start_time.load(Ordering::Acquire));
+                        // An owner that died is released here rather than after the
+                        // framework's next sweep; then the claim is tried again.
+                        if owner_pid != 0 && !os::is_alive(os::ProcessId { pid: owner_pid, start_time: start }) && seg.release_slot(slot, owner_pid) {
+                            continue;
+                        }
+                        if h.owner_conn.load(Ordering::Acquire) != owner {
+                            continue;
+                        }
+                        h.rejected.fetch_add(1, Ordering::Relaxed);
+                        return Err(ShmError::NotOwner { domain: seg.info.name.clone(), owner_pid });
+                    }
                 }
             }
+        }
+        // Flagged a writer only once allowed to write: a refused writer must not make the
+        // framework wait for commits that will never come.
+        if let Some(c) = seg.conn(self.slot) {
+            c.flags.fetch_or(CONN_WRITER, Ordering::AcqRel);
         }
         Ok(())
     }

@@ -6,7 +6,7 @@
 //! conn_off ConnSlot × conn_capacity (128 bytes each)
 //! dir_off  directory: one 16-byte entry per leaf (PUBLISH leaves first)
 //! str_off  string table: domain name, then item paths (UTF-8)
-//! sets[r].slots_off  two slots of sets[r].words × 8 bytes, for each role r
+//! sets[r].slots_off  SLOTS slots of sets[r].words × 8 bytes, for each role r
 //! ```
 //!
 //! Everything in the segment is read and written through atomics. Every offset and length
@@ -23,7 +23,7 @@ use std::time::{Duration, Instant};
 use memmap2::MmapRaw;
 use serde::Serialize;
 
-use super::bucket::{load_bytes, Bucket};
+use super::bucket::{load_bytes, Bucket, SLOTS};
 use super::handshake::{ConnCtl, StepCtl, CONN_REMOTE, CONN_SYNC_READER, CONN_WRITER};
 use super::os::{self, ProcessId};
 use super::ShmError;
@@ -89,7 +89,8 @@ pub struct SetHeader {
     pub words: AtomicU32,
     pub _pad: AtomicU32,
     pub slots_off: AtomicU64,
-    pub seq: [AtomicU64; 2],
+    pub seq: [AtomicU64; SLOTS],
+    pub gens: [AtomicU64; SLOTS],
     pub current: AtomicU64,
     pub commits: AtomicU64,
 }
@@ -272,7 +273,7 @@ impl Segment {
         for role in Role::ALL {
             let words = round_up(info.set(role).size as usize, ALIGN) / 8;
             set_geom[role as usize] = (end, words);
-            end += 2 * words * 8;
+            end += SLOTS * words * 8;
         }
         let total = end;
         file.set_len(total as u64).map_err(|e| ShmError::io(format!("sizing {}/{shm_name}", os::SHM_DIR), e))?;
@@ -404,7 +405,7 @@ impl Segment {
         load_bytes(self.words_at(base, strings.len().div_ceil(8))?, &mut strings);
         let strings = &strings[str_off % 8..];
         let text = |off: usize, len: usize, what: &str| -> Result<String, ShmError> {
-            let bytes = strings.get(off..off.checked_add(len).unwrap_or(usize::MAX)).ok_or_else(|| corrupt(format!("{what} outside the string table")))?;
+            let bytes = strings.get(off..off.saturating_add(len)).ok_or_else(|| corrupt(format!("{what} outside the string table")))?;
             String::from_utf8(bytes.to_vec()).map_err(|_| corrupt(format!("{what} is not UTF-8")))
         };
         let name = text(ld(&h.name_off), ld(&h.name_len), "domain name")?;
@@ -426,7 +427,7 @@ impl Segment {
             if off % ALIGN != 0 {
                 return Err(corrupt(format!("{role} slots are misaligned")));
             }
-            self.check_range(off, 2 * words * 8, "set slots")?;
+            self.check_range(off, SLOTS * words * 8, "set slots")?;
             sets[role as usize] = SetLayout { size, align, leaves: Vec::new() };
         }
         let dir = self.words_at(dir_off, dir_count * 2)?;
@@ -531,7 +532,12 @@ impl Segment {
         if words * 8 < self.info.set(role).size as usize {
             return Err(ShmError::Corrupt { domain: self.info.name.clone(), detail: format!("{role} set geometry changed") });
         }
-        Ok(Bucket { seq: &sh.seq, current: &sh.current, slots: [self.words_at(off, words)?, self.words_at(off + words * 8, words)?] })
+        self.check_range(off, SLOTS * words * 8, "set slots")?;
+        let mut slots: [&[AtomicU64]; SLOTS] = [&[]; SLOTS];
+        for (i, slot) in slots.iter_mut().enumerate() {
+            *slot = self.words_at(off + i * words * 8, words)?;
+        }
+        Ok(Bucket { seq: &sh.seq, gens: &sh.gens, current: &sh.current, slots })
     }
 
     pub fn framework_id(&self) -> ProcessId {

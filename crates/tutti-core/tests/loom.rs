@@ -1,0 +1,160 @@
+//! Model checks (loom) of the two concurrency protocols of the shared-memory layer, run on
+//! the very code the segments use. Build with `--cfg tutti_loom`:
+//!
+//! ```text
+//! RUSTFLAGS="--cfg tutti_loom" CARGO_TARGET_DIR=target/loom cargo test -p tutti-core --test loom --release
+//! ```
+#![cfg(tutti_loom)]
+
+use loom::sync::Arc;
+use loom::thread;
+use tutti_core::shm::bucket::{Bucket, SLOTS};
+use tutti_core::shm::handshake::{ConnCtl, StepCtl, CONN_SYNC_READER, CONN_WRITER};
+use tutti_core::sync::{AtomicU32, AtomicU64, Ordering};
+
+/// The bucket's slots, two words each: enough to see a torn value (the words differ).
+struct Mem {
+    seq: [AtomicU64; SLOTS],
+    gens: [AtomicU64; SLOTS],
+    current: AtomicU64,
+    slots: [[AtomicU64; 2]; SLOTS],
+}
+
+impl Mem {
+    fn new() -> Self {
+        let z = || AtomicU64::new(0);
+        Mem { seq: std::array::from_fn(|_| z()), gens: std::array::from_fn(|_| z()), current: z(), slots: std::array::from_fn(|_| [z(), z()]) }
+    }
+    fn bucket(&self) -> Bucket<'_> {
+        Bucket { seq: &self.seq, gens: &self.gens, current: &self.current, slots: std::array::from_fn(|i| self.slots[i].as_slice()) }
+    }
+}
+
+fn value(v: u64) -> [u8; 16] {
+    let mut b = [0u8; 16];
+    b[..8].copy_from_slice(&v.to_ne_bytes());
+    b[8..].copy_from_slice(&v.to_ne_bytes());
+    b
+}
+
+fn words(b: &[u8; 16]) -> (u64, u64) {
+    (u64::from_ne_bytes(b[..8].try_into().unwrap()), u64::from_ne_bytes(b[8..].try_into().unwrap()))
+}
+
+/// Explores every interleaving with up to three preemptions: enough to lap a reader around
+/// the whole ring (it takes `SLOTS` writes during one copy), and fast enough for CI.
+fn model(f: impl Fn() + Sync + Send + 'static) {
+    let mut builder = loom::model::Builder::new();
+    builder.preemption_bound = Some(3);
+    builder.check(f);
+}
+
+#[test]
+fn bucket_reads_are_never_torn() {
+    model(|| {
+        let mem = Arc::new(Mem::new());
+        let w = mem.clone();
+        let writer = thread::spawn(move || {
+            for v in 1..=SLOTS as u64 + 1 {
+                w.bucket().write(&value(v));
+            }
+        });
+        let mut out = [0u8; 16];
+        for _ in 0..2 {
+            if let Some(generation) = mem.bucket().try_read(&mut out) {
+                let (a, b) = words(&out);
+                assert_eq!(a, b, "torn read");
+                assert_eq!(a, generation, "value and generation disagree");
+            }
+        }
+        writer.join().unwrap();
+        let g = mem.bucket().try_read(&mut out).expect("quiescent read succeeds");
+        let last = SLOTS as u64 + 1;
+        assert_eq!((g, words(&out)), (last, (last, last)));
+    });
+}
+
+struct Shared {
+    publish: Mem,
+    subscribe: Mem,
+    pub_step: AtomicU64,
+    step_seq: AtomicU32,
+    ack_seq: AtomicU32,
+    active: AtomicU32,
+    flags: AtomicU32,
+    first_step: AtomicU64,
+    last_read: AtomicU64,
+    last_commit: AtomicU64,
+}
+
+impl Shared {
+    fn step_ctl(&self) -> StepCtl<'_> {
+        StepCtl { pub_step: &self.pub_step, step_seq: &self.step_seq, ack_seq: &self.ack_seq }
+    }
+    fn conn(&self) -> ConnCtl<'_> {
+        ConnCtl {
+            active: &self.active,
+            flags: &self.flags,
+            first_step: &self.first_step,
+            last_read: &self.last_read,
+            last_commit: &self.last_commit,
+        }
+    }
+}
+
+#[test]
+fn lock_step_handshake_reads_each_step_once_and_sees_each_answer() {
+    const STEPS: u64 = 2;
+    model(|| {
+        let s = Arc::new(Shared {
+            publish: Mem::new(),
+            subscribe: Mem::new(),
+            pub_step: AtomicU64::new(0),
+            step_seq: AtomicU32::new(0),
+            ack_seq: AtomicU32::new(0),
+            active: AtomicU32::new(1),
+            flags: AtomicU32::new(CONN_SYNC_READER | CONN_WRITER),
+            first_step: AtomicU64::new(1),
+            last_read: AtomicU64::new(0),
+            last_commit: AtomicU64::new(0),
+        });
+        let p = s.clone();
+        let participant = thread::spawn(move || {
+            let mut last = 0;
+            let mut out = [0u8; 16];
+            for _ in 0..STEPS {
+                let k = loop {
+                    if let Some(k) = p.step_ctl().next_step(last) {
+                        break k;
+                    }
+                    thread::yield_now();
+                };
+                assert_eq!(k, last + 1, "a step was skipped");
+                let g = loop {
+                    if let Some(g) = p.publish.bucket().try_read(&mut out) {
+                        break g;
+                    }
+                    thread::yield_now();
+                };
+                assert_eq!(g, k, "read another step's data");
+                assert_eq!(words(&out), (k, k));
+                p.step_ctl().ack_read(&p.conn(), k);
+                p.subscribe.bucket().write(&value(10 * k));
+                p.step_ctl().ack_commit(&p.conn(), k);
+                last = k;
+            }
+        });
+        let mut out = [0u8; 16];
+        for k in 1..=STEPS {
+            s.publish.bucket().write(&value(k));
+            s.step_ctl().publish(k);
+            while s.conn().owes(k) {
+                thread::yield_now();
+            }
+            s.subscribe.bucket().try_read(&mut out).expect("the only writer is done");
+            assert_eq!(words(&out), (10 * k, 10 * k), "framework missed the answer to step {k}");
+        }
+        participant.join().unwrap();
+        assert_eq!(s.last_read.load(Ordering::Relaxed), STEPS);
+    });
+}

@@ -1,0 +1,403 @@
+//! Multi-process tests of the shared-memory domains: torn reads, lock-step, exclusivity,
+//! seeding, kill -9 at random points, stale and corrupted segments.
+//!
+//! Child processes are this very test binary, re-run with `TUTTI_TEST_CHILD` set: the test
+//! `child_main` then plays the role it names and every other test is filtered out. Every
+//! child is killed when its guard drops, and every wait has a deadline.
+
+use std::io::{BufRead, BufReader};
+use std::process::{Child, Command, Stdio};
+use std::time::{Duration, Instant};
+
+use tutti_core::ddf::{self, Model};
+use tutti_core::shm::{ConnectOptions, Framework, FrameworkOptions, Participant, ShmError, WaitMode};
+
+const WORDS: usize = 128; // 1 KiB PUBLISH set: 127 copies of a value and a checksum
+
+fn model(sync: bool, mpa: bool, states: bool) -> Model {
+    let yn = |b| if b { "yes" } else { "no" };
+    ddf::parse_str(
+        &format!(
+            r#"<orchestra><domain name="d"><synchronous>{}</synchronous><multiplePublishAllowed>{}</multiplePublishAllowed><states>{}</states>
+            <set name="PUBLISH"><item name="w"><type>unsigned int64</type><length>{WORDS}</length></item></set>
+            <set name="SUBSCRIBE"><item name="a"><type>float64</type><default>-1</default></item><item name="b"><type>int64</type><default>-1</default></item></set>
+            </domain></orchestra>"#,
+            yn(sync),
+            yn(mpa),
+            yn(states)
+        ),
+        "test.ddf",
+    )
+    .unwrap()
+}
+
+fn payload(v: u64) -> Vec<u8> {
+    let mut out = Vec::with_capacity(WORDS * 8);
+    for _ in 0..WORDS - 1 {
+        out.extend_from_slice(&v.to_ne_bytes());
+    }
+    out.extend_from_slice(&v.wrapping_mul(WORDS as u64 - 1).wrapping_add(0x5eed).to_ne_bytes());
+    out
+}
+
+/// The value a payload carries, or `None` if it is torn.
+fn check(bytes: &[u8]) -> Option<u64> {
+    let w: Vec<u64> = bytes.chunks_exact(8).map(|c| u64::from_ne_bytes(c.try_into().unwrap())).collect();
+    let v = w[0];
+    (w[..WORDS - 1].iter().all(|&x| x == v) && w[WORDS - 1] == v.wrapping_mul(WORDS as u64 - 1).wrapping_add(0x5eed)).then_some(v)
+}
+
+fn ns(tag: &str) -> String {
+    format!("tp{}-{tag}", std::process::id())
+}
+
+fn fopts(tag: &str, timeout: Duration) -> FrameworkOptions {
+    FrameworkOptions { namespace: ns(tag), timeout, ..Default::default() }
+}
+
+fn copts(namespace: &str) -> ConnectOptions {
+    ConnectOptions { namespace: namespace.to_string(), name: "child".into(), timeout: Duration::from_secs(30), connect_timeout: Duration::from_secs(30), ..Default::default() }
+}
+
+/// A child process, killed when dropped.
+struct Guard(Child);
+
+impl Drop for Guard {
+    fn drop(&mut self) {
+        let _ = self.0.kill();
+        let _ = self.0.wait();
+    }
+}
+
+impl Guard {
+    fn spawn(role: &str, namespace: &str) -> Guard {
+        let child = Command::new(std::env::current_exe().unwrap())
+            .args(["--exact", "child_main", "--nocapture", "--test-threads=1"])
+            .env("TUTTI_TEST_CHILD", role)
+            .env("TUTTI_NAMESPACE", namespace)
+            .stdout(Stdio::piped())
+            .stderr(Stdio::inherit())
+            .spawn()
+            .unwrap();
+        Guard(child)
+    }
+
+    /// Waits for the child's `RESULT …` line (with a deadline) and returns it.
+    fn result(&mut self, deadline: Duration) -> String {
+        let out = self.0.stdout.take().unwrap();
+        let (tx, rx) = std::sync::mpsc::channel();
+        std::thread::spawn(move || {
+            for line in BufReader::new(out).lines().map_while(Result::ok) {
+                if let Some((_, r)) = line.split_once("RESULT ") {
+                    let _ = tx.send(r.to_string());
+                    return;
+                }
+            }
+        });
+        rx.recv_timeout(deadline).expect("child gave no result in time")
+    }
+
+    fn kill9(&mut self) {
+        let _ = self.0.kill();
+        let _ = self.0.wait();
+    }
+}
+
+fn xorshift(state: &mut u64) -> u64 {
+    *state ^= *state << 13;
+    *state ^= *state >> 7;
+    *state ^= *state << 17;
+    *state
+}
+
+/// Tells the parent a result (flushed at once: the child may go on running).
+fn say(result: &str) {
+    use std::io::Write;
+    let mut out = std::io::stdout().lock();
+    // Own line: the harness may have left "test child_main ... " unterminated.
+    let _ = writeln!(out, "\nRESULT {result}");
+    let _ = out.flush();
+}
+
+/// The child side: plays the role named by `TUTTI_TEST_CHILD`.
+#[test]
+fn child_main() {
+    let Ok(role) = std::env::var("TUTTI_TEST_CHILD") else { return };
+    let namespace = std::env::var("TUTTI_NAMESPACE").unwrap();
+    let mut parts = role.split(':');
+    match parts.next().unwrap() {
+        "snapshots" => {
+            let n: u64 = parts.next().unwrap().parse().unwrap();
+            let mut p = Participant::connect("d", copts(&namespace)).unwrap();
+            let (mut torn, mut distinct, mut last) = (0u64, 0u64, u64::MAX);
+            for _ in 0..n {
+                p.subscribe_lock().unwrap();
+                match check(p.snapshot()) {
+                    None => torn += 1,
+                    Some(v) if v != last => {
+                        distinct += 1;
+                        last = v;
+                    }
+                    Some(_) => {}
+                }
+            }
+            say(&format!("torn={torn} distinct={distinct}"));
+        }
+        "sync_reader" => {
+            let n: u64 = parts.next().unwrap().parse().unwrap();
+            let mut p = Participant::connect("d", copts(&namespace)).unwrap();
+                        let (mut first, mut prev, mut bad) = (0u64, 0u64, 0u64);
+            for i in 0..n {
+                let step = p.subscribe_lock().unwrap();
+                if check(p.snapshot()) != Some(step) {
+                    bad += 1;
+                }
+                if i == 0 {
+                    first = step;
+                } else if step != prev + 1 {
+                    bad += 1;
+                }
+                prev = step;
+            }
+            say(&format!("first={first} last={prev} bad={bad}"));
+        }
+        "writer_loop" => {
+            // Reads each step and answers it with a = b = step, until killed.
+            let mut p = Participant::connect("d", copts(&namespace)).unwrap();
+            loop {
+                let step = match p.subscribe_lock() {
+                    Ok(s) => s,
+                    Err(ShmError::FrameworkStopped { .. }) => return,
+                    Err(e) => panic!("{e}"),
+                };
+                p.publish_lock().unwrap();
+                p.stage("a", &(step as f64).to_ne_bytes()).unwrap();
+                p.stage("b", &(step as i64).to_ne_bytes()).unwrap();
+                p.commit().unwrap();
+            }
+        }
+        "seed" => {
+            let mut p = Participant::connect("d", copts(&namespace)).unwrap();
+            // Seed a little later than the framework's first step starts to wait for it.
+            std::thread::sleep(Duration::from_millis(300));
+            p.publish_lock().unwrap();
+            p.stage("a", &42f64.to_ne_bytes()).unwrap();
+            p.commit().unwrap();
+            say("seeded");
+            std::thread::sleep(Duration::from_secs(30));
+        }
+        "framework" => {
+            let _fw = Framework::create(&model(false, true, false), &FrameworkOptions { namespace, ..Default::default() }).unwrap();
+            say("created");
+            std::thread::sleep(Duration::from_secs(60));
+        }
+        other => panic!("unknown role {other}"),
+    }
+}
+
+#[test]
+fn a_million_snapshots_under_a_concurrent_writer_are_never_torn() {
+    let mut fw = Framework::create(&model(false, true, false), &fopts("torn", Duration::from_secs(5))).unwrap();
+    let mut child = Guard::spawn("snapshots:1000000", &ns("torn"));
+    let host = &mut fw.domains[0];
+    let (tx, rx) = std::sync::mpsc::channel();
+    let out = child.0.stdout.take().unwrap();
+    std::thread::spawn(move || {
+        for line in BufReader::new(out).lines().map_while(Result::ok) {
+            if let Some((_, r)) = line.split_once("RESULT ") {
+                let _ = tx.send(r.to_string());
+            }
+        }
+    });
+    let deadline = Instant::now() + Duration::from_secs(120);
+    let mut v = 0u64;
+    let result = loop {
+        v += 1;
+        host.step(&payload(v), 0.0).unwrap();
+        if v % 64 == 0 {
+            if let Ok(r) = rx.try_recv() {
+                break r;
+            }
+            assert!(Instant::now() < deadline, "reader did not finish");
+        }
+    };
+    assert!(result.starts_with("torn=0 "), "{result}");
+    let distinct: u64 = result.rsplit('=').next().unwrap().parse().unwrap();
+    assert!(distinct > 1, "the writer must have changed the value under the reader: {result}");
+}
+
+#[test]
+fn every_sync_reader_reads_each_of_100000_steps_exactly_once() {
+    const STEPS: u64 = 100_000;
+    let mut fw = Framework::create(&model(true, true, false), &fopts("steps", Duration::from_secs(30))).unwrap();
+    let mut readers: Vec<Guard> = (0..2).map(|_| Guard::spawn(&format!("sync_reader:{STEPS}"), &ns("steps"))).collect();
+    // Start stepping once both readers are connected, so that they see step 1.
+    let host = &mut fw.domains[0];
+    let deadline = Instant::now() + Duration::from_secs(30);
+    while host.connection_count() < 2 {
+        assert!(Instant::now() < deadline, "readers did not connect");
+        std::thread::sleep(Duration::from_millis(2));
+    }
+    for k in 1..=STEPS {
+        let r = host.step(&payload(k), k as f64).unwrap();
+        assert_eq!(r.timed_out, 0, "step {k} timed out");
+    }
+    for r in &mut readers {
+        let result = r.result(Duration::from_secs(60));
+        assert_eq!(result, format!("first=1 last={STEPS} bad=0"));
+    }
+}
+
+#[test]
+fn second_writer_on_exclusive_domain_gets_the_error_and_death_releases_ownership() {
+    let mut fw = Framework::create(&model(true, false, false), &fopts("excl", Duration::from_secs(5))).unwrap();
+    let mut child = Guard::spawn("writer_loop", &ns("excl"));
+    let host = &mut fw.domains[0];
+    let deadline = Instant::now() + Duration::from_secs(30);
+    // Step until the child has committed (it owns the SUBSCRIBE set from its first commit).
+    while f64::from_ne_bytes(host.subscribe()[0..8].try_into().unwrap()) < 1.0 {
+        assert!(Instant::now() < deadline, "child never committed");
+        host.step(&payload(host.current_step() + 1), 0.0).unwrap();
+    }
+    let mut me = Participant::connect("d", ConnectOptions { timeout: Duration::from_secs(5), ..copts(&ns("excl")) }).unwrap();
+    match me.publish_lock() {
+        Err(ShmError::NotOwner { owner_pid, .. }) => assert_eq!(owner_pid, child.0.id()),
+        other => panic!("expected NotOwner, got {other:?}"),
+    }
+    child.kill9();
+    // The framework notices the death while stepping; then the set is free. In a synchronous
+    // domain publish_lock waits for a step, so the framework steps meanwhile.
+    let t = std::thread::spawn(move || {
+        me.publish_lock()?;
+        me.stage("b", &7i64.to_ne_bytes())?;
+        me.commit().map(|()| me)
+    });
+    while !t.is_finished() {
+        assert!(Instant::now() < deadline, "the new writer never got the set");
+        host.step(&payload(host.current_step() + 1), 0.0).unwrap();
+    }
+    let me = t.join().unwrap().unwrap();
+    assert_eq!(host.connection_count(), 1);
+    drop(me);
+}
+
+#[test]
+fn seeded_domain_waits_for_the_seed_before_its_first_step() {
+    let mut fw = Framework::create(&model(true, true, true), &fopts("seed", Duration::from_secs(60))).unwrap();
+    let mut child = Guard::spawn("seed", &ns("seed"));
+    let host = &mut fw.domains[0];
+    let r = host.step(&payload(1), 0.0).unwrap();
+    assert_eq!(r.step, 1);
+    assert!(host.seeded(), "the first step returned without the seed");
+    assert_eq!(f64::from_ne_bytes(host.subscribe()[0..8].try_into().unwrap()), 42.0);
+    assert_eq!(child.result(Duration::from_secs(30)), "seeded");
+}
+
+#[test]
+fn killing_a_participant_at_random_points_never_stalls_the_framework() {
+    let timeout = Duration::from_secs(3);
+    let mut fw = Framework::create(&model(true, false, false), &fopts("kill", timeout)).unwrap();
+    let host = &mut fw.domains[0];
+    let mut rng = 0x9e37_79b9_7f4a_7c15u64 ^ u64::from(std::process::id());
+    for run in 0..100 {
+        let mut child = Guard::spawn("writer_loop", &ns("kill"));
+        let deadline = Instant::now() + Duration::from_secs(30);
+        while host.connection_count() == 0 {
+            assert!(Instant::now() < deadline, "run {run}: child did not connect");
+            host.step(&payload(host.current_step() + 1), 0.0).unwrap();
+            std::thread::sleep(Duration::from_micros(200));
+        }
+        // Kill at a random moment while the framework steps as fast as the child answers.
+        let delay = Duration::from_micros(xorshift(&mut rng) % 20_000);
+        let pid = child.0.id();
+        let killer = std::thread::spawn(move || {
+            std::thread::sleep(delay);
+            let _ = Command::new("kill").args(["-9", &pid.to_string()]).status();
+        });
+        let mut after_death = 0;
+        while after_death < 5 {
+            assert!(Instant::now() < deadline, "run {run}: framework stalled");
+            let r = host.step(&payload(host.current_step() + 1), 0.0).unwrap();
+            // The SUBSCRIBE set is never torn: a and b are always written together.
+            let a = f64::from_ne_bytes(host.subscribe()[0..8].try_into().unwrap());
+            let b = i64::from_ne_bytes(host.subscribe()[8..16].try_into().unwrap());
+            assert_eq!(a as i64, b, "run {run}: torn SUBSCRIBE set at step {}", r.step);
+            if killer.is_finished() && host.connection_count() == 0 {
+                after_death += 1;
+            }
+        }
+        killer.join().unwrap();
+        child.kill9();
+        // The domain is reusable: a new participant owns and writes the exclusive set (it
+        // waits for a step, so the framework steps meanwhile).
+        let mut p = Participant::connect("d", ConnectOptions { timeout, ..copts(&ns("kill")) }).unwrap();
+        assert_eq!(host.connection_count(), 1);
+        let t = std::thread::spawn(move || {
+            p.publish_lock()?;
+            p.stage("a", &(-1f64).to_ne_bytes())?;
+            p.stage("b", &(-1i64).to_ne_bytes())?;
+            p.commit()?;
+            p.disconnect();
+            Ok::<(), ShmError>(())
+        });
+        while !t.is_finished() {
+            assert!(Instant::now() < deadline, "run {run}: new participant never wrote");
+            host.step(&payload(host.current_step() + 1), 0.0).unwrap();
+        }
+        t.join().unwrap().unwrap_or_else(|e| panic!("run {run}: {e}"));
+        host.step(&payload(host.current_step() + 1), 0.0).unwrap();
+        assert_eq!(host.connection_count(), 0, "run {run}");
+    }
+}
+
+#[test]
+fn a_stale_segment_of_a_dead_framework_is_reclaimed() {
+    let mut child = Guard::spawn("framework", &ns("stale"));
+    assert_eq!(child.result(Duration::from_secs(30)), "created");
+    // While it lives, the domain is refused with its pid.
+    match Framework::create(&model(false, true, false), &fopts("stale", Duration::from_secs(1))) {
+        Err(ShmError::DomainBusy { pid, .. }) => assert_eq!(pid, child.0.id()),
+        other => panic!("expected DomainBusy, got {other:?}"),
+    }
+    child.kill9();
+    let fw = Framework::create(&model(false, true, false), &fopts("stale", Duration::from_secs(1))).unwrap();
+    drop(fw);
+    assert!(!std::path::Path::new(&format!("/dev/shm/tutti.{}.d", ns("stale"))).exists());
+}
+
+#[test]
+fn a_segment_with_garbage_in_its_header_is_refused_cleanly() {
+    use std::io::{Seek, SeekFrom, Write};
+    let mut rng = 0x1234_5678_9abc_def1u64 ^ u64::from(std::process::id());
+    let path = format!("/dev/shm/tutti.{}.d", ns("garbage"));
+    for round in 0..200 {
+        let mut fw = Framework::create(&model(round % 2 == 0, true, false), &fopts("garbage", Duration::from_millis(50))).unwrap();
+        let mut f = std::fs::OpenOptions::new().write(true).open(&path).unwrap();
+        // Garbage over a random stretch of the header, connection table or directory; the
+        // first rounds overwrite the whole header.
+        let (off, len) = if round < 3 { (if round == 0 { 0u64 } else { 8 }, 1016usize) } else { (xorshift(&mut rng) % 1200, 1 + (xorshift(&mut rng) % 64) as usize) };
+        let junk: Vec<u8> = (0..len).map(|_| xorshift(&mut rng) as u8).collect();
+        f.seek(SeekFrom::Start(off)).unwrap();
+        f.write_all(&junk).unwrap();
+        drop(f);
+        // Connecting and using the domain must give a result or an error, never a crash.
+        let opts = ConnectOptions { connect_timeout: Duration::from_millis(20), timeout: Duration::from_millis(20), wait: WaitMode::Poll(Duration::from_micros(100)), ..copts(&ns("garbage")) };
+        match Participant::connect("d", opts) {
+            Ok(mut p) => {
+                let _ = p.subscribe_lock();
+                let _ = p.publish_lock();
+                let _ = p.commit();
+            }
+            Err(e) => {
+                let msg = e.to_string();
+                assert!(msg.contains("domain 'd'") || msg.contains("/dev/shm"), "error names the domain: {msg}");
+            }
+        }
+        if round < 3 {
+            assert!(matches!(Participant::connect("d", copts(&ns("garbage"))), Err(ShmError::Corrupt { .. } | ShmError::VersionMismatch { .. } | ShmError::NotTuttiSegment { .. })));
+        }
+        let _ = fw.domains[0].step(&payload(1), 0.0);
+        drop(fw);
+    }
+    assert!(!std::path::Path::new(&path).exists());
+}
