@@ -72,28 +72,12 @@ fn parse_expect(path: &Path) -> Vec<Expected> {
         if line.trim().is_empty() || line.starts_with('#') {
             continue;
         }
-        let bad = || {
-            panic!(
-                "{}:{}: expected LINE:COL: error: MESSAGE, found {line:?}",
-                path.display(),
-                n + 1
-            )
-        };
+        let bad = || panic!("{}:{}: expected LINE:COL: error: MESSAGE, found {line:?}", path.display(), n + 1);
         let mut parts = line.splitn(3, ':');
-        let (Some(l), Some(c), Some(rest)) = (parts.next(), parts.next(), parts.next()) else {
-            bad()
-        };
-        let Some(message) = rest.strip_prefix(" error: ") else {
-            bad()
-        };
-        let (Ok(line), Ok(col)) = (l.parse(), c.parse()) else {
-            bad()
-        };
-        out.push(Expected {
-            line,
-            col,
-            message: message.to_string(),
-        });
+        let (Some(l), Some(c), Some(rest)) = (parts.next(), parts.next(), parts.next()) else { bad() };
+        let Some(message) = rest.strip_prefix(" error: ") else { bad() };
+        let (Ok(line), Ok(col)) = (l.parse(), c.parse()) else { bad() };
+        out.push(Expected { line, col, message: message.to_string() });
     }
     out
 }
@@ -106,17 +90,13 @@ fn compare(file: &Path, stderr: &str, expected: &[Expected]) -> Vec<String> {
     let mut used = vec![false; errors.len()];
     for e in expected {
         let head = format!("{prefix}{}:{}: error: ", e.line, e.col);
-        let found = errors.iter().enumerate().position(|(i, l)| {
-            !used[i]
-                && l.strip_prefix(&head)
-                    .is_some_and(|m| m.contains(&e.message))
-        });
+        let found = errors
+            .iter()
+            .enumerate()
+            .position(|(i, l)| !used[i] && l.strip_prefix(&head).is_some_and(|m| m.contains(&e.message)));
         match found {
             Some(i) => used[i] = true,
-            None => problems.push(format!(
-                "missing {}:{}: error: {}",
-                e.line, e.col, e.message
-            )),
+            None => problems.push(format!("missing {}:{}: error: {}", e.line, e.col, e.message)),
         }
     }
     for (i, l) in errors.iter().enumerate() {
@@ -125,11 +105,7 @@ fn compare(file: &Path, stderr: &str, expected: &[Expected]) -> Vec<String> {
         }
     }
     if errors.len() != expected.len() {
-        problems.push(format!(
-            "{} error lines, {} expected",
-            errors.len(),
-            expected.len()
-        ));
+        problems.push(format!("{} error lines, {} expected", errors.len(), expected.len()));
     }
     problems
 }
@@ -147,11 +123,7 @@ fn corpus() -> Vec<(PathBuf, Vec<Expected>)> {
             let expect = ddf.with_extension("expect");
             assert!(expect.exists(), "{} has no .expect file", ddf.display());
             let expected = parse_expect(&expect);
-            assert!(
-                !expected.is_empty(),
-                "{} expects no error",
-                expect.display()
-            );
+            assert!(!expected.is_empty(), "{} expects no error", expect.display());
             (ddf, expected)
         })
         .collect()
@@ -160,11 +132,7 @@ fn corpus() -> Vec<(PathBuf, Vec<Expected>)> {
 #[test]
 fn every_invalid_ddf_is_refused_with_its_diagnostics() {
     let cases = corpus();
-    assert!(
-        cases.len() >= 35,
-        "only {} cases in tests/ddf-invalid",
-        cases.len()
-    );
+    assert!(cases.len() >= 35, "only {} cases in tests/ddf-invalid", cases.len());
     let mut failures = Vec::new();
     for (ddf, expected) in &cases {
         let (code, _, stderr) = tutti(&[ddf]);
@@ -173,20 +141,10 @@ fn every_invalid_ddf_is_refused_with_its_diagnostics() {
             problems.insert(0, format!("exit status {code}, expected 2"));
         }
         if !problems.is_empty() {
-            failures.push(format!(
-                "{}:\n  {}\n  stderr:\n{stderr}",
-                ddf.display(),
-                problems.join("\n  ")
-            ));
+            failures.push(format!("{}:\n  {}\n  stderr:\n{stderr}", ddf.display(), problems.join("\n  ")));
         }
     }
-    assert!(
-        failures.is_empty(),
-        "{} of {} cases failed:\n{}",
-        failures.len(),
-        cases.len(),
-        failures.join("\n")
-    );
+    assert!(failures.is_empty(), "{} of {} cases failed:\n{}", failures.len(), cases.len(), failures.join("\n"));
 }
 
 #[test]
@@ -194,11 +152,7 @@ fn every_expect_file_has_a_ddf() {
     for entry in fs::read_dir(corpus_dir()).expect("read tests/ddf-invalid") {
         let path = entry.expect("directory entry").path();
         if path.extension().is_some_and(|x| x == "expect") {
-            assert!(
-                path.with_extension("ddf").exists(),
-                "{} has no .ddf file",
-                path.display()
-            );
+            assert!(path.with_extension("ddf").exists(), "{} has no .ddf file", path.display());
         }
     }
 }
@@ -211,15 +165,8 @@ fn all_files_in_one_run_report_every_error() {
     assert_eq!(code, 2);
     assert!(stdout.is_empty(), "{stdout}");
     let total: usize = cases.iter().map(|(_, e)| e.len()).sum();
-    assert_eq!(
-        stderr.lines().filter(|l| l.contains("error:")).count(),
-        total,
-        "{stderr}"
-    );
-    assert!(
-        stderr.contains(&format!("{} of {} files invalid", cases.len(), cases.len())),
-        "{stderr}"
-    );
+    assert_eq!(stderr.lines().filter(|l| l.contains("error:")).count(), total, "{stderr}");
+    assert!(stderr.contains(&format!("{} of {} files invalid", cases.len(), cases.len())), "{stderr}");
 }
 
 #[test]
@@ -228,26 +175,12 @@ fn a_valid_file_among_invalid_ones_still_fails_the_run() {
     let good = dir.path().join("good.ddf");
     let bad = dir.path().join("bad.ddf");
     fs::write(&good, r#"<orchestra><domain name="d"/></orchestra>"#).unwrap();
-    fs::write(
-        &bad,
-        "<orchestra>\n  <domain name=\"d\"><states>maybe</states></domain>\n</orchestra>\n",
-    )
-    .unwrap();
+    fs::write(&bad, "<orchestra>\n  <domain name=\"d\"><states>maybe</states></domain>\n</orchestra>\n").unwrap();
     let (code, stdout, stderr) = tutti(&[&good, &bad]);
     assert_eq!(code, 2);
-    assert!(
-        stdout.contains("good.ddf: ok (1 domains, 0 items)"),
-        "{stdout}"
-    );
-    let problems = compare(
-        &bad,
-        &stderr,
-        &[Expected {
-            line: 2,
-            col: 28,
-            message: "<states> must be yes or no".into(),
-        }],
-    );
+    assert!(stdout.contains("good.ddf: ok (1 domains, 0 items)"), "{stdout}");
+    let problems =
+        compare(&bad, &stderr, &[Expected { line: 2, col: 28, message: "<states> must be yes or no".into() }]);
     assert!(problems.is_empty(), "{problems:?}\n{stderr}");
 }
 
@@ -268,35 +201,15 @@ fn generated_binary_and_control_bytes_are_refused() {
     fs::write(&noise_path, &noise).unwrap();
     let (code, _, stderr) = tutti(&[&noise_path]);
     assert_eq!(code, 2);
-    let problems = compare(
-        &noise_path,
-        &stderr,
-        &[Expected {
-            line: 1,
-            col: 1,
-            message: "not UTF-8".into(),
-        }],
-    );
+    let problems = compare(&noise_path, &stderr, &[Expected { line: 1, col: 1, message: "not UTF-8".into() }]);
     assert!(problems.is_empty(), "{problems:?}\n{stderr}");
 
     // Valid UTF-8 but with a NUL on line 2.
     let nul_path = dir.path().join("nul.ddf");
-    fs::write(
-        &nul_path,
-        b"<orchestra>\n  \0<domain name=\"d\"/>\n</orchestra>\n",
-    )
-    .unwrap();
+    fs::write(&nul_path, b"<orchestra>\n  \0<domain name=\"d\"/>\n</orchestra>\n").unwrap();
     let (code, _, stderr) = tutti(&[&nul_path]);
     assert_eq!(code, 2);
-    let problems = compare(
-        &nul_path,
-        &stderr,
-        &[Expected {
-            line: 2,
-            col: 3,
-            message: "NUL bytes".into(),
-        }],
-    );
+    let problems = compare(&nul_path, &stderr, &[Expected { line: 2, col: 3, message: "NUL bytes".into() }]);
     assert!(problems.is_empty(), "{problems:?}\n{stderr}");
 }
 
@@ -310,30 +223,17 @@ fn a_file_over_64_mib_is_refused_before_reading() {
     drop(file);
     let (code, _, stderr) = tutti(&[&path]);
     assert_eq!(code, 2);
-    let expected = [Expected {
-        line: 1,
-        col: 1,
-        message: "the file is 67108865 bytes; a DDF may be at most 64 MiB".into(),
-    }];
+    let expected =
+        [Expected { line: 1, col: 1, message: "the file is 67108865 bytes; a DDF may be at most 64 MiB".into() }];
     let problems = compare(&path, &stderr, &expected);
     assert!(problems.is_empty(), "{problems:?}\n{stderr}");
 
     // Exactly 64 MiB is not refused for its size (it is all NUL bytes, so it fails later).
     let path = dir.path().join("limit.ddf");
-    fs::File::create(&path)
-        .and_then(|f| f.set_len(64 << 20))
-        .expect("create");
+    fs::File::create(&path).and_then(|f| f.set_len(64 << 20)).expect("create");
     let (code, _, stderr) = tutti(&[&path]);
     assert_eq!(code, 2);
-    let problems = compare(
-        &path,
-        &stderr,
-        &[Expected {
-            line: 1,
-            col: 1,
-            message: "NUL bytes".into(),
-        }],
-    );
+    let problems = compare(&path, &stderr, &[Expected { line: 1, col: 1, message: "NUL bytes".into() }]);
     assert!(problems.is_empty(), "{problems:?}\n{stderr}");
 }
 

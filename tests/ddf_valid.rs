@@ -57,12 +57,7 @@ fn tutti(args: &[&str]) -> (i32, String, String) {
 
 #[test]
 fn committed_samples_pass_check() {
-    for file in [
-        "ddf/paper-figure2.ddf",
-        "ddf/product-sample.ddf",
-        "ddf/multiuav.ddf",
-        "ddf/large-1000.ddf",
-    ] {
+    for file in ["ddf/paper-figure2.ddf", "ddf/product-sample.ddf", "ddf/multiuav.ddf", "ddf/large-1000.ddf"] {
         let (code, out, err) = tutti(&["check", file]);
         assert_eq!(code, 0, "tutti check {file}: {err}");
         assert!(out.starts_with(&format!("{file}: ok (")), "{out}");
@@ -72,10 +67,7 @@ fn committed_samples_pass_check() {
     let (code, out, _) = tutti(&["check", "ddf/paper-figure2.ddf", "ddf/multiuav.ddf"]);
     assert_eq!(code, 0);
     assert_eq!(out.lines().count(), 2);
-    assert!(
-        out.contains("ddf/multiuav.ddf: ok (4 domains, 44 items)"),
-        "{out}"
-    );
+    assert!(out.contains("ddf/multiuav.ddf: ok (4 domains, 44 items)"), "{out}");
 }
 
 fn leaf<'a>(set: &'a Value, path: &str) -> &'a Value {
@@ -99,30 +91,14 @@ fn show_json_lists_paths_lengths_and_defaults() {
     assert_eq!(feeder["name"], "grid_feeder");
     assert_eq!(feeder["synchronous"], false);
     assert_eq!(feeder["states"], true);
-    assert_eq!(
-        feeder["connection"]["attributes"][0],
-        serde_json::json!(["type", "local"])
-    );
+    assert_eq!(feeder["connection"]["attributes"][0], serde_json::json!(["type", "local"]));
     let sets = feeder["sets"].as_array().expect("sets");
     let (publish, subscribe) = (&sets[0], &sets[1]);
     assert_eq!(publish["role"], "PUBLISH");
     assert_eq!(subscribe["role"], "SUBSCRIBE");
 
-    let paths: Vec<&str> = publish["items"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .map(|l| l["path"].as_str().unwrap())
-        .collect();
-    assert_eq!(
-        paths,
-        [
-            "breaker_closed",
-            "voltage_abc",
-            "meter/power_kw",
-            "meter/samples"
-        ]
-    );
+    let paths: Vec<&str> = publish["items"].as_array().unwrap().iter().map(|l| l["path"].as_str().unwrap()).collect();
+    assert_eq!(paths, ["breaker_closed", "voltage_abc", "meter/power_kw", "meter/samples"]);
     assert_eq!(leaf(publish, "breaker_closed")["default"], true);
     assert_eq!(leaf(publish, "voltage_abc")["length"], 3);
     assert_eq!(leaf(publish, "voltage_abc")["type"], "float64");
@@ -133,12 +109,8 @@ fn show_json_lists_paths_lengths_and_defaults() {
     assert_eq!(leaf(subscribe, "mode")["default"], 0);
     assert_eq!(leaf(publish, "voltage_abc")["default"], Value::Null);
     // C layout on LP64: bool @0, double[3] @8, {float @32, uint32 @36}, size 40.
-    let offsets: Vec<u64> = publish["items"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .map(|l| l["offset"].as_u64().unwrap())
-        .collect();
+    let offsets: Vec<u64> =
+        publish["items"].as_array().unwrap().iter().map(|l| l["offset"].as_u64().unwrap()).collect();
     assert_eq!(offsets, [0, 8, 32, 36]);
     assert_eq!(publish["size"], 40);
     assert_eq!(publish["align"], 8);
@@ -224,10 +196,7 @@ fn paper_figure2_and_multiuav_have_the_expected_shape() {
     assert_eq!(multi.domains.len(), 4);
     // Item keys: PUBLISH leaves first, then SUBSCRIBE.
     let uav = &multi.domains[0];
-    assert_eq!(
-        uav.item_key(tutti_core::ddf::Role::Subscribe, "Latitude"),
-        Some(5)
-    );
+    assert_eq!(uav.item_key(tutti_core::ddf::Role::Subscribe, "Latitude"), Some(5));
 }
 
 #[test]
@@ -278,7 +247,8 @@ fn flags_are_optional_and_sets_may_be_absent() {
 #[test]
 fn xml_conveniences_are_accepted() {
     // BOM, comments, CDATA, character references and entities in text and attributes.
-    let text = "\u{feff}<?xml version=\"1.0\"?>\n<!-- c --><orchestra><?pi x?><domain name=\"a&amp;b\"><set name='PUBLISH'>\
+    let text =
+        "\u{feff}<?xml version=\"1.0\"?>\n<!-- c --><orchestra><?pi x?><domain name=\"a&amp;b\"><set name='PUBLISH'>\
                 <item name=\"x\"><type><![CDATA[double]]></type><length>&#51;</length><!-- c --></item>\
                 </set></domain></orchestra>\n<!-- trailing comment -->\n";
     let model = parse(text);

@@ -6,7 +6,9 @@ use super::{CliResult, Failure, EXIT_INVALID};
 
 /// Validate DDF files: every problem of every file is reported as FILE:LINE:COL: error: MESSAGE.
 #[derive(Debug, clap::Args)]
-#[command(after_help = "Exit status: 0 when every file is valid, 2 otherwise.\n\nExample:\n  tutti check ddf/multiuav.ddf ddf/product-sample.ddf")]
+#[command(
+    after_help = "Exit status: 0 when every file is valid, 2 otherwise.\n\nExample:\n  tutti check ddf/multiuav.ddf ddf/product-sample.ddf"
+)]
 pub struct Args {
     /// DDF files to validate.
     #[arg(required = true, value_name = "DDF")]
@@ -35,9 +37,6 @@ pub fn run(args: Args) -> CliResult {
     if bad == 0 {
         Ok(())
     } else {
-        Err(Failure {
-            code: EXIT_INVALID,
-            error: anyhow::anyhow!("{bad} of {} files invalid", args.files.len()),
-        })
+        Err(Failure { code: EXIT_INVALID, error: anyhow::anyhow!("{bad} of {} files invalid", args.files.len()) })
     }
 }

@@ -17,7 +17,9 @@ use crate::rt::Ticker;
 
 /// Run the framework of every domain in a DDF: create the segments, step at a fixed period.
 #[derive(Debug, clap::Args)]
-#[command(after_help = "Examples:\n  tutti host ddf/multiuav.ddf --step 10ms --duration 60s\n  tutti host ddf/product-sample.ddf --set grid_clock/tick=1 --record out/run.csv\n  TUTTI_NAMESPACE=lab2 tutti host ddf/large-1000.ddf --step 1ms\n\nStop with Ctrl-C: the segments are removed on exit.")]
+#[command(
+    after_help = "Examples:\n  tutti host ddf/multiuav.ddf --step 10ms --duration 60s\n  tutti host ddf/product-sample.ddf --set grid_clock/tick=1 --record out/run.csv\n  TUTTI_NAMESPACE=lab2 tutti host ddf/large-1000.ddf --step 1ms\n\nStop with Ctrl-C: the segments are removed on exit."
+)]
 pub struct Args {
     /// The DDF whose domains to host.
     #[arg(value_name = "DDF")]
@@ -90,7 +92,15 @@ impl Recorder {
         Ok(Recorder { out, leaves })
     }
 
-    fn row(&mut self, step: u64, sim: f64, wall: f64, conns: u32, publish: &[u8], subscribe: &[u8]) -> anyhow::Result<()> {
+    fn row(
+        &mut self,
+        step: u64,
+        sim: f64,
+        wall: f64,
+        conns: u32,
+        publish: &[u8],
+        subscribe: &[u8],
+    ) -> anyhow::Result<()> {
         let mut row = format!("{step},{sim:.6},{wall:.6},{conns}");
         for (role, leaf) in &self.leaves {
             let buf = if *role == Role::Publish { publish } else { subscribe };
@@ -116,18 +126,22 @@ fn record_path(base: &Path, domain: &str, several: bool) -> PathBuf {
 /// Applies `--set DOMAIN/ITEM=VALUE` to the PUBLISH buffers.
 fn apply_sets(sets: &[String], domains: &[Domain], buffers: &mut [Vec<u8>]) -> Result<(), Failure> {
     for s in sets {
-        let (target, value) = s.split_once('=').ok_or_else(|| Failure::invalid(anyhow::anyhow!("--set '{s}': expected DOMAIN/ITEM=VALUE")))?;
-        let (domain, item) = target.split_once('/').ok_or_else(|| Failure::invalid(anyhow::anyhow!("--set '{s}': expected DOMAIN/ITEM=VALUE")))?;
-        let idx = domains.iter().position(|d| d.name == domain).ok_or_else(|| Failure::invalid(anyhow::anyhow!("--set '{s}': no domain '{domain}' in the DDF")))?;
-        let leaf = domains[idx]
-            .publish
-            .layout
-            .leaf(item)
-            .ok_or_else(|| Failure::invalid(anyhow::anyhow!("--set '{s}': no item '{item}' in the PUBLISH set of domain '{domain}'")))?;
-        let v = leaf
-            .ty
-            .parse_value(value)
-            .ok_or_else(|| Failure::invalid(anyhow::anyhow!("--set '{s}': '{value}' is not a {} value", leaf.ty.canonical())))?;
+        let (target, value) = s
+            .split_once('=')
+            .ok_or_else(|| Failure::invalid(anyhow::anyhow!("--set '{s}': expected DOMAIN/ITEM=VALUE")))?;
+        let (domain, item) = target
+            .split_once('/')
+            .ok_or_else(|| Failure::invalid(anyhow::anyhow!("--set '{s}': expected DOMAIN/ITEM=VALUE")))?;
+        let idx = domains
+            .iter()
+            .position(|d| d.name == domain)
+            .ok_or_else(|| Failure::invalid(anyhow::anyhow!("--set '{s}': no domain '{domain}' in the DDF")))?;
+        let leaf = domains[idx].publish.layout.leaf(item).ok_or_else(|| {
+            Failure::invalid(anyhow::anyhow!("--set '{s}': no item '{item}' in the PUBLISH set of domain '{domain}'"))
+        })?;
+        let v = leaf.ty.parse_value(value).ok_or_else(|| {
+            Failure::invalid(anyhow::anyhow!("--set '{s}': '{value}' is not a {} value", leaf.ty.canonical()))
+        })?;
         let n = leaf.ty.size() as usize;
         for chunk in buffers[idx][leaf.range()].chunks_exact_mut(n) {
             leaf.ty.encode(v, chunk);
@@ -148,7 +162,8 @@ pub fn run(args: Args) -> CliResult {
         let stop = stop.clone();
         ctrlc::set_handler(move || stop.store(true, Ordering::SeqCst)).context("installing the signal handler")?;
     }
-    let opts = FrameworkOptions { timeout: args.timeout, wait: args.wait, hold: args.hold.is_some(), ..Default::default() };
+    let opts =
+        FrameworkOptions { timeout: args.timeout, wait: args.wait, hold: args.hold.is_some(), ..Default::default() };
     let started = Instant::now();
     let mut fw = Framework::create(&model, &opts).with_context(|| format!("hosting {}", args.file.display()))?;
     let several = model.domains.len() > 1;
@@ -215,7 +230,12 @@ pub fn run(args: Args) -> CliResult {
         rec.out.flush().context("writing the recording")?;
     }
     if !args.quiet {
-        eprintln!("host: stopped after {:.1}s, {} overruns, {} step timeouts", run_start.elapsed().as_secs_f64(), ticker.overruns, timeouts);
+        eprintln!(
+            "host: stopped after {:.1}s, {} overruns, {} step timeouts",
+            run_start.elapsed().as_secs_f64(),
+            ticker.overruns,
+            timeouts
+        );
     }
     Ok(())
 }

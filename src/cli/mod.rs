@@ -9,9 +9,9 @@ mod bench;
 mod check;
 mod gateway;
 mod host;
-mod status;
 mod idl;
 mod show;
+mod status;
 
 /// Exit status for invalid input or usage.
 pub const EXIT_INVALID: u8 = 2;

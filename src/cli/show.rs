@@ -13,7 +13,9 @@ use super::{load_ddf, CliResult};
 /// Show what a DDF describes: domains, flags, sets, items (paths, types, lengths, offsets,
 /// defaults), DDS topics and QoS.
 #[derive(Debug, clap::Args)]
-#[command(after_help = "Examples:\n  tutti show ddf/multiuav.ddf\n  tutti show ddf/product-sample.ddf --json | python3 -m json.tool")]
+#[command(
+    after_help = "Examples:\n  tutti show ddf/multiuav.ddf\n  tutti show ddf/product-sample.ddf --json | python3 -m json.tool"
+)]
 pub struct Args {
     /// The DDF to show.
     #[arg(value_name = "DDF")]
@@ -158,7 +160,14 @@ fn qos_text(q: &Qos) -> String {
 
 fn text(v: &ShowJson<'_>) -> String {
     let mut s = String::new();
-    let _ = writeln!(s, "{}: {} domain(s), ROS 2 package {}, QoS profile {:?}", v.source, v.domains.len(), v.package, v.qos_profile);
+    let _ = writeln!(
+        s,
+        "{}: {} domain(s), ROS 2 package {}, QoS profile {:?}",
+        v.source,
+        v.domains.len(),
+        v.package,
+        v.qos_profile
+    );
     for d in &v.domains {
         let _ = writeln!(
             s,
@@ -177,7 +186,14 @@ fn text(v: &ShowJson<'_>) -> String {
             let _ = writeln!(s, "  connection {}", attrs.join(" "));
         }
         for set in &d.sets {
-            let _ = writeln!(s, "  {} set: {} bytes (align {}), {} item(s)", set.role, set.size, set.align, set.items.len());
+            let _ = writeln!(
+                s,
+                "  {} set: {} bytes (align {}), {} item(s)",
+                set.role,
+                set.size,
+                set.align,
+                set.items.len()
+            );
             for leaf in set.items {
                 let len = if leaf.length == 1 { String::new() } else { format!("[{}]", leaf.length) };
                 let default = leaf.default.map(|d| format!("  default {d}")).unwrap_or_default();

@@ -41,7 +41,8 @@ fn render(domains: &[Result<DomainStatus, ShmError>], rates: &HashMap<String, (f
         let _ = writeln!(s, "no live domains in namespace '{ns}'");
         return s;
     }
-    let now_ns = std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH).map(|d| d.as_nanos() as u64).unwrap_or(0);
+    let now_ns =
+        std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH).map(|d| d.as_nanos() as u64).unwrap_or(0);
     for d in domains {
         match d {
             Err(e) => {
@@ -55,7 +56,11 @@ fn render(domains: &[Result<DomainStatus, ShmError>], rates: &HashMap<String, (f
                     if f.multiple_publish_allowed { "" } else { ",exclusive" },
                     if f.states { ",states" } else { "" }
                 );
-                let fw = if d.framework_alive { format!("pid {}", d.framework_pid) } else { format!("pid {} (stopped)", d.framework_pid) };
+                let fw = if d.framework_alive {
+                    format!("pid {}", d.framework_pid)
+                } else {
+                    format!("pid {} (stopped)", d.framework_pid)
+                };
                 let (step_rate, commit_rate) = rates.get(&d.domain).copied().unwrap_or((0.0, 0.0));
                 let _ = writeln!(
                     s,
@@ -114,7 +119,10 @@ pub fn run(args: Args) -> CliResult {
         for d in domains.iter().flatten() {
             let now = (d.steps, d.subscribe_commits);
             if let Some(p) = previous.get(&d.domain) {
-                rates.insert(d.domain.clone(), ((now.0.saturating_sub(p.0)) as f64 / dt, (now.1.saturating_sub(p.1)) as f64 / dt));
+                rates.insert(
+                    d.domain.clone(),
+                    ((now.0.saturating_sub(p.0)) as f64 / dt, (now.1.saturating_sub(p.1)) as f64 / dt),
+                );
             }
             previous.insert(d.domain.clone(), now);
         }

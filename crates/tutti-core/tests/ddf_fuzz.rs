@@ -85,22 +85,10 @@ fn check(bytes: &[u8], result: &Result<Model, DdfError>) {
             assert!(!diags.is_empty(), "an error without diagnostics: {e}");
             let lines = bytes.iter().filter(|&&b| b == b'\n').count() as u32 + 1;
             for d in diags {
-                assert!(
-                    d.pos.line >= 1 && d.pos.col >= 1,
-                    "position {:?} is not 1-based",
-                    d.pos
-                );
-                assert!(
-                    d.pos.line <= lines,
-                    "line {} past the end ({lines} lines)",
-                    d.pos.line
-                );
+                assert!(d.pos.line >= 1 && d.pos.col >= 1, "position {:?} is not 1-based", d.pos);
+                assert!(d.pos.line <= lines, "line {} past the end ({lines} lines)", d.pos.line);
                 assert!(!d.message.is_empty());
-                assert!(
-                    !d.message.contains('\n'),
-                    "a diagnostic spans lines: {:?}",
-                    d.message
-                );
+                assert!(!d.message.contains('\n'), "a diagnostic spans lines: {:?}", d.message);
             }
         }
         Ok(model) => {
@@ -112,11 +100,7 @@ fn check(bytes: &[u8], result: &Result<Model, DdfError>) {
                     assert!(l.align.is_power_of_two() && l.size % l.align == 0);
                     for leaf in &l.leaves {
                         assert_eq!(leaf.offset % leaf.ty.size(), 0, "{} misaligned", leaf.path);
-                        assert!(
-                            leaf.offset + leaf.size <= l.size,
-                            "{} past the end of its set",
-                            leaf.path
-                        );
+                        assert!(leaf.offset + leaf.size <= l.size, "{} past the end of its set", leaf.path);
                     }
                 }
             }

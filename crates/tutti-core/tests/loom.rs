@@ -23,10 +23,20 @@ struct Mem {
 impl Mem {
     fn new() -> Self {
         let z = || AtomicU64::new(0);
-        Mem { seq: std::array::from_fn(|_| z()), gens: std::array::from_fn(|_| z()), current: z(), slots: std::array::from_fn(|_| [z(), z()]) }
+        Mem {
+            seq: std::array::from_fn(|_| z()),
+            gens: std::array::from_fn(|_| z()),
+            current: z(),
+            slots: std::array::from_fn(|_| [z(), z()]),
+        }
     }
     fn bucket(&self) -> Bucket<'_> {
-        Bucket { seq: &self.seq, gens: &self.gens, current: &self.current, slots: std::array::from_fn(|i| self.slots[i].as_slice()) }
+        Bucket {
+            seq: &self.seq,
+            gens: &self.gens,
+            current: &self.current,
+            slots: std::array::from_fn(|i| self.slots[i].as_slice()),
+        }
     }
 }
 

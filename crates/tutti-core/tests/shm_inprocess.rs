@@ -119,7 +119,8 @@ fn live_segment_is_refused_with_its_pid() {
 fn wait_modes_all_work() {
     for mode in [WaitMode::Spin, WaitMode::Poll(Duration::from_micros(50)), WaitMode::Block] {
         let tag = format!("mode{mode:?}").replace(|c: char| !c.is_ascii_alphanumeric(), "");
-        let mut fw = Framework::create(&model(true, true, false), &FrameworkOptions { wait: mode, ..fopts(&tag) }).unwrap();
+        let mut fw =
+            Framework::create(&model(true, true, false), &FrameworkOptions { wait: mode, ..fopts(&tag) }).unwrap();
         let mut p = Participant::connect("d", ConnectOptions { wait: mode, ..copts(&tag) }).unwrap();
         let t = std::thread::spawn(move || {
             for _ in 0..50 {

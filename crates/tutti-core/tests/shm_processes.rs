@@ -44,7 +44,8 @@ fn payload(v: u64) -> Vec<u8> {
 fn check(bytes: &[u8]) -> Option<u64> {
     let w: Vec<u64> = bytes.chunks_exact(8).map(|c| u64::from_ne_bytes(c.try_into().unwrap())).collect();
     let v = w[0];
-    (w[..WORDS - 1].iter().all(|&x| x == v) && w[WORDS - 1] == v.wrapping_mul(WORDS as u64 - 1).wrapping_add(0x5eed)).then_some(v)
+    (w[..WORDS - 1].iter().all(|&x| x == v) && w[WORDS - 1] == v.wrapping_mul(WORDS as u64 - 1).wrapping_add(0x5eed))
+        .then_some(v)
 }
 
 fn ns(tag: &str) -> String {
@@ -56,7 +57,13 @@ fn fopts(tag: &str, timeout: Duration) -> FrameworkOptions {
 }
 
 fn copts(namespace: &str) -> ConnectOptions {
-    ConnectOptions { namespace: namespace.to_string(), name: "child".into(), timeout: Duration::from_secs(30), connect_timeout: Duration::from_secs(30), ..Default::default() }
+    ConnectOptions {
+        namespace: namespace.to_string(),
+        name: "child".into(),
+        timeout: Duration::from_secs(30),
+        connect_timeout: Duration::from_secs(30),
+        ..Default::default()
+    }
 }
 
 /// A child process, killed when dropped.
@@ -146,7 +153,7 @@ fn child_main() {
         "sync_reader" => {
             let n: u64 = parts.next().unwrap().parse().unwrap();
             let mut p = Participant::connect("d", copts(&namespace)).unwrap();
-                        let (mut first, mut prev, mut bad) = (0u64, 0u64, 0u64);
+            let (mut first, mut prev, mut bad) = (0u64, 0u64, 0u64);
             for i in 0..n {
                 let step = p.subscribe_lock().unwrap();
                 if check(p.snapshot()) != Some(step) {
@@ -187,7 +194,9 @@ fn child_main() {
             std::thread::sleep(Duration::from_secs(30));
         }
         "framework" => {
-            let _fw = Framework::create(&model(false, true, false), &FrameworkOptions { namespace, ..Default::default() }).unwrap();
+            let _fw =
+                Framework::create(&model(false, true, false), &FrameworkOptions { namespace, ..Default::default() })
+                    .unwrap();
             say("created");
             std::thread::sleep(Duration::from_secs(60));
         }
@@ -259,7 +268,8 @@ fn second_writer_on_exclusive_domain_gets_the_error_and_death_releases_ownership
         assert!(Instant::now() < deadline, "child never committed");
         host.step(&payload(host.current_step() + 1), 0.0).unwrap();
     }
-    let mut me = Participant::connect("d", ConnectOptions { timeout: Duration::from_secs(5), ..copts(&ns("excl")) }).unwrap();
+    let mut me =
+        Participant::connect("d", ConnectOptions { timeout: Duration::from_secs(5), ..copts(&ns("excl")) }).unwrap();
     match me.publish_lock() {
         Err(ShmError::NotOwner { owner_pid, .. }) => assert_eq!(owner_pid, child.0.id()),
         other => panic!("expected NotOwner, got {other:?}"),
@@ -371,17 +381,28 @@ fn a_segment_with_garbage_in_its_header_is_refused_cleanly() {
     let mut rng = 0x1234_5678_9abc_def1u64 ^ u64::from(std::process::id());
     let path = format!("/dev/shm/tutti.{}.d", ns("garbage"));
     for round in 0..200 {
-        let mut fw = Framework::create(&model(round % 2 == 0, true, false), &fopts("garbage", Duration::from_millis(50))).unwrap();
+        let mut fw =
+            Framework::create(&model(round % 2 == 0, true, false), &fopts("garbage", Duration::from_millis(50)))
+                .unwrap();
         let mut f = std::fs::OpenOptions::new().write(true).open(&path).unwrap();
         // Garbage over a random stretch of the header, connection table or directory; the
         // first rounds overwrite the whole header.
-        let (off, len) = if round < 3 { (if round == 0 { 0u64 } else { 8 }, 1016usize) } else { (xorshift(&mut rng) % 1200, 1 + (xorshift(&mut rng) % 64) as usize) };
+        let (off, len) = if round < 3 {
+            (if round == 0 { 0u64 } else { 8 }, 1016usize)
+        } else {
+            (xorshift(&mut rng) % 1200, 1 + (xorshift(&mut rng) % 64) as usize)
+        };
         let junk: Vec<u8> = (0..len).map(|_| xorshift(&mut rng) as u8).collect();
         f.seek(SeekFrom::Start(off)).unwrap();
         f.write_all(&junk).unwrap();
         drop(f);
         // Connecting and using the domain must give a result or an error, never a crash.
-        let opts = ConnectOptions { connect_timeout: Duration::from_millis(20), timeout: Duration::from_millis(20), wait: WaitMode::Poll(Duration::from_micros(100)), ..copts(&ns("garbage")) };
+        let opts = ConnectOptions {
+            connect_timeout: Duration::from_millis(20),
+            timeout: Duration::from_millis(20),
+            wait: WaitMode::Poll(Duration::from_micros(100)),
+            ..copts(&ns("garbage"))
+        };
         match Participant::connect("d", opts) {
             Ok(mut p) => {
                 let _ = p.subscribe_lock();
@@ -394,7 +415,10 @@ fn a_segment_with_garbage_in_its_header_is_refused_cleanly() {
             }
         }
         if round < 3 {
-            assert!(matches!(Participant::connect("d", copts(&ns("garbage"))), Err(ShmError::Corrupt { .. } | ShmError::VersionMismatch { .. } | ShmError::NotTuttiSegment { .. })));
+            assert!(matches!(
+                Participant::connect("d", copts(&ns("garbage"))),
+                Err(ShmError::Corrupt { .. } | ShmError::VersionMismatch { .. } | ShmError::NotTuttiSegment { .. })
+            ));
         }
         let _ = fw.domains[0].step(&payload(1), 0.0);
         drop(fw);

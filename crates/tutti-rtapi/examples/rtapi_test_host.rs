@@ -25,10 +25,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let period = Duration::from_millis(args[2].parse()?);
     let limit = Duration::from_secs(args[3].parse()?);
     let echo = args.get(4).is_some_and(|a| a == "--echo");
-    let opts = FrameworkOptions {
-        timeout: Duration::from_secs(10),
-        ..Default::default()
-    };
+    let opts = FrameworkOptions { timeout: Duration::from_secs(10), ..Default::default() };
     let mut fw = Framework::create(&model, &opts)?;
     let stop = Arc::new(AtomicBool::new(false));
     let stop2 = stop.clone();
@@ -50,12 +47,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         for host in &mut fw.domains {
             let info = host.info().clone();
             let mut buf = vec![0u8; info.publish.size as usize];
-            for leaf in info
-                .set(Role::Publish)
-                .leaves
-                .iter()
-                .filter(|l| l.ty == ScalarType::Float64)
-            {
+            for leaf in info.set(Role::Publish).leaves.iter().filter(|l| l.ty == ScalarType::Float64) {
                 for e in 0..usize::from(leaf.length) {
                     let off = leaf.offset as usize + 8 * e;
                     buf[off..off + 8].copy_from_slice(&(k as f64).to_ne_bytes());
@@ -65,11 +57,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             if echo {
                 let sub = host.subscribe();
                 let mut line = format!("{} {}", info.name, host.current_step());
-                for leaf in info
-                    .set(Role::Subscribe)
-                    .leaves
-                    .iter()
-                    .filter(|l| l.ty == ScalarType::Float64 && l.length == 1)
+                for leaf in
+                    info.set(Role::Subscribe).leaves.iter().filter(|l| l.ty == ScalarType::Float64 && l.length == 1)
                 {
                     let v = f64::from_ne_bytes(sub[leaf.range()].try_into()?);
                     line.push_str(&format!(" {}={v}", leaf.path));

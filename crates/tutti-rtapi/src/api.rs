@@ -40,10 +40,7 @@ pub extern "C" fn RTSetConnectionKey(connKey: c_uint) -> RTAPIReturn_t {
 /// # Safety
 /// `domainName` must be NULL or a NUL-terminated string.
 #[no_mangle]
-pub unsafe extern "C" fn RTConnect(
-    domainName: *const c_char,
-    timeoutSeconds: c_int,
-) -> RTAPIReturn_t {
+pub unsafe extern "C" fn RTConnect(domainName: *const c_char, timeoutSeconds: c_int) -> RTAPIReturn_t {
     guard("RTConnect", || {
         // SAFETY: the caller promises a NUL-terminated string or NULL.
         let domain = unsafe { c_str(domainName, "domainName") }?;
@@ -87,27 +84,26 @@ pub extern "C" fn RTDisconnect() -> RTAPIReturn_t {
 /// `itemPath` must be NULL or a NUL-terminated string; `value` NULL or valid for reading
 /// `sizeBytes` bytes.
 #[no_mangle]
-pub unsafe extern "C" fn RTPublish(
-    itemPath: *const c_char,
-    value: *const c_void,
-    sizeBytes: c_uint,
-) -> RTAPIReturn_t {
+pub unsafe extern "C" fn RTPublish(itemPath: *const c_char, value: *const c_void, sizeBytes: c_uint) -> RTAPIReturn_t {
     guard("RTPublish", || {
         // SAFETY: the caller promises a NUL-terminated string or NULL.
         let path = unsafe { c_str(itemPath, "itemPath") }?;
         let mut st = state();
         let (_, conn) = st.current()?;
-        let p = conn
-            .participant
-            .as_ref()
-            .ok_or_else(|| Failure::new(RTAPI_ERROR_INTERNAL, "no participant"))?;
+        let p = conn.participant.as_ref().ok_or_else(|| Failure::new(RTAPI_ERROR_INTERNAL, "no participant"))?;
         let leaf = leaf_in(p, Role::Subscribe, path)?;
         check_size(p, &leaf, sizeBytes)?;
         // SAFETY: the caller promises `sizeBytes` readable bytes at `value` (or NULL).
         let bytes = unsafe { bytes_in(value.cast(), sizeBytes as usize, "value") }?;
         let locked = conn.pub_locked;
         if !locked && p.info().flags.synchronous {
-            return Err(Failure::new(RTAPI_ERROR_OUT_OF_ORDER, format!("domain '{}' is synchronous: call RTPublish between RTPublishLock and RTPublishUnlock", p.info().name)));
+            return Err(Failure::new(
+                RTAPI_ERROR_OUT_OF_ORDER,
+                format!(
+                    "domain '{}' is synchronous: call RTPublish between RTPublishLock and RTPublishUnlock",
+                    p.info().name
+                ),
+            ));
         }
         st.exchange(Access::Publish, |c| {
             let Some(p) = c.participant.as_mut() else {
@@ -133,27 +129,26 @@ pub unsafe extern "C" fn RTPublish(
 /// `itemPath` must be NULL or a NUL-terminated string; `value` NULL or valid for writing
 /// `sizeBytes` bytes.
 #[no_mangle]
-pub unsafe extern "C" fn RTSubscribe(
-    itemPath: *const c_char,
-    value: *mut c_void,
-    sizeBytes: c_uint,
-) -> RTAPIReturn_t {
+pub unsafe extern "C" fn RTSubscribe(itemPath: *const c_char, value: *mut c_void, sizeBytes: c_uint) -> RTAPIReturn_t {
     guard("RTSubscribe", || {
         // SAFETY: the caller promises a NUL-terminated string or NULL.
         let path = unsafe { c_str(itemPath, "itemPath") }?;
         let mut st = state();
         let (_, conn) = st.current()?;
-        let p = conn
-            .participant
-            .as_ref()
-            .ok_or_else(|| Failure::new(RTAPI_ERROR_INTERNAL, "no participant"))?;
+        let p = conn.participant.as_ref().ok_or_else(|| Failure::new(RTAPI_ERROR_INTERNAL, "no participant"))?;
         let leaf = leaf_in(p, Role::Publish, path)?;
         check_size(p, &leaf, sizeBytes)?;
         // SAFETY: the caller promises `sizeBytes` writable bytes at `value` (or NULL).
         let out = unsafe { bytes_out(value.cast(), sizeBytes as usize, "value") }?;
         let locked = conn.sub_locked;
         if !locked && p.info().flags.synchronous {
-            return Err(Failure::new(RTAPI_ERROR_OUT_OF_ORDER, format!("domain '{}' is synchronous: call RTSubscribe between RTSubscribeLock and RTSubscribeUnlock", p.info().name)));
+            return Err(Failure::new(
+                RTAPI_ERROR_OUT_OF_ORDER,
+                format!(
+                    "domain '{}' is synchronous: call RTSubscribe between RTSubscribeLock and RTSubscribeUnlock",
+                    p.info().name
+                ),
+            ));
         }
         st.exchange(Access::Subscribe, |c| {
             let Some(p) = c.participant.as_mut() else {
@@ -175,10 +170,7 @@ pub extern "C" fn RTPublishLock() -> RTAPIReturn_t {
     guard("RTPublishLock", || {
         let mut st = state();
         if st.current()?.1.pub_locked {
-            return Err(Failure::new(
-                RTAPI_ERROR_OUT_OF_ORDER,
-                "RTPublishLock called twice without RTPublishUnlock",
-            ));
+            return Err(Failure::new(RTAPI_ERROR_OUT_OF_ORDER, "RTPublishLock called twice without RTPublishUnlock"));
         }
         st.exchange(Access::Publish, |c| {
             let Some(p) = c.participant.as_mut() else {
@@ -200,15 +192,10 @@ pub extern "C" fn RTPublishUnlock() -> RTAPIReturn_t {
         let mut st = state();
         let (_, conn) = st.current()?;
         if !conn.pub_locked {
-            return Err(Failure::new(
-                RTAPI_ERROR_OUT_OF_ORDER,
-                "RTPublishUnlock without RTPublishLock",
-            ));
+            return Err(Failure::new(RTAPI_ERROR_OUT_OF_ORDER, "RTPublishUnlock without RTPublishLock"));
         }
         conn.pub_locked = false;
-        st.exchange(Access::Publish, |c| {
-            c.participant.as_mut().map_or(Ok(()), |p| p.commit())
-        })
+        st.exchange(Access::Publish, |c| c.participant.as_mut().map_or(Ok(()), |p| p.commit()))
     })
 }
 
@@ -242,10 +229,7 @@ pub extern "C" fn RTSubscribeUnlock() -> RTAPIReturn_t {
         let mut st = state();
         let (_, conn) = st.current()?;
         if !conn.sub_locked {
-            return Err(Failure::new(
-                RTAPI_ERROR_OUT_OF_ORDER,
-                "RTSubscribeUnlock without RTSubscribeLock",
-            ));
+            return Err(Failure::new(RTAPI_ERROR_OUT_OF_ORDER, "RTSubscribeUnlock without RTSubscribeLock"));
         }
         conn.sub_locked = false;
         Ok(())
@@ -258,21 +242,14 @@ pub extern "C" fn RTSubscribeUnlock() -> RTAPIReturn_t {
 /// # Safety
 /// `itemPath` must be NULL or a NUL-terminated string; `itemKey` NULL or writable.
 #[no_mangle]
-pub unsafe extern "C" fn RTGetKeyForItem(
-    itemPath: *const c_char,
-    itemKey: *mut c_ushort,
-) -> RTAPIReturn_t {
+pub unsafe extern "C" fn RTGetKeyForItem(itemPath: *const c_char, itemKey: *mut c_ushort) -> RTAPIReturn_t {
     guard("RTGetKeyForItem", || {
         // SAFETY: the caller promises a NUL-terminated string or NULL.
         let path = unsafe { c_str(itemPath, "itemPath") }?;
         crate::ffi::non_null(itemKey.cast_const(), "itemKey")?;
         let mut st = state();
         let (key, _, _) = leaf_by_path(
-            st.current()?
-                .1
-                .participant
-                .as_ref()
-                .ok_or_else(|| Failure::new(RTAPI_ERROR_INTERNAL, "no participant"))?,
+            st.current()?.1.participant.as_ref().ok_or_else(|| Failure::new(RTAPI_ERROR_INTERNAL, "no participant"))?,
             path,
         )?;
         // SAFETY: the caller promises `itemKey` is writable (NULL was refused above).
@@ -298,11 +275,7 @@ pub unsafe extern "C" fn RTGetInfoForItem(
         crate::ffi::non_null(length.cast_const(), "length")?;
         let mut st = state();
         let (_, _, leaf) = leaf_by_path(
-            st.current()?
-                .1
-                .participant
-                .as_ref()
-                .ok_or_else(|| Failure::new(RTAPI_ERROR_INTERNAL, "no participant"))?,
+            st.current()?.1.participant.as_ref().ok_or_else(|| Failure::new(RTAPI_ERROR_INTERNAL, "no participant"))?,
             path,
         )?;
         // SAFETY: both pointers are writable as the caller promises (NULL refused above).
@@ -321,11 +294,7 @@ pub unsafe extern "C" fn RTGetInfoForItem(
 /// # Safety
 /// `buffer` must be NULL or writable.
 #[no_mangle]
-pub unsafe extern "C" fn RTGetBuffer(
-    connKey: c_uint,
-    itemKey: c_ushort,
-    buffer: *mut *mut c_void,
-) -> RTAPIReturn_t {
+pub unsafe extern "C" fn RTGetBuffer(connKey: c_uint, itemKey: c_ushort, buffer: *mut *mut c_void) -> RTAPIReturn_t {
     guard("RTGetBuffer", || {
         crate::ffi::non_null(buffer.cast_const(), "buffer")?;
         let mut st = state();
@@ -387,10 +356,7 @@ pub unsafe extern "C" fn RTGetBufferInfo(
 /// # Safety
 /// `status` must be NULL or writable.
 #[no_mangle]
-pub unsafe extern "C" fn RTGetConnectionStatusPtr(
-    connKey: c_uint,
-    status: *mut *mut c_uint,
-) -> RTAPIReturn_t {
+pub unsafe extern "C" fn RTGetConnectionStatusPtr(connKey: c_uint, status: *mut *mut c_uint) -> RTAPIReturn_t {
     guard("RTGetConnectionStatusPtr", || {
         crate::ffi::non_null(status.cast_const(), "status")?;
         let mut st = state();
@@ -409,11 +375,7 @@ pub extern "C" fn RTWaitReadyToGo() -> RTAPIReturn_t {
 fn wait_ready() -> Result<(), Failure> {
     let mut st = state();
     st.current()?;
-    st.exchange(Access::Subscribe, |c| {
-        c.participant
-            .as_ref()
-            .map_or(Ok(()), |p| p.wait_ready_to_go())
-    })
+    st.exchange(Access::Subscribe, |c| c.participant.as_ref().map_or(Ok(()), |p| p.wait_ready_to_go()))
 }
 
 /// Whether the next RTConnect / RTConnectWithFile returns without waiting for wait-to-go.
@@ -459,10 +421,7 @@ pub extern "C" fn RTUseFlagWithTool(microseconds: c_uint) -> RTAPIReturn_t {
 /// # Safety
 /// `domainName` must be NULL or a NUL-terminated string; `count` NULL or writable.
 #[no_mangle]
-pub unsafe extern "C" fn RTGetConnectionCount(
-    domainName: *const c_char,
-    count: *mut c_uint,
-) -> RTAPIReturn_t {
+pub unsafe extern "C" fn RTGetConnectionCount(domainName: *const c_char, count: *mut c_uint) -> RTAPIReturn_t {
     guard("RTGetConnectionCount", || {
         // SAFETY: the caller promises a NUL-terminated string or NULL.
         let domain = unsafe { c_str(domainName, "domainName") }?;

@@ -182,10 +182,7 @@ pub fn for_error(e: &ShmError, side: Side) -> RTAPIReturn_t {
 /// disconnects the client"): only when the other side is gone. Argument errors, timeouts and
 /// ownership refusals leave the connection as it was.
 pub fn disconnects(e: &ShmError) -> bool {
-    matches!(
-        e,
-        ShmError::FrameworkStopped { .. } | ShmError::ConnectionLost { .. }
-    )
+    matches!(e, ShmError::FrameworkStopped { .. } | ShmError::ConnectionLost { .. })
 }
 
 #[cfg(test)]

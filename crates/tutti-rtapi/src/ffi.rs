@@ -9,8 +9,8 @@ use std::panic::{catch_unwind, AssertUnwindSafe};
 use tutti_core::shm::ShmError;
 
 use crate::codes::{
-    self, RTAPIReturn_t, Side, RTAPI_ERROR_INTERNAL, RTAPI_ERROR_INVALID_ARGUMENT,
-    RTAPI_ERROR_NULL_POINTER, RTAPI_SUCCESS,
+    self, RTAPIReturn_t, Side, RTAPI_ERROR_INTERNAL, RTAPI_ERROR_INVALID_ARGUMENT, RTAPI_ERROR_NULL_POINTER,
+    RTAPI_SUCCESS,
 };
 
 /// Why a call failed: its code and a sentence with the details (domain, item, sizes).
@@ -22,17 +22,11 @@ pub struct Failure {
 
 impl Failure {
     pub fn new(code: RTAPIReturn_t, detail: impl Into<String>) -> Self {
-        Failure {
-            code,
-            detail: detail.into(),
-        }
+        Failure { code, detail: detail.into() }
     }
 
     pub fn shm(e: &ShmError, side: Side) -> Self {
-        Failure {
-            code: codes::for_error(e, side),
-            detail: e.to_string(),
-        }
+        Failure { code: codes::for_error(e, side), detail: e.to_string() }
     }
 }
 
@@ -52,10 +46,7 @@ pub fn guard(call: &str, body: impl FnOnce() -> CallResult) -> RTAPIReturn_t {
             .map(|s| s.to_string())
             .or_else(|| panic.downcast_ref::<String>().cloned())
             .unwrap_or_else(|| "unknown panic".into());
-        Err(Failure::new(
-            RTAPI_ERROR_INTERNAL,
-            format!("internal error: {what}"),
-        ))
+        Err(Failure::new(RTAPI_ERROR_INTERNAL, format!("internal error: {what}")))
     });
     match outcome {
         Ok(()) => RTAPI_SUCCESS,
@@ -75,18 +66,13 @@ fn set_last_detail(text: &str) {
 /// A pointer to the last detail text of this thread, valid until this thread's next failing
 /// call.
 pub fn last_detail_ptr() -> *const c_char {
-    LAST_DETAIL
-        .try_with(|d| d.borrow().as_ptr())
-        .unwrap_or(c"".as_ptr())
+    LAST_DETAIL.try_with(|d| d.borrow().as_ptr()).unwrap_or(c"".as_ptr())
 }
 
 /// Fails with `RTAPI_ERROR_NULL_POINTER` if `p` is NULL; `what` names the argument.
 pub fn non_null<T>(p: *const T, what: &str) -> CallResult<*const T> {
     if p.is_null() {
-        Err(Failure::new(
-            RTAPI_ERROR_NULL_POINTER,
-            format!("argument '{what}' is NULL"),
-        ))
+        Err(Failure::new(RTAPI_ERROR_NULL_POINTER, format!("argument '{what}' is NULL")))
     } else {
         Ok(p)
     }
@@ -114,12 +100,7 @@ pub unsafe fn c_str<'a>(p: *const c_char, what: &str) -> CallResult<&'a str> {
     // SAFETY: `p` is not NULL and, as the caller promises, NUL-terminated and unchanged for
     // the duration of the call (the returned borrow does not outlive the call).
     let s = unsafe { CStr::from_ptr(p) };
-    s.to_str().map_err(|_| {
-        Failure::new(
-            RTAPI_ERROR_INVALID_ARGUMENT,
-            format!("argument '{what}' is not UTF-8 text"),
-        )
-    })
+    s.to_str().map_err(|_| Failure::new(RTAPI_ERROR_INVALID_ARGUMENT, format!("argument '{what}' is not UTF-8 text")))
 }
 
 /// Reads `len` bytes at `p`.
@@ -150,22 +131,14 @@ mod tests {
 
     fn detail() -> String {
         // SAFETY: last_detail_ptr returns a valid NUL-terminated string.
-        unsafe { CStr::from_ptr(last_detail_ptr()) }
-            .to_string_lossy()
-            .into_owned()
+        unsafe { CStr::from_ptr(last_detail_ptr()) }.to_string_lossy().into_owned()
     }
 
     #[test]
     fn a_panic_becomes_the_internal_error_code() {
         assert_eq!(guard("RTTest", || panic!("boom")), RTAPI_ERROR_INTERNAL);
         assert_eq!(detail(), "RTTest: internal error: boom");
-        assert_eq!(
-            guard("RTTest", || Err(Failure::new(
-                RTAPI_ERROR_WRONG_SIZE,
-                "sizes"
-            ))),
-            RTAPI_ERROR_WRONG_SIZE
-        );
+        assert_eq!(guard("RTTest", || Err(Failure::new(RTAPI_ERROR_WRONG_SIZE, "sizes"))), RTAPI_ERROR_WRONG_SIZE);
         assert_eq!(detail(), "RTTest: sizes");
         assert_eq!(guard("RTTest", || Ok(())), RTAPI_SUCCESS);
     }
@@ -174,24 +147,10 @@ mod tests {
     fn null_pointers_are_refused_before_use() {
         // SAFETY: NULL is allowed by every helper's contract.
         unsafe {
-            assert_eq!(
-                write_out(std::ptr::null_mut::<u32>(), "p", 1)
-                    .unwrap_err()
-                    .code,
-                RTAPI_ERROR_NULL_POINTER
-            );
-            assert_eq!(
-                c_str(std::ptr::null(), "s").unwrap_err().code,
-                RTAPI_ERROR_NULL_POINTER
-            );
-            assert_eq!(
-                bytes_in(std::ptr::null(), 4, "b").unwrap_err().code,
-                RTAPI_ERROR_NULL_POINTER
-            );
-            assert_eq!(
-                bytes_out(std::ptr::null_mut(), 4, "b").unwrap_err().code,
-                RTAPI_ERROR_NULL_POINTER
-            );
+            assert_eq!(write_out(std::ptr::null_mut::<u32>(), "p", 1).unwrap_err().code, RTAPI_ERROR_NULL_POINTER);
+            assert_eq!(c_str(std::ptr::null(), "s").unwrap_err().code, RTAPI_ERROR_NULL_POINTER);
+            assert_eq!(bytes_in(std::ptr::null(), 4, "b").unwrap_err().code, RTAPI_ERROR_NULL_POINTER);
+            assert_eq!(bytes_out(std::ptr::null_mut(), 4, "b").unwrap_err().code, RTAPI_ERROR_NULL_POINTER);
         }
     }
 }

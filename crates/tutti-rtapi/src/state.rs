@@ -48,16 +48,11 @@ static STATE: Mutex<State> = Mutex::new(State {
 /// The state, locked. A panic in an earlier call (caught by the guard) poisons the mutex;
 /// the state stays usable, so the poison is ignored.
 pub fn state() -> MutexGuard<'static, State> {
-    STATE
-        .lock()
-        .unwrap_or_else(|poisoned| poisoned.into_inner())
+    STATE.lock().unwrap_or_else(|poisoned| poisoned.into_inner())
 }
 
 fn not_connected(key: u32) -> Failure {
-    Failure::new(
-        RTAPI_ERROR_NOT_CONNECTED,
-        format!("connection key {key} is not connected (call RTConnect first)"),
-    )
+    Failure::new(RTAPI_ERROR_NOT_CONNECTED, format!("connection key {key} is not connected (call RTConnect first)"))
 }
 
 /// Which part of the exchange a connected call uses.
@@ -69,19 +64,16 @@ pub enum Access {
 impl State {
     pub fn new_key(&mut self) -> CallResult<u32> {
         let key = self.next_key;
-        self.next_key = key.checked_add(1).ok_or_else(|| {
-            Failure::new(RTAPI_ERROR_INVALID_ARGUMENT, "connection keys exhausted")
-        })?;
+        self.next_key = key
+            .checked_add(1)
+            .ok_or_else(|| Failure::new(RTAPI_ERROR_INVALID_ARGUMENT, "connection keys exhausted"))?;
         self.conns.insert(key, Conn::default());
         Ok(key)
     }
 
     pub fn set_current(&mut self, key: u32) -> CallResult {
         if key != DEFAULT_KEY && !self.conns.contains_key(&key) {
-            return Err(Failure::new(
-                RTAPI_ERROR_UNKNOWN_CONNECTION_KEY,
-                format!("no connection key {key}"),
-            ));
+            return Err(Failure::new(RTAPI_ERROR_UNKNOWN_CONNECTION_KEY, format!("no connection key {key}")));
         }
         self.current = key;
         Ok(())
@@ -92,20 +84,14 @@ impl State {
         if key == DEFAULT_KEY {
             return Ok(self.conns.entry(DEFAULT_KEY).or_default());
         }
-        self.conns.get_mut(&key).ok_or_else(|| {
-            Failure::new(
-                RTAPI_ERROR_UNKNOWN_CONNECTION_KEY,
-                format!("no connection key {key}"),
-            )
-        })
+        self.conns
+            .get_mut(&key)
+            .ok_or_else(|| Failure::new(RTAPI_ERROR_UNKNOWN_CONNECTION_KEY, format!("no connection key {key}")))
     }
 
     /// The participant behind `key`; fails if it is not connected.
     pub fn participant(&mut self, key: u32) -> CallResult<&mut Participant> {
-        self.conn(key)?
-            .participant
-            .as_mut()
-            .ok_or_else(|| not_connected(key))
+        self.conn(key)?.participant.as_mut().ok_or_else(|| not_connected(key))
     }
 
     /// The current connection, which must be connected.
@@ -125,35 +111,18 @@ impl State {
     /// Sets how every connection waits, now and for later connections.
     pub fn set_wait(&mut self, wait: WaitMode) {
         self.wait = wait;
-        for p in self
-            .conns
-            .values_mut()
-            .filter_map(|c| c.participant.as_mut())
-        {
+        for p in self.conns.values_mut().filter_map(|c| c.participant.as_mut()) {
             p.set_wait_mode(wait);
         }
     }
 
     /// Connects the current connection; with a DDF, checks that it matches the live domain.
-    pub fn connect(
-        &mut self,
-        domain: &str,
-        ddf_path: Option<&str>,
-        timeout_seconds: i32,
-    ) -> CallResult {
-        let timeout = u64::try_from(timeout_seconds)
-            .map(Duration::from_secs)
-            .map_err(|_| {
-                Failure::new(
-                    RTAPI_ERROR_INVALID_ARGUMENT,
-                    format!("timeout {timeout_seconds} s is negative"),
-                )
-            })?;
+    pub fn connect(&mut self, domain: &str, ddf_path: Option<&str>, timeout_seconds: i32) -> CallResult {
+        let timeout = u64::try_from(timeout_seconds).map(Duration::from_secs).map_err(|_| {
+            Failure::new(RTAPI_ERROR_INVALID_ARGUMENT, format!("timeout {timeout_seconds} s is negative"))
+        })?;
         if domain.is_empty() {
-            return Err(Failure::new(
-                RTAPI_ERROR_INVALID_ARGUMENT,
-                "the domain name is empty",
-            ));
+            return Err(Failure::new(RTAPI_ERROR_INVALID_ARGUMENT, "the domain name is empty"));
         }
         let key = self.current;
         let (skip, wait) = (self.skip_wait_to_go, self.wait);
@@ -166,11 +135,7 @@ impl State {
         }
         let opts = ConnectOptions {
             connect_timeout: timeout,
-            timeout: if timeout.is_zero() {
-                DEFAULT_LOCK_TIMEOUT
-            } else {
-                timeout
-            },
+            timeout: if timeout.is_zero() { DEFAULT_LOCK_TIMEOUT } else { timeout },
             wait,
             skip_wait_to_go: skip,
             ..ConnectOptions::default()
@@ -179,22 +144,14 @@ impl State {
         let participant = match ddf_path {
             None => Participant::connect(domain, opts).map_err(shm)?,
             Some(path) => {
-                let model = ddf::load(path)
-                    .map_err(|e| Failure::new(RTAPI_ERROR_DDF_INVALID, e.to_string()))?;
+                let model = ddf::load(path).map_err(|e| Failure::new(RTAPI_ERROR_DDF_INVALID, e.to_string()))?;
                 let d = model.domain(domain).ok_or_else(|| {
-                    Failure::new(
-                        RTAPI_ERROR_DDF_INVALID,
-                        format!("{path} does not describe domain '{domain}'"),
-                    )
+                    Failure::new(RTAPI_ERROR_DDF_INVALID, format!("{path} does not describe domain '{domain}'"))
                 })?;
                 Participant::connect_checked(d, opts).map_err(shm)?
             }
         };
-        *conn = Conn {
-            participant: Some(participant),
-            sub_locked: false,
-            pub_locked: false,
-        };
+        *conn = Conn { participant: Some(participant), sub_locked: false, pub_locked: false };
         Ok(())
     }
 
@@ -209,11 +166,7 @@ impl State {
 
     /// Runs one core operation on the current connection; when it fails because the other
     /// side is gone, the connection is closed (see docs/rtapi.md, "Errors").
-    pub fn exchange<T>(
-        &mut self,
-        access: Access,
-        op: impl FnOnce(&mut Conn) -> Result<T, ShmError>,
-    ) -> CallResult<T> {
+    pub fn exchange<T>(&mut self, access: Access, op: impl FnOnce(&mut Conn) -> Result<T, ShmError>) -> CallResult<T> {
         let (_, conn) = self.current()?;
         let side = match access {
             Access::Subscribe => Side::Subscribe,
@@ -233,36 +186,20 @@ impl State {
     /// Connection count of `domain`: from a connection of this process if one is connected
     /// to it, else from the segment.
     pub fn connection_count(&self, domain: &str) -> CallResult<u32> {
-        if let Some(p) = self
-            .conns
-            .values()
-            .filter_map(|c| c.participant.as_ref())
-            .find(|p| p.info().name == domain)
-        {
+        if let Some(p) = self.conns.values().filter_map(|c| c.participant.as_ref()).find(|p| p.info().name == domain) {
             return Ok(p.connection_count());
         }
         let ns = tutti_core::shm::segment::namespace_from_env();
-        let seg = tutti_core::shm::segment::Segment::open(&ns, domain)
-            .map_err(|e| Failure::shm(&e, Side::Connect))?;
-        Ok(seg
-            .header()
-            .conn_count
-            .load(std::sync::atomic::Ordering::Acquire))
+        let seg = tutti_core::shm::segment::Segment::open(&ns, domain).map_err(|e| Failure::shm(&e, Side::Connect))?;
+        Ok(seg.header().conn_count.load(std::sync::atomic::Ordering::Acquire))
     }
 }
 
 /// The leaf with key `key` (PUBLISH leaves first, then SUBSCRIBE).
 pub fn leaf_by_key(p: &Participant, key: u16) -> CallResult<(Role, Leaf)> {
-    p.info()
-        .leaves()
-        .nth(usize::from(key))
-        .map(|(r, l)| (r, l.clone()))
-        .ok_or_else(|| {
-            Failure::new(
-                RTAPI_ERROR_UNKNOWN_ITEM,
-                format!("domain '{}' has no item key {key}", p.info().name),
-            )
-        })
+    p.info().leaves().nth(usize::from(key)).map(|(r, l)| (r, l.clone())).ok_or_else(|| {
+        Failure::new(RTAPI_ERROR_UNKNOWN_ITEM, format!("domain '{}' has no item key {key}", p.info().name))
+    })
 }
 
 /// The leaf at `path` in either set, with its item key.
@@ -273,10 +210,7 @@ pub fn leaf_by_path(p: &Participant, path: &str) -> CallResult<(u16, Role, Leaf)
         .find(|(_, (_, l))| l.path == path)
         .and_then(|(i, (r, l))| Some((u16::try_from(i).ok()?, r, l.clone())))
         .ok_or_else(|| {
-            Failure::new(
-                RTAPI_ERROR_UNKNOWN_ITEM,
-                format!("domain '{}' has no item '{path}'", p.info().name),
-            )
+            Failure::new(RTAPI_ERROR_UNKNOWN_ITEM, format!("domain '{}' has no item '{path}'", p.info().name))
         })
 }
 
@@ -285,19 +219,12 @@ pub fn leaf_in(p: &Participant, role: Role, path: &str) -> CallResult<Leaf> {
     let (_, r, leaf) = leaf_by_path(p, path)?;
     if r != role {
         let hint = match role {
-            Role::Publish => {
-                "RTSubscribe reads the PUBLISH set; write SUBSCRIBE items with RTPublish"
-            }
-            Role::Subscribe => {
-                "RTPublish writes the SUBSCRIBE set; read PUBLISH items with RTSubscribe"
-            }
+            Role::Publish => "RTSubscribe reads the PUBLISH set; write SUBSCRIBE items with RTPublish",
+            Role::Subscribe => "RTPublish writes the SUBSCRIBE set; read PUBLISH items with RTSubscribe",
         };
         return Err(Failure::new(
             RTAPI_ERROR_UNKNOWN_ITEM,
-            format!(
-                "item '{path}' of domain '{}' is in the {r} set: {hint}",
-                p.info().name
-            ),
+            format!("item '{path}' of domain '{}' is in the {r} set: {hint}", p.info().name),
         ));
     }
     Ok(leaf)

@@ -12,11 +12,7 @@ use tutti_core::shm::FrameworkOptions;
 const LIMIT: Duration = Duration::from_secs(120);
 
 fn fopts(ns: &str) -> FrameworkOptions {
-    FrameworkOptions {
-        namespace: ns.to_string(),
-        timeout: Duration::from_secs(20),
-        ..Default::default()
-    }
+    FrameworkOptions { namespace: ns.to_string(), timeout: Duration::from_secs(20), ..Default::default() }
 }
 
 fn f64_at(bytes: &[u8], off: usize) -> f64 {
@@ -25,46 +21,24 @@ fn f64_at(bytes: &[u8], off: usize) -> f64 {
 
 /// The values `uav_reader` printed, in order.
 fn printed_values(stdout: &str) -> Vec<f64> {
-    stdout
-        .lines()
-        .filter_map(|l| l.split_whitespace().nth(1)?.split('=').nth(1)?.parse().ok())
-        .collect()
+    stdout.lines().filter_map(|l| l.split_whitespace().nth(1)?.split('=').nth(1)?.parse().ok()).collect()
 }
 
 /// Runs uav_reader (built as `program`) for `steps` steps, optionally under a wrapper such
 /// as valgrind, and checks the exchange step by step.
 fn run_uav_reader(test: &str, program: &std::path::Path, wrapper: &[&str], steps: usize) {
     let ns = namespace(test);
-    let host = Host::start(
-        &load("ddf/multiuav.ddf"),
-        fopts(&ns),
-        Duration::from_millis(1),
-    );
+    let host = Host::start(&load("ddf/multiuav.ddf"), fopts(&ns), Duration::from_millis(1));
     let ddf = root().join("ddf/multiuav.ddf");
-    let mut cmd = Command::new(
-        wrapper
-            .first()
-            .copied()
-            .unwrap_or(program.to_str().expect("path")),
-    );
+    let mut cmd = Command::new(wrapper.first().copied().unwrap_or(program.to_str().expect("path")));
     if !wrapper.is_empty() {
         cmd.args(&wrapper[1..]).arg(program);
     }
-    cmd.env("TUTTI_NAMESPACE", &ns).arg(&ddf).args([
-        "multiuav_uav2",
-        "Z",
-        "Elevation",
-        &steps.to_string(),
-        "2",
-    ]);
+    cmd.env("TUTTI_NAMESPACE", &ns).arg(&ddf).args(["multiuav_uav2", "Z", "Elevation", &steps.to_string(), "2"]);
     let out = run(&mut cmd, LIMIT);
     let stdout = String::from_utf8_lossy(&out.stdout);
     let stderr = String::from_utf8_lossy(&out.stderr);
-    assert!(
-        out.status.success(),
-        "uav_reader failed ({}):\n{stdout}\n{stderr}",
-        out.status
-    );
+    assert!(out.status.success(), "uav_reader failed ({}):\n{stdout}\n{stderr}", out.status);
     let values = printed_values(&stdout);
     assert_eq!(values.len(), steps, "{stdout}");
     // Lock-step: every step read once, none skipped. From the second value on: until its
@@ -82,10 +56,8 @@ fn run_uav_reader(test: &str, program: &std::path::Path, wrapper: &[&str], steps
     // RTPublishLock, so the framework does not wait for that first answer (docs/rtapi.md).
     for v in &values[1..] {
         let step = *v as u64;
-        let s = seen
-            .iter()
-            .find(|s| s.domain == "multiuav_uav2" && s.step == step)
-            .expect("step seen by the framework");
+        let s =
+            seen.iter().find(|s| s.domain == "multiuav_uav2" && s.step == step).expect("step seen by the framework");
         assert_eq!(f64_at(&s.subscribe, 16), 2.0 * v, "step {step}");
     }
 }
@@ -105,12 +77,7 @@ fn product_pattern_client_is_clean_under_valgrind() {
     }
     let dir = tempfile::tempdir().expect("temp dir");
     let program = compile(&root().join("examples/c/uav_reader.c"), dir.path());
-    run_uav_reader(
-        "valgrind",
-        &program,
-        &["valgrind", "--error-exitcode=99", "--leak-check=no", "-q"],
-        20,
-    );
+    run_uav_reader("valgrind", &program, &["valgrind", "--error-exitcode=99", "--leak-check=no", "-q"], 20);
 }
 
 #[test]
@@ -119,18 +86,10 @@ fn static_library_links_and_runs() {
     let out = dir.path().join("uav_reader_static");
     let lib = lib_dir().join("librtapi.a");
     let mut cmd = Command::new("gcc");
-    cmd.args(["-std=c99", "-Wall", "-Werror"])
-        .arg(format!("-I{}", root().join("include").display()));
-    cmd.arg(root().join("examples/c/uav_reader.c"))
-        .arg(&lib)
-        .args(["-lpthread", "-ldl", "-lm", "-o"])
-        .arg(&out);
+    cmd.args(["-std=c99", "-Wall", "-Werror"]).arg(format!("-I{}", root().join("include").display()));
+    cmd.arg(root().join("examples/c/uav_reader.c")).arg(&lib).args(["-lpthread", "-ldl", "-lm", "-o"]).arg(&out);
     let o = run(&mut cmd, LIMIT);
-    assert!(
-        o.status.success(),
-        "static link failed:\n{}",
-        String::from_utf8_lossy(&o.stderr)
-    );
+    assert!(o.status.success(), "static link failed:\n{}", String::from_utf8_lossy(&o.stderr));
     run_uav_reader("static", &out, &[], 20);
 }
 
@@ -139,34 +98,21 @@ fn two_connections_to_two_domains_in_one_process() {
     let ns = namespace("twodomains");
     let dir = tempfile::tempdir().expect("temp dir");
     let program = compile(&root().join("examples/c/two_domains.c"), dir.path());
-    let host = Host::start(
-        &load("ddf/multiuav.ddf"),
-        fopts(&ns),
-        Duration::from_millis(1),
-    );
+    let host = Host::start(&load("ddf/multiuav.ddf"), fopts(&ns), Duration::from_millis(1));
     let mut cmd = Command::new(&program);
-    cmd.env("TUTTI_NAMESPACE", &ns)
-        .args(["multiuav_uav1", "multiuav_uav3", "X", "Latitude", "40"]);
+    cmd.env("TUTTI_NAMESPACE", &ns).args(["multiuav_uav1", "multiuav_uav3", "X", "Latitude", "40"]);
     let out = run(&mut cmd, LIMIT);
     let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(out.status.success(), "two_domains failed:\n{stdout}\n{}", String::from_utf8_lossy(&out.stderr));
     assert!(
-        out.status.success(),
-        "two_domains failed:\n{stdout}\n{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    assert!(
-        stdout.contains("multiuav_uav1 connections=1")
-            && stdout.contains("multiuav_uav3 connections=1"),
+        stdout.contains("multiuav_uav1 connections=1") && stdout.contains("multiuav_uav3 connections=1"),
         "{stdout}"
     );
     let steps: Vec<(f64, f64)> = stdout
         .lines()
         .filter(|l| l.starts_with("step "))
         .filter_map(|l| {
-            let mut it = l
-                .split_whitespace()
-                .skip(2)
-                .filter_map(|kv| kv.split('=').nth(1)?.parse().ok());
+            let mut it = l.split_whitespace().skip(2).filter_map(|kv| kv.split('=').nth(1)?.parse().ok());
             Some((it.next()?, it.next()?))
         })
         .collect();
@@ -182,10 +128,7 @@ fn two_connections_to_two_domains_in_one_process() {
     for (domain, idx) in [("multiuav_uav1", 0), ("multiuav_uav3", 1)] {
         for s in &steps[1..] {
             let v = if idx == 0 { s.0 } else { s.1 };
-            let seen = seen
-                .iter()
-                .find(|x| x.domain == domain && x.step == v as u64)
-                .expect("step seen");
+            let seen = seen.iter().find(|x| x.domain == domain && x.step == v as u64).expect("step seen");
             assert_eq!(f64_at(&seen.subscribe, 0), v, "{domain} step {v}");
         }
     }
@@ -216,12 +159,7 @@ fn header_compiles_as_c_and_inside_extern_c_in_cpp() {
     for src in [c, cpp] {
         let program = compile(&src, dir.path());
         let out = run(&mut Command::new(&program), LIMIT);
-        assert!(
-            out.status.success(),
-            "{}: {}",
-            src.display(),
-            String::from_utf8_lossy(&out.stdout)
-        );
+        assert!(out.status.success(), "{}: {}", src.display(), String::from_utf8_lossy(&out.stdout));
         assert!(String::from_utf8_lossy(&out.stdout).contains("framework has stopped"));
     }
 }

@@ -57,11 +57,7 @@ fn pubset(x: f64) -> Vec<u8> {
 }
 
 fn fopts() -> FrameworkOptions {
-    FrameworkOptions {
-        namespace: ns(),
-        timeout: Duration::from_secs(20),
-        ..Default::default()
-    }
+    FrameworkOptions { namespace: ns(), timeout: Duration::from_secs(20), ..Default::default() }
 }
 
 fn framework(domain: &str, sync: bool, mpa: bool) -> Framework {
@@ -78,9 +74,7 @@ fn name(code: RTAPIReturn_t) -> &'static str {
 
 fn detail() -> String {
     // SAFETY: RTGetLastErrorDetail returns a valid NUL-terminated string, never NULL.
-    unsafe { CStr::from_ptr(RTGetLastErrorDetail()) }
-        .to_string_lossy()
-        .into_owned()
+    unsafe { CStr::from_ptr(RTGetLastErrorDetail()) }.to_string_lossy().into_owned()
 }
 
 #[track_caller]
@@ -143,11 +137,7 @@ fn messages_exist_for_every_code_and_unknown_codes() {
     assert_eq!(unknown.to_str(), Ok("unknown RTAPI return code"));
     let header = std::fs::read_to_string(root().join("include/RTAPI.h")).expect("header");
     for code in rtapi::codes::ALL {
-        assert!(
-            header.contains(&format!("#define {} {code}\n", name(code))),
-            "{} missing from RTAPI.h",
-            name(code)
-        );
+        assert!(header.contains(&format!("#define {} {code}\n", name(code))), "{} missing from RTAPI.h", name(code));
     }
 }
 
@@ -166,35 +156,19 @@ fn async_domain_values_flow_both_ways() {
     expect(publish("b", &7i32.to_ne_bytes()), RTAPI_SUCCESS);
     fw.domains[0].read_subscribe().expect("read");
     assert_eq!(&fw.domains[0].subscribe()[8..12], &7i32.to_ne_bytes());
-    assert_eq!(
-        &fw.domains[0].subscribe()[0..8],
-        &2.5f64.to_ne_bytes(),
-        "unstaged item keeps its default"
-    );
+    assert_eq!(&fw.domains[0].subscribe()[0..8], &2.5f64.to_ne_bytes(), "unstaged item keeps its default");
 
     // Item keys: PUBLISH items first, then SUBSCRIBE; info gives element size and count.
     let mut item_key: c_ushort = 99;
     let (mut size, mut len): (c_uint, c_ushort) = (0, 0);
-    for (path, want_key, want_size, want_len) in [
-        ("x", 0, 8, 1),
-        ("v", 1, 4, 3),
-        ("a", 2, 8, 1),
-        ("b", 3, 4, 1),
-    ] {
+    for (path, want_key, want_size, want_len) in [("x", 0, 8, 1), ("v", 1, 4, 3), ("a", 2, 8, 1), ("b", 3, 4, 1)] {
         let p = c(path);
         // SAFETY: valid string and out-pointers.
         unsafe {
             expect(RTGetKeyForItem(p.as_ptr(), &mut item_key), RTAPI_SUCCESS);
-            expect(
-                RTGetInfoForItem(p.as_ptr(), &mut size, &mut len),
-                RTAPI_SUCCESS,
-            );
+            expect(RTGetInfoForItem(p.as_ptr(), &mut size, &mut len), RTAPI_SUCCESS);
         }
-        assert_eq!(
-            (item_key, size, len),
-            (want_key, want_size, want_len),
-            "{path}"
-        );
+        assert_eq!((item_key, size, len), (want_key, want_size, want_len), "{path}");
     }
 
     // Buffers: PUBLISH items point into the snapshot, SUBSCRIBE items into the staging buffer.
@@ -207,10 +181,7 @@ fn async_domain_values_flow_both_ways() {
     unsafe {
         expect(RTGetBuffer(k, 0, &mut xp), RTAPI_SUCCESS);
         expect(RTGetBuffer(k, 2, &mut ap), RTAPI_SUCCESS);
-        expect(
-            RTGetBufferInfo(k, &mut pb, &mut ps, &mut sb, &mut ss),
-            RTAPI_SUCCESS,
-        );
+        expect(RTGetBufferInfo(k, &mut pb, &mut ps, &mut sb, &mut ss), RTAPI_SUCCESS);
         expect(RTGetConnectionStatusPtr(k, &mut status), RTAPI_SUCCESS);
     }
     assert_eq!((ps, ss), (24, 16));
@@ -255,10 +226,7 @@ fn synchronous_domain_needs_lock_pairs_and_steps_in_lock_step() {
     expect(connect("sync1", 5), RTAPI_SUCCESS);
     let mut x = [0u8; 8];
     expect(subscribe("x", &mut x), RTAPI_ERROR_OUT_OF_ORDER);
-    expect(
-        publish("a", &1.0f64.to_ne_bytes()),
-        RTAPI_ERROR_OUT_OF_ORDER,
-    );
+    expect(publish("a", &1.0f64.to_ne_bytes()), RTAPI_ERROR_OUT_OF_ORDER);
     let t = std::thread::spawn(move || {
         let mut seen = Vec::new();
         expect(RTSetConnectionKey(k), RTAPI_SUCCESS);
@@ -307,25 +275,13 @@ fn argument_and_order_errors() {
     unsafe {
         expect(RTNewConnectionKey(null_mut()), RTAPI_ERROR_NULL_POINTER);
         expect(RTConnect(null(), 1), RTAPI_ERROR_NULL_POINTER);
-        expect(
-            RTConnectWithFile(null(), c("args1").as_ptr(), 1),
-            RTAPI_ERROR_NULL_POINTER,
-        );
-        expect(
-            RTGetConnectionCount(c("args1").as_ptr(), null_mut()),
-            RTAPI_ERROR_NULL_POINTER,
-        );
+        expect(RTConnectWithFile(null(), c("args1").as_ptr(), 1), RTAPI_ERROR_NULL_POINTER);
+        expect(RTGetConnectionCount(c("args1").as_ptr(), null_mut()), RTAPI_ERROR_NULL_POINTER);
     }
-    expect(
-        RTSetConnectionKey(4_000_000_000),
-        RTAPI_ERROR_UNKNOWN_CONNECTION_KEY,
-    );
+    expect(RTSetConnectionKey(4_000_000_000), RTAPI_ERROR_UNKNOWN_CONNECTION_KEY);
     let mut p: *mut c_void = null_mut();
     // SAFETY: valid out-pointer.
-    expect(
-        unsafe { RTGetBuffer(4_000_000_000, 0, &mut p) },
-        RTAPI_ERROR_UNKNOWN_CONNECTION_KEY,
-    );
+    expect(unsafe { RTGetBuffer(4_000_000_000, 0, &mut p) }, RTAPI_ERROR_UNKNOWN_CONNECTION_KEY);
     let k = key();
     // Not connected yet.
     expect(RTDisconnect(), RTAPI_ERROR_NOT_CONNECTED);
@@ -333,52 +289,31 @@ fn argument_and_order_errors() {
     expect(RTPublishUnlock(), RTAPI_ERROR_NOT_CONNECTED);
     expect(RTWaitReadyToGo(), RTAPI_ERROR_NOT_CONNECTED);
     // SAFETY: valid out-pointer.
-    expect(
-        unsafe { RTGetBuffer(k, 0, &mut p) },
-        RTAPI_ERROR_NOT_CONNECTED,
-    );
+    expect(unsafe { RTGetBuffer(k, 0, &mut p) }, RTAPI_ERROR_NOT_CONNECTED);
     expect(connect("args1", -1), RTAPI_ERROR_INVALID_ARGUMENT);
     expect(connect("", 1), RTAPI_ERROR_INVALID_ARGUMENT);
     let bad_utf8 = [0xffu8, 0xfe, 0];
     // SAFETY: a NUL-terminated byte string.
-    expect(
-        unsafe { RTConnect(bad_utf8.as_ptr().cast(), 1) },
-        RTAPI_ERROR_INVALID_ARGUMENT,
-    );
+    expect(unsafe { RTConnect(bad_utf8.as_ptr().cast(), 1) }, RTAPI_ERROR_INVALID_ARGUMENT);
 
     expect(connect("args1", 2), RTAPI_SUCCESS);
     expect(connect("args1", 2), RTAPI_ERROR_ALREADY_CONNECTED);
     // SAFETY: NULL pointers, refused.
     unsafe {
         expect(RTGetBuffer(k, 0, null_mut()), RTAPI_ERROR_NULL_POINTER);
-        expect(
-            RTGetKeyForItem(c("x").as_ptr(), null_mut()),
-            RTAPI_ERROR_NULL_POINTER,
-        );
-        expect(
-            RTGetConnectionStatusPtr(k, null_mut()),
-            RTAPI_ERROR_NULL_POINTER,
-        );
-        expect(
-            RTPublish(c("a").as_ptr(), null(), 8),
-            RTAPI_ERROR_NULL_POINTER,
-        );
+        expect(RTGetKeyForItem(c("x").as_ptr(), null_mut()), RTAPI_ERROR_NULL_POINTER);
+        expect(RTGetConnectionStatusPtr(k, null_mut()), RTAPI_ERROR_NULL_POINTER);
+        expect(RTPublish(c("a").as_ptr(), null(), 8), RTAPI_ERROR_NULL_POINTER);
         expect(RTSubscribe(null(), null_mut(), 8), RTAPI_ERROR_NULL_POINTER);
     }
     // Unknown items, items of the other set, unknown keys.
     let mut ik: c_ushort = 0;
     // SAFETY: valid string and out-pointer.
-    expect(
-        unsafe { RTGetKeyForItem(c("nope").as_ptr(), &mut ik) },
-        RTAPI_ERROR_UNKNOWN_ITEM,
-    );
+    expect(unsafe { RTGetKeyForItem(c("nope").as_ptr(), &mut ik) }, RTAPI_ERROR_UNKNOWN_ITEM);
     expect(publish("x", &[0; 8]), RTAPI_ERROR_UNKNOWN_ITEM);
     expect(subscribe("a", &mut [0; 8]), RTAPI_ERROR_UNKNOWN_ITEM);
     // SAFETY: valid out-pointer.
-    expect(
-        unsafe { RTGetBuffer(k, 4, &mut p) },
-        RTAPI_ERROR_UNKNOWN_ITEM,
-    );
+    expect(unsafe { RTGetBuffer(k, 4, &mut p) }, RTAPI_ERROR_UNKNOWN_ITEM);
     // Wrong sizes: exactly the item's size is required.
     expect(publish("a", &[0; 4]), RTAPI_ERROR_WRONG_SIZE);
     expect(subscribe("v", &mut [0; 4]), RTAPI_ERROR_WRONG_SIZE);
@@ -406,26 +341,13 @@ fn connect_errors() {
     expect(connect("nosuchdomain", 0), RTAPI_ERROR_DOMAIN_NOT_FOUND);
     assert_eq!(count("nosuchdomain"), Err(RTAPI_ERROR_DOMAIN_NOT_FOUND));
     let dir = tempfile::tempdir().expect("temp dir");
-    expect(
-        connect_file(&dir.path().join("missing.ddf"), "conn1"),
-        RTAPI_ERROR_DDF_INVALID,
-    );
+    expect(connect_file(&dir.path().join("missing.ddf"), "conn1"), RTAPI_ERROR_DDF_INVALID);
     let invalid = dir.path().join("invalid.ddf");
-    std::fs::write(
-        &invalid,
-        "<orchestra><domain name='conn1'><bogus/></domain></orchestra>",
-    )
-    .expect("write");
+    std::fs::write(&invalid, "<orchestra><domain name='conn1'><bogus/></domain></orchestra>").expect("write");
     expect(connect_file(&invalid, "conn1"), RTAPI_ERROR_DDF_INVALID);
 
-    let _fw = Framework::create(
-        &model("conn1", false, false),
-        &FrameworkOptions {
-            connections: 1,
-            ..fopts()
-        },
-    )
-    .expect("framework");
+    let _fw = Framework::create(&model("conn1", false, false), &FrameworkOptions { connections: 1, ..fopts() })
+        .expect("framework");
     let good = dir.path().join("good.ddf");
     std::fs::write(&good, ddf_text("conn1", false, false, "int32")).expect("write");
     let other = dir.path().join("other.ddf");
@@ -433,11 +355,7 @@ fn connect_errors() {
     // A DDF that describes other domains only.
     expect(connect_file(&good, "conn2"), RTAPI_ERROR_DDF_INVALID);
     expect(connect_file(&other, "conn1"), RTAPI_ERROR_LAYOUT_MISMATCH);
-    assert_eq!(
-        count("conn1"),
-        Ok(0),
-        "a refused connection leaves no trace"
-    );
+    assert_eq!(count("conn1"), Ok(0), "a refused connection leaves no trace");
     expect(connect_file(&good, "conn1"), RTAPI_SUCCESS);
     let _k2 = key();
     expect(connect("conn1", 0), RTAPI_ERROR_TOO_MANY_CONNECTIONS);
@@ -485,10 +403,7 @@ fn timeout_waiting_for_a_step() {
 fn framework_stop_disconnects_with_the_product_codes() {
     let _turn = serial();
     for (lock, want) in [
-        (
-            RTSubscribeLock as extern "C" fn() -> RTAPIReturn_t,
-            RTAPI_SUBSCRIBE_FAILED_RTLAB_SUBSYSTEM_UNMAPPED,
-        ),
+        (RTSubscribeLock as extern "C" fn() -> RTAPIReturn_t, RTAPI_SUBSCRIBE_FAILED_RTLAB_SUBSYSTEM_UNMAPPED),
         (RTPublishLock, RTAPI_PUBLISH_FAILED_RTLAB_SUBSYSTEM_UNMAPPED),
     ] {
         let fw = framework("stop1", false, true);
@@ -496,10 +411,7 @@ fn framework_stop_disconnects_with_the_product_codes() {
         expect(connect("stop1", 2), RTAPI_SUCCESS);
         let mut status: *mut c_uint = null_mut();
         // SAFETY: valid out-pointer.
-        expect(
-            unsafe { RTGetConnectionStatusPtr(k, &mut status) },
-            RTAPI_SUCCESS,
-        );
+        expect(unsafe { RTGetConnectionStatusPtr(k, &mut status) }, RTAPI_SUCCESS);
         // SAFETY: valid until RTDisconnect; volatile like C.
         assert_eq!(unsafe { status.read_volatile() }, 1);
         drop(fw);
@@ -521,10 +433,7 @@ fn connection_removed_by_the_framework_is_reported_and_closed() {
     // Remove the connection as the framework does for a connection it judges dead.
     let seg = Segment::open(&ns(), "lost1").expect("segment");
     assert!(seg.release_slot(0, std::process::id()));
-    expect(
-        publish("a", &1.0f64.to_ne_bytes()),
-        RTAPI_ERROR_CONNECTION_LOST,
-    );
+    expect(publish("a", &1.0f64.to_ne_bytes()), RTAPI_ERROR_CONNECTION_LOST);
     expect(RTDisconnect(), RTAPI_ERROR_NOT_CONNECTED);
 }
 
@@ -536,9 +445,7 @@ fn fake_segment(domain: &str, version: u32, header_bytes: u32) -> ShmFile {
     bytes[8..12].copy_from_slice(&version.to_le_bytes());
     bytes[12..16].copy_from_slice(&header_bytes.to_le_bytes());
     bytes[16..24].copy_from_slice(&4096u64.to_le_bytes());
-    std::fs::File::create(&guard.0)
-        .and_then(|mut f| f.write_all(&bytes))
-        .expect("writing a fake segment");
+    std::fs::File::create(&guard.0).and_then(|mut f| f.write_all(&bytes)).expect("writing a fake segment");
     guard
 }
 

@@ -7,13 +7,9 @@ use std::path::PathBuf;
 fn committed_header_is_current() {
     let crate_dir = PathBuf::from(env!("CARGO_MANIFEST_DIR"));
     let header = crate_dir.join("../../include/RTAPI.h");
-    let config = cbindgen::Config::from_file(crate_dir.join("cbindgen.toml"))
-        .expect("reading cbindgen.toml");
-    let bindings = cbindgen::Builder::new()
-        .with_crate(&crate_dir)
-        .with_config(config)
-        .generate()
-        .expect("cbindgen failed");
+    let config = cbindgen::Config::from_file(crate_dir.join("cbindgen.toml")).expect("reading cbindgen.toml");
+    let bindings =
+        cbindgen::Builder::new().with_crate(&crate_dir).with_config(config).generate().expect("cbindgen failed");
     let mut fresh = Vec::new();
     bindings.write(&mut fresh);
     if std::env::var_os("TUTTI_BLESS").is_some_and(|v| v == "1") {

@@ -27,9 +27,7 @@ pub struct Args {
 
 pub fn run(args: Args) -> CliResult {
     let shown = args.file.display().to_string();
-    let bytes = std::fs::read(&args.file)
-        .with_context(|| format!("cannot read {shown}"))
-        .map_err(Failure::invalid)?;
+    let bytes = std::fs::read(&args.file).with_context(|| format!("cannot read {shown}")).map_err(Failure::invalid)?;
     // Validate once (and warm caches and the allocator) before timing anything.
     let model = tutti_core::ddf::parse_bytes(&bytes, &shown).map_err(Failure::invalid)?;
     let text = std::str::from_utf8(&bytes).context("the DDF is not UTF-8")?;
@@ -51,10 +49,7 @@ pub fn run(args: Args) -> CliResult {
         bytes.len(),
         model.domains.len(),
     );
-    println!(
-        "{:<44} {:>9} {:>9} {:>9} {:>9} {:>10}",
-        "phase (ms)", "min", "p50", "p99", "max", "MB/s p50"
-    );
+    println!("{:<44} {:>9} {:>9} {:>9} {:>9} {:>10}", "phase (ms)", "min", "p50", "p99", "max", "MB/s p50");
     for (name, stats) in [
         ("XML to tree only (raw::parse)", &raw),
         ("parse + validate + layout (parse_bytes)", &full),

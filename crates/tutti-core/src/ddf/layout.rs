@@ -192,7 +192,9 @@ mod tests {
             scalar("a", ScalarType::Int8, 1),
             Item {
                 name: "b".into(),
-                kind: ItemKind::Bus { items: vec![scalar("c", ScalarType::Int8, 1), scalar("d", ScalarType::Int64, 1)] },
+                kind: ItemKind::Bus {
+                    items: vec![scalar("c", ScalarType::Int8, 1), scalar("d", ScalarType::Int64, 1)],
+                },
                 pos: Pos::default(),
             },
         ];

@@ -68,7 +68,11 @@ impl DdfError {
 }
 
 fn render(path: &str, diagnostics: &[Diagnostic]) -> String {
-    diagnostics.iter().map(|d| format!("{path}:{}:{}: error: {}", d.pos.line, d.pos.col, d.message)).collect::<Vec<_>>().join("\n")
+    diagnostics
+        .iter()
+        .map(|d| format!("{path}:{}:{}: error: {}", d.pos.line, d.pos.col, d.message))
+        .collect::<Vec<_>>()
+        .join("\n")
 }
 
 impl fmt::Display for Diagnostic {

@@ -151,7 +151,9 @@ pub enum ItemKind {
         length: u16,
         default: Option<Value>,
     },
-    Bus { items: Vec<Item> },
+    Bus {
+        items: Vec<Item>,
+    },
 }
 
 /// The scalar types of SPEC section 1, canonical names.

@@ -156,10 +156,11 @@ pub fn parse(src: &str) -> Result<RawElement<'_>, SyntaxError> {
                 }
                 let mut element = RawElement::new(borrow(src, start.name().as_ref()), here);
                 for attr in start.attributes() {
-                    let attr = attr.map_err(|e| err(here, format!("malformed attribute: {}", printable(&e.to_string(), 200))))?;
-                    let value = attr
-                        .normalized_value(quick_xml::XmlVersion::Implicit1_0)
-                        .map_err(|e| err(here, format!("malformed attribute value: {}", printable(&e.to_string(), 200))))?;
+                    let attr = attr
+                        .map_err(|e| err(here, format!("malformed attribute: {}", printable(&e.to_string(), 200))))?;
+                    let value = attr.normalized_value(quick_xml::XmlVersion::Implicit1_0).map_err(|e| {
+                        err(here, format!("malformed attribute value: {}", printable(&e.to_string(), 200)))
+                    })?;
                     element.attrs.push(RawAttr { name: borrow(src, attr.key.as_ref()), value: borrow(src, &value) });
                 }
                 if matches!(event, Event::Empty(_)) {
@@ -189,7 +190,12 @@ pub fn parse(src: &str) -> Result<RawElement<'_>, SyntaxError> {
                         Some(s) => s.to_string(),
                         None => return Err(err(here(), format!("unknown entity '&{};'", printable(&reference, 40)))),
                     },
-                    Err(e) => return Err(err(here(), format!("malformed character reference: {}", printable(&e.to_string(), 200)))),
+                    Err(e) => {
+                        return Err(err(
+                            here(),
+                            format!("malformed character reference: {}", printable(&e.to_string(), 200)),
+                        ))
+                    }
                 };
                 add_text(&mut stack, Cow::Owned(resolved), &index, before)?;
             }
@@ -207,7 +213,10 @@ pub fn parse(src: &str) -> Result<RawElement<'_>, SyntaxError> {
         let at = index.pos(src.len());
         return Err(err(
             at,
-            format!("unexpected end of file: <{}> opened at line {}, column {} is not closed", open.name, open.pos.line, open.pos.col),
+            format!(
+                "unexpected end of file: <{}> opened at line {}, column {} is not closed",
+                open.name, open.pos.line, open.pos.col
+            ),
         ));
     }
     root.ok_or_else(|| err(Pos { line: 1, col: 1 }, "no XML element found: expected an <orchestra> document"))
@@ -251,7 +260,12 @@ fn close<'a>(element: RawElement<'a>, stack: &mut [RawElement<'a>], root: &mut O
     }
 }
 
-fn add_text<'a>(stack: &mut [RawElement<'a>], content: Cow<'a, str>, index: &LineIndex<'_>, offset: usize) -> Result<(), SyntaxError> {
+fn add_text<'a>(
+    stack: &mut [RawElement<'a>],
+    content: Cow<'a, str>,
+    index: &LineIndex<'_>,
+    offset: usize,
+) -> Result<(), SyntaxError> {
     match stack.last_mut() {
         Some(parent) => {
             // Blanks before any content are trimmed anyway; skipping them saves an allocation

@@ -61,7 +61,10 @@ pub fn validate(root: &RawElement, source: &str) -> Result<Model, Vec<Diagnostic
             if let Some(first) = seen.get(&domain.name) {
                 d.at(
                     child.pos,
-                    format!("duplicate domain name '{}' (first defined at line {}, column {})", domain.name, first.line, first.col),
+                    format!(
+                        "duplicate domain name '{}' (first defined at line {}, column {})",
+                        domain.name, first.line, first.col
+                    ),
                 );
             } else {
                 seen.insert(domain.name.clone(), child.pos);
@@ -155,7 +158,10 @@ fn domain(el: &RawElement, d: &mut Diags) -> Option<Domain> {
                 if let Some(first) = flag_seen.get(flag) {
                     d.at(
                         child.pos,
-                        format!("domain '{label}' has a second <{flag}> (the first is at line {}, column {})", first.line, first.col),
+                        format!(
+                            "domain '{label}' has a second <{flag}> (the first is at line {}, column {})",
+                            first.line, first.col
+                        ),
                     );
                     continue;
                 }
@@ -213,7 +219,8 @@ fn domain(el: &RawElement, d: &mut Diags) -> Option<Domain> {
     }
     let name = name?;
     let [publish, subscribe] = sets;
-    let empty = |role| Set { role, items: Vec::new(), layout: SetLayout { size: 0, align: 1, leaves: Vec::new() }, pos: None };
+    let empty =
+        |role| Set { role, items: Vec::new(), layout: SetLayout { size: 0, align: 1, leaves: Vec::new() }, pos: None };
     let publish = publish.map(|(s, _)| s).unwrap_or_else(|| empty(Role::Publish));
     let subscribe = subscribe.map(|(s, _)| s).unwrap_or_else(|| empty(Role::Subscribe));
     let layout_hash = layout::layout_hash(&name, flags, &publish.layout, &subscribe.layout);
@@ -233,8 +240,11 @@ fn set_role(el: &RawElement, d: &mut Diags) -> Option<Role> {
         "publish" => Some(Role::Publish),
         "subscribe" => Some(Role::Subscribe),
         _ => {
-            let expected =
-                if el.name == "block" { "a block name must end in /Publish or /Subscribe" } else { "a set is named PUBLISH or SUBSCRIBE" };
+            let expected = if el.name == "block" {
+                "a block name must end in /Publish or /Subscribe"
+            } else {
+                "a set is named PUBLISH or SUBSCRIBE"
+            };
             d.at(el.pos, format!("<{}> name '{}' names no role: {expected}", el.name, shorten(name)));
             None
         }
@@ -254,7 +264,10 @@ fn set(el: &RawElement, role: Role, domain: &str, d: &mut Diags) -> Option<Set> 
         Err(bytes) => {
             d.at(
                 el.pos,
-                format!("set {role} of domain '{domain}' would take {bytes} bytes; the limit is {} MiB", MAX_SET_BYTES >> 20),
+                format!(
+                    "set {role} of domain '{domain}' would take {bytes} bytes; the limit is {} MiB",
+                    MAX_SET_BYTES >> 20
+                ),
             );
             None
         }
@@ -354,7 +367,10 @@ fn item(el: &RawElement, role: Role, domain: &str, prefix: &str, depth: usize, d
             _ => {
                 d.at(
                     l.text_pos.unwrap_or(l.pos),
-                    format!("item '{label}' has length '{}'; a length is a whole number from 1 to {MAX_LENGTH}", shorten(l.text())),
+                    format!(
+                        "item '{label}' has length '{}'; a length is a whole number from 1 to {MAX_LENGTH}",
+                        shorten(l.text())
+                    ),
                 );
                 None
             }
@@ -367,7 +383,10 @@ fn item(el: &RawElement, role: Role, domain: &str, prefix: &str, depth: usize, d
                 d.at(def.pos, format!("bus item '{label}' cannot have a <default>; give defaults to its members"));
             }
             if length.is_some_and(|l| l != 1) {
-                d.at(length_el.map_or(el.pos, |l| l.pos), format!("bus item '{label}' must have length 1; arrays of buses are not supported"));
+                d.at(
+                    length_el.map_or(el.pos, |l| l.pos),
+                    format!("bus item '{label}' must have length 1; arrays of buses are not supported"),
+                );
             }
             if nested.is_empty() {
                 d.at(el.pos, format!("bus item '{label}' has no nested <item>"));
@@ -383,7 +402,10 @@ fn item(el: &RawElement, role: Role, domain: &str, prefix: &str, depth: usize, d
         }
         TypeName::Scalar(ty) => {
             for n in nested {
-                d.at(n.pos, format!("item '{label}' has type {} and cannot contain items; only a bus can", ty.canonical()));
+                d.at(
+                    n.pos,
+                    format!("item '{label}' has type {} and cannot contain items; only a bus can", ty.canonical()),
+                );
             }
             let default = match default_el {
                 None => None,
@@ -397,7 +419,10 @@ fn item(el: &RawElement, role: Role, domain: &str, prefix: &str, depth: usize, d
                         };
                         d.at(
                             def.text_pos.unwrap_or(def.pos),
-                            format!("default '{}' of item '{label}' does not fit its type: expected {expected}", shorten(def.text())),
+                            format!(
+                                "default '{}' of item '{label}' does not fit its type: expected {expected}",
+                                shorten(def.text())
+                            ),
                         );
                         None
                     }

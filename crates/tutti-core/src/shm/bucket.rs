@@ -186,7 +186,8 @@ mod tests {
         let gens: [AtomicU64; SLOTS] = std::array::from_fn(|_| AtomicU64::new(0));
         let current = AtomicU64::new(0);
         let w: Vec<Vec<AtomicU64>> = (0..SLOTS).map(|_| words(1)).collect();
-        let bucket = Bucket { seq: &seq, gens: &gens, current: &current, slots: std::array::from_fn(|i| w[i].as_slice()) };
+        let bucket =
+            Bucket { seq: &seq, gens: &gens, current: &current, slots: std::array::from_fn(|i| w[i].as_slice()) };
         let mut out = [0u8; 8];
         assert_eq!(bucket.write(&7u64.to_ne_bytes()), 1);
         assert_eq!(bucket.read(&mut out, 10), Some(1));

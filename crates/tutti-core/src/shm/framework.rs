@@ -4,7 +4,9 @@
 use std::time::{Duration, Instant};
 
 use super::handshake::CONN_WRITER;
-use super::segment::{self, namespace_from_env, DomainInfo, DomainStatus, Segment, WaitMode, Waited, Waiter, STATE_STOPPED};
+use super::segment::{
+    self, namespace_from_env, DomainInfo, DomainStatus, Segment, WaitMode, Waited, Waiter, STATE_STOPPED,
+};
 use super::{os, ShmError};
 use crate::ddf::{Model, Role};
 use crate::sync::Ordering;
@@ -179,7 +181,8 @@ impl DomainHost {
         let mut timed_out = 0;
         let mut removed = 0;
         if self.seg.info.flags.synchronous {
-            let (waited, r) = self.wait_acks(move |seg| !(0..seg.scan_len()).any(|i| seg.conn_ctl(i).is_some_and(|c| c.owes(k))))?;
+            let (waited, r) =
+                self.wait_acks(move |seg| !(0..seg.scan_len()).any(|i| seg.conn_ctl(i).is_some_and(|c| c.owes(k))))?;
             removed += r;
             if waited == Waited::TimedOut {
                 for i in 0..self.seg.scan_len() {
@@ -201,7 +204,10 @@ impl DomainHost {
     pub fn read_subscribe(&mut self) -> Result<&[u8], ShmError> {
         let bucket = self.seg.bucket(Role::Subscribe)?;
         if bucket.read(&mut self.subscribe, 1 << 20).is_none() {
-            return Err(ShmError::Corrupt { domain: self.seg.info.name.clone(), detail: "SUBSCRIBE set never settles".into() });
+            return Err(ShmError::Corrupt {
+                domain: self.seg.info.name.clone(),
+                detail: "SUBSCRIBE set never settles".into(),
+            });
         }
         Ok(&self.subscribe)
     }
@@ -209,7 +215,12 @@ impl DomainHost {
     /// Waits until `done` holds, sweeping dead connections meanwhile; gives up at the timeout.
     fn wait_acks(&mut self, done: impl Fn(&Segment) -> bool) -> Result<(Waited, usize), ShmError> {
         let h = self.seg.header();
-        let waiter = Waiter { mode: self.opts.wait, futex: &h.ack_seq, waiters: &h.ack_waiters, check_every: self.opts.sweep_every.min(Duration::from_millis(2)) };
+        let waiter = Waiter {
+            mode: self.opts.wait,
+            futex: &h.ack_seq,
+            waiters: &h.ack_waiters,
+            check_every: self.opts.sweep_every.min(Duration::from_millis(2)),
+        };
         let deadline = Instant::now() + self.opts.timeout;
         let mut removed = 0;
         let seg = &self.seg;

@@ -4,11 +4,11 @@
 //! All OS calls live in `os`.
 
 pub mod bucket;
-pub mod handshake;
 #[cfg(not(tutti_loom))]
 mod error;
 #[cfg(not(tutti_loom))]
 mod framework;
+pub mod handshake;
 #[cfg(not(tutti_loom))]
 pub mod os;
 #[cfg(not(tutti_loom))]

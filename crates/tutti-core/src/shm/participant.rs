@@ -124,7 +124,11 @@ impl Participant {
     pub fn connect_checked(domain: &Domain, opts: ConnectOptions) -> Result<Participant, ShmError> {
         let p = Participant::connect(&domain.name, opts)?;
         if p.seg.info.layout_hash != domain.layout_hash {
-            return Err(ShmError::LayoutMismatch { domain: domain.name.clone(), expected: domain.layout_hash, found: p.seg.info.layout_hash });
+            return Err(ShmError::LayoutMismatch {
+                domain: domain.name.clone(),
+                expected: domain.layout_hash,
+                found: p.seg.info.layout_hash,
+            });
         }
         Ok(p)
     }
@@ -249,7 +253,8 @@ impl Participant {
             let step = generation.max(last + 1);
             self.last_read = step;
             let seg = &self.seg;
-            let conn = seg.conn_ctl(self.slot).ok_or_else(|| ShmError::ConnectionLost { domain: seg.info.name.clone() })?;
+            let conn =
+                seg.conn_ctl(self.slot).ok_or_else(|| ShmError::ConnectionLost { domain: seg.info.name.clone() })?;
             seg.step_ctl().ack_read(&conn, step);
             let h = seg.header();
             segment::wake(&h.ack_seq, &h.ack_waiters);
@@ -327,7 +332,10 @@ impl Participant {
                         let start = seg.conn(slot).map_or(0, |c| c.start_time.load(Ordering::Acquire));
                         // An owner that died is released here rather than after the
                         // framework's next sweep; then the claim is tried again.
-                        if owner_pid != 0 && !os::is_alive(os::ProcessId { pid: owner_pid, start_time: start }) && seg.release_slot(slot, owner_pid) {
+                        if owner_pid != 0
+                            && !os::is_alive(os::ProcessId { pid: owner_pid, start_time: start })
+                            && seg.release_slot(slot, owner_pid)
+                        {
                             continue;
                         }
                         if h.owner_conn.load(Ordering::Acquire) != owner {
@@ -362,7 +370,12 @@ impl Participant {
         let (idx, leaf) = self.leaf(Role::Subscribe, path)?;
         let range = leaf.range();
         if bytes.len() != range.len() {
-            return Err(ShmError::SizeMismatch { domain: self.seg.info.name.clone(), role: Role::Subscribe, expected: range.len(), got: bytes.len() });
+            return Err(ShmError::SizeMismatch {
+                domain: self.seg.info.name.clone(),
+                role: Role::Subscribe,
+                expected: range.len(),
+                got: bytes.len(),
+            });
         }
         self.staging[range].copy_from_slice(bytes);
         self.marked[idx] = true;

@@ -56,7 +56,9 @@ pub fn namespace_from_env() -> String {
 
 /// Checks a namespace: 1–64 characters of `[A-Za-z0-9_.-]`.
 pub fn check_namespace(ns: &str) -> Result<(), ShmError> {
-    let ok = !ns.is_empty() && ns.len() <= 64 && ns.chars().all(|c| c.is_ascii_alphanumeric() || matches!(c, '_' | '.' | '-'));
+    let ok = !ns.is_empty()
+        && ns.len() <= 64
+        && ns.chars().all(|c| c.is_ascii_alphanumeric() || matches!(c, '_' | '.' | '-'));
     if ok {
         Ok(())
     } else {
@@ -196,7 +198,11 @@ impl DomainInfo {
 
     /// All leaves, PUBLISH first: the index is the RTAPI item key.
     pub fn leaves(&self) -> impl Iterator<Item = (Role, &Leaf)> {
-        self.publish.leaves.iter().map(|l| (Role::Publish, l)).chain(self.subscribe.leaves.iter().map(|l| (Role::Subscribe, l)))
+        self.publish
+            .leaves
+            .iter()
+            .map(|l| (Role::Publish, l))
+            .chain(self.subscribe.leaves.iter().map(|l| (Role::Subscribe, l)))
     }
 }
 
@@ -239,7 +245,8 @@ impl Segment {
             Ok(f) => f,
             Err(e) if e.kind() == io::ErrorKind::AlreadyExists => {
                 reclaim_stale(&shm_name, &domain.name)?;
-                os::shm_open(&shm_name, true, mode).map_err(|e| ShmError::io(format!("creating {}/{shm_name}", os::SHM_DIR), e))?
+                os::shm_open(&shm_name, true, mode)
+                    .map_err(|e| ShmError::io(format!("creating {}/{shm_name}", os::SHM_DIR), e))?
             }
             Err(e) => return Err(ShmError::io(format!("creating {}/{shm_name}", os::SHM_DIR), e)),
         };
@@ -362,7 +369,10 @@ impl Segment {
             return Err(ShmError::NotReady { domain: domain.to_string() });
         }
         if magic != MAGIC {
-            return Err(ShmError::NotTuttiSegment { domain: domain.to_string(), path: format!("{}/{shm_name}", os::SHM_DIR) });
+            return Err(ShmError::NotTuttiSegment {
+                domain: domain.to_string(),
+                path: format!("{}/{shm_name}", os::SHM_DIR),
+            });
         }
         let version = h.version.load(Ordering::Relaxed);
         if version != VERSION {
@@ -372,7 +382,10 @@ impl Segment {
             return Err(corrupt("header size field is wrong".into()));
         }
         if h.total_size.load(Ordering::Relaxed) != len as u64 {
-            return Err(corrupt(format!("header says {} bytes, segment has {len}", h.total_size.load(Ordering::Relaxed))));
+            return Err(corrupt(format!(
+                "header says {} bytes, segment has {len}",
+                h.total_size.load(Ordering::Relaxed)
+            )));
         }
         let info = seg.decode_directory(domain)?;
         seg.info = Arc::new(info);
@@ -405,7 +418,9 @@ impl Segment {
         load_bytes(self.words_at(base, strings.len().div_ceil(8))?, &mut strings);
         let strings = &strings[str_off % 8..];
         let text = |off: usize, len: usize, what: &str| -> Result<String, ShmError> {
-            let bytes = strings.get(off..off.saturating_add(len)).ok_or_else(|| corrupt(format!("{what} outside the string table")))?;
+            let bytes = strings
+                .get(off..off.saturating_add(len))
+                .ok_or_else(|| corrupt(format!("{what} outside the string table")))?;
             String::from_utf8(bytes.to_vec()).map_err(|_| corrupt(format!("{what} is not UTF-8")))
         };
         let name = text(ld(&h.name_off), ld(&h.name_len), "domain name")?;
@@ -440,7 +455,9 @@ impl Segment {
                 1 => Role::Subscribe,
                 r => return Err(corrupt(format!("item '{path}' has role {r}"))),
             };
-            let ty = *ScalarType::ALL.get(((w0 >> 56) & 0xff) as usize).ok_or_else(|| corrupt(format!("item '{path}' has an unknown type")))?;
+            let ty = *ScalarType::ALL
+                .get(((w0 >> 56) & 0xff) as usize)
+                .ok_or_else(|| corrupt(format!("item '{path}' has an unknown type")))?;
             let length = (w1 & 0xffff) as u16;
             let offset = ((w1 >> 16) & 0xffff_ffff) as u32;
             let size = u32::from(length) * ty.size();
@@ -462,7 +479,10 @@ impl Segment {
     fn check_range(&self, off: usize, len: usize, what: &str) -> Result<(), ShmError> {
         match off.checked_add(len) {
             Some(end) if end <= self.len => Ok(()),
-            _ => Err(ShmError::Corrupt { domain: self.info.name.clone(), detail: format!("{what} lies outside the segment") }),
+            _ => Err(ShmError::Corrupt {
+                domain: self.info.name.clone(),
+                detail: format!("{what} lies outside the segment"),
+            }),
         }
     }
 
@@ -530,7 +550,10 @@ impl Segment {
         let off = sh.slots_off.load(Ordering::Relaxed) as usize;
         // Re-check: a hostile process could rewrite the geometry after open.
         if words * 8 < self.info.set(role).size as usize {
-            return Err(ShmError::Corrupt { domain: self.info.name.clone(), detail: format!("{role} set geometry changed") });
+            return Err(ShmError::Corrupt {
+                domain: self.info.name.clone(),
+                detail: format!("{role} set geometry changed"),
+            });
         }
         self.check_range(off, SLOTS * words * 8, "set slots")?;
         let mut slots: [&[AtomicU64]; SLOTS] = [&[]; SLOTS];
@@ -662,7 +685,9 @@ impl Segment {
         }
         let owner = h.owner_conn.load(Ordering::Acquire);
         let owner_pid = (owner != 0)
-            .then(|| self.conn(((owner & 0xffff_ffff) as usize).wrapping_sub(1)).map(|c| c.active.load(Ordering::Relaxed)))
+            .then(|| {
+                self.conn(((owner & 0xffff_ffff) as usize).wrapping_sub(1)).map(|c| c.active.load(Ordering::Relaxed))
+            })
             .flatten();
         DomainStatus {
             domain: self.info.name.clone(),
@@ -753,7 +778,10 @@ fn reclaim_stale(shm_name: &str, domain: &str) -> Result<(), ShmError> {
                 // atomics only.
                 let h = unsafe { &*map.as_mut_ptr().cast::<Header>() };
                 let magic = h.magic.load(Ordering::Acquire);
-                let owner = ProcessId { pid: h.owner_pid.load(Ordering::Relaxed), start_time: h.owner_start.load(Ordering::Relaxed) };
+                let owner = ProcessId {
+                    pid: h.owner_pid.load(Ordering::Relaxed),
+                    start_time: h.owner_start.load(Ordering::Relaxed),
+                };
                 if magic != MAGIC && magic != 0 {
                     return Err(ShmError::NotTuttiSegment { domain: domain.to_string(), path });
                 }
@@ -826,7 +854,9 @@ impl Waiter<'_> {
                         // Re-test after announcing ourselves: the other side bumps the word
                         // and then checks the waiter count, so one of us sees the other.
                         if !ready()? {
-                            let limit = (deadline - now).min(next_check.saturating_duration_since(now)).max(Duration::from_micros(50));
+                            let limit = (deadline - now)
+                                .min(next_check.saturating_duration_since(now))
+                                .max(Duration::from_micros(50));
                             os::futex_wait(self.futex, seen, limit);
                         }
                         self.waiters.fetch_sub(1, Ordering::SeqCst);

@@ -15,19 +15,13 @@ use tutti_core::shm::{Framework, FrameworkOptions};
 
 /// The workspace root.
 pub fn root() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../..")
-        .canonicalize()
-        .expect("workspace root")
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../..").canonicalize().expect("workspace root")
 }
 
 /// target/<profile> of this build.
 pub fn profile_dir() -> PathBuf {
     let exe = std::env::current_exe().expect("test exe");
-    exe.parent()
-        .and_then(Path::parent)
-        .expect("target/<profile>")
-        .to_path_buf()
+    exe.parent().and_then(Path::parent).expect("target/<profile>").to_path_buf()
 }
 
 /// The directory holding librtapi.so / librtapi.a of this build: `deps/`, where `cargo test`
@@ -35,15 +29,8 @@ pub fn profile_dir() -> PathBuf {
 /// target/<profile>.
 pub fn lib_dir() -> PathBuf {
     let profile = profile_dir();
-    let dir = [profile.join("deps"), profile.clone()]
-        .into_iter()
-        .find(|d| d.join("librtapi.so").exists());
-    dir.unwrap_or_else(|| {
-        panic!(
-            "librtapi.so missing under {}: run `cargo build -p tutti-rtapi`",
-            profile.display()
-        )
-    })
+    let dir = [profile.join("deps"), profile.clone()].into_iter().find(|d| d.join("librtapi.so").exists());
+    dir.unwrap_or_else(|| panic!("librtapi.so missing under {}: run `cargo build -p tutti-rtapi`", profile.display()))
 }
 
 /// A namespace unique to this process and test.
@@ -84,12 +71,7 @@ impl Host {
                 for host in &mut fw.domains {
                     let info = host.info().clone();
                     let mut buf = vec![0u8; info.publish.size as usize];
-                    for leaf in info
-                        .set(Role::Publish)
-                        .leaves
-                        .iter()
-                        .filter(|l| l.ty == ScalarType::Float64)
-                    {
+                    for leaf in info.set(Role::Publish).leaves.iter().filter(|l| l.ty == ScalarType::Float64) {
                         for e in 0..leaf.length as usize {
                             let off = leaf.offset as usize + 8 * e;
                             buf[off..off + 8].copy_from_slice(&(k as f64).to_ne_bytes());
@@ -108,11 +90,7 @@ impl Host {
                 std::thread::sleep(period);
             }
         });
-        Host {
-            stop,
-            thread: Some(thread),
-            seen,
-        }
+        Host { stop, thread: Some(thread), seen }
     }
 
     pub fn seen(&self) -> Vec<Seen> {
@@ -148,11 +126,7 @@ impl ChildGuard {
                     if let Some(mut s) = child.stderr.take() {
                         let _ = s.read_to_end(&mut stderr);
                     }
-                    return Output {
-                        status,
-                        stdout,
-                        stderr,
-                    };
+                    return Output { status, stdout, stderr };
                 }
                 None if Instant::now() >= deadline => {
                     let _ = child.kill();
@@ -177,12 +151,7 @@ impl Drop for ChildGuard {
 /// Spawns `cmd` with piped output. The pipes are drained only at the end, so children must
 /// print little (a pipe holds 64 KiB).
 pub fn spawn(cmd: &mut Command) -> ChildGuard {
-    ChildGuard(Some(
-        cmd.stdout(Stdio::piped())
-            .stderr(Stdio::piped())
-            .spawn()
-            .expect("spawning a child"),
-    ))
+    ChildGuard(Some(cmd.stdout(Stdio::piped()).stderr(Stdio::piped()).spawn().expect("spawning a child")))
 }
 
 /// Runs `cmd` to completion under a watchdog.
@@ -202,14 +171,8 @@ pub fn compile(source: &Path, out_dir: &Path) -> PathBuf {
     } else {
         cmd.args(["-std=c99", "-Wall", "-Wextra", "-Werror", "-pedantic"]);
     }
-    cmd.arg("-g")
-        .arg(format!("-I{}", root().join("include").display()))
-        .arg(source)
-        .arg("-o")
-        .arg(&out);
-    cmd.arg(format!("-L{}", lib.display()))
-        .arg(format!("-Wl,-rpath,{}", lib.display()))
-        .arg("-lrtapi");
+    cmd.arg("-g").arg(format!("-I{}", root().join("include").display())).arg(source).arg("-o").arg(&out);
+    cmd.arg(format!("-L{}", lib.display())).arg(format!("-Wl,-rpath,{}", lib.display())).arg("-lrtapi");
     let output = run(&mut cmd, Duration::from_secs(120));
     assert!(
         output.status.success(),
