@@ -1,0 +1,57 @@
+#!/usr/bin/env bash
+# The whole test suite, from a fresh Debian machine with the Rust toolchain, Python 3 and apt:
+# installs what the tests need (Debian packages, a local Python venv), then runs the lints,
+# the docs build, every test of the workspace and the loom model checks.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+
+step() { printf '\n== %s\n' "$*"; }
+
+# --- Debian packages: DDS peers and tools for the interop tests, C toolchain, valgrind.
+packages=(cyclonedds-tools cyclonedds-dev fastddsgen libfastrtps-dev fastdds-tools valgrind gcc g++ make python3-venv)
+missing=()
+for p in "${packages[@]}"; do
+    dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
+done
+if [ ${#missing[@]} -gt 0 ]; then
+    step "installing Debian packages: ${missing[*]}"
+    sudo=""
+    [ "$(id -u)" -eq 0 ] || sudo="sudo"
+    $sudo apt-get update -qq
+    DEBIAN_FRONTEND=noninteractive $sudo apt-get install -y -qq "${missing[@]}" >/dev/null
+fi
+
+# --- Python: a local venv with the Cyclone DDS binding (the stand-in for rclpy nodes).
+if ! .venv/bin/python -c 'import cyclonedds' 2>/dev/null; then
+    step "creating .venv with cyclonedds"
+    python3 -m venv .venv
+    .venv/bin/pip install -q --disable-pip-version-check cyclonedds==11.0.1
+fi
+export PATH="$PWD/.venv/bin:$PATH"
+
+segments_before=$(ls /dev/shm 2>/dev/null | grep '^tutti\.' || true)
+
+step "cargo fmt --check"
+cargo fmt --all -- --check
+
+step "cargo clippy (warnings are errors)"
+cargo clippy --workspace --all-targets --locked -- -D warnings
+
+step "cargo doc (warnings are errors)"
+RUSTDOCFLAGS="-D warnings" cargo doc --workspace --no-deps --locked --quiet
+
+step "loom model checks (seqlock bucket, lock-step handshake)"
+RUSTFLAGS="--cfg tutti_loom" CARGO_TARGET_DIR=target/loom cargo test -p tutti-core --test loom --release --locked
+
+step "test suite"
+cargo build --workspace --locked --quiet
+cargo test --workspace --locked
+
+# The tests must leave no shared-memory segment behind.
+leftover=$(comm -13 <(echo "$segments_before" | sort) <(ls /dev/shm 2>/dev/null | grep '^tutti\.' | sort) || true)
+if [ -n "$leftover" ]; then
+    echo "shared-memory segments left behind by the tests:" >&2
+    echo "$leftover" >&2
+    exit 1
+fi
+echo "all checks passed"
