@@ -13,12 +13,12 @@ use tutti_core::ddf::{Domain, Leaf, Role};
 use tutti_core::shm::{Framework, FrameworkOptions, WaitMode};
 
 use super::{load_ddf, CliResult, Failure};
-use crate::rt::Ticker;
+use crate::rt::{self, RealtimeRequest, Ticker};
 
 /// Run the framework of every domain in a DDF: create the segments, step at a fixed period.
 #[derive(Debug, clap::Args)]
 #[command(
-    after_help = "Examples:\n  tutti host ddf/multiuav.ddf --step 10ms --duration 60s\n  tutti host ddf/product-sample.ddf --set grid_clock/tick=1 --record out/run.csv\n  TUTTI_NAMESPACE=lab2 tutti host ddf/large-1000.ddf --step 1ms\n\nStop with Ctrl-C: the segments are removed on exit."
+    after_help = "Examples:\n  tutti host ddf/multiuav.ddf --step 10ms --duration 60s\n  tutti host ddf/product-sample.ddf --set grid_clock/tick=1 --record out/run.csv\n  TUTTI_NAMESPACE=lab2 tutti host ddf/large-1000.ddf --step 1ms\n  sudo tutti host ddf/multiuav.ddf --step 1ms --realtime --cpu 1 --priority 80\n\nStop with Ctrl-C: the segments are removed on exit."
 )]
 pub struct Args {
     /// The DDF whose domains to host.
@@ -46,6 +46,16 @@ pub struct Args {
     /// Hold participants in connect (wait-to-go) for this long after start.
     #[arg(long, value_parser = parse_duration)]
     hold: Option<Duration>,
+    /// Run the stepping loop under SCHED_FIFO with locked memory (mlockall), as far as the
+    /// machine allows; what it refuses is a warning, not an error.
+    #[arg(long)]
+    realtime: bool,
+    /// With --realtime: pin the stepping thread to this CPU.
+    #[arg(long, value_name = "N", requires = "realtime")]
+    cpu: Option<usize>,
+    /// With --realtime: the SCHED_FIFO priority (1..99, default 50).
+    #[arg(long, value_name = "P", requires = "realtime")]
+    priority: Option<i32>,
     /// Print no progress lines.
     #[arg(short, long)]
     quiet: bool,
@@ -185,6 +195,14 @@ pub fn run(args: Args) -> CliResult {
             args.step
         );
     }
+    if args.realtime {
+        let req = RealtimeRequest { cpu: args.cpu, priority: args.priority };
+        if args.quiet {
+            rt::enter_realtime(&req);
+        } else {
+            rt::enter_realtime_verbose("host", &req);
+        }
+    }
     let mut ticker = Ticker::new(args.step);
     let run_start = Instant::now();
     let mut last_report = Instant::now();
@@ -200,13 +218,9 @@ pub fn run(args: Args) -> CliResult {
             fw.domains.iter().for_each(|d| d.set_hold(false));
         }
         let sim = tick.k as f64 * args.step.as_secs_f64();
-        for (host, data) in fw.domains.iter_mut().zip(&publish) {
-            host.publish_step(data, sim).with_context(|| format!("domain '{}'", host.info().name))?;
-        }
-        for (i, host) in fw.domains.iter_mut().enumerate() {
-            let report = host.complete_step().with_context(|| format!("domain '{}'", host.info().name))?;
+        let reports = rt::step_all(&mut fw, &publish, sim, args.step, &tick)?;
+        for (i, (host, report)) in fw.domains.iter().zip(reports).enumerate() {
             timeouts += u64::from(report.timed_out > 0);
-            host.record_timing(args.step, tick.late, tick.overrun);
             if let Some(rec) = recorders.get_mut(i) {
                 let conns = host.connection_count();
                 rec.row(report.step, sim, run_start.elapsed().as_secs_f64(), conns, &publish[i], host.subscribe())?;

@@ -113,9 +113,92 @@ pub fn list_shm(prefix: &str) -> io::Result<Vec<String>> {
 
 /// Pins the calling thread to `cpu`.
 pub fn pin_to_cpu(cpu: usize) -> io::Result<()> {
+    if cpu >= rustix::thread::CpuSet::MAX_CPU {
+        return Err(io::Error::new(io::ErrorKind::InvalidInput, format!("CPU {cpu} is out of range")));
+    }
     let mut set = rustix::thread::CpuSet::new();
     set.set(cpu);
     rustix::thread::sched_setaffinity(None, &set).map_err(io::Error::from)
+}
+
+/// The CPUs the calling thread may run on.
+pub fn allowed_cpus() -> io::Result<Vec<usize>> {
+    let set = rustix::thread::sched_getaffinity(None)?;
+    Ok((0..rustix::thread::CpuSet::MAX_CPU).filter(|&c| set.is_set(c)).collect())
+}
+
+/// The priority range of `SCHED_FIFO` (1..=99 on Linux).
+pub fn fifo_priority_range() -> (i32, i32) {
+    // SAFETY: both calls take a policy number and touch no memory.
+    let (lo, hi) =
+        unsafe { (libc::sched_get_priority_min(libc::SCHED_FIFO), libc::sched_get_priority_max(libc::SCHED_FIFO)) };
+    if lo < 0 || hi < 0 {
+        (1, 99)
+    } else {
+        (lo, hi)
+    }
+}
+
+/// Puts the calling thread under `SCHED_FIFO` at `priority`. Fails with `PermissionDenied`
+/// without `CAP_SYS_NICE` (or an `RLIMIT_RTPRIO` that allows the priority), and inside most
+/// containers.
+///
+/// rustix 1.x has no wrapper for `sched_setscheduler`, so this one call goes through the
+/// `libc` crate.
+pub fn set_fifo_priority(priority: i32) -> io::Result<()> {
+    let param = libc::sched_param { sched_priority: priority };
+    // SAFETY: `param` is a valid, initialised sched_param that outlives the call; pid 0 is
+    // the calling thread.
+    let rc = unsafe { libc::sched_setscheduler(0, libc::SCHED_FIFO, &param) };
+    if rc == 0 {
+        Ok(())
+    } else {
+        Err(io::Error::last_os_error())
+    }
+}
+
+/// Puts the calling thread back under normal (`SCHED_OTHER`) scheduling.
+pub fn set_normal_scheduling() -> io::Result<()> {
+    let param = libc::sched_param { sched_priority: 0 };
+    // SAFETY: as in `set_fifo_priority`.
+    let rc = unsafe { libc::sched_setscheduler(0, libc::SCHED_OTHER, &param) };
+    if rc == 0 {
+        Ok(())
+    } else {
+        Err(io::Error::last_os_error())
+    }
+}
+
+/// The calling thread's scheduling policy is `SCHED_FIFO`.
+pub fn is_fifo() -> bool {
+    // SAFETY: pid 0 is the calling thread; the call touches no memory.
+    unsafe { libc::sched_getscheduler(0) == libc::SCHED_FIFO }
+}
+
+/// Locks every current and future page of the process in RAM (no page faults in the loop).
+/// Fails without `CAP_IPC_LOCK` when `RLIMIT_MEMLOCK` is smaller than the process.
+pub fn lock_memory() -> io::Result<()> {
+    rustix::mm::mlockall(rustix::mm::MlockAllFlags::CURRENT | rustix::mm::MlockAllFlags::FUTURE)
+        .map_err(io::Error::from)
+}
+
+/// Undoes [`lock_memory`].
+pub fn unlock_memory() -> io::Result<()> {
+    rustix::mm::munlockall().map_err(io::Error::from)
+}
+
+/// Sends signal `sig` (a `libc::SIG*` number) to process `pid`. Used by the demo to steer
+/// its child processes.
+pub fn send_signal(pid: u32, sig: i32) -> io::Result<()> {
+    let pid = rustix::process::Pid::from_raw(pid as i32)
+        .ok_or_else(|| io::Error::new(io::ErrorKind::InvalidInput, "pid 0"))?;
+    if !(1..=64).contains(&sig) {
+        return Err(io::Error::new(io::ErrorKind::InvalidInput, format!("no signal {sig}")));
+    }
+    // SAFETY: `Signal::from_raw_unchecked` requires a non-zero signal number (checked above);
+    // kill(2) rejects one the kernel does not know with EINVAL.
+    let sig = unsafe { rustix::process::Signal::from_raw_unchecked(sig) };
+    rustix::process::kill_process(pid, sig).map_err(io::Error::from)
 }
 
 #[cfg(test)]
@@ -129,5 +212,15 @@ mod tests {
         assert!(is_alive(me));
         assert!(!is_alive(ProcessId { pid: me.pid, start_time: me.start_time + 1 }));
         assert!(!is_alive(ProcessId { pid: 0, start_time: 0 }));
+    }
+
+    #[test]
+    fn fifo_range_and_affinity_are_sane() {
+        let (lo, hi) = fifo_priority_range();
+        assert!(lo >= 1 && hi >= lo);
+        let cpus = allowed_cpus().unwrap();
+        assert!(!cpus.is_empty());
+        assert!(pin_to_cpu(usize::MAX).is_err());
+        assert!(send_signal(std::process::id(), 0).is_err());
     }
 }
