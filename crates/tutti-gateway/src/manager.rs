@@ -20,7 +20,7 @@ use tutti_core::shm::{Framework, FrameworkOptions, Participant, ShmError};
 use crate::cdr::{PreEncoded, SetCodec, SetSeed, TypedSample};
 use crate::discovery::Remote;
 use crate::node::{short, Dds};
-use crate::routes::from_dds::{self, RemoteWriter};
+use crate::routes::from_dds::{self, Direct, RemoteWriter};
 use crate::routes::per_item::{self, ItemWriters};
 use crate::routes::to_dds::{self, Activation, Outbound, SetWriter, Watched};
 use crate::routes::{mirror, Event, Payload, ShmConfig};
@@ -30,8 +30,9 @@ use crate::{GatewayError, GatewayOptions, TypeMode};
 /// A route as the manager sees it.
 #[derive(Debug)]
 enum Route {
-    /// DDS -> shared memory (or -> the mirror's framework).
-    In { domain: usize, topic: String },
+    /// DDS -> shared memory (or -> the mirror's framework); `direct`: the writers whose
+    /// samples the reader task commits itself (asynchronous domains).
+    In { domain: usize, topic: String, direct: Direct },
     /// Shared memory -> DDS; `counts_readers`: its remote readers get connections.
     Out { domain: usize, topics: Vec<String>, activation: Arc<Activation>, counts_readers: bool },
 }
@@ -39,6 +40,7 @@ enum Route {
 #[derive(Debug)]
 struct DomainState {
     name: String,
+    synchronous: bool,
     own_commits: Arc<AtomicU64>,
     /// Connections standing for the remote readers of the PUBLISH set (None: connecting).
     readers: HashMap<Gid, Option<Participant>>,
@@ -146,6 +148,7 @@ impl Manager {
             let own_commits = Arc::new(AtomicU64::new(0));
             let mut state = DomainState {
                 name: d.name.clone(),
+                synchronous: d.flags.synchronous,
                 own_commits: own_commits.clone(),
                 readers: HashMap::new(),
                 mirror: None,
@@ -192,6 +195,7 @@ impl Manager {
                     // SUBSCRIBE: DDS -> shared memory, and shared-memory writers -> DDS.
                     let codec = Arc::new(SetCodec::new(&d.subscribe.layout));
                     let sub = dds.subscription::<TypedSample>(&subn.topic, &subn.dds_type, &rq)?;
+                    let direct = Direct::default();
                     rt.spawn(from_dds::forward_typed(
                         sub,
                         SetSeed(codec),
@@ -199,8 +203,9 @@ impl Manager {
                         tx.clone(),
                         stats.clone(),
                         dds.own_prefix,
+                        direct.clone(),
                     ));
-                    routes.push(Route::In { domain: di, topic: subn.topic.clone() });
+                    routes.push(Route::In { domain: di, topic: subn.topic.clone(), direct });
                     let out = Outbound::Set(Box::new(set_writer(
                         &mut dds,
                         d,
@@ -227,6 +232,7 @@ impl Manager {
                     );
                     let codec = Arc::new(SetCodec::new(&d.publish.layout));
                     let sub = dds.subscription::<TypedSample>(&pubn.topic, &pubn.dds_type, &rq)?;
+                    let direct = Direct::default();
                     rt.spawn(from_dds::forward_typed(
                         sub,
                         SetSeed(codec),
@@ -234,8 +240,9 @@ impl Manager {
                         tx.clone(),
                         stats.clone(),
                         dds.own_prefix,
+                        direct.clone(),
                     ));
-                    routes.push(Route::In { domain: di, topic: pubn.topic.clone() });
+                    routes.push(Route::In { domain: di, topic: pubn.topic.clone(), direct });
                     let out = Outbound::Set(Box::new(set_writer(
                         &mut dds,
                         d,
@@ -268,8 +275,10 @@ impl Manager {
                     });
                     for t in &sub_topics {
                         let Some(leaf) = d.subscribe.layout.leaf(&t.path) else { continue };
-                        per_item::spawn_reader(&mut dds, t, leaf, &rq, routes.len(), tx.clone(), stats.clone(), rt)?;
-                        routes.push(Route::In { domain: di, topic: t.topic.clone() });
+                        let direct = Direct::default();
+                        let to = (routes.len(), tx.clone(), direct.clone());
+                        per_item::spawn_reader(&mut dds, t, leaf, &rq, to, stats.clone(), rt)?;
+                        routes.push(Route::In { domain: di, topic: t.topic.clone(), direct });
                     }
                     let out =
                         Outbound::Items(ItemWriters::create(&mut dds, &sub_topics, &d.subscribe.layout.leaves, &wq)?);
@@ -348,8 +357,8 @@ impl Manager {
     fn on_event(&mut self, ev: Event) {
         match ev {
             Event::Sample(inb) => {
-                let Some(Route::In { domain, .. }) = self.routes.get(inb.route) else { return };
-                let domain = *domain;
+                let Some(Route::In { domain, direct, .. }) = self.routes.get(inb.route) else { return };
+                let (domain, direct) = (*domain, direct.clone());
                 let state = &self.domains[domain];
                 if let Some(mtx) = &state.mirror {
                     if let Payload::Set(s) = inb.payload {
@@ -362,7 +371,12 @@ impl Manager {
                 for _ in 0..2 {
                     if !self.writers.contains_key(&key) {
                         match self.spawn_writer(domain, inb.writer) {
-                            Some(w) => self.writers.insert(key, w),
+                            Some(w) => {
+                                if w.writer.is_inline() {
+                                    direct.insert(inb.writer, w.writer.clone());
+                                }
+                                self.writers.insert(key, w)
+                            }
                             None => return,
                         };
                     }
@@ -371,6 +385,7 @@ impl Manager {
                         return;
                     }
                     self.writers.remove(&key);
+                    direct.remove(&inb.writer);
                     payload = Some(p);
                 }
             }
@@ -389,7 +404,14 @@ impl Manager {
 
     fn spawn_writer(&self, domain: usize, gid: Gid) -> Option<WriterEntry> {
         let d = &self.domains[domain];
-        match RemoteWriter::spawn(d.name.clone(), gid, self.cfg.clone(), self.stats.clone(), d.own_commits.clone()) {
+        match RemoteWriter::spawn(
+            d.name.clone(),
+            gid,
+            d.synchronous,
+            self.cfg.clone(),
+            self.stats.clone(),
+            d.own_commits.clone(),
+        ) {
             Ok(writer) => {
                 info!(domain = %d.name, "DDS writer {} joined", short(&gid));
                 Some(WriterEntry { writer, created: Instant::now() })
@@ -428,7 +450,7 @@ impl Manager {
                         wanted_readers[*domain].extend(readers);
                     }
                 }
-                Route::In { domain, topic } => {
+                Route::In { domain, topic, .. } => {
                     if self.domains[*domain].mirror.is_none() {
                         matched_writers.extend(remote.writers_on(std::slice::from_ref(topic)).map(|g| (ri, g)));
                     }
@@ -438,17 +460,26 @@ impl Manager {
         // Remote writers: a connection each, from the moment they match.
         for &(ri, gid) in &matched_writers {
             if !self.writers.contains_key(&(ri, gid)) {
-                let Some(Route::In { domain, .. }) = self.routes.get(ri) else { continue };
+                let Some(Route::In { domain, direct, .. }) = self.routes.get(ri) else { continue };
                 if let Some(w) = self.spawn_writer(*domain, gid) {
+                    if w.writer.is_inline() {
+                        direct.insert(gid, w.writer.clone());
+                    }
                     self.writers.insert((ri, gid), w);
                 }
             }
         }
         let grace = Duration::from_secs(2);
+        let routes = &self.routes;
         self.writers.retain(|key, w| {
             let keep = matched_writers.contains(key) || w.created.elapsed() < grace;
-            if !keep {
+            if keep {
+                w.writer.tick();
+            } else {
                 info!("DDS writer {} left: its connection is released", short(&key.1));
+                if let Some(Route::In { direct, .. }) = routes.get(key.0) {
+                    direct.remove(&key.1);
+                }
             }
             keep
         });
@@ -476,6 +507,11 @@ impl Manager {
     fn stop(&mut self) {
         self.cfg.stop.store(true, Ordering::Release);
         self.writers.clear();
+        for r in &self.routes {
+            if let Route::In { direct, .. } = r {
+                direct.clear();
+            }
+        }
         for d in &mut self.domains {
             d.readers.clear();
             d.mirror = None;

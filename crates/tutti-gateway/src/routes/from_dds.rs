@@ -1,18 +1,23 @@
 //! DDS -> shared memory.
 //!
-//! A reader task per topic decodes samples and drops the gateway's own; the manager hands
-//! each sample to the [`RemoteWriter`] of the DDS writer that sent it. A remote writer is a
-//! shared-memory connection (marked remote) with its own thread: it commits the samples of
-//! its DDS writer, so the core's rules apply unchanged — the first writer to publish owns
-//! an exclusive set until its connection goes, a synchronous domain waits for its commit of
-//! each step (`publish_lock` waits for the step the sample answers), and its first commit
-//! seeds a `states=yes` domain.
+//! A reader task per topic decodes samples and drops the gateway's own. Each DDS writer that
+//! sends to the framework is a [`RemoteWriter`]: a shared-memory connection (marked remote)
+//! that commits its samples, so the core's rules apply unchanged — the first writer to
+//! publish owns an exclusive set until its connection goes, a synchronous domain waits for
+//! its commit of each step (`publish_lock` waits for the step the sample answers), and its
+//! first commit seeds a `states=yes` domain.
+//!
+//! In an asynchronous domain a commit never waits, so the reader task commits the sample
+//! itself, the moment it is decoded ([`Direct`]): no hand-off to another thread, which on
+//! these machines costs tens of µs per sample. In a synchronous domain a commit waits for
+//! the step, so the connection has its own thread and the manager hands it the samples.
 
+use std::collections::HashMap;
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::mpsc::{self, Receiver, RecvTimeoutError, Sender};
-use std::sync::Arc;
+use std::sync::{Arc, Mutex, PoisonError};
 use std::thread;
-use std::time::Duration;
+use std::time::{Duration, Instant};
 
 use futures::StreamExt;
 use ros2_client::dds::Subscription;
@@ -26,6 +31,40 @@ use crate::cdr::{SetSeed, TypedSample};
 use crate::node::{prefix, short, PREFIX_LEN};
 use crate::stats::{LogLimit, Stats};
 
+/// The remote writers of one route whose samples the reader task commits itself
+/// (asynchronous domains); the manager adds and removes them as discovery changes.
+#[derive(Debug, Clone, Default)]
+pub struct Direct(Arc<Mutex<HashMap<Gid, RemoteWriter>>>);
+
+impl Direct {
+    pub fn insert(&self, gid: Gid, w: RemoteWriter) {
+        self.0.lock().unwrap_or_else(PoisonError::into_inner).insert(gid, w);
+    }
+
+    pub fn remove(&self, gid: &Gid) {
+        self.0.lock().unwrap_or_else(PoisonError::into_inner).remove(gid);
+    }
+
+    pub fn clear(&self) {
+        self.0.lock().unwrap_or_else(PoisonError::into_inner).clear();
+    }
+
+    fn get(&self, gid: &Gid) -> Option<RemoteWriter> {
+        self.0.lock().unwrap_or_else(PoisonError::into_inner).get(gid).cloned()
+    }
+
+    /// Commits `payload` of `writer` here if the writer is known; else hands it back.
+    pub fn commit(&self, writer: &Gid, payload: Payload) -> Option<Payload> {
+        match self.get(writer) {
+            Some(w) => {
+                w.send(payload);
+                None
+            }
+            None => Some(payload),
+        }
+    }
+}
+
 /// Forwards the samples of a typed subscription as route `route`.
 pub async fn forward_typed(
     sub: Subscription<TypedSample>,
@@ -34,6 +73,7 @@ pub async fn forward_typed(
     tx: UnboundedSender<Event>,
     stats: Arc<Stats>,
     own: [u8; PREFIX_LEN],
+    direct: Direct,
 ) {
     let stream = sub.async_stream_seed(seed);
     futures::pin_mut!(stream);
@@ -45,7 +85,8 @@ pub async fn forward_typed(
                     Stats::add(&stats.own_samples, 1);
                     continue;
                 }
-                Event::Sample(Inbound { route, writer, payload: Payload::Set(sample) })
+                let Some(payload) = direct.commit(&writer, Payload::Set(sample)) else { continue };
+                Event::Sample(Inbound { route, writer, payload })
             }
             Err(e) => Event::Bad { route, error: format!("{e:?}") },
         };
@@ -56,32 +97,137 @@ pub async fn forward_typed(
 }
 
 /// The shared-memory connection of one remote DDS writer.
-#[derive(Debug)]
+#[derive(Debug, Clone)]
 pub struct RemoteWriter {
-    tx: Sender<Payload>,
+    kind: Kind,
+}
+
+#[derive(Debug, Clone)]
+enum Kind {
+    /// Synchronous domain: a thread that commits (and waits for the steps).
+    Thread(Sender<Payload>),
+    /// Asynchronous domain: committed by the caller.
+    Inline(Arc<Mutex<Inline>>),
+}
+
+#[derive(Debug)]
+struct Inline {
+    domain: String,
+    name: String,
+    cfg: ShmConfig,
+    stats: Arc<Stats>,
+    own_commits: Arc<AtomicU64>,
+    p: Option<Participant>,
+    next_try: Instant,
+    refused_log: LogLimit,
+    error_log: LogLimit,
+}
+
+impl Inline {
+    /// Connects if not connected; never waits (a domain that is not there is retried at
+    /// most every 500 ms).
+    fn connect(&mut self) -> bool {
+        if self.p.is_none() && Instant::now() >= self.next_try {
+            let opts = self.cfg.connect_options(self.name.clone(), Duration::ZERO);
+            self.p = Participant::connect(&self.domain, opts).ok();
+            if self.p.is_none() {
+                self.next_try = Instant::now() + Duration::from_millis(500);
+            }
+        }
+        self.p.is_some()
+    }
+
+    fn send(&mut self, payload: Payload) {
+        if !self.connect() {
+            Stats::add(&self.stats.errors, 1);
+            if self.error_log.allow().is_some() {
+                warn!(domain = %self.domain, "{}: sample dropped: the domain is not running", self.name);
+            }
+            return;
+        }
+        let Some(part) = self.p.as_mut() else { return };
+        match commit(part, payload, &self.own_commits) {
+            Ok(Committed::Yes) => Stats::add(&self.stats.from_dds, 1),
+            Ok(Committed::Late) => Stats::add(&self.stats.late, 1),
+            Err(e @ ShmError::NotOwner { .. }) => {
+                Stats::add(&self.stats.refused, 1);
+                if let Some(held) = self.refused_log.allow() {
+                    warn!(domain = %self.domain, "{}: sample refused ({held} more since the last report): {e}", self.name);
+                }
+            }
+            Err(e @ (ShmError::ConnectionLost { .. } | ShmError::FrameworkStopped { .. })) => {
+                Stats::add(&self.stats.errors, 1);
+                info!(domain = %self.domain, "{}: {e}; reconnecting", self.name);
+                self.p = None;
+            }
+            Err(e) => {
+                Stats::add(&self.stats.errors, 1);
+                if let Some(held) = self.error_log.allow() {
+                    debug!(domain = %self.domain, "{}: sample dropped ({held} more): {e}", self.name);
+                }
+            }
+        }
+    }
 }
 
 impl RemoteWriter {
-    /// Connects (in its own thread) to `domain` on behalf of DDS writer `writer`.
+    /// Connects to `domain` on behalf of DDS writer `writer`: in its own thread when the
+    /// domain is `synchronous`, else right here (without waiting; retried on the next sample
+    /// or [`RemoteWriter::tick`] if the domain is not there).
     pub fn spawn(
         domain: String,
         writer: Gid,
+        synchronous: bool,
         cfg: ShmConfig,
         stats: Arc<Stats>,
         own_commits: Arc<AtomicU64>,
     ) -> std::io::Result<Self> {
-        let (tx, rx) = mpsc::channel();
         let name = format!("dds-writer {}", short(&writer));
+        if !synchronous {
+            let mut inline = Inline {
+                domain,
+                name,
+                cfg,
+                stats,
+                own_commits,
+                p: None,
+                next_try: Instant::now(),
+                refused_log: LogLimit::new(Duration::from_secs(5)),
+                error_log: LogLimit::new(Duration::from_secs(5)),
+            };
+            inline.connect();
+            return Ok(RemoteWriter { kind: Kind::Inline(Arc::new(Mutex::new(inline))) });
+        }
+        let (tx, rx) = mpsc::channel();
         thread::Builder::new()
             .name("tutti-gw-writer".into())
             .stack_size(256 << 10)
             .spawn(move || run(domain, name, rx, cfg, stats, own_commits))?;
-        Ok(RemoteWriter { tx })
+        Ok(RemoteWriter { kind: Kind::Thread(tx) })
     }
 
-    /// Hands a sample to the connection; false when its thread has gone.
+    /// Whether the reader task commits this writer's samples itself.
+    pub fn is_inline(&self) -> bool {
+        matches!(self.kind, Kind::Inline(_))
+    }
+
+    /// Commits a sample (inline) or hands it to the connection's thread; false when that
+    /// thread has gone.
     pub fn send(&self, p: Payload) -> bool {
-        self.tx.send(p).is_ok()
+        match &self.kind {
+            Kind::Thread(tx) => tx.send(p).is_ok(),
+            Kind::Inline(i) => {
+                i.lock().unwrap_or_else(PoisonError::into_inner).send(p);
+                true
+            }
+        }
+    }
+
+    /// Retries a connection that failed (inline writers; a thread retries by itself).
+    pub fn tick(&self) {
+        if let Kind::Inline(i) = &self.kind {
+            i.lock().unwrap_or_else(PoisonError::into_inner).connect();
+        }
     }
 }
 

@@ -12,6 +12,7 @@ use tokio::sync::mpsc::UnboundedSender;
 use tutti_core::ddf::{Leaf, ScalarType, Value};
 use tutti_core::mapping::{self, ItemTopic, Qos};
 
+use super::from_dds::Direct;
 use super::{Event, Inbound, Payload};
 use crate::cdr::{Bool, Float64, Float64MultiArray};
 use crate::node::{prefix, Dds, PREFIX_LEN};
@@ -151,16 +152,17 @@ impl IntoLeaf for Float64MultiArray {
     }
 }
 
+/// Where a reader task's samples go: its route, the manager, the writers it commits itself.
+pub type Destination = (usize, UnboundedSender<Event>, Direct);
+
 /// Creates the reader of one item topic and the task that forwards its samples as route
-/// `route`.
-#[allow(clippy::too_many_arguments)]
+/// `to.0`.
 pub fn spawn_reader(
     dds: &mut Dds,
     topic: &ItemTopic,
     leaf: &Leaf,
     q: &Qos,
-    route: usize,
-    tx: UnboundedSender<Event>,
+    to: Destination,
     stats: Arc<Stats>,
     rt: &tokio::runtime::Handle,
 ) -> Result<(), GatewayError> {
@@ -168,30 +170,25 @@ pub fn spawn_reader(
     match Stock::of(leaf) {
         Stock::Float64 => {
             let s: Subscription<Float64> = dds.subscription(&topic.topic, &topic.dds_type, q)?;
-            rt.spawn(forward(s, leaf.clone(), route, tx, stats, own));
+            rt.spawn(forward(s, leaf.clone(), to, stats, own));
         }
         Stock::Bool => {
             let s: Subscription<Bool> = dds.subscription(&topic.topic, &topic.dds_type, q)?;
-            rt.spawn(forward(s, leaf.clone(), route, tx, stats, own));
+            rt.spawn(forward(s, leaf.clone(), to, stats, own));
         }
         Stock::Array => {
             let s: Subscription<Float64MultiArray> = dds.subscription(&topic.topic, &topic.dds_type, q)?;
-            rt.spawn(forward(s, leaf.clone(), route, tx, stats, own));
+            rt.spawn(forward(s, leaf.clone(), to, stats, own));
         }
     }
     Ok(())
 }
 
-async fn forward<M>(
-    sub: Subscription<M>,
-    leaf: Leaf,
-    route: usize,
-    tx: UnboundedSender<Event>,
-    stats: Arc<Stats>,
-    own: [u8; PREFIX_LEN],
-) where
+async fn forward<M>(sub: Subscription<M>, leaf: Leaf, to: Destination, stats: Arc<Stats>, own: [u8; PREFIX_LEN])
+where
     M: DeserializeOwned + IntoLeaf + 'static,
 {
+    let (route, tx, direct) = to;
     let path: Arc<str> = Arc::from(leaf.path.as_str());
     let stream = sub.async_stream();
     futures::pin_mut!(stream);
@@ -205,7 +202,9 @@ async fn forward<M>(
                 }
                 match m.into_leaf(&leaf) {
                     Ok(bytes) => {
-                        Event::Sample(Inbound { route, writer, payload: Payload::Item { path: path.clone(), bytes } })
+                        let payload = Payload::Item { path: path.clone(), bytes };
+                        let Some(payload) = direct.commit(&writer, payload) else { continue };
+                        Event::Sample(Inbound { route, writer, payload })
                     }
                     Err(error) => Event::Bad { route, error },
                 }
