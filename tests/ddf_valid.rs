@@ -67,7 +67,7 @@ fn committed_samples_pass_check() {
     let (code, out, _) = tutti(&["check", "ddf/paper-figure2.ddf", "ddf/multiuav.ddf"]);
     assert_eq!(code, 0);
     assert_eq!(out.lines().count(), 2);
-    assert!(out.contains("ddf/multiuav.ddf: ok (4 domains, 44 items)"), "{out}");
+    assert!(out.contains("ddf/multiuav.ddf: ok (4 domains, 52 items)"), "{out}");
 }
 
 fn leaf<'a>(set: &'a Value, path: &str) -> &'a Value {
@@ -196,7 +196,9 @@ fn paper_figure2_and_multiuav_have_the_expected_shape() {
     assert_eq!(multi.domains.len(), 4);
     // Item keys: PUBLISH leaves first, then SUBSCRIBE.
     let uav = &multi.domains[0];
-    assert_eq!(uav.item_key(tutti_core::ddf::Role::Subscribe, "Latitude"), Some(5));
+    assert_eq!(uav.item_key(tutti_core::ddf::Role::Publish, "Altitude"), Some(5));
+    assert_eq!(uav.item_key(tutti_core::ddf::Role::Subscribe, "Latitude"), Some(7));
+    assert_eq!(uav.publish.layout.size, 56);
 }
 
 #[test]

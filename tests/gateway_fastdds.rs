@@ -42,9 +42,9 @@ fn build_subscriber() -> Option<PathBuf> {
 fn a_fast_dds_subscriber_receives_typed_samples() {
     let Some(bin) = build_subscriber() else { return };
     let (dom, ns) = (111, "gwtest111");
-    // multiuav_uav1 PUBLISH: autopilot, x, y, z, airspeed.
+    // multiuav_uav1 PUBLISH: autopilot, x, y, z, airspeed, altitude, time.
     let _host = Host::start_with("ddf/multiuav.ddf", ns, "multiuav_uav1", Duration::from_millis(10), |k| {
-        [1.0, 12.5, 0.0, 0.0, k as f64].iter().flat_map(|v: &f64| v.to_ne_bytes()).collect()
+        [1.0, 12.5, 0.0, 0.0, k as f64, 300.0, k as f64 * 0.01].iter().flat_map(|v: &f64| v.to_ne_bytes()).collect()
     });
     let gw = gateway("ddf/multiuav.ddf", dom, ns, &[]);
     let mut cmd = Command::new(&bin);

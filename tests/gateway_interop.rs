@@ -361,7 +361,7 @@ fn a_dds_writer_takes_part_in_lock_step_through_the_gateway() {
 fn the_cyclone_uav_listener_prints_the_states_a_uav_model_commits() {
     let Some(py) = python() else { return };
     let (dom, ns) = (112, "gwtest112");
-    let host = Host::start_with("ddf/multiuav.ddf", ns, "multiuav_uav1", Duration::from_millis(10), |_| vec![0; 40]);
+    let host = Host::start_with("ddf/multiuav.ddf", ns, "multiuav_uav1", Duration::from_millis(10), |_| vec![0; 56]);
     let gw = gateway("ddf/multiuav.ddf", dom, ns, &[]);
     // The UAV model: in lock-step, answers every step with its state.
     let stop = Arc::new(AtomicBool::new(false));
