@@ -7,6 +7,7 @@ use clap::{Parser, Subcommand};
 
 mod bench;
 mod check;
+mod demo;
 mod gateway;
 mod host;
 mod idl;
@@ -39,6 +40,7 @@ enum Command {
     Status(status::Args),
     Bench(bench::Args),
     Gateway(gateway::Args),
+    Demo(demo::Args),
 }
 
 /// A failure with the exit status it maps to.
@@ -71,6 +73,7 @@ pub fn run(cli: Cli) -> ExitCode {
         Command::Status(a) => status::run(a),
         Command::Bench(a) => bench::run(a),
         Command::Gateway(a) => gateway::run(a),
+        Command::Demo(a) => demo::run(a),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

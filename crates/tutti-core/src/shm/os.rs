@@ -182,6 +182,13 @@ pub fn lock_memory() -> io::Result<()> {
         .map_err(io::Error::from)
 }
 
+/// Asks the kernel to send SIGTERM to the calling process when its parent dies, so that a
+/// helper process never outlives a launcher that was killed. Async-signal-safe: may be
+/// called between fork and exec.
+pub fn die_with_parent() -> io::Result<()> {
+    rustix::process::set_parent_process_death_signal(Some(rustix::process::Signal::TERM)).map_err(io::Error::from)
+}
+
 /// Undoes [`lock_memory`].
 pub fn unlock_memory() -> io::Result<()> {
     rustix::mm::munlockall().map_err(io::Error::from)

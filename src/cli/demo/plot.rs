@@ -1,0 +1,280 @@
+//! The two pictures of the demo, after Figures 5 and 6 of the paper, drawn with plotters
+//! (bitmap backend, PNG). Text is rendered with ab_glyph from a TrueType font loaded at run
+//! time (DejaVu Sans from Debian's fonts-dejavu-core, or the file in `TUTTI_FONT`), so no
+//! fontconfig development package is needed to build.
+
+use std::path::{Path, PathBuf};
+use std::sync::OnceLock;
+
+use anyhow::Context;
+use plotters::prelude::*;
+use plotters::style::FontStyle;
+
+use super::analysis::{observed_windows, RunData};
+use super::scenario::{Scenario, UAVS};
+
+/// Where the font is looked for, in order (after `TUTTI_FONT`).
+pub const FONT_CANDIDATES: &[&str] = &[
+    "/usr/share/fonts/truetype/dejavu/DejaVuSans.ttf",
+    "/usr/share/fonts/TTF/DejaVuSans.ttf",
+    "/usr/share/fonts/dejavu/DejaVuSans.ttf",
+    "/usr/share/fonts/truetype/liberation/LiberationSans-Regular.ttf",
+];
+
+static FONT: OnceLock<Result<PathBuf, String>> = OnceLock::new();
+
+/// Registers the sans-serif font once; an error names what to install.
+fn font() -> anyhow::Result<()> {
+    let r = FONT.get_or_init(|| {
+        let mut candidates: Vec<PathBuf> = std::env::var_os("TUTTI_FONT").map(PathBuf::from).into_iter().collect();
+        candidates.extend(FONT_CANDIDATES.iter().map(PathBuf::from));
+        for path in candidates {
+            let Ok(bytes) = std::fs::read(&path) else { continue };
+            let bytes: &'static [u8] = Box::leak(bytes.into_boxed_slice());
+            if plotters::style::register_font("sans-serif", FontStyle::Normal, bytes).is_ok() {
+                let _ = plotters::style::register_font("sans-serif", FontStyle::Bold, bytes);
+                return Ok(path);
+            }
+        }
+        Err("no TrueType font found: install Debian's fonts-dejavu-core, or set TUTTI_FONT to a .ttf file".into())
+    });
+    r.as_ref().map(|_| ()).map_err(|e| anyhow::anyhow!("{e}"))
+}
+
+/// A darker shade of `c`, for the dots drawn over its solid line.
+fn darker(c: RGBColor) -> RGBColor {
+    RGBColor(c.0 / 2, c.1 / 2, c.2 / 2)
+}
+
+/// One colour per UAV (colour-blind-safe palette).
+const UAV_COLORS: [RGBColor; UAVS] =
+    [RGBColor(0, 114, 178), RGBColor(213, 94, 0), RGBColor(0, 158, 115), RGBColor(204, 121, 167)];
+
+fn pairs(xs: &[f64], ys: &[f64]) -> Vec<(f64, f64)> {
+    xs.iter().zip(ys).filter(|(x, y)| x.is_finite() && y.is_finite()).map(|(&x, &y)| (x, y)).collect()
+}
+
+fn y_range(series: &[&[(f64, f64)]]) -> (f64, f64) {
+    let ys = series.iter().flat_map(|s| s.iter().map(|p| p.1));
+    let (lo, hi) = ys.fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), y| (a.min(y), b.max(y)));
+    if !lo.is_finite() {
+        return (0.0, 1.0);
+    }
+    let pad = ((hi - lo) * 0.08).max(1.0);
+    (lo - pad, hi + pad)
+}
+
+/// A connect / disconnect as it happened: time, UAV, connected afterwards.
+fn observed_events(d: &RunData) -> Vec<(f64, usize, bool)> {
+    let mut out = Vec::new();
+    for (i, t) in d.uavs.iter().enumerate() {
+        for (a, b) in observed_windows(t) {
+            out.push((a, i + 1, false));
+            if b.is_finite() {
+                out.push((b, i + 1, true));
+            }
+        }
+    }
+    out.sort_by(|a, b| a.0.total_cmp(&b.0));
+    out
+}
+
+/// Figure 5: altitude of the four UAVs; dotted = computed by the models, solid = read by
+/// the framework; the monitoring script's disconnect / connect events marked.
+pub fn figure5(path: &Path, s: &Scenario, d: &RunData) -> anyhow::Result<()> {
+    font()?;
+    let root = BitMapBackend::new(path, (1400, 820)).into_drawing_area();
+    root.fill(&WHITE)?;
+    let t = d.framework.col("sim_time");
+    let solid: Vec<Vec<(f64, f64)>> =
+        (1..=UAVS).map(|i| pairs(&t, &d.framework.col(&format!("uav{i}_elevation")))).collect();
+    let dotted: Vec<Vec<(f64, f64)>> = d.uavs.iter().map(|u| pairs(&u.col("time"), &u.col("altitude"))).collect();
+    let all: Vec<&[(f64, f64)]> = solid.iter().chain(&dotted).map(|v| v.as_slice()).collect();
+    let (lo, hi) = y_range(&all);
+    // Room for the event labels above and the legend below.
+    let (lo, hi) = (lo - (hi - lo) * 0.22, hi + (hi - lo) * 0.10);
+    let mut chart = ChartBuilder::on(&root)
+        .caption(
+            "Figure 5. Altitude of the UAVs: computed by the UAV models (dotted) and read by the framework (solid)",
+            ("sans-serif", 26),
+        )
+        .margin(20)
+        .x_label_area_size(55)
+        .y_label_area_size(80)
+        .build_cartesian_2d(0.0..s.duration, lo..hi)?;
+    chart
+        .configure_mesh()
+        .x_desc("simulated time (s)")
+        .y_desc("altitude above mean sea level (m)")
+        .axis_desc_style(("sans-serif", 22))
+        .label_style(("sans-serif", 18))
+        .y_label_formatter(&|v| format!("{v:.0}"))
+        .light_line_style(RGBColor(235, 235, 235))
+        .draw()?;
+    for (k, (t, uav, on)) in observed_events(d).into_iter().enumerate() {
+        let color = if on { RGBColor(40, 140, 40) } else { RGBColor(200, 40, 40) };
+        chart.draw_series(DashedLineSeries::new(vec![(t, lo), (t, hi)], 8, 6, color.stroke_width(1)))?;
+        let label = format!("UAV{uav} {}", if on { "connects" } else { "disconnects" });
+        let y = hi - (hi - lo) * (0.03 + 0.045 * (k % 2) as f64);
+        chart.draw_series(std::iter::once(Text::new(
+            label,
+            (t + 0.4, y),
+            ("sans-serif", 17).into_font().color(&color),
+        )))?;
+    }
+    for i in 0..UAVS {
+        let c = UAV_COLORS[i];
+        let dark = darker(c);
+        chart
+            .draw_series(LineSeries::new(solid[i].iter().copied(), c.stroke_width(3)))?
+            .label(format!("UAV{}", i + 1))
+            .legend(move |(x, y)| {
+                EmptyElement::at((x, y))
+                    + PathElement::new(vec![(0, 0), (30, 0)], c.stroke_width(3))
+                    + Circle::new((6, 0), 2, dark.filled())
+                    + Circle::new((15, 0), 2, dark.filled())
+                    + Circle::new((24, 0), 2, dark.filled())
+            });
+        chart.draw_series(DottedLineSeries::new(dotted[i].iter().copied(), 0, 7, move |p| {
+            Circle::new(p, 2, dark.filled())
+        }))?;
+    }
+    // The two line styles, explained once.
+    chart
+        .draw_series(std::iter::empty::<PathElement<(f64, f64)>>())?
+        .label("solid: read by the framework")
+        .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 30, y)], BLACK.stroke_width(3)));
+    chart
+        .draw_series(std::iter::empty::<PathElement<(f64, f64)>>())?
+        .label("dotted: computed by the UAV model")
+        .legend(|(x, y)| {
+            EmptyElement::at((x, y))
+                + Circle::new((6, 0), 2, BLACK.filled())
+                + Circle::new((15, 0), 2, BLACK.filled())
+                + Circle::new((24, 0), 2, BLACK.filled())
+        });
+    chart
+        .configure_series_labels()
+        .position(SeriesLabelPosition::LowerRight)
+        .background_style(WHITE.mix(0.9))
+        .border_style(BLACK)
+        .label_font(("sans-serif", 17))
+        .draw()?;
+    root.present().with_context(|| format!("writing {}", path.display()))?;
+    Ok(())
+}
+
+/// Figure 6: UAV2's altitude as read by the framework and by the two C components, and the
+/// number of connected participants of each domain over time.
+pub fn figure6(path: &Path, s: &Scenario, d: &RunData) -> anyhow::Result<()> {
+    font()?;
+    let uav = s.c_domain_uav;
+    let root = BitMapBackend::new(path, (1400, 1000)).into_drawing_area();
+    root.fill(&WHITE)?;
+    let root =
+        root.titled(&format!("Figure 6. Heterogeneous participants of domain multiuav_uav{uav}"), ("sans-serif", 26))?;
+    let (top, bottom) = root.split_vertically(560);
+    let t = d.framework.col("sim_time");
+    let fw_read = pairs(&t, &d.framework.col(&format!("uav{uav}_elevation")));
+    let model = d.uavs.get(uav - 1).map(|u| pairs(&u.col("time"), &u.col("altitude"))).unwrap_or_default();
+    let readers: Vec<Vec<(f64, f64)>> = d.c_readers.iter().map(|r| pairs(&r.col("time"), &r.col("altitude"))).collect();
+    let mut all: Vec<&[(f64, f64)]> = vec![&fw_read, &model];
+    all.extend(readers.iter().map(|v| v.as_slice()));
+    let (lo, hi) = y_range(&all);
+    let mut chart = ChartBuilder::on(&top)
+        .margin(20)
+        .x_label_area_size(50)
+        .y_label_area_size(80)
+        .build_cartesian_2d(0.0..s.duration, lo..hi)?;
+    chart
+        .configure_mesh()
+        .x_desc("simulated time (s)")
+        .y_desc(format!("UAV{uav} altitude (m)"))
+        .axis_desc_style(("sans-serif", 22))
+        .label_style(("sans-serif", 18))
+        .y_label_formatter(&|v| format!("{v:.0}"))
+        .light_line_style(RGBColor(235, 235, 235))
+        .draw()?;
+    for (j, &t) in s.c_readers.iter().enumerate() {
+        let grey = RGBColor(90, 90, 90);
+        chart.draw_series(DashedLineSeries::new(vec![(t, lo), (t, hi)], 8, 6, grey.stroke_width(1)))?;
+        let y = hi - (hi - lo) * 0.06;
+        let label = format!("C component {} connects", j + 1);
+        chart.draw_series(std::iter::once(Text::new(
+            label,
+            (t + 0.4, y),
+            ("sans-serif", 17).into_font().color(&grey),
+        )))?;
+    }
+    let reader_styles = [(RGBColor(230, 159, 0), 12u32), (RGBColor(0, 158, 115), 6u32)];
+    for (j, r) in readers.iter().enumerate() {
+        let (c, w) = reader_styles[j % reader_styles.len()];
+        let start = s.c_readers.get(j).copied().unwrap_or(0.0);
+        chart
+            .draw_series(LineSeries::new(r.iter().copied(), c.mix(0.55).stroke_width(w)))?
+            .label(format!("read by C component {} (connects at {start:.0} s)", j + 1))
+            .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 30, y)], c.mix(0.55).stroke_width(w)));
+    }
+    let c = UAV_COLORS[uav - 1];
+    chart
+        .draw_series(LineSeries::new(fw_read.iter().copied(), c.stroke_width(2)))?
+        .label("read by the framework")
+        .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 30, y)], c.stroke_width(2)));
+    chart
+        .draw_series(DottedLineSeries::new(model.iter().copied(), 0, 7, |p| Circle::new(p, 2, BLACK.filled())))?
+        .label("computed by the UAV model")
+        .legend(|(x, y)| {
+            EmptyElement::at((x, y)) + Circle::new((6, 0), 2, BLACK.filled()) + Circle::new((18, 0), 2, BLACK.filled())
+        });
+    chart
+        .configure_series_labels()
+        .position(SeriesLabelPosition::UpperLeft)
+        .background_style(WHITE.mix(0.9))
+        .border_style(BLACK)
+        .label_font(("sans-serif", 17))
+        .draw()?;
+
+    // Connected participants per domain, as the monitoring script saw them.
+    let ct = d.connections.col("sim_time");
+    let counts: Vec<Vec<(f64, f64)>> = (1..=UAVS).map(|i| pairs(&ct, &d.connections.col(&format!("uav{i}")))).collect();
+    let max = counts.iter().flatten().map(|p| p.1).fold(0.0, f64::max).max(1.0);
+    let mut chart = ChartBuilder::on(&bottom)
+        .margin(20)
+        .x_label_area_size(55)
+        .y_label_area_size(80)
+        .build_cartesian_2d(0.0..s.duration, -0.2..max + 0.8)?;
+    chart
+        .configure_mesh()
+        .x_desc("simulated time (s)")
+        .y_desc("connected participants")
+        .axis_desc_style(("sans-serif", 22))
+        .label_style(("sans-serif", 18))
+        .y_labels((max as usize) + 2)
+        .y_label_formatter(&|v| format!("{v:.0}"))
+        .light_line_style(RGBColor(235, 235, 235))
+        .draw()?;
+    for (i, pts) in counts.iter().enumerate() {
+        let c = UAV_COLORS[i];
+        // Step lines, offset a little so that equal counts stay visible side by side.
+        let off = (i as f64 - 1.5) * 0.04;
+        let mut stairs = Vec::with_capacity(pts.len() * 2);
+        for w in pts.windows(2) {
+            stairs.push((w[0].0, w[0].1 + off));
+            stairs.push((w[1].0, w[0].1 + off));
+        }
+        let width = if i + 1 == uav { 4 } else { 2 };
+        chart
+            .draw_series(LineSeries::new(stairs, c.stroke_width(width)))?
+            .label(format!("multiuav_uav{}", i + 1))
+            .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 30, y)], c.stroke_width(width)));
+    }
+    chart
+        .configure_series_labels()
+        .position(SeriesLabelPosition::UpperLeft)
+        .background_style(WHITE.mix(0.9))
+        .border_style(BLACK)
+        .label_font(("sans-serif", 17))
+        .draw()?;
+    root.present().with_context(|| format!("writing {}", path.display()))?;
+    Ok(())
+}
