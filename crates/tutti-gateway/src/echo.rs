@@ -1,14 +1,16 @@
-//! A DDS echo peer for benchmarks: reads the typed PUBLISH samples of a domain and writes
-//! each back, unchanged, as a SUBSCRIBE sample (the two sets must have the same layout).
-//! It is a separate DDS participant, normally in another process.
+//! DDS peers for benchmarks, each a separate DDS participant (normally another process):
+//! the echo ([`run`]) reads the typed PUBLISH samples of a domain and writes each back,
+//! unchanged, as a SUBSCRIBE sample (the two sets must have the same layout); the sink
+//! ([`sink`]) counts the samples it receives on one of the two topics; the source
+//! ([`source`]) writes SUBSCRIBE samples as fast as it can.
 
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
-use std::time::Duration;
+use std::time::{Duration, Instant};
 
 use futures::StreamExt;
 use tutti_core::ddf::{Domain, Role};
-use tutti_core::mapping::{self, Endpoint};
+use tutti_core::mapping::{self, Endpoint, History, Reliability};
 
 use crate::cdr::{PreEncoded, SetCodec, SetSeed, TypedSample};
 use crate::node::{prefix, Dds};
@@ -59,4 +61,90 @@ pub fn run(opts: &GatewayOptions, domain: &Domain, stop: Arc<AtomicBool>) -> Res
     });
     drop(dds);
     Ok(echoed)
+}
+
+/// Counts the typed samples of `role`'s topic of `domain` that arrive in `window`, from
+/// the first one (gives up after `patience` without any); returns (samples, seconds).
+/// The reader keeps every sample (best effort, deep history), so what is counted is what
+/// reached this participant, not what a KEEP_LAST 1 reader happened to see.
+pub fn sink(
+    opts: &GatewayOptions,
+    domain: &Domain,
+    role: Role,
+    window: Duration,
+    patience: Duration,
+) -> Result<(u64, f64), GatewayError> {
+    let rt = tokio::runtime::Builder::new_current_thread().enable_all().build().map_err(GatewayError::Runtime)?;
+    let mut dds = Dds::open(opts)?;
+    let pkg = mapping::package_name(&opts.ddf_path);
+    let names = mapping::set_names(&pkg, &domain.name, role);
+    let mut rq = mapping::qos(domain.flags, opts.profile, Endpoint::Reader, 0);
+    rq.reliability = Reliability::BestEffort;
+    rq.history = History::KeepLast(1 << 16);
+    let codec = Arc::new(SetCodec::new(&domain.set(role).layout));
+    let sub = dds.subscription::<TypedSample>(&names.topic, &names.dds_type, &rq)?;
+    let own = dds.own_prefix;
+    let counted = rt.block_on(async {
+        let stream = sub.async_stream_seed(SetSeed(codec));
+        futures::pin_mut!(stream);
+        let mut first: Option<Instant> = None;
+        let mut n = 0u64;
+        let start = Instant::now();
+        loop {
+            let limit = match first {
+                Some(t) => (t + window).saturating_duration_since(Instant::now()),
+                None => (start + patience).saturating_duration_since(Instant::now()),
+            };
+            match tokio::time::timeout(limit, stream.next()).await {
+                Ok(Some(Ok((_, info)))) if prefix(&info.publisher_gid()) != own => {
+                    if first.is_none() {
+                        first = Some(Instant::now());
+                    } else {
+                        n += 1;
+                    }
+                }
+                Ok(Some(_)) => {}
+                Ok(None) | Err(_) => break (n, first.map_or(0.0, |t| t.elapsed().as_secs_f64())),
+            }
+        }
+    });
+    drop(dds);
+    Ok(counted)
+}
+
+/// Writes typed SUBSCRIBE samples of `domain` as fast as the writer takes them until
+/// `stop` (after `settle`, for discovery); each carries its sequence number as `step` and
+/// in every item. Returns the samples written.
+pub fn source(
+    opts: &GatewayOptions,
+    domain: &Domain,
+    settle: Duration,
+    stop: Arc<AtomicBool>,
+) -> Result<u64, GatewayError> {
+    let mut dds = Dds::open(opts)?;
+    let pkg = mapping::package_name(&opts.ddf_path);
+    let names = mapping::set_names(&pkg, &domain.name, Role::Subscribe);
+    let wq = mapping::qos(domain.flags, opts.profile, Endpoint::Writer, 0);
+    let layout = &domain.subscribe.layout;
+    let codec = SetCodec::new(layout);
+    let publ = dds.publisher::<PreEncoded>(&names.topic, &names.dds_type, &wq)?;
+    std::thread::sleep(settle);
+    let mut shm = vec![0u8; layout.size as usize];
+    let mut body = Vec::new();
+    let mut n = 0u64;
+    while !stop.load(Ordering::Relaxed) {
+        n += 1;
+        for leaf in &layout.leaves {
+            let at = leaf.offset as usize;
+            if let Some(dst) = shm.get_mut(at..at + leaf.size as usize) {
+                leaf.ty.encode(tutti_core::ddf::Value::Float(n as f64), &mut dst[..leaf.ty.size() as usize]);
+            }
+        }
+        codec.encode(n, n as f64, &shm, &mut body);
+        if publ.publish(PreEncoded(std::mem::take(&mut body))).is_err() {
+            n -= 1;
+        }
+    }
+    drop(dds);
+    Ok(n)
 }

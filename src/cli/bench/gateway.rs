@@ -1,10 +1,12 @@
 //! `tutti bench gateway`: the round trip shared memory -> gateway -> DDS -> echo peer ->
 //! DDS -> gateway -> shared memory, against Cyclone's `ddsperf` ping-pong in the same run
 //! and with the same core placement; the rate of an 8-item asynchronous set through the
-//! gateway; and the start-up and memory of a gateway serving ddf/large-1000.ddf.
+//! gateway each way, next to rustdds alone on the same cores; and the start-up and memory
+//! of a gateway serving ddf/large-1000.ddf.
 //!
-//! The framework is this process; the gateway and the echo peer (`--echo`, a second DDS
-//! participant using the gateway's codec) are child processes, pinned with `taskset`.
+//! The framework is this process; the gateway and the DDS peers (`--echo`, `--sink`,
+//! `--source`: separate DDS participants using the gateway's codec) are child processes,
+//! pinned with `taskset`.
 
 use std::io::{BufRead, BufReader};
 use std::path::{Path, PathBuf};
@@ -14,6 +16,7 @@ use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 use anyhow::{bail, Context as _};
+use tutti_core::ddf::Role;
 use tutti_core::shm::{Framework, FrameworkOptions, WaitMode};
 use tutti_gateway::GatewayOptions;
 
@@ -46,6 +49,12 @@ pub struct Args {
     /// Internal: run the echo peer for DDF (used by the benchmark itself).
     #[arg(long, hide = true, value_name = "DDF")]
     echo: Option<PathBuf>,
+    /// Internal: count the samples on DDF's PUBLISH (`publish`) or SUBSCRIBE topic.
+    #[arg(long, hide = true, num_args = 2, value_names = ["DDF", "ROLE"])]
+    sink: Vec<String>,
+    /// Internal: write SUBSCRIBE samples of DDF flat out.
+    #[arg(long, hide = true, value_name = "DDF")]
+    source: Option<PathBuf>,
 }
 
 fn ddf_text() -> String {
@@ -60,7 +69,9 @@ struct Kid(Child);
 
 impl Drop for Kid {
     fn drop(&mut self) {
-        let _ = Command::new("kill").args(["-INT", &self.0.id().to_string()]).status();
+        if matches!(self.0.try_wait(), Ok(None)) {
+            let _ = Command::new("kill").args(["-INT", &self.0.id().to_string()]).status();
+        }
         let end = Instant::now() + Duration::from_secs(3);
         while Instant::now() < end && matches!(self.0.try_wait(), Ok(None)) {
             std::thread::sleep(Duration::from_millis(20));
@@ -96,6 +107,12 @@ pub fn run(args: Args) -> CliResult {
     if let Some(ddf) = &args.echo {
         return echo(ddf, args.ros_domain_id);
     }
+    if let [ddf, role] = &args.sink[..] {
+        return sink(Path::new(ddf), role, args.ros_domain_id, args.duration);
+    }
+    if let Some(ddf) = &args.source {
+        return source(ddf, args.ros_domain_id);
+    }
     let exe = std::env::current_exe().context("locating tutti")?;
     let dir = std::env::temp_dir().join(format!("tutti-bench-gw-{}", std::process::id()));
     std::fs::create_dir_all(&dir).context("creating a scratch directory")?;
@@ -107,14 +124,11 @@ pub fn run(args: Args) -> CliResult {
         _ => vec![("same core (all on CPU 0)", 0, 0), ("two cores (gateway CPU 1; framework, echo, ping CPU 0)", 0, 1)],
     };
     println!("gateway round trip: shm -> gateway -> DDS -> echo -> DDS -> gateway -> shm, {ITEMS} x float64 async set");
-    println!("{:<58} {:>10} {:>10} {:>10} {:>12}", "placement / path", "p50 µs", "p99 µs", "lost", "samples/s");
+    println!("{:<58} {:>10} {:>10} {:>10}", "placement / path", "p50 µs", "p99 µs", "lost");
     for (name, main_cpu, gw_cpu) in placements {
         let r = round_trip(&exe, &ddf, &args, main_cpu, gw_cpu).with_context(|| format!("placement {name}"))?;
         println!("{name}");
-        println!(
-            "  {:<56} {:>10.1} {:>10.1} {:>10} {:>12.0}",
-            "gateway (rustdds) round trip", r.p50, r.p99, r.lost, r.rate
-        );
+        println!("  {:<56} {:>10.1} {:>10.1} {:>10}", "gateway (rustdds) round trip", r.p50, r.p99, r.lost);
         match ddsperf(main_cpu, gw_cpu) {
             Ok((p50, p99)) => {
                 println!("  {:<56} {:>10.1} {:>10.1}", "ddsperf ping-pong round trip (2 x its half)", p50, p99);
@@ -122,6 +136,10 @@ pub fn run(args: Args) -> CliResult {
             }
             Err(e) => println!("  ddsperf: not run ({e:#})"),
         }
+        let t = throughput(&exe, &ddf, &args, main_cpu, gw_cpu).with_context(|| format!("placement {name}"))?;
+        println!("  {:<56} {:>10.0}", "shm -> gateway -> DDS sink, samples/s", t.to_dds);
+        println!("  {:<56} {:>10.0}", "DDS source -> gateway -> shm, samples/s", t.from_dds);
+        println!("  {:<56} {:>10.0}", "DDS source -> DDS sink (rustdds alone), samples/s", t.direct);
     }
     if args.large.exists() {
         let (up, rss) = large(&exe, &args)?;
@@ -140,7 +158,6 @@ struct RoundTrip {
     p50: f64,
     p99: f64,
     lost: u32,
-    rate: f64,
 }
 
 fn round_trip(exe: &Path, ddf: &Path, args: &Args, main_cpu: usize, gw_cpu: usize) -> anyhow::Result<RoundTrip> {
@@ -215,17 +232,7 @@ fn round_trip(exe: &Path, ddf: &Path, args: &Args, main_cpu: usize, gw_cpu: usiz
         }
     }
     times.sort_by(f64::total_cmp);
-    // Throughput: publish flat out; count the samples that came back through the gateway.
-    let commits = |host: &tutti_core::shm::DomainHost| host.status().subscribe_commits;
-    let c0 = commits(host);
-    let t = Instant::now();
-    while t.elapsed() < args.duration {
-        seq += 1.0;
-        send(host, seq)?;
-        std::thread::yield_now();
-    }
-    let rate = (commits(host) - c0) as f64 / t.elapsed().as_secs_f64();
-    Ok(RoundTrip { p50: percentile(&times, 0.5), p99: percentile(&times, 0.99), lost, rate })
+    Ok(RoundTrip { p50: percentile(&times, 0.5), p99: percentile(&times, 0.99), lost })
 }
 
 /// ddsperf ping-pong with the same placement; returns (p50, p99) of the round trip in µs.
@@ -312,5 +319,129 @@ fn echo(ddf: &Path, domain_id: u16) -> CliResult {
     ctrlc::set_handler(move || s.store(true, Ordering::SeqCst)).context("installing the signal handler")?;
     let d = model.domains.first().context("the DDF has no domain")?;
     tutti_gateway::echo::run(&opts, d, stop).map_err(anyhow::Error::new)?;
+    Ok(())
+}
+
+struct Throughput {
+    to_dds: f64,
+    from_dds: f64,
+    direct: f64,
+}
+
+fn gateway(exe: &Path, ddf: &Path, cpu: usize, dom: &str, ns: &str) -> anyhow::Result<Kid> {
+    Ok(Kid(pinned(cpu, exe)
+        .args(["gateway", &ddf.to_string_lossy(), "--ros-domain-id", dom, "--interface", "127.0.0.1"])
+        .args(["--poll", "0", "--wait", "spin", "-q"])
+        .env("TUTTI_NAMESPACE", ns)
+        .env("RUST_LOG", "error,rustdds=off,ros2_client=off")
+        .stdin(Stdio::null())
+        .spawn()
+        .context("starting the gateway")?))
+}
+
+fn peer(exe: &Path, cpu: usize, dom: &str, duration: Duration, what: &[&str]) -> anyhow::Result<Kid> {
+    Ok(Kid(pinned(cpu, exe)
+        .args(["bench", "gateway", "--ros-domain-id", dom, "--duration"])
+        .arg(format!("{}ms", duration.as_millis()))
+        .args(what)
+        .env("RUST_LOG", "error,rustdds=off,ros2_client=off")
+        .stdin(Stdio::null())
+        .stdout(Stdio::piped())
+        .spawn()
+        .context("starting a benchmark peer")?))
+}
+
+/// The sink's "samples seconds" line; waits for it to exit.
+fn sink_rate(kid: &mut Kid) -> anyhow::Result<f64> {
+    let mut line = String::new();
+    if let Some(out) = kid.0.stdout.take() {
+        BufReader::new(out).read_line(&mut line)?;
+    }
+    let mut it = line.split_whitespace().map(str::parse::<f64>);
+    match (it.next(), it.next()) {
+        (Some(Ok(n)), Some(Ok(secs))) if secs > 0.0 => Ok(n / secs),
+        _ => bail!("the sink received nothing"),
+    }
+}
+
+/// Samples per second, each way, of the 8-item asynchronous set, and rustdds alone.
+///
+/// * shm -> DDS: this process commits PUBLISH values flat out (yielding between commits,
+///   so a peer on the same core runs); the gateway sends each new value it sees; a rustdds
+///   sink in another process counts what arrives over `duration`.
+/// * DDS -> shm: a rustdds source writes SUBSCRIBE samples flat out; the commits the
+///   gateway makes in shared memory are counted over `duration`.
+/// * rustdds alone: the same source and sink on the same cores, without the gateway.
+fn throughput(exe: &Path, ddf: &Path, args: &Args, main_cpu: usize, gw_cpu: usize) -> anyhow::Result<Throughput> {
+    let ns = format!("gwbenchtp{}", std::process::id());
+    let model = load_ddf(ddf).map_err(|f| f.error)?;
+    let opts = FrameworkOptions { namespace: ns.clone(), wait: WaitMode::Spin, ..Default::default() };
+    let mut fw = Framework::create(&model, &opts).context("creating the benchmark domain")?;
+    let host = &mut fw.domains[0];
+    let dom = (args.ros_domain_id + 2).to_string();
+    let ddfs = ddf.to_string_lossy().into_owned();
+    pin_self(main_cpu);
+    let _gw = gateway(exe, ddf, gw_cpu, &dom, &ns)?;
+
+    // shm -> DDS.
+    let mut sink = peer(exe, main_cpu, &dom, args.duration, &["--sink", &ddfs, "publish"])?;
+    let mut data = vec![0u8; ITEMS * 8];
+    let mut seq = 0f64;
+    let end = Instant::now() + args.duration + Duration::from_secs(40);
+    while matches!(sink.0.try_wait(), Ok(None)) && Instant::now() < end {
+        seq += 1.0;
+        for c in data.chunks_exact_mut(8) {
+            c.copy_from_slice(&seq.to_ne_bytes());
+        }
+        host.publish_step(&data, seq)?;
+        std::thread::yield_now();
+    }
+    let to_dds = sink_rate(&mut sink)?;
+
+    // DDS -> shm.
+    let source = peer(exe, main_cpu, &dom, args.duration, &["--source", &ddfs])?;
+    let commits = |host: &tutti_core::shm::DomainHost| host.status().subscribe_commits;
+    let c0 = commits(host);
+    let end = Instant::now() + Duration::from_secs(40);
+    while commits(host) < c0 + 100 && Instant::now() < end {
+        std::thread::sleep(Duration::from_millis(1));
+    }
+    let (c1, t) = (commits(host), Instant::now());
+    std::thread::sleep(args.duration);
+    let from_dds = (commits(host) - c1) as f64 / t.elapsed().as_secs_f64();
+    drop(source);
+    drop(_gw);
+
+    // rustdds alone, on the same cores.
+    let mut sink = peer(exe, gw_cpu, &dom, args.duration, &["--sink", &ddfs, "subscribe"])?;
+    let _source = peer(exe, main_cpu, &dom, args.duration, &["--source", &ddfs])?;
+    let direct = sink_rate(&mut sink)?;
+    Ok(Throughput { to_dds, from_dds, direct })
+}
+
+fn peer_opts(ddf: &Path, domain_id: u16) -> anyhow::Result<(GatewayOptions, tutti_core::ddf::Domain)> {
+    let model = load_ddf(ddf).map_err(|f| f.error)?;
+    let mut opts = GatewayOptions::new(ddf, model.clone());
+    opts.ros_domain_id = domain_id;
+    opts.interfaces = vec![std::net::IpAddr::V4(std::net::Ipv4Addr::LOCALHOST)];
+    let d = model.domains.first().context("the DDF has no domain")?.clone();
+    Ok((opts, d))
+}
+
+fn sink(ddf: &Path, role: &str, domain_id: u16, window: Duration) -> CliResult {
+    let (opts, d) = peer_opts(ddf, domain_id)?;
+    let role = if role == "publish" { Role::Publish } else { Role::Subscribe };
+    let (n, secs) =
+        tutti_gateway::echo::sink(&opts, &d, role, window, Duration::from_secs(30)).map_err(anyhow::Error::new)?;
+    println!("{n} {secs}");
+    Ok(())
+}
+
+fn source(ddf: &Path, domain_id: u16) -> CliResult {
+    let (opts, d) = peer_opts(ddf, domain_id)?;
+    let stop = Arc::new(AtomicBool::new(false));
+    let s = stop.clone();
+    ctrlc::set_handler(move || s.store(true, Ordering::SeqCst)).context("installing the signal handler")?;
+    tutti_gateway::echo::source(&opts, &d, Duration::from_millis(500), stop).map_err(anyhow::Error::new)?;
     Ok(())
 }
