@@ -203,6 +203,13 @@ pub fn run(args: Args) -> CliResult {
             rt::enter_realtime_verbose("host", &req);
         }
     }
+    let unseeded = fw.wait_for_seeds();
+    if unseeded > 0 && !args.quiet {
+        eprintln!(
+            "host: {unseeded} domain(s) with states=yes got no seed within {:?}; they start from their defaults",
+            args.timeout
+        );
+    }
     let mut ticker = Ticker::new(args.step);
     let run_start = Instant::now();
     let mut last_report = Instant::now();

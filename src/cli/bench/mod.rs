@@ -7,6 +7,8 @@ use super::CliResult;
 
 mod ddf;
 mod gateway;
+mod iceoryx;
+mod shm;
 
 /// Run a benchmark.
 #[derive(Debug, clap::Args)]
@@ -21,11 +23,33 @@ enum What {
     Ddf(ddf::Args),
     /// Round trip and throughput through the DDS gateway, next to Cyclone's ddsperf.
     Gateway(gateway::Args),
+    /// Round trips through shared-memory domains, next to iceoryx2 in the same run.
+    Shm(shm::Args),
+    /// (internal) the pong side of `bench shm`.
+    #[command(hide = true)]
+    ShmPong(shm::PongArgs),
+    /// (internal) the pong side of iceoryx2's ping-pong.
+    #[command(hide = true)]
+    IoxPong(shm::IoxPongArgs),
 }
 
 pub fn run(args: Args) -> CliResult {
     match args.what {
         What::Ddf(a) => ddf::run(a),
         What::Gateway(a) => gateway::run(a),
+        What::Shm(a) => shm::run(a),
+        What::ShmPong(a) => shm::pong(a),
+        What::IoxPong(a) => shm::iox_pong(a),
     }
+}
+
+/// (p50, p99, p99.9, max) of nanosecond samples, in microseconds.
+pub fn percentiles(ns: &[f64]) -> (f64, f64, f64, f64) {
+    if ns.is_empty() {
+        return (0.0, 0.0, 0.0, 0.0);
+    }
+    let mut v = ns.to_vec();
+    v.sort_by(f64::total_cmp);
+    let q = |p: f64| v[((v.len() as f64 * p).ceil() as usize).clamp(1, v.len()) - 1] / 1e3;
+    (q(0.50), q(0.99), q(0.999), v[v.len() - 1] / 1e3)
 }

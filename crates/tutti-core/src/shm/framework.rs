@@ -61,6 +61,34 @@ impl Framework {
         Ok(Framework { domains })
     }
 
+    /// Waits, under one deadline (the timeout), for the seed of every synchronous domain
+    /// with `states=yes`, so that a host of many domains does not wait for them one after
+    /// the other in their first steps. Returns how many are still unseeded.
+    pub fn wait_for_seeds(&mut self) -> usize {
+        let pending = |d: &DomainHost| {
+            let f = d.info().flags;
+            f.synchronous && f.states && !d.seed_waited && !d.seeded()
+        };
+        let deadline = self.domains.first().map(|d| Instant::now() + d.opts.timeout);
+        while let Some(deadline) = deadline {
+            if !self.domains.iter().any(pending) || Instant::now() >= deadline {
+                break;
+            }
+            for d in &mut self.domains {
+                d.maybe_sweep();
+            }
+            std::thread::sleep(Duration::from_millis(1));
+        }
+        let unseeded = self.domains.iter().filter(|d| pending(d)).count();
+        for d in &mut self.domains {
+            if pending(d) {
+                d.seg.header().timeouts.fetch_add(1, Ordering::Relaxed);
+            }
+            d.seed_waited = true;
+        }
+        unseeded
+    }
+
     pub fn domain(&mut self, name: &str) -> Option<&mut DomainHost> {
         self.domains.iter_mut().find(|d| d.info().name == name)
     }

@@ -3,7 +3,7 @@
 
 use std::time::{Duration, Instant};
 
-use super::bucket::store_range;
+use super::bucket::{store_bytes, store_range};
 use super::handshake::{CONN_SYNC_READER, CONN_WRITER};
 use super::segment::{self, namespace_from_env, DomainInfo, Segment, WaitMode, Waited, Waiter, STATE_RUNNING};
 use super::{os, ShmError};
@@ -365,6 +365,14 @@ impl Participant {
         &mut self.staging
     }
 
+    /// Computes the whole SUBSCRIBE set at once from the last snapshot of the PUBLISH set:
+    /// `f(snapshot, staging)`. Every item is committed by the next `commit`, without comparing
+    /// with the last commit (the cheap path for components that write all their outputs).
+    pub fn stage_all_with(&mut self, f: impl FnOnce(&[u8], &mut [u8])) {
+        f(&self.snapshot, &mut self.staging);
+        self.marked.iter_mut().for_each(|m| *m = true);
+    }
+
     /// Stages one item of the SUBSCRIBE set (committed even if unchanged).
     pub fn stage(&mut self, path: &str, bytes: &[u8]) -> Result<(), ShmError> {
         let (idx, leaf) = self.leaf(Role::Subscribe, path)?;
@@ -429,7 +437,13 @@ impl Participant {
         let bucket = seg.bucket(Role::Subscribe);
         if let Ok(bucket) = &bucket {
             let staging = &self.staging;
+            let whole = changed.len() == seg.info.subscribe.leaves.len();
             bucket.write_with(|prev, next| {
+                if whole {
+                    // Every item changes: no need to carry the previous value over.
+                    store_bytes(next, staging);
+                    return;
+                }
                 for (p, n) in prev.iter().zip(next) {
                     n.store(p.load(Ordering::Relaxed), Ordering::Relaxed);
                 }

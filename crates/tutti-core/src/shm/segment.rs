@@ -563,6 +563,11 @@ impl Segment {
         Ok(Bucket { seq: &sh.seq, gens: &sh.gens, current: &sh.current, slots })
     }
 
+    /// How many times a set was written: a cheap test for new data before copying it.
+    pub fn generation(&self, role: Role) -> u64 {
+        self.header().sets[role as usize].current.load(Ordering::Acquire)
+    }
+
     pub fn framework_id(&self) -> ProcessId {
         let h = self.header();
         ProcessId { pid: h.owner_pid.load(Ordering::Relaxed), start_time: h.owner_start.load(Ordering::Relaxed) }

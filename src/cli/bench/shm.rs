@@ -1,0 +1,299 @@
+//! `tutti bench shm`: round trips between two processes through shared-memory domains, for
+//! asynchronous and synchronous sets, spin and blocking waits, several set sizes, on one
+//! core and on two; iceoryx2's publish-subscribe ping-pong runs in the same run as the peer.
+//!
+//! * async: the framework publishes a set whose first word is a sequence number; the peer
+//!   polls the PUBLISH generation, snapshots the set and commits it back whole as its
+//!   SUBSCRIBE set; the framework polls the SUBSCRIBE generation and reads the set. The
+//!   round trip ends when the framework holds the echoed set.
+//! * sync: one lock-step `step()` of the framework: publish, the peer's `subscribe_lock`,
+//!   `publish_lock`, commit of the whole set, and the framework's read of the answer.
+
+use std::process::{Child, Command, Stdio};
+use std::time::{Duration, Instant};
+
+use anyhow::{bail, Context};
+use tutti_core::ddf;
+use tutti_core::ddf::Role;
+use tutti_core::shm::{os, ConnectOptions, Framework, FrameworkOptions, Participant, ShmError, WaitMode};
+
+use super::super::CliResult;
+use super::{iceoryx, percentiles};
+
+/// Measure shared-memory round trips (and iceoryx2's, as the peer in the same run).
+#[derive(Debug, clap::Args)]
+#[command(
+    after_help = "Examples:\n  tutti bench shm\n  tutti bench shm --iterations 50000 --sizes 8,1024\n  tutti bench shm --placement two --no-peer"
+)]
+pub struct Args {
+    /// Measured round trips per configuration (after a warm-up of a tenth as many).
+    #[arg(long, default_value_t = 20_000)]
+    iterations: usize,
+    /// Set sizes in bytes (multiples of 8).
+    #[arg(long, value_delimiter = ',', default_values_t = vec![8usize, 1024, 65536])]
+    sizes: Vec<usize>,
+    /// Core placements: two (ping on CPU 0, pong on CPU 1) and/or one (both on CPU 0).
+    #[arg(long, value_delimiter = ',', default_values_t = vec![String::from("two"), String::from("one")])]
+    placement: Vec<String>,
+    /// Skip the iceoryx2 peer.
+    #[arg(long)]
+    no_peer: bool,
+}
+
+/// Hidden: the pong side of a tutti round trip.
+#[derive(Debug, clap::Args)]
+pub struct PongArgs {
+    #[arg(long)]
+    namespace: String,
+    #[arg(long)]
+    sync: bool,
+    #[arg(long)]
+    spin: bool,
+    #[arg(long)]
+    cpu: Option<usize>,
+    /// Yield the core while polling (both processes on one core).
+    #[arg(long)]
+    yield_spin: bool,
+}
+
+/// Hidden: the pong side of the iceoryx2 ping-pong.
+#[derive(Debug, clap::Args)]
+pub struct IoxPongArgs {
+    tag: String,
+    size: usize,
+    cpu: String,
+    yield_spin: String,
+}
+
+pub fn iox_pong(a: IoxPongArgs) -> CliResult {
+    iceoryx::pong_main(&a.tag, a.size, a.cpu.parse().ok(), a.yield_spin == "1").map_err(|e| anyhow::anyhow!(e))?;
+    Ok(())
+}
+
+fn model(size: usize, sync: bool) -> anyhow::Result<ddf::Model> {
+    let yn = if sync { "yes" } else { "no" };
+    let words = size / 8;
+    let text = format!(
+        r#"<orchestra><domain name="bench"><synchronous>{yn}</synchronous><multiplePublishAllowed>yes</multiplePublishAllowed><states>no</states>
+        <set name="PUBLISH"><item name="data"><type>unsigned int64</type><length>{words}</length></item></set>
+        <set name="SUBSCRIBE"><item name="data"><type>unsigned int64</type><length>{words}</length></item></set>
+        </domain></orchestra>"#
+    );
+    Ok(ddf::parse_str(&text, "bench.ddf")?)
+}
+
+fn first_word(b: &[u8]) -> u64 {
+    u64::from_ne_bytes(b[..8].try_into().unwrap_or([0; 8]))
+}
+
+struct Kill(Child);
+
+impl Drop for Kill {
+    fn drop(&mut self) {
+        let _ = self.0.kill();
+        let _ = self.0.wait();
+    }
+}
+
+struct Config<'a> {
+    size: usize,
+    sync: bool,
+    spin: bool,
+    cpus: (usize, usize),
+    iterations: usize,
+    label: &'a str,
+}
+
+fn run_tutti(c: &Config<'_>) -> anyhow::Result<Vec<f64>> {
+    let namespace =
+        format!("bench{}-{}", std::process::id(), c.label.replace(|ch: char| !ch.is_ascii_alphanumeric(), ""));
+    let wait = if c.spin { WaitMode::Spin } else { WaitMode::Block };
+    let opts =
+        FrameworkOptions { namespace: namespace.clone(), timeout: Duration::from_secs(10), wait, ..Default::default() };
+    let mut fw = Framework::create(&model(c.size, c.sync)?, &opts)?;
+    os::pin_to_cpu(c.cpus.0).context("pinning the ping side")?;
+    let same_core = c.cpus.0 == c.cpus.1;
+    let mut cmd = Command::new(std::env::current_exe()?);
+    cmd.args(["bench", "shm-pong", "--namespace", &namespace, "--cpu", &c.cpus.1.to_string()]);
+    if c.sync {
+        cmd.arg("--sync");
+    }
+    if c.spin {
+        cmd.arg("--spin");
+    }
+    if same_core {
+        cmd.arg("--yield-spin");
+    }
+    let mut child = Kill(cmd.stdin(Stdio::null()).spawn().context("starting the pong process")?);
+    let host = &mut fw.domains[0];
+    let started = Instant::now();
+    while host.connection_count() == 0 {
+        if let Some(status) = child.0.try_wait()? {
+            bail!("pong exited early: {status}");
+        }
+        if started.elapsed() > Duration::from_secs(10) {
+            bail!("pong did not connect within 10 s");
+        }
+        std::thread::sleep(Duration::from_millis(1));
+    }
+    let mut payload = vec![0xa5u8; c.size];
+    let warmup = (c.iterations / 10).max(100);
+    let mut rtts = Vec::with_capacity(c.iterations);
+    for seq in 1..=(warmup + c.iterations) as u64 {
+        payload[..8].copy_from_slice(&seq.to_ne_bytes());
+        let t0 = Instant::now();
+        if c.sync {
+            let report = host.step(&payload, 0.0)?;
+            if report.timed_out > 0 {
+                bail!("step {seq} timed out");
+            }
+            if seq > 1 && first_word(host.subscribe()) != seq {
+                bail!("step {seq}: the answer carries {}", first_word(host.subscribe()));
+            }
+        } else {
+            let before = host.segment().generation(Role::Subscribe);
+            host.publish_step(&payload, 0.0)?;
+            let mut turns = 0u64;
+            loop {
+                if host.segment().generation(Role::Subscribe) != before && first_word(host.read_subscribe()?) == seq {
+                    break;
+                }
+                turns += 1;
+                if turns % 65_536 == 0 && t0.elapsed() > Duration::from_secs(10) {
+                    bail!("no echo of {seq} within 10 s");
+                }
+                if same_core {
+                    std::thread::yield_now();
+                } else {
+                    std::hint::spin_loop();
+                }
+            }
+        }
+        let rtt = t0.elapsed().as_nanos() as f64;
+        if seq > warmup as u64 {
+            rtts.push(rtt);
+        }
+    }
+    drop(fw);
+    let deadline = Instant::now() + Duration::from_secs(5);
+    while child.0.try_wait()?.is_none() && Instant::now() < deadline {
+        std::thread::sleep(Duration::from_millis(1));
+    }
+    Ok(rtts)
+}
+
+/// The pong side: echo every PUBLISH set back as the SUBSCRIBE set.
+pub fn pong(a: PongArgs) -> CliResult {
+    if let Some(cpu) = a.cpu {
+        os::pin_to_cpu(cpu).context("pinning the pong side")?;
+    }
+    let wait = if a.spin { WaitMode::Spin } else { WaitMode::Block };
+    let opts = ConnectOptions {
+        namespace: a.namespace,
+        name: "bench pong".into(),
+        wait,
+        timeout: Duration::from_secs(10),
+        ..Default::default()
+    };
+    let mut p = Participant::connect("bench", opts).context("connecting")?;
+    let result: Result<(), ShmError> = (|| {
+        if a.sync {
+            loop {
+                p.subscribe_lock()?;
+                p.publish_lock()?;
+                p.stage_all_with(|snapshot, staging| staging.copy_from_slice(snapshot));
+                p.commit()?;
+            }
+        }
+        let mut last = p.segment().generation(Role::Publish);
+        let mut turns = 0u64;
+        loop {
+            let g = p.segment().generation(Role::Publish);
+            if g == last {
+                turns += 1;
+                if turns % 65_536 == 0 {
+                    p.check()?;
+                }
+                if a.yield_spin {
+                    std::thread::yield_now();
+                } else {
+                    std::hint::spin_loop();
+                }
+                continue;
+            }
+            last = g;
+            p.subscribe_lock()?;
+            p.stage_all_with(|snapshot, staging| staging.copy_from_slice(snapshot));
+            p.commit()?;
+        }
+    })();
+    match result {
+        Err(ShmError::FrameworkStopped { .. } | ShmError::ConnectionLost { .. }) => Ok(()),
+        Err(e) => Err(anyhow::Error::from(e).into()),
+        Ok(()) => Ok(()),
+    }
+}
+
+pub fn run(args: Args) -> CliResult {
+    if let Some(bad) = args.sizes.iter().find(|s| **s < 8 || **s % 8 != 0) {
+        return Err(super::super::Failure::invalid(anyhow::anyhow!("--sizes: {bad} is not a multiple of 8 bytes")));
+    }
+    let cpus_online = std::thread::available_parallelism().map(|n| n.get()).unwrap_or(1);
+    println!(
+        "tutti bench shm: {} round trips per row (+{} warm-up), {} CPUs online; times in µs",
+        args.iterations,
+        (args.iterations / 10).max(100),
+        cpus_online
+    );
+    println!(
+        "{:<8} {:<9} {:<22} {:>7} {:>9} {:>9} {:>9} {:>10}",
+        "cores", "system", "mode", "bytes", "p50", "p99", "p99.9", "max"
+    );
+    for placement in &args.placement {
+        let cpus = match placement.as_str() {
+            "two" if cpus_online >= 2 => (0, 1),
+            "two" => {
+                println!("two      (skipped: one CPU online)");
+                continue;
+            }
+            "one" => (0, 0),
+            other => {
+                return Err(super::super::Failure::invalid(anyhow::anyhow!("--placement: '{other}' is not one or two")))
+            }
+        };
+        let same = cpus.0 == cpus.1;
+        for &size in &args.sizes {
+            // Spinning both sides on one core only measures time slices; there the
+            // synchronous rows block, and the polling loops yield.
+            let mut rows: Vec<(&str, bool, bool)> = vec![("async, poll", false, true)];
+            if !same {
+                rows.push(("sync step, spin", true, true));
+            }
+            rows.push(("sync step, block", true, false));
+            for (label, sync, spin) in rows {
+                let mode = if same && spin { format!("{label}+yield") } else { label.to_string() };
+                let c = Config {
+                    size,
+                    sync,
+                    spin,
+                    cpus,
+                    iterations: args.iterations,
+                    label: &format!("{placement}{size}{label}"),
+                };
+                let rtts = run_tutti(&c).with_context(|| format!("tutti {mode}, {size} bytes, {placement} core(s)"))?;
+                print_row(placement, "tutti", &mode, size, &rtts);
+            }
+            if !args.no_peer {
+                let rtts = iceoryx::run_iceoryx2_pingpong(size, args.iterations, Some(cpus.0), Some(cpus.1));
+                let mode = if same { "pub/sub, poll+yield" } else { "pub/sub, poll" };
+                print_row(placement, "iceoryx2", mode, size, &rtts);
+            }
+        }
+    }
+    Ok(())
+}
+
+fn print_row(cores: &str, system: &str, mode: &str, size: usize, rtts_ns: &[f64]) {
+    let (p50, p99, p999, max) = percentiles(rtts_ns);
+    println!("{cores:<8} {system:<9} {mode:<22} {size:>7} {p50:>9.2} {p99:>9.2} {p999:>9.2} {max:>10.1}");
+}

@@ -1,0 +1,139 @@
+//! `tutti host` and `tutti status` as a user runs them: every segment of a large DDF
+//! appears, status lists domains and connections, the recording is written, and Ctrl-C
+//! removes every segment.
+
+use std::path::Path;
+use std::process::{Child, Command, Stdio};
+use std::time::{Duration, Instant};
+
+const TUTTI: &str = env!("CARGO_BIN_EXE_tutti");
+
+struct Guard(Child, String);
+
+impl Drop for Guard {
+    fn drop(&mut self) {
+        let _ = self.0.kill();
+        let _ = self.0.wait();
+        // Remove what a failed test may have left.
+        for e in std::fs::read_dir("/dev/shm").into_iter().flatten().flatten() {
+            if e.file_name().to_string_lossy().starts_with(&format!("tutti.{}.", self.1)) {
+                let _ = std::fs::remove_file(e.path());
+            }
+        }
+    }
+}
+
+fn segments(ns: &str) -> usize {
+    std::fs::read_dir("/dev/shm")
+        .map(|d| d.flatten().filter(|e| e.file_name().to_string_lossy().starts_with(&format!("tutti.{ns}."))).count())
+        .unwrap_or(0)
+}
+
+fn interrupt_and_wait(g: &mut Guard) -> std::process::ExitStatus {
+    let _ = Command::new("kill").args(["-INT", &g.0.id().to_string()]).status();
+    let deadline = Instant::now() + Duration::from_secs(30);
+    loop {
+        if let Some(s) = g.0.try_wait().unwrap() {
+            return s;
+        }
+        assert!(Instant::now() < deadline, "host did not stop on SIGINT");
+        std::thread::sleep(Duration::from_millis(20));
+    }
+}
+
+fn root() -> &'static Path {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+}
+
+#[test]
+fn host_creates_every_segment_of_the_large_ddf_and_removes_them_on_ctrl_c() {
+    let ns = format!("hc{}-large", std::process::id());
+    let child = Command::new(TUTTI)
+        .args(["host", "ddf/large-1000.ddf", "--step", "20ms", "--timeout", "100ms", "--quiet"])
+        .current_dir(root())
+        .env("TUTTI_NAMESPACE", &ns)
+        .stdout(Stdio::null())
+        .spawn()
+        .unwrap();
+    let mut g = Guard(child, ns.clone());
+    let deadline = Instant::now() + Duration::from_secs(60);
+    while segments(&ns) < 1000 {
+        assert!(Instant::now() < deadline, "only {} of 1000 segments appeared", segments(&ns));
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    let out = Command::new(TUTTI).args(["status", "--json"]).env("TUTTI_NAMESPACE", &ns).output().unwrap();
+    assert!(out.status.success());
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let domains = v.as_array().unwrap();
+    assert_eq!(domains.len(), 1000);
+    assert!(domains.iter().all(|d| d["framework_alive"] == true), "every domain has a live framework");
+    let status = interrupt_and_wait(&mut g);
+    assert!(status.success(), "{status}");
+    assert_eq!(segments(&ns), 0, "segments left after Ctrl-C");
+}
+
+#[test]
+fn host_records_both_sets_and_status_shows_connections() {
+    let ns = format!("hc{}-rec", std::process::id());
+    let dir = tempfile::tempdir().unwrap();
+    let csv = dir.path().join("run.csv");
+    let child = Command::new(TUTTI)
+        .args(["host", "ddf/product-sample.ddf", "--step", "5ms", "--set", "grid_clock/tick=7", "--record"])
+        .arg(&csv)
+        .current_dir(root())
+        .env("TUTTI_NAMESPACE", &ns)
+        .stderr(Stdio::null())
+        .spawn()
+        .unwrap();
+    let mut g = Guard(child, ns.clone());
+    let deadline = Instant::now() + Duration::from_secs(60);
+    while segments(&ns) < 2 {
+        assert!(Instant::now() < deadline, "segments never appeared");
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    // A participant of the core library, connected while the host runs, shows in status.
+    let opts = tutti_core::shm::ConnectOptions { namespace: ns.clone(), name: "probe".into(), ..Default::default() };
+    let mut p = tutti_core::shm::Participant::connect("grid_feeder", opts).unwrap();
+    p.publish_lock().unwrap();
+    p.stage("setpoint_kw", &9.5f64.to_ne_bytes()).unwrap();
+    p.commit().unwrap();
+    let out = Command::new(TUTTI).args(["status"]).env("TUTTI_NAMESPACE", &ns).output().unwrap();
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(text.contains("grid_feeder [async,states]"), "{text}");
+    assert!(text.contains("probe") && text.contains("writer"), "{text}");
+    // Let the host step past the commit, then stop it.
+    std::thread::sleep(Duration::from_millis(100));
+    drop(p);
+    let status = interrupt_and_wait(&mut g);
+    assert!(status.success());
+    let feeder = std::fs::read_to_string(dir.path().join("run-grid_feeder.csv")).unwrap();
+    let header = feeder.lines().next().unwrap();
+    assert!(
+        header.starts_with("step,sim_time,wall_s,connections,publish.breaker_closed,publish.voltage_abc[0]"),
+        "{header}"
+    );
+    assert!(header.contains("publish.meter/power_kw") && header.contains("subscribe.setpoint_kw"));
+    let col = header.split(',').position(|c| c == "subscribe.setpoint_kw").unwrap();
+    let values: Vec<f64> = feeder.lines().skip(1).map(|l| l.split(',').nth(col).unwrap().parse().unwrap()).collect();
+    assert_eq!(values.first(), Some(&1.5), "the default before the commit");
+    assert_eq!(values.last(), Some(&9.5), "the committed value");
+    let clock = std::fs::read_to_string(dir.path().join("run-grid_clock.csv")).unwrap();
+    let tick_col = clock.lines().next().unwrap().split(',').position(|c| c == "publish.tick").unwrap();
+    assert!(clock.lines().skip(1).all(|l| l.split(',').nth(tick_col) == Some("7")));
+    assert_eq!(segments(&ns), 0);
+}
+
+#[test]
+fn host_refuses_bad_arguments_with_status_2() {
+    for args in [
+        vec!["host", "ddf/multiuav.ddf", "--step", "fast"],
+        vec!["host", "ddf/multiuav.ddf", "--set", "nosuch/X=1"],
+        vec!["host", "ddf/multiuav.ddf", "--set", "multiuav_uav1/Nope=1"],
+        vec!["host", "tests/ddf-invalid/does-not-exist.ddf"],
+    ] {
+        let out =
+            Command::new(TUTTI).args(&args).current_dir(root()).env("TUTTI_NAMESPACE", "hc-bad").output().unwrap();
+        assert_eq!(out.status.code(), Some(2), "{args:?}: {}", String::from_utf8_lossy(&out.stderr));
+        assert!(!out.stderr.is_empty());
+    }
+}
