@@ -376,6 +376,30 @@ fn a_stale_segment_of_a_dead_framework_is_reclaimed() {
 }
 
 #[test]
+fn a_framework_killed_outright_is_reported_to_its_participants() {
+    let mut child = Guard::spawn("framework", &ns("fwdeath"));
+    assert_eq!(child.result(Duration::from_secs(30)), "created");
+    let opts = ConnectOptions { timeout: Duration::from_secs(5), ..copts(&ns("fwdeath")) };
+    let mut p = Participant::connect("d", opts).unwrap();
+    p.subscribe_lock().unwrap();
+    child.kill9();
+    let deadline = Instant::now() + Duration::from_secs(30);
+    let err = loop {
+        match p.subscribe_lock().and_then(|_| p.publish_lock()).and_then(|()| p.commit()) {
+            Err(e) => break e,
+            Ok(()) => {
+                assert!(Instant::now() < deadline, "the dead framework was never noticed");
+                std::thread::sleep(Duration::from_millis(5));
+            }
+        }
+    };
+    assert!(matches!(err, ShmError::FrameworkStopped { .. }), "{err}");
+    drop(p);
+    // The dead framework's segment is reclaimed by the next one.
+    drop(Framework::create(&model(false, true, false), &fopts("fwdeath", Duration::from_secs(1))).unwrap());
+}
+
+#[test]
 fn a_segment_with_garbage_in_its_header_is_refused_cleanly() {
     use std::io::{Seek, SeekFrom, Write};
     let mut rng = 0x1234_5678_9abc_def1u64 ^ u64::from(std::process::id());

@@ -66,6 +66,8 @@ pub struct Participant {
     /// Whether `subscribe_lock` was ever called (the connection reads before it answers).
     has_read: bool,
     connected: bool,
+    /// When the framework's process was last found alive (checked at most every 50 ms).
+    framework_seen: std::cell::Cell<Instant>,
 }
 
 impl Participant {
@@ -99,6 +101,7 @@ impl Participant {
             locked_step: 0,
             has_read: false,
             connected: true,
+            framework_seen: std::cell::Cell::new(Instant::now()),
             seg,
             slot,
             id,
@@ -192,6 +195,14 @@ impl Participant {
         let c = self.seg.conn(self.slot).ok_or_else(|| ShmError::ConnectionLost { domain: domain() })?;
         if c.active.load(Ordering::Acquire) != self.me.pid || self.seg.conn_id(self.slot) != self.id {
             return Err(ShmError::ConnectionLost { domain: domain() });
+        }
+        // A framework killed outright cannot mark its segment stopped: look at its process
+        // now and then (a /proc read costs microseconds; every call would be too many).
+        if self.framework_seen.get().elapsed() >= Duration::from_millis(50) {
+            if !os::is_alive(self.seg.framework_id()) {
+                return Err(ShmError::FrameworkStopped { domain: domain() });
+            }
+            self.framework_seen.set(Instant::now());
         }
         Ok(())
     }
