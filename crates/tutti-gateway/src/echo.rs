@@ -148,3 +148,68 @@ pub fn source(
     drop(dds);
     Ok(n)
 }
+
+/// A rustdds ping for the echo, without the gateway: writes typed PUBLISH samples of
+/// `domain` and waits (spinning, yielding the core between looks, as the benchmark's
+/// framework does) for each to come back on SUBSCRIBE. Returns the round trips (µs) of
+/// `samples` pings, after the path works once (gives up after `patience`).
+pub fn ping(
+    opts: &GatewayOptions,
+    domain: &Domain,
+    samples: u32,
+    patience: Duration,
+) -> Result<Vec<f64>, GatewayError> {
+    let mut dds = Dds::open(opts)?;
+    let pkg = mapping::package_name(&opts.ddf_path);
+    let (pubn, subn) = (
+        mapping::set_names(&pkg, &domain.name, Role::Publish),
+        mapping::set_names(&pkg, &domain.name, Role::Subscribe),
+    );
+    let rq = mapping::qos(domain.flags, opts.profile, Endpoint::Reader, 0);
+    let wq = mapping::qos(domain.flags, opts.profile, Endpoint::Writer, 0);
+    let codec = Arc::new(SetCodec::new(&domain.publish.layout));
+    let publ = dds.publisher::<PreEncoded>(&pubn.topic, &pubn.dds_type, &wq)?;
+    let sub = dds.subscription::<TypedSample>(&subn.topic, &subn.dds_type, &rq)?;
+    let shm = vec![0u8; codec.shm_size()];
+    let mut body = Vec::new();
+    let mut once = |step: u64, limit: Duration| -> Option<f64> {
+        codec.encode(step, 0.0, &shm, &mut body);
+        let t = Instant::now();
+        publ.publish(PreEncoded(body.clone())).ok()?;
+        let mut spins = 0u32;
+        while t.elapsed() < limit {
+            if let Ok(Some((s, _))) = sub.take_seed(SetSeed(codec.clone())) {
+                if s.step == step {
+                    return Some(t.elapsed().as_secs_f64() * 1e6);
+                }
+            }
+            spins += 1;
+            if spins < 256 {
+                std::hint::spin_loop();
+            } else {
+                std::thread::yield_now();
+            }
+        }
+        None
+    };
+    let end = Instant::now() + patience;
+    let mut step = 0u64;
+    loop {
+        step += 1;
+        if once(step, Duration::from_millis(100)).is_some() {
+            break;
+        }
+        if Instant::now() > end {
+            return Err(GatewayError::Invalid("no echo (is the loopback interface up?)".into()));
+        }
+    }
+    let mut times = Vec::with_capacity(samples as usize);
+    for _ in 0..samples {
+        step += 1;
+        if let Some(t) = once(step, Duration::from_secs(1)) {
+            times.push(t);
+        }
+    }
+    drop(dds);
+    Ok(times)
+}

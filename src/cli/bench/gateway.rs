@@ -129,6 +129,18 @@ pub fn run(args: Args) -> CliResult {
         let r = round_trip(&exe, &ddf, &args, main_cpu, gw_cpu).with_context(|| format!("placement {name}"))?;
         println!("{name}");
         println!("  {:<56} {:>10.1} {:>10.1} {:>10}", "gateway (rustdds) round trip", r.p50, r.p99, r.lost);
+        match rustdds_ping(&exe, &ddf, &args, main_cpu, gw_cpu) {
+            Ok(mut t) => {
+                t.sort_by(f64::total_cmp);
+                let lost = args.samples as usize - t.len();
+                let (p50, p99) = (percentile(&t, 0.5), percentile(&t, 0.99));
+                println!(
+                    "  {:<56} {:>10.1} {:>10.1} {:>10}",
+                    "rustdds ping -> echo round trip (no gateway)", p50, p99, lost
+                );
+            }
+            Err(e) => println!("  rustdds ping: not run ({e:#})"),
+        }
         match ddsperf(main_cpu, gw_cpu) {
             Ok((p50, p99)) => {
                 println!("  {:<56} {:>10.1} {:>10.1}", "ddsperf ping-pong round trip (2 x its half)", p50, p99);
@@ -444,4 +456,21 @@ fn source(ddf: &Path, domain_id: u16) -> CliResult {
     ctrlc::set_handler(move || s.store(true, Ordering::SeqCst)).context("installing the signal handler")?;
     tutti_gateway::echo::source(&opts, &d, Duration::from_millis(500), stop).map_err(anyhow::Error::new)?;
     Ok(())
+}
+
+/// The echo pinged by a rustdds participant in this process (where the gateway was), with
+/// no gateway and no shared memory: what rustdds itself costs on this path.
+fn rustdds_ping(exe: &Path, ddf: &Path, args: &Args, main_cpu: usize, gw_cpu: usize) -> anyhow::Result<Vec<f64>> {
+    let dom = (args.ros_domain_id + 4).to_string();
+    let _echo = Kid(pinned(main_cpu, exe)
+        .args(["bench", "gateway", "--echo", &ddf.to_string_lossy(), "--ros-domain-id", &dom])
+        .stdin(Stdio::null())
+        .spawn()
+        .context("starting the echo peer")?);
+    pin_self(gw_cpu);
+    let (mut opts, d) = peer_opts(ddf, args.ros_domain_id + 4)?;
+    opts.node_name = "tutti_bench_ping".into();
+    let t = tutti_gateway::echo::ping(&opts, &d, args.samples, Duration::from_secs(30));
+    pin_self(main_cpu);
+    t.map_err(anyhow::Error::new)
 }
