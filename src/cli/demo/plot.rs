@@ -99,6 +99,7 @@ pub fn figure5(path: &Path, s: &Scenario, d: &RunData) -> anyhow::Result<()> {
             ("sans-serif", 26),
         )
         .margin(20)
+        .margin_right(40)
         .x_label_area_size(55)
         .y_label_area_size(80)
         .build_cartesian_2d(0.0..s.duration, lo..hi)?;
@@ -109,6 +110,7 @@ pub fn figure5(path: &Path, s: &Scenario, d: &RunData) -> anyhow::Result<()> {
         .axis_desc_style(("sans-serif", 22))
         .label_style(("sans-serif", 18))
         .y_label_formatter(&|v| format!("{v:.0}"))
+        .x_label_formatter(&|v| format!("{v:.0}"))
         .light_line_style(RGBColor(235, 235, 235))
         .draw()?;
     for (k, (t, uav, on)) in observed_events(d).into_iter().enumerate() {
@@ -183,6 +185,7 @@ pub fn figure6(path: &Path, s: &Scenario, d: &RunData) -> anyhow::Result<()> {
     let (lo, hi) = y_range(&all);
     let mut chart = ChartBuilder::on(&top)
         .margin(20)
+        .margin_right(40)
         .x_label_area_size(50)
         .y_label_area_size(80)
         .build_cartesian_2d(0.0..s.duration, lo..hi)?;
@@ -193,12 +196,13 @@ pub fn figure6(path: &Path, s: &Scenario, d: &RunData) -> anyhow::Result<()> {
         .axis_desc_style(("sans-serif", 22))
         .label_style(("sans-serif", 18))
         .y_label_formatter(&|v| format!("{v:.0}"))
+        .x_label_formatter(&|v| format!("{v:.0}"))
         .light_line_style(RGBColor(235, 235, 235))
         .draw()?;
     for (j, &t) in s.c_readers.iter().enumerate() {
         let grey = RGBColor(90, 90, 90);
         chart.draw_series(DashedLineSeries::new(vec![(t, lo), (t, hi)], 8, 6, grey.stroke_width(1)))?;
-        let y = hi - (hi - lo) * 0.06;
+        let y = lo + (hi - lo) * 0.06;
         let label = format!("C component {} connects", j + 1);
         chart.draw_series(std::iter::once(Text::new(
             label,
@@ -240,6 +244,7 @@ pub fn figure6(path: &Path, s: &Scenario, d: &RunData) -> anyhow::Result<()> {
     let max = counts.iter().flatten().map(|p| p.1).fold(0.0, f64::max).max(1.0);
     let mut chart = ChartBuilder::on(&bottom)
         .margin(20)
+        .margin_right(40)
         .x_label_area_size(55)
         .y_label_area_size(80)
         .build_cartesian_2d(0.0..s.duration, -0.2..max + 0.8)?;
@@ -251,6 +256,7 @@ pub fn figure6(path: &Path, s: &Scenario, d: &RunData) -> anyhow::Result<()> {
         .label_style(("sans-serif", 18))
         .y_labels((max as usize) + 2)
         .y_label_formatter(&|v| format!("{v:.0}"))
+        .x_label_formatter(&|v| format!("{v:.0}"))
         .light_line_style(RGBColor(235, 235, 235))
         .draw()?;
     for (i, pts) in counts.iter().enumerate() {

@@ -448,17 +448,23 @@ fn simulate(args: &UavArgs, scenario: &Scenario, out: &Path, interrupted: &Atomi
     writeln!(monitor_in, "{t0:.6}").context("starting the monitoring script's clock")?;
     drop(monitor_in);
     let mut readers: Vec<Kid> = Vec::new();
-    let mut last_progress = -1.0f64;
+    let mut last_progress = -10.0f64;
     let mut overruns_seen = 0;
+    let mut last_sim = f64::NEG_INFINITY;
     loop {
         if interrupted.load(Ordering::SeqCst) {
             break;
         }
         let tick = ticker.wait();
-        let sim = tick.k as f64 * step;
+        let mut sim = tick.k as f64 * step;
         if sim > scenario.duration + 1e-9 {
-            break;
+            // An overrun may skip past the end: the last step is at the end exactly.
+            if last_sim >= scenario.duration - 1e-9 {
+                break;
+            }
+            sim = scenario.duration;
         }
+        last_sim = sim;
         for (i, (buf, it)) in publish.iter_mut().zip(&items).enumerate() {
             let off = formation.offsets[i];
             let values = [1.0, off.along, off.cross, off.up, formation.route[1].airspeed, read_elevation[i], sim];
