@@ -163,3 +163,46 @@ fn header_compiles_as_c_and_inside_extern_c_in_cpp() {
         assert!(String::from_utf8_lossy(&out.stdout).contains("framework has stopped"));
     }
 }
+
+/// The C example against the real `tutti host` binary (as a user runs them), with the host
+/// recording what it read: the C component's answers reach the framework.
+#[test]
+fn c_example_runs_against_a_live_tutti_host() {
+    let tutti = profile_dir().join("tutti");
+    assert!(tutti.exists(), "{} missing: build the workspace first (cargo build --workspace)", tutti.display());
+    let ns = namespace("livehost");
+    let dir = tempfile::tempdir().expect("temp dir");
+    let program = compile(&root().join("examples/c/uav_reader.c"), dir.path());
+    let csv = dir.path().join("rec.csv");
+    let mut host = Command::new(&tutti);
+    host.current_dir(root())
+        .env("TUTTI_NAMESPACE", &ns)
+        .args(["host", "ddf/multiuav.ddf", "--step", "2ms", "--quiet", "--set", "multiuav_uav2/Z=3.25", "--record"])
+        .arg(&csv);
+    let mut host = spawn(&mut host);
+    let ddf = root().join("ddf/multiuav.ddf");
+    let mut cmd = Command::new(&program);
+    cmd.env("TUTTI_NAMESPACE", &ns).arg(&ddf).args(["multiuav_uav2", "Z", "Elevation", "50", "2"]);
+    let out = run(&mut cmd, LIMIT);
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        out.status.success(),
+        "uav_reader failed ({}):\n{stdout}\n{}",
+        out.status,
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let values = printed_values(&stdout);
+    assert_eq!(values, vec![3.25; 50], "{stdout}");
+    // Stop the host (SIGINT: it flushes the recording and removes its segments).
+    let pid = host.0.as_ref().expect("host").id();
+    let _ = Command::new("kill").args(["-INT", &pid.to_string()]).status();
+    let _ = host.wait_output(LIMIT);
+    let rec = std::fs::read_to_string(dir.path().join("rec-multiuav_uav2.csv")).expect("recording");
+    let header: Vec<&str> = rec.lines().next().expect("header").split(',').collect();
+    let col = header.iter().position(|c| *c == "subscribe.Elevation").expect("Elevation column");
+    assert!(
+        rec.lines().skip(1).any(|l| l.split(',').nth(col) == Some("6.5")),
+        "the framework never read the C component's answer 2 x 3.25"
+    );
+    assert!(!shm_path(&ns, "multiuav_uav2").exists());
+}
