@@ -135,3 +135,14 @@ fn wait_modes_all_work() {
         t.join().unwrap();
     }
 }
+
+#[test]
+fn segments_belong_to_the_creating_user_only_and_vanish_with_the_framework() {
+    use std::os::unix::fs::PermissionsExt;
+    let fw = Framework::create(&model(false, true, false), &fopts("mode")).unwrap();
+    let path = format!("/dev/shm/tutti.{}.d", ns("mode"));
+    let mode = std::fs::metadata(&path).unwrap().permissions().mode() & 0o777;
+    assert_eq!(mode, 0o600, "{path} has mode {mode:o}");
+    drop(fw);
+    assert!(!std::path::Path::new(&path).exists());
+}
