@@ -6,55 +6,18 @@
 //! line on stderr with that exact position and a message containing the substring, and
 //! there must be no other `error:` lines: the validator reports every problem in one run.
 
-use std::fs;
-use std::io::Read;
-use std::path::{Path, PathBuf};
-use std::process::{Command, Stdio};
-use std::time::{Duration, Instant};
+mod common;
 
-const TIMEOUT: Duration = Duration::from_secs(60);
+use std::fs;
+use std::path::{Path, PathBuf};
 
 fn corpus_dir() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/ddf-invalid")
 }
 
-/// Runs `tutti ARGS` with a watchdog; returns (exit code, stdout, stderr).
+/// Runs `tutti check ARGS` with a watchdog; returns (exit code, stdout, stderr).
 fn tutti(args: &[&Path]) -> (i32, String, String) {
-    let mut child = Command::new(env!("CARGO_BIN_EXE_tutti"))
-        .arg("check")
-        .args(args)
-        .stdin(Stdio::null())
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .expect("spawn tutti");
-    let mut out = child.stdout.take().expect("stdout");
-    let mut err = child.stderr.take().expect("stderr");
-    let out = std::thread::spawn(move || {
-        let mut s = String::new();
-        let _ = out.read_to_string(&mut s);
-        s
-    });
-    let err = std::thread::spawn(move || {
-        let mut s = String::new();
-        let _ = err.read_to_string(&mut s);
-        s
-    });
-    let start = Instant::now();
-    let status = loop {
-        if let Some(status) = child.try_wait().expect("wait for tutti") {
-            break status;
-        }
-        if start.elapsed() > TIMEOUT {
-            let _ = child.kill();
-            let _ = child.wait();
-            panic!("tutti check {args:?} did not finish within {TIMEOUT:?}");
-        }
-        std::thread::sleep(Duration::from_millis(5));
-    };
-    let out = out.join().expect("stdout reader");
-    let err = err.join().expect("stderr reader");
-    (status.code().unwrap_or(-1), out, err)
+    common::tutti(std::iter::once(Path::new("check")).chain(args.iter().copied()))
 }
 
 /// One expected diagnostic.
