@@ -18,13 +18,13 @@ use common::tutti;
 #[test]
 fn committed_samples_pass_check() {
     for file in ["ddf/paper-figure2.ddf", "ddf/product-sample.ddf", "ddf/multiuav.ddf", "ddf/large-1000.ddf"] {
-        let (code, out, err) = tutti(&["check", file]);
+        let (code, out, err) = tutti(["check", file]);
         assert_eq!(code, 0, "tutti check {file}: {err}");
         assert!(out.starts_with(&format!("{file}: ok (")), "{out}");
         assert!(err.is_empty(), "{err}");
     }
     // Several files in one run.
-    let (code, out, _) = tutti(&["check", "ddf/paper-figure2.ddf", "ddf/multiuav.ddf"]);
+    let (code, out, _) = tutti(["check", "ddf/paper-figure2.ddf", "ddf/multiuav.ddf"]);
     assert_eq!(code, 0);
     assert_eq!(out.lines().count(), 2);
     assert!(out.contains("ddf/multiuav.ddf: ok (4 domains, 52 items)"), "{out}");
@@ -41,7 +41,7 @@ fn leaf<'a>(set: &'a Value, path: &str) -> &'a Value {
 
 #[test]
 fn show_json_lists_paths_lengths_and_defaults() {
-    let (code, out, err) = tutti(&["show", "--json", "ddf/product-sample.ddf"]);
+    let (code, out, err) = tutti(["show", "--json", "ddf/product-sample.ddf"]);
     assert_eq!(code, 0, "{err}");
     let v: Value = serde_json::from_str(&out).expect("show --json prints JSON");
     assert_eq!(v["schema"], "tutti-show/1");
@@ -234,7 +234,7 @@ fn committed_large_ddf_is_the_generator_output() {
     let model = ddf::load(&path).expect("large-1000.ddf is valid");
     assert_eq!(model.domains.len(), 1000);
     assert!(model.domains.iter().all(|d| d.leaves().count() == 20));
-    let (code, out, _) = tutti(&["check", "ddf/large-1000.ddf"]);
+    let (code, out, _) = tutti(["check", "ddf/large-1000.ddf"]);
     assert_eq!(code, 0);
     assert!(out.contains("(1000 domains, 20000 items)"), "{out}");
 }
