@@ -7,15 +7,16 @@ domain from the co-simulation layer (RTGetConnectionCount through python/tutti_r
 as the run goes on. A disconnection request is SIGUSR1 to the UAV component, a connection
 request SIGUSR2; the component then calls disconnect / connect itself.
 
-    monitor.py --t0 UNIX_TIME|stdin --speed 4 --duration 120 \\
+    monitor.py --clock stdin --duration 120 \\
         --events 30:3:disconnect,50:3:connect --pids 1:1234,2:1235,3:1236,4:1237 \\
         --domains multiuav_uav1,multiuav_uav2,multiuav_uav3,multiuav_uav4 \\
         --out connections.csv --events-out events.csv
 
-Simulated time is (now - t0) * speed: the framework steps on absolute deadlines from t0.
-With --t0 stdin the script loads, prints "ready" on stdout and then reads t0 from its
-standard input, so that the framework can start its clock once the script is ready.
-Output: connections.csv (sim_time,wall_s,uav1..uavN) and events.csv
+The clock: with --clock stdin (as `tutti demo uav` runs it) the script loads, prints "ready"
+on stdout, then reads the framework's simulated time, one number per line, from its standard
+input: the script follows the co-simulation's own clock, also when a loaded machine slows it
+down. With --clock wall --t0 UNIX_TIME --speed X, simulated time is (now - t0) * X.
+Output: connections.csv (sim_time,wall_s,uav1..uavN; wall_s from the script's start) and events.csv
 (sim_time,uav,connect,scheduled; connect = 1 for a connection request, 0 for a
 disconnection). Progress goes to stderr. Stops at --duration, on SIGTERM / SIGINT, or when
 the domains are gone (the framework stopped).
@@ -25,6 +26,7 @@ import argparse
 import os
 import signal
 import sys
+import threading
 import time
 
 import tutti_rtapi as rt
@@ -50,8 +52,9 @@ def parse_pids(text):
 
 def main():
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--t0", required=True, help="wall-clock (Unix) time of simulated time 0, or 'stdin'")
-    ap.add_argument("--speed", type=float, default=1.0, help="simulated seconds per wall second")
+    ap.add_argument("--clock", choices=["stdin", "wall"], default="stdin", help="where simulated time comes from")
+    ap.add_argument("--t0", type=float, default=None, help="--clock wall: Unix time of simulated time 0")
+    ap.add_argument("--speed", type=float, default=1.0, help="--clock wall: simulated seconds per wall second")
     ap.add_argument("--duration", type=float, required=True, help="simulated seconds to monitor")
     ap.add_argument("--events", default="", help="T:UAV:disconnect|connect, comma-separated")
     ap.add_argument("--pids", default="", help="UAV:PID of each UAV component, comma-separated")
@@ -62,14 +65,6 @@ def main():
     args = ap.parse_args()
 
     rt.error_message(0)  # loads librtapi now, not at the first sample
-    if args.t0 == "stdin":
-        print("ready", flush=True)
-        line = sys.stdin.readline()
-        if not line.strip():
-            return 0  # the framework did not start
-        args.t0 = float(line)
-    else:
-        args.t0 = float(args.t0)
     events = parse_events(args.events)
     pids = parse_pids(args.pids)
     domains = args.domains.split(",")
@@ -77,15 +72,39 @@ def main():
     for sig in (signal.SIGTERM, signal.SIGINT):
         signal.signal(sig, lambda *_: stop.append(True))
 
+    clock = {"sim": None, "ended": False}
+    if args.clock == "stdin":
+        print("ready", flush=True)
+
+        def follow():
+            for line in sys.stdin:
+                try:
+                    clock["sim"] = float(line)
+                except ValueError:
+                    pass
+            clock["ended"] = True  # the framework stopped stepping
+
+        threading.Thread(target=follow, daemon=True).start()
+    else:
+        if args.t0 is None:
+            ap.error("--clock wall needs --t0")
+        clock["sim"] = 0.0
+
     def sim_now():
-        return (time.time() - args.t0) * args.speed
+        if args.clock == "wall":
+            return (time.time() - args.t0) * args.speed
+        return clock["sim"]
 
     with open(args.out, "w") as counts, open(args.events_out, "w") as sent:
         counts.write("sim_time,wall_s," + ",".join(f"uav{i + 1}" for i in range(len(domains))) + "\n")
         sent.write("sim_time,uav,connect,scheduled\n")
         next_sample = 0.0
-        while not stop:
+        start = time.time()
+        while not stop and not clock["ended"]:
             now = sim_now()
+            if now is None:  # the first step has not come yet
+                time.sleep(0.002)
+                continue
             if now > args.duration:
                 break
             while events and events[0][0] <= now:
@@ -105,12 +124,11 @@ def main():
                 except rt.RTAPIError as e:
                     print(f"monitor: t={now:.1f}s domains gone ({e.name}): stopping", file=sys.stderr)
                     break
-                counts.write(f"{now:.4f},{time.time() - args.t0:.4f}," + ",".join(map(str, row)) + "\n")
+                counts.write(f"{now:.4f},{time.time() - start:.4f}," + ",".join(map(str, row)) + "\n")
                 counts.flush()
                 next_sample = now + args.every
-            # Wake for whatever comes first: the next sample or the next event.
-            due = min([next_sample] + [e[0] for e in events[:1]])
-            time.sleep(max(0.0, min((due - sim_now()) / args.speed, 0.05)))
+            # Simulated time moves in steps of tens of milliseconds of wall time at most.
+            time.sleep(0.002)
     return 0
 
 

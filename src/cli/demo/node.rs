@@ -5,8 +5,11 @@
 //! (SUBSCRIBE). It logs the altitude it computes to a CSV file, whether connected or not.
 //!
 //! SIGUSR1 disconnects, SIGUSR2 reconnects (the monitoring script sends them). While
-//! disconnected the UAV keeps flying, paced by the wall clock at the demo's speed; on
-//! reconnection it follows the framework's clock again. SIGTERM or SIGINT ends it.
+//! disconnected the UAV keeps flying in simulated time: it follows the co-simulation's clock,
+//! which it reads from the domain's segment header without holding a connection (so it stays
+//! in step with the framework even when the machine is too loaded for real time), or, when
+//! the segment cannot be read, the wall clock at the demo's speed. On reconnection it reads
+//! the step's time again. SIGTERM or SIGINT ends it.
 
 use std::fs::File;
 use std::io::{BufWriter, Write};
@@ -17,6 +20,7 @@ use std::time::{Duration, Instant};
 
 use anyhow::Context;
 use tutti_core::ddf::Role;
+use tutti_core::shm::segment::{namespace_from_env, Segment};
 use tutti_core::shm::{ConnectOptions, Participant, ShmError};
 use tutti_uav::{FormationCommand, Uav, DEFAULT_DT};
 
@@ -138,8 +142,9 @@ fn fly(args: NodeArgs) -> anyhow::Result<()> {
         part = Some((p, items));
         node.connected = true;
     }
-    // While disconnected: the wall-clock anchor of the UAV's own clock.
+    // While disconnected: the segment whose clock to follow, else a wall-clock anchor.
     let mut anchor = (Instant::now(), node.uav.time());
+    let mut clock: Option<Segment> = None;
     let mut result = Ok(());
     while !stop.load(Ordering::SeqCst) {
         if disconnect.swap(false, Ordering::SeqCst) {
@@ -147,6 +152,7 @@ fn fly(args: NodeArgs) -> anyhow::Result<()> {
                 p.disconnect();
                 node.connected = false;
                 anchor = (Instant::now(), node.uav.time());
+                clock = Segment::open(&namespace_from_env(), &domain).ok();
                 eprintln!("{who}: disconnected at t={:.2}s", node.uav.time());
             }
         }
@@ -156,15 +162,19 @@ fn fly(args: NodeArgs) -> anyhow::Result<()> {
                     let items = Items::of(&p)?;
                     part = Some((p, items));
                     node.connected = true;
+                    clock = None;
                     eprintln!("{who}: connected again at t={:.2}s", node.uav.time());
                 }
                 Err(e) => eprintln!("{who}: {e:#}"),
             }
         }
         let Some((p, items)) = part.as_mut() else {
-            // Disconnected: fly on at the demo's pace.
-            std::thread::sleep(Duration::from_millis(10));
-            let t = anchor.1 + anchor.0.elapsed().as_secs_f64() * args.speed;
+            // Disconnected: fly on with the co-simulation's clock.
+            std::thread::sleep(Duration::from_millis(5));
+            let t = match clock.as_ref().filter(|seg| seg.framework_alive()) {
+                Some(seg) => f64::from_bits(seg.header().sim_time_bits.load(Ordering::Relaxed)),
+                None => anchor.1 + anchor.0.elapsed().as_secs_f64() * args.speed,
+            };
             node.fly_to(t)?;
             continue;
         };

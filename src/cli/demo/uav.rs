@@ -16,7 +16,7 @@ use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Stdio};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
-use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
+use std::time::{Duration, Instant};
 
 use anyhow::{bail, Context};
 use tutti_core::ddf::Role;
@@ -219,10 +219,6 @@ fn f64_at(buf: &[u8], off: usize) -> f64 {
     f64::from_ne_bytes(b)
 }
 
-fn unix_now() -> f64 {
-    SystemTime::now().duration_since(UNIX_EPOCH).map(|d| d.as_secs_f64()).unwrap_or(0.0)
-}
-
 /// Offsets of the items the framework writes and reads in one domain.
 struct DomainItems {
     publish: [usize; 7],
@@ -307,7 +303,11 @@ fn simulate(args: &UavArgs, scenario: &Scenario, out: &Path, interrupted: &Atomi
     let model = tutti_core::ddf::load(&ddf_path).map_err(|e| anyhow::anyhow!("{e}"))?;
     anyhow::ensure!(model.domains.len() == UAVS, "the demo's DDF has {} domains, not {UAVS}", model.domains.len());
     let exe = std::env::current_exe().context("locating this executable")?;
-    let lib = find_rtapi()?;
+    // A private copy of librtapi: a rebuild during the run cannot pull it away.
+    let found = find_rtapi()?;
+    let lib = out.join("bin/librtapi.so");
+    std::fs::create_dir_all(out.join("bin"))?;
+    std::fs::copy(&found, &lib).with_context(|| format!("copying {}", found.display()))?;
     let c_reader = match &args.c_reader {
         Some(p) => p.clone(),
         None => build_c_reader(out, &lib)?,
@@ -404,13 +404,14 @@ fn simulate(args: &UavArgs, scenario: &Scenario, out: &Path, interrupted: &Atomi
     let mut publish: Vec<Vec<u8>> = model.domains.iter().map(|d| d.publish.layout.default_bytes()).collect();
     let mut read_elevation = [0.0f64; UAVS];
 
-    // The monitoring script: loaded before the clock starts, then given the clock's origin.
+    // The monitoring script: loaded before the clock starts, then fed the simulated time of
+    // every step on its standard input.
     let mut monitor = {
         let mut cmd = Command::new(&python);
         let pids: Vec<String> = uavs.iter().enumerate().map(|(i, k)| format!("{}:{}", i + 1, k.pid())).collect();
         let domains: Vec<&str> = model.domains.iter().map(|d| d.name.as_str()).collect();
         cmd.arg(Path::new(ROOT).join("launch-scripts/monitor.py"))
-            .args(["--t0", "stdin", "--speed", &args.speed.to_string()])
+            .args(["--clock", "stdin"])
             .args(["--duration", &scenario.duration.to_string(), "--events", &scenario.events_arg()])
             .args(["--pids", &pids.join(","), "--domains", &domains.join(",")])
             .arg("--out")
@@ -424,7 +425,7 @@ fn simulate(args: &UavArgs, scenario: &Scenario, out: &Path, interrupted: &Atomi
         cmd.stdin(Stdio::piped()).stdout(Stdio::piped());
         spawn("monitoring script", cmd)?
     };
-    let mut monitor_in = monitor.child.stdin.take().context("the monitoring script's stdin")?;
+    let monitor_in = monitor.child.stdin.take().context("the monitoring script's stdin")?;
     {
         let stdout = monitor.child.stdout.take().context("the monitoring script's stdout")?;
         let (tx, rx) = std::sync::mpsc::channel();
@@ -443,28 +444,30 @@ fn simulate(args: &UavArgs, scenario: &Scenario, out: &Path, interrupted: &Atomi
         rt::enter_realtime_verbose("demo", &RealtimeRequest { cpu: args.cpu, priority: args.priority });
     }
     let mut ticker = Ticker::new(period);
-    let t0 = unix_now();
     let wall0 = Instant::now();
-    writeln!(monitor_in, "{t0:.6}").context("starting the monitoring script's clock")?;
-    drop(monitor_in);
+    let mut monitor_in = Some(monitor_in);
     let mut readers: Vec<Kid> = Vec::new();
     let mut last_progress = -10.0f64;
     let mut overruns_seen = 0;
-    let mut last_sim = f64::NEG_INFINITY;
+    let mut steps = 0u64;
     loop {
         if interrupted.load(Ordering::SeqCst) {
             break;
         }
         let tick = ticker.wait();
-        let mut sim = tick.k as f64 * step;
+        // Simulated time counts steps: on a machine too loaded for real time the simulation
+        // slows down (overruns are counted) instead of skipping steps; every participant,
+        // the monitoring script included, follows this clock.
+        let sim = steps as f64 * step;
         if sim > scenario.duration + 1e-9 {
-            // An overrun may skip past the end: the last step is at the end exactly.
-            if last_sim >= scenario.duration - 1e-9 {
-                break;
-            }
-            sim = scenario.duration;
+            break;
         }
-        last_sim = sim;
+        steps += 1;
+        if let Some(pipe) = monitor_in.as_mut() {
+            if writeln!(pipe, "{sim:.6}").is_err() {
+                monitor_in = None;
+            }
+        }
         for (i, (buf, it)) in publish.iter_mut().zip(&items).enumerate() {
             let off = formation.offsets[i];
             let values = [1.0, off.along, off.cross, off.up, formation.route[1].airspeed, read_elevation[i], sim];
@@ -514,6 +517,7 @@ fn simulate(args: &UavArgs, scenario: &Scenario, out: &Path, interrupted: &Atomi
             eprintln!("demo: t={sim:5.1}s connections per domain [{}]{late}", counts.join(" "));
         }
     }
+    drop(monitor_in.take());
     csv.flush().context("writing framework.csv")?;
     if interrupted.load(Ordering::SeqCst) {
         return Ok(());
