@@ -5,9 +5,10 @@
 //!
 //! Shape: [`node`] builds the DDS participant, the ROS 2 node and every endpoint; [`routes`]
 //! has one module per route kind; [`manager`] runs the one `select!` loop that takes DDS
-//! samples and matching changes ([`discovery`]) and hands shared-memory work to dedicated
-//! threads (no blocking call ever runs on the async runtime). [`cdr`] encodes and decodes
-//! the types, [`qos`] turns the QoS table into rustdds QoS.
+//! samples and matching changes ([`discovery`]) and hands shared-memory work that waits to
+//! dedicated threads (no waiting call runs on the async runtime; the reader tasks of
+//! asynchronous domains commit themselves, since such a commit never waits). [`cdr`] encodes
+//! and decodes the types, [`qos`] turns the QoS table into rustdds QoS.
 
 #![deny(unsafe_op_in_unsafe_fn)]
 
