@@ -7,8 +7,9 @@ cd "$(dirname "$0")/.."
 
 step() { printf '\n== %s\n' "$*"; }
 
-# --- Debian packages: DDS peers and tools for the interop tests, C toolchain, valgrind.
-packages=(cyclonedds-tools cyclonedds-dev fastddsgen libfastrtps-dev fastdds-tools valgrind gcc g++ make python3-venv)
+# --- Debian packages: DDS peers and tools for the interop tests, C toolchain, valgrind, the
+# font the UAV demo draws its figures with.
+packages=(cyclonedds-tools cyclonedds-dev fastddsgen libfastrtps-dev fastdds-tools valgrind gcc g++ make python3-venv fonts-dejavu-core)
 missing=()
 for p in "${packages[@]}"; do
     dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
