@@ -179,7 +179,7 @@ fn c_example_runs_against_a_live_tutti_host() {
         .env("TUTTI_NAMESPACE", &ns)
         .args(["host", "ddf/multiuav.ddf", "--step", "2ms", "--quiet", "--set", "multiuav_uav2/Z=3.25", "--record"])
         .arg(&csv);
-    let mut host = spawn(&mut host);
+    let host = spawn(&mut host);
     let ddf = root().join("ddf/multiuav.ddf");
     let mut cmd = Command::new(&program);
     cmd.env("TUTTI_NAMESPACE", &ns).arg(&ddf).args(["multiuav_uav2", "Z", "Elevation", "50", "2"]);
