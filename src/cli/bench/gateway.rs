@@ -37,8 +37,9 @@ pub struct Args {
     /// How long the throughput run lasts.
     #[arg(long, default_value = "3s", value_parser = super::super::host::parse_duration)]
     duration: Duration,
-    /// Core placements to run: same (everything on CPU 0), split (gateway on CPU 1), both.
-    #[arg(long, default_value = "both")]
+    /// Core placements to run: same (everything on CPU 0), split (the gateway alone on CPU 1),
+    /// apart (the DDS peer alone on CPU 1), both (same and split), all.
+    #[arg(long, default_value = "all")]
     placement: String,
     /// DDS domain id of the runs.
     #[arg(long, default_value_t = 230)]
@@ -118,18 +119,24 @@ pub fn run(args: Args) -> CliResult {
     std::fs::create_dir_all(&dir).context("creating a scratch directory")?;
     let ddf = dir.join("gwbench.ddf");
     std::fs::write(&ddf, ddf_text()).context("writing the benchmark DDF")?;
-    let placements: Vec<(&str, usize, usize)> = match args.placement.as_str() {
-        "same" => vec![("same core (all on CPU 0)", 0, 0)],
-        "split" => vec![("two cores (gateway CPU 1; framework, echo, ping CPU 0)", 0, 1)],
-        _ => vec![("same core (all on CPU 0)", 0, 0), ("two cores (gateway CPU 1; framework, echo, ping CPU 0)", 0, 1)],
+    let same = Cpus { name: "same core (all on CPU 0)", fw: 0, gw: 0, peer: 0 };
+    let split = Cpus { name: "two cores (gateway CPU 1; framework and DDS peer CPU 0)", fw: 0, gw: 1, peer: 0 };
+    let apart = Cpus { name: "two cores (framework and gateway CPU 0; DDS peer CPU 1)", fw: 0, gw: 0, peer: 1 };
+    let placements = match args.placement.as_str() {
+        "same" => vec![same],
+        "split" => vec![split],
+        "apart" => vec![apart],
+        "both" => vec![same, split],
+        _ => vec![same, split, apart],
     };
     println!("gateway round trip: shm -> gateway -> DDS -> echo -> DDS -> gateway -> shm, {ITEMS} x float64 async set");
     println!("{:<58} {:>10} {:>10} {:>10}", "placement / path", "p50 µs", "p99 µs", "lost");
-    for (name, main_cpu, gw_cpu) in placements {
-        let r = round_trip(&exe, &ddf, &args, main_cpu, gw_cpu).with_context(|| format!("placement {name}"))?;
+    for cpus in placements {
+        let name = cpus.name;
+        let r = round_trip(&exe, &ddf, &args, cpus).with_context(|| format!("placement {name}"))?;
         println!("{name}");
         println!("  {:<56} {:>10.1} {:>10.1} {:>10}", "gateway (rustdds) round trip", r.p50, r.p99, r.lost);
-        match rustdds_ping(&exe, &ddf, &args, main_cpu, gw_cpu) {
+        match rustdds_ping(&exe, &ddf, &args, cpus) {
             Ok(mut t) => {
                 t.sort_by(f64::total_cmp);
                 let lost = args.samples as usize - t.len();
@@ -141,14 +148,15 @@ pub fn run(args: Args) -> CliResult {
             }
             Err(e) => println!("  rustdds ping: not run ({e:#})"),
         }
-        match ddsperf(main_cpu, gw_cpu) {
+        // ddsperf's two processes: one per core when the DDS sides are on two cores.
+        match ddsperf(cpus.gw.min(cpus.peer), cpus.gw.max(cpus.peer)) {
             Ok((p50, p99)) => {
                 println!("  {:<56} {:>10.1} {:>10.1}", "ddsperf ping-pong round trip (2 x its half)", p50, p99);
                 println!("  {:<56} {:>10.2}", "ratio gateway / ddsperf, p50 (target <= 1.5)", r.p50 / p50);
             }
             Err(e) => println!("  ddsperf: not run ({e:#})"),
         }
-        let t = throughput(&exe, &ddf, &args, main_cpu, gw_cpu).with_context(|| format!("placement {name}"))?;
+        let t = throughput(&exe, &ddf, &args, cpus).with_context(|| format!("placement {name}"))?;
         println!("  {:<56} {:>10.0}", "shm -> gateway -> DDS sink, samples/s", t.to_dds);
         println!("  {:<56} {:>10.0}", "DDS source -> gateway -> shm, samples/s", t.from_dds);
         println!("  {:<56} {:>10.0}", "DDS source -> DDS sink (rustdds alone), samples/s", t.direct);
@@ -172,14 +180,23 @@ struct RoundTrip {
     lost: u32,
 }
 
-fn round_trip(exe: &Path, ddf: &Path, args: &Args, main_cpu: usize, gw_cpu: usize) -> anyhow::Result<RoundTrip> {
+/// Where the framework (this process), the gateway and the DDS peer run.
+#[derive(Debug, Clone, Copy)]
+struct Cpus {
+    name: &'static str,
+    fw: usize,
+    gw: usize,
+    peer: usize,
+}
+
+fn round_trip(exe: &Path, ddf: &Path, args: &Args, cpus: Cpus) -> anyhow::Result<RoundTrip> {
     let ns = format!("gwbench{}", std::process::id());
     let model = load_ddf(ddf).map_err(|f| f.error)?;
     let opts = FrameworkOptions { namespace: ns.clone(), wait: WaitMode::Spin, ..Default::default() };
     let mut fw = Framework::create(&model, &opts).context("creating the benchmark domain")?;
     let host = &mut fw.domains[0];
     let dom = args.ros_domain_id.to_string();
-    let _gw = Kid(pinned(gw_cpu, exe)
+    let _gw = Kid(pinned(cpus.gw, exe)
         .args(["gateway", &ddf.to_string_lossy(), "--ros-domain-id", &dom, "--interface", "127.0.0.1"])
         .args(["--poll", "0", "--wait", "spin", "-q"])
         .env("TUTTI_NAMESPACE", &ns)
@@ -187,12 +204,12 @@ fn round_trip(exe: &Path, ddf: &Path, args: &Args, main_cpu: usize, gw_cpu: usiz
         .stdin(Stdio::null())
         .spawn()
         .context("starting the gateway")?);
-    let _echo = Kid(pinned(main_cpu, exe)
+    let _echo = Kid(pinned(cpus.peer, exe)
         .args(["bench", "gateway", "--echo", &ddf.to_string_lossy(), "--ros-domain-id", &dom])
         .stdin(Stdio::null())
         .spawn()
         .context("starting the echo peer")?);
-    pin_self(main_cpu);
+    pin_self(cpus.fw);
     let mut data = vec![0u8; ITEMS * 8];
     let mut seq = 0f64;
     let mut send = |host: &mut tutti_core::shm::DomainHost, seq: f64| {
@@ -384,7 +401,7 @@ fn sink_rate(kid: &mut Kid) -> anyhow::Result<f64> {
 /// * DDS -> shm: a rustdds source writes SUBSCRIBE samples flat out; the commits the
 ///   gateway makes in shared memory are counted over `duration`.
 /// * rustdds alone: the same source and sink on the same cores, without the gateway.
-fn throughput(exe: &Path, ddf: &Path, args: &Args, main_cpu: usize, gw_cpu: usize) -> anyhow::Result<Throughput> {
+fn throughput(exe: &Path, ddf: &Path, args: &Args, cpus: Cpus) -> anyhow::Result<Throughput> {
     let ns = format!("gwbenchtp{}", std::process::id());
     let model = load_ddf(ddf).map_err(|f| f.error)?;
     let opts = FrameworkOptions { namespace: ns.clone(), wait: WaitMode::Spin, ..Default::default() };
@@ -392,11 +409,11 @@ fn throughput(exe: &Path, ddf: &Path, args: &Args, main_cpu: usize, gw_cpu: usiz
     let host = &mut fw.domains[0];
     let dom = (args.ros_domain_id + 2).to_string();
     let ddfs = ddf.to_string_lossy().into_owned();
-    pin_self(main_cpu);
-    let _gw = gateway(exe, ddf, gw_cpu, &dom, &ns)?;
+    pin_self(cpus.fw);
+    let _gw = gateway(exe, ddf, cpus.gw, &dom, &ns)?;
 
     // shm -> DDS.
-    let mut sink = peer(exe, main_cpu, &dom, args.duration, &["--sink", &ddfs, "publish"])?;
+    let mut sink = peer(exe, cpus.peer, &dom, args.duration, &["--sink", &ddfs, "publish"])?;
     let mut data = vec![0u8; ITEMS * 8];
     let mut seq = 0f64;
     let end = Instant::now() + args.duration + Duration::from_secs(40);
@@ -411,7 +428,7 @@ fn throughput(exe: &Path, ddf: &Path, args: &Args, main_cpu: usize, gw_cpu: usiz
     let to_dds = sink_rate(&mut sink)?;
 
     // DDS -> shm.
-    let source = peer(exe, main_cpu, &dom, args.duration, &["--source", &ddfs])?;
+    let source = peer(exe, cpus.peer, &dom, args.duration, &["--source", &ddfs])?;
     let commits = |host: &tutti_core::shm::DomainHost| host.status().subscribe_commits;
     let c0 = commits(host);
     let end = Instant::now() + Duration::from_secs(40);
@@ -425,8 +442,8 @@ fn throughput(exe: &Path, ddf: &Path, args: &Args, main_cpu: usize, gw_cpu: usiz
     drop(_gw);
 
     // rustdds alone, on the same cores.
-    let mut sink = peer(exe, gw_cpu, &dom, args.duration, &["--sink", &ddfs, "subscribe"])?;
-    let _source = peer(exe, main_cpu, &dom, args.duration, &["--source", &ddfs])?;
+    let mut sink = peer(exe, cpus.gw, &dom, args.duration, &["--sink", &ddfs, "subscribe"])?;
+    let _source = peer(exe, cpus.peer, &dom, args.duration, &["--source", &ddfs])?;
     let direct = sink_rate(&mut sink)?;
     Ok(Throughput { to_dds, from_dds, direct })
 }
@@ -460,17 +477,17 @@ fn source(ddf: &Path, domain_id: u16) -> CliResult {
 
 /// The echo pinged by a rustdds participant in this process (where the gateway was), with
 /// no gateway and no shared memory: what rustdds itself costs on this path.
-fn rustdds_ping(exe: &Path, ddf: &Path, args: &Args, main_cpu: usize, gw_cpu: usize) -> anyhow::Result<Vec<f64>> {
+fn rustdds_ping(exe: &Path, ddf: &Path, args: &Args, cpus: Cpus) -> anyhow::Result<Vec<f64>> {
     let dom = (args.ros_domain_id + 4).to_string();
-    let _echo = Kid(pinned(main_cpu, exe)
+    let _echo = Kid(pinned(cpus.peer, exe)
         .args(["bench", "gateway", "--echo", &ddf.to_string_lossy(), "--ros-domain-id", &dom])
         .stdin(Stdio::null())
         .spawn()
         .context("starting the echo peer")?);
-    pin_self(gw_cpu);
+    pin_self(cpus.gw);
     let (mut opts, d) = peer_opts(ddf, args.ros_domain_id + 4)?;
     opts.node_name = "tutti_bench_ping".into();
     let t = tutti_gateway::echo::ping(&opts, &d, args.samples, Duration::from_secs(30));
-    pin_self(main_cpu);
+    pin_self(cpus.fw);
     t.map_err(anyhow::Error::new)
 }
