@@ -184,7 +184,7 @@ pub fn ping(
                 }
             }
             spins += 1;
-            if spins < 256 {
+            if spins < 16 {
                 std::hint::spin_loop();
             } else {
                 std::thread::yield_now();

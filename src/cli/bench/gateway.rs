@@ -248,7 +248,7 @@ fn round_trip(exe: &Path, ddf: &Path, args: &Args, cpus: Cpus) -> anyhow::Result
             // Spin, but give the core away between looks: the echo and the gateway may
             // share it (a pure spinner is only preempted at the end of its time slice).
             spins += 1;
-            if spins < 256 {
+            if spins < 16 {
                 std::hint::spin_loop();
             } else {
                 std::thread::yield_now();
