@@ -40,9 +40,13 @@ fn payload(v: u64) -> Vec<u8> {
     out
 }
 
-/// The value a payload carries, or `None` if it is torn.
+/// The value a payload carries, or `None` if it is torn. The set's defaults (all zeros,
+/// before the framework's first write) are a whole value too: 0.
 fn check(bytes: &[u8]) -> Option<u64> {
     let w: Vec<u64> = bytes.chunks_exact(8).map(|c| u64::from_ne_bytes(c.try_into().unwrap())).collect();
+    if w.iter().all(|&x| x == 0) {
+        return Some(0);
+    }
     let v = w[0];
     (w[..WORDS - 1].iter().all(|&x| x == v) && w[WORDS - 1] == v.wrapping_mul(WORDS as u64 - 1).wrapping_add(0x5eed))
         .then_some(v)
@@ -136,11 +140,29 @@ fn child_main() {
         "snapshots" => {
             let n: u64 = parts.next().unwrap().parse().unwrap();
             let mut p = Participant::connect("d", copts(&namespace)).unwrap();
+            // Count from the writer's first write on, so that every read races a writer.
+            loop {
+                p.subscribe_lock().unwrap();
+                if check(p.snapshot()).is_some_and(|v| v > 0) {
+                    break;
+                }
+                std::thread::yield_now();
+            }
             let (mut torn, mut distinct, mut last) = (0u64, 0u64, u64::MAX);
             for _ in 0..n {
                 p.subscribe_lock().unwrap();
                 match check(p.snapshot()) {
-                    None => torn += 1,
+                    None => {
+                        if torn == 0 {
+                            let w: Vec<u64> = p
+                                .snapshot()
+                                .chunks_exact(8)
+                                .map(|c| u64::from_ne_bytes(c.try_into().unwrap()))
+                                .collect();
+                            eprintln!("first torn snapshot (generation {}): {:?}", p.last_step(), w);
+                        }
+                        torn += 1
+                    }
                     Some(v) if v != last => {
                         distinct += 1;
                         last = v;

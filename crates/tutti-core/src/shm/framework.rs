@@ -326,7 +326,7 @@ fn sweep(seg: &Segment) -> usize {
     for i in 0..seg.scan_len() {
         let Some(c) = seg.conn(i) else { break };
         let pid = c.active.load(Ordering::Acquire);
-        if pid == 0 {
+        if pid == 0 || pid == segment::RELEASING {
             continue;
         }
         let id = os::ProcessId { pid, start_time: c.start_time.load(Ordering::Acquire) };

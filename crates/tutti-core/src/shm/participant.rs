@@ -341,6 +341,11 @@ impl Participant {
                         let slot = ((owner & 0xffff_ffff) as usize).wrapping_sub(1);
                         let owner_pid = seg.conn(slot).map_or(0, |c| c.active.load(Ordering::Acquire));
                         let start = seg.conn(slot).map_or(0, |c| c.start_time.load(Ordering::Acquire));
+                        // An owner being released right now: its ownership goes next.
+                        if owner_pid == segment::RELEASING {
+                            std::thread::yield_now();
+                            continue;
+                        }
                         // An owner that died is released here rather than after the
                         // framework's next sweep; then the claim is tried again.
                         if owner_pid != 0

@@ -44,6 +44,9 @@ const CONN_BYTES: usize = 128;
 const DIR_ENTRY_BYTES: usize = 16;
 const ALIGN: usize = 64;
 
+/// `ConnSlot::active` while a slot is being released (no process has this pid).
+pub const RELEASING: u32 = u32::MAX;
+
 /// Framework state values.
 pub const STATE_INIT: u32 = 0;
 pub const STATE_RUNNING: u32 = 1;
@@ -627,16 +630,22 @@ impl Segment {
 
     /// Releases slot `i` held by `pid`: its ownership, its writer lock (repairing a commit
     /// it abandoned half-way) and its pending handshakes. Returns false if someone else
-    /// released it first.
+    /// released it first. Exclusive: the caller that swaps `pid` for [`RELEASING`] does the
+    /// whole release, so two releasers (the framework's sweep and a writer freeing a dead
+    /// owner) can never both touch a slot that a new connection has meanwhile claimed.
     pub fn release_slot(&self, i: usize, pid: u32) -> bool {
         let h = self.header();
         let Some(c) = self.conn(i) else { return false };
-        if c.active.load(Ordering::Acquire) != pid {
+        if pid == 0 || pid == RELEASING {
+            return false;
+        }
+        if c.active.compare_exchange(pid, RELEASING, Ordering::AcqRel, Ordering::Relaxed).is_err() {
             return false;
         }
         let was_ready = c.ready.swap(0, Ordering::AcqRel);
-        if was_ready == 0 && os::is_alive(ProcessId { pid, start_time: 0 }) && pid != os::current_process().pid {
-            // Still claiming (alive) or being released by someone else.
+        if was_ready == 0 && pid != os::current_process().pid && os::is_alive(ProcessId { pid, start_time: 0 }) {
+            // A live process still claiming the slot: not ours to release.
+            c.active.store(pid, Ordering::Release);
             return false;
         }
         let id = self.conn_id(i);
@@ -649,9 +658,7 @@ impl Segment {
         }
         c.flags.store(0, Ordering::Relaxed);
         c.generation.fetch_add(1, Ordering::AcqRel);
-        if c.active.compare_exchange(pid, 0, Ordering::AcqRel, Ordering::Relaxed).is_err() {
-            return false;
-        }
+        c.active.store(0, Ordering::Release);
         if was_ready != 0 {
             h.conn_count.fetch_sub(1, Ordering::AcqRel);
         }
