@@ -126,6 +126,8 @@ pub struct Watched {
     pub own_commits: Option<Arc<AtomicU64>>,
     seg: Option<Segment>,
     next_open: Instant,
+    /// When to look at the framework's process again (a /proc read costs microseconds).
+    next_alive_check: Instant,
     last_gen: Option<u64>,
     base: (u64, u64),
     last_local: u64,
@@ -148,6 +150,7 @@ impl Watched {
             own_commits,
             seg: None,
             next_open: Instant::now(),
+            next_alive_check: Instant::now(),
             last_gen: None,
             base: (0, 0),
             last_local: 0,
@@ -164,10 +167,13 @@ impl Watched {
             }
             return false;
         }
-        if self.seg.as_ref().is_some_and(|s| !s.framework_alive()) {
-            info!(domain = %self.domain, "framework stopped; waiting for it to come back");
-            self.seg = None;
-            self.last_gen = None;
+        if self.seg.is_some() && Instant::now() >= self.next_alive_check {
+            self.next_alive_check = Instant::now() + Duration::from_millis(50);
+            if self.seg.as_ref().is_some_and(|s| !s.framework_alive()) {
+                info!(domain = %self.domain, "framework stopped; waiting for it to come back");
+                self.seg = None;
+                self.last_gen = None;
+            }
         }
         if self.seg.is_none() {
             if Instant::now() < self.next_open {
