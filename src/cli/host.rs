@@ -13,7 +13,7 @@ use tutti_core::ddf::{Domain, Leaf, Role};
 use tutti_core::shm::{Framework, FrameworkOptions, WaitMode};
 
 use super::{load_ddf, CliResult, Failure};
-use crate::rt::{self, RealtimeRequest, Ticker};
+use crate::rt::{self, Ticker};
 
 /// Run the framework of every domain in a DDF: create the segments, step at a fixed period.
 #[derive(Debug, clap::Args)]
@@ -46,16 +46,8 @@ pub struct Args {
     /// Hold participants in connect (wait-to-go) for this long after start.
     #[arg(long, value_parser = parse_duration)]
     hold: Option<Duration>,
-    /// Run the stepping loop under SCHED_FIFO with locked memory (mlockall), as far as the
-    /// machine allows; what it refuses is a warning, not an error.
-    #[arg(long)]
-    realtime: bool,
-    /// With --realtime: pin the stepping thread to this CPU.
-    #[arg(long, value_name = "N", requires = "realtime")]
-    cpu: Option<usize>,
-    /// With --realtime: the SCHED_FIFO priority (1..99, default 50).
-    #[arg(long, value_name = "P", requires = "realtime")]
-    priority: Option<i32>,
+    #[command(flatten)]
+    rt: super::RealtimeArgs,
     /// Print no progress lines.
     #[arg(short, long)]
     quiet: bool,
@@ -195,8 +187,7 @@ pub fn run(args: Args) -> CliResult {
             args.step
         );
     }
-    if args.realtime {
-        let req = RealtimeRequest { cpu: args.cpu, priority: args.priority };
+    if let Some(req) = args.rt.request() {
         if args.quiet {
             rt::enter_realtime(&req);
         } else {

@@ -43,6 +43,28 @@ enum Command {
     Demo(demo::Args),
 }
 
+/// `--realtime [--cpu N] [--priority P]`, shared by the commands that step domains.
+#[derive(Debug, Clone, clap::Args)]
+pub struct RealtimeArgs {
+    /// Step under SCHED_FIFO with locked memory (mlockall), as far as the machine allows;
+    /// what it refuses is a warning, not an error.
+    #[arg(long)]
+    pub realtime: bool,
+    /// With --realtime: pin the stepping thread to this CPU.
+    #[arg(long, value_name = "N", requires = "realtime")]
+    pub cpu: Option<usize>,
+    /// With --realtime: the SCHED_FIFO priority (1..99, default 50).
+    #[arg(long, value_name = "P", requires = "realtime")]
+    pub priority: Option<i32>,
+}
+
+impl RealtimeArgs {
+    /// What to apply, when `--realtime` was given.
+    pub fn request(&self) -> Option<crate::rt::RealtimeRequest> {
+        self.realtime.then_some(crate::rt::RealtimeRequest { cpu: self.cpu, priority: self.priority })
+    }
+}
+
 /// A failure with the exit status it maps to.
 #[derive(Debug)]
 pub struct Failure {

@@ -27,7 +27,7 @@ use super::plot;
 use super::scenario::{Scenario, UAVS};
 use crate::cli::host::parse_duration;
 use crate::cli::{CliResult, Failure, EXIT_FAILURE};
-use crate::rt::{self, RealtimeRequest, Ticker};
+use crate::rt::{self, Ticker};
 
 /// The DDF of the demo, built in: the demo runs from any directory.
 const DDF_TEXT: &str = include_str!("../../../ddf/multiuav.ddf");
@@ -66,15 +66,8 @@ pub struct UavArgs {
     /// DDS domain of the gateway (default: ROS_DOMAIN_ID, else 0).
     #[arg(long, value_name = "N")]
     ros_domain_id: Option<u32>,
-    /// Step under SCHED_FIFO with locked memory where the machine allows it.
-    #[arg(long)]
-    realtime: bool,
-    /// With --realtime: pin the framework's loop to this CPU.
-    #[arg(long, value_name = "N", requires = "realtime")]
-    cpu: Option<usize>,
-    /// With --realtime: SCHED_FIFO priority.
-    #[arg(long, value_name = "P", requires = "realtime")]
-    priority: Option<i32>,
+    #[command(flatten)]
+    rt: crate::cli::RealtimeArgs,
 }
 
 /// `tutti demo uav-report`: the checks and figures of a finished run, again.
@@ -440,8 +433,8 @@ fn simulate(args: &UavArgs, scenario: &Scenario, out: &Path, interrupted: &Atomi
             Err(_) => bail!("the monitoring script ({python}) was not ready within 60 s"),
         }
     }
-    if args.realtime {
-        rt::enter_realtime_verbose("demo", &RealtimeRequest { cpu: args.cpu, priority: args.priority });
+    if let Some(req) = args.rt.request() {
+        rt::enter_realtime_verbose("demo", &req);
     }
     let mut ticker = Ticker::new(period);
     let wall0 = Instant::now();
