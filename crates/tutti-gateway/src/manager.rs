@@ -193,19 +193,7 @@ impl Manager {
                         counts_readers: true,
                     });
                     // SUBSCRIBE: DDS -> shared memory, and shared-memory writers -> DDS.
-                    let codec = Arc::new(SetCodec::new(&d.subscribe.layout));
-                    let sub = dds.subscription::<TypedSample>(&subn.topic, &subn.dds_type, &rq)?;
-                    let direct = Direct::default();
-                    rt.spawn(from_dds::forward_typed(
-                        sub,
-                        SetSeed(codec),
-                        routes.len(),
-                        tx.clone(),
-                        stats.clone(),
-                        dds.own_prefix,
-                        direct.clone(),
-                    ));
-                    routes.push(Route::In { domain: di, topic: subn.topic.clone(), direct });
+                    typed_inbound(&mut dds, rt, &mut routes, &tx, &stats, di, &d.subscribe.layout, &subn, &rq)?;
                     let out = Outbound::Set(Box::new(set_writer(
                         &mut dds,
                         d,
@@ -230,19 +218,7 @@ impl Manager {
                         mapping::set_names(&pkg, &d.name, Role::Publish),
                         mapping::set_names(&pkg, &d.name, Role::Subscribe),
                     );
-                    let codec = Arc::new(SetCodec::new(&d.publish.layout));
-                    let sub = dds.subscription::<TypedSample>(&pubn.topic, &pubn.dds_type, &rq)?;
-                    let direct = Direct::default();
-                    rt.spawn(from_dds::forward_typed(
-                        sub,
-                        SetSeed(codec),
-                        routes.len(),
-                        tx.clone(),
-                        stats.clone(),
-                        dds.own_prefix,
-                        direct.clone(),
-                    ));
-                    routes.push(Route::In { domain: di, topic: pubn.topic.clone(), direct });
+                    typed_inbound(&mut dds, rt, &mut routes, &tx, &stats, di, &d.publish.layout, &pubn, &rq)?;
                     let out = Outbound::Set(Box::new(set_writer(
                         &mut dds,
                         d,
@@ -525,6 +501,37 @@ impl Manager {
             let _ = t.join();
         }
     }
+}
+
+/// A typed DDS -> shared-memory route for one set: its subscription, the reader task that
+/// decodes (and, in asynchronous domains, commits) its samples, and the route entry the task
+/// reports under.
+#[allow(clippy::too_many_arguments)]
+fn typed_inbound(
+    dds: &mut Dds,
+    rt: &tokio::runtime::Handle,
+    routes: &mut Vec<Route>,
+    tx: &mpsc::UnboundedSender<Event>,
+    stats: &Arc<Stats>,
+    domain: usize,
+    layout: &tutti_core::ddf::SetLayout,
+    names: &mapping::SetNames,
+    rq: &Qos,
+) -> Result<(), GatewayError> {
+    let codec = Arc::new(SetCodec::new(layout));
+    let sub = dds.subscription::<TypedSample>(&names.topic, &names.dds_type, rq)?;
+    let direct = Direct::default();
+    rt.spawn(from_dds::forward_typed(
+        sub,
+        SetSeed(codec),
+        routes.len(),
+        tx.clone(),
+        stats.clone(),
+        dds.own_prefix,
+        direct.clone(),
+    ));
+    routes.push(Route::In { domain, topic: names.topic.clone(), direct });
+    Ok(())
 }
 
 fn set_writer(
