@@ -49,8 +49,8 @@ fn a_fast_dds_subscriber_receives_typed_samples() {
     let gw = gateway("ddf/multiuav.ddf", dom, ns, &[]);
     let mut cmd = Command::new(&bin);
     cmd.args([dom.to_string().as_str(), "3", "20"]);
-    let mut sub = Proc::spawn("fastdds_sub", cmd, Duration::from_secs(30));
-    assert_eq!(sub.wait(Duration::from_secs(25)), Some(0), "{}\n{}", sub.dump(), gw.dump());
+    let mut sub = Proc::spawn("fastdds_sub", cmd, Duration::from_secs(90));
+    assert_eq!(sub.wait(Duration::from_secs(75)), Some(0), "{}\n{}", sub.dump(), gw.dump());
     let line = sub.lines().into_iter().find(|l| l.starts_with("step=")).unwrap();
     let field = |name: &str| -> f64 {
         line.split_whitespace().find_map(|kv| kv.strip_prefix(&format!("{name}="))).unwrap().parse().unwrap()

@@ -82,8 +82,8 @@ fn shared_memory_values_reach_a_cyclone_reader_as_typed_samples() {
             "3",
         ],
     );
-    let rc = sub.wait(SECS(25));
-    let rc2 = pubs.wait(SECS(25));
+    let rc = sub.wait(SECS(75));
+    let rc2 = pubs.wait(SECS(75));
     stop.store(true, Ordering::Release);
     t.join().unwrap();
     assert_eq!(rc, Some(0), "{}\n{}", sub.dump(), gw.dump());
@@ -127,7 +127,7 @@ fn per_item_mode_uses_stock_types_both_ways() {
             r#"[["data","float64"]]"#,
         ],
     );
-    let rc = y.wait(SECS(25));
+    let rc = y.wait(SECS(75));
     stop.store(true, Ordering::Release);
     t.join().unwrap();
     assert_eq!(rc, Some(0), "{}\n{}", y.dump(), gw.dump());
@@ -176,7 +176,7 @@ fn per_item_mode_uses_stock_types_both_ways() {
             r#"[{"data": 41}, {"data": 42}, {"data": 42}, {"data": 42}]"#,
         ],
     );
-    let rcs = [v.wait(SECS(25)), flag.wait(SECS(25)), w.wait(SECS(25))];
+    let rcs = [v.wait(SECS(75)), flag.wait(SECS(75)), w.wait(SECS(75))];
     assert_eq!(rcs, [Some(0); 3], "{}\n{}\n{}\n{}", v.dump(), flag.dump(), w.dump(), gw.dump());
     assert_eq!(json_lines(&flag, "data")[0]["data"], true);
     // Float64MultiArray: an empty layout (no dims), then the array.
@@ -184,7 +184,7 @@ fn per_item_mode_uses_stock_types_both_ways() {
     assert_eq!(arr["dim_len"], 0);
     assert_eq!(arr["data"].as_array().map(Vec::len), Some(3));
     let off = leaf_offset("gw_async", Role::Subscribe, "n");
-    let k = host.wait_for(SECS(5), |_, b| i32::from_ne_bytes(b[off..off + 4].try_into().unwrap()) == 42);
+    let k = host.wait_for(SECS(15), |_, b| i32::from_ne_bytes(b[off..off + 4].try_into().unwrap()) == 42);
     assert!(k.is_some(), "the framework never read n=42\n{}", gw.dump());
 }
 
@@ -213,11 +213,11 @@ fn a_cyclone_writer_is_read_by_the_framework_through_a_remote_connection() {
         ],
     );
     let got =
-        host.wait_for(SECS(20), |_, b| f64_at(b, 0) == 9.5 && i32::from_ne_bytes(b[8..12].try_into().unwrap()) == 3);
+        host.wait_for(SECS(60), |_, b| f64_at(b, 0) == 9.5 && i32::from_ne_bytes(b[8..12].try_into().unwrap()) == 3);
     // While the DDS writer is there, the domain lists it as a remote writer connection.
     let seg = tutti_core::shm::segment::Segment::open(ns, "gw_async").unwrap();
     let remote_writers = seg.status().connections.iter().filter(|c| c.remote && c.writer).count();
-    assert_eq!(w.wait(SECS(20)), Some(0), "{}\n{}", w.dump(), gw.dump());
+    assert_eq!(w.wait(SECS(60)), Some(0), "{}\n{}", w.dump(), gw.dump());
     assert!(got.is_some(), "the framework never read the DDS sample\n{}", gw.dump());
     assert_eq!(remote_writers, 1, "{:?}", seg.status().connections);
 }
@@ -228,8 +228,8 @@ fn the_gateway_writers_offer_the_qos_table_on_the_wire() {
     for (dom, ns, profile) in [(104, "gwtest104", "ros2"), (105, "gwtest105", "dds")] {
         let gw = gateway(DDF, dom, ns, &["--qos-profile", profile, "--strength", "9"]);
         let q = |topic: &str| {
-            let mut p = peer(&py, &format!("qos {topic}"), dom, "qos", &["--topic", topic, "--timeout", "15"]);
-            assert_eq!(p.wait(SECS(20)), Some(0), "{}\n{}", p.dump(), gw.dump());
+            let mut p = peer(&py, &format!("qos {topic}"), dom, "qos", &["--topic", topic, "--timeout", "45"]);
+            assert_eq!(p.wait(SECS(60)), Some(0), "{}\n{}", p.dump(), gw.dump());
             json_lines(&p, "reliability").remove(0)
         };
         let sync = q("rt/gw_sync/publish");
@@ -255,8 +255,8 @@ fn the_gateway_is_a_ros2_node_in_ros_discovery_info() {
     let Some(py) = python() else { return };
     let (dom, ns) = (106, "gwtest106");
     let gw = gateway(DDF, dom, ns, &["--node-name", "tutti_gw_test"]);
-    let mut p = peer(&py, "nodes", dom, "nodes", &["--name", "tutti_gw_test", "--timeout", "15"]);
-    assert_eq!(p.wait(SECS(20)), Some(0), "{}\n{}", p.dump(), gw.dump());
+    let mut p = peer(&py, "nodes", dom, "nodes", &["--name", "tutti_gw_test", "--timeout", "45"]);
+    assert_eq!(p.wait(SECS(60)), Some(0), "{}\n{}", p.dump(), gw.dump());
     let n = &json_lines(&p, "name")[0];
     assert_eq!(n["namespace"], "/");
     // 3 domains: 2 writers (PUBLISH, SUBSCRIBE) and 1 reader (SUBSCRIBE) each, besides
@@ -288,7 +288,7 @@ fn bad_samples_and_a_second_writer_are_dropped_and_counted() {
             r#"[{"step": 1}, {"step": 2}]"#,
         ],
     );
-    assert_eq!(bad.wait(SECS(20)), Some(0), "{}", bad.dump());
+    assert_eq!(bad.wait(SECS(60)), Some(0), "{}", bad.dump());
     // Two writers on an exclusive set: the first to publish owns it.
     let vals =
         |y: f64| format!(r#"[{{"y": {y}}}, {{"y": {y}}}, {{"y": {y}}}, {{"y": {y}}}, {{"y": {y}}}, {{"y": {y}}}]"#);
@@ -296,15 +296,15 @@ fn bad_samples_and_a_second_writer_are_dropped_and_counted() {
     let a =
         ["--topic", "rt/gw_async/subscribe", "--type", "gw_msgs::msg::dds_::GwAsyncSubscribe_", "--fields", SUB_FIELDS];
     let mut first = peer(&py, "first writer", dom, "pub", &[&a[..], &["--values", &v1, "--period-ms", "300"]].concat());
-    assert!(host.wait_for(SECS(20), |_, b| f64_at(b, 0) == 1.0).is_some(), "{}\n{}", first.dump(), gw.dump());
+    assert!(host.wait_for(SECS(60), |_, b| f64_at(b, 0) == 1.0).is_some(), "{}\n{}", first.dump(), gw.dump());
     let mut second =
         peer(&py, "second writer", dom, "pub", &[&a[..], &["--values", &v2, "--period-ms", "100"]].concat());
-    assert_eq!(second.wait(SECS(20)), Some(0), "{}", second.dump());
-    assert_eq!(first.wait(SECS(20)), Some(0), "{}", first.dump());
+    assert_eq!(second.wait(SECS(60)), Some(0), "{}", second.dump());
+    assert_eq!(first.wait(SECS(60)), Some(0), "{}", first.dump());
     thread::sleep(Duration::from_millis(700));
     assert!(host.seen.lock().unwrap().iter().all(|(_, b)| f64_at(b, 0) != 2.0), "the second writer got through");
     let rejected = tutti_core::shm::segment::Segment::open(ns, "gw_async").unwrap().status().rejected;
-    assert_eq!(gw.interrupt(SECS(10)), Some(0), "{}", gw.dump());
+    assert_eq!(gw.interrupt(SECS(30)), Some(0), "{}", gw.dump());
     assert!(counter(&gw, "bad_samples") >= 1, "{}", gw.dump());
     assert!(counter(&gw, "refused") >= 1, "{}", gw.dump());
     assert!(rejected >= 1, "the domain header counts the refused commits");
@@ -335,14 +335,14 @@ fn a_dds_writer_takes_part_in_lock_step_through_the_gateway() {
             "--count",
             "100000",
             "--timeout",
-            "30",
+            "60",
         ],
     );
     let host = Host::start(ns, "gw_sync", Duration::from_millis(5), |k| (k as f64 * 10.0).to_ne_bytes().to_vec());
     let gw = gateway(DDF, dom, ns, &[]);
     // In lock-step, the SUBSCRIBE set read at the end of step k answers step k's PUBLISH set.
     let answered = |k: u64, b: &[u8]| f64_at(b, 0) == k as f64 * 10.0 + 1.0;
-    let first = host.wait_for(SECS(25), answered);
+    let first = host.wait_for(SECS(75), answered);
     assert!(first.is_some(), "no step was answered in lock-step\n{}\n{}", answer.dump(), gw.dump());
     thread::sleep(Duration::from_millis(500));
     let seen = host.seen.lock().unwrap().clone();
@@ -354,7 +354,7 @@ fn a_dds_writer_takes_part_in_lock_step_through_the_gateway() {
         after.len()
     );
     drop(host);
-    let _ = answer.interrupt(SECS(5));
+    let _ = answer.interrupt(SECS(15));
 }
 
 #[test]
@@ -378,9 +378,9 @@ fn the_cyclone_uav_listener_prints_the_states_a_uav_model_commits() {
     });
     let mut cmd = std::process::Command::new(&py);
     cmd.args(["launch-scripts/cyclone_uav_listener.py", "--domain", &dom.to_string(), "--uavs", "1", "--count", "2"]);
-    cmd.args(["--timeout", "20"]);
-    let mut l = Proc::spawn("uav listener", cmd, Duration::from_secs(30));
-    let rc = l.wait(SECS(25));
+    cmd.args(["--timeout", "60"]);
+    let mut l = Proc::spawn("uav listener", cmd, Duration::from_secs(90));
+    let rc = l.wait(SECS(75));
     stop.store(true, Ordering::Release);
     uav.join().unwrap();
     drop(host);

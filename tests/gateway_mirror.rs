@@ -29,7 +29,7 @@ fn a_component_on_the_mirror_side_drives_an_asynchronous_domain() {
     let s = stop.clone();
     let component = thread::spawn(move || {
         let mut p = connect(away, "gw_async");
-        let end = Instant::now() + SECS(20);
+        let end = Instant::now() + SECS(60);
         let mut x = 0.0;
         while Instant::now() < end && x != 4.5 {
             p.subscribe_lock().unwrap();
@@ -43,7 +43,7 @@ fn a_component_on_the_mirror_side_drives_an_asynchronous_domain() {
         }
         x
     });
-    let got = host.wait_for(SECS(25), |_, b| f64_at(b, 0) == 8.5);
+    let got = host.wait_for(SECS(75), |_, b| f64_at(b, 0) == 8.5);
     stop.store(true, Ordering::Release);
     let x = component.join().unwrap();
     assert_eq!(x, 4.5, "the mirror side never read the PUBLISH set\n{}\n{}", gw_home.dump(), gw_away.dump());
@@ -77,7 +77,7 @@ fn a_component_on_the_mirror_side_takes_part_in_lock_step() {
     });
     // In lock-step, the SUBSCRIBE set read at the end of step k answers step k's PUBLISH set.
     let answered = |k: u64, b: &[u8]| f64_at(b, 0) == k as f64 * 10.0 + 1.0;
-    let first = host.wait_for(SECS(25), answered);
+    let first = host.wait_for(SECS(75), answered);
     thread::sleep(Duration::from_millis(700));
     stop.store(true, Ordering::Release);
     let seen = host.seen.lock().unwrap().clone();

@@ -239,7 +239,7 @@ def main():
     p.add_argument("--reply-fields")
     p.add_argument("--name")
     p.add_argument("--count", type=int, default=1)
-    p.add_argument("--timeout", type=float, default=20.0)
+    p.add_argument("--timeout", type=float, default=60.0)
     p.add_argument("--period-ms", type=float, default=50.0)
     p.add_argument("--linger", type=float, default=0.5)
     p.add_argument("--best-effort", action="store_true")

@@ -179,8 +179,8 @@ pub fn gateway(ddf: &str, domain_id: u16, ns: &str, extra: &[&str]) -> Proc {
     .args(extra)
     .env("TUTTI_NAMESPACE", ns)
     .env("RUST_LOG", "info,rustdds=off,ros2_client=off");
-    let p = Proc::spawn(&format!("gateway {ns}"), cmd, Duration::from_secs(60));
-    assert!(p.wait_line("tutti gateway: up", Duration::from_secs(20)).is_some(), "gateway did not start\n{}", p.dump());
+    let p = Proc::spawn(&format!("gateway {ns}"), cmd, Duration::from_secs(180));
+    assert!(p.wait_line("tutti gateway: up", Duration::from_secs(60)).is_some(), "gateway did not start\n{}", p.dump());
     p
 }
 
@@ -188,7 +188,7 @@ pub fn gateway(ddf: &str, domain_id: u16, ns: &str, extra: &[&str]) -> Proc {
 pub fn peer(py: &Path, name: &str, domain_id: u16, mode: &str, args: &[&str]) -> Proc {
     let mut cmd = Command::new(py);
     cmd.arg(PEER).arg(mode).args(["--domain", &domain_id.to_string()]).args(args);
-    Proc::spawn(name, cmd, Duration::from_secs(40))
+    Proc::spawn(name, cmd, Duration::from_secs(120))
 }
 
 /// The last gateway counter `name` printed in a status line.
