@@ -9,6 +9,7 @@ use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 use futures::StreamExt;
+use ros2_client::dds::{Publisher, Subscription};
 use tutti_core::ddf::{Domain, Role};
 use tutti_core::mapping::{self, Endpoint, History, Reliability};
 
@@ -25,17 +26,7 @@ pub fn run(opts: &GatewayOptions, domain: &Domain, stop: Arc<AtomicBool>) -> Res
         )));
     }
     let rt = tokio::runtime::Builder::new_current_thread().enable_all().build().map_err(GatewayError::Runtime)?;
-    let mut dds = Dds::open(opts)?;
-    let pkg = mapping::package_name(&opts.ddf_path);
-    let (pubn, subn) = (
-        mapping::set_names(&pkg, &domain.name, Role::Publish),
-        mapping::set_names(&pkg, &domain.name, Role::Subscribe),
-    );
-    let rq = mapping::qos(domain.flags, opts.profile, Endpoint::Reader, 0);
-    let wq = mapping::qos(domain.flags, opts.profile, Endpoint::Writer, 0);
-    let codec = Arc::new(SetCodec::new(&domain.publish.layout));
-    let sub = dds.subscription::<TypedSample>(&pubn.topic, &pubn.dds_type, &rq)?;
-    let publ = dds.publisher::<PreEncoded>(&subn.topic, &subn.dds_type, &wq)?;
+    let Endpoints { dds, codec, sub, publ } = Endpoints::open(opts, domain, Role::Publish)?;
     let own = dds.own_prefix;
     let echoed = rt.block_on(async {
         let stream = sub.async_stream_seed(SetSeed(codec.clone()));
@@ -159,17 +150,7 @@ pub fn ping(
     samples: u32,
     patience: Duration,
 ) -> Result<Vec<f64>, GatewayError> {
-    let mut dds = Dds::open(opts)?;
-    let pkg = mapping::package_name(&opts.ddf_path);
-    let (pubn, subn) = (
-        mapping::set_names(&pkg, &domain.name, Role::Publish),
-        mapping::set_names(&pkg, &domain.name, Role::Subscribe),
-    );
-    let rq = mapping::qos(domain.flags, opts.profile, Endpoint::Reader, 0);
-    let wq = mapping::qos(domain.flags, opts.profile, Endpoint::Writer, 0);
-    let codec = Arc::new(SetCodec::new(&domain.publish.layout));
-    let publ = dds.publisher::<PreEncoded>(&pubn.topic, &pubn.dds_type, &wq)?;
-    let sub = dds.subscription::<TypedSample>(&subn.topic, &subn.dds_type, &rq)?;
+    let Endpoints { dds, codec, sub, publ } = Endpoints::open(opts, domain, Role::Subscribe)?;
     let shm = vec![0u8; codec.shm_size()];
     let mut body = Vec::new();
     let mut once = |step: u64, limit: Duration| -> Option<f64> {
@@ -212,4 +193,32 @@ pub fn ping(
     }
     drop(dds);
     Ok(times)
+}
+
+/// The DDS side of the echo and of its ping: one participant, a typed reader of one set's
+/// topic and a writer of the other's (the two sets have one layout, so one codec serves both).
+struct Endpoints {
+    dds: Dds,
+    codec: Arc<SetCodec>,
+    sub: Subscription<TypedSample>,
+    publ: Publisher<PreEncoded>,
+}
+
+impl Endpoints {
+    /// `reads`: the set whose topic is read (the echo reads PUBLISH, the ping SUBSCRIBE).
+    fn open(opts: &GatewayOptions, domain: &Domain, reads: Role) -> Result<Endpoints, GatewayError> {
+        let mut dds = Dds::open(opts)?;
+        let pkg = mapping::package_name(&opts.ddf_path);
+        let writes = match reads {
+            Role::Publish => Role::Subscribe,
+            Role::Subscribe => Role::Publish,
+        };
+        let (rn, wn) = (mapping::set_names(&pkg, &domain.name, reads), mapping::set_names(&pkg, &domain.name, writes));
+        let rq = mapping::qos(domain.flags, opts.profile, Endpoint::Reader, 0);
+        let wq = mapping::qos(domain.flags, opts.profile, Endpoint::Writer, 0);
+        let codec = Arc::new(SetCodec::new(&domain.publish.layout));
+        let sub = dds.subscription::<TypedSample>(&rn.topic, &rn.dds_type, &rq)?;
+        let publ = dds.publisher::<PreEncoded>(&wn.topic, &wn.dds_type, &wq)?;
+        Ok(Endpoints { dds, codec, sub, publ })
+    }
 }
