@@ -81,6 +81,21 @@ fn observed_events(d: &RunData) -> Vec<(f64, usize, bool)> {
 
 /// Figure 5: altitude of the four UAVs; dotted = computed by the models, solid = read by
 /// the framework; the monitoring script's disconnect / connect events marked.
+/// The legend box of every figure: white, framed, at `position`.
+fn draw_legend<'a, 'b: 'a, CT: CoordTranslate>(
+    chart: &mut ChartContext<'a, BitMapBackend<'b>, CT>,
+    position: SeriesLabelPosition,
+) -> anyhow::Result<()> {
+    chart
+        .configure_series_labels()
+        .position(position)
+        .background_style(WHITE.mix(0.9))
+        .border_style(BLACK)
+        .label_font(("sans-serif", 17))
+        .draw()?;
+    Ok(())
+}
+
 pub fn figure5(path: &Path, s: &Scenario, d: &RunData) -> anyhow::Result<()> {
     font()?;
     let root = BitMapBackend::new(path, (1400, 820)).into_drawing_area();
@@ -155,13 +170,7 @@ pub fn figure5(path: &Path, s: &Scenario, d: &RunData) -> anyhow::Result<()> {
                 + Circle::new((15, 0), 2, BLACK.filled())
                 + Circle::new((24, 0), 2, BLACK.filled())
         });
-    chart
-        .configure_series_labels()
-        .position(SeriesLabelPosition::LowerRight)
-        .background_style(WHITE.mix(0.9))
-        .border_style(BLACK)
-        .label_font(("sans-serif", 17))
-        .draw()?;
+    draw_legend(&mut chart, SeriesLabelPosition::LowerRight)?;
     root.present().with_context(|| format!("writing {}", path.display()))?;
     Ok(())
 }
@@ -230,13 +239,7 @@ pub fn figure6(path: &Path, s: &Scenario, d: &RunData) -> anyhow::Result<()> {
         .legend(|(x, y)| {
             EmptyElement::at((x, y)) + Circle::new((6, 0), 2, BLACK.filled()) + Circle::new((18, 0), 2, BLACK.filled())
         });
-    chart
-        .configure_series_labels()
-        .position(SeriesLabelPosition::UpperLeft)
-        .background_style(WHITE.mix(0.9))
-        .border_style(BLACK)
-        .label_font(("sans-serif", 17))
-        .draw()?;
+    draw_legend(&mut chart, SeriesLabelPosition::UpperLeft)?;
 
     // Connected participants per domain, as the monitoring script saw them.
     let ct = d.connections.col("sim_time");
@@ -274,13 +277,7 @@ pub fn figure6(path: &Path, s: &Scenario, d: &RunData) -> anyhow::Result<()> {
             .label(format!("multiuav_uav{}", i + 1))
             .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 30, y)], c.stroke_width(width)));
     }
-    chart
-        .configure_series_labels()
-        .position(SeriesLabelPosition::UpperLeft)
-        .background_style(WHITE.mix(0.9))
-        .border_style(BLACK)
-        .label_font(("sans-serif", 17))
-        .draw()?;
+    draw_legend(&mut chart, SeriesLabelPosition::UpperLeft)?;
     root.present().with_context(|| format!("writing {}", path.display()))?;
     Ok(())
 }
