@@ -5,9 +5,11 @@
 //! the current slot and keeps the copy only if the slot's sequence number was even and
 //! unchanged across the copy. Writers never wait for readers; a reader retries only when
 //! the writer laps it (`SLOTS` commits during one copy), which a ring of four makes rare even
-//! under a writer that commits back to back. All accesses to the data are relaxed
-//! atomic word accesses, so the code is free of data races even in the Rust memory model,
-//! and loom checks it (`tests/loom.rs`).
+//! under a writer that commits back to back. The sequence numbers, generations and fences
+//! are atomics; the data itself is copied with `memcpy`, as in any C seqlock, and a copy
+//! that raced a writer is thrown away by the sequence check. Under `--cfg tutti_loom` the
+//! data goes through relaxed atomic word accesses instead, so that loom checks the very
+//! protocol (`tests/loom.rs`); `docs/architecture.md` says why the fast build copies bytes.
 
 use crate::sync::{fence, spin_hint, AtomicU64, Ordering};
 
@@ -26,51 +28,146 @@ pub struct Bucket<'a> {
     pub slots: [&'a [AtomicU64]; SLOTS],
 }
 
-/// Copies `src` bytes into shared words (relaxed stores).
+/// Copies `src` bytes into shared words (bytes past `src.len()` keep their value).
+///
+/// Outside the loom model this is one `memcpy`: word-by-word atomic stores cannot be
+/// vectorised and cost three times as much on a large set. A reader racing with the copy
+/// sees bytes of either value, exactly as a C seqlock does, and the slot's sequence number
+/// makes it throw them away (see `docs/architecture.md`, "Why the copies are memcpy").
 pub fn store_bytes(dst: &[AtomicU64], src: &[u8]) {
-    let mut chunks = src.chunks_exact(8);
-    for (word, chunk) in dst.iter().zip(&mut chunks) {
-        word.store(u64::from_ne_bytes(chunk.try_into().unwrap_or([0; 8])), Ordering::Relaxed);
+    let n = src.len().min(dst.len() * 8);
+    #[cfg(not(tutti_loom))]
+    // SAFETY: `dst` covers `dst.len() * 8` bytes of atomics (interior mutability, so
+    // writing through a shared reference is allowed) and `src` is at least `n` long; the
+    // two cannot overlap because `src` is a plain slice.
+    unsafe {
+        std::ptr::copy_nonoverlapping(src.as_ptr(), dst.as_ptr() as *mut u8, n);
     }
-    let rest = chunks.remainder();
-    if !rest.is_empty() {
-        if let Some(word) = dst.get(src.len() / 8) {
-            let mut b = word.load(Ordering::Relaxed).to_ne_bytes();
-            b[..rest.len()].copy_from_slice(rest);
-            word.store(u64::from_ne_bytes(b), Ordering::Relaxed);
+    #[cfg(tutti_loom)]
+    {
+        let src = &src[..n];
+        let mut chunks = src.chunks_exact(8);
+        for (word, chunk) in dst.iter().zip(&mut chunks) {
+            word.store(u64::from_ne_bytes(chunk.try_into().unwrap_or([0; 8])), Ordering::Relaxed);
+        }
+        let rest = chunks.remainder();
+        if !rest.is_empty() {
+            if let Some(word) = dst.get(src.len() / 8) {
+                let mut b = word.load(Ordering::Relaxed).to_ne_bytes();
+                b[..rest.len()].copy_from_slice(rest);
+                word.store(u64::from_ne_bytes(b), Ordering::Relaxed);
+            }
         }
     }
 }
 
-/// Copies shared words into `dst` bytes (relaxed loads).
+/// Copies shared words into `dst` bytes (one `memcpy` outside the loom model, as for
+/// [`store_bytes`]; a torn copy is detected by the caller's sequence check).
 pub fn load_bytes(src: &[AtomicU64], dst: &mut [u8]) {
-    let len = dst.len();
-    let mut chunks = dst.chunks_exact_mut(8);
-    for (word, chunk) in src.iter().zip(&mut chunks) {
-        chunk.copy_from_slice(&word.load(Ordering::Relaxed).to_ne_bytes());
+    let n = dst.len().min(src.len() * 8);
+    #[cfg(not(tutti_loom))]
+    // SAFETY: `src` covers `src.len() * 8` readable bytes and `dst` at least `n`; a plain
+    // `&mut` slice cannot overlap shared atomics.
+    unsafe {
+        std::ptr::copy_nonoverlapping(src.as_ptr() as *const u8, dst.as_mut_ptr(), n);
     }
-    let rest = chunks.into_remainder();
-    if !rest.is_empty() {
-        if let Some(word) = src.get(len / 8) {
-            let n = rest.len();
-            rest.copy_from_slice(&word.load(Ordering::Relaxed).to_ne_bytes()[..n]);
+    #[cfg(tutti_loom)]
+    {
+        let dst = &mut dst[..n];
+        let len = dst.len();
+        let mut chunks = dst.chunks_exact_mut(8);
+        for (word, chunk) in src.iter().zip(&mut chunks) {
+            chunk.copy_from_slice(&word.load(Ordering::Relaxed).to_ne_bytes());
+        }
+        let rest = chunks.into_remainder();
+        if !rest.is_empty() {
+            if let Some(word) = src.get(len / 8) {
+                let n = rest.len();
+                rest.copy_from_slice(&word.load(Ordering::Relaxed).to_ne_bytes()[..n]);
+            }
         }
     }
 }
 
-/// Stores `src` at byte `offset` of shared words, keeping the bytes around it (relaxed
-/// accesses; the caller is the only writer).
+/// Stores `src` at byte `offset` of shared words, keeping the bytes around it (the caller
+/// is the only writer). Bytes past the end of `dst` are dropped.
 pub fn store_range(dst: &[AtomicU64], offset: usize, src: &[u8]) {
-    let end = offset + src.len();
-    let mut w = offset / 8;
-    while w * 8 < end {
-        let Some(word) = dst.get(w) else { return };
-        let lo = (w * 8).max(offset);
-        let hi = (w * 8 + 8).min(end);
-        let mut b = if lo == w * 8 && hi == w * 8 + 8 { [0u8; 8] } else { word.load(Ordering::Relaxed).to_ne_bytes() };
-        b[lo - w * 8..hi - w * 8].copy_from_slice(&src[lo - offset..hi - offset]);
-        word.store(u64::from_ne_bytes(b), Ordering::Relaxed);
-        w += 1;
+    let len = dst.len() * 8;
+    if offset >= len {
+        return;
+    }
+    let src = &src[..src.len().min(len - offset)];
+    #[cfg(not(tutti_loom))]
+    // SAFETY: `offset + src.len() <= dst.len() * 8` (clamped above); see `store_bytes`.
+    unsafe {
+        std::ptr::copy_nonoverlapping(src.as_ptr(), (dst.as_ptr() as *mut u8).add(offset), src.len());
+    }
+    #[cfg(tutti_loom)]
+    {
+        let end = offset + src.len();
+        let mut w = offset / 8;
+        while w * 8 < end {
+            let Some(word) = dst.get(w) else { return };
+            let lo = (w * 8).max(offset);
+            let hi = (w * 8 + 8).min(end);
+            let mut b =
+                if lo == w * 8 && hi == w * 8 + 8 { [0u8; 8] } else { word.load(Ordering::Relaxed).to_ne_bytes() };
+            b[lo - w * 8..hi - w * 8].copy_from_slice(&src[lo - offset..hi - offset]);
+            word.store(u64::from_ne_bytes(b), Ordering::Relaxed);
+            w += 1;
+        }
+    }
+}
+
+/// Copies `dst.len()` bytes from byte `offset` of shared words (a part of a set; the
+/// caller has checked that the range lies inside it).
+pub fn load_range(src: &[AtomicU64], offset: usize, dst: &mut [u8]) {
+    let len = src.len() * 8;
+    let n = dst.len().min(len.saturating_sub(offset));
+    #[cfg(not(tutti_loom))]
+    // SAFETY: `offset + n <= src.len() * 8`; see `load_bytes`.
+    unsafe {
+        std::ptr::copy_nonoverlapping((src.as_ptr() as *const u8).add(offset), dst.as_mut_ptr(), n);
+    }
+    #[cfg(tutti_loom)]
+    for (i, b) in dst[..n].iter_mut().enumerate() {
+        let at = offset + i;
+        *b = src[at / 8].load(Ordering::Relaxed).to_ne_bytes()[at % 8];
+    }
+}
+
+/// Lends the words of a slot being written as bytes, for a writer that computes a value in
+/// place (no staging copy on the way). Outside the loom model the bytes are the shared
+/// memory itself; the loom model goes through a buffer with the same effect.
+pub fn with_bytes_mut<R>(words: &[AtomicU64], f: impl FnOnce(&mut [u8]) -> R) -> R {
+    #[cfg(not(tutti_loom))]
+    {
+        // SAFETY: the words are atomics (interior mutability) covering `len * 8` bytes; the
+        // caller is the slot's only writer while it is lent (the slot is not current, its
+        // sequence number odd, so no reader trusts it), and the loan ends with `f`.
+        let bytes = unsafe { std::slice::from_raw_parts_mut(words.as_ptr() as *mut u8, words.len() * 8) };
+        f(bytes)
+    }
+    #[cfg(tutti_loom)]
+    {
+        let mut buf = vec![0u8; words.len() * 8];
+        load_bytes(words, &mut buf);
+        let r = f(&mut buf);
+        store_bytes(words, &buf);
+        r
+    }
+}
+
+/// Copies one slot's words into another (the writer carrying the previous value over).
+pub fn copy_words(dst: &[AtomicU64], src: &[AtomicU64]) {
+    #[cfg(not(tutti_loom))]
+    // SAFETY: two distinct slots of one bucket never overlap; the length is the shorter one.
+    unsafe {
+        std::ptr::copy_nonoverlapping(src.as_ptr() as *const u8, dst.as_ptr() as *mut u8, dst.len().min(src.len()) * 8);
+    }
+    #[cfg(tutti_loom)]
+    for (p, n) in src.iter().zip(dst) {
+        n.store(p.load(Ordering::Relaxed), Ordering::Relaxed);
     }
 }
 
@@ -99,9 +196,7 @@ impl Bucket<'_> {
     pub fn write(&self, src: &[u8]) -> u64 {
         self.write_with(|prev, next| {
             if src.len() < next.len() * 8 {
-                for (p, n) in prev.iter().zip(next) {
-                    n.store(p.load(Ordering::Relaxed), Ordering::Relaxed);
-                }
+                copy_words(next, prev);
             }
             store_bytes(next, src);
         })
@@ -109,6 +204,12 @@ impl Bucket<'_> {
 
     /// One attempt at a consistent copy: `Some(generation)` when `dst` holds a whole value.
     pub fn try_read(&self, dst: &mut [u8]) -> Option<u64> {
+        self.try_read_at(0, dst)
+    }
+
+    /// One attempt at a consistent copy of the `dst.len()` bytes at byte `offset` of the
+    /// latest value (one item rather than the whole set).
+    pub fn try_read_at(&self, offset: usize, dst: &mut [u8]) -> Option<u64> {
         let generation = self.current.load(Ordering::Acquire);
         let slot = generation as usize % SLOTS;
         let s1 = self.seq[slot].load(Ordering::Acquire);
@@ -116,7 +217,11 @@ impl Bucket<'_> {
             return None;
         }
         let held = self.gens[slot].load(Ordering::Relaxed);
-        load_bytes(self.slots[slot], dst);
+        if offset == 0 {
+            load_bytes(self.slots[slot], dst);
+        } else {
+            load_range(self.slots[slot], offset, dst);
+        }
         fence(Ordering::Acquire);
         let s2 = self.seq[slot].load(Ordering::Relaxed);
         (s1 == s2).then_some(held)
@@ -126,8 +231,13 @@ impl Bucket<'_> {
     /// writer laps the reader; `None` after `max_tries` failed attempts (only a writer that
     /// commits continuously faster than one copy, or a corrupted segment, does that).
     pub fn read(&self, dst: &mut [u8], max_tries: u32) -> Option<u64> {
+        self.read_at(0, dst, max_tries)
+    }
+
+    /// [`read`](Self::read) of the `dst.len()` bytes at byte `offset` only.
+    pub fn read_at(&self, offset: usize, dst: &mut [u8], max_tries: u32) -> Option<u64> {
         for _ in 0..max_tries {
-            if let Some(g) = self.try_read(dst) {
+            if let Some(g) = self.try_read_at(offset, dst) {
                 return Some(g);
             }
             spin_hint();
@@ -178,6 +288,13 @@ mod tests {
         let mut want = [0x11u8; 24];
         want[5..17].copy_from_slice(&[1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12]);
         assert_eq!(out, want);
+        let mut part = [0u8; 7];
+        load_range(&w, 3, &mut part);
+        assert_eq!(part, want[3..10]);
+        // A range running past the end is cut at the end.
+        let mut tail = [0xffu8; 4];
+        load_range(&w, 22, &mut tail);
+        assert_eq!(tail, [0x11, 0x11, 0xff, 0xff]);
     }
 
     #[test]
