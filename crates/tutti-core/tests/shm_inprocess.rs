@@ -146,3 +146,69 @@ fn segments_belong_to_the_creating_user_only_and_vanish_with_the_framework() {
     drop(fw);
     assert!(!std::path::Path::new(&path).exists());
 }
+
+#[test]
+fn a_set_committed_in_place_is_staged_and_later_commits_keep_other_writers_items() {
+    let mut fw = Framework::create(&model(false, true, false), &fopts("inplace")).unwrap();
+    let host = &mut fw.domains[0];
+    host.step(&3.0f64.to_ne_bytes(), 0.0).unwrap();
+    let mut a = Participant::connect("d", copts("inplace")).unwrap();
+    let mut b = Participant::connect("d", copts("inplace")).unwrap();
+    a.subscribe_lock().unwrap();
+    a.publish_lock().unwrap();
+    a.commit_all_with(|snap, out| {
+        let x = f64::from_ne_bytes(snap[0..8].try_into().unwrap());
+        out[0..8].copy_from_slice(&(x * 2.0).to_ne_bytes());
+        out[8..12].copy_from_slice(&11i32.to_ne_bytes());
+    })
+    .unwrap();
+    assert_eq!(&a.staging()[0..12], [6.0f64.to_ne_bytes().as_slice(), &11i32.to_ne_bytes()].concat());
+    let mut item_a = [0u8; 8];
+    let mut item_b = [0u8; 4];
+    host.read_subscribe_at(0, &mut item_a).unwrap();
+    host.read_subscribe_at(8, &mut item_b).unwrap();
+    assert_eq!((f64::from_ne_bytes(item_a), i32::from_ne_bytes(item_b)), (6.0, 11));
+    // `b` changes item a; `a` then changes item b only, through its staging buffer: its
+    // commit must not put back the a it committed in place.
+    b.publish_lock().unwrap();
+    b.stage("a", &99.0f64.to_ne_bytes()).unwrap();
+    b.commit().unwrap();
+    a.staging_mut()[8..12].copy_from_slice(&12i32.to_ne_bytes());
+    a.commit().unwrap();
+    host.read_subscribe_at(0, &mut item_a).unwrap();
+    host.read_subscribe_at(8, &mut item_b).unwrap();
+    assert_eq!((f64::from_ne_bytes(item_a), i32::from_ne_bytes(item_b)), (99.0, 12));
+    assert_eq!(f64::from_ne_bytes(host.read_subscribe().unwrap()[0..8].try_into().unwrap()), 99.0);
+}
+
+#[test]
+fn a_framework_can_await_a_step_and_read_one_item_of_the_answer() {
+    let mut fw = Framework::create(&model(true, true, false), &fopts("await")).unwrap();
+    let mut p = Participant::connect("d", copts("await")).unwrap();
+    let t = std::thread::spawn(move || {
+        for _ in 0..100 {
+            p.subscribe_lock().unwrap();
+            p.publish_lock().unwrap();
+            p.commit_all_with(|snap, out| {
+                let x = f64::from_ne_bytes(snap[0..8].try_into().unwrap());
+                out[0..8].copy_from_slice(&(x + 0.5).to_ne_bytes());
+                out[8..12].copy_from_slice(&(x as i32).to_ne_bytes());
+            })
+            .unwrap();
+        }
+    });
+    let host = &mut fw.domains[0];
+    let mut item_b = [0u8; 4];
+    for k in 1..=100u64 {
+        host.publish_step(&(k as f64).to_ne_bytes(), 0.0).unwrap();
+        assert_eq!(host.await_step().unwrap().timed_out, 0);
+        // The first step may complete before the participant's first read.
+        if k > 1 {
+            host.read_subscribe_at(8, &mut item_b).unwrap();
+            assert_eq!(i32::from_ne_bytes(item_b), k as i32);
+        }
+    }
+    t.join().unwrap();
+    let err = host.read_subscribe_at(12, &mut [0u8; 8]).unwrap_err();
+    assert!(matches!(err, ShmError::OutOfRange { offset: 12, end: 20, size: 16, .. }), "{err}");
+}

@@ -31,6 +31,20 @@ fn model(sync: bool, mpa: bool, states: bool) -> Model {
     .unwrap()
 }
 
+/// A domain whose SUBSCRIBE set has the PUBLISH set's layout, for a participant that echoes.
+fn echo_model() -> Model {
+    ddf::parse_str(
+        &format!(
+            r#"<orchestra><domain name="d"><synchronous>no</synchronous><multiplePublishAllowed>yes</multiplePublishAllowed><states>no</states>
+            <set name="PUBLISH"><item name="w"><type>unsigned int64</type><length>{WORDS}</length></item></set>
+            <set name="SUBSCRIBE"><item name="w"><type>unsigned int64</type><length>{WORDS}</length></item></set>
+            </domain></orchestra>"#
+        ),
+        "echo.ddf",
+    )
+    .unwrap()
+}
+
 fn payload(v: u64) -> Vec<u8> {
     let mut out = Vec::with_capacity(WORDS * 8);
     for _ in 0..WORDS - 1 {
@@ -172,6 +186,22 @@ fn child_main() {
             }
             say(&format!("torn={torn} distinct={distinct}"));
         }
+        "echo_all" => {
+            // Answers every new PUBLISH value with the same bytes, written in place.
+            let mut p = Participant::connect("d", copts(&namespace)).unwrap();
+            let mut last = u64::MAX;
+            loop {
+                match p.subscribe_lock() {
+                    Ok(g) if g == last => std::hint::spin_loop(),
+                    Ok(g) => {
+                        last = g;
+                        p.commit_all_with(|snapshot, out| out.copy_from_slice(snapshot)).unwrap();
+                    }
+                    Err(ShmError::FrameworkStopped { .. }) => return,
+                    Err(e) => panic!("{e}"),
+                }
+            }
+        }
         "sync_reader" => {
             let n: u64 = parts.next().unwrap().parse().unwrap();
             let mut p = Participant::connect("d", copts(&namespace)).unwrap();
@@ -255,6 +285,42 @@ fn a_million_snapshots_under_a_concurrent_writer_are_never_torn() {
     assert!(result.starts_with("torn=0 "), "{result}");
     let distinct: u64 = result.rsplit('=').next().unwrap().parse().unwrap();
     assert!(distinct > 1, "the writer must have changed the value under the reader: {result}");
+}
+
+#[test]
+fn sets_committed_in_place_are_never_seen_torn_whole_or_in_part() {
+    let mut fw = Framework::create(&echo_model(), &fopts("inplace", Duration::from_secs(5))).unwrap();
+    let _child = Guard::spawn("echo_all", &ns("inplace"));
+    let host = &mut fw.domains[0];
+    let deadline = Instant::now() + Duration::from_secs(120);
+    let (mut whole, mut parts, mut echoed, mut v) = (0u64, 0u64, 0u64, 0u64);
+    let mut tail = [0u8; 16];
+    // The framework publishes back to back while the participant answers in place, so that
+    // the framework's reads race the participant's writes.
+    while whole < 200_000 {
+        v += 1;
+        host.publish_step(&payload(v), 0.0).unwrap();
+        let got = check(host.read_subscribe().unwrap());
+        assert!(got.is_some(), "torn SUBSCRIBE set after {whole} reads");
+        echoed += u64::from(got.is_some_and(|x| x > 0));
+        whole += 1;
+        // The last two words (a value and the checksum) read on their own.
+        host.read_subscribe_at((WORDS - 2) * 8, &mut tail).unwrap();
+        let (a, sum) =
+            (u64::from_ne_bytes(tail[..8].try_into().unwrap()), u64::from_ne_bytes(tail[8..].try_into().unwrap()));
+        assert!(
+            a == 0 && sum == 0 || sum == a.wrapping_mul(WORDS as u64 - 1).wrapping_add(0x5eed),
+            "torn part: {a} {sum}"
+        );
+        parts += 1;
+        assert!(whole % 1024 != 0 || Instant::now() < deadline, "too slow");
+    }
+    assert_eq!(parts, whole);
+    assert!(echoed > 0, "the participant never answered");
+    // A range outside the set is an error that names it, not a short read.
+    let err = host.read_subscribe_at(WORDS * 8 - 4, &mut tail).unwrap_err();
+    assert!(matches!(err, ShmError::OutOfRange { .. }), "{err}");
+    assert!(err.to_string().contains("outside the SUBSCRIBE set"), "{err}");
 }
 
 #[test]

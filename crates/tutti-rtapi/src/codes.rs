@@ -172,7 +172,7 @@ pub fn for_error(e: &ShmError, side: Side) -> RTAPIReturn_t {
         ShmError::Timeout { .. } => RTAPI_ERROR_TIMEOUT,
         ShmError::TooManyConnections { .. } => RTAPI_ERROR_TOO_MANY_CONNECTIONS,
         ShmError::NotOwner { .. } => RTAPI_ERROR_NOT_OWNER,
-        ShmError::SizeMismatch { .. } => RTAPI_ERROR_WRONG_SIZE,
+        ShmError::SizeMismatch { .. } | ShmError::OutOfRange { .. } => RTAPI_ERROR_WRONG_SIZE,
         ShmError::UnknownItem { .. } => RTAPI_ERROR_UNKNOWN_ITEM,
         ShmError::ConnectionLost { .. } => RTAPI_ERROR_CONNECTION_LOST,
     }

@@ -39,6 +39,8 @@ pub enum ShmError {
     NotOwner { domain: String, owner_pid: u32 },
     #[error("domain '{domain}': {role} set is {expected} bytes, got {got}")]
     SizeMismatch { domain: String, role: Role, expected: usize, got: usize },
+    #[error("domain '{domain}': bytes {offset}..{end} lie outside the {role} set of {size} bytes")]
+    OutOfRange { domain: String, role: Role, offset: usize, end: usize, size: usize },
     #[error("domain '{domain}': no item '{item}' in the {role} set")]
     UnknownItem { domain: String, role: Role, item: String },
     #[error("domain '{domain}': the connection was removed (the framework judged it dead or it disconnected)")]

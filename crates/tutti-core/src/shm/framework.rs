@@ -205,6 +205,15 @@ impl DomainHost {
     /// Second half of [`step`](Self::step): in a synchronous domain wait for the
     /// participants of the published step; then read the SUBSCRIBE set.
     pub fn complete_step(&mut self) -> Result<StepReport, ShmError> {
+        let report = self.await_step()?;
+        self.read_subscribe()?;
+        Ok(report)
+    }
+
+    /// [`complete_step`](Self::complete_step) without reading the SUBSCRIBE set, for a
+    /// framework that wants a few items of a large set: it reads them with
+    /// [`read_subscribe_at`](Self::read_subscribe_at).
+    pub fn await_step(&mut self) -> Result<StepReport, ShmError> {
         let k = self.step;
         let mut timed_out = 0;
         let mut removed = 0;
@@ -224,7 +233,6 @@ impl DomainHost {
                 self.seg.header().timeouts.fetch_add(1, Ordering::Relaxed);
             }
         }
-        self.read_subscribe()?;
         Ok(StepReport { step: k, timed_out, removed })
     }
 
@@ -238,6 +246,27 @@ impl DomainHost {
             });
         }
         Ok(&self.subscribe)
+    }
+
+    /// Reads `out.len()` bytes of the latest SUBSCRIBE set from byte `offset` (one item, say,
+    /// without copying a large set), consistently; returns the set's generation. The buffer
+    /// of [`subscribe`](Self::subscribe) is left as it was.
+    pub fn read_subscribe_at(&self, offset: usize, out: &mut [u8]) -> Result<u64, ShmError> {
+        let size = self.seg.info.subscribe.size as usize;
+        let end = offset.saturating_add(out.len());
+        if end > size {
+            return Err(ShmError::OutOfRange {
+                domain: self.seg.info.name.clone(),
+                role: Role::Subscribe,
+                offset,
+                end,
+                size,
+            });
+        }
+        self.seg.bucket(Role::Subscribe)?.read_at(offset, out, 1 << 20).ok_or_else(|| ShmError::Corrupt {
+            domain: self.seg.info.name.clone(),
+            detail: "SUBSCRIBE set never settles".into(),
+        })
     }
 
     /// Waits until `done` holds, sweeping dead connections meanwhile; gives up at the timeout.

@@ -3,7 +3,7 @@
 
 use std::time::{Duration, Instant};
 
-use super::bucket::{store_bytes, store_range};
+use super::bucket::{copy_words, load_bytes, store_bytes, store_range, with_bytes_mut};
 use super::handshake::{CONN_SYNC_READER, CONN_WRITER};
 use super::segment::{self, namespace_from_env, DomainInfo, Segment, WaitMode, Waited, Waiter, STATE_RUNNING};
 use super::{os, ShmError};
@@ -426,7 +426,6 @@ impl Participant {
         self.check()?;
         self.claim_writer()?;
         let seg = &self.seg;
-        let h = seg.header();
         let changed: Vec<(usize, usize)> = seg
             .info
             .subscribe
@@ -436,7 +435,70 @@ impl Participant {
             .filter(|(i, l)| self.marked[*i] || self.staging[l.range()] != self.shadow[l.range()])
             .map(|(_, l)| (l.offset as usize, l.size as usize))
             .collect();
-        // One SUBSCRIBE writer at a time; a holder that dies is cleared by the framework.
+        self.lock_writers()?;
+        let h = seg.header();
+        let bucket = seg.bucket(Role::Subscribe);
+        if let Ok(bucket) = &bucket {
+            let staging = &self.staging;
+            let whole = changed.len() == seg.info.subscribe.leaves.len();
+            bucket.write_with(|prev, next| {
+                if whole {
+                    // Every item changes: no need to carry the previous value over.
+                    store_bytes(next, staging);
+                    return;
+                }
+                copy_words(next, prev);
+                for &(off, len) in &changed {
+                    store_range(next, off, &staging[off..off + len]);
+                }
+            });
+        }
+        h.writer_lock.store(0, Ordering::Release);
+        bucket?;
+        Self::committed(seg, self.slot, self.locked_step);
+        self.reset_after_commit();
+        for &(off, len) in &changed {
+            self.shadow[off..off + len].copy_from_slice(&self.staging[off..off + len]);
+        }
+        Ok(())
+    }
+
+    /// Commits a whole SUBSCRIBE set computed from the last snapshot of the PUBLISH set:
+    /// `f(snapshot, out)` writes every byte of `out`, which is the shared memory of the next
+    /// value itself, so the set reaches the other side without a staging copy (the path for
+    /// a component that computes all its outputs at once). Whatever `f` leaves in `out` is
+    /// committed, and afterwards the staging buffer holds it, as after [`commit`](Self::commit).
+    pub fn commit_all_with(&mut self, f: impl FnOnce(&[u8], &mut [u8])) -> Result<(), ShmError> {
+        self.check()?;
+        self.claim_writer()?;
+        self.lock_writers()?;
+        let seg = &self.seg;
+        let h = seg.header();
+        let size = seg.info.subscribe.size as usize;
+        let bucket = match seg.bucket(Role::Subscribe) {
+            Ok(b) => b,
+            Err(e) => {
+                h.writer_lock.store(0, Ordering::Release);
+                return Err(e);
+            }
+        };
+        let snapshot = &self.snapshot;
+        let generation = bucket.write_with(|_, next| with_bytes_mut(next, |out| f(snapshot, &mut out[..size])));
+        Self::committed(seg, self.slot, self.locked_step);
+        // Still holding the writer lock, nobody can reuse the slot: take the staging copy
+        // from it now that the other side has been told.
+        let slot = bucket.slots[generation as usize % super::bucket::SLOTS];
+        load_bytes(slot, &mut self.staging);
+        h.writer_lock.store(0, Ordering::Release);
+        self.shadow.copy_from_slice(&self.staging);
+        self.reset_after_commit();
+        Ok(())
+    }
+
+    /// Takes the lock of SUBSCRIBE writers (one commit at a time; a holder that dies is
+    /// cleared by the framework), waiting at most the timeout.
+    fn lock_writers(&self) -> Result<(), ShmError> {
+        let h = self.seg.header();
         let deadline = Instant::now() + self.opts.timeout;
         let mut turns = 0u32;
         while h.writer_lock.compare_exchange(0, self.id, Ordering::AcqRel, Ordering::Relaxed).is_err() {
@@ -450,44 +512,32 @@ impl Participant {
             }
             std::hint::spin_loop();
         }
-        let bucket = seg.bucket(Role::Subscribe);
-        if let Ok(bucket) = &bucket {
-            let staging = &self.staging;
-            let whole = changed.len() == seg.info.subscribe.leaves.len();
-            bucket.write_with(|prev, next| {
-                if whole {
-                    // Every item changes: no need to carry the previous value over.
-                    store_bytes(next, staging);
-                    return;
-                }
-                for (p, n) in prev.iter().zip(next) {
-                    n.store(p.load(Ordering::Relaxed), Ordering::Relaxed);
-                }
-                for &(off, len) in &changed {
-                    store_range(next, off, &staging[off..off + len]);
-                }
-            });
-        }
-        h.writer_lock.store(0, Ordering::Release);
-        bucket?;
+        Ok(())
+    }
+
+    /// Book-keeping of a commit that has reached the segment: counters, the seed, and in a
+    /// synchronous domain the acknowledgement of the locked step `k`.
+    fn committed(seg: &Segment, slot: usize, k: u64) {
+        let h = seg.header();
         h.sets[Role::Subscribe as usize].commits.fetch_add(1, Ordering::Relaxed);
         h.seeded.store(1, Ordering::Release);
-        for &(off, len) in &changed {
-            self.shadow[off..off + len].copy_from_slice(&self.staging[off..off + len]);
-        }
-        self.marked.iter_mut().for_each(|m| *m = false);
-        if let Some(c) = seg.conn(self.slot) {
+        if let Some(c) = seg.conn(slot) {
             c.commits.fetch_add(1, Ordering::Relaxed);
         }
         if seg.info.flags.synchronous {
-            let k = self.locked_step;
-            self.last_commit = k;
-            if let Some(conn) = seg.conn_ctl(self.slot) {
+            if let Some(conn) = seg.conn_ctl(slot) {
                 seg.step_ctl().ack_commit(&conn, k);
             }
             segment::wake(&h.ack_seq, &h.ack_waiters);
         }
-        Ok(())
+    }
+
+    /// After a commit: nothing staged any more, and the step answered.
+    fn reset_after_commit(&mut self) {
+        self.marked.iter_mut().for_each(|m| *m = false);
+        if self.seg.info.flags.synchronous {
+            self.last_commit = self.locked_step;
+        }
     }
 
     /// Leaves the domain: releases the slot, ownership and pending handshakes.
