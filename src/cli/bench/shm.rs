@@ -38,6 +38,10 @@ pub struct Args {
     /// Skip the iceoryx2 peer.
     #[arg(long)]
     no_peer: bool,
+    /// Copy the whole echoed set on the ping side rather than reading its sequence word only
+    /// (as iceoryx2's ping does).
+    #[arg(long)]
+    read_all: bool,
 }
 
 /// Hidden: the pong side of a tutti round trip.
@@ -101,6 +105,7 @@ struct Config<'a> {
     spin: bool,
     cpus: (usize, usize),
     iterations: usize,
+    read_all: bool,
     label: &'a str,
 }
 
@@ -143,19 +148,34 @@ fn run_tutti(c: &Config<'_>) -> anyhow::Result<Vec<f64>> {
         payload[..8].copy_from_slice(&seq.to_ne_bytes());
         let t0 = Instant::now();
         if c.sync {
-            let report = host.step(&payload, 0.0)?;
+            host.publish_step(&payload, 0.0)?;
+            let report = if c.read_all { host.complete_step()? } else { host.await_step()? };
             if report.timed_out > 0 {
                 bail!("step {seq} timed out");
             }
-            if seq > 1 && first_word(host.subscribe()) != seq {
-                bail!("step {seq}: the answer carries {}", first_word(host.subscribe()));
+            let answer = if c.read_all {
+                first_word(host.subscribe())
+            } else {
+                let mut word = [0u8; 8];
+                host.read_subscribe_at(0, &mut word)?;
+                u64::from_ne_bytes(word)
+            };
+            // The first step may complete before the pong has declared itself a reader.
+            if seq > 1 && answer != seq {
+                bail!("step {seq}: the answer carries {answer}");
             }
         } else {
-            let before = host.segment().generation(Role::Subscribe);
             host.publish_step(&payload, 0.0)?;
             let mut turns = 0u64;
+            let mut word = [0u8; 8];
             loop {
-                if host.segment().generation(Role::Subscribe) != before && first_word(host.read_subscribe()?) == seq {
+                // The echo is complete when its sequence word is this one: read that word
+                // only, as iceoryx2's ping does (`--read-all` copies the whole set).
+                if c.read_all {
+                    if first_word(host.read_subscribe()?) == seq {
+                        break;
+                    }
+                } else if host.read_subscribe_at(0, &mut word).is_ok() && u64::from_ne_bytes(word) == seq {
                     break;
                 }
                 turns += 1;
@@ -201,8 +221,7 @@ pub fn pong(a: PongArgs) -> CliResult {
             loop {
                 p.subscribe_lock()?;
                 p.publish_lock()?;
-                p.stage_all_with(|snapshot, staging| staging.copy_from_slice(snapshot));
-                p.commit()?;
+                p.commit_all_with(|snapshot, out| out.copy_from_slice(snapshot))?;
             }
         }
         let mut last = p.segment().generation(Role::Publish);
@@ -223,8 +242,7 @@ pub fn pong(a: PongArgs) -> CliResult {
             }
             last = g;
             p.subscribe_lock()?;
-            p.stage_all_with(|snapshot, staging| staging.copy_from_slice(snapshot));
-            p.commit()?;
+            p.commit_all_with(|snapshot, out| out.copy_from_slice(snapshot))?;
         }
     })();
     match result {
@@ -278,6 +296,7 @@ pub fn run(args: Args) -> CliResult {
                     spin,
                     cpus,
                     iterations: args.iterations,
+                    read_all: args.read_all,
                     label: &format!("{placement}{size}{label}"),
                 };
                 let rtts = run_tutti(&c).with_context(|| format!("tutti {mode}, {size} bytes, {placement} core(s)"))?;
