@@ -168,8 +168,13 @@ fn a_set_committed_in_place_is_staged_and_later_commits_keep_other_writers_items
     host.read_subscribe_at(0, &mut item_a).unwrap();
     host.read_subscribe_at(8, &mut item_b).unwrap();
     assert_eq!((f64::from_ne_bytes(item_a), i32::from_ne_bytes(item_b)), (6.0, 11));
-    // `b` changes item a; `a` then changes item b only, through its staging buffer: its
-    // commit must not put back the a it committed in place.
+    // Once more in place, then `b` changes item a, and `a` changes item b only, through its
+    // staging buffer: its commit must not put back the a it committed in place.
+    a.commit_all_with(|_, out| {
+        out[0..8].copy_from_slice(&7.0f64.to_ne_bytes());
+        out[8..12].copy_from_slice(&11i32.to_ne_bytes());
+    })
+    .unwrap();
     b.publish_lock().unwrap();
     b.stage("a", &99.0f64.to_ne_bytes()).unwrap();
     b.commit().unwrap();
@@ -178,6 +183,7 @@ fn a_set_committed_in_place_is_staged_and_later_commits_keep_other_writers_items
     host.read_subscribe_at(0, &mut item_a).unwrap();
     host.read_subscribe_at(8, &mut item_b).unwrap();
     assert_eq!((f64::from_ne_bytes(item_a), i32::from_ne_bytes(item_b)), (99.0, 12));
+    assert_eq!(&a.staging()[0..12], [99.0f64.to_ne_bytes().as_slice(), &12i32.to_ne_bytes()].concat());
     assert_eq!(f64::from_ne_bytes(host.read_subscribe().unwrap()[0..8].try_into().unwrap()), 99.0);
 }
 

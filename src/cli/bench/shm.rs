@@ -26,9 +26,14 @@ use super::{iceoryx, percentiles};
     after_help = "Examples:\n  tutti bench shm\n  tutti bench shm --iterations 50000 --sizes 8,1024\n  tutti bench shm --placement two --no-peer"
 )]
 pub struct Args {
-    /// Measured round trips per configuration (after a warm-up of a tenth as many).
+    /// Measured round trips per configuration, in total over the rounds.
     #[arg(long, default_value_t = 20_000)]
     iterations: usize,
+    /// The configurations of one size take turns in this many rounds, so that a change in
+    /// the machine's state during the run (another VM, a migrated vCPU) falls on tutti and
+    /// the peer alike. Each round starts its processes afresh, with a warm-up.
+    #[arg(long, default_value_t = 4)]
+    rounds: usize,
     /// Set sizes in bytes (multiples of 8).
     #[arg(long, value_delimiter = ',', default_values_t = vec![8usize, 1024, 65536])]
     sizes: Vec<usize>,
@@ -142,7 +147,8 @@ fn run_tutti(c: &Config<'_>) -> anyhow::Result<Vec<f64>> {
         std::thread::sleep(Duration::from_millis(1));
     }
     let mut payload = vec![0xa5u8; c.size];
-    let warmup = (c.iterations / 10).max(100);
+    // The same warm-up as the iceoryx2 ping-pong: as many round trips as measured, at most 10,000.
+    let warmup = c.iterations.min(10_000);
     let mut rtts = Vec::with_capacity(c.iterations);
     for seq in 1..=(warmup + c.iterations) as u64 {
         payload[..8].copy_from_slice(&seq.to_ne_bytes());
@@ -224,7 +230,9 @@ pub fn pong(a: PongArgs) -> CliResult {
                 p.commit_all_with(|snapshot, out| out.copy_from_slice(snapshot))?;
             }
         }
-        let mut last = p.segment().generation(Role::Publish);
+        // Answer the value there is at once: the ping may have published its first set
+        // between our connect and this line, and waits for its echo.
+        let mut last = u64::MAX;
         let mut turns = 0u64;
         loop {
             let g = p.segment().generation(Role::Publish);
@@ -257,10 +265,11 @@ pub fn run(args: Args) -> CliResult {
         return Err(super::super::Failure::invalid(anyhow::anyhow!("--sizes: {bad} is not a multiple of 8 bytes")));
     }
     let cpus_online = std::thread::available_parallelism().map(|n| n.get()).unwrap_or(1);
+    let rounds = args.rounds.max(1);
+    let chunk = (args.iterations / rounds).max(1);
     println!(
-        "tutti bench shm: {} round trips per row (+{} warm-up), {} CPUs online; times in µs",
-        args.iterations,
-        (args.iterations / 10).max(100),
+        "tutti bench shm: {} round trips per row in {rounds} interleaved rounds (each after a warm-up), {} CPUs online; times in µs",
+        chunk * rounds,
         cpus_online
     );
     println!(
@@ -288,24 +297,36 @@ pub fn run(args: Args) -> CliResult {
                 rows.push(("sync step, spin", true, true));
             }
             rows.push(("sync step, block", true, false));
-            for (label, sync, spin) in rows {
-                let mode = if same && spin { format!("{label}+yield") } else { label.to_string() };
-                let c = Config {
-                    size,
-                    sync,
-                    spin,
-                    cpus,
-                    iterations: args.iterations,
-                    read_all: args.read_all,
-                    label: &format!("{placement}{size}{label}"),
-                };
-                let rtts = run_tutti(&c).with_context(|| format!("tutti {mode}, {size} bytes, {placement} core(s)"))?;
-                print_row(placement, "tutti", &mode, size, &rtts);
+            let mut tutti: Vec<Vec<f64>> = vec![Vec::new(); rows.len()];
+            let mut peer = Vec::new();
+            for round in 0..rounds {
+                eprint!("\r{placement} core(s), {size} bytes: round {}/{rounds} ", round + 1);
+                for (i, &(label, sync, spin)) in rows.iter().enumerate() {
+                    let c = Config {
+                        size,
+                        sync,
+                        spin,
+                        cpus,
+                        iterations: chunk,
+                        read_all: args.read_all,
+                        label: &format!("{placement}{size}{label}{round}"),
+                    };
+                    let rtts =
+                        run_tutti(&c).with_context(|| format!("tutti {label}, {size} bytes, {placement} core(s)"))?;
+                    tutti[i].extend(rtts);
+                }
+                if !args.no_peer {
+                    peer.extend(iceoryx::run_iceoryx2_pingpong(size, chunk, Some(cpus.0), Some(cpus.1)));
+                }
+            }
+            eprint!("\r{:60}\r", "");
+            for ((label, _, spin), rtts) in rows.iter().zip(&tutti) {
+                let mode = if same && *spin { format!("{label}+yield") } else { label.to_string() };
+                print_row(placement, "tutti", &mode, size, rtts);
             }
             if !args.no_peer {
-                let rtts = iceoryx::run_iceoryx2_pingpong(size, args.iterations, Some(cpus.0), Some(cpus.1));
                 let mode = if same { "pub/sub, poll+yield" } else { "pub/sub, poll" };
-                print_row(placement, "iceoryx2", mode, size, &rtts);
+                print_row(placement, "iceoryx2", mode, size, &peer);
             }
         }
     }

@@ -3,7 +3,7 @@
 
 use std::time::{Duration, Instant};
 
-use super::bucket::{copy_words, load_bytes, store_bytes, store_range, with_bytes_mut};
+use super::bucket::{copy_words, store_bytes, store_range, with_bytes_mut};
 use super::handshake::{CONN_SYNC_READER, CONN_WRITER};
 use super::segment::{self, namespace_from_env, DomainInfo, Segment, WaitMode, Waited, Waiter, STATE_RUNNING};
 use super::{os, ShmError};
@@ -65,6 +65,9 @@ pub struct Participant {
     locked_step: u64,
     /// Whether `subscribe_lock` was ever called (the connection reads before it answers).
     has_read: bool,
+    /// Staging and shadow are out of date after `commit_all_with`; the next use refreshes
+    /// them from the SUBSCRIBE set (off the commit's path).
+    stale_staging: bool,
     connected: bool,
     /// When the framework's process was last found alive (checked at most every 50 ms).
     framework_seen: std::cell::Cell<Instant>,
@@ -100,6 +103,7 @@ impl Participant {
             last_commit: 0,
             locked_step: 0,
             has_read: false,
+            stale_staging: false,
             connected: true,
             framework_seen: std::cell::Cell::new(Instant::now()),
             seg,
@@ -372,12 +376,15 @@ impl Participant {
     }
 
     /// The SUBSCRIBE values being staged.
-    pub fn staging(&self) -> &[u8] {
+    pub fn staging(&mut self) -> &[u8] {
+        // A corrupted segment leaves the buffer as it was; `commit` reports the error.
+        let _ = self.refresh_staging();
         &self.staging
     }
 
     /// Mutable staging buffer: whatever differs from the last commit is committed next.
     pub fn staging_mut(&mut self) -> &mut [u8] {
+        let _ = self.refresh_staging();
         &mut self.staging
     }
 
@@ -385,6 +392,7 @@ impl Participant {
     /// `f(snapshot, staging)`. Every item is committed by the next `commit`, without comparing
     /// with the last commit (the cheap path for components that write all their outputs).
     pub fn stage_all_with(&mut self, f: impl FnOnce(&[u8], &mut [u8])) {
+        let _ = self.refresh_staging();
         f(&self.snapshot, &mut self.staging);
         self.marked.iter_mut().for_each(|m| *m = true);
     }
@@ -401,8 +409,23 @@ impl Participant {
                 got: bytes.len(),
             });
         }
+        self.refresh_staging()?;
         self.staging[range].copy_from_slice(bytes);
         self.marked[idx] = true;
+        Ok(())
+    }
+
+    /// After [`commit_all_with`](Self::commit_all_with): staging and the record of the last
+    /// commit become the SUBSCRIBE set as it is now (the values committed, unless another
+    /// writer has changed some since, in which case those are the newer values, and the next
+    /// commit leaves them alone as before).
+    fn refresh_staging(&mut self) -> Result<(), ShmError> {
+        if self.stale_staging {
+            let bucket = self.seg.bucket(Role::Subscribe)?;
+            bucket.read(&mut self.staging, 1 << 20).ok_or_else(|| self.corrupt("SUBSCRIBE set never settles"))?;
+            self.shadow.copy_from_slice(&self.staging);
+            self.stale_staging = false;
+        }
         Ok(())
     }
 
@@ -425,6 +448,7 @@ impl Participant {
     pub fn commit(&mut self) -> Result<(), ShmError> {
         self.check()?;
         self.claim_writer()?;
+        self.refresh_staging()?;
         let seg = &self.seg;
         let changed: Vec<(usize, usize)> = seg
             .info
@@ -466,8 +490,9 @@ impl Participant {
     /// Commits a whole SUBSCRIBE set computed from the last snapshot of the PUBLISH set:
     /// `f(snapshot, out)` writes every byte of `out`, which is the shared memory of the next
     /// value itself, so the set reaches the other side without a staging copy (the path for
-    /// a component that computes all its outputs at once). Whatever `f` leaves in `out` is
-    /// committed, and afterwards the staging buffer holds it, as after [`commit`](Self::commit).
+    /// a component that computes all its outputs at once; `out` starts with unspecified
+    /// bytes). Whatever `f` leaves in `out` is committed. The staging buffer is not copied
+    /// on the way: its next use reads it back from the SUBSCRIBE set.
     pub fn commit_all_with(&mut self, f: impl FnOnce(&[u8], &mut [u8])) -> Result<(), ShmError> {
         self.check()?;
         self.claim_writer()?;
@@ -483,14 +508,10 @@ impl Participant {
             }
         };
         let snapshot = &self.snapshot;
-        let generation = bucket.write_with(|_, next| with_bytes_mut(next, |out| f(snapshot, &mut out[..size])));
-        Self::committed(seg, self.slot, self.locked_step);
-        // Still holding the writer lock, nobody can reuse the slot: take the staging copy
-        // from it now that the other side has been told.
-        let slot = bucket.slots[generation as usize % super::bucket::SLOTS];
-        load_bytes(slot, &mut self.staging);
+        bucket.write_with(|_, next| with_bytes_mut(next, |out| f(snapshot, &mut out[..size])));
         h.writer_lock.store(0, Ordering::Release);
-        self.shadow.copy_from_slice(&self.staging);
+        Self::committed(seg, self.slot, self.locked_step);
+        self.stale_staging = true;
         self.reset_after_commit();
         Ok(())
     }
@@ -520,7 +541,10 @@ impl Participant {
     fn committed(seg: &Segment, slot: usize, k: u64) {
         let h = seg.header();
         h.sets[Role::Subscribe as usize].commits.fetch_add(1, Ordering::Relaxed);
-        h.seeded.store(1, Ordering::Release);
+        // Written once: a store on every commit would take the line from its readers.
+        if h.seeded.load(Ordering::Relaxed) == 0 {
+            h.seeded.store(1, Ordering::Release);
+        }
         if let Some(c) = seg.conn(slot) {
             c.commits.fetch_add(1, Ordering::Relaxed);
         }

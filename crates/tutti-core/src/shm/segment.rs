@@ -9,7 +9,11 @@
 //! sets[r].slots_off  SLOTS slots of sets[r].words × 8 bytes, for each role r
 //! ```
 //!
-//! Everything in the segment is read and written through atomics. Every offset and length
+//! The header's fields are grouped by who writes them, each group on cache lines of its own
+//! (the framework's per-step words, the participants' per-commit words, each set's seqlock),
+//! so that one side's writes do not steal lines the other side is polling.
+//!
+//! Everything in the segment except set bytes is read and written through atomics. Every offset and length
 //! read from a segment is checked before use, and the directory is re-hashed and compared
 //! with the header's layout hash, so a corrupted or hostile segment gives [`ShmError`], never
 //! undefined behaviour.
@@ -33,8 +37,8 @@ use crate::sync::{AtomicU32, AtomicU64, Ordering};
 
 /// `TUTTISHM`, little-endian.
 pub const MAGIC: u64 = u64::from_le_bytes(*b"TUTTISHM");
-/// Segment format version.
-pub const VERSION: u32 = 1;
+/// Segment format version (2: header fields grouped by writer on separate cache lines).
+pub const VERSION: u32 = 2;
 /// Bytes reserved for the header.
 pub const HEADER_BYTES: usize = 1024;
 /// Connection slots per domain.
@@ -85,9 +89,16 @@ pub enum WaitMode {
     Block,
 }
 
+/// Zero bytes that start a new cache line: the header field after it is 64-byte aligned.
+#[repr(C, align(64))]
+#[derive(Debug)]
+pub struct LineBreak;
+
 #[repr(C)]
 #[derive(Debug)]
 pub struct SetHeader {
+    /// Each set's seqlock words on lines of their own: one writer, polled by the other side.
+    pub _line: LineBreak,
     pub size: AtomicU32,
     pub align: AtomicU32,
     /// Words (8 bytes) per slot.
@@ -123,29 +134,34 @@ pub struct Header {
     pub conn_off: AtomicU32,
     /// One past the highest connection slot ever used (bounds the scans).
     pub conn_hwm: AtomicU32,
-    pub sets: [SetHeader; 2],
-    pub pub_step: AtomicU64,
-    pub step_seq: AtomicU32,
-    pub step_waiters: AtomicU32,
-    pub ack_seq: AtomicU32,
-    pub ack_waiters: AtomicU32,
     /// Wait-to-go: 1 while the framework holds participants.
     pub hold: AtomicU32,
-    pub seeded: AtomicU32,
     pub conn_count: AtomicU32,
     pub go_waiters: AtomicU32,
-    /// Exclusive SUBSCRIBE owner (connection id), 0 when none.
-    pub owner_conn: AtomicU64,
-    /// Connection id committing to SUBSCRIBE right now, 0 when none.
-    pub writer_lock: AtomicU64,
+    pub sets: [SetHeader; 2],
+    /// Written by the framework on every step.
+    pub _framework: LineBreak,
+    pub pub_step: AtomicU64,
+    pub step_seq: AtomicU32,
+    pub ack_waiters: AtomicU32,
     pub sim_time_bits: AtomicU64,
     pub heartbeat_ns: AtomicU64,
-    pub period_ns: AtomicU64,
     pub steps: AtomicU64,
+    pub period_ns: AtomicU64,
     pub overruns: AtomicU64,
     pub timeouts: AtomicU64,
     pub max_late_ns: AtomicU64,
     pub last_late_ns: AtomicU64,
+    /// Written by participants on their reads and commits.
+    pub _participants: LineBreak,
+    pub ack_seq: AtomicU32,
+    pub step_waiters: AtomicU32,
+    pub seeded: AtomicU32,
+    pub _pad: AtomicU32,
+    /// Exclusive SUBSCRIBE owner (connection id), 0 when none.
+    pub owner_conn: AtomicU64,
+    /// Connection id committing to SUBSCRIBE right now, 0 when none.
+    pub writer_lock: AtomicU64,
     pub rejected: AtomicU64,
 }
 
