@@ -299,8 +299,11 @@ pub fn run(args: Args) -> CliResult {
             rows.push(("sync step, block", true, false));
             let mut tutti: Vec<Vec<f64>> = vec![Vec::new(); rows.len()];
             let mut peer = Vec::new();
+            let progress = std::io::IsTerminal::is_terminal(&std::io::stderr());
             for round in 0..rounds {
-                eprint!("\r{placement} core(s), {size} bytes: round {}/{rounds} ", round + 1);
+                if progress {
+                    eprint!("\r{placement} core(s), {size} bytes: round {}/{rounds} ", round + 1);
+                }
                 for (i, &(label, sync, spin)) in rows.iter().enumerate() {
                     let c = Config {
                         size,
@@ -319,7 +322,9 @@ pub fn run(args: Args) -> CliResult {
                     peer.extend(iceoryx::run_iceoryx2_pingpong(size, chunk, Some(cpus.0), Some(cpus.1)));
                 }
             }
-            eprint!("\r{:60}\r", "");
+            if progress {
+                eprint!("\r{:60}\r", "");
+            }
             for ((label, _, spin), rtts) in rows.iter().zip(&tutti) {
                 let mode = if same && *spin { format!("{label}+yield") } else { label.to_string() };
                 print_row(placement, "tutti", &mode, size, rtts);
