@@ -84,6 +84,32 @@ fn bucket_reads_are_never_torn() {
     });
 }
 
+#[test]
+fn values_read_in_place_are_kept_only_when_whole() {
+    model(|| {
+        let mem = Arc::new(Mem::new());
+        let w = mem.clone();
+        let writer = thread::spawn(move || {
+            for v in 1..=SLOTS as u64 + 1 {
+                w.bucket().write(&value(v));
+                if v == 2 {
+                    // A writer that gives up leaves the current value as it was.
+                    assert_eq!(w.bucket().try_write_with(|_, _| false), None);
+                }
+            }
+        });
+        let seen = mem.bucket().read_in_place(|b| words(b.try_into().unwrap()), 16, 2);
+        if let Some((generation, (a, b))) = seen {
+            assert_eq!(a, b, "torn value kept");
+            assert_eq!(a, generation, "value and generation disagree");
+        }
+        writer.join().unwrap();
+        let (g, (a, b)) = mem.bucket().read_in_place(|b| words(b.try_into().unwrap()), 16, 1).unwrap();
+        let last = SLOTS as u64 + 1;
+        assert_eq!((g, a, b), (last, last, last));
+    });
+}
+
 struct Shared {
     publish: Mem,
     subscribe: Mem,

@@ -218,3 +218,39 @@ fn a_framework_can_await_a_step_and_read_one_item_of_the_answer() {
     let err = host.read_subscribe_at(12, &mut [0u8; 8]).unwrap_err();
     assert!(matches!(err, ShmError::OutOfRange { offset: 12, end: 20, size: 16, .. }), "{err}");
 }
+
+#[test]
+fn answering_in_place_reads_each_step_once_and_commits_what_it_computes() {
+    let mut fw = Framework::create(&model(true, true, false), &fopts("answer")).unwrap();
+    let mut p = Participant::connect("d", copts("answer")).unwrap();
+    let t = std::thread::spawn(move || {
+        let mut steps = Vec::new();
+        for _ in 0..100 {
+            let step = p
+                .answer_with(|publish, out| {
+                    let x = f64::from_ne_bytes(publish[0..8].try_into().unwrap());
+                    out[0..8].copy_from_slice(&(-x).to_ne_bytes());
+                    out[8..12].copy_from_slice(&(x as i32 * 3).to_ne_bytes());
+                })
+                .unwrap();
+            steps.push(step);
+        }
+        // Staging follows what was committed in place.
+        let staged = i32::from_ne_bytes(p.staging()[8..12].try_into().unwrap());
+        (steps, staged)
+    });
+    let host = &mut fw.domains[0];
+    for k in 1..=100u64 {
+        let r = host.step(&(k as f64).to_ne_bytes(), 0.0).unwrap();
+        assert_eq!(r.timed_out, 0);
+        if k > 1 {
+            let sub = host.subscribe();
+            assert_eq!(f64::from_ne_bytes(sub[0..8].try_into().unwrap()), -(k as f64));
+            assert_eq!(i32::from_ne_bytes(sub[8..12].try_into().unwrap()), k as i32 * 3);
+        }
+    }
+    let (steps, staged) = t.join().unwrap();
+    let first = steps[0];
+    assert_eq!(steps, (first..first + 100).collect::<Vec<_>>(), "each step answered once, in order");
+    assert_eq!(staged, 300);
+}

@@ -187,16 +187,18 @@ fn child_main() {
             say(&format!("torn={torn} distinct={distinct}"));
         }
         "echo_all" => {
-            // Answers every new PUBLISH value with the same bytes, written in place.
+            // Answers every PUBLISH value with the same bytes, written in place: from a
+            // snapshot (`commit_all_with`), or read in place too (`answer_with`).
+            let from_snapshot = parts.next() == Some("snapshot");
             let mut p = Participant::connect("d", copts(&namespace)).unwrap();
-            let mut last = u64::MAX;
             loop {
-                match p.subscribe_lock() {
-                    Ok(g) if g == last => std::hint::spin_loop(),
-                    Ok(g) => {
-                        last = g;
-                        p.commit_all_with(|snapshot, out| out.copy_from_slice(snapshot)).unwrap();
-                    }
+                let r = if from_snapshot {
+                    p.subscribe_lock().and_then(|_| p.commit_all_with(|snapshot, out| out.copy_from_slice(snapshot)))
+                } else {
+                    p.answer_with(|publish, out| out.copy_from_slice(publish)).map(drop)
+                };
+                match r {
+                    Ok(()) => {}
                     Err(ShmError::FrameworkStopped { .. }) => return,
                     Err(e) => panic!("{e}"),
                 }
@@ -289,15 +291,27 @@ fn a_million_snapshots_under_a_concurrent_writer_are_never_torn() {
 
 #[test]
 fn sets_committed_in_place_are_never_seen_torn_whole_or_in_part() {
-    let mut fw = Framework::create(&echo_model(), &fopts("inplace", Duration::from_secs(5))).unwrap();
-    let _child = Guard::spawn("echo_all", &ns("inplace"));
+    echo_under_a_racing_framework("snapshot");
+}
+
+#[test]
+fn sets_read_and_answered_in_place_are_never_torn() {
+    echo_under_a_racing_framework("in_place");
+}
+
+/// The framework publishes checksummed sets back to back while a participant echoes each
+/// one as its whole SUBSCRIBE set; every answer the framework reads must be whole.
+fn echo_under_a_racing_framework(mode: &str) {
+    let tag = format!("echo{mode}").replace('_', "");
+    let mut fw = Framework::create(&echo_model(), &fopts(&tag, Duration::from_secs(5))).unwrap();
+    let _child = Guard::spawn(&format!("echo_all:{mode}"), &ns(&tag));
     let host = &mut fw.domains[0];
     let deadline = Instant::now() + Duration::from_secs(120);
     let (mut whole, mut parts, mut echoed, mut v) = (0u64, 0u64, 0u64, 0u64);
     let mut tail = [0u8; 16];
     // The framework publishes back to back while the participant answers in place, so that
     // the framework's reads race the participant's writes.
-    while whole < 200_000 {
+    while whole < 100_000 {
         v += 1;
         host.publish_step(&payload(v), 0.0).unwrap();
         let got = check(host.read_subscribe().unwrap());

@@ -47,6 +47,10 @@ pub struct Args {
     /// (as iceoryx2's ping does).
     #[arg(long)]
     read_all: bool,
+    /// The pong takes a snapshot of each set (`subscribe_lock`) and answers from it
+    /// (`commit_all_with`), rather than answering from the set where it lies (`answer_with`).
+    #[arg(long)]
+    snapshot: bool,
 }
 
 /// Hidden: the pong side of a tutti round trip.
@@ -63,6 +67,9 @@ pub struct PongArgs {
     /// Yield the core while polling (both processes on one core).
     #[arg(long)]
     yield_spin: bool,
+    /// Answer from a snapshot (`subscribe_lock` + `commit_all_with`) rather than in place.
+    #[arg(long)]
+    snapshot: bool,
 }
 
 /// Hidden: the pong side of the iceoryx2 ping-pong.
@@ -111,6 +118,7 @@ struct Config<'a> {
     cpus: (usize, usize),
     iterations: usize,
     read_all: bool,
+    snapshot: bool,
     label: &'a str,
 }
 
@@ -133,6 +141,9 @@ fn run_tutti(c: &Config<'_>) -> anyhow::Result<Vec<f64>> {
     }
     if same_core {
         cmd.arg("--yield-spin");
+    }
+    if c.snapshot {
+        cmd.arg("--snapshot");
     }
     let mut child = Kill(cmd.stdin(Stdio::null()).spawn().context("starting the pong process")?);
     let host = &mut fw.domains[0];
@@ -223,11 +234,18 @@ pub fn pong(a: PongArgs) -> CliResult {
     };
     let mut p = Participant::connect("bench", opts).context("connecting")?;
     let result: Result<(), ShmError> = (|| {
-        if a.sync {
-            loop {
+        let echo = |p: &mut Participant| -> Result<(), ShmError> {
+            if a.snapshot {
                 p.subscribe_lock()?;
                 p.publish_lock()?;
-                p.commit_all_with(|snapshot, out| out.copy_from_slice(snapshot))?;
+                p.commit_all_with(|snapshot, out| out.copy_from_slice(snapshot))
+            } else {
+                p.answer_with(|publish, out| out.copy_from_slice(publish)).map(drop)
+            }
+        };
+        if a.sync {
+            loop {
+                echo(&mut p)?;
             }
         }
         // Answer the value there is at once: the ping may have published its first set
@@ -249,8 +267,7 @@ pub fn pong(a: PongArgs) -> CliResult {
                 continue;
             }
             last = g;
-            p.subscribe_lock()?;
-            p.commit_all_with(|snapshot, out| out.copy_from_slice(snapshot))?;
+            echo(&mut p)?;
         }
     })();
     match result {
@@ -312,6 +329,7 @@ pub fn run(args: Args) -> CliResult {
                         cpus,
                         iterations: chunk,
                         read_all: args.read_all,
+                        snapshot: args.snapshot,
                         label: &format!("{placement}{size}{label}{round}"),
                     };
                     let rtts =

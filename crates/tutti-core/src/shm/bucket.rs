@@ -158,6 +158,26 @@ pub fn with_bytes_mut<R>(words: &[AtomicU64], f: impl FnOnce(&mut [u8]) -> R) ->
     }
 }
 
+/// Lends the first `len` bytes of a slot for reading, in place outside the loom model (the
+/// caller validates the slot's sequence number afterwards; see `read_in_place`).
+pub fn with_bytes<R>(words: &[AtomicU64], len: usize, f: impl FnOnce(&[u8]) -> R) -> R {
+    let len = len.min(words.len() * 8);
+    #[cfg(not(tutti_loom))]
+    {
+        // SAFETY: the words cover `words.len() * 8 >= len` bytes of atomics; a writer of
+        // another process (or thread) may change them meanwhile, which the caller's sequence
+        // check detects, and `f` only reads bytes, never trusting them.
+        let bytes = unsafe { std::slice::from_raw_parts(words.as_ptr() as *const u8, len) };
+        f(bytes)
+    }
+    #[cfg(tutti_loom)]
+    {
+        let mut buf = vec![0u8; len];
+        load_bytes(words, &mut buf);
+        f(&buf)
+    }
+}
+
 /// Copies one slot's words into another (the writer carrying the previous value over).
 pub fn copy_words(dst: &[AtomicU64], src: &[AtomicU64]) {
     #[cfg(not(tutti_loom))]
@@ -176,6 +196,16 @@ impl Bucket<'_> {
     /// the slot being written; it typically copies the previous value and overlays changes.
     /// Returns the new generation. The caller guarantees there is one writer at a time.
     pub fn write_with(&self, fill: impl FnOnce(&[AtomicU64], &[AtomicU64])) -> u64 {
+        let generation = self.try_write_with(|prev, next| {
+            fill(prev, next);
+            true
+        });
+        generation.unwrap_or_else(|| self.current.load(Ordering::Relaxed))
+    }
+
+    /// [`write_with`](Self::write_with) whose `fill` may give up (returns `false`): the slot
+    /// is then abandoned, not made current, and `None` is returned.
+    pub fn try_write_with(&self, fill: impl FnOnce(&[AtomicU64], &[AtomicU64]) -> bool) -> Option<u64> {
         let generation = self.current.load(Ordering::Relaxed);
         let cur = generation as usize % SLOTS;
         let next = (cur + 1) % SLOTS;
@@ -186,10 +216,14 @@ impl Bucket<'_> {
         seq.store(writing, Ordering::Relaxed);
         fence(Ordering::Release);
         self.gens[next].store(generation.wrapping_add(1), Ordering::Relaxed);
-        fill(self.slots[cur], self.slots[next]);
+        let filled = fill(self.slots[cur], self.slots[next]);
         seq.store(writing.wrapping_add(1), Ordering::Release);
+        if !filled {
+            // Not current, so no reader takes it; its sequence is even again for the next writer.
+            return None;
+        }
         self.current.store(generation.wrapping_add(1), Ordering::Release);
-        generation.wrapping_add(1)
+        Some(generation.wrapping_add(1))
     }
 
     /// Writes `src` as the new value (bytes past `src.len()` keep the previous value).
@@ -239,6 +273,29 @@ impl Bucket<'_> {
         for _ in 0..max_tries {
             if let Some(g) = self.try_read_at(offset, dst) {
                 return Some(g);
+            }
+            spin_hint();
+        }
+        None
+    }
+
+    /// Runs `f` on the latest value where it lies, without copying it, and returns the value's
+    /// generation with `f`'s result once the slot's sequence number shows that the value did
+    /// not change while `f` ran. Otherwise `f` runs again on the newer value, so it may see
+    /// a torn value first and must only compute from the bytes (copy, convert, serialise),
+    /// never trust them. `None` after `max_tries` attempts, as for [`read`](Self::read).
+    pub fn read_in_place<R>(&self, mut f: impl FnMut(&[u8]) -> R, len: usize, max_tries: u32) -> Option<(u64, R)> {
+        for _ in 0..max_tries {
+            let generation = self.current.load(Ordering::Acquire);
+            let slot = generation as usize % SLOTS;
+            let s1 = self.seq[slot].load(Ordering::Acquire);
+            if s1 & 1 == 0 {
+                let held = self.gens[slot].load(Ordering::Relaxed);
+                let r = with_bytes(self.slots[slot], len, &mut f);
+                fence(Ordering::Acquire);
+                if self.seq[slot].load(Ordering::Relaxed) == s1 {
+                    return Some((held, r));
+                }
             }
             spin_hint();
         }

@@ -255,14 +255,8 @@ impl Participant {
         let c = seg.conn(self.slot).ok_or_else(|| ShmError::ConnectionLost { domain: seg.info.name.clone() })?;
         if seg.info.flags.synchronous {
             c.flags.fetch_or(CONN_SYNC_READER, Ordering::AcqRel);
-            let ctl = seg.step_ctl();
+            self.wait_next_step()?;
             let last = self.last_read;
-            let deadline = Instant::now() + self.opts.timeout;
-            match self.waiter("step").wait(deadline, || Ok(ctl.next_step(last).is_some()), || self.check_alive())? {
-                Waited::Ready => {}
-                Waited::TimedOut => return Err(self.timeout("the framework's next step", self.opts.timeout)),
-            }
-            self.check()?;
             let generation = bucket_read_publish(&self.seg, &mut self.snapshot)?;
             // The PUBLISH generation counts the framework's publishes, i.e. its steps.
             let step = generation.max(last + 1);
@@ -281,6 +275,77 @@ impl Participant {
         }
         self.has_read = true;
         Ok(self.last_read)
+    }
+
+    /// Synchronous domains: waits (at most the timeout) until the framework has published a
+    /// step after the last one this connection read.
+    fn wait_next_step(&self) -> Result<(), ShmError> {
+        let ctl = self.seg.step_ctl();
+        let last = self.last_read;
+        let deadline = Instant::now() + self.opts.timeout;
+        match self.waiter("step").wait(deadline, || Ok(ctl.next_step(last).is_some()), || self.check_alive())? {
+            Waited::Ready => self.check(),
+            Waited::TimedOut => Err(self.timeout("the framework's next step", self.opts.timeout)),
+        }
+    }
+
+    /// Reads the PUBLISH set where it lies and commits a whole SUBSCRIBE set computed from
+    /// it, with no copy on either side: `f(publish, out)` writes every byte of `out`, the
+    /// shared memory of the next SUBSCRIBE value. This is `subscribe_lock`, `publish_lock`
+    /// and `commit_all_with` in one, for components that turn their inputs into their
+    /// outputs byte for byte (a relay, a converter, a serialiser). The read is checked after
+    /// `f` returns: if the framework published meanwhile, `f` runs again on the newer value
+    /// before anything is committed, so `f` may see a torn set first and must only compute
+    /// from its bytes. In a synchronous domain it waits for the next step first and answers
+    /// it. The snapshot buffer is left as it was. Returns the step (generation) read.
+    pub fn answer_with(&mut self, mut f: impl FnMut(&[u8], &mut [u8])) -> Result<u64, ShmError> {
+        self.check()?;
+        let sync = self.seg.info.flags.synchronous;
+        if sync {
+            if let Some(c) = self.seg.conn(self.slot) {
+                c.flags.fetch_or(CONN_SYNC_READER, Ordering::AcqRel);
+            }
+            self.wait_next_step()?;
+        }
+        self.claim_writer()?;
+        self.lock_writers()?;
+        let seg = &self.seg;
+        let h = seg.header();
+        let unlock = || h.writer_lock.store(0, Ordering::Release);
+        let (pub_size, sub_size) = (seg.info.publish.size as usize, seg.info.subscribe.size as usize);
+        let (publish, subscribe) = match seg.bucket(Role::Publish).and_then(|p| Ok((p, seg.bucket(Role::Subscribe)?))) {
+            Ok(b) => b,
+            Err(e) => {
+                unlock();
+                return Err(e);
+            }
+        };
+        let mut read = None;
+        subscribe.try_write_with(|_, next| {
+            with_bytes_mut(next, |out| {
+                let out = &mut out[..sub_size];
+                read = publish.read_in_place(|bytes| f(bytes, out), pub_size, 1 << 20).map(|(g, ())| g);
+            });
+            read.is_some()
+        });
+        unlock();
+        let generation = read.ok_or_else(|| self.corrupt("PUBLISH set never settles"))?;
+        let step = if sync { generation.max(self.last_read + 1) } else { generation };
+        self.last_read = step;
+        self.has_read = true;
+        if let Some(c) = seg.conn(self.slot) {
+            c.reads.fetch_add(1, Ordering::Relaxed);
+        }
+        if sync {
+            self.locked_step = step;
+            if let Some(conn) = seg.conn_ctl(self.slot) {
+                seg.step_ctl().ack_read(&conn, step);
+            }
+        }
+        Self::committed(seg, self.slot, self.locked_step);
+        self.stale_staging = true;
+        self.reset_after_commit();
+        Ok(step)
     }
 
     /// The PUBLISH set as of the last `subscribe_lock`.
