@@ -133,9 +133,12 @@ pub fn run(args: Args) -> CliResult {
     println!("{:<58} {:>10} {:>10} {:>10}", "placement / path", "p50 µs", "p99 µs", "lost");
     for cpus in placements {
         let name = cpus.name;
-        let r = round_trip(&exe, &ddf, &args, cpus).with_context(|| format!("placement {name}"))?;
+        let (r, paced) = round_trip(&exe, &ddf, &args, cpus).with_context(|| format!("placement {name}"))?;
         println!("{name}");
-        println!("  {:<56} {:>10.1} {:>10.1} {:>10}", "gateway (rustdds) round trip", r.p50, r.p99, r.lost);
+        println!(
+            "  {:<56} {:>10.1} {:>10.1} {:>10}",
+            "gateway (rustdds) round trip, back to back", r.p50, r.p99, r.lost
+        );
         match rustdds_ping(&exe, &ddf, &args, cpus) {
             Ok(mut t) => {
                 t.sort_by(f64::total_cmp);
@@ -149,10 +152,26 @@ pub fn run(args: Args) -> CliResult {
             Err(e) => println!("  rustdds ping: not run ({e:#})"),
         }
         // ddsperf's two processes: one per core when the DDS sides are on two cores.
-        match ddsperf(cpus.gw.min(cpus.peer), cpus.gw.max(cpus.peer)) {
+        let (lo, hi) = (cpus.gw.min(cpus.peer), cpus.gw.max(cpus.peer));
+        match ddsperf(lo, hi, None) {
             Ok((p50, p99)) => {
-                println!("  {:<56} {:>10.1} {:>10.1}", "ddsperf ping-pong round trip (2 x its half)", p50, p99);
-                println!("  {:<56} {:>10.2}", "ratio gateway / ddsperf, p50 (target <= 1.5)", r.p50 / p50);
+                println!("  {:<56} {:>10.1} {:>10.1}", "ddsperf ping-pong round trip, back to back", p50, p99);
+                println!(
+                    "  {:<56} {:>10.2}",
+                    "ratio gateway / ddsperf, back to back, p50 (target <= 1.5)",
+                    r.p50 / p50
+                );
+            }
+            Err(e) => println!("  ddsperf: not run ({e:#})"),
+        }
+        println!(
+            "  {:<56} {:>10.1} {:>10.1} {:>10}",
+            "gateway (rustdds) round trip, paced at 1 kHz", paced.p50, paced.p99, paced.lost
+        );
+        match ddsperf(lo, hi, Some("1kHz")) {
+            Ok((p50, p99)) => {
+                println!("  {:<56} {:>10.1} {:>10.1}", "ddsperf ping-pong round trip, ping 1kHz", p50, p99);
+                println!("  {:<56} {:>10.2}", "ratio gateway / ddsperf, paced at 1 kHz, p50", paced.p50 / p50);
             }
             Err(e) => println!("  ddsperf: not run ({e:#})"),
         }
@@ -189,7 +208,8 @@ struct Cpus {
     peer: usize,
 }
 
-fn round_trip(exe: &Path, ddf: &Path, args: &Args, cpus: Cpus) -> anyhow::Result<RoundTrip> {
+/// The gateway round trip back to back, then paced at 1 kHz (same processes).
+fn round_trip(exe: &Path, ddf: &Path, args: &Args, cpus: Cpus) -> anyhow::Result<(RoundTrip, RoundTrip)> {
     let ns = format!("gwbench{}", std::process::id());
     let model = load_ddf(ddf).map_err(|f| f.error)?;
     let opts = FrameworkOptions { namespace: ns.clone(), wait: WaitMode::Spin, ..Default::default() };
@@ -237,35 +257,50 @@ fn round_trip(exe: &Path, ddf: &Path, args: &Args, cpus: Cpus) -> anyhow::Result
             bail!("no echo within 30 s (is the loopback interface up?)");
         }
     }
-    let mut times = Vec::with_capacity(args.samples as usize);
-    let mut lost = 0;
-    for _ in 0..args.samples {
-        seq += 1.0;
-        let t = Instant::now();
-        send(host, seq)?;
-        let mut spins = 0u32;
-        while back(host) != seq && t.elapsed() < Duration::from_secs(1) {
-            // Spin, but give the core away between looks: the echo and the gateway may
-            // share it (a pure spinner is only preempted at the end of its time slice).
-            spins += 1;
-            if spins < 16 {
-                std::hint::spin_loop();
+    let mut measure = |paced: bool| -> anyhow::Result<RoundTrip> {
+        let mut times = Vec::with_capacity(args.samples as usize);
+        let mut lost = 0;
+        let start = Instant::now();
+        for k in 0..args.samples {
+            if paced {
+                // One round trip per millisecond, as ddsperf's `ping 1kHz`: everything may
+                // go idle between them.
+                let due = start + Duration::from_millis(u64::from(k));
+                if let Some(wait) = due.checked_duration_since(Instant::now()) {
+                    std::thread::sleep(wait);
+                }
+            }
+            seq += 1.0;
+            let t = Instant::now();
+            send(host, seq)?;
+            let mut spins = 0u32;
+            while back(host) != seq && t.elapsed() < Duration::from_secs(1) {
+                // Spin, but give the core away between looks: the echo and the gateway may
+                // share it (a pure spinner is only preempted at the end of its time slice).
+                spins += 1;
+                if spins < 16 {
+                    std::hint::spin_loop();
+                } else {
+                    std::thread::yield_now();
+                }
+            }
+            if back(host) == seq {
+                times.push(t.elapsed().as_secs_f64() * 1e6);
             } else {
-                std::thread::yield_now();
+                lost += 1;
             }
         }
-        if back(host) == seq {
-            times.push(t.elapsed().as_secs_f64() * 1e6);
-        } else {
-            lost += 1;
-        }
-    }
-    times.sort_by(f64::total_cmp);
-    Ok(RoundTrip { p50: percentile(&times, 0.5), p99: percentile(&times, 0.99), lost })
+        times.sort_by(f64::total_cmp);
+        Ok(RoundTrip { p50: percentile(&times, 0.5), p99: percentile(&times, 0.99), lost })
+    };
+    let hot = measure(false)?;
+    let paced = measure(true)?;
+    Ok((hot, paced))
 }
 
-/// ddsperf ping-pong with the same placement; returns (p50, p99) of the round trip in µs.
-fn ddsperf(main_cpu: usize, other_cpu: usize) -> anyhow::Result<(f64, f64)> {
+/// ddsperf ping-pong with the same placement, back to back (`rate` None: a ping as soon as
+/// the pong is in) or at a rate ("1kHz"); returns (p50, p99) of the round trip in µs.
+fn ddsperf(main_cpu: usize, other_cpu: usize, rate: Option<&str>) -> anyhow::Result<(f64, f64)> {
     let domain = "229";
     let _pong = Kid(Command::new("taskset")
         .args(["-c", &other_cpu.to_string(), "ddsperf", "-i", domain, "-D8", "pong"])
@@ -275,18 +310,8 @@ fn ddsperf(main_cpu: usize, other_cpu: usize) -> anyhow::Result<(f64, f64)> {
         .spawn()
         .context("starting ddsperf pong")?);
     let out = Command::new("taskset")
-        .args([
-            "-c",
-            &main_cpu.to_string(),
-            "ddsperf",
-            "-i",
-            domain,
-            "-D5",
-            "-Qminmatch:1",
-            "-Qinitwait:5",
-            "ping",
-            "1kHz",
-        ])
+        .args(["-c", &main_cpu.to_string(), "ddsperf", "-i", domain, "-D5", "-Qminmatch:1", "-Qinitwait:5", "ping"])
+        .args(rate)
         .env("CYCLONEDDS_URI", LOOPBACK)
         .stderr(Stdio::null())
         .output()
