@@ -59,16 +59,25 @@ fn model(f: impl Fn() + Sync + Send + 'static) {
     builder.check(f);
 }
 
+/// A writer of values 1 ..= SLOTS + 1, enough to lap a reader around the ring; with
+/// `give_up`, it also abandons a write after value 2 (which must leave value 2 current).
+fn spawn_writer(mem: &Arc<Mem>, give_up: bool) -> thread::JoinHandle<()> {
+    let w = mem.clone();
+    thread::spawn(move || {
+        for v in 1..=SLOTS as u64 + 1 {
+            w.bucket().write(&value(v));
+            if give_up && v == 2 {
+                assert_eq!(w.bucket().try_write_with(|_, _| false), None);
+            }
+        }
+    })
+}
+
 #[test]
 fn bucket_reads_are_never_torn() {
     model(|| {
         let mem = Arc::new(Mem::new());
-        let w = mem.clone();
-        let writer = thread::spawn(move || {
-            for v in 1..=SLOTS as u64 + 1 {
-                w.bucket().write(&value(v));
-            }
-        });
+        let writer = spawn_writer(&mem, false);
         let mut out = [0u8; 16];
         for _ in 0..2 {
             if let Some(generation) = mem.bucket().try_read(&mut out) {
@@ -88,16 +97,7 @@ fn bucket_reads_are_never_torn() {
 fn values_read_in_place_are_kept_only_when_whole() {
     model(|| {
         let mem = Arc::new(Mem::new());
-        let w = mem.clone();
-        let writer = thread::spawn(move || {
-            for v in 1..=SLOTS as u64 + 1 {
-                w.bucket().write(&value(v));
-                if v == 2 {
-                    // A writer that gives up leaves the current value as it was.
-                    assert_eq!(w.bucket().try_write_with(|_, _| false), None);
-                }
-            }
-        });
+        let writer = spawn_writer(&mem, true);
         let seen = mem.bucket().read_in_place(|b| words(b.try_into().unwrap()), 16, 2);
         if let Some((generation, (a, b))) = seen {
             assert_eq!(a, b, "torn value kept");

@@ -16,7 +16,7 @@ use std::time::Duration;
 use common::*;
 use rtapi::*;
 use tutti_core::ddf::{self, Model};
-use tutti_core::shm::segment::Segment;
+use tutti_core::shm::segment::{Segment, VERSION};
 use tutti_core::shm::{Framework, FrameworkOptions};
 
 static SERIAL: Mutex<()> = Mutex::new(());
@@ -453,7 +453,8 @@ fn fake_segment(domain: &str, version: u32, header_bytes: u32) -> ShmFile {
 fn damaged_or_foreign_segments() {
     let _turn = serial();
     key();
-    let _corrupt = fake_segment("corrupt1", 1, 999);
+    // This library's own version, with a header size no segment of it has.
+    let _corrupt = fake_segment("corrupt1", VERSION, 999);
     expect(connect("corrupt1", 0), RTAPI_ERROR_CORRUPT_SEGMENT);
     assert_eq!(count("corrupt1"), Err(RTAPI_ERROR_CORRUPT_SEGMENT));
     let _future = fake_segment("future1", 99, 1024);
