@@ -219,6 +219,85 @@ fn run_tutti(c: &Config<'_>) -> anyhow::Result<Vec<f64>> {
     Ok(rtts)
 }
 
+/// The hardware floor of one round trip: two threads pinned like the ping and the pong, a
+/// ring of four buffers each way, and nothing but the copies (the ping's payload into the
+/// ring, the pong's copy across, the ping's look at the answer's first word): no seqlock,
+/// no handshake, no checks.
+fn run_floor(size: usize, iterations: usize, cpus: (usize, usize)) -> anyhow::Result<Vec<f64>> {
+    use std::sync::atomic::AtomicU64;
+    use std::sync::Arc;
+    use tutti_core::shm::bucket::{copy_words, store_bytes};
+    const RING: usize = 4;
+    struct Rings {
+        publish: Vec<AtomicU64>,
+        answer: Vec<AtomicU64>,
+        published: AtomicU64,
+        answered: AtomicU64,
+    }
+    let words = size / 8;
+    let zeros = || (0..RING * words).map(|_| AtomicU64::new(0)).collect::<Vec<_>>();
+    let r = Arc::new(Rings {
+        publish: zeros(),
+        answer: zeros(),
+        published: AtomicU64::new(0),
+        answered: AtomicU64::new(0),
+    });
+    let same = cpus.0 == cpus.1;
+    let wait = move || if same { std::thread::yield_now() } else { std::hint::spin_loop() };
+    let pong = {
+        let r = r.clone();
+        std::thread::spawn(move || {
+            let _ = os::pin_to_cpu(cpus.1);
+            let mut last = 0;
+            loop {
+                let g = r.published.load(std::sync::atomic::Ordering::Acquire);
+                if g == last {
+                    wait();
+                    continue;
+                }
+                if g == u64::MAX {
+                    return;
+                }
+                last = g;
+                let at = (g as usize % RING) * words;
+                copy_words(&r.answer[at..at + words], &r.publish[at..at + words]);
+                r.answered.store(g, std::sync::atomic::Ordering::Release);
+            }
+        })
+    };
+    os::pin_to_cpu(cpus.0).context("pinning the ping side")?;
+    let mut payload = vec![0xa5u8; size];
+    let warmup = iterations.min(10_000);
+    let mut rtts = Vec::with_capacity(iterations);
+    let mut result = Ok(());
+    for k in 1..=(warmup + iterations) as u64 {
+        payload[..8].copy_from_slice(&k.to_ne_bytes());
+        let at = (k as usize % RING) * words;
+        let t0 = Instant::now();
+        store_bytes(&r.publish[at..at + words], &payload);
+        r.published.store(k, std::sync::atomic::Ordering::Release);
+        let mut turns = 0u64;
+        while r.answered.load(std::sync::atomic::Ordering::Acquire) != k {
+            turns += 1;
+            if turns % 65_536 == 0 && t0.elapsed() > Duration::from_secs(10) {
+                result = Err(anyhow::anyhow!("no answer to {k} within 10 s"));
+                break;
+            }
+            wait();
+        }
+        if result.is_err() {
+            break;
+        }
+        let _ = r.answer[at].load(std::sync::atomic::Ordering::Relaxed);
+        if k > warmup as u64 {
+            rtts.push(t0.elapsed().as_nanos() as f64);
+        }
+    }
+    r.published.store(u64::MAX, std::sync::atomic::Ordering::Release);
+    let _ = pong.join();
+    result.map(|()| rtts)
+}
+
 /// The pong side: echo every PUBLISH set back as the SUBSCRIBE set.
 pub fn pong(a: PongArgs) -> CliResult {
     if let Some(cpu) = a.cpu {
@@ -316,6 +395,7 @@ pub fn run(args: Args) -> CliResult {
             rows.push(("sync step, block", true, false));
             let mut tutti: Vec<Vec<f64>> = vec![Vec::new(); rows.len()];
             let mut peer = Vec::new();
+            let mut floor = Vec::new();
             let progress = std::io::IsTerminal::is_terminal(&std::io::stderr());
             for round in 0..rounds {
                 if progress {
@@ -339,6 +419,7 @@ pub fn run(args: Args) -> CliResult {
                 if !args.no_peer {
                     peer.extend(iceoryx::run_iceoryx2_pingpong(size, chunk, Some(cpus.0), Some(cpus.1)));
                 }
+                floor.extend(run_floor(size, chunk, cpus).context("the memcpy floor")?);
             }
             if progress {
                 eprint!("\r{:60}\r", "");
@@ -351,6 +432,7 @@ pub fn run(args: Args) -> CliResult {
                 let mode = if same { "pub/sub, poll+yield" } else { "pub/sub, poll" };
                 print_row(placement, "iceoryx2", mode, size, &peer);
             }
+            print_row(placement, "memcpy", if same { "floor, poll+yield" } else { "floor, poll" }, size, &floor);
         }
     }
     Ok(())
