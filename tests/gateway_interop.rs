@@ -189,6 +189,26 @@ fn per_item_mode_uses_stock_types_both_ways() {
 }
 
 #[test]
+fn a_reader_joining_one_item_late_in_per_item_mode_gets_items_that_never_change() {
+    let Some(py) = python() else { return };
+    let (dom, ns) = (113, "gwtest113");
+    let _host = Host::start(ns, "gw_async", Duration::from_millis(10), async_publish);
+    let gw = gateway(DDF, dom, ns, &["--ros2-types", "per-item"]);
+    // The first reader (of v, which changes every step) turns the PUBLISH route on and gets
+    // every item sent once; flag (always true) never changes after that. v's reader stays,
+    // so the route stays on while flag's reader joins.
+    let v_fields = r#"[["dim_len","uint32"],["data_offset","uint32"],["data","float64[]"]]"#;
+    let v_args = ["--topic", "rt/gw_async/publish/v", "--type", "std_msgs::msg::dds_::Float64MultiArray_"];
+    let v = peer(&py, "sub v", dom, "sub", &[&v_args[..], &["--fields", v_fields, "--count", "1000000"]].concat());
+    assert!(v.wait_line("\"data\"", SECS(75)).is_some(), "v never arrived\n{}\n{}", v.dump(), gw.dump());
+    let flag_args = ["--topic", "rt/gw_async/publish/flag", "--type", "std_msgs::msg::dds_::Bool_"];
+    let mut flag = peer(&py, "sub flag", dom, "sub", &[&flag_args[..], &["--fields", r#"[["data","bool"]]"#]].concat());
+    let rc = flag.wait(SECS(75));
+    assert_eq!(rc, Some(0), "a late reader of an unchanging item got nothing\n{}\n{}", flag.dump(), gw.dump());
+    assert_eq!(json_lines(&flag, "data")[0]["data"], true);
+}
+
+#[test]
 fn a_cyclone_writer_is_read_by_the_framework_through_a_remote_connection() {
     let Some(py) = python() else { return };
     let (dom, ns) = (103, "gwtest103");

@@ -421,7 +421,7 @@ impl Manager {
             match route {
                 Route::Out { domain, topics, activation, counts_readers } => {
                     let readers = remote.readers_on(topics);
-                    activation.set(!readers.is_empty());
+                    activation.set_readers(&readers);
                     if *counts_readers && self.domains[*domain].mirror.is_none() {
                         wanted_readers[*domain].extend(readers);
                     }

@@ -7,12 +7,14 @@
 //! once and in order, tagged with its step number. Routes work only while a remote reader is
 //! matched ([`Activation`]).
 
+use std::collections::BTreeSet;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::Arc;
 use std::thread::{self, JoinHandle, Thread};
 use std::time::{Duration, Instant};
 
 use ros2_client::dds::Publisher;
+use ros2_client::Gid;
 use tracing::{debug, info, warn};
 use tutti_core::ddf::Role;
 use tutti_core::shm::segment::Segment;
@@ -92,10 +94,34 @@ impl Outbound {
 #[derive(Debug, Default)]
 pub struct Activation {
     active: AtomicBool,
+    /// Counts the times a reader joined the route's topics: per-item writers send only the
+    /// items that changed, so a reader joining one item's topic late must be sent every item
+    /// again (an item whose value never changes would never reach it otherwise).
+    joined: AtomicU64,
+    readers: std::sync::Mutex<BTreeSet<Gid>>,
     thread: std::sync::OnceLock<Thread>,
 }
 
 impl Activation {
+    /// The remote readers now on the route's topics (from discovery).
+    pub fn set_readers(&self, readers: &BTreeSet<Gid>) {
+        let joined = {
+            let mut known = self.readers.lock().unwrap_or_else(|e| e.into_inner());
+            let joined = readers.difference(&known).next().is_some();
+            known.clone_from(readers);
+            joined
+        };
+        if joined {
+            self.joined.fetch_add(1, Ordering::AcqRel);
+        }
+        self.set(!readers.is_empty());
+    }
+
+    /// How many times a reader has joined (see `set_readers`).
+    pub fn joined(&self) -> u64 {
+        self.joined.load(Ordering::Acquire)
+    }
+
     pub fn set(&self, on: bool) {
         if self.active.swap(on, Ordering::AcqRel) != on {
             if let Some(t) = self.thread.get() {
@@ -132,6 +158,8 @@ pub struct Watched {
     base: (u64, u64),
     last_local: u64,
     buf: Vec<u8>,
+    /// `activation.joined()` as last acted on.
+    joined: u64,
 }
 
 impl Watched {
@@ -155,6 +183,7 @@ impl Watched {
             base: (0, 0),
             last_local: 0,
             buf: Vec::new(),
+            joined: 0,
         }
     }
 
@@ -166,6 +195,11 @@ impl Watched {
                 self.last_gen = None;
             }
             return false;
+        }
+        let joined = self.activation.joined();
+        if joined != self.joined {
+            self.joined = joined;
+            self.out.reset();
         }
         if self.seg.is_some() && Instant::now() >= self.next_alive_check {
             self.next_alive_check = Instant::now() + Duration::from_millis(50);
@@ -278,6 +312,7 @@ pub fn spawn_sync_pump(
             let _ = activation.thread.set(thread::current());
             let mut p: Option<Participant> = None;
             let mut warn_limit = LogLimit::new(Duration::from_secs(5));
+            let mut seen_joined = 0;
             while !cfg.stop.load(Ordering::Acquire) {
                 if !activation.is_active() {
                     p = None;
@@ -303,6 +338,11 @@ pub fn spawn_sync_pump(
                         }
                     },
                 };
+                let joined = activation.joined();
+                if joined != seen_joined {
+                    seen_joined = joined;
+                    out.reset();
+                }
                 match part.subscribe_lock() {
                     Ok(step) => {
                         let sim_time = part.sim_time();
