@@ -254,3 +254,35 @@ fn answering_in_place_reads_each_step_once_and_commits_what_it_computes() {
     assert_eq!(steps, (first..first + 100).collect::<Vec<_>>(), "each step answered once, in order");
     assert_eq!(staged, 300);
 }
+
+#[test]
+fn a_panic_while_committing_in_place_leaves_the_set_and_the_writer_lock_as_they_were() {
+    let mut fw = Framework::create(&model(false, true, false), &fopts("panic")).unwrap();
+    let host = &mut fw.domains[0];
+    host.step(&1.0f64.to_ne_bytes(), 0.0).unwrap();
+    let mut a = Participant::connect("d", copts("panic")).unwrap();
+    let short = ConnectOptions { timeout: Duration::from_secs(1), ..copts("panic") };
+    let mut b = Participant::connect("d", short).unwrap();
+    a.subscribe_lock().unwrap();
+    a.publish_lock().unwrap();
+    a.stage("a", &5.0f64.to_ne_bytes()).unwrap();
+    a.commit().unwrap();
+    let quiet = std::panic::take_hook();
+    std::panic::set_hook(Box::new(|_| {}));
+    let caught = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
+        a.commit_all_with(|_, out| {
+            out.fill(0xff);
+            panic!("the model failed half-way");
+        })
+    }));
+    std::panic::set_hook(quiet);
+    assert!(caught.is_err());
+    // The half-written value was never made current, and the next writer is not kept waiting.
+    assert_eq!(f64::from_ne_bytes(host.read_subscribe().unwrap()[0..8].try_into().unwrap()), 5.0);
+    b.publish_lock().unwrap();
+    b.stage("b", &9i32.to_ne_bytes()).unwrap();
+    b.commit().unwrap();
+    let sub = host.read_subscribe().unwrap();
+    assert_eq!(f64::from_ne_bytes(sub[0..8].try_into().unwrap()), 5.0);
+    assert_eq!(i32::from_ne_bytes(sub[8..12].try_into().unwrap()), 9);
+}

@@ -8,7 +8,7 @@ use super::handshake::{CONN_SYNC_READER, CONN_WRITER};
 use super::segment::{self, namespace_from_env, DomainInfo, Segment, WaitMode, Waited, Waiter, STATE_RUNNING};
 use super::{os, ShmError};
 use crate::ddf::{Domain, Leaf, Role};
-use crate::sync::{AtomicU32, Ordering};
+use crate::sync::{AtomicU32, AtomicU64, Ordering};
 
 /// How a participant connects and waits.
 #[derive(Debug, Clone)]
@@ -308,18 +308,10 @@ impl Participant {
             self.wait_next_step()?;
         }
         self.claim_writer()?;
-        self.lock_writers()?;
+        let lock = self.lock_writers()?;
         let seg = &self.seg;
-        let h = seg.header();
-        let unlock = || h.writer_lock.store(0, Ordering::Release);
         let (pub_size, sub_size) = (seg.info.publish.size as usize, seg.info.subscribe.size as usize);
-        let (publish, subscribe) = match seg.bucket(Role::Publish).and_then(|p| Ok((p, seg.bucket(Role::Subscribe)?))) {
-            Ok(b) => b,
-            Err(e) => {
-                unlock();
-                return Err(e);
-            }
-        };
+        let (publish, subscribe) = (seg.bucket(Role::Publish)?, seg.bucket(Role::Subscribe)?);
         let mut read = None;
         subscribe.try_write_with(|_, next| {
             with_bytes_mut(next, |out| {
@@ -328,7 +320,7 @@ impl Participant {
             });
             read.is_some()
         });
-        unlock();
+        drop(lock);
         let generation = read.ok_or_else(|| self.corrupt("PUBLISH set never settles"))?;
         let step = if sync { generation.max(self.last_read + 1) } else { generation };
         self.last_read = step;
@@ -524,8 +516,7 @@ impl Participant {
             .filter(|(i, l)| self.marked[*i] || self.staging[l.range()] != self.shadow[l.range()])
             .map(|(_, l)| (l.offset as usize, l.size as usize))
             .collect();
-        self.lock_writers()?;
-        let h = seg.header();
+        let lock = self.lock_writers()?;
         let bucket = seg.bucket(Role::Subscribe);
         if let Ok(bucket) = &bucket {
             let staging = &self.staging;
@@ -542,7 +533,7 @@ impl Participant {
                 }
             });
         }
-        h.writer_lock.store(0, Ordering::Release);
+        drop(lock);
         bucket?;
         Self::committed(seg, self.slot, self.locked_step);
         self.reset_after_commit();
@@ -561,20 +552,13 @@ impl Participant {
     pub fn commit_all_with(&mut self, f: impl FnOnce(&[u8], &mut [u8])) -> Result<(), ShmError> {
         self.check()?;
         self.claim_writer()?;
-        self.lock_writers()?;
+        let lock = self.lock_writers()?;
         let seg = &self.seg;
-        let h = seg.header();
         let size = seg.info.subscribe.size as usize;
-        let bucket = match seg.bucket(Role::Subscribe) {
-            Ok(b) => b,
-            Err(e) => {
-                h.writer_lock.store(0, Ordering::Release);
-                return Err(e);
-            }
-        };
+        let bucket = seg.bucket(Role::Subscribe)?;
         let snapshot = &self.snapshot;
         bucket.write_with(|_, next| with_bytes_mut(next, |out| f(snapshot, &mut out[..size])));
-        h.writer_lock.store(0, Ordering::Release);
+        drop(lock);
         Self::committed(seg, self.slot, self.locked_step);
         self.stale_staging = true;
         self.reset_after_commit();
@@ -582,8 +566,10 @@ impl Participant {
     }
 
     /// Takes the lock of SUBSCRIBE writers (one commit at a time; a holder that dies is
-    /// cleared by the framework), waiting at most the timeout.
-    fn lock_writers(&self) -> Result<(), ShmError> {
+    /// cleared by the framework), waiting at most the timeout. The lock is released when
+    /// the guard drops, also when a closure of the caller's panics meanwhile (the slot it was
+    /// filling is not current and its sequence number tells the next writer so).
+    fn lock_writers(&self) -> Result<WriterLock<'_>, ShmError> {
         let h = self.seg.header();
         let deadline = Instant::now() + self.opts.timeout;
         let mut turns = 0u32;
@@ -598,7 +584,7 @@ impl Participant {
             }
             std::hint::spin_loop();
         }
-        Ok(())
+        Ok(WriterLock(&h.writer_lock))
     }
 
     /// Book-keeping of a commit that has reached the segment: counters, the seed, and in a
@@ -641,6 +627,15 @@ impl Participant {
                 self.seg.release_slot(self.slot, self.me.pid);
             }
         }
+    }
+}
+
+/// The SUBSCRIBE writers' lock, held until dropped.
+struct WriterLock<'a>(&'a AtomicU64);
+
+impl Drop for WriterLock<'_> {
+    fn drop(&mut self) {
+        self.0.store(0, Ordering::Release);
     }
 }
 
