@@ -7,6 +7,7 @@ use std::path::{Path, PathBuf};
 use std::sync::OnceLock;
 
 use anyhow::Context;
+use plotters::coord::types::RangedCoordf64;
 use plotters::prelude::*;
 use plotters::style::FontStyle;
 
@@ -79,8 +80,6 @@ fn observed_events(d: &RunData) -> Vec<(f64, usize, bool)> {
     out
 }
 
-/// Figure 5: altitude of the four UAVs; dotted = computed by the models, solid = read by
-/// the framework; the monitoring script's disconnect / connect events marked.
 /// The legend box of every figure: white, framed, at `position`.
 fn draw_legend<'a, 'b: 'a, CT: CoordTranslate>(
     chart: &mut ChartContext<'a, BitMapBackend<'b>, CT>,
@@ -96,6 +95,40 @@ fn draw_legend<'a, 'b: 'a, CT: CoordTranslate>(
     Ok(())
 }
 
+/// The axes every plot of the demo shares: simulated time across (0 to `duration`), `y`
+/// upwards with `y_desc`, whole-number labels, light grid; `x_area` is the height of the
+/// time axis' label area, `y_labels` the number of labels upwards (plotters' default if None).
+fn time_chart<'a, 'b>(
+    mut builder: ChartBuilder<'a, 'b, BitMapBackend<'b>>,
+    duration: f64,
+    y: std::ops::Range<f64>,
+    x_area: u32,
+    y_desc: &str,
+    y_labels: Option<usize>,
+) -> anyhow::Result<ChartContext<'a, BitMapBackend<'b>, Cartesian2d<RangedCoordf64, RangedCoordf64>>> {
+    let mut chart = builder
+        .margin(20)
+        .margin_right(40)
+        .x_label_area_size(x_area)
+        .y_label_area_size(80)
+        .build_cartesian_2d(0.0..duration, y)?;
+    let mut mesh = chart.configure_mesh();
+    mesh.x_desc("simulated time (s)")
+        .y_desc(y_desc)
+        .axis_desc_style(("sans-serif", 22))
+        .label_style(("sans-serif", 18))
+        .y_label_formatter(&|v| format!("{v:.0}"))
+        .x_label_formatter(&|v| format!("{v:.0}"))
+        .light_line_style(RGBColor(235, 235, 235));
+    if let Some(n) = y_labels {
+        mesh.y_labels(n);
+    }
+    mesh.draw()?;
+    Ok(chart)
+}
+
+/// Figure 5: altitude of the four UAVs; dotted = computed by the models, solid = read by
+/// the framework; the monitoring script's disconnect / connect events marked.
 pub fn figure5(path: &Path, s: &Scenario, d: &RunData) -> anyhow::Result<()> {
     font()?;
     let root = BitMapBackend::new(path, (1400, 820)).into_drawing_area();
@@ -108,26 +141,12 @@ pub fn figure5(path: &Path, s: &Scenario, d: &RunData) -> anyhow::Result<()> {
     let (lo, hi) = y_range(&all);
     // Room for the event labels above and the legend below.
     let (lo, hi) = (lo - (hi - lo) * 0.22, hi + (hi - lo) * 0.10);
-    let mut chart = ChartBuilder::on(&root)
-        .caption(
-            "Figure 5. Altitude of the UAVs: computed by the UAV models (dotted) and read by the framework (solid)",
-            ("sans-serif", 26),
-        )
-        .margin(20)
-        .margin_right(40)
-        .x_label_area_size(55)
-        .y_label_area_size(80)
-        .build_cartesian_2d(0.0..s.duration, lo..hi)?;
-    chart
-        .configure_mesh()
-        .x_desc("simulated time (s)")
-        .y_desc("altitude above mean sea level (m)")
-        .axis_desc_style(("sans-serif", 22))
-        .label_style(("sans-serif", 18))
-        .y_label_formatter(&|v| format!("{v:.0}"))
-        .x_label_formatter(&|v| format!("{v:.0}"))
-        .light_line_style(RGBColor(235, 235, 235))
-        .draw()?;
+    let mut builder = ChartBuilder::on(&root);
+    builder.caption(
+        "Figure 5. Altitude of the UAVs: computed by the UAV models (dotted) and read by the framework (solid)",
+        ("sans-serif", 26),
+    );
+    let mut chart = time_chart(builder, s.duration, lo..hi, 55, "altitude above mean sea level (m)", None)?;
     for (k, (t, uav, on)) in observed_events(d).into_iter().enumerate() {
         let color = if on { RGBColor(40, 140, 40) } else { RGBColor(200, 40, 40) };
         chart.draw_series(DashedLineSeries::new(vec![(t, lo), (t, hi)], 8, 6, color.stroke_width(1)))?;
@@ -192,22 +211,8 @@ pub fn figure6(path: &Path, s: &Scenario, d: &RunData) -> anyhow::Result<()> {
     let mut all: Vec<&[(f64, f64)]> = vec![&fw_read, &model];
     all.extend(readers.iter().map(|v| v.as_slice()));
     let (lo, hi) = y_range(&all);
-    let mut chart = ChartBuilder::on(&top)
-        .margin(20)
-        .margin_right(40)
-        .x_label_area_size(50)
-        .y_label_area_size(80)
-        .build_cartesian_2d(0.0..s.duration, lo..hi)?;
-    chart
-        .configure_mesh()
-        .x_desc("simulated time (s)")
-        .y_desc(format!("UAV{uav} altitude (m)"))
-        .axis_desc_style(("sans-serif", 22))
-        .label_style(("sans-serif", 18))
-        .y_label_formatter(&|v| format!("{v:.0}"))
-        .x_label_formatter(&|v| format!("{v:.0}"))
-        .light_line_style(RGBColor(235, 235, 235))
-        .draw()?;
+    let mut chart =
+        time_chart(ChartBuilder::on(&top), s.duration, lo..hi, 50, &format!("UAV{uav} altitude (m)"), None)?;
     for (j, &t) in s.c_readers.iter().enumerate() {
         let grey = RGBColor(90, 90, 90);
         chart.draw_series(DashedLineSeries::new(vec![(t, lo), (t, hi)], 8, 6, grey.stroke_width(1)))?;
@@ -245,23 +250,9 @@ pub fn figure6(path: &Path, s: &Scenario, d: &RunData) -> anyhow::Result<()> {
     let ct = d.connections.col("sim_time");
     let counts: Vec<Vec<(f64, f64)>> = (1..=UAVS).map(|i| pairs(&ct, &d.connections.col(&format!("uav{i}")))).collect();
     let max = counts.iter().flatten().map(|p| p.1).fold(0.0, f64::max).max(1.0);
-    let mut chart = ChartBuilder::on(&bottom)
-        .margin(20)
-        .margin_right(40)
-        .x_label_area_size(55)
-        .y_label_area_size(80)
-        .build_cartesian_2d(0.0..s.duration, -0.2..max + 0.8)?;
-    chart
-        .configure_mesh()
-        .x_desc("simulated time (s)")
-        .y_desc("connected participants")
-        .axis_desc_style(("sans-serif", 22))
-        .label_style(("sans-serif", 18))
-        .y_labels((max as usize) + 2)
-        .y_label_formatter(&|v| format!("{v:.0}"))
-        .x_label_formatter(&|v| format!("{v:.0}"))
-        .light_line_style(RGBColor(235, 235, 235))
-        .draw()?;
+    let y_labels = Some((max as usize) + 2);
+    let mut chart =
+        time_chart(ChartBuilder::on(&bottom), s.duration, -0.2..max + 0.8, 55, "connected participants", y_labels)?;
     for (i, pts) in counts.iter().enumerate() {
         let c = UAV_COLORS[i];
         // Step lines, offset a little so that equal counts stay visible side by side.
