@@ -161,56 +161,22 @@ impl Manager {
                         mapping::set_names(&pkg, &d.name, Role::Subscribe),
                     );
                     // PUBLISH: shared memory -> DDS.
-                    let out = Outbound::Set(Box::new(set_writer(
-                        &mut dds,
-                        d,
-                        Role::Publish,
-                        &pubn.topic,
-                        &pubn.dds_type,
-                        &wq,
-                    )?));
-                    let activation = Arc::new(Activation::default());
+                    let out = set_writer(&mut dds, d, Role::Publish, &pubn, &wq)?;
+                    let activation = route_out(&mut routes, di, vec![pubn.topic.clone()], true);
                     if d.flags.synchronous {
                         let name = format!("{} sync reader", opts.node_name);
                         threads.push(
-                            to_dds::spawn_sync_pump(
-                                d.name.clone(),
-                                out,
-                                activation.clone(),
-                                cfg.clone(),
-                                stats.clone(),
-                                name,
-                            )
-                            .map_err(io("a thread"))?,
+                            to_dds::spawn_sync_pump(d.name.clone(), out, activation, cfg.clone(), stats.clone(), name)
+                                .map_err(io("a thread"))?,
                         );
                     } else {
-                        watched.push(Watched::new(d.name.clone(), Role::Publish, out, activation.clone(), None));
+                        watched.push(Watched::new(d.name.clone(), Role::Publish, out, activation, None));
                     }
-                    routes.push(Route::Out {
-                        domain: di,
-                        topics: vec![pubn.topic.clone()],
-                        activation,
-                        counts_readers: true,
-                    });
                     // SUBSCRIBE: DDS -> shared memory, and shared-memory writers -> DDS.
                     typed_inbound(&mut dds, rt, &mut routes, &tx, &stats, di, &d.subscribe.layout, &subn, &rq)?;
-                    let out = Outbound::Set(Box::new(set_writer(
-                        &mut dds,
-                        d,
-                        Role::Subscribe,
-                        &subn.topic,
-                        &subn.dds_type,
-                        &wq,
-                    )?));
-                    let activation = Arc::new(Activation::default());
-                    watched.push(Watched::new(
-                        d.name.clone(),
-                        Role::Subscribe,
-                        out,
-                        activation.clone(),
-                        Some(own_commits),
-                    ));
-                    routes.push(Route::Out { domain: di, topics: vec![subn.topic], activation, counts_readers: false });
+                    let out = set_writer(&mut dds, d, Role::Subscribe, &subn, &wq)?;
+                    let activation = route_out(&mut routes, di, vec![subn.topic], false);
+                    watched.push(Watched::new(d.name.clone(), Role::Subscribe, out, activation, Some(own_commits)));
                 }
                 (TypeMode::Typed, true) => {
                     topics += 2;
@@ -219,14 +185,7 @@ impl Manager {
                         mapping::set_names(&pkg, &d.name, Role::Subscribe),
                     );
                     typed_inbound(&mut dds, rt, &mut routes, &tx, &stats, di, &d.publish.layout, &pubn, &rq)?;
-                    let out = Outbound::Set(Box::new(set_writer(
-                        &mut dds,
-                        d,
-                        Role::Subscribe,
-                        &subn.topic,
-                        &subn.dds_type,
-                        &wq,
-                    )?));
+                    let out = set_writer(&mut dds, d, Role::Subscribe, &subn, &wq)?;
                     let (mtx, mrx) = std_mpsc::channel();
                     let host = hosts
                         .get_mut(di)
@@ -241,14 +200,9 @@ impl Manager {
                     topics += pub_topics.len() + sub_topics.len();
                     let out =
                         Outbound::Items(ItemWriters::create(&mut dds, &pub_topics, &d.publish.layout.leaves, &wq)?);
-                    let activation = Arc::new(Activation::default());
-                    watched.push(Watched::new(d.name.clone(), Role::Publish, out, activation.clone(), None));
-                    routes.push(Route::Out {
-                        domain: di,
-                        topics: pub_topics.iter().map(|t| t.topic.clone()).collect(),
-                        activation,
-                        counts_readers: true,
-                    });
+                    let topics = pub_topics.iter().map(|t| t.topic.clone()).collect();
+                    let activation = route_out(&mut routes, di, topics, true);
+                    watched.push(Watched::new(d.name.clone(), Role::Publish, out, activation, None));
                     for t in &sub_topics {
                         let Some(leaf) = d.subscribe.layout.leaf(&t.path) else { continue };
                         let direct = Direct::default();
@@ -258,20 +212,9 @@ impl Manager {
                     }
                     let out =
                         Outbound::Items(ItemWriters::create(&mut dds, &sub_topics, &d.subscribe.layout.leaves, &wq)?);
-                    let activation = Arc::new(Activation::default());
-                    watched.push(Watched::new(
-                        d.name.clone(),
-                        Role::Subscribe,
-                        out,
-                        activation.clone(),
-                        Some(own_commits),
-                    ));
-                    routes.push(Route::Out {
-                        domain: di,
-                        topics: sub_topics.iter().map(|t| t.topic.clone()).collect(),
-                        activation,
-                        counts_readers: false,
-                    });
+                    let topics = sub_topics.iter().map(|t| t.topic.clone()).collect();
+                    let activation = route_out(&mut routes, di, topics, false);
+                    watched.push(Watched::new(d.name.clone(), Role::Subscribe, out, activation, Some(own_commits)));
                 }
             }
             domains.push(state);
@@ -534,14 +477,23 @@ fn typed_inbound(
     Ok(())
 }
 
+/// The typed shared-memory -> DDS writer of one set.
 fn set_writer(
     dds: &mut Dds,
     d: &Domain,
     role: Role,
-    topic: &str,
-    dds_type: &str,
+    names: &mapping::SetNames,
     q: &Qos,
-) -> Result<SetWriter, GatewayError> {
+) -> Result<Outbound, GatewayError> {
     let codec = Arc::new(SetCodec::new(&d.set(role).layout));
-    Ok(SetWriter::new(codec, dds.publisher::<PreEncoded>(topic, dds_type, q)?))
+    let publisher = dds.publisher::<PreEncoded>(&names.topic, &names.dds_type, q)?;
+    Ok(Outbound::Set(Box::new(SetWriter::new(codec, publisher))))
+}
+
+/// A shared-memory -> DDS route over `topics`: registered in `routes`, and its activation
+/// (on while the topics have remote readers) returned for the thread that serves it.
+fn route_out(routes: &mut Vec<Route>, domain: usize, topics: Vec<String>, counts_readers: bool) -> Arc<Activation> {
+    let activation = Arc::new(Activation::default());
+    routes.push(Route::Out { domain, topics, activation: activation.clone(), counts_readers });
+    activation
 }
