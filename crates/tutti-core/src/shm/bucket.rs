@@ -244,6 +244,20 @@ impl Bucket<'_> {
     /// One attempt at a consistent copy of the `dst.len()` bytes at byte `offset` of the
     /// latest value (one item rather than the whole set).
     pub fn try_read_at(&self, offset: usize, dst: &mut [u8]) -> Option<u64> {
+        let read = self.try_with(|words| {
+            if offset == 0 {
+                load_bytes(words, dst);
+            } else {
+                load_range(words, offset, dst);
+            }
+        });
+        read.map(|(generation, ())| generation)
+    }
+
+    /// The seqlock read, once: `f` runs on the current slot's words, and its result comes
+    /// back with the slot's generation only if the slot's sequence number was even and
+    /// unchanged across the call (otherwise whatever `f` saw may be torn).
+    fn try_with<R>(&self, f: impl FnOnce(&[AtomicU64]) -> R) -> Option<(u64, R)> {
         let generation = self.current.load(Ordering::Acquire);
         let slot = generation as usize % SLOTS;
         let s1 = self.seq[slot].load(Ordering::Acquire);
@@ -251,14 +265,10 @@ impl Bucket<'_> {
             return None;
         }
         let held = self.gens[slot].load(Ordering::Relaxed);
-        if offset == 0 {
-            load_bytes(self.slots[slot], dst);
-        } else {
-            load_range(self.slots[slot], offset, dst);
-        }
+        let r = f(self.slots[slot]);
         fence(Ordering::Acquire);
         let s2 = self.seq[slot].load(Ordering::Relaxed);
-        (s1 == s2).then_some(held)
+        (s1 == s2).then_some((held, r))
     }
 
     /// A consistent copy of the latest value; returns its generation. Retries while a
@@ -286,16 +296,8 @@ impl Bucket<'_> {
     /// never trust them. `None` after `max_tries` attempts, as for [`read`](Self::read).
     pub fn read_in_place<R>(&self, mut f: impl FnMut(&[u8]) -> R, len: usize, max_tries: u32) -> Option<(u64, R)> {
         for _ in 0..max_tries {
-            let generation = self.current.load(Ordering::Acquire);
-            let slot = generation as usize % SLOTS;
-            let s1 = self.seq[slot].load(Ordering::Acquire);
-            if s1 & 1 == 0 {
-                let held = self.gens[slot].load(Ordering::Relaxed);
-                let r = with_bytes(self.slots[slot], len, &mut f);
-                fence(Ordering::Acquire);
-                if self.seq[slot].load(Ordering::Relaxed) == s1 {
-                    return Some((held, r));
-                }
+            if let Some(read) = self.try_with(|words| with_bytes(words, len, &mut f)) {
+                return Some(read);
             }
             spin_hint();
         }

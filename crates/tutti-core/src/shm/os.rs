@@ -169,12 +169,6 @@ pub fn set_normal_scheduling() -> io::Result<()> {
     }
 }
 
-/// The calling thread's scheduling policy is `SCHED_FIFO`.
-pub fn is_fifo() -> bool {
-    // SAFETY: pid 0 is the calling thread; the call touches no memory.
-    unsafe { libc::sched_getscheduler(0) == libc::SCHED_FIFO }
-}
-
 /// Locks every current and future page of the process in RAM (no page faults in the loop).
 /// Fails without `CAP_IPC_LOCK` when `RLIMIT_MEMLOCK` is smaller than the process.
 pub fn lock_memory() -> io::Result<()> {
