@@ -191,7 +191,7 @@ impl State {
         }
         let ns = tutti_core::shm::segment::namespace_from_env();
         let seg = tutti_core::shm::segment::Segment::open(&ns, domain).map_err(|e| Failure::shm(&e, Side::Connect))?;
-        Ok(seg.header().conn_count.load(std::sync::atomic::Ordering::Acquire))
+        Ok(seg.connection_count())
     }
 }
 

@@ -149,7 +149,7 @@ impl DomainHost {
     }
 
     pub fn connection_count(&self) -> u32 {
-        self.seg.header().conn_count.load(Ordering::Acquire)
+        self.seg.connection_count()
     }
 
     pub fn status(&self) -> DomainStatus {
@@ -192,7 +192,7 @@ impl DomainHost {
         }
         let h = self.seg.header();
         let k = self.step + 1;
-        self.seg.bucket(Role::Publish)?.write(publish);
+        self.seg.bucket(Role::Publish).write(publish);
         h.sim_time_bits.store(sim_time.to_bits(), Ordering::Relaxed);
         h.heartbeat_ns.store(os::now_ns(), Ordering::Relaxed);
         h.steps.fetch_add(1, Ordering::Relaxed);
@@ -238,13 +238,7 @@ impl DomainHost {
 
     /// Reads the latest SUBSCRIBE set without stepping (asynchronous domains, or between steps).
     pub fn read_subscribe(&mut self) -> Result<&[u8], ShmError> {
-        let bucket = self.seg.bucket(Role::Subscribe)?;
-        if bucket.read(&mut self.subscribe, 1 << 20).is_none() {
-            return Err(ShmError::Corrupt {
-                domain: self.seg.info.name.clone(),
-                detail: "SUBSCRIBE set never settles".into(),
-            });
-        }
+        self.seg.read_set(Role::Subscribe, &mut self.subscribe)?;
         Ok(&self.subscribe)
     }
 
@@ -263,10 +257,7 @@ impl DomainHost {
                 size,
             });
         }
-        self.seg.bucket(Role::Subscribe)?.read_at(offset, out, 1 << 20).ok_or_else(|| ShmError::Corrupt {
-            domain: self.seg.info.name.clone(),
-            detail: "SUBSCRIBE set never settles".into(),
-        })
+        self.seg.read_set_at(Role::Subscribe, offset, out)
     }
 
     /// Waits until `done` holds, sweeping dead connections meanwhile; gives up at the timeout.
@@ -354,12 +345,7 @@ fn sweep(seg: &Segment) -> usize {
     let mut removed = 0;
     for i in 0..seg.scan_len() {
         let Some(c) = seg.conn(i) else { break };
-        let pid = c.active.load(Ordering::Acquire);
-        if pid == 0 || pid == segment::RELEASING {
-            continue;
-        }
-        let id = os::ProcessId { pid, start_time: c.start_time.load(Ordering::Acquire) };
-        if !os::is_alive(id) && seg.release_slot(i, pid) {
+        if seg.release_if_dead(i, c.active.load(Ordering::Acquire)) {
             removed += 1;
         }
     }

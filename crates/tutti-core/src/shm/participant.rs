@@ -5,7 +5,9 @@ use std::time::{Duration, Instant};
 
 use super::bucket::{copy_words, store_bytes, store_range, with_bytes_mut};
 use super::handshake::{CONN_SYNC_READER, CONN_WRITER};
-use super::segment::{self, namespace_from_env, DomainInfo, Segment, WaitMode, Waited, Waiter, STATE_RUNNING};
+use super::segment::{
+    self, namespace_from_env, DomainInfo, Segment, WaitMode, Waited, Waiter, MAX_READ_TRIES, STATE_RUNNING,
+};
 use super::{os, ShmError};
 use crate::ddf::{Domain, Leaf, Role};
 use crate::sync::{AtomicU32, AtomicU64, Ordering};
@@ -63,12 +65,11 @@ pub struct Participant {
     last_read: u64,
     last_commit: u64,
     locked_step: u64,
-    /// Whether `subscribe_lock` was ever called (the connection reads before it answers).
+    /// Whether the connection ever read (it then reads before it answers).
     has_read: bool,
     /// Staging and shadow are out of date after `commit_all_with`; the next use refreshes
     /// them from the SUBSCRIBE set (off the commit's path).
     stale_staging: bool,
-    connected: bool,
     /// When the framework's process was last found alive (checked at most every 50 ms).
     framework_seen: std::cell::Cell<Instant>,
 }
@@ -103,8 +104,8 @@ impl Participant {
             last_commit: 0,
             locked_step: 0,
             has_read: false,
-            stale_staging: false,
-            connected: true,
+            // Start from the SUBSCRIBE values as they are: a commit changes only what we change.
+            stale_staging: true,
             framework_seen: std::cell::Cell::new(Instant::now()),
             seg,
             slot,
@@ -116,11 +117,8 @@ impl Participant {
             p.last_read = c.last_read.load(Ordering::Relaxed);
             p.last_commit = p.last_read;
         }
-        // Start from the SUBSCRIBE values as they are: a commit changes only what we change.
-        let bucket = p.seg.bucket(Role::Subscribe)?;
-        bucket.read(&mut p.staging, 1 << 20).ok_or_else(|| p.corrupt("SUBSCRIBE set never settles"))?;
-        p.shadow.copy_from_slice(&p.staging);
-        bucket_read_publish(&p.seg, &mut p.snapshot)?;
+        p.refresh_staging()?;
+        p.seg.read_set(Role::Publish, &mut p.snapshot)?;
         if !p.opts.skip_wait_to_go {
             p.wait_ready_to_go_until(deadline)?;
         }
@@ -140,10 +138,6 @@ impl Participant {
         Ok(p)
     }
 
-    fn corrupt(&self, detail: &str) -> ShmError {
-        ShmError::Corrupt { domain: self.seg.info.name.clone(), detail: detail.to_string() }
-    }
-
     /// The domain as the segment describes it.
     pub fn info(&self) -> &DomainInfo {
         &self.seg.info
@@ -151,11 +145,6 @@ impl Participant {
 
     pub fn segment(&self) -> &Segment {
         &self.seg
-    }
-
-    /// The connection's slot and id (slot + generation).
-    pub fn slot(&self) -> (usize, u64) {
-        (self.slot, self.id)
     }
 
     pub fn set_wait_mode(&mut self, mode: WaitMode) {
@@ -173,7 +162,7 @@ impl Participant {
 
     /// Connections now in the domain (this one included).
     pub fn connection_count(&self) -> u32 {
-        self.seg.header().conn_count.load(Ordering::Acquire)
+        self.seg.connection_count()
     }
 
     /// The step of the last snapshot (0 before any), and the framework's simulated time.
@@ -189,9 +178,6 @@ impl Participant {
     /// judges dead) and the framework runs.
     pub fn check(&self) -> Result<(), ShmError> {
         let domain = || self.seg.info.name.clone();
-        if !self.connected {
-            return Err(ShmError::ConnectionLost { domain: domain() });
-        }
         let h = self.seg.header();
         if h.state.load(Ordering::Acquire) != STATE_RUNNING {
             return Err(ShmError::FrameworkStopped { domain: domain() });
@@ -250,31 +236,54 @@ impl Participant {
     /// a synchronous domain, waits for the next step (each step is read exactly once) and
     /// acknowledges it. Returns the step read (asynchronous: the framework's latest).
     pub fn subscribe_lock(&mut self) -> Result<u64, ShmError> {
-        self.check()?;
-        let seg = &self.seg;
-        let c = seg.conn(self.slot).ok_or_else(|| ShmError::ConnectionLost { domain: seg.info.name.clone() })?;
-        if seg.info.flags.synchronous {
-            c.flags.fetch_or(CONN_SYNC_READER, Ordering::AcqRel);
-            self.wait_next_step()?;
-            let last = self.last_read;
-            let generation = bucket_read_publish(&self.seg, &mut self.snapshot)?;
-            // The PUBLISH generation counts the framework's publishes, i.e. its steps.
-            let step = generation.max(last + 1);
-            self.last_read = step;
-            let seg = &self.seg;
-            let conn =
-                seg.conn_ctl(self.slot).ok_or_else(|| ShmError::ConnectionLost { domain: seg.info.name.clone() })?;
-            seg.step_ctl().ack_read(&conn, step);
-            let h = seg.header();
+        self.begin_read()?;
+        let generation = self.seg.read_set(Role::Publish, &mut self.snapshot)?;
+        let step = self.finish_read(generation);
+        if self.seg.info.flags.synchronous {
+            let h = self.seg.header();
             segment::wake(&h.ack_seq, &h.ack_waiters);
-        } else {
-            self.last_read = bucket_read_publish(&self.seg, &mut self.snapshot)?;
         }
-        if let Some(c) = self.seg.conn(self.slot) {
+        Ok(step)
+    }
+
+    /// The start of every read: the connection is checked and, in a synchronous domain,
+    /// declared a lock-step reader and made to wait for the next step.
+    fn begin_read(&self) -> Result<(), ShmError> {
+        self.check()?;
+        if self.seg.info.flags.synchronous {
+            self.set_flag(CONN_SYNC_READER);
+            self.wait_next_step()?;
+        }
+        Ok(())
+    }
+
+    /// The end of every read of PUBLISH generation `generation`: returns the step read and,
+    /// in a synchronous domain, acknowledges it (the caller wakes the framework).
+    fn finish_read(&mut self, generation: u64) -> u64 {
+        let seg = &self.seg;
+        // The PUBLISH generation counts the framework's publishes, i.e. its steps.
+        let step = if seg.info.flags.synchronous { generation.max(self.last_read + 1) } else { generation };
+        self.last_read = step;
+        self.has_read = true;
+        if let Some(c) = seg.conn(self.slot) {
             c.reads.fetch_add(1, Ordering::Relaxed);
         }
-        self.has_read = true;
-        Ok(self.last_read)
+        if seg.info.flags.synchronous {
+            if let Some(conn) = seg.conn_ctl(self.slot) {
+                seg.step_ctl().ack_read(&conn, step);
+            }
+        }
+        step
+    }
+
+    /// Sets a bit of this connection's flags (written only when missing: the framework
+    /// polls the line they are on).
+    fn set_flag(&self, bit: u32) {
+        if let Some(c) = self.seg.conn(self.slot) {
+            if c.flags.load(Ordering::Acquire) & bit == 0 {
+                c.flags.fetch_or(bit, Ordering::AcqRel);
+            }
+        }
     }
 
     /// Synchronous domains: waits (at most the timeout) until the framework has published a
@@ -299,42 +308,29 @@ impl Participant {
     /// from its bytes. In a synchronous domain it waits for the next step first and answers
     /// it. The snapshot buffer is left as it was. Returns the step (generation) read.
     pub fn answer_with(&mut self, mut f: impl FnMut(&[u8], &mut [u8])) -> Result<u64, ShmError> {
-        self.check()?;
-        let sync = self.seg.info.flags.synchronous;
-        if sync {
-            if let Some(c) = self.seg.conn(self.slot) {
-                c.flags.fetch_or(CONN_SYNC_READER, Ordering::AcqRel);
-            }
-            self.wait_next_step()?;
-        }
+        self.begin_read()?;
         self.claim_writer()?;
         let lock = self.lock_writers()?;
         let seg = &self.seg;
         let (pub_size, sub_size) = (seg.info.publish.size as usize, seg.info.subscribe.size as usize);
-        let (publish, subscribe) = (seg.bucket(Role::Publish)?, seg.bucket(Role::Subscribe)?);
+        let publish = seg.bucket(Role::Publish);
         let mut read = None;
-        subscribe.try_write_with(|_, next| {
+        seg.bucket(Role::Subscribe).try_write_with(|_, next| {
             with_bytes_mut(next, |out| {
                 let out = &mut out[..sub_size];
-                read = publish.read_in_place(|bytes| f(bytes, out), pub_size, 1 << 20).map(|(g, ())| g);
+                read = publish.read_in_place(|bytes| f(bytes, out), pub_size, MAX_READ_TRIES).map(|(g, ())| g);
             });
             read.is_some()
         });
         drop(lock);
-        let generation = read.ok_or_else(|| self.corrupt("PUBLISH set never settles"))?;
-        let step = if sync { generation.max(self.last_read + 1) } else { generation };
-        self.last_read = step;
-        self.has_read = true;
-        if let Some(c) = seg.conn(self.slot) {
-            c.reads.fetch_add(1, Ordering::Relaxed);
-        }
-        if sync {
+        let generation = read.ok_or_else(|| seg.never_settles(Role::Publish))?;
+        let step = self.finish_read(generation);
+        if self.seg.info.flags.synchronous {
+            // The step answered is the one read; the commit's acknowledgement wakes the
+            // framework for both.
             self.locked_step = step;
-            if let Some(conn) = seg.conn_ctl(self.slot) {
-                seg.step_ctl().ack_read(&conn, step);
-            }
         }
-        Self::committed(seg, self.slot, self.locked_step);
+        Self::committed(&self.seg, self.slot, self.locked_step);
         self.stale_staging = true;
         self.reset_after_commit();
         Ok(step)
@@ -393,15 +389,15 @@ impl Participant {
     fn claim_writer(&self) -> Result<(), ShmError> {
         let seg = &self.seg;
         let h = seg.header();
-        if !seg.info.flags.multiple_publish_allowed {
+        // The owner already (the usual case, on every commit): no write to the shared line.
+        if !seg.info.flags.multiple_publish_allowed && h.owner_conn.load(Ordering::Acquire) != self.id {
             loop {
                 match h.owner_conn.compare_exchange(0, self.id, Ordering::AcqRel, Ordering::Acquire) {
                     Ok(_) => break,
                     Err(owner) if owner == self.id => break,
                     Err(owner) => {
-                        let slot = ((owner & 0xffff_ffff) as usize).wrapping_sub(1);
+                        let slot = Segment::slot_of(owner);
                         let owner_pid = seg.conn(slot).map_or(0, |c| c.active.load(Ordering::Acquire));
-                        let start = seg.conn(slot).map_or(0, |c| c.start_time.load(Ordering::Acquire));
                         // An owner being released right now: its ownership goes next.
                         if owner_pid == segment::RELEASING {
                             std::thread::yield_now();
@@ -409,10 +405,7 @@ impl Participant {
                         }
                         // An owner that died is released here rather than after the
                         // framework's next sweep; then the claim is tried again.
-                        if owner_pid != 0
-                            && !os::is_alive(os::ProcessId { pid: owner_pid, start_time: start })
-                            && seg.release_slot(slot, owner_pid)
-                        {
+                        if seg.release_if_dead(slot, owner_pid) {
                             continue;
                         }
                         if h.owner_conn.load(Ordering::Acquire) != owner {
@@ -426,9 +419,7 @@ impl Participant {
         }
         // Flagged a writer only once allowed to write: a refused writer must not make the
         // framework wait for commits that will never come.
-        if let Some(c) = seg.conn(self.slot) {
-            c.flags.fetch_or(CONN_WRITER, Ordering::AcqRel);
-        }
+        self.set_flag(CONN_WRITER);
         Ok(())
     }
 
@@ -445,19 +436,9 @@ impl Participant {
         &mut self.staging
     }
 
-    /// Computes the whole SUBSCRIBE set at once from the last snapshot of the PUBLISH set:
-    /// `f(snapshot, staging)`. Every item is committed by the next `commit`, without comparing
-    /// with the last commit (the cheap path for components that write all their outputs).
-    pub fn stage_all_with(&mut self, f: impl FnOnce(&[u8], &mut [u8])) {
-        let _ = self.refresh_staging();
-        f(&self.snapshot, &mut self.staging);
-        self.marked.iter_mut().for_each(|m| *m = true);
-    }
-
     /// Stages one item of the SUBSCRIBE set (committed even if unchanged).
     pub fn stage(&mut self, path: &str, bytes: &[u8]) -> Result<(), ShmError> {
-        let (idx, leaf) = self.leaf(Role::Subscribe, path)?;
-        let range = leaf.range();
+        let (idx, range) = self.leaf(Role::Subscribe, path).map(|(i, l)| (i, l.range()))?;
         if bytes.len() != range.len() {
             return Err(ShmError::SizeMismatch {
                 domain: self.seg.info.name.clone(),
@@ -478,8 +459,7 @@ impl Participant {
     /// commit leaves them alone as before).
     fn refresh_staging(&mut self) -> Result<(), ShmError> {
         if self.stale_staging {
-            let bucket = self.seg.bucket(Role::Subscribe)?;
-            bucket.read(&mut self.staging, 1 << 20).ok_or_else(|| self.corrupt("SUBSCRIBE set never settles"))?;
+            self.seg.read_set(Role::Subscribe, &mut self.staging)?;
             self.shadow.copy_from_slice(&self.staging);
             self.stale_staging = false;
         }
@@ -487,7 +467,7 @@ impl Participant {
     }
 
     /// The leaf `path` of set `role`, with its index in that set.
-    pub fn leaf(&self, role: Role, path: &str) -> Result<(usize, Leaf), ShmError> {
+    pub fn leaf(&self, role: Role, path: &str) -> Result<(usize, &Leaf), ShmError> {
         self.seg
             .info
             .set(role)
@@ -495,7 +475,6 @@ impl Participant {
             .iter()
             .enumerate()
             .find(|(_, l)| l.path == path)
-            .map(|(i, l)| (i, l.clone()))
             .ok_or_else(|| ShmError::UnknownItem { domain: self.seg.info.name.clone(), role, item: path.to_string() })
     }
 
@@ -517,24 +496,20 @@ impl Participant {
             .map(|(_, l)| (l.offset as usize, l.size as usize))
             .collect();
         let lock = self.lock_writers()?;
-        let bucket = seg.bucket(Role::Subscribe);
-        if let Ok(bucket) = &bucket {
-            let staging = &self.staging;
-            let whole = changed.len() == seg.info.subscribe.leaves.len();
-            bucket.write_with(|prev, next| {
-                if whole {
-                    // Every item changes: no need to carry the previous value over.
-                    store_bytes(next, staging);
-                    return;
-                }
-                copy_words(next, prev);
-                for &(off, len) in &changed {
-                    store_range(next, off, &staging[off..off + len]);
-                }
-            });
-        }
+        let staging = &self.staging;
+        let whole = changed.len() == seg.info.subscribe.leaves.len();
+        seg.bucket(Role::Subscribe).write_with(|prev, next| {
+            if whole {
+                // Every item changes: no need to carry the previous value over.
+                store_bytes(next, staging);
+                return;
+            }
+            copy_words(next, prev);
+            for &(off, len) in &changed {
+                store_range(next, off, &staging[off..off + len]);
+            }
+        });
         drop(lock);
-        bucket?;
         Self::committed(seg, self.slot, self.locked_step);
         self.reset_after_commit();
         for &(off, len) in &changed {
@@ -555,9 +530,8 @@ impl Participant {
         let lock = self.lock_writers()?;
         let seg = &self.seg;
         let size = seg.info.subscribe.size as usize;
-        let bucket = seg.bucket(Role::Subscribe)?;
         let snapshot = &self.snapshot;
-        bucket.write_with(|_, next| with_bytes_mut(next, |out| f(snapshot, &mut out[..size])));
+        seg.bucket(Role::Subscribe).write_with(|_, next| with_bytes_mut(next, |out| f(snapshot, &mut out[..size])));
         drop(lock);
         Self::committed(seg, self.slot, self.locked_step);
         self.stale_staging = true;
@@ -620,12 +594,11 @@ impl Participant {
         self.release();
     }
 
+    /// Releases the slot unless it is no longer this connection's (released already, or
+    /// removed by the framework: either bumps the slot's generation, so the id differs).
     fn release(&mut self) {
-        if self.connected {
-            self.connected = false;
-            if self.seg.conn_id(self.slot) == self.id {
-                self.seg.release_slot(self.slot, self.me.pid);
-            }
+        if self.seg.conn_id(self.slot) == self.id {
+            self.seg.release_slot(self.slot, self.me.pid);
         }
     }
 }
@@ -637,13 +610,6 @@ impl Drop for WriterLock<'_> {
     fn drop(&mut self) {
         self.0.store(0, Ordering::Release);
     }
-}
-
-/// Reads the PUBLISH set; returns its generation.
-fn bucket_read_publish(seg: &Segment, out: &mut [u8]) -> Result<u64, ShmError> {
-    seg.bucket(Role::Publish)?
-        .read(out, 1 << 20)
-        .ok_or_else(|| ShmError::Corrupt { domain: seg.info.name.clone(), detail: "PUBLISH set never settles".into() })
 }
 
 impl Drop for Participant {

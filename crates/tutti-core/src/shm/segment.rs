@@ -43,6 +43,9 @@ pub const VERSION: u32 = 2;
 pub const HEADER_BYTES: usize = 1024;
 /// Connection slots per domain.
 pub const DEFAULT_CONNECTIONS: u32 = 64;
+/// Attempts of a seqlock read before a set is declared corrupt (only a writer committing
+/// faster than one copy, without pause, or a damaged segment, exhausts them).
+pub const MAX_READ_TRIES: u32 = 1 << 20;
 const MAX_CONNECTIONS: u32 = 4096;
 const CONN_BYTES: usize = 128;
 const DIR_ENTRY_BYTES: usize = 16;
@@ -242,6 +245,9 @@ fn round_up(n: usize, a: usize) -> usize {
 pub struct Segment {
     map: MmapRaw,
     len: usize,
+    /// Each set's slots: (byte offset, words per slot), checked against the mapping when the
+    /// segment is created or opened and never read from shared memory again.
+    slots: [(usize, usize); 2],
     /// The shared-memory object name.
     pub shm_name: String,
     pub info: Arc<DomainInfo>,
@@ -304,7 +310,7 @@ impl Segment {
         let total = end;
         file.set_len(total as u64).map_err(|e| ShmError::io(format!("sizing {}/{shm_name}", os::SHM_DIR), e))?;
         let map = os::map(&file).map_err(|e| ShmError::io(format!("mapping {}/{shm_name}", os::SHM_DIR), e))?;
-        let seg = Segment { map, len: total, shm_name: shm_name.to_string(), info: Arc::new(info) };
+        let seg = Segment { map, len: total, slots: set_geom, shm_name: shm_name.to_string(), info: Arc::new(info) };
         let h = seg.header();
         let me = os::current_process();
         h.owner_pid.store(me.pid, Ordering::Relaxed);
@@ -341,8 +347,7 @@ impl Segment {
             sh.words.store(words as u32, Ordering::Relaxed);
             sh.slots_off.store(off as u64, Ordering::Relaxed);
             let defaults = layout.default_bytes();
-            let bucket = seg.bucket(role)?;
-            for slot in bucket.slots {
+            for slot in seg.bucket(role).slots {
                 super::bucket::store_bytes(slot, &defaults);
             }
         }
@@ -381,7 +386,7 @@ impl Segment {
             publish: SetLayout::default(),
             subscribe: SetLayout::default(),
         });
-        let mut seg = Segment { map, len, shm_name: shm_name.to_string(), info: placeholder };
+        let mut seg = Segment { map, len, slots: [(0, 0); 2], shm_name: shm_name.to_string(), info: placeholder };
         let h = seg.header();
         let magic = h.magic.load(Ordering::Acquire);
         if magic == 0 {
@@ -406,14 +411,15 @@ impl Segment {
                 h.total_size.load(Ordering::Relaxed)
             )));
         }
-        let info = seg.decode_directory(domain)?;
+        let (info, slots) = seg.decode_directory(domain)?;
         seg.info = Arc::new(info);
+        seg.slots = slots;
         Ok(seg)
     }
 
     /// Reads the directory and string table, validating every offset, and re-derives the
-    /// layout hash from them.
-    fn decode_directory(&self, domain: &str) -> Result<DomainInfo, ShmError> {
+    /// layout hash from them; also returns the sets' slot geometry, checked.
+    fn decode_directory(&self, domain: &str) -> Result<(DomainInfo, [(usize, usize); 2]), ShmError> {
         let corrupt = |detail: String| ShmError::Corrupt { domain: domain.to_string(), detail };
         let h = self.header();
         let ld = |a: &AtomicU32| a.load(Ordering::Relaxed) as usize;
@@ -448,6 +454,7 @@ impl Segment {
         }
         let flags = flags_from_bits(h.flags.load(Ordering::Relaxed));
         let mut sets = [SetLayout::default(), SetLayout::default()];
+        let mut slots = [(0, 0); 2];
         for role in Role::ALL {
             let sh = &h.sets[role as usize];
             let size = sh.size.load(Ordering::Relaxed);
@@ -463,6 +470,7 @@ impl Segment {
             }
             self.check_range(off, SLOTS * words * 8, "set slots")?;
             sets[role as usize] = SetLayout { size, align, leaves: Vec::new() };
+            slots[role as usize] = (off, words);
         }
         let dir = self.words_at(dir_off, dir_count * 2)?;
         for i in 0..dir_count {
@@ -492,7 +500,7 @@ impl Segment {
         if hash != stored {
             return Err(corrupt(format!("layout hash {stored:016x} does not match the directory ({hash:016x})")));
         }
-        Ok(DomainInfo { name, flags, layout_hash: hash, publish, subscribe })
+        Ok((DomainInfo { name, flags, layout_hash: hash, publish, subscribe }, slots))
     }
 
     fn check_range(&self, off: usize, len: usize, what: &str) -> Result<(), ShmError> {
@@ -562,24 +570,42 @@ impl Segment {
         StepCtl { pub_step: &h.pub_step, step_seq: &h.step_seq, ack_seq: &h.ack_seq }
     }
 
-    /// The bucket of one set, with the geometry validated on create/open.
-    pub fn bucket(&self, role: Role) -> Result<Bucket<'_>, ShmError> {
+    /// The bucket of one set. Its geometry was checked when the segment was created or
+    /// opened and is not read from shared memory again, so a process that rewrites the header
+    /// afterwards cannot move the slots.
+    pub fn bucket(&self, role: Role) -> Bucket<'_> {
         let sh = &self.header().sets[role as usize];
-        let words = sh.words.load(Ordering::Relaxed) as usize;
-        let off = sh.slots_off.load(Ordering::Relaxed) as usize;
-        // Re-check: a hostile process could rewrite the geometry after open.
-        if words * 8 < self.info.set(role).size as usize {
-            return Err(ShmError::Corrupt {
-                domain: self.info.name.clone(),
-                detail: format!("{role} set geometry changed"),
-            });
-        }
-        self.check_range(off, SLOTS * words * 8, "set slots")?;
-        let mut slots: [&[AtomicU64]; SLOTS] = [&[]; SLOTS];
-        for (i, slot) in slots.iter_mut().enumerate() {
-            *slot = self.words_at(off + i * words * 8, words)?;
-        }
-        Ok(Bucket { seq: &sh.seq, gens: &sh.gens, current: &sh.current, slots })
+        let (off, words) = self.slots[role as usize];
+        let slots = std::array::from_fn(|i| {
+            // SAFETY: `off + SLOTS * words * 8 <= self.len` and `off % 64 == 0` were checked
+            // (open) or constructed (create), and the mapping lives as long as `self`; see
+            // `words_at` for the rest.
+            unsafe {
+                std::slice::from_raw_parts(self.map.as_mut_ptr().add(off + i * words * 8).cast::<AtomicU64>(), words)
+            }
+        });
+        Bucket { seq: &sh.seq, gens: &sh.gens, current: &sh.current, slots }
+    }
+
+    /// A consistent copy of `out.len()` bytes of set `role` from byte `offset` (the caller
+    /// keeps the range inside the set); returns the value's generation.
+    pub fn read_set_at(&self, role: Role, offset: usize, out: &mut [u8]) -> Result<u64, ShmError> {
+        self.bucket(role).read_at(offset, out, MAX_READ_TRIES).ok_or_else(|| self.never_settles(role))
+    }
+
+    /// A consistent copy of the whole set `role`; returns its generation.
+    pub fn read_set(&self, role: Role, out: &mut [u8]) -> Result<u64, ShmError> {
+        self.read_set_at(role, 0, out)
+    }
+
+    /// The error of a set that never holds still long enough to be read.
+    pub fn never_settles(&self, role: Role) -> ShmError {
+        ShmError::Corrupt { domain: self.info.name.clone(), detail: format!("{role} set never settles") }
+    }
+
+    /// Connections now in the domain.
+    pub fn connection_count(&self) -> u32 {
+        self.header().conn_count.load(Ordering::Acquire)
     }
 
     /// How many times a set was written: a cheap test for new data before copying it.
@@ -595,6 +621,18 @@ impl Segment {
     /// Whether the framework is running (state and process both alive).
     pub fn framework_alive(&self) -> bool {
         self.header().state.load(Ordering::Acquire) == STATE_RUNNING && os::is_alive(self.framework_id())
+    }
+
+    /// The slot of connection id `id` (see [`conn_id`](Self::conn_id)).
+    pub fn slot_of(id: u64) -> usize {
+        ((id & 0xffff_ffff) as usize).wrapping_sub(1)
+    }
+
+    /// Releases the connection in slot `i` if its process (`pid`) is dead; returns whether
+    /// this call released it.
+    pub fn release_if_dead(&self, i: usize, pid: u32) -> bool {
+        let start_time = self.conn(i).map_or(0, |c| c.start_time.load(Ordering::Acquire));
+        pid != 0 && pid != RELEASING && !os::is_alive(ProcessId { pid, start_time }) && self.release_slot(i, pid)
     }
 
     /// The id of connection slot `i` in its current generation (never 0).
@@ -667,9 +705,7 @@ impl Segment {
         let id = self.conn_id(i);
         let _ = h.owner_conn.compare_exchange(id, 0, Ordering::AcqRel, Ordering::Relaxed);
         if h.writer_lock.load(Ordering::Acquire) == id {
-            if let Ok(b) = self.bucket(Role::Subscribe) {
-                b.recover();
-            }
+            self.bucket(Role::Subscribe).recover();
             let _ = h.writer_lock.compare_exchange(id, 0, Ordering::AcqRel, Ordering::Relaxed);
         }
         c.flags.store(0, Ordering::Relaxed);
@@ -712,11 +748,8 @@ impl Segment {
             });
         }
         let owner = h.owner_conn.load(Ordering::Acquire);
-        let owner_pid = (owner != 0)
-            .then(|| {
-                self.conn(((owner & 0xffff_ffff) as usize).wrapping_sub(1)).map(|c| c.active.load(Ordering::Relaxed))
-            })
-            .flatten();
+        let owner_pid =
+            (owner != 0).then(|| self.conn(Self::slot_of(owner)).map(|c| c.active.load(Ordering::Relaxed))).flatten();
         DomainStatus {
             domain: self.info.name.clone(),
             segment: format!("{}/{}", os::SHM_DIR, self.shm_name),
@@ -731,8 +764,8 @@ impl Segment {
             step_timeouts: h.timeouts.load(Ordering::Relaxed),
             max_late_ns: h.max_late_ns.load(Ordering::Relaxed),
             last_late_ns: h.last_late_ns.load(Ordering::Relaxed),
-            publish_commits: h.sets[0].current.load(Ordering::Relaxed),
-            subscribe_commits: h.sets[1].current.load(Ordering::Relaxed),
+            publish_commits: self.generation(Role::Publish),
+            subscribe_commits: self.generation(Role::Subscribe),
             rejected: h.rejected.load(Ordering::Relaxed),
             seeded: h.seeded.load(Ordering::Relaxed) != 0,
             waiting_to_go: h.hold.load(Ordering::Relaxed) != 0,

@@ -252,8 +252,7 @@ impl Watched {
                 self.last_local = local;
             }
         }
-        let Ok(bucket) = seg.bucket(self.role) else { return false };
-        if bucket.read(&mut self.buf, 1 << 16).is_none() {
+        if seg.bucket(self.role).read(&mut self.buf, 1 << 16).is_none() {
             return false;
         }
         let step = h.pub_step.load(Ordering::Acquire);
