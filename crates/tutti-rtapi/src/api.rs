@@ -10,7 +10,7 @@ use tutti_core::shm::WaitMode;
 
 use crate::codes::*;
 use crate::ffi::{bytes_in, bytes_out, c_str, guard, last_detail_ptr, write_out, Failure};
-use crate::state::{check_size, leaf_by_key, leaf_by_path, leaf_in, state, Access};
+use crate::state::{check_size, leaf_by_key, leaf_by_path, leaf_in, state};
 
 /// Creates a connection key (1, 2, …). Key 0 exists from the start and is the current
 /// connection until RTSetConnectionKey selects another.
@@ -89,8 +89,8 @@ pub unsafe extern "C" fn RTPublish(itemPath: *const c_char, value: *const c_void
         // SAFETY: the caller promises a NUL-terminated string or NULL.
         let path = unsafe { c_str(itemPath, "itemPath") }?;
         let mut st = state();
-        let (_, conn) = st.current()?;
-        let p = conn.participant.as_ref().ok_or_else(|| Failure::new(RTAPI_ERROR_INTERNAL, "no participant"))?;
+        let conn = st.current()?;
+        let p = &conn.participant;
         let leaf = leaf_in(p, Role::Subscribe, path)?;
         check_size(p, &leaf, sizeBytes)?;
         // SAFETY: the caller promises `sizeBytes` readable bytes at `value` (or NULL).
@@ -105,10 +105,8 @@ pub unsafe extern "C" fn RTPublish(itemPath: *const c_char, value: *const c_void
                 ),
             ));
         }
-        st.exchange(Access::Publish, |c| {
-            let Some(p) = c.participant.as_mut() else {
-                return Ok(());
-            };
+        st.exchange(Side::Publish, |c| {
+            let p = &mut c.participant;
             if locked {
                 p.stage(path, bytes)
             } else {
@@ -134,8 +132,8 @@ pub unsafe extern "C" fn RTSubscribe(itemPath: *const c_char, value: *mut c_void
         // SAFETY: the caller promises a NUL-terminated string or NULL.
         let path = unsafe { c_str(itemPath, "itemPath") }?;
         let mut st = state();
-        let (_, conn) = st.current()?;
-        let p = conn.participant.as_ref().ok_or_else(|| Failure::new(RTAPI_ERROR_INTERNAL, "no participant"))?;
+        let conn = st.current()?;
+        let p = &conn.participant;
         let leaf = leaf_in(p, Role::Publish, path)?;
         check_size(p, &leaf, sizeBytes)?;
         // SAFETY: the caller promises `sizeBytes` writable bytes at `value` (or NULL).
@@ -150,10 +148,8 @@ pub unsafe extern "C" fn RTSubscribe(itemPath: *const c_char, value: *mut c_void
                 ),
             ));
         }
-        st.exchange(Access::Subscribe, |c| {
-            let Some(p) = c.participant.as_mut() else {
-                return Ok(());
-            };
+        st.exchange(Side::Subscribe, |c| {
+            let p = &mut c.participant;
             if !locked {
                 p.subscribe_lock()?;
             }
@@ -169,14 +165,11 @@ pub unsafe extern "C" fn RTSubscribe(itemPath: *const c_char, value: *mut c_void
 pub extern "C" fn RTPublishLock() -> RTAPIReturn_t {
     guard("RTPublishLock", || {
         let mut st = state();
-        if st.current()?.1.pub_locked {
+        if st.current()?.pub_locked {
             return Err(Failure::new(RTAPI_ERROR_OUT_OF_ORDER, "RTPublishLock called twice without RTPublishUnlock"));
         }
-        st.exchange(Access::Publish, |c| {
-            let Some(p) = c.participant.as_mut() else {
-                return Ok(());
-            };
-            p.publish_lock()?;
+        st.exchange(Side::Publish, |c| {
+            c.participant.publish_lock()?;
             c.pub_locked = true;
             Ok(())
         })
@@ -190,12 +183,12 @@ pub extern "C" fn RTPublishLock() -> RTAPIReturn_t {
 pub extern "C" fn RTPublishUnlock() -> RTAPIReturn_t {
     guard("RTPublishUnlock", || {
         let mut st = state();
-        let (_, conn) = st.current()?;
+        let conn = st.current()?;
         if !conn.pub_locked {
             return Err(Failure::new(RTAPI_ERROR_OUT_OF_ORDER, "RTPublishUnlock without RTPublishLock"));
         }
         conn.pub_locked = false;
-        st.exchange(Access::Publish, |c| c.participant.as_mut().map_or(Ok(()), |p| p.commit()))
+        st.exchange(Side::Publish, |c| c.participant.commit())
     })
 }
 
@@ -205,17 +198,14 @@ pub extern "C" fn RTPublishUnlock() -> RTAPIReturn_t {
 pub extern "C" fn RTSubscribeLock() -> RTAPIReturn_t {
     guard("RTSubscribeLock", || {
         let mut st = state();
-        if st.current()?.1.sub_locked {
+        if st.current()?.sub_locked {
             return Err(Failure::new(
                 RTAPI_ERROR_OUT_OF_ORDER,
                 "RTSubscribeLock called twice without RTSubscribeUnlock",
             ));
         }
-        st.exchange(Access::Subscribe, |c| {
-            let Some(p) = c.participant.as_mut() else {
-                return Ok(());
-            };
-            p.subscribe_lock()?;
+        st.exchange(Side::Subscribe, |c| {
+            c.participant.subscribe_lock()?;
             c.sub_locked = true;
             Ok(())
         })
@@ -227,7 +217,7 @@ pub extern "C" fn RTSubscribeLock() -> RTAPIReturn_t {
 pub extern "C" fn RTSubscribeUnlock() -> RTAPIReturn_t {
     guard("RTSubscribeUnlock", || {
         let mut st = state();
-        let (_, conn) = st.current()?;
+        let conn = st.current()?;
         if !conn.sub_locked {
             return Err(Failure::new(RTAPI_ERROR_OUT_OF_ORDER, "RTSubscribeUnlock without RTSubscribeLock"));
         }
@@ -248,10 +238,7 @@ pub unsafe extern "C" fn RTGetKeyForItem(itemPath: *const c_char, itemKey: *mut 
         let path = unsafe { c_str(itemPath, "itemPath") }?;
         crate::ffi::non_null(itemKey.cast_const(), "itemKey")?;
         let mut st = state();
-        let (key, _, _) = leaf_by_path(
-            st.current()?.1.participant.as_ref().ok_or_else(|| Failure::new(RTAPI_ERROR_INTERNAL, "no participant"))?,
-            path,
-        )?;
+        let (key, _, _) = leaf_by_path(&st.current()?.participant, path)?;
         // SAFETY: the caller promises `itemKey` is writable (NULL was refused above).
         unsafe { write_out(itemKey, "itemKey", key) }
     })
@@ -274,10 +261,7 @@ pub unsafe extern "C" fn RTGetInfoForItem(
         crate::ffi::non_null(typeSize.cast_const(), "typeSize")?;
         crate::ffi::non_null(length.cast_const(), "length")?;
         let mut st = state();
-        let (_, _, leaf) = leaf_by_path(
-            st.current()?.1.participant.as_ref().ok_or_else(|| Failure::new(RTAPI_ERROR_INTERNAL, "no participant"))?,
-            path,
-        )?;
+        let (_, _, leaf) = leaf_by_path(&st.current()?.participant, path)?;
         // SAFETY: both pointers are writable as the caller promises (NULL refused above).
         unsafe {
             write_out(typeSize, "typeSize", leaf.ty.size())?;
@@ -373,9 +357,7 @@ pub extern "C" fn RTWaitReadyToGo() -> RTAPIReturn_t {
 }
 
 fn wait_ready() -> Result<(), Failure> {
-    let mut st = state();
-    st.current()?;
-    st.exchange(Access::Subscribe, |c| c.participant.as_ref().map_or(Ok(()), |p| p.wait_ready_to_go()))
+    state().exchange(Side::Subscribe, |c| c.participant.wait_ready_to_go())
 }
 
 /// Whether the next RTConnect / RTConnectWithFile returns without waiting for wait-to-go.

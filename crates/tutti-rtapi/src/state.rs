@@ -20,17 +20,18 @@ pub const DEFAULT_KEY: u32 = 0;
 /// Lock timeout when `RTConnect` is given 0 seconds.
 const DEFAULT_LOCK_TIMEOUT: Duration = Duration::from_secs(5);
 
-/// One connection key.
-#[derive(Debug, Default)]
+/// A connected key: its participant and the lock pairs open on it. A key that is not
+/// connected has none (dropping it releases the connection).
+#[derive(Debug)]
 pub struct Conn {
-    pub participant: Option<Participant>,
+    pub participant: Participant,
     pub sub_locked: bool,
     pub pub_locked: bool,
 }
 
 #[derive(Debug)]
 pub struct State {
-    conns: BTreeMap<u32, Conn>,
+    conns: BTreeMap<u32, Option<Conn>>,
     next_key: u32,
     current: u32,
     skip_wait_to_go: bool,
@@ -55,19 +56,13 @@ fn not_connected(key: u32) -> Failure {
     Failure::new(RTAPI_ERROR_NOT_CONNECTED, format!("connection key {key} is not connected (call RTConnect first)"))
 }
 
-/// Which part of the exchange a connected call uses.
-pub enum Access {
-    Subscribe,
-    Publish,
-}
-
 impl State {
     pub fn new_key(&mut self) -> CallResult<u32> {
         let key = self.next_key;
         self.next_key = key
             .checked_add(1)
             .ok_or_else(|| Failure::new(RTAPI_ERROR_INVALID_ARGUMENT, "connection keys exhausted"))?;
-        self.conns.insert(key, Conn::default());
+        self.conns.insert(key, None);
         Ok(key)
     }
 
@@ -80,7 +75,7 @@ impl State {
     }
 
     /// The connection behind `key` (connected or not).
-    pub fn conn(&mut self, key: u32) -> CallResult<&mut Conn> {
+    fn conn(&mut self, key: u32) -> CallResult<&mut Option<Conn>> {
         if key == DEFAULT_KEY {
             return Ok(self.conns.entry(DEFAULT_KEY).or_default());
         }
@@ -91,17 +86,13 @@ impl State {
 
     /// The participant behind `key`; fails if it is not connected.
     pub fn participant(&mut self, key: u32) -> CallResult<&mut Participant> {
-        self.conn(key)?.participant.as_mut().ok_or_else(|| not_connected(key))
+        self.conn(key)?.as_mut().map(|c| &mut c.participant).ok_or_else(|| not_connected(key))
     }
 
     /// The current connection, which must be connected.
-    pub fn current(&mut self) -> CallResult<(u32, &mut Conn)> {
+    pub fn current(&mut self) -> CallResult<&mut Conn> {
         let key = self.current;
-        let conn = self.conn(key)?;
-        if conn.participant.is_none() {
-            return Err(not_connected(key));
-        }
-        Ok((key, conn))
+        self.conn(key)?.as_mut().ok_or_else(|| not_connected(key))
     }
 
     pub fn set_skip_wait_to_go(&mut self, skip: bool) {
@@ -111,8 +102,8 @@ impl State {
     /// Sets how every connection waits, now and for later connections.
     pub fn set_wait(&mut self, wait: WaitMode) {
         self.wait = wait;
-        for p in self.conns.values_mut().filter_map(|c| c.participant.as_mut()) {
-            p.set_wait_mode(wait);
+        for c in self.conns.values_mut().flatten() {
+            c.participant.set_wait_mode(wait);
         }
     }
 
@@ -126,8 +117,8 @@ impl State {
         }
         let key = self.current;
         let (skip, wait) = (self.skip_wait_to_go, self.wait);
-        let conn = self.conn(key)?;
-        if conn.participant.is_some() {
+        let slot = self.conn(key)?;
+        if slot.is_some() {
             return Err(Failure::new(
                 RTAPI_ERROR_ALREADY_CONNECTED,
                 format!("connection key {key} is already connected"),
@@ -151,33 +142,26 @@ impl State {
                 Participant::connect_checked(d, opts).map_err(shm)?
             }
         };
-        *conn = Conn { participant: Some(participant), sub_locked: false, pub_locked: false };
+        *slot = Some(Conn { participant, sub_locked: false, pub_locked: false });
         Ok(())
     }
 
     pub fn disconnect(&mut self) -> CallResult {
-        let (_, conn) = self.current()?;
-        if let Some(p) = conn.participant.take() {
-            p.disconnect();
-        }
-        *conn = Conn::default();
+        self.current()?;
+        let key = self.current;
+        *self.conn(key)? = None;
         Ok(())
     }
 
     /// Runs one core operation on the current connection; when it fails because the other
     /// side is gone, the connection is closed (see docs/rtapi.md, "Errors").
-    pub fn exchange<T>(&mut self, access: Access, op: impl FnOnce(&mut Conn) -> Result<T, ShmError>) -> CallResult<T> {
-        let (_, conn) = self.current()?;
-        let side = match access {
-            Access::Subscribe => Side::Subscribe,
-            Access::Publish => Side::Publish,
-        };
+    pub fn exchange<T>(&mut self, side: Side, op: impl FnOnce(&mut Conn) -> Result<T, ShmError>) -> CallResult<T> {
+        let key = self.current;
+        let slot = self.conn(key)?;
+        let conn = slot.as_mut().ok_or_else(|| not_connected(key))?;
         op(conn).map_err(|e| {
             if codes::disconnects(&e) {
-                if let Some(p) = conn.participant.take() {
-                    p.disconnect();
-                }
-                *conn = Conn::default();
+                *slot = None;
             }
             Failure::shm(&e, side)
         })
@@ -186,7 +170,7 @@ impl State {
     /// Connection count of `domain`: from a connection of this process if one is connected
     /// to it, else from the segment.
     pub fn connection_count(&self, domain: &str) -> CallResult<u32> {
-        if let Some(p) = self.conns.values().filter_map(|c| c.participant.as_ref()).find(|p| p.info().name == domain) {
+        if let Some(p) = self.conns.values().flatten().map(|c| &c.participant).find(|p| p.info().name == domain) {
             return Ok(p.connection_count());
         }
         let ns = tutti_core::shm::segment::namespace_from_env();
