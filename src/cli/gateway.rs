@@ -6,9 +6,9 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 use std::time::Duration;
 
+use super::show::ProfileArg;
 use anyhow::Context;
 use clap::ValueEnum;
-use tutti_core::mapping::Profile;
 use tutti_core::shm::WaitMode;
 use tutti_gateway::{GatewayError, GatewayOptions, TypeMode};
 
@@ -35,8 +35,8 @@ pub struct Args {
     ros2_types: Types,
     /// QoS profile: ros2 (every endpoint SHARED, so rclpy matches) or dds (EXCLUSIVE
     /// ownership on the wire where multiplePublishAllowed=no).
-    #[arg(long, value_enum, default_value_t = QosProfileArg::Ros2)]
-    qos_profile: QosProfileArg,
+    #[arg(long, value_enum, default_value_t = ProfileArg::Ros2)]
+    qos_profile: ProfileArg,
     /// OWNERSHIP_STRENGTH of the gateway's writers in the dds profile.
     #[arg(long, default_value_t = 0)]
     strength: i32,
@@ -74,12 +74,6 @@ pub struct Args {
 enum Types {
     Typed,
     PerItem,
-}
-
-#[derive(Debug, Clone, Copy, ValueEnum)]
-enum QosProfileArg {
-    Ros2,
-    Dds,
 }
 
 /// The DDS domain: the flag, else ROS_DOMAIN_ID, else 0.
@@ -131,10 +125,7 @@ pub fn run(args: Args) -> CliResult {
         Types::Typed => TypeMode::Typed,
         Types::PerItem => TypeMode::PerItem,
     };
-    opts.profile = match args.qos_profile {
-        QosProfileArg::Ros2 => Profile::Ros2,
-        QosProfileArg::Dds => Profile::Dds,
-    };
+    opts.profile = args.qos_profile.into();
     opts.strength = args.strength;
     opts.mirror = args.mirror;
     opts.node_name = args.node_name;

@@ -38,9 +38,9 @@ impl Remote {
         r
     }
 
-    /// Remote writers on any of `topics`.
-    pub fn writers_on<'a>(&'a self, topics: &'a [String]) -> impl Iterator<Item = Gid> + 'a {
-        topics.iter().filter_map(|t| self.writers.get(t)).flatten().copied()
+    /// Remote writers on `topic`.
+    pub fn writers_on<'a>(&'a self, topic: &str) -> impl Iterator<Item = Gid> + 'a {
+        self.writers.get(topic).into_iter().flatten().copied()
     }
 
     /// Remote readers on any of `topics` (each once).

@@ -126,8 +126,7 @@ pub fn source(
     while !stop.load(Ordering::Relaxed) {
         n += 1;
         for leaf in &layout.leaves {
-            let at = leaf.offset as usize;
-            if let Some(dst) = shm.get_mut(at..at + leaf.size as usize) {
+            if let Some(dst) = shm.get_mut(leaf.range()) {
                 leaf.ty.encode(tutti_core::ddf::Value::Float(n as f64), &mut dst[..leaf.ty.size() as usize]);
             }
         }

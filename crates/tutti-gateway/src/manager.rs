@@ -20,7 +20,7 @@ use tutti_core::shm::{Framework, FrameworkOptions, Participant, ShmError};
 use crate::cdr::{PreEncoded, SetCodec, SetSeed, TypedSample};
 use crate::discovery::Remote;
 use crate::node::{short, Dds};
-use crate::routes::from_dds::{self, Direct, RemoteWriter};
+use crate::routes::from_dds::{self, Destination, Direct, RemoteWriter};
 use crate::routes::per_item::{self, ItemWriters};
 use crate::routes::to_dds::{self, Activation, Outbound, SetWriter, Watched};
 use crate::routes::{mirror, Event, Payload, ShmConfig};
@@ -51,15 +51,6 @@ struct DomainState {
 struct WriterEntry {
     writer: RemoteWriter,
     created: Instant,
-}
-
-/// What the caller sees of a running gateway.
-#[derive(Debug, Clone)]
-pub struct Status {
-    pub domains: usize,
-    pub topics: usize,
-    pub remote_writers: usize,
-    pub remote_readers: usize,
 }
 
 /// Serves `opts` until `shutdown` is set; `on_status` is called every `status_every` with
@@ -109,10 +100,6 @@ impl std::fmt::Debug for Manager {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         f.debug_struct("Manager").field("routes", &self.routes.len()).finish()
     }
-}
-
-fn io(what: &str) -> impl Fn(std::io::Error) -> GatewayError + '_ {
-    move |e| GatewayError::Dds { what: what.to_string(), detail: e.to_string() }
 }
 
 impl Manager {
@@ -167,7 +154,7 @@ impl Manager {
                         let name = format!("{} sync reader", opts.node_name);
                         threads.push(
                             to_dds::spawn_sync_pump(d.name.clone(), out, activation, cfg.clone(), stats.clone(), name)
-                                .map_err(io("a thread"))?,
+                                .map_err(|e| GatewayError::dds("a thread", e))?,
                         );
                     } else {
                         watched.push(Watched::new(d.name.clone(), Role::Publish, out, activation, None));
@@ -191,27 +178,26 @@ impl Manager {
                         .get_mut(di)
                         .and_then(Option::take)
                         .ok_or_else(|| GatewayError::Invalid(format!("domain '{}' was not created", d.name)))?;
-                    threads.push(mirror::spawn(host, mrx, out, cfg.clone(), stats.clone()).map_err(io("a thread"))?);
+                    threads.push(
+                        mirror::spawn(host, mrx, out, cfg.clone(), stats.clone())
+                            .map_err(|e| GatewayError::dds("a thread", e))?,
+                    );
                     state.mirror = Some(mtx);
                 }
                 (TypeMode::PerItem, _) => {
                     let pub_topics = mapping::item_topics(d, Role::Publish);
                     let sub_topics = mapping::item_topics(d, Role::Subscribe);
                     topics += pub_topics.len() + sub_topics.len();
-                    let out =
-                        Outbound::Items(ItemWriters::create(&mut dds, &pub_topics, &d.publish.layout.leaves, &wq)?);
+                    let out = Outbound::Items(ItemWriters::create(&mut dds, &pub_topics, &d.publish.layout, &wq)?);
                     let topics = pub_topics.iter().map(|t| t.topic.clone()).collect();
                     let activation = route_out(&mut routes, di, topics, true);
                     watched.push(Watched::new(d.name.clone(), Role::Publish, out, activation, None));
                     for t in &sub_topics {
                         let Some(leaf) = d.subscribe.layout.leaf(&t.path) else { continue };
-                        let direct = Direct::default();
-                        let to = (routes.len(), tx.clone(), direct.clone());
+                        let to = route_in(&mut routes, &tx, di, &t.topic);
                         per_item::spawn_reader(&mut dds, t, leaf, &rq, to, stats.clone(), rt)?;
-                        routes.push(Route::In { domain: di, topic: t.topic.clone(), direct });
                     }
-                    let out =
-                        Outbound::Items(ItemWriters::create(&mut dds, &sub_topics, &d.subscribe.layout.leaves, &wq)?);
+                    let out = Outbound::Items(ItemWriters::create(&mut dds, &sub_topics, &d.subscribe.layout, &wq)?);
                     let topics = sub_topics.iter().map(|t| t.topic.clone()).collect();
                     let activation = route_out(&mut routes, di, topics, false);
                     watched.push(Watched::new(d.name.clone(), Role::Subscribe, out, activation, Some(own_commits)));
@@ -220,7 +206,10 @@ impl Manager {
             domains.push(state);
         }
         if !watched.is_empty() {
-            threads.push(to_dds::spawn_poller(watched, cfg.clone(), stats.clone()).map_err(io("a thread"))?);
+            threads.push(
+                to_dds::spawn_poller(watched, cfg.clone(), stats.clone())
+                    .map_err(|e| GatewayError::dds("a thread", e))?,
+            );
         }
         Ok(Manager {
             dds,
@@ -238,15 +227,19 @@ impl Manager {
         })
     }
 
+    /// Connections standing for remote readers, over all domains.
+    fn remote_readers(&self) -> usize {
+        self.domains.iter().map(|d| d.readers.len()).sum()
+    }
+
     fn line(&self) -> String {
-        let readers: usize = self.domains.iter().map(|d| d.readers.len()).sum();
         format!(
             "{} domains, {} topics, DDS domain {}, remote writers {}, remote readers {} | {}",
             self.domains.len(),
             self.topics,
             self.dds.participant.domain_id(),
             self.writers.len(),
-            readers,
+            self.remote_readers(),
             self.stats
         )
     }
@@ -276,36 +269,26 @@ impl Manager {
     fn on_event(&mut self, ev: Event) {
         match ev {
             Event::Sample(inb) => {
-                let Some(Route::In { domain, direct, .. }) = self.routes.get(inb.route) else { return };
-                let (domain, direct) = (*domain, direct.clone());
-                let state = &self.domains[domain];
-                if let Some(mtx) = &state.mirror {
+                let Some(Route::In { domain, .. }) = self.routes.get(inb.route) else { return };
+                if let Some(mtx) = &self.domains[*domain].mirror {
                     if let Payload::Set(s) = inb.payload {
                         let _ = mtx.send(s);
                     }
                     return;
                 }
                 let key = (inb.route, inb.writer);
-                let mut payload = Some(inb.payload);
+                // A writer whose connection thread has gone is started again, once.
                 for _ in 0..2 {
-                    if !self.writers.contains_key(&key) {
-                        match self.spawn_writer(domain, inb.writer) {
-                            Some(w) => {
-                                if w.writer.is_inline() {
-                                    direct.insert(inb.writer, w.writer.clone());
-                                }
-                                self.writers.insert(key, w)
-                            }
-                            None => return,
-                        };
+                    if !self.writers.contains_key(&key) && !self.add_writer(key) {
+                        return;
                     }
-                    let Some(p) = payload.take() else { return };
-                    if self.writers.get(&key).is_some_and(|w| w.writer.send(p.clone())) {
+                    if self.writers.get(&key).is_some_and(|w| w.writer.send(inb.payload.clone())) {
                         return;
                     }
                     self.writers.remove(&key);
-                    direct.remove(&inb.writer);
-                    payload = Some(p);
+                    if let Some(direct) = self.direct(key.0) {
+                        direct.remove(&key.1);
+                    }
                 }
             }
             Event::Bad { route, error } => {
@@ -321,24 +304,41 @@ impl Manager {
         }
     }
 
-    fn spawn_writer(&self, domain: usize, gid: Gid) -> Option<WriterEntry> {
-        let d = &self.domains[domain];
-        match RemoteWriter::spawn(
+    /// Gives remote writer `key.1` of inbound route `key.0` its connection (committed by
+    /// the route's reader task where the domain allows); false if it cannot be started.
+    fn add_writer(&mut self, key: (usize, Gid)) -> bool {
+        let Some(Route::In { domain, direct, .. }) = self.routes.get(key.0) else { return false };
+        let d = &self.domains[*domain];
+        let gid = key.1;
+        let spawned = RemoteWriter::spawn(
             d.name.clone(),
             gid,
             d.synchronous,
             self.cfg.clone(),
             self.stats.clone(),
             d.own_commits.clone(),
-        ) {
+        );
+        match spawned {
             Ok(writer) => {
                 info!(domain = %d.name, "DDS writer {} joined", short(&gid));
-                Some(WriterEntry { writer, created: Instant::now() })
+                if writer.is_inline() {
+                    direct.insert(gid, writer.clone());
+                }
+                self.writers.insert(key, WriterEntry { writer, created: Instant::now() });
+                true
             }
             Err(e) => {
                 warn!("cannot start a thread: {e}");
-                None
+                false
             }
+        }
+    }
+
+    /// The writers committed by inbound route `route`'s reader task.
+    fn direct(&self, route: usize) -> Option<&Direct> {
+        match self.routes.get(route) {
+            Some(Route::In { direct, .. }) => Some(direct),
+            _ => None,
         }
     }
 
@@ -365,27 +365,21 @@ impl Manager {
                 Route::Out { domain, topics, activation, counts_readers } => {
                     let readers = remote.readers_on(topics);
                     activation.set_readers(&readers);
-                    if *counts_readers && self.domains[*domain].mirror.is_none() {
+                    if *counts_readers {
                         wanted_readers[*domain].extend(readers);
                     }
                 }
                 Route::In { domain, topic, .. } => {
                     if self.domains[*domain].mirror.is_none() {
-                        matched_writers.extend(remote.writers_on(std::slice::from_ref(topic)).map(|g| (ri, g)));
+                        matched_writers.extend(remote.writers_on(topic).map(|g| (ri, g)));
                     }
                 }
             }
         }
         // Remote writers: a connection each, from the moment they match.
-        for &(ri, gid) in &matched_writers {
-            if !self.writers.contains_key(&(ri, gid)) {
-                let Some(Route::In { domain, direct, .. }) = self.routes.get(ri) else { continue };
-                if let Some(w) = self.spawn_writer(*domain, gid) {
-                    if w.writer.is_inline() {
-                        direct.insert(gid, w.writer.clone());
-                    }
-                    self.writers.insert((ri, gid), w);
-                }
+        for &key in &matched_writers {
+            if !self.writers.contains_key(&key) {
+                self.add_writer(key);
             }
         }
         let grace = Duration::from_secs(2);
@@ -419,8 +413,7 @@ impl Manager {
             }
         }
         self.stats.remote_writers.store(self.writers.len() as u64, Ordering::Relaxed);
-        let readers: usize = self.domains.iter().map(|d| d.readers.len()).sum();
-        self.stats.remote_readers.store(readers as u64, Ordering::Relaxed);
+        self.stats.remote_readers.store(self.remote_readers() as u64, Ordering::Relaxed);
     }
 
     fn stop(&mut self) {
@@ -463,18 +456,17 @@ fn typed_inbound(
 ) -> Result<(), GatewayError> {
     let codec = Arc::new(SetCodec::new(layout));
     let sub = dds.subscription::<TypedSample>(&names.topic, &names.dds_type, rq)?;
-    let direct = Direct::default();
-    rt.spawn(from_dds::forward_typed(
-        sub,
-        SetSeed(codec),
-        routes.len(),
-        tx.clone(),
-        stats.clone(),
-        dds.own_prefix,
-        direct.clone(),
-    ));
-    routes.push(Route::In { domain, topic: names.topic.clone(), direct });
+    let to = route_in(routes, tx, domain, &names.topic);
+    rt.spawn(from_dds::forward_typed(sub, SetSeed(codec), to, stats.clone(), dds.own_prefix));
     Ok(())
+}
+
+/// A DDS -> shared-memory route over `topic`, registered in `routes`: where its reader task
+/// sends (the route's number, the manager, the writers it commits itself).
+fn route_in(routes: &mut Vec<Route>, tx: &mpsc::UnboundedSender<Event>, domain: usize, topic: &str) -> Destination {
+    let direct = Direct::default();
+    routes.push(Route::In { domain, topic: topic.to_string(), direct: direct.clone() });
+    (routes.len() - 1, tx.clone(), direct)
 }
 
 /// The typed shared-memory -> DDS writer of one set.

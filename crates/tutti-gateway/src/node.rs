@@ -68,11 +68,6 @@ impl Dds {
         Ok(Dds { participant, context, node, own_prefix, topics: HashMap::new() })
     }
 
-    /// Whether `gid` is one of our own endpoints.
-    pub fn is_own(&self, gid: &Gid) -> bool {
-        prefix(gid) == self.own_prefix
-    }
-
     fn topic(&mut self, name: &str, type_name: &str, q: &Qos) -> Result<Topic, GatewayError> {
         if let Some(t) = self.topics.get(name) {
             return Ok(t.clone());

@@ -4,8 +4,7 @@
 //! ros2-client creates node endpoints from a [`QosProfile`] (reliability, durability,
 //! history) laid over the QoS of the topic, and `QosProfile` has no ownership. So the
 //! ownership goes on the topic ([`topic_qos`]) and the rest in the endpoint's profile
-//! ([`profile`]); [`policies`] gives the same terms as one rustdds `QosPolicies` (used for
-//! plain rustdds endpoints and to check the two halves agree).
+//! ([`profile`]); the tests check that the two halves together give the table's terms.
 
 use ros2_client::dds::rustdds::{policy, QosPolicies, QosPolicyBuilder};
 use ros2_client::qos::{Durability, History, Reliability, WhenFull};
@@ -42,11 +41,6 @@ pub fn profile(q: &Qos) -> QosProfile {
     p
 }
 
-/// All of `q` as rustdds QoS.
-pub fn policies(q: &Qos) -> QosPolicies {
-    QosPolicies::from(&profile(q)).modify_by(&topic_qos(q))
-}
-
 fn ownership(q: &Qos) -> policy::Ownership {
     match q.ownership {
         mapping::Ownership::Shared => policy::Ownership::Shared,
@@ -59,6 +53,11 @@ mod tests {
     use super::*;
     use tutti_core::ddf::Flags;
     use tutti_core::mapping::{Endpoint, Profile};
+
+    /// All of `q` as one rustdds `QosPolicies`: the profile laid over the topic's part.
+    fn policies(q: &Qos) -> QosPolicies {
+        QosPolicies::from(&profile(q)).modify_by(&topic_qos(q))
+    }
 
     #[test]
     fn table_rows_become_rustdds_policies() {

@@ -19,9 +19,9 @@ use std::sync::{Arc, Mutex, PoisonError};
 use std::thread;
 use std::time::{Duration, Instant};
 
-use futures::StreamExt;
+use futures::{Stream, StreamExt};
 use ros2_client::dds::Subscription;
-use ros2_client::Gid;
+use ros2_client::{Gid, MessageInfo};
 use tokio::sync::mpsc::UnboundedSender;
 use tracing::{debug, info, warn};
 use tutti_core::shm::{Participant, ShmError};
@@ -65,28 +65,46 @@ impl Direct {
     }
 }
 
-/// Forwards the samples of a typed subscription as route `route`.
+/// Forwards the samples of a typed subscription as route `to.0`.
 pub async fn forward_typed(
     sub: Subscription<TypedSample>,
     seed: SetSeed,
-    route: usize,
-    tx: UnboundedSender<Event>,
+    to: Destination,
     stats: Arc<Stats>,
     own: [u8; PREFIX_LEN],
-    direct: Direct,
 ) {
-    let stream = sub.async_stream_seed(seed);
+    forward(sub.async_stream_seed(seed), |sample| Ok(Payload::Set(sample)), to, stats, own).await;
+}
+
+/// Where a reader task's samples go: its route, the manager, the writers it commits itself.
+pub type Destination = (usize, UnboundedSender<Event>, Direct);
+
+/// The loop of every reader task: a sample from a writer that is not the gateway's own
+/// becomes a payload (`to_payload`), committed right here for the writers in `direct` or
+/// else handed to the manager; what cannot be decoded is reported. Ends with the manager.
+pub async fn forward<M, E: std::fmt::Debug>(
+    stream: impl Stream<Item = Result<(M, MessageInfo), E>>,
+    mut to_payload: impl FnMut(M) -> Result<Payload, String>,
+    (route, tx, direct): Destination,
+    stats: Arc<Stats>,
+    own: [u8; PREFIX_LEN],
+) {
     futures::pin_mut!(stream);
     while let Some(r) = stream.next().await {
         let ev = match r {
-            Ok((sample, info)) => {
+            Ok((m, info)) => {
                 let writer = info.publisher_gid();
                 if prefix(&writer) == own {
                     Stats::add(&stats.own_samples, 1);
                     continue;
                 }
-                let Some(payload) = direct.commit(&writer, Payload::Set(sample)) else { continue };
-                Event::Sample(Inbound { route, writer, payload })
+                match to_payload(m) {
+                    Ok(payload) => {
+                        let Some(payload) = direct.commit(&writer, payload) else { continue };
+                        Event::Sample(Inbound { route, writer, payload })
+                    }
+                    Err(error) => Event::Bad { route, error },
+                }
             }
             Err(e) => Event::Bad { route, error: format!("{e:?}") },
         };
@@ -110,17 +128,72 @@ enum Kind {
     Inline(Arc<Mutex<Inline>>),
 }
 
+/// Where one remote writer's samples go, and how they are counted and logged: the same
+/// for a writer committed inline and for one with its own thread.
 #[derive(Debug)]
-struct Inline {
+struct Delivery {
     domain: String,
     name: String,
-    cfg: ShmConfig,
     stats: Arc<Stats>,
     own_commits: Arc<AtomicU64>,
-    p: Option<Participant>,
-    next_try: Instant,
     refused_log: LogLimit,
     error_log: LogLimit,
+}
+
+impl Delivery {
+    fn new(domain: String, name: String, stats: Arc<Stats>, own_commits: Arc<AtomicU64>) -> Self {
+        let limit = || LogLimit::new(Duration::from_secs(5));
+        Delivery { domain, name, stats, own_commits, refused_log: limit(), error_log: limit() }
+    }
+
+    /// Commits `payload` through `p` (None: the domain is not running, and the sample is
+    /// dropped); a connection that cannot go on is dropped (`p` set to None) for the caller
+    /// to connect again.
+    fn deliver(&mut self, p: &mut Option<Participant>, payload: Payload) {
+        let (domain, name, stats) = (&self.domain, &self.name, &self.stats);
+        let Some(part) = p.as_mut() else {
+            Stats::add(&stats.errors, 1);
+            if self.error_log.allow().is_some() {
+                warn!(domain = %domain, "{name}: sample dropped: the domain is not running");
+            }
+            return;
+        };
+        match commit(part, payload, &self.own_commits) {
+            Ok(Committed::Yes) => Stats::add(&stats.from_dds, 1),
+            Ok(Committed::Late) => Stats::add(&stats.late, 1),
+            Err(e @ ShmError::NotOwner { .. }) => {
+                Stats::add(&stats.refused, 1);
+                if let Some(held) = self.refused_log.allow() {
+                    warn!(domain = %domain, "{name}: sample refused ({held} more since the last report): {e}");
+                }
+                // A refused connection is flagged as a writer; in a synchronous domain the
+                // framework would wait for its commits. Leave, and come back with the next sample.
+                if part.info().flags.synchronous {
+                    *p = None;
+                }
+            }
+            Err(e @ (ShmError::ConnectionLost { .. } | ShmError::FrameworkStopped { .. })) => {
+                Stats::add(&stats.errors, 1);
+                info!(domain = %domain, "{name}: {e}; reconnecting");
+                *p = None;
+            }
+            Err(e) => {
+                Stats::add(&stats.errors, 1);
+                if let Some(held) = self.error_log.allow() {
+                    debug!(domain = %domain, "{name}: sample dropped ({held} more): {e}");
+                }
+            }
+        }
+    }
+}
+
+/// An asynchronous domain's remote writer, committed by the reader task.
+#[derive(Debug)]
+struct Inline {
+    out: Delivery,
+    cfg: ShmConfig,
+    p: Option<Participant>,
+    next_try: Instant,
 }
 
 impl Inline {
@@ -128,8 +201,8 @@ impl Inline {
     /// most every 500 ms).
     fn connect(&mut self) -> bool {
         if self.p.is_none() && Instant::now() >= self.next_try {
-            let opts = self.cfg.connect_options(self.name.clone(), Duration::ZERO);
-            self.p = Participant::connect(&self.domain, opts).ok();
+            let opts = self.cfg.connect_options(self.out.name.clone(), Duration::ZERO);
+            self.p = Participant::connect(&self.out.domain, opts).ok();
             if self.p.is_none() {
                 self.next_try = Instant::now() + Duration::from_millis(500);
             }
@@ -138,35 +211,8 @@ impl Inline {
     }
 
     fn send(&mut self, payload: Payload) {
-        if !self.connect() {
-            Stats::add(&self.stats.errors, 1);
-            if self.error_log.allow().is_some() {
-                warn!(domain = %self.domain, "{}: sample dropped: the domain is not running", self.name);
-            }
-            return;
-        }
-        let Some(part) = self.p.as_mut() else { return };
-        match commit(part, payload, &self.own_commits) {
-            Ok(Committed::Yes) => Stats::add(&self.stats.from_dds, 1),
-            Ok(Committed::Late) => Stats::add(&self.stats.late, 1),
-            Err(e @ ShmError::NotOwner { .. }) => {
-                Stats::add(&self.stats.refused, 1);
-                if let Some(held) = self.refused_log.allow() {
-                    warn!(domain = %self.domain, "{}: sample refused ({held} more since the last report): {e}", self.name);
-                }
-            }
-            Err(e @ (ShmError::ConnectionLost { .. } | ShmError::FrameworkStopped { .. })) => {
-                Stats::add(&self.stats.errors, 1);
-                info!(domain = %self.domain, "{}: {e}; reconnecting", self.name);
-                self.p = None;
-            }
-            Err(e) => {
-                Stats::add(&self.stats.errors, 1);
-                if let Some(held) = self.error_log.allow() {
-                    debug!(domain = %self.domain, "{}: sample dropped ({held} more): {e}", self.name);
-                }
-            }
-        }
+        self.connect();
+        self.out.deliver(&mut self.p, payload);
     }
 }
 
@@ -183,26 +229,14 @@ impl RemoteWriter {
         own_commits: Arc<AtomicU64>,
     ) -> std::io::Result<Self> {
         let name = format!("dds-writer {}", short(&writer));
+        let out = Delivery::new(domain, name, stats, own_commits);
         if !synchronous {
-            let mut inline = Inline {
-                domain,
-                name,
-                cfg,
-                stats,
-                own_commits,
-                p: None,
-                next_try: Instant::now(),
-                refused_log: LogLimit::new(Duration::from_secs(5)),
-                error_log: LogLimit::new(Duration::from_secs(5)),
-            };
+            let mut inline = Inline { out, cfg, p: None, next_try: Instant::now() };
             inline.connect();
             return Ok(RemoteWriter { kind: Kind::Inline(Arc::new(Mutex::new(inline))) });
         }
         let (tx, rx) = mpsc::channel();
-        thread::Builder::new()
-            .name("tutti-gw-writer".into())
-            .stack_size(256 << 10)
-            .spawn(move || run(domain, name, rx, cfg, stats, own_commits))?;
+        thread::Builder::new().name("tutti-gw-writer".into()).stack_size(256 << 10).spawn(move || run(out, rx, cfg))?;
         Ok(RemoteWriter { kind: Kind::Thread(tx) })
     }
 
@@ -231,18 +265,13 @@ impl RemoteWriter {
     }
 }
 
-fn run(
-    domain: String,
-    name: String,
-    rx: Receiver<Payload>,
-    cfg: ShmConfig,
-    stats: Arc<Stats>,
-    own_commits: Arc<AtomicU64>,
-) {
-    let connect = || Participant::connect(&domain, cfg.connect_options(name.clone(), Duration::from_millis(100)));
-    let mut p = connect().ok();
-    let mut refused_log = LogLimit::new(Duration::from_secs(5));
-    let mut error_log = LogLimit::new(Duration::from_secs(5));
+/// The thread of a synchronous domain's remote writer: commits each sample it is handed
+/// (waiting for its step), connecting again whenever the connection is gone.
+fn run(mut out: Delivery, rx: Receiver<Payload>, cfg: ShmConfig) {
+    let connect = |out: &Delivery| {
+        Participant::connect(&out.domain, cfg.connect_options(out.name.clone(), Duration::from_millis(100))).ok()
+    };
+    let mut p = connect(&out);
     loop {
         let msg = if p.is_some() {
             rx.recv().map_err(|_| RecvTimeoutError::Disconnected)
@@ -252,47 +281,15 @@ fn run(
         let payload = match msg {
             Ok(m) => m,
             Err(RecvTimeoutError::Timeout) => {
-                p = connect().ok();
+                p = connect(&out);
                 continue;
             }
             Err(RecvTimeoutError::Disconnected) => break,
         };
         if p.is_none() {
-            p = connect().ok();
+            p = connect(&out);
         }
-        let Some(part) = p.as_mut() else {
-            Stats::add(&stats.errors, 1);
-            if error_log.allow().is_some() {
-                warn!(domain = %domain, "{name}: sample dropped: the domain is not running");
-            }
-            continue;
-        };
-        match commit(part, payload, &own_commits) {
-            Ok(Committed::Yes) => Stats::add(&stats.from_dds, 1),
-            Ok(Committed::Late) => Stats::add(&stats.late, 1),
-            Err(e @ ShmError::NotOwner { .. }) => {
-                Stats::add(&stats.refused, 1);
-                if let Some(held) = refused_log.allow() {
-                    warn!(domain = %domain, "{name}: sample refused ({held} more since the last report): {e}");
-                }
-                // A refused connection is flagged as a writer; in a synchronous domain the
-                // framework would wait for its commits. Leave, and come back with the next sample.
-                if part.info().flags.synchronous {
-                    p = None;
-                }
-            }
-            Err(e @ (ShmError::ConnectionLost { .. } | ShmError::FrameworkStopped { .. })) => {
-                Stats::add(&stats.errors, 1);
-                info!(domain = %domain, "{name}: {e}; reconnecting");
-                p = None;
-            }
-            Err(e) => {
-                Stats::add(&stats.errors, 1);
-                if let Some(held) = error_log.allow() {
-                    debug!(domain = %domain, "{name}: sample dropped ({held} more): {e}");
-                }
-            }
-        }
+        out.deliver(&mut p, payload);
     }
 }
 

@@ -36,7 +36,7 @@ pub fn spawn(
         let sync = host.info().flags.synchronous;
         let mut last_step = 0u64;
         let mut sim_time = 0.0;
-        let mut last_sub = host.segment().header().sets[Role::Subscribe as usize].current.load(Ordering::Acquire);
+        let mut last_sub = host.segment().generation(Role::Subscribe);
         let mut last_sweep = Instant::now();
         let mut log = LogLimit::new(Duration::from_secs(5));
         let idle = if cfg.poll.is_zero() { Duration::from_micros(100) } else { cfg.poll };
@@ -65,22 +65,19 @@ pub fn spawn(
                     last_step = s.step;
                     sim_time = s.sim_time;
                     if sync && host.seeded() {
-                        last_sub =
-                            host.segment().header().sets[Role::Subscribe as usize].current.load(Ordering::Acquire);
-                        let sub = host.subscribe().to_vec();
-                        out.send(last_step, sim_time, &sub, &stats);
+                        last_sub = host.segment().generation(Role::Subscribe);
+                        out.send(last_step, sim_time, host.subscribe(), &stats);
                     }
                 }
                 Err(RecvTimeoutError::Timeout) => {}
                 Err(RecvTimeoutError::Disconnected) => break,
             }
             if !sync {
-                let cur = host.segment().header().sets[Role::Subscribe as usize].current.load(Ordering::Acquire);
+                let cur = host.segment().generation(Role::Subscribe);
                 if cur != last_sub && host.seeded() {
                     last_sub = cur;
                     if let Ok(sub) = host.read_subscribe() {
-                        let sub = sub.to_vec();
-                        out.send(last_step, sim_time, &sub, &stats);
+                        out.send(last_step, sim_time, sub, &stats);
                     }
                 }
             }

@@ -5,17 +5,15 @@
 
 use std::sync::Arc;
 
-use futures::StreamExt;
 use ros2_client::dds::{Publisher, Subscription};
 use serde::de::DeserializeOwned;
-use tokio::sync::mpsc::UnboundedSender;
-use tutti_core::ddf::{Leaf, ScalarType, Value};
+use tutti_core::ddf::{Leaf, ScalarType, SetLayout, Value};
 use tutti_core::mapping::{self, ItemTopic, Qos};
 
-use super::from_dds::Direct;
-use super::{Event, Inbound, Payload};
+use super::from_dds::{self, Destination};
+use super::Payload;
 use crate::cdr::{Bool, Float64, Float64MultiArray};
-use crate::node::{prefix, Dds, PREFIX_LEN};
+use crate::node::{Dds, PREFIX_LEN};
 use crate::stats::Stats;
 use crate::GatewayError;
 
@@ -66,11 +64,16 @@ fn elements<'a>(leaf: &Leaf, bytes: &'a [u8]) -> impl Iterator<Item = Value> + '
 }
 
 impl ItemWriters {
-    /// Creates a writer for every topic of `topics` (leaves looked up in `leaves`).
-    pub fn create(dds: &mut Dds, topics: &[ItemTopic], leaves: &[Leaf], q: &Qos) -> Result<ItemWriters, GatewayError> {
+    /// Creates a writer for every topic of `topics` (leaves looked up in `layout`).
+    pub fn create(
+        dds: &mut Dds,
+        topics: &[ItemTopic],
+        layout: &SetLayout,
+        q: &Qos,
+    ) -> Result<ItemWriters, GatewayError> {
         let mut items = Vec::with_capacity(topics.len());
         for t in topics {
-            let Some(leaf) = leaves.iter().find(|l| l.path == t.path) else { continue };
+            let Some(leaf) = layout.leaf(&t.path) else { continue };
             let publisher = match Stock::of(leaf) {
                 Stock::Float64 => ItemPub::Float64(dds.publisher(&t.topic, &t.dds_type, q)?),
                 Stock::Bool => ItemPub::Bool(dds.publisher(&t.topic, &t.dds_type, q)?),
@@ -152,9 +155,6 @@ impl IntoLeaf for Float64MultiArray {
     }
 }
 
-/// Where a reader task's samples go: its route, the manager, the writers it commits itself.
-pub type Destination = (usize, UnboundedSender<Event>, Direct);
-
 /// Creates the reader of one item topic and the task that forwards its samples as route
 /// `to.0`.
 pub fn spawn_reader(
@@ -188,31 +188,7 @@ async fn forward<M>(sub: Subscription<M>, leaf: Leaf, to: Destination, stats: Ar
 where
     M: DeserializeOwned + IntoLeaf + 'static,
 {
-    let (route, tx, direct) = to;
     let path: Arc<str> = Arc::from(leaf.path.as_str());
-    let stream = sub.async_stream();
-    futures::pin_mut!(stream);
-    while let Some(r) = stream.next().await {
-        let ev = match r {
-            Ok((m, info)) => {
-                let writer = info.publisher_gid();
-                if prefix(&writer) == own {
-                    Stats::add(&stats.own_samples, 1);
-                    continue;
-                }
-                match m.into_leaf(&leaf) {
-                    Ok(bytes) => {
-                        let payload = Payload::Item { path: path.clone(), bytes };
-                        let Some(payload) = direct.commit(&writer, payload) else { continue };
-                        Event::Sample(Inbound { route, writer, payload })
-                    }
-                    Err(error) => Event::Bad { route, error },
-                }
-            }
-            Err(e) => Event::Bad { route, error: format!("{e:?}") },
-        };
-        if tx.send(ev).is_err() {
-            break;
-        }
-    }
+    let to_payload = |m: M| m.into_leaf(&leaf).map(|bytes| Payload::Item { path: path.clone(), bytes });
+    from_dds::forward(sub.async_stream(), to_payload, to, stats, own).await;
 }

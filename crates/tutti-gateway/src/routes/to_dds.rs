@@ -124,9 +124,7 @@ impl Activation {
 
     pub fn set(&self, on: bool) {
         if self.active.swap(on, Ordering::AcqRel) != on {
-            if let Some(t) = self.thread.get() {
-                t.unpark();
-            }
+            self.wake();
         }
     }
 
@@ -201,19 +199,22 @@ impl Watched {
             self.joined = joined;
             self.out.reset();
         }
-        if self.seg.is_some() && Instant::now() >= self.next_alive_check {
-            self.next_alive_check = Instant::now() + Duration::from_millis(50);
-            if self.seg.as_ref().is_some_and(|s| !s.framework_alive()) {
-                info!(domain = %self.domain, "framework stopped; waiting for it to come back");
-                self.seg = None;
-                self.last_gen = None;
+        let now = Instant::now();
+        if let Some(seg) = &self.seg {
+            if now >= self.next_alive_check {
+                self.next_alive_check = now + Duration::from_millis(50);
+                if !seg.framework_alive() {
+                    info!(domain = %self.domain, "framework stopped; waiting for it to come back");
+                    self.seg = None;
+                    self.last_gen = None;
+                }
             }
         }
         if self.seg.is_none() {
-            if Instant::now() < self.next_open {
+            if now < self.next_open {
                 return false;
             }
-            self.next_open = Instant::now() + Duration::from_millis(200);
+            self.next_open = now + Duration::from_millis(200);
             match Segment::open(&cfg.namespace, &self.domain) {
                 Ok(s) if s.framework_alive() => {
                     self.buf = vec![0; s.info.set(self.role).size as usize];
@@ -229,7 +230,7 @@ impl Watched {
         }
         let Some(seg) = &self.seg else { return false };
         let h = seg.header();
-        let gen = h.sets[self.role as usize].current.load(Ordering::Acquire);
+        let gen = seg.generation(self.role);
         if self.last_gen == Some(gen) {
             return false;
         }
