@@ -2,7 +2,7 @@
 
 use std::path::PathBuf;
 
-use super::{CliResult, Failure, EXIT_INVALID};
+use super::{CliResult, Failure};
 
 /// Validate DDF files: every problem of every file is reported as FILE:LINE:COL: error: MESSAGE.
 #[derive(Debug, clap::Args)]
@@ -37,6 +37,6 @@ pub fn run(args: Args) -> CliResult {
     if bad == 0 {
         Ok(())
     } else {
-        Err(Failure { code: EXIT_INVALID, error: anyhow::anyhow!("{bad} of {} files invalid", args.files.len()) })
+        Err(Failure::invalid(anyhow::anyhow!("{bad} of {} files invalid", args.files.len())))
     }
 }

@@ -41,8 +41,7 @@ fn render(domains: &[Result<DomainStatus, ShmError>], rates: &HashMap<String, (f
         let _ = writeln!(s, "no live domains in namespace '{ns}'");
         return s;
     }
-    let now_ns =
-        std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH).map(|d| d.as_nanos() as u64).unwrap_or(0);
+    let now_ns = tutti_core::shm::os::now_ns();
     for d in domains {
         match d {
             Err(e) => {

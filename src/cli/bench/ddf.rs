@@ -12,6 +12,7 @@ use std::time::{Duration, Instant};
 use anyhow::Context as _;
 
 use super::super::{CliResult, Failure};
+use super::nearest_rank;
 
 /// Time parsing and validating a DDF: min, p50, p99 and max over N runs.
 #[derive(Debug, clap::Args)]
@@ -87,16 +88,10 @@ fn time(n: u32, mut f: impl FnMut()) -> Stats {
     samples.sort_unstable();
     Stats {
         min: samples[0],
-        p50: percentile(&samples, 0.50),
-        p99: percentile(&samples, 0.99),
+        p50: nearest_rank(&samples, 0.50),
+        p99: nearest_rank(&samples, 0.99),
         max: samples[samples.len() - 1],
     }
-}
-
-/// Nearest-rank percentile of sorted, non-empty samples.
-fn percentile(sorted: &[Duration], q: f64) -> Duration {
-    let rank = (q * sorted.len() as f64).ceil() as usize;
-    sorted[rank.clamp(1, sorted.len()) - 1]
 }
 
 fn ms(d: Duration) -> f64 {
@@ -110,9 +105,9 @@ mod tests {
     #[test]
     fn nearest_rank_percentiles() {
         let s: Vec<Duration> = (1..=100).map(Duration::from_millis).collect();
-        assert_eq!(percentile(&s, 0.50), Duration::from_millis(50));
-        assert_eq!(percentile(&s, 0.99), Duration::from_millis(99));
-        assert_eq!(percentile(&s[..1], 0.99), Duration::from_millis(1));
-        assert_eq!(percentile(&s[..3], 0.50), Duration::from_millis(2));
+        assert_eq!(nearest_rank(&s, 0.50), Duration::from_millis(50));
+        assert_eq!(nearest_rank(&s, 0.99), Duration::from_millis(99));
+        assert_eq!(nearest_rank(&s[..1], 0.99), Duration::from_millis(1));
+        assert_eq!(nearest_rank(&s[..3], 0.50), Duration::from_millis(2));
     }
 }

@@ -6,23 +6,26 @@
 //!
 //! The framework is this process; the gateway and the DDS peers (`--echo`, `--sink`,
 //! `--source`: separate DDS participants using the gateway's codec) are child processes,
-//! pinned with `taskset`.
+//! each pinned to its CPU.
 
 use std::io::{BufRead, BufReader};
 use std::path::{Path, PathBuf};
-use std::process::{Child, Command, Stdio};
+use std::process::{Command, Stdio};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 use anyhow::{bail, Context as _};
 use tutti_core::ddf::Role;
-use tutti_core::shm::{Framework, FrameworkOptions, WaitMode};
+use tutti_core::shm::{os, Framework, FrameworkOptions, WaitMode};
 use tutti_gateway::GatewayOptions;
 
+use super::super::child::{self, Kid, SIGINT};
 use super::super::{load_ddf, CliResult};
 
 const ITEMS: usize = 8;
+/// The log filter of the benchmark's children: errors only, nothing from the DDS stack.
+const QUIET_LOG: &str = "error,rustdds=off,ros2_client=off";
 const LOOPBACK: &str = "<CycloneDDS xmlns=\"https://cdds.io/config\"><Domain id=\"any\"><General><Interfaces><NetworkInterface name=\"lo\"/></Interfaces><AllowMulticast>false</AllowMulticast></General><Discovery><Peers><Peer address=\"127.0.0.1\"/></Peers><ParticipantIndex>auto</ParticipantIndex><MaxAutoParticipantIndex>20</MaxAutoParticipantIndex></Discovery></Domain></CycloneDDS>";
 
 /// Round trip and throughput through the gateway, next to Cyclone's ddsperf.
@@ -66,30 +69,22 @@ fn ddf_text() -> String {
     )
 }
 
-struct Kid(Child);
-
-impl Drop for Kid {
-    fn drop(&mut self) {
-        if matches!(self.0.try_wait(), Ok(None)) {
-            let _ = Command::new("kill").args(["-INT", &self.0.id().to_string()]).status();
-        }
-        let end = Instant::now() + Duration::from_secs(3);
-        while Instant::now() < end && matches!(self.0.try_wait(), Ok(None)) {
-            std::thread::sleep(Duration::from_millis(20));
-        }
-        let _ = self.0.kill();
-        let _ = self.0.wait();
-    }
+/// Starts a child pinned to `cpu`; dropped, it gets SIGINT and 3 s to leave (a gateway
+/// says goodbye on DDS), then SIGKILL.
+fn start(name: &str, cmd: Command, cpu: usize) -> anyhow::Result<Kid> {
+    Ok(child::spawn(name, cmd, Some(cpu))?.stop_on_drop(Some(SIGINT), Duration::from_secs(3)))
 }
 
-fn pinned(cpu: usize, program: &Path) -> Command {
-    let mut c = Command::new("taskset");
-    c.arg("-c").arg(cpu.to_string()).arg(program);
-    c
-}
-
+/// Pins this process's main thread (the framework) to `cpu`.
 fn pin_self(cpu: usize) {
-    let _ = Command::new("taskset").args(["-cp", &cpu.to_string(), &std::process::id().to_string()]).output();
+    let _ = os::pin_to_cpu(cpu);
+}
+
+/// Every item of the benchmark's set set to `v`.
+fn fill(data: &mut [u8], v: f64) {
+    for c in data.chunks_exact_mut(8) {
+        c.copy_from_slice(&v.to_ne_bytes());
+    }
 }
 
 fn percentile(sorted: &[f64], p: f64) -> f64 {
@@ -216,26 +211,13 @@ fn round_trip(exe: &Path, ddf: &Path, args: &Args, cpus: Cpus) -> anyhow::Result
     let mut fw = Framework::create(&model, &opts).context("creating the benchmark domain")?;
     let host = &mut fw.domains[0];
     let dom = args.ros_domain_id.to_string();
-    let _gw = Kid(pinned(cpus.gw, exe)
-        .args(["gateway", &ddf.to_string_lossy(), "--ros-domain-id", &dom, "--interface", "127.0.0.1"])
-        .args(["--poll", "0", "--wait", "spin", "-q"])
-        .env("TUTTI_NAMESPACE", &ns)
-        .env("RUST_LOG", "error,rustdds=off,ros2_client=off")
-        .stdin(Stdio::null())
-        .spawn()
-        .context("starting the gateway")?);
-    let _echo = Kid(pinned(cpus.peer, exe)
-        .args(["bench", "gateway", "--echo", &ddf.to_string_lossy(), "--ros-domain-id", &dom])
-        .stdin(Stdio::null())
-        .spawn()
-        .context("starting the echo peer")?);
+    let _gw = gateway(exe, ddf, cpus.gw, &dom, &ns)?;
+    let _echo = echo_peer(exe, ddf, cpus.peer, &dom)?;
     pin_self(cpus.fw);
     let mut data = vec![0u8; ITEMS * 8];
     let mut seq = 0f64;
     let mut send = |host: &mut tutti_core::shm::DomainHost, seq: f64| {
-        for c in data.chunks_exact_mut(8) {
-            c.copy_from_slice(&seq.to_ne_bytes());
-        }
+        fill(&mut data, seq);
         host.publish_step(&data, seq).map(|_| ())
     };
     let back = |host: &mut tutti_core::shm::DomainHost| -> f64 {
@@ -302,20 +284,19 @@ fn round_trip(exe: &Path, ddf: &Path, args: &Args, cpus: Cpus) -> anyhow::Result
 /// the pong is in) or at a rate ("1kHz"); returns (p50, p99) of the round trip in µs.
 fn ddsperf(main_cpu: usize, other_cpu: usize, rate: Option<&str>) -> anyhow::Result<(f64, f64)> {
     let domain = "229";
-    let _pong = Kid(Command::new("taskset")
-        .args(["-c", &other_cpu.to_string(), "ddsperf", "-i", domain, "-D8", "pong"])
+    let mut pong = Command::new("ddsperf");
+    pong.args(["-i", domain, "-D8", "pong"])
         .env("CYCLONEDDS_URI", LOOPBACK)
         .stdout(Stdio::null())
-        .stderr(Stdio::null())
-        .spawn()
-        .context("starting ddsperf pong")?);
-    let out = Command::new("taskset")
-        .args(["-c", &main_cpu.to_string(), "ddsperf", "-i", domain, "-D5", "-Qminmatch:1", "-Qinitwait:5", "ping"])
+        .stderr(Stdio::null());
+    let _pong = start("ddsperf pong", pong, other_cpu)?;
+    let mut ping = Command::new("ddsperf");
+    ping.args(["-i", domain, "-D5", "-Qminmatch:1", "-Qinitwait:5", "ping"])
         .args(rate)
         .env("CYCLONEDDS_URI", LOOPBACK)
-        .stderr(Stdio::null())
-        .output()
-        .context("running ddsperf ping")?;
+        .stderr(Stdio::null());
+    child::prepare(&mut ping, Some(main_cpu));
+    let out = ping.output().context("running ddsperf ping")?;
     let mut p50s = Vec::new();
     let mut p99s = Vec::new();
     for line in String::from_utf8_lossy(&out.stdout).lines().filter(|l| l.contains(" 50% ")) {
@@ -337,17 +318,16 @@ fn ddsperf(main_cpu: usize, other_cpu: usize, rate: Option<&str>) -> anyhow::Res
 /// Starts a gateway on the large DDF; returns its start-up time and RSS (KiB) once up.
 fn large(exe: &Path, args: &Args) -> anyhow::Result<(Duration, u64)> {
     let t = Instant::now();
-    let mut child = Command::new(exe)
-        .args(["gateway", &args.large.to_string_lossy(), "--ros-domain-id", &(args.ros_domain_id - 1).to_string()])
+    let mut cmd = Command::new(exe);
+    cmd.args(["gateway", &args.large.to_string_lossy(), "--ros-domain-id", &(args.ros_domain_id - 1).to_string()])
         .args(["--interface", "127.0.0.1", "--status-every", "1h"])
         .env("TUTTI_NAMESPACE", format!("gwbenchlarge{}", std::process::id()))
-        .env("RUST_LOG", "error,rustdds=off,ros2_client=off")
+        .env("RUST_LOG", QUIET_LOG)
         .stdin(Stdio::null())
-        .stderr(Stdio::piped())
-        .spawn()
-        .context("starting the gateway on the large DDF")?;
-    let stderr = child.stderr.take();
-    let kid = Kid(child);
+        .stderr(Stdio::piped());
+    let mut kid =
+        child::spawn("the gateway on the large DDF", cmd, None)?.stop_on_drop(Some(SIGINT), Duration::from_secs(3));
+    let stderr = kid.child.stderr.take();
     let mut up = None;
     if let Some(s) = stderr {
         for line in BufReader::new(s).lines().map_while(Result::ok) {
@@ -359,20 +339,16 @@ fn large(exe: &Path, args: &Args) -> anyhow::Result<(Duration, u64)> {
     }
     let up = up.context("the gateway on the large DDF did not start")?;
     std::thread::sleep(Duration::from_millis(500));
-    let rss = rss_kib(kid.0.id()).unwrap_or(0);
+    let rss = rss_kib(kid.pid()).unwrap_or(0);
     Ok((up, rss))
 }
 
 fn echo(ddf: &Path, domain_id: u16) -> CliResult {
-    let model = load_ddf(ddf)?;
-    let mut opts = GatewayOptions::new(ddf, model.clone());
-    opts.ros_domain_id = domain_id;
-    opts.interfaces = vec![std::net::IpAddr::V4(std::net::Ipv4Addr::LOCALHOST)];
+    let (opts, d) = peer_opts(ddf, domain_id)?;
     let stop = Arc::new(AtomicBool::new(false));
     let s = stop.clone();
     ctrlc::set_handler(move || s.store(true, Ordering::SeqCst)).context("installing the signal handler")?;
-    let d = model.domains.first().context("the DDF has no domain")?;
-    tutti_gateway::echo::run(&opts, d, stop).map_err(anyhow::Error::new)?;
+    tutti_gateway::echo::run(&opts, &d, stop).map_err(anyhow::Error::new)?;
     Ok(())
 }
 
@@ -383,32 +359,37 @@ struct Throughput {
 }
 
 fn gateway(exe: &Path, ddf: &Path, cpu: usize, dom: &str, ns: &str) -> anyhow::Result<Kid> {
-    Ok(Kid(pinned(cpu, exe)
-        .args(["gateway", &ddf.to_string_lossy(), "--ros-domain-id", dom, "--interface", "127.0.0.1"])
+    let mut cmd = Command::new(exe);
+    cmd.args(["gateway", &ddf.to_string_lossy(), "--ros-domain-id", dom, "--interface", "127.0.0.1"])
         .args(["--poll", "0", "--wait", "spin", "-q"])
         .env("TUTTI_NAMESPACE", ns)
-        .env("RUST_LOG", "error,rustdds=off,ros2_client=off")
-        .stdin(Stdio::null())
-        .spawn()
-        .context("starting the gateway")?))
+        .env("RUST_LOG", QUIET_LOG)
+        .stdin(Stdio::null());
+    start("the gateway", cmd, cpu)
+}
+
+/// The echo peer (`--echo`) on `cpu`.
+fn echo_peer(exe: &Path, ddf: &Path, cpu: usize, dom: &str) -> anyhow::Result<Kid> {
+    let mut cmd = Command::new(exe);
+    cmd.args(["bench", "gateway", "--echo", &ddf.to_string_lossy(), "--ros-domain-id", dom]).stdin(Stdio::null());
+    start("the echo peer", cmd, cpu)
 }
 
 fn peer(exe: &Path, cpu: usize, dom: &str, duration: Duration, what: &[&str]) -> anyhow::Result<Kid> {
-    Ok(Kid(pinned(cpu, exe)
-        .args(["bench", "gateway", "--ros-domain-id", dom, "--duration"])
+    let mut cmd = Command::new(exe);
+    cmd.args(["bench", "gateway", "--ros-domain-id", dom, "--duration"])
         .arg(format!("{}ms", duration.as_millis()))
         .args(what)
-        .env("RUST_LOG", "error,rustdds=off,ros2_client=off")
+        .env("RUST_LOG", QUIET_LOG)
         .stdin(Stdio::null())
-        .stdout(Stdio::piped())
-        .spawn()
-        .context("starting a benchmark peer")?))
+        .stdout(Stdio::piped());
+    start("a benchmark peer", cmd, cpu)
 }
 
 /// The sink's "samples seconds" line; waits for it to exit.
 fn sink_rate(kid: &mut Kid) -> anyhow::Result<f64> {
     let mut line = String::new();
-    if let Some(out) = kid.0.stdout.take() {
+    if let Some(out) = kid.child.stdout.take() {
         BufReader::new(out).read_line(&mut line)?;
     }
     let mut it = line.split_whitespace().map(str::parse::<f64>);
@@ -442,11 +423,9 @@ fn throughput(exe: &Path, ddf: &Path, args: &Args, cpus: Cpus) -> anyhow::Result
     let mut data = vec![0u8; ITEMS * 8];
     let mut seq = 0f64;
     let end = Instant::now() + args.duration + Duration::from_secs(40);
-    while matches!(sink.0.try_wait(), Ok(None)) && Instant::now() < end {
+    while sink.poll().is_none() && Instant::now() < end {
         seq += 1.0;
-        for c in data.chunks_exact_mut(8) {
-            c.copy_from_slice(&seq.to_ne_bytes());
-        }
+        fill(&mut data, seq);
         host.publish_step(&data, seq)?;
         std::thread::yield_now();
     }
@@ -504,11 +483,7 @@ fn source(ddf: &Path, domain_id: u16) -> CliResult {
 /// no gateway and no shared memory: what rustdds itself costs on this path.
 fn rustdds_ping(exe: &Path, ddf: &Path, args: &Args, cpus: Cpus) -> anyhow::Result<Vec<f64>> {
     let dom = (args.ros_domain_id + 4).to_string();
-    let _echo = Kid(pinned(cpus.peer, exe)
-        .args(["bench", "gateway", "--echo", &ddf.to_string_lossy(), "--ros-domain-id", &dom])
-        .stdin(Stdio::null())
-        .spawn()
-        .context("starting the echo peer")?);
+    let _echo = echo_peer(exe, ddf, cpus.peer, &dom)?;
     pin_self(cpus.gw);
     let (mut opts, d) = peer_opts(ddf, args.ros_domain_id + 4)?;
     opts.node_name = "tutti_bench_ping".into();

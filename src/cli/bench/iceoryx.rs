@@ -7,52 +7,51 @@
 //! files of a run can be removed afterwards without touching anyone else's iceoryx2 state.
 
 use iceoryx2::prelude::*;
-use std::process::{Child, Command, Stdio};
+use std::process::{Command, Stdio};
 use std::sync::atomic::{AtomicUsize, Ordering};
 use std::time::{Duration, Instant};
 
+use super::super::child::{self, Kid};
+use super::super::CliResult;
+use super::{relax, warmup};
+
 type Res<T> = Result<T, Box<dyn std::error::Error>>;
 const STOP: u64 = u64::MAX;
-const MAX_WARMUP: usize = 10_000; // warm-up round trips = min(MAX_WARMUP, iterations)
 const SHM_DIR: &str = "/dev/shm";
 
 /// Returns one round-trip time in ns per iteration (warm-up excluded). Panics on failure.
 /// Payload: `[u8]` slice of `size` bytes (>= 8); the first 8 bytes carry a sequence number.
 /// Ping writes the whole payload into shared memory, pong copies it into its own sample (echo).
 /// If both processes share one CPU the spin loop calls `sched_yield`, otherwise it pure-spins.
-pub fn run_iceoryx2_pingpong(
-    size: usize,
-    iterations: usize,
-    cpu_ping: Option<usize>,
-    cpu_pong: Option<usize>,
-) -> Vec<f64> {
-    let yield_spin = cpu_ping.is_some() && cpu_ping == cpu_pong;
-    run_iceoryx2_pingpong_opts(size, iterations, cpu_ping, cpu_pong, yield_spin)
-}
-
-pub fn run_iceoryx2_pingpong_opts(
-    size: usize,
-    iterations: usize,
-    cpu_ping: Option<usize>,
-    cpu_pong: Option<usize>,
-    yield_spin: bool,
-) -> Vec<f64> {
+pub fn run_iceoryx2_pingpong(size: usize, iterations: usize, cpu_ping: usize, cpu_pong: usize) -> Vec<f64> {
     assert!(size >= 8, "payload must hold the 8-byte sequence number");
+    let yield_spin = cpu_ping == cpu_pong;
     static RUN: AtomicUsize = AtomicUsize::new(0);
     let tag = format!("{}_{}", std::process::id(), RUN.fetch_add(1, Ordering::Relaxed));
     remove_stale_runs();
-    if let Some(c) = cpu_ping {
-        pin_current_thread(c);
-    }
+    pin_current_thread(cpu_ping);
     let mut guard = RunGuard { tag: tag.clone(), child: None };
     let r = ping(&tag, size, iterations, cpu_pong, yield_spin, &mut guard);
     drop(guard); // stops child (if still alive) and removes this run's files
     r.unwrap_or_else(|e| panic!("iceoryx2 ping-pong failed: {e}"))
 }
 
-/// The pong side (`tutti bench iox-pong TAG SIZE CPU YIELD`).
-pub fn pong_main(tag: &str, size: usize, cpu: Option<usize>, yield_spin: bool) -> Result<(), String> {
-    pong(tag, size, cpu, yield_spin).map_err(|e| format!("iceoryx2 pong: {e}"))
+/// Hidden: the pong side of the iceoryx2 ping-pong.
+#[derive(Debug, clap::Args)]
+pub struct PongArgs {
+    tag: String,
+    size: usize,
+    #[arg(long)]
+    cpu: usize,
+    /// Yield the core while polling (both processes on one core).
+    #[arg(long)]
+    yield_spin: bool,
+}
+
+/// The pong side (`tutti bench iox-pong TAG SIZE --cpu N [--yield-spin]`).
+pub fn pong_main(a: PongArgs) -> CliResult {
+    pong(&a.tag, a.size, a.cpu, a.yield_spin).map_err(|e| anyhow::anyhow!("iceoryx2 pong: {e}"))?;
+    Ok(())
 }
 
 fn config(tag: &str) -> Res<Config> {
@@ -80,7 +79,7 @@ fn ping(
     tag: &str,
     size: usize,
     iters: usize,
-    cpu_pong: Option<usize>,
+    cpu_pong: usize,
     yield_spin: bool,
     guard: &mut RunGuard,
 ) -> Res<Vec<f64>> {
@@ -99,19 +98,17 @@ fn ping(
     let publisher = svc_ping.publisher_builder().initial_max_slice_len(size).create()?;
     let subscriber = svc_pong.subscriber_builder().create()?;
 
-    let cpu = cpu_pong.map_or("-".to_string(), |c| c.to_string());
-    let yv = if yield_spin { "1" } else { "0" };
-    guard.child = Some(
-        Command::new(std::env::current_exe()?)
-            .args(["bench", "iox-pong", tag, &size.to_string(), &cpu, yv])
-            .stdin(Stdio::null())
-            .spawn()?,
-    );
+    let mut cmd = Command::new(std::env::current_exe()?);
+    cmd.args(["bench", "iox-pong", tag, &size.to_string(), "--cpu", &cpu_pong.to_string()]).stdin(Stdio::null());
+    if yield_spin {
+        cmd.arg("--yield-spin");
+    }
+    let kid = guard.child.insert(child::spawn("the iceoryx2 pong", cmd, None)?.stop_on_drop(None, Duration::ZERO));
     // wait until pong has its subscriber on "ping" and publisher on "pong"
     let t = Instant::now();
     while svc_ping.dynamic_config().number_of_subscribers() < 1 || svc_pong.dynamic_config().number_of_publishers() < 1
     {
-        if let Some(st) = guard.child.as_mut().unwrap().try_wait()? {
+        if let Some(st) = kid.poll() {
             return Err(format!("pong exited early: {st}").into());
         }
         if t.elapsed() > Duration::from_secs(10) {
@@ -121,7 +118,7 @@ fn ping(
     }
 
     let mut buf = vec![0xA5u8; size];
-    let warmup = MAX_WARMUP.min(iters);
+    let warmup = warmup(iters);
     let mut rtts = Vec::with_capacity(iters);
     for seq in 0..(warmup + iters) as u64 {
         let t0 = Instant::now();
@@ -147,11 +144,7 @@ fn ping(
                     publisher.loan_slice_uninit(size)?.write_from_slice(&buf).send()?;
                 }
             }
-            if yield_spin {
-                std::thread::yield_now()
-            } else {
-                std::hint::spin_loop()
-            }
+            relax(yield_spin);
         }
         let dt = t0.elapsed().as_nanos() as f64;
         if seq >= warmup as u64 {
@@ -161,22 +154,13 @@ fn ping(
     // graceful stop so pong drops its node and removes its own iceoryx2 files
     buf[..8].copy_from_slice(&STOP.to_le_bytes());
     publisher.loan_slice_uninit(size)?.write_from_slice(&buf).send()?;
-    let mut child = guard.child.take().unwrap();
-    let t = Instant::now();
-    while child.try_wait()?.is_none() {
-        if t.elapsed() > Duration::from_secs(2) {
-            guard.child = Some(child); // RunGuard kills it
-            break;
-        }
-        std::thread::sleep(Duration::from_millis(1));
-    }
+    // Still running after 2 s: RunGuard kills it.
+    kid.wait(Duration::from_secs(2));
     Ok(rtts)
 }
 
-fn pong(tag: &str, size: usize, cpu: Option<usize>, yield_spin: bool) -> Res<()> {
-    if let Some(c) = cpu {
-        pin_current_thread(c);
-    }
+fn pong(tag: &str, size: usize, cpu: usize, yield_spin: bool) -> Res<()> {
+    pin_current_thread(cpu);
     let node = node(tag)?;
     let open = |dir| -> Res<_> { Ok(node.service_builder(&svc_name(tag, dir)?).publish_subscribe::<[u8]>().open()?) };
     let (svc_ping, svc_pong) = (open("ping")?, open("pong")?);
@@ -198,11 +182,7 @@ fn pong(tag: &str, size: usize, cpu: Option<usize>, yield_spin: bool) -> Res<()>
         if spins & 0xF_FFFF == 0 && std::os::unix::process::parent_id() != ppid {
             return Err("ping process is gone".into());
         }
-        if yield_spin {
-            std::thread::yield_now()
-        } else {
-            std::hint::spin_loop()
-        }
+        relax(yield_spin);
     }
 }
 
@@ -216,14 +196,11 @@ fn pin_current_thread(cpu: usize) {
 /// Kills the child if still running and removes everything iceoryx2 created for this run.
 struct RunGuard {
     tag: String,
-    child: Option<Child>,
+    child: Option<Kid>,
 }
 impl Drop for RunGuard {
     fn drop(&mut self) {
-        if let Some(mut c) = self.child.take() {
-            let _ = c.kill();
-            let _ = c.wait();
-        }
+        drop(self.child.take());
         remove_run_files(&self.tag);
     }
 }

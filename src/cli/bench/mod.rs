@@ -30,7 +30,7 @@ enum What {
     ShmPong(shm::PongArgs),
     /// (internal) the pong side of iceoryx2's ping-pong.
     #[command(hide = true)]
-    IoxPong(shm::IoxPongArgs),
+    IoxPong(iceoryx::PongArgs),
 }
 
 pub fn run(args: Args) -> CliResult {
@@ -39,7 +39,7 @@ pub fn run(args: Args) -> CliResult {
         What::Gateway(a) => gateway::run(a),
         What::Shm(a) => shm::run(a),
         What::ShmPong(a) => shm::pong(a),
-        What::IoxPong(a) => shm::iox_pong(a),
+        What::IoxPong(a) => iceoryx::pong_main(a),
     }
 }
 
@@ -50,6 +50,26 @@ pub fn percentiles(ns: &[f64]) -> (f64, f64, f64, f64) {
     }
     let mut v = ns.to_vec();
     v.sort_by(f64::total_cmp);
-    let q = |p: f64| v[((v.len() as f64 * p).ceil() as usize).clamp(1, v.len()) - 1] / 1e3;
+    let q = |p: f64| nearest_rank(&v, p) / 1e3;
     (q(0.50), q(0.99), q(0.999), v[v.len() - 1] / 1e3)
+}
+
+/// The nearest-rank `q`-quantile of non-empty sorted samples.
+pub fn nearest_rank<T: Copy>(sorted: &[T], q: f64) -> T {
+    sorted[((sorted.len() as f64 * q).ceil() as usize).clamp(1, sorted.len()) - 1]
+}
+
+/// Warm-up round trips before `iterations` measured ones (tutti and its peers alike).
+pub fn warmup(iterations: usize) -> usize {
+    iterations.min(10_000)
+}
+
+/// One turn of a polling loop: give the core away (both sides on one core) or spin.
+#[inline]
+pub fn relax(yield_core: bool) {
+    if yield_core {
+        std::thread::yield_now();
+    } else {
+        std::hint::spin_loop();
+    }
 }

@@ -9,7 +9,7 @@
 //! * sync: one lock-step `step()` of the framework: publish, the peer's `subscribe_lock`,
 //!   `publish_lock`, commit of the whole set, and the framework's read of the answer.
 
-use std::process::{Child, Command, Stdio};
+use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
 
 use anyhow::{bail, Context};
@@ -17,8 +17,9 @@ use tutti_core::ddf;
 use tutti_core::ddf::Role;
 use tutti_core::shm::{os, ConnectOptions, Framework, FrameworkOptions, Participant, ShmError, WaitMode};
 
+use super::super::child;
 use super::super::CliResult;
-use super::{iceoryx, percentiles};
+use super::{iceoryx, percentiles, relax, warmup};
 
 /// Measure shared-memory round trips (and iceoryx2's, as the peer in the same run).
 #[derive(Debug, clap::Args)]
@@ -72,20 +73,6 @@ pub struct PongArgs {
     snapshot: bool,
 }
 
-/// Hidden: the pong side of the iceoryx2 ping-pong.
-#[derive(Debug, clap::Args)]
-pub struct IoxPongArgs {
-    tag: String,
-    size: usize,
-    cpu: String,
-    yield_spin: String,
-}
-
-pub fn iox_pong(a: IoxPongArgs) -> CliResult {
-    iceoryx::pong_main(&a.tag, a.size, a.cpu.parse().ok(), a.yield_spin == "1").map_err(|e| anyhow::anyhow!(e))?;
-    Ok(())
-}
-
 fn model(size: usize, sync: bool) -> anyhow::Result<ddf::Model> {
     let yn = if sync { "yes" } else { "no" };
     let words = size / 8;
@@ -100,15 +87,6 @@ fn model(size: usize, sync: bool) -> anyhow::Result<ddf::Model> {
 
 fn first_word(b: &[u8]) -> u64 {
     u64::from_ne_bytes(b[..8].try_into().unwrap_or([0; 8]))
-}
-
-struct Kill(Child);
-
-impl Drop for Kill {
-    fn drop(&mut self) {
-        let _ = self.0.kill();
-        let _ = self.0.wait();
-    }
 }
 
 struct Config<'a> {
@@ -145,11 +123,12 @@ fn run_tutti(c: &Config<'_>) -> anyhow::Result<Vec<f64>> {
     if c.snapshot {
         cmd.arg("--snapshot");
     }
-    let mut child = Kill(cmd.stdin(Stdio::null()).spawn().context("starting the pong process")?);
+    cmd.stdin(Stdio::null());
+    let mut child = child::spawn("the pong process", cmd, None)?.stop_on_drop(None, Duration::ZERO);
     let host = &mut fw.domains[0];
     let started = Instant::now();
     while host.connection_count() == 0 {
-        if let Some(status) = child.0.try_wait()? {
+        if let Some(status) = child.poll() {
             bail!("pong exited early: {status}");
         }
         if started.elapsed() > Duration::from_secs(10) {
@@ -159,7 +138,7 @@ fn run_tutti(c: &Config<'_>) -> anyhow::Result<Vec<f64>> {
     }
     let mut payload = vec![0xa5u8; c.size];
     // The same warm-up as the iceoryx2 ping-pong: as many round trips as measured, at most 10,000.
-    let warmup = c.iterations.min(10_000);
+    let warmup = warmup(c.iterations);
     let mut rtts = Vec::with_capacity(c.iterations);
     for seq in 1..=(warmup + c.iterations) as u64 {
         payload[..8].copy_from_slice(&seq.to_ne_bytes());
@@ -199,11 +178,7 @@ fn run_tutti(c: &Config<'_>) -> anyhow::Result<Vec<f64>> {
                 if turns % 65_536 == 0 && t0.elapsed() > Duration::from_secs(10) {
                     bail!("no echo of {seq} within 10 s");
                 }
-                if same_core {
-                    std::thread::yield_now();
-                } else {
-                    std::hint::spin_loop();
-                }
+                relax(same_core);
             }
         }
         let rtt = t0.elapsed().as_nanos() as f64;
@@ -212,10 +187,7 @@ fn run_tutti(c: &Config<'_>) -> anyhow::Result<Vec<f64>> {
         }
     }
     drop(fw);
-    let deadline = Instant::now() + Duration::from_secs(5);
-    while child.0.try_wait()?.is_none() && Instant::now() < deadline {
-        std::thread::sleep(Duration::from_millis(1));
-    }
+    child.wait(Duration::from_secs(5));
     Ok(rtts)
 }
 
@@ -243,7 +215,7 @@ fn run_floor(size: usize, iterations: usize, cpus: (usize, usize)) -> anyhow::Re
         answered: AtomicU64::new(0),
     });
     let same = cpus.0 == cpus.1;
-    let wait = move || if same { std::thread::yield_now() } else { std::hint::spin_loop() };
+    let wait = move || relax(same);
     let pong = {
         let r = r.clone();
         std::thread::spawn(move || {
@@ -267,7 +239,7 @@ fn run_floor(size: usize, iterations: usize, cpus: (usize, usize)) -> anyhow::Re
     };
     os::pin_to_cpu(cpus.0).context("pinning the ping side")?;
     let mut payload = vec![0xa5u8; size];
-    let warmup = iterations.min(10_000);
+    let warmup = warmup(iterations);
     let mut rtts = Vec::with_capacity(iterations);
     let mut result = Ok(());
     for k in 1..=(warmup + iterations) as u64 {
@@ -338,11 +310,7 @@ pub fn pong(a: PongArgs) -> CliResult {
                 if turns % 65_536 == 0 {
                     p.check()?;
                 }
-                if a.yield_spin {
-                    std::thread::yield_now();
-                } else {
-                    std::hint::spin_loop();
-                }
+                relax(a.yield_spin);
                 continue;
             }
             last = g;
@@ -417,7 +385,7 @@ pub fn run(args: Args) -> CliResult {
                     tutti[i].extend(rtts);
                 }
                 if !args.no_peer {
-                    peer.extend(iceoryx::run_iceoryx2_pingpong(size, chunk, Some(cpus.0), Some(cpus.1)));
+                    peer.extend(iceoryx::run_iceoryx2_pingpong(size, chunk, cpus.0, cpus.1));
                 }
                 floor.extend(run_floor(size, chunk, cpus).context("the memcpy floor")?);
             }

@@ -130,6 +130,14 @@ pub fn observed_windows(uav: &Table) -> Vec<(f64, f64)> {
     out
 }
 
+/// Largest minus smallest of `v` (0 when empty).
+fn range(v: &[f64]) -> f64 {
+    if v.is_empty() {
+        return 0.0;
+    }
+    v.iter().copied().fold(f64::NEG_INFINITY, f64::max) - v.iter().copied().fold(f64::INFINITY, f64::min)
+}
+
 /// The framework's rows as `(sim_time, value of column)`, for `col`.
 fn series(fw: &Table, col: &str) -> (Vec<f64>, Vec<f64>) {
     (fw.col("sim_time"), fw.col(col))
@@ -149,8 +157,7 @@ pub fn run_checks(s: &Scenario, d: &RunData, step: f64) -> Vec<Check> {
         if scripted.is_empty() {
             continue;
         }
-        let table = d.uavs.get(uav - 1).cloned().unwrap_or_default();
-        let seen = observed_windows(&table);
+        let seen = d.uavs.get(uav - 1).map(observed_windows).unwrap_or_default();
         for &(a, b) in &scripted {
             let found = seen.iter().copied().find(|&(x, _)| (x - a).abs() <= 2.0);
             out.push(held_level(d, uav, (a, b), found, step));
@@ -198,16 +205,11 @@ fn held_level(d: &RunData, uav: usize, (a, b): (f64, f64), found: Option<(f64, f
     if held.len() < 3 {
         return Check::new(name, false, format!("only {} framework steps in the window {x:.2}-{y:.2} s", held.len()));
     }
-    let spread =
-        held.iter().cloned().fold(f64::NEG_INFINITY, f64::max) - held.iter().cloned().fold(f64::INFINITY, f64::min);
+    let spread = range(&held);
     let table = &d.uavs[uav - 1];
     let (ut, ua) = (table.col("time"), table.col("altitude"));
     let moved: Vec<f64> = ut.iter().zip(&ua).filter(|(&t, _)| t >= x && t <= y).map(|(_, &v)| v).collect();
-    let model_range = if moved.is_empty() {
-        0.0
-    } else {
-        moved.iter().cloned().fold(f64::NEG_INFINITY, f64::max) - moved.iter().cloned().fold(f64::INFINITY, f64::min)
-    };
+    let model_range = range(&moved);
     Check::new(
         name,
         spread < 1e-9,

@@ -30,6 +30,13 @@ enum DemoCommand {
     UavNode(node::NodeArgs),
 }
 
+/// The float64 at byte `off` of a set.
+fn f64_at(buf: &[u8], off: usize) -> f64 {
+    let mut b = [0u8; 8];
+    b.copy_from_slice(&buf[off..off + 8]);
+    f64::from_ne_bytes(b)
+}
+
 pub fn run(args: Args) -> CliResult {
     match args.command {
         DemoCommand::Uav(a) => uav::run(a),

@@ -22,6 +22,9 @@ use anyhow::Context;
 use tutti_core::ddf::Role;
 use tutti_core::shm::segment::{namespace_from_env, Segment};
 use tutti_core::shm::{ConnectOptions, Participant, ShmError};
+
+use super::f64_at;
+use super::scenario::UAVS;
 use tutti_uav::{FormationCommand, Uav, DEFAULT_DT};
 
 use crate::cli::CliResult;
@@ -50,12 +53,6 @@ struct Items {
     commands: [usize; 5],
     time: usize,
     outputs: [(&'static str, usize); 6],
-}
-
-fn f64_at(buf: &[u8], off: usize) -> f64 {
-    let mut b = [0u8; 8];
-    b.copy_from_slice(&buf[off..off + 8]);
-    f64::from_ne_bytes(b)
 }
 
 impl Items {
@@ -105,7 +102,7 @@ pub fn run(args: NodeArgs) -> CliResult {
 }
 
 fn fly(args: NodeArgs) -> anyhow::Result<()> {
-    anyhow::ensure!((1..=4).contains(&args.index), "--index must be 1..4");
+    anyhow::ensure!((1..=UAVS).contains(&args.index), "--index must be 1..{UAVS}");
     anyhow::ensure!(args.speed > 0.0, "--speed must be positive");
     let domain = args.domain.clone().unwrap_or_else(|| format!("multiuav_uav{}", args.index));
     let who = format!("uav{}", args.index);

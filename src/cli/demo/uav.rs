@@ -11,20 +11,21 @@
 
 use std::fs::File;
 use std::io::{BufWriter, Write};
-use std::os::unix::process::CommandExt;
 use std::path::{Path, PathBuf};
-use std::process::{Child, Command, Stdio};
+use std::process::{Command, Stdio};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 use anyhow::{bail, Context};
 use tutti_core::ddf::Role;
-use tutti_core::shm::{os, Framework, FrameworkOptions, WaitMode};
+use tutti_core::shm::{Framework, FrameworkOptions, WaitMode};
 
 use super::analysis::{run_checks, Check, RunData};
+use super::f64_at;
 use super::plot;
 use super::scenario::{Scenario, UAVS};
+use crate::cli::child::{spawn, Kid, SIGINT, SIGTERM};
 use crate::cli::host::parse_duration;
 use crate::cli::{CliResult, Failure, EXIT_FAILURE};
 use crate::rt::{self, Ticker};
@@ -101,71 +102,6 @@ fn scenario_of(name: &str, duration: Option<f64>) -> Scenario {
     }
 }
 
-/// A child process that is stopped (SIGTERM, then SIGKILL) when dropped.
-struct Kid {
-    name: String,
-    child: Child,
-    done: Option<std::process::ExitStatus>,
-}
-
-impl Kid {
-    fn pid(&self) -> u32 {
-        self.child.id()
-    }
-
-    fn poll(&mut self) -> Option<std::process::ExitStatus> {
-        if self.done.is_none() {
-            self.done = self.child.try_wait().ok().flatten();
-        }
-        self.done
-    }
-
-    /// Sends `sig` and waits up to `grace` for the exit; then kills.
-    fn stop(&mut self, sig: i32, grace: Duration) -> Option<std::process::ExitStatus> {
-        if self.poll().is_none() {
-            let _ = os::send_signal(self.pid(), sig);
-            self.wait(grace);
-        }
-        if self.poll().is_none() {
-            let _ = self.child.kill();
-            self.done = self.child.wait().ok();
-        }
-        self.done
-    }
-
-    /// Waits up to `limit` for the process to end by itself.
-    fn wait(&mut self, limit: Duration) -> Option<std::process::ExitStatus> {
-        let end = Instant::now() + limit;
-        while self.poll().is_none() && Instant::now() < end {
-            std::thread::sleep(Duration::from_millis(10));
-        }
-        self.done
-    }
-}
-
-impl Drop for Kid {
-    fn drop(&mut self) {
-        self.stop(SIGTERM, Duration::from_millis(1500));
-    }
-}
-
-const SIGINT: i32 = 2;
-const SIGTERM: i32 = 15;
-
-/// Starts `cmd` as a child that dies with this process and runs under normal scheduling.
-fn spawn(name: &str, mut cmd: Command) -> anyhow::Result<Kid> {
-    // SAFETY: the closure runs between fork and exec and only makes two system calls
-    // (prctl and sched_setscheduler), which are async-signal-safe; it allocates nothing.
-    unsafe {
-        cmd.pre_exec(|| {
-            let _ = os::set_normal_scheduling();
-            os::die_with_parent()
-        });
-    }
-    let child = cmd.spawn().with_context(|| format!("starting {name} ({:?})", cmd.get_program()))?;
-    Ok(Kid { name: name.to_string(), child, done: None })
-}
-
 /// librtapi.so: `TUTTI_RTAPI_LIB`, else next to this executable (or in its deps/).
 fn find_rtapi() -> anyhow::Result<PathBuf> {
     if let Some(p) = std::env::var_os("TUTTI_RTAPI_LIB") {
@@ -204,12 +140,6 @@ fn build_c_reader(out: &Path, lib: &Path) -> anyhow::Result<PathBuf> {
         .with_context(|| format!("running the C compiler '{cc}' (install gcc, or pass --c-reader)"))?;
     anyhow::ensure!(status.success(), "compiling {} failed ({status})", src.display());
     Ok(bin)
-}
-
-fn f64_at(buf: &[u8], off: usize) -> f64 {
-    let mut b = [0u8; 8];
-    b.copy_from_slice(&buf[off..off + 8]);
-    f64::from_ne_bytes(b)
 }
 
 /// Offsets of the items the framework writes and reads in one domain.
@@ -293,7 +223,8 @@ fn simulate(args: &UavArgs, scenario: &Scenario, out: &Path, interrupted: &Atomi
         .unwrap_or_else(|| format!("demo-{}", std::process::id()));
     let ddf_path = out.join("multiuav.ddf");
     std::fs::write(&ddf_path, DDF_TEXT).with_context(|| format!("writing {}", ddf_path.display()))?;
-    let model = tutti_core::ddf::load(&ddf_path).map_err(|e| anyhow::anyhow!("{e}"))?;
+    let model =
+        tutti_core::ddf::parse_str(DDF_TEXT, &ddf_path.display().to_string()).map_err(|e| anyhow::anyhow!("{e}"))?;
     anyhow::ensure!(model.domains.len() == UAVS, "the demo's DDF has {} domains, not {UAVS}", model.domains.len());
     let exe = std::env::current_exe().context("locating this executable")?;
     // A private copy of librtapi: a rebuild during the run cannot pull it away.
@@ -330,8 +261,7 @@ fn simulate(args: &UavArgs, scenario: &Scenario, out: &Path, interrupted: &Atomi
         .iter()
         .map(|d| {
             let off = |role: Role, p: &str| -> anyhow::Result<usize> {
-                let set = if role == Role::Publish { &d.publish } else { &d.subscribe };
-                let leaf = set.layout.leaf(p).with_context(|| format!("{}: no item {p}", d.name))?;
+                let leaf = d.set(role).layout.leaf(p).with_context(|| format!("{}: no item {p}", d.name))?;
                 anyhow::ensure!(leaf.size == 8, "{}: {p} is not a float64", d.name);
                 Ok(leaf.offset as usize)
             };
@@ -358,7 +288,7 @@ fn simulate(args: &UavArgs, scenario: &Scenario, out: &Path, interrupted: &Atomi
         cmd.args(["demo", "uav-node", "--index", &i.to_string(), "--speed", &args.speed.to_string(), "--out"])
             .arg(out.join(format!("uav{i}.csv")));
         env(&mut cmd);
-        uavs.push(spawn(&format!("UAV {i}"), cmd)?);
+        uavs.push(spawn(&format!("UAV {i}"), cmd, None)?);
     }
     let connect_deadline = Instant::now() + Duration::from_secs(30);
     while fw.domains.iter().any(|d| d.connection_count() == 0) {
@@ -382,7 +312,7 @@ fn simulate(args: &UavArgs, scenario: &Scenario, out: &Path, interrupted: &Atomi
         let log = File::create(out.join("gateway.log")).context("creating gateway.log")?;
         cmd.stderr(log);
         env(&mut cmd);
-        gateway = Some(spawn("gateway", cmd)?);
+        gateway = Some(spawn("gateway", cmd, None)?);
         eprintln!("demo: DDS / ROS 2 gateway on loopback (log in gateway.log)");
     }
 
@@ -416,7 +346,7 @@ fn simulate(args: &UavArgs, scenario: &Scenario, out: &Path, interrupted: &Atomi
             .env("PYTHONUNBUFFERED", "1");
         env(&mut cmd);
         cmd.stdin(Stdio::piped()).stdout(Stdio::piped());
-        spawn("monitoring script", cmd)?
+        spawn("monitoring script", cmd, None)?
     };
     let monitor_in = monitor.child.stdin.take().context("the monitoring script's stdin")?;
     {
@@ -487,7 +417,7 @@ fn simulate(args: &UavArgs, scenario: &Scenario, out: &Path, interrupted: &Atomi
             cmd.arg(&model.domains[scenario.c_domain_uav - 1].name).arg(out.join(format!("c_reader{j}.csv")));
             env(&mut cmd);
             eprintln!("demo: t={sim:.1}s C component {j} connects to multiuav_uav{}", scenario.c_domain_uav);
-            readers.push(spawn(&format!("C component {j}"), cmd)?);
+            readers.push(spawn(&format!("C component {j}"), cmd, None)?);
         }
         if tick.k % 20 == 0 {
             for k in uavs.iter_mut().chain(readers.iter_mut()).chain(gateway.iter_mut()) {
@@ -523,19 +453,19 @@ fn simulate(args: &UavArgs, scenario: &Scenario, out: &Path, interrupted: &Atomi
     // Orderly end: the UAVs flush their logs, the framework stops (the C components see it
     // and exit), the monitoring script finishes its log, the gateway stops.
     for k in &mut uavs {
-        k.stop(SIGTERM, Duration::from_secs(3));
+        k.stop(Some(SIGTERM), Duration::from_secs(3));
     }
     drop(fw);
     for k in &mut readers {
         if k.wait(Duration::from_secs(3)).is_none() {
-            k.stop(SIGTERM, Duration::from_secs(1));
+            k.stop(Some(SIGTERM), Duration::from_secs(1));
         }
     }
     if monitor.wait(Duration::from_secs(3)).is_none() {
-        monitor.stop(SIGTERM, Duration::from_secs(1));
+        monitor.stop(Some(SIGTERM), Duration::from_secs(1));
     }
     if let Some(g) = &mut gateway {
-        g.stop(SIGINT, Duration::from_secs(3));
+        g.stop(Some(SIGINT), Duration::from_secs(3));
     }
     for k in uavs.iter_mut().chain(readers.iter_mut()).chain(std::iter::once(&mut monitor)) {
         if let Some(st) = k.poll().filter(|st| !st.success() && st.code().is_some()) {
