@@ -31,6 +31,7 @@ use std::collections::HashMap;
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
+use crate::ddf::model::join_path;
 use crate::ddf::{Item, ItemKind, Model, Role, ScalarType, Value};
 use crate::mapping;
 
@@ -62,9 +63,7 @@ struct TypeDef<'a> {
     name: String,
     /// Where it comes from, for comments and errors: `domain grid_feeder, set PUBLISH, bus meter`.
     origin: String,
-    /// `true` for a set type (which gets `step` and `sim_time`).
-    is_set: bool,
-    /// DDS topic of the set (set types only).
+    /// DDS topic of the set: set types only, which also get `step` and `sim_time`.
     topic: Option<String>,
     fields: Vec<Field<'a>>,
 }
@@ -155,8 +154,7 @@ fn collect_struct<'a>(
             let bus_type = match &item.kind {
                 ItemKind::Scalar { .. } => None,
                 ItemKind::Bus { items } => {
-                    let path =
-                        if bus_path.is_empty() { item.name.clone() } else { format!("{bus_path}/{}", item.name) };
+                    let path = join_path(bus_path, &item.name);
                     let ty = mapping::bus_type_name(set.type_name, &path);
                     nested.push((items, ty.clone(), path));
                     Some(ty)
@@ -166,7 +164,7 @@ fn collect_struct<'a>(
         })
         .collect();
     let origin = if bus_path.is_empty() { set.origin.clone() } else { format!("{}, bus {bus_path}", set.origin) };
-    out.push(TypeDef { name, origin, is_set: topic.is_some(), topic, fields });
+    out.push(TypeDef { name, origin, topic, fields });
     for (items, ty, path) in nested {
         collect_struct(items, ty, set, &path, None, out);
     }
@@ -330,7 +328,7 @@ fn idl_file(package: &str, ty: &TypeDef<'_>, source_name: &str, flavor: Flavor) 
     };
     let _ = writeln!(s, "{indent}struct {} {{", flavor.type_name(&ty.name));
     let mut members = Vec::new();
-    if ty.is_set {
+    if ty.topic.is_some() {
         members.push(format!("{indent}  uint64 step;\n"));
         members.push(format!("{indent}  double sim_time;\n"));
     }
@@ -373,7 +371,7 @@ fn msg_file(ty: &TypeDef<'_>, source_name: &str) -> String {
         let _ = writeln!(s, "# DDS topic {topic}");
     }
     s.push('\n');
-    if ty.is_set {
+    if ty.topic.is_some() {
         let _ = writeln!(s, "uint64 step");
         let _ = writeln!(s, "float64 sim_time");
     }

@@ -8,6 +8,7 @@ use std::path::Path;
 
 use serde::Serialize;
 
+use crate::ddf::model::join_path;
 use crate::ddf::{Domain, Flags, Item, ItemKind, Role};
 
 /// Words that cannot be field names: the two header fields of every set type, and the
@@ -270,8 +271,13 @@ pub struct SetNames {
 }
 
 /// The names of one set, for DDF package `pkg`.
+/// `DOMAIN/ROLE` of a set's topics (`rt/…` in DDS, `/…` in ROS 2).
+fn topic_base(domain: &str, role: Role) -> String {
+    format!("{}/{}", topic_token(domain), role.lower())
+}
+
 pub fn set_names(pkg: &str, domain: &str, role: Role) -> SetNames {
-    let topic_base = format!("{}/{}", topic_token(domain), role.lower());
+    let topic_base = topic_base(domain, role);
     let type_name = format!(
         "{}{}",
         camel_case(domain),
@@ -328,14 +334,14 @@ pub fn per_item_type(ty: crate::ddf::ScalarType, length: u16) -> &'static str {
 /// names (so two items never share a topic).
 pub fn item_topics(domain: &Domain, role: Role) -> Vec<ItemTopic> {
     let mut out = Vec::new();
-    let base = format!("rt/{}/{}", topic_token(&domain.name), role.lower());
+    let base = format!("rt/{}", topic_base(&domain.name, role));
     collect_item_topics(&domain.set(role).items, &base, "", &mut out);
     out
 }
 
 fn collect_item_topics(items: &[Item], topic_prefix: &str, path_prefix: &str, out: &mut Vec<ItemTopic>) {
     for (item, field) in items.iter().zip(field_names(items)) {
-        let path = if path_prefix.is_empty() { item.name.clone() } else { format!("{path_prefix}/{}", item.name) };
+        let path = join_path(path_prefix, &item.name);
         let topic = format!("{topic_prefix}/{field}");
         match &item.kind {
             ItemKind::Scalar { ty, length, .. } => {

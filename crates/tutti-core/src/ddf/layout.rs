@@ -5,7 +5,7 @@
 
 use serde::Serialize;
 
-use super::model::{Domain, Flags, Item, ItemKind, Leaf, Role, Set};
+use super::model::{join_path, Domain, Flags, Item, ItemKind, Leaf, Role, Set};
 
 /// The largest set accepted, in bytes.
 pub const MAX_SET_BYTES: u64 = 256 << 20;
@@ -54,7 +54,7 @@ fn layout_struct(items: &[Item], prefix: &str, base: u64, leaves: &mut Vec<Leaf>
     let mut offset = 0u64;
     let mut align = 1u64;
     for item in items {
-        let path = if prefix.is_empty() { item.name.clone() } else { format!("{prefix}/{}", item.name) };
+        let path = join_path(prefix, &item.name);
         match &item.kind {
             ItemKind::Scalar { ty, length, default } => {
                 let a = u64::from(ty.size());

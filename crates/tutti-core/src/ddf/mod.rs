@@ -68,11 +68,7 @@ impl DdfError {
 }
 
 fn render(path: &str, diagnostics: &[Diagnostic]) -> String {
-    diagnostics
-        .iter()
-        .map(|d| format!("{path}:{}:{}: error: {}", d.pos.line, d.pos.col, d.message))
-        .collect::<Vec<_>>()
-        .join("\n")
+    diagnostics.iter().map(|d| format!("{path}:{d}")).collect::<Vec<_>>().join("\n")
 }
 
 impl fmt::Display for Diagnostic {

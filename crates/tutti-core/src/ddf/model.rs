@@ -141,6 +141,15 @@ pub struct Item {
     pub pos: Pos,
 }
 
+/// The path of item `name` inside a bus at `prefix` (`""` at the top of a set): `BUS/ITEM`.
+pub fn join_path(prefix: &str, name: &str) -> String {
+    if prefix.is_empty() {
+        name.to_string()
+    } else {
+        format!("{prefix}/{name}")
+    }
+}
+
 #[derive(Debug, Clone, Serialize)]
 #[serde(tag = "kind", rename_all = "lowercase")]
 pub enum ItemKind {
@@ -255,28 +264,6 @@ impl ScalarType {
             Float32 => "float32",
             Float64 => "float64",
         }
-    }
-
-    /// The C type of one element.
-    pub fn c_type(self) -> &'static str {
-        use ScalarType::*;
-        match self {
-            Boolean => "bool",
-            Int8 => "int8_t",
-            Int16 => "int16_t",
-            Int32 => "int32_t",
-            Int64 => "int64_t",
-            UInt8 => "uint8_t",
-            UInt16 => "uint16_t",
-            UInt32 => "uint32_t",
-            UInt64 => "uint64_t",
-            Float32 => "float",
-            Float64 => "double",
-        }
-    }
-
-    pub fn is_float(self) -> bool {
-        matches!(self, ScalarType::Float32 | ScalarType::Float64)
     }
 
     pub fn is_signed_int(self) -> bool {

@@ -4,7 +4,7 @@
 use std::collections::HashMap;
 
 use super::layout::{self, SetLayout, MAX_SET_BYTES};
-use super::model::{Connection, Domain, Flags, Item, ItemKind, Model, Role, Set, TypeName};
+use super::model::{join_path, Connection, Domain, Flags, Item, ItemKind, Model, Role, Set, TypeName};
 use super::raw::RawElement;
 use super::{Diagnostic, Pos};
 
@@ -84,9 +84,7 @@ pub fn validate(root: &RawElement, source: &str) -> Result<Model, Vec<Diagnostic
 }
 
 fn no_attrs(el: &RawElement, d: &mut Diags) {
-    for a in &el.attrs {
-        d.at(el.pos, format!("unknown attribute '{}' on <{}>", a.name, el.name));
-    }
+    only_attrs(el, &[], d);
 }
 
 fn only_attrs(el: &RawElement, allowed: &[&str], d: &mut Diags) {
@@ -255,7 +253,7 @@ fn set(el: &RawElement, role: Role, domain: &str, d: &mut Diags) -> Option<Set> 
     no_text(el, d);
     let before = d.0.len();
     let mut items = Vec::new();
-    item_list(el, &el.children, role, domain, "", 0, &mut items, d);
+    item_list(el, role, domain, "", 0, &mut items, d);
     if d.0.len() != before {
         return None;
     }
@@ -277,7 +275,6 @@ fn set(el: &RawElement, role: Role, domain: &str, d: &mut Diags) -> Option<Set> 
 #[allow(clippy::too_many_arguments)]
 fn item_list(
     parent: &RawElement,
-    children: &[RawElement],
     role: Role,
     domain: &str,
     prefix: &str,
@@ -286,7 +283,7 @@ fn item_list(
     d: &mut Diags,
 ) {
     let mut seen: HashMap<String, Pos> = HashMap::new();
-    for child in children {
+    for child in &parent.children {
         if child.name != "item" {
             // Inside a bus item, its other children (<type>, <length>, <default> and unknown
             // elements) are checked and reported by `item`.
@@ -297,7 +294,7 @@ fn item_list(
             continue;
         }
         let Some(item) = item(child, role, domain, prefix, depth, d) else { continue };
-        let path = if prefix.is_empty() { item.name.clone() } else { format!("{prefix}/{}", item.name) };
+        let path = join_path(prefix, &item.name);
         if let Some(first) = seen.get(&item.name) {
             d.at(
                 child.pos,
@@ -397,7 +394,7 @@ fn item(el: &RawElement, role: Role, domain: &str, prefix: &str, depth: usize, d
                 return None;
             }
             let mut items = Vec::new();
-            item_list(el, &el.children, role, domain, &label, depth + 1, &mut items, d);
+            item_list(el, role, domain, &label, depth + 1, &mut items, d);
             Some(Item { name: name?, kind: ItemKind::Bus { items }, pos: el.pos })
         }
         TypeName::Scalar(ty) => {
