@@ -218,30 +218,13 @@ impl Nav {
     }
 }
 
-/// The outer-loop commands of the last update (for plots and diagnostics).
-#[derive(Clone, Copy, Debug, Default, PartialEq)]
-pub struct Commands {
-    /// Course, rad.
-    pub course: f64,
-    /// Altitude above MSL, m.
-    pub altitude: f64,
-    /// Airspeed, m/s.
-    pub airspeed: f64,
-    /// Roll, rad.
-    pub roll: f64,
-    /// Pitch, rad.
-    pub pitch: f64,
-    /// Along-track error against the formation reference, m (0 outside waypoint mode).
-    pub along_error: f64,
-}
-
 #[derive(Clone, Debug, PartialEq)]
 struct Guidance {
     leader: NedRoute,
     own: NedRoute,
+    /// Legs begun since the route was set (each one a waypoint reached).
     leg: u64,
     s_ref: f64,
-    reached: u64,
 }
 
 /// The autopilot: guidance plus the PID loops.
@@ -265,7 +248,6 @@ pub struct Autopilot {
     guidance: Option<Guidance>,
     airspeed_cmd: Option<f64>,
     offset: FormationOffset,
-    last: Commands,
 }
 
 impl Autopilot {
@@ -290,7 +272,6 @@ impl Autopilot {
             guidance: None,
             airspeed_cmd: None,
             offset: FormationOffset::default(),
-            last: Commands::default(),
             gains,
         }
     }
@@ -340,7 +321,7 @@ impl Autopilot {
     pub fn set_route(&mut self, home: &GeoPoint, route: &[Waypoint]) -> Result<(), RouteError> {
         let leader = NedRoute::new(home, route)?;
         let own = leader.offset(self.offset.cross, self.offset.up);
-        self.guidance = Some(Guidance { leader, own, leg: 0, s_ref: 0.0, reached: 0 });
+        self.guidance = Some(Guidance { leader, own, leg: 0, s_ref: 0.0 });
         self.station.reset();
         Ok(())
     }
@@ -384,7 +365,7 @@ impl Autopilot {
 
     /// How many waypoints have been reached (leg switches) since the route was set.
     pub fn waypoints_reached(&self) -> u64 {
-        self.guidance.as_ref().map_or(0, |g| g.reached)
+        self.guidance.as_ref().map_or(0, |g| g.leg)
     }
 
     /// The formation reference: distance flown along the leader's circuit, m.
@@ -392,17 +373,12 @@ impl Autopilot {
         self.guidance.as_ref().map_or(0.0, |g| g.s_ref)
     }
 
-    /// The outer-loop commands of the last update.
-    pub fn commands(&self) -> Commands {
-        self.last
-    }
-
     fn airspeed_limit(&self, v: f64) -> f64 {
         v.clamp(self.gains.airspeed_min, self.gains.airspeed_max)
     }
 
-    /// Waypoint guidance: (course, altitude, airspeed, along-track error) commands.
-    fn guide(&mut self, nav: &Nav, dt: f64) -> (f64, f64, f64, f64) {
+    /// Waypoint guidance: (course, altitude, airspeed) commands.
+    fn guide(&mut self, nav: &Nav, dt: f64) -> (f64, f64, f64) {
         let gains = self.gains;
         let airspeed_cmd = self.airspeed_cmd;
         let offset = self.offset;
@@ -421,7 +397,6 @@ impl Autopilot {
             let passed = rel[0] * bis[0] + rel[1] * bis[1] >= 0.0;
             if rel[0].hypot(rel[1]) < gains.switch_radius || passed {
                 g.leg += 1;
-                g.reached += 1;
             } else {
                 break;
             }
@@ -449,7 +424,7 @@ impl Autopilot {
         if along_error.abs() > gains.station_band {
             self.station.integral = frozen;
         }
-        (course, altitude, nominal + correction, along_error)
+        (course, altitude, nominal + correction)
     }
 
     fn advance_reference(&mut self, dt: f64) {
@@ -463,14 +438,14 @@ impl Autopilot {
 
     /// One autopilot update: the actuator commands for the measurements `nav`.
     pub fn update(&mut self, nav: &Nav, dt: f64) -> Controls {
-        let (course, altitude, airspeed, along_error) = match self.mode {
+        let (course, altitude, airspeed) = match self.mode {
             Mode::Manual => {
                 self.advance_reference(dt);
                 return self.manual;
             }
             Mode::Hold => {
                 let (c, h, v) = *self.hold.get_or_insert((nav.chi, nav.alt_msl, nav.va));
-                (c, h, self.airspeed_cmd.unwrap_or(v), 0.0)
+                (c, h, self.airspeed_cmd.unwrap_or(v))
             }
             Mode::Waypoints => self.guide(nav, dt),
         };
@@ -497,7 +472,6 @@ impl Autopilot {
             .clamp(-gn.surface_max, gn.surface_max);
         let throttle = self.airspeed.update(airspeed - nav.va, t.throttle, dt);
 
-        self.last = Commands { course, altitude, airspeed, roll, pitch, along_error };
         Controls { elevator, aileron, rudder, throttle }
     }
 }
