@@ -6,6 +6,8 @@ use std::path::Path;
 use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
 
+use tutti_core::shm::os;
+
 const TUTTI: &str = env!("CARGO_BIN_EXE_tutti");
 
 struct Guard(Child, String);
@@ -15,18 +17,14 @@ impl Drop for Guard {
         let _ = self.0.kill();
         let _ = self.0.wait();
         // Remove what a failed test may have left.
-        for e in std::fs::read_dir("/dev/shm").into_iter().flatten().flatten() {
-            if e.file_name().to_string_lossy().starts_with(&format!("tutti.{}.", self.1)) {
-                let _ = std::fs::remove_file(e.path());
-            }
+        for name in os::list_shm(&format!("tutti.{}.", self.1)).unwrap_or_default() {
+            let _ = std::fs::remove_file(Path::new(os::SHM_DIR).join(name));
         }
     }
 }
 
 fn segments(ns: &str) -> usize {
-    std::fs::read_dir("/dev/shm")
-        .map(|d| d.flatten().filter(|e| e.file_name().to_string_lossy().starts_with(&format!("tutti.{ns}."))).count())
-        .unwrap_or(0)
+    os::list_shm(&format!("tutti.{ns}.")).map_or(0, |names| names.len())
 }
 
 fn interrupt_and_wait(g: &mut Guard) -> std::process::ExitStatus {

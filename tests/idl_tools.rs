@@ -7,10 +7,12 @@
 //!
 //! A missing tool is a failure, not a skip: set `TUTTI_SKIP_IDL_TOOLS=1` to skip these tests.
 
+mod common;
+
 use std::ffi::OsStr;
 use std::path::{Path, PathBuf};
-use std::process::{Command, Stdio};
-use std::time::{Duration, Instant};
+use std::process::Command;
+use std::time::Duration;
 
 /// Longest any one tool may run (fastddsgen starts a JVM).
 const TIMEOUT: Duration = Duration::from_secs(120);
@@ -80,32 +82,8 @@ fn require(name: &str, package: &str) -> PathBuf {
 /// not exit 0. Returns its stderr (warnings).
 fn run(mut cmd: Command, dir: &Path) -> String {
     let shown = format!("{cmd:?}");
-    let logs = tempfile::tempdir().expect("temporary directory");
-    let out_path = logs.path().join("stdout");
-    let err_path = logs.path().join("stderr");
-    let stdout = std::fs::File::create(&out_path).expect("stdout log");
-    let stderr = std::fs::File::create(&err_path).expect("stderr log");
-    let mut child = cmd
-        .current_dir(dir)
-        .stdin(Stdio::null())
-        .stdout(stdout)
-        .stderr(stderr)
-        .spawn()
-        .unwrap_or_else(|e| panic!("cannot start {shown}: {e}"));
-    let deadline = Instant::now() + TIMEOUT;
-    let status = loop {
-        match child.try_wait().unwrap_or_else(|e| panic!("cannot wait for {shown}: {e}")) {
-            Some(status) => break status,
-            None if Instant::now() >= deadline => {
-                let _ = child.kill();
-                let _ = child.wait();
-                panic!("{shown} did not finish within {TIMEOUT:?}; killed");
-            }
-            None => std::thread::sleep(Duration::from_millis(20)),
-        }
-    };
-    let out = std::fs::read_to_string(&out_path).unwrap_or_default();
-    let err = std::fs::read_to_string(&err_path).unwrap_or_default();
+    cmd.current_dir(dir);
+    let (status, out, err) = common::run_with_timeout(cmd, TIMEOUT);
     assert!(status.success(), "{shown} failed ({status})\n--- stdout\n{out}\n--- stderr\n{err}");
     err
 }

@@ -174,10 +174,6 @@ fn the_short_uav_demo_reproduces_figures_5_and_6() {
     }
 
     // Nothing left behind: no segment of the run's namespace.
-    let left: Vec<String> = std::fs::read_dir("/dev/shm")
-        .unwrap()
-        .filter_map(|e| e.ok().map(|e| e.file_name().to_string_lossy().into_owned()))
-        .filter(|n| n.starts_with(&format!("tutti.{ns}.")))
-        .collect();
+    let left = tutti_core::shm::os::list_shm(&format!("tutti.{ns}.")).unwrap();
     assert!(left.is_empty(), "segments left behind: {left:?}");
 }

@@ -3,7 +3,7 @@
 
 use std::ffi::OsStr;
 use std::io::Read;
-use std::process::{Command, Stdio};
+use std::process::{Command, ExitStatus, Stdio};
 use std::time::{Duration, Instant};
 
 /// Longest a single `tutti` command may take in a test.
@@ -16,40 +16,42 @@ where
     I: IntoIterator<Item = S>,
     S: AsRef<OsStr>,
 {
-    let args: Vec<_> = args.into_iter().map(|a| a.as_ref().to_os_string()).collect();
-    let mut child = Command::new(env!("CARGO_BIN_EXE_tutti"))
-        .args(&args)
-        .current_dir(env!("CARGO_MANIFEST_DIR"))
+    let mut cmd = Command::new(env!("CARGO_BIN_EXE_tutti"));
+    cmd.args(args).current_dir(env!("CARGO_MANIFEST_DIR"));
+    let (status, out, err) = run_with_timeout(cmd, TIMEOUT);
+    (status.code().unwrap_or(-1), out, err)
+}
+
+/// Runs `cmd` (no stdin) and collects its stdout and stderr; a command that outlives
+/// `limit` is killed and fails the test.
+pub fn run_with_timeout(mut cmd: Command, limit: Duration) -> (ExitStatus, String, String) {
+    let shown = format!("{cmd:?}");
+    let mut child = cmd
         .stdin(Stdio::null())
         .stdout(Stdio::piped())
         .stderr(Stdio::piped())
         .spawn()
-        .expect("spawn tutti");
-    let mut out = child.stdout.take().expect("stdout");
-    let mut err = child.stderr.take().expect("stderr");
-    let out = std::thread::spawn(move || {
-        let mut s = String::new();
-        let _ = out.read_to_string(&mut s);
-        s
-    });
-    let err = std::thread::spawn(move || {
-        let mut s = String::new();
-        let _ = err.read_to_string(&mut s);
-        s
-    });
+        .unwrap_or_else(|e| panic!("cannot start {shown}: {e}"));
+    let read_all = |mut r: Box<dyn Read + Send>| {
+        std::thread::spawn(move || {
+            let mut s = String::new();
+            let _ = r.read_to_string(&mut s);
+            s
+        })
+    };
+    let out = read_all(Box::new(child.stdout.take().expect("stdout")));
+    let err = read_all(Box::new(child.stderr.take().expect("stderr")));
     let start = Instant::now();
     let status = loop {
-        if let Some(status) = child.try_wait().expect("wait for tutti") {
+        if let Some(status) = child.try_wait().unwrap_or_else(|e| panic!("cannot wait for {shown}: {e}")) {
             break status;
         }
-        if start.elapsed() > TIMEOUT {
+        if start.elapsed() > limit {
             let _ = child.kill();
             let _ = child.wait();
-            panic!("tutti {args:?} did not finish within {TIMEOUT:?}");
+            panic!("{shown} did not finish within {limit:?}; killed");
         }
         std::thread::sleep(Duration::from_millis(5));
     };
-    let out = out.join().expect("stdout reader");
-    let err = err.join().expect("stderr reader");
-    (status.code().unwrap_or(-1), out, err)
+    (status, out.join().expect("stdout reader"), err.join().expect("stderr reader"))
 }

@@ -2,24 +2,20 @@
 
 use std::time::Duration;
 
-use tutti_core::ddf::{self, Model};
+mod common;
+
+use tutti_core::ddf::Model;
+use tutti_core::shm::segment::segment_path;
 use tutti_core::shm::{ConnectOptions, Framework, FrameworkOptions, Participant, ShmError, WaitMode};
 
 fn model(sync: bool, mpa: bool, states: bool) -> Model {
-    let yn = |b| if b { "yes" } else { "no" };
-    ddf::parse_str(
-        &format!(
-            r#"<orchestra><domain name="d"><synchronous>{}</synchronous><multiplePublishAllowed>{}</multiplePublishAllowed><states>{}</states>
-            <set name="PUBLISH"><item name="x"><type>float64</type></item></set>
-            <set name="SUBSCRIBE"><item name="a"><type>float64</type><default>2.5</default></item><item name="b"><type>int32</type></item></set>
-            </domain></orchestra>"#,
-            yn(sync),
-            yn(mpa),
-            yn(states)
-        ),
-        "test.ddf",
+    common::domain(
+        sync,
+        mpa,
+        states,
+        r#"<item name="x"><type>float64</type></item>"#,
+        r#"<item name="a"><type>float64</type><default>2.5</default></item><item name="b"><type>int32</type></item>"#,
     )
-    .unwrap()
 }
 
 fn ns(tag: &str) -> String {
@@ -140,11 +136,11 @@ fn wait_modes_all_work() {
 fn segments_belong_to_the_creating_user_only_and_vanish_with_the_framework() {
     use std::os::unix::fs::PermissionsExt;
     let fw = Framework::create(&model(false, true, false), &fopts("mode")).unwrap();
-    let path = format!("/dev/shm/tutti.{}.d", ns("mode"));
+    let path = segment_path(&ns("mode"), "d");
     let mode = std::fs::metadata(&path).unwrap().permissions().mode() & 0o777;
-    assert_eq!(mode, 0o600, "{path} has mode {mode:o}");
+    assert_eq!(mode, 0o600, "{} has mode {mode:o}", path.display());
     drop(fw);
-    assert!(!std::path::Path::new(&path).exists());
+    assert!(!path.exists());
 }
 
 #[test]

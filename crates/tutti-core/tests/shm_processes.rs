@@ -5,44 +5,32 @@
 //! `child_main` then plays the role it names and every other test is filtered out. Every
 //! child is killed when its guard drops, and every wait has a deadline.
 
+mod common;
+
 use std::io::{BufRead, BufReader};
 use std::process::{Child, Command, Stdio};
+use std::sync::mpsc::Receiver;
 use std::time::{Duration, Instant};
 
-use tutti_core::ddf::{self, Model};
+use tutti_core::ddf::Model;
+use tutti_core::shm::segment::segment_path;
 use tutti_core::shm::{ConnectOptions, Framework, FrameworkOptions, Participant, ShmError, WaitMode};
 
 const WORDS: usize = 128; // 1 KiB PUBLISH set: 127 copies of a value and a checksum
 
+/// The checksummed PUBLISH set (and the echo's SUBSCRIBE set).
+fn words_item() -> String {
+    format!(r#"<item name="w"><type>unsigned int64</type><length>{WORDS}</length></item>"#)
+}
+
 fn model(sync: bool, mpa: bool, states: bool) -> Model {
-    let yn = |b| if b { "yes" } else { "no" };
-    ddf::parse_str(
-        &format!(
-            r#"<orchestra><domain name="d"><synchronous>{}</synchronous><multiplePublishAllowed>{}</multiplePublishAllowed><states>{}</states>
-            <set name="PUBLISH"><item name="w"><type>unsigned int64</type><length>{WORDS}</length></item></set>
-            <set name="SUBSCRIBE"><item name="a"><type>float64</type><default>-1</default></item><item name="b"><type>int64</type><default>-1</default></item></set>
-            </domain></orchestra>"#,
-            yn(sync),
-            yn(mpa),
-            yn(states)
-        ),
-        "test.ddf",
-    )
-    .unwrap()
+    let subscribe = r#"<item name="a"><type>float64</type><default>-1</default></item><item name="b"><type>int64</type><default>-1</default></item>"#;
+    common::domain(sync, mpa, states, &words_item(), subscribe)
 }
 
 /// A domain whose SUBSCRIBE set has the PUBLISH set's layout, for a participant that echoes.
 fn echo_model() -> Model {
-    ddf::parse_str(
-        &format!(
-            r#"<orchestra><domain name="d"><synchronous>no</synchronous><multiplePublishAllowed>yes</multiplePublishAllowed><states>no</states>
-            <set name="PUBLISH"><item name="w"><type>unsigned int64</type><length>{WORDS}</length></item></set>
-            <set name="SUBSCRIBE"><item name="w"><type>unsigned int64</type><length>{WORDS}</length></item></set>
-            </domain></orchestra>"#
-        ),
-        "echo.ddf",
-    )
-    .unwrap()
+    common::domain(false, true, false, &words_item(), &words_item())
 }
 
 fn payload(v: u64) -> Vec<u8> {
@@ -109,17 +97,23 @@ impl Guard {
 
     /// Waits for the child's `RESULT …` line (with a deadline) and returns it.
     fn result(&mut self, deadline: Duration) -> String {
+        self.results().recv_timeout(deadline).expect("child gave no result in time")
+    }
+
+    /// The child's `RESULT …` lines, as they come (read by a thread of their own).
+    fn results(&mut self) -> Receiver<String> {
         let out = self.0.stdout.take().unwrap();
         let (tx, rx) = std::sync::mpsc::channel();
         std::thread::spawn(move || {
             for line in BufReader::new(out).lines().map_while(Result::ok) {
                 if let Some((_, r)) = line.split_once("RESULT ") {
-                    let _ = tx.send(r.to_string());
-                    return;
+                    if tx.send(r.to_string()).is_err() {
+                        return;
+                    }
                 }
             }
         });
-        rx.recv_timeout(deadline).expect("child gave no result in time")
+        rx
     }
 
     fn kill9(&mut self) {
@@ -263,15 +257,7 @@ fn a_million_snapshots_under_a_concurrent_writer_are_never_torn() {
     let mut fw = Framework::create(&model(false, true, false), &fopts("torn", Duration::from_secs(5))).unwrap();
     let mut child = Guard::spawn("snapshots:1000000", &ns("torn"));
     let host = &mut fw.domains[0];
-    let (tx, rx) = std::sync::mpsc::channel();
-    let out = child.0.stdout.take().unwrap();
-    std::thread::spawn(move || {
-        for line in BufReader::new(out).lines().map_while(Result::ok) {
-            if let Some((_, r)) = line.split_once("RESULT ") {
-                let _ = tx.send(r.to_string());
-            }
-        }
-    });
+    let rx = child.results();
     let deadline = Instant::now() + Duration::from_secs(120);
     let mut v = 0u64;
     let result = loop {
@@ -474,7 +460,7 @@ fn a_stale_segment_of_a_dead_framework_is_reclaimed() {
     child.kill9();
     let fw = Framework::create(&model(false, true, false), &fopts("stale", Duration::from_secs(1))).unwrap();
     drop(fw);
-    assert!(!std::path::Path::new(&format!("/dev/shm/tutti.{}.d", ns("stale"))).exists());
+    assert!(!segment_path(&ns("stale"), "d").exists());
 }
 
 #[test]
@@ -505,7 +491,7 @@ fn a_framework_killed_outright_is_reported_to_its_participants() {
 fn a_segment_with_garbage_in_its_header_is_refused_cleanly() {
     use std::io::{Seek, SeekFrom, Write};
     let mut rng = 0x1234_5678_9abc_def1u64 ^ u64::from(std::process::id());
-    let path = format!("/dev/shm/tutti.{}.d", ns("garbage"));
+    let path = segment_path(&ns("garbage"), "d");
     for round in 0..200 {
         let mut fw =
             Framework::create(&model(round % 2 == 0, true, false), &fopts("garbage", Duration::from_millis(50)))

@@ -81,6 +81,11 @@ pub fn segment_name(ns: &str, domain: &str) -> String {
     format!("tutti.{ns}.{domain}")
 }
 
+/// Where the segment of `domain` in namespace `ns` lives.
+pub fn segment_path(ns: &str, domain: &str) -> std::path::PathBuf {
+    std::path::Path::new(os::SHM_DIR).join(segment_name(ns, domain))
+}
+
 /// How a connection or the framework waits for the other side.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
 pub enum WaitMode {

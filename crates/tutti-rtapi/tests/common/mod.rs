@@ -195,5 +195,5 @@ impl Drop for ShmFile {
 
 /// Path of the segment of `domain` in namespace `ns`.
 pub fn shm_path(ns: &str, domain: &str) -> PathBuf {
-    PathBuf::from(format!("/dev/shm/tutti.{ns}.{domain}"))
+    tutti_core::shm::segment::segment_path(ns, domain)
 }
