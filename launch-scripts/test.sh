@@ -6,21 +6,12 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 
 step() { printf '\n== %s\n' "$*"; }
+. launch-scripts/lib.sh
 
 # --- Debian packages: DDS peers and tools for the interop tests, C toolchain, valgrind, the
 # font the UAV demo draws its figures with.
-packages=(cyclonedds-tools cyclonedds-dev fastddsgen libfastrtps-dev fastdds-tools valgrind gcc g++ make python3-venv fonts-dejavu-core)
-missing=()
-for p in "${packages[@]}"; do
-    dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
-done
-if [ ${#missing[@]} -gt 0 ]; then
-    step "installing Debian packages: ${missing[*]}"
-    sudo=""
-    [ "$(id -u)" -eq 0 ] || sudo="sudo"
-    $sudo apt-get update -qq
-    DEBIAN_FRONTEND=noninteractive $sudo apt-get install -y -qq "${missing[@]}" >/dev/null
-fi
+ensure_debian_packages cyclonedds-tools cyclonedds-dev fastddsgen libfastrtps-dev fastdds-tools valgrind gcc g++ make \
+    python3-venv fonts-dejavu-core
 
 # --- Python: a local venv with the Cyclone DDS binding (the stand-in for rclpy nodes).
 if ! .venv/bin/python -c 'import cyclonedds' 2>/dev/null; then

@@ -13,20 +13,11 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 
 step() { printf '\n== %s\n' "$*" >&2; }
+. launch-scripts/lib.sh
 
 # --- Debian packages: C compiler, the font plotters renders text with, Python 3.
-packages=(gcc libc6-dev fonts-dejavu-core python3)
-missing=()
-for p in "${packages[@]}"; do
-    dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
-done
-if [ ${#missing[@]} -gt 0 ] && command -v apt-get >/dev/null; then
-    step "installing Debian packages: ${missing[*]}"
-    sudo=""
-    [ "$(id -u)" -eq 0 ] || sudo="sudo"
-    $sudo apt-get update -qq
-    DEBIAN_FRONTEND=noninteractive $sudo apt-get install -y -qq "${missing[@]}" >/dev/null
-fi
+# Without apt-get the demo goes on: what is missing fails later with its own message.
+ensure_debian_packages gcc libc6-dev fonts-dejavu-core python3 || true
 
 # --- Python: the monitoring script needs only the standard library and python/tutti_rtapi.py.
 if [ -z "${TUTTI_PYTHON:-}" ]; then

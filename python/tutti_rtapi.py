@@ -230,12 +230,7 @@ class Connection:
         """Reads a PUBLISH item: a number (or bool), or a list for arrays."""
         fmt, length, size = self._item(item)
         buf = ctypes.create_string_buffer(size)
-        self._select()
-        try:
-            _call("RTSubscribe", _b(item), buf, size)
-        except RTAPIError as e:
-            self._check_closed(e)
-            raise
+        self._exchange("RTSubscribe", _b(item), buf, size)
         values = struct.unpack(f"={length}{fmt}", buf.raw)
         return values[0] if length == 1 else list(values)
 
@@ -246,37 +241,30 @@ class Connection:
         if len(values) != length:
             raise ValueError(f"item '{item}' has {length} elements, got {len(values)}")
         data = struct.pack(f"={length}{fmt}", *values)
+        self._exchange("RTPublish", _b(item), data, size)
+
+    def _exchange(self, name, *args):
+        """Calls `name` on this connection; an error that closed it marks it closed."""
         self._select()
         try:
-            _call("RTPublish", _b(item), data, size)
+            _call(name, *args)
         except RTAPIError as e:
-            self._check_closed(e)
-            raise
-
-    def _check_closed(self, e):
-        if e.code in (1, 2, 19):
-            self.connected = False
-            self._status = None
-
-    def _lock(self, name):
-        self._select()
-        try:
-            _call(name)
-        except RTAPIError as e:
-            self._check_closed(e)
+            if e.code in (1, 2, 19):
+                self.connected = False
+                self._status = None
             raise
 
     def subscribe_lock(self):
-        self._lock("RTSubscribeLock")
+        self._exchange("RTSubscribeLock")
 
     def subscribe_unlock(self):
-        self._lock("RTSubscribeUnlock")
+        self._exchange("RTSubscribeUnlock")
 
     def publish_lock(self):
-        self._lock("RTPublishLock")
+        self._exchange("RTPublishLock")
 
     def publish_unlock(self):
-        self._lock("RTPublishUnlock")
+        self._exchange("RTPublishUnlock")
 
     @contextlib.contextmanager
     def reading(self):
@@ -299,7 +287,7 @@ class Connection:
                 self.publish_unlock()
 
     def wait_ready_to_go(self):
-        self._lock("RTWaitReadyToGo")
+        self._exchange("RTWaitReadyToGo")
 
     @property
     def status(self):
