@@ -84,11 +84,5 @@ fn a_component_on_the_mirror_side_takes_part_in_lock_step() {
     drop(host);
     let steps = component.join().unwrap();
     assert!(first.is_some(), "no step was answered ({steps} commits)\n{}\n{}", gw_home.dump(), gw_away.dump());
-    let after: Vec<_> = seen.iter().filter(|(k, _)| *k > first.unwrap() + 5).collect();
-    let in_step = after.iter().filter(|(k, b)| answered(*k, b)).count();
-    assert!(
-        !after.is_empty() && in_step * 10 >= after.len() * 9,
-        "{in_step} of {} steps answered in lock-step",
-        after.len()
-    );
+    assert_lock_step(&seen, first.unwrap(), answered);
 }

@@ -205,12 +205,24 @@ pub fn model() -> Model {
     tutti_core::ddf::load(root().join(DDF)).unwrap()
 }
 
-/// A framework hosting `model` in namespace `ns`, stepping every `period` in a thread;
-/// `publish(step)` gives each step's PUBLISH set of domain `domain`; every step's SUBSCRIBE
-/// set is kept as (step, bytes).
 /// Each step's SUBSCRIBE set, as (step, bytes).
 pub type Seen = Arc<Mutex<Vec<(u64, Vec<u8>)>>>;
 
+/// Asserts that at least 9 in 10 of the steps in `seen` after `first + 5` were answered in
+/// lock-step, as `answered` judges.
+pub fn assert_lock_step(seen: &[(u64, Vec<u8>)], first: u64, answered: impl Fn(u64, &[u8]) -> bool) {
+    let after: Vec<_> = seen.iter().filter(|(k, _)| *k > first + 5).collect();
+    let in_step = after.iter().filter(|(k, b)| answered(*k, b)).count();
+    assert!(
+        !after.is_empty() && in_step * 10 >= after.len() * 9,
+        "{in_step} of {} steps answered in lock-step",
+        after.len()
+    );
+}
+
+/// A framework hosting `model` in namespace `ns`, stepping every `period` in a thread;
+/// `publish(step)` gives each step's PUBLISH set of domain `domain`; every step's SUBSCRIBE
+/// set is kept as (step, bytes).
 pub struct Host {
     stop: Arc<AtomicBool>,
     pub seen: Seen,

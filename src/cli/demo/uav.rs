@@ -40,21 +40,11 @@ const ROOT: &str = env!("CARGO_MANIFEST_DIR");
     after_help = "Examples:\n  tutti demo uav\n  tutti demo uav --out /tmp/uav --speed 8 --scenario short\n  tutti demo uav-report --out out/uav      # re-check and re-draw a finished run\n\nEnvironment:\n  TUTTI_NAMESPACE   namespace of the segments (default: demo-PID)\n  TUTTI_PYTHON      Python 3 for the monitoring script (default: python3)\n  TUTTI_RTAPI_LIB   librtapi.so to use (default: next to this executable)\n  TUTTI_FONT        TrueType font for the figures (default: DejaVu Sans)\n  CC                C compiler for the C component (default: gcc)"
 )]
 pub struct UavArgs {
-    /// Directory of the results (CSV files, figure5.png, figure6.png, summary.txt).
-    #[arg(long, default_value = "out/uav")]
-    out: PathBuf,
+    #[command(flatten)]
+    run: RunArgs,
     /// Simulated seconds per wall-clock second.
     #[arg(long, default_value_t = 4.0)]
     speed: f64,
-    /// The script: paper (120 s, the paper's times) or short (40 s).
-    #[arg(long, default_value = "paper", value_parser = ["paper", "short"])]
-    scenario: String,
-    /// Simulated length in seconds (default: the scenario's); events after it are dropped.
-    #[arg(long, value_parser = parse_seconds)]
-    duration: Option<f64>,
-    /// Simulated time of one framework step.
-    #[arg(long, default_value = "50ms", value_parser = parse_duration)]
-    step: Duration,
     /// Longest wall-clock wait of a step for the participants.
     #[arg(long, default_value = "1s", value_parser = parse_duration)]
     timeout: Duration,
@@ -74,15 +64,35 @@ pub struct UavArgs {
 /// `tutti demo uav-report`: the checks and figures of a finished run, again.
 #[derive(Debug, clap::Args)]
 pub struct ReportArgs {
-    /// The run's directory.
+    #[command(flatten)]
+    run: RunArgs,
+}
+
+/// What a run is (`uav-report` must be given the values of the run it re-checks).
+#[derive(Debug, clap::Args)]
+struct RunArgs {
+    /// Directory of the results (CSV files, figure5.png, figure6.png, summary.txt).
     #[arg(long, default_value = "out/uav")]
     out: PathBuf,
+    /// The script: paper (120 s, the paper's times) or short (40 s).
     #[arg(long, default_value = "paper", value_parser = ["paper", "short"])]
     scenario: String,
+    /// Simulated length in seconds (default: the scenario's); events after it are dropped.
     #[arg(long, value_parser = parse_seconds)]
     duration: Option<f64>,
+    /// Simulated time of one framework step.
     #[arg(long, default_value = "50ms", value_parser = parse_duration)]
     step: Duration,
+}
+
+impl RunArgs {
+    fn scenario(&self) -> Scenario {
+        let s = Scenario::by_name(&self.scenario).unwrap_or_else(Scenario::paper);
+        match self.duration {
+            Some(d) => s.with_duration(d),
+            None => s,
+        }
+    }
 }
 
 /// Seconds as a plain number (`40`, `12.5`) or a duration (`40s`, `2min`).
@@ -91,14 +101,6 @@ pub fn parse_seconds(s: &str) -> Result<f64, String> {
         Ok(v) if v > 0.0 && v.is_finite() => Ok(v),
         Ok(_) => Err(format!("'{s}' must be a positive number of seconds")),
         Err(_) => parse_duration(s).map(|d| d.as_secs_f64()),
-    }
-}
-
-fn scenario_of(name: &str, duration: Option<f64>) -> Scenario {
-    let s = Scenario::by_name(name).unwrap_or_else(Scenario::paper);
-    match duration {
-        Some(d) => s.with_duration(d),
-        None => s,
     }
 }
 
@@ -153,12 +155,13 @@ pub fn run(args: UavArgs) -> CliResult {
     if !(args.speed > 0.0 && args.speed.is_finite()) {
         return Err(Failure::invalid(anyhow::anyhow!("--speed must be a positive number")));
     }
-    if args.step.is_zero() {
+    if args.run.step.is_zero() {
         return Err(Failure::invalid(anyhow::anyhow!("--step must be longer than 0")));
     }
-    let scenario = scenario_of(&args.scenario, args.duration);
-    std::fs::create_dir_all(&args.out).with_context(|| format!("creating {}", args.out.display()))?;
-    let out = args.out.canonicalize().unwrap_or(args.out.clone());
+    let scenario = args.run.scenario();
+    let dir = &args.run.out;
+    std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+    let out = dir.canonicalize().unwrap_or(dir.clone());
     let interrupted = Arc::new(AtomicBool::new(false));
     {
         let flag = interrupted.clone();
@@ -172,13 +175,12 @@ pub fn run(args: UavArgs) -> CliResult {
     }
     ran?;
     eprintln!("demo: simulation done in {:.1} s of wall time", started.elapsed().as_secs_f64());
-    report(&out, &scenario, args.step.as_secs_f64())
+    report(&out, &scenario, args.run.step.as_secs_f64())
 }
 
 /// `tutti demo uav-report`.
 pub fn run_report(args: ReportArgs) -> CliResult {
-    let scenario = scenario_of(&args.scenario, args.duration);
-    report(&args.out, &scenario, args.step.as_secs_f64())
+    report(&args.run.out, &args.run.scenario(), args.run.step.as_secs_f64())
 }
 
 /// Checks and figures of the run in `out`; prints the summary (also to summary.txt).
@@ -237,8 +239,8 @@ fn simulate(args: &UavArgs, scenario: &Scenario, out: &Path, interrupted: &Atomi
         None => build_c_reader(out, &lib)?,
     };
     let python = std::env::var("TUTTI_PYTHON").unwrap_or_else(|_| "python3".into());
-    let step = args.step.as_secs_f64();
-    let period = args.step.div_f64(args.speed);
+    let step = args.run.step.as_secs_f64();
+    let period = args.run.step.div_f64(args.speed);
     eprintln!(
         "demo: {} scenario, {:.0} s simulated at {}x (step {:.0} ms simulated, {:.1} ms wall), namespace {namespace}, results in {}",
         scenario.name,
