@@ -10,7 +10,7 @@ use super::show::ProfileArg;
 use anyhow::Context;
 use clap::ValueEnum;
 use tutti_core::shm::WaitMode;
-use tutti_gateway::{GatewayError, GatewayOptions, TypeMode};
+use tutti_gateway::{EngineKind, GatewayError, GatewayOptions, TypeMode};
 
 use super::host::{parse_duration, parse_wait};
 use super::{load_ddf, CliResult, Failure};
@@ -21,7 +21,7 @@ use super::{load_ddf, CliResult, Failure};
 /// DDS, so components on another machine connect through shared memory.
 #[derive(Debug, clap::Args)]
 #[command(
-    after_help = "Examples:\n  tutti gateway ddf/multiuav.ddf\n  ROS_DOMAIN_ID=7 tutti gateway ddf/multiuav.ddf --ros2-types per-item\n  tutti gateway ddf/product-sample.ddf --qos-profile dds --strength 10\n  TUTTI_NAMESPACE=site2 tutti gateway ddf/multiuav.ddf --mirror --interface 192.0.2.2\n\nEnvironment:\n  ROS_DOMAIN_ID            DDS domain when --ros-domain-id is absent (default 0)\n  TUTTI_NAMESPACE          namespace of the shared-memory segments\n  TUTTI_GATEWAY_INTERFACE  default for --interface (comma-separated addresses)\n  RUST_LOG                 log filter (default: info, DDS internals off)\n\nStop with Ctrl-C. Exit status: 0 stopped cleanly, 2 invalid input, 1 runtime failure."
+    after_help = "Examples:\n  tutti gateway ddf/multiuav.ddf\n  ROS_DOMAIN_ID=7 tutti gateway ddf/multiuav.ddf --ros2-types per-item\n  tutti gateway ddf/product-sample.ddf --qos-profile dds --strength 10\n  TUTTI_NAMESPACE=site2 tutti gateway ddf/multiuav.ddf --mirror --interface 192.0.2.2\n  tutti gateway ddf/multiuav.ddf --mirror --peer 192.0.2.1   # discovery without multicast\n  tutti gateway ddf/multiuav.ddf --dds rustdds\n\nEnvironment:\n  ROS_DOMAIN_ID            DDS domain when --ros-domain-id is absent (default 0)\n  TUTTI_DDS                default for --dds\n  CYCLONEDDS_URI           Cyclone DDS configuration (cyclone engine)\n  TUTTI_NAMESPACE          namespace of the shared-memory segments\n  TUTTI_GATEWAY_INTERFACE  default for --interface (comma-separated addresses)\n  RUST_LOG                 log filter (default: info, DDS internals off)\n\nStop with Ctrl-C. Exit status: 0 stopped cleanly, 2 invalid input, 1 runtime failure."
 )]
 pub struct Args {
     /// The DDF whose domains to bridge.
@@ -50,6 +50,13 @@ pub struct Args {
     /// Address of a network interface DDS may use (repeatable; default: all interfaces).
     #[arg(long = "interface", value_name = "ADDR")]
     interfaces: Vec<IpAddr>,
+    /// DDS engine: cyclone (Cyclone DDS, the default) or rustdds (pure Rust).
+    #[arg(long = "dds", env = "TUTTI_DDS", default_value = "cyclone", value_name = "ENGINE")]
+    engine: EngineKind,
+    /// Unicast discovery peer (address or host name; repeatable), for networks without
+    /// multicast, e.g. the other machine of a --mirror pair (cyclone engine).
+    #[arg(long = "peer", value_name = "ADDR")]
+    peers: Vec<String>,
     /// Longest shared-memory wait; with --mirror, the framework's step timeout.
     #[arg(long, default_value = "1s", value_parser = parse_duration)]
     timeout: Duration,
@@ -130,6 +137,8 @@ pub fn run(args: Args) -> CliResult {
     opts.mirror = args.mirror;
     opts.node_name = args.node_name;
     opts.interfaces = interfaces(args.interfaces)?;
+    opts.engine = args.engine;
+    opts.peers = args.peers;
     opts.timeout = args.timeout;
     opts.wait = args.wait;
     opts.poll = args.poll;

@@ -8,6 +8,8 @@ use serde::Serialize;
 use tutti_core::ddf::{Domain, Leaf, Model, Role};
 use tutti_core::mapping::{self, Endpoint, ItemTopic, Profile, Qos, SetNames};
 
+use tutti_gateway::EngineKind;
+
 use super::{load_ddf, CliResult};
 
 /// Show what a DDF describes: domains, flags, sets, items (paths, types, lengths, offsets,
@@ -26,6 +28,9 @@ pub struct Args {
     /// QoS profile to show (as `tutti gateway --qos-profile`).
     #[arg(long, value_enum, default_value_t = ProfileArg::Ros2)]
     qos_profile: ProfileArg,
+    /// DDS engine to show (as `tutti gateway --dds`).
+    #[arg(long = "dds", env = "TUTTI_DDS", default_value = "cyclone", value_name = "ENGINE")]
+    engine: EngineKind,
 }
 
 #[derive(Debug, Clone, Copy, clap::ValueEnum)]
@@ -50,6 +55,8 @@ struct ShowJson<'a> {
     source: &'a str,
     package: String,
     qos_profile: Profile,
+    /// The gateway's DDS engine: "cyclone" or "rustdds".
+    dds_engine: &'static str,
     domains: Vec<DomainJson<'a>>,
 }
 
@@ -61,7 +68,8 @@ struct DomainJson<'a> {
     states: bool,
     connection: Option<&'a tutti_core::ddf::Connection>,
     layout_hash: String,
-    /// How writer exclusivity is enforced: null, "gateway" or "gateway+dds".
+    /// How writer exclusivity is enforced: null, "gateway" (the core's first-writer rule,
+    /// over DDS too) or "gateway+dds" (also EXCLUSIVE ownership matched on the wire).
     exclusive_writer: Option<&'static str>,
     sets: Vec<SetJson<'a>>,
 }
@@ -81,7 +89,7 @@ struct SetJson<'a> {
 pub fn run(args: Args) -> CliResult {
     let model = load_ddf(&args.file)?;
     let profile = Profile::from(args.qos_profile);
-    let view = build(&model, &args.file, profile);
+    let view = build(&model, &args.file, profile, args.engine);
     if args.json {
         println!("{}", serde_json::to_string_pretty(&view).map_err(anyhow::Error::from)?);
     } else {
@@ -90,10 +98,17 @@ pub fn run(args: Args) -> CliResult {
     Ok(())
 }
 
-fn build<'a>(model: &'a Model, path: &std::path::Path, profile: Profile) -> ShowJson<'a> {
+fn build<'a>(model: &'a Model, path: &std::path::Path, profile: Profile, engine: EngineKind) -> ShowJson<'a> {
     let package = mapping::package_name(path);
     let domains = model.domains.iter().map(|d| domain_json(d, &package, profile)).collect();
-    ShowJson { schema: "tutti-show/1", source: &model.source, package, qos_profile: profile, domains }
+    ShowJson {
+        schema: "tutti-show/1",
+        source: &model.source,
+        package,
+        qos_profile: profile,
+        dds_engine: engine.name(),
+        domains,
+    }
 }
 
 fn domain_json<'a>(d: &'a Domain, package: &str, profile: Profile) -> DomainJson<'a> {
@@ -162,11 +177,12 @@ fn text(v: &ShowJson<'_>) -> String {
     let mut s = String::new();
     let _ = writeln!(
         s,
-        "{}: {} domain(s), ROS 2 package {}, QoS profile {:?}",
+        "{}: {} domain(s), ROS 2 package {}, QoS profile {:?}, DDS engine {}",
         v.source,
         v.domains.len(),
         v.package,
-        v.qos_profile
+        v.qos_profile,
+        v.dds_engine
     );
     for d in &v.domains {
         let _ = writeln!(

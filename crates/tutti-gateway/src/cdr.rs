@@ -100,6 +100,155 @@ impl SetCodec {
     }
 }
 
+impl SetCodec {
+    /// Reads a serialized sample (encapsulation header first) into a [`TypedSample`]:
+    /// plain CDR (XCDR1) in either byte order; a short body or another representation is
+    /// refused with a message.
+    pub fn decode(&self, raw: &[u8]) -> Result<TypedSample, String> {
+        let (le, body) = split_header(raw)?;
+        let mut data = vec![0u8; self.shm_size];
+        self.decode_into(le, body, &mut data)?;
+        let step = read_u64(body, 0, le);
+        let sim_time = f64::from_bits(read_u64(body, 8, le));
+        Ok(TypedSample { step, sim_time, data })
+    }
+
+    /// Writes the items of CDR body `body` into `shm` (the set in shared-memory layout).
+    pub fn decode_into(&self, le: bool, body: &[u8], shm: &mut [u8]) -> Result<(), String> {
+        if body.len() < self.cdr_size {
+            return Err(format!("a typed sample of {} bytes, expected {}", body.len(), self.cdr_size));
+        }
+        if shm.len() < self.shm_size {
+            return Err(format!("a set of {} bytes, expected {}", shm.len(), self.shm_size));
+        }
+        for f in &self.fields {
+            let size = f.ty.size() as usize;
+            let n = size * f.count;
+            let dst = &mut shm[f.shm..f.shm + n];
+            dst.copy_from_slice(&body[f.cdr..f.cdr + n]);
+            if le != cfg!(target_endian = "little") && size > 1 {
+                dst.chunks_exact_mut(size).for_each(<[u8]>::reverse);
+            }
+        }
+        Ok(())
+    }
+}
+
+/// The representation identifiers of plain CDR (XCDR1), big- and little-endian.
+const CDR_BE: [u8; 2] = [0, 0];
+const CDR_LE: [u8; 2] = [0, 1];
+
+/// The encapsulation header of little-endian plain CDR, as written by every engine.
+pub const HEADER_LE: [u8; 4] = [0, 1, 0, 0];
+
+/// Splits a serialized sample into (little-endian?, body).
+pub fn split_header(raw: &[u8]) -> Result<(bool, &[u8]), String> {
+    let Some((id, body)) = raw.split_first_chunk::<4>() else {
+        return Err(format!("a sample of {} bytes has no encapsulation header", raw.len()));
+    };
+    match [id[0], id[1]] {
+        CDR_LE => Ok((true, body)),
+        CDR_BE => Ok((false, body)),
+        other => Err(format!("unsupported data representation {:02x}{:02x} (expected plain CDR)", other[0], other[1])),
+    }
+}
+
+fn read_u64(b: &[u8], at: usize, le: bool) -> u64 {
+    let a: [u8; 8] = b[at..at + 8].try_into().unwrap_or_default();
+    if le {
+        u64::from_le_bytes(a)
+    } else {
+        u64::from_be_bytes(a)
+    }
+}
+
+/// A cursor over a CDR body that refuses to read past its end.
+struct Reader<'a> {
+    b: &'a [u8],
+    pos: usize,
+    le: bool,
+}
+
+impl<'a> Reader<'a> {
+    fn take(&mut self, n: usize, align: usize) -> Result<&'a [u8], String> {
+        let at = self.pos.next_multiple_of(align);
+        let s = self.b.get(at..at + n).ok_or_else(|| format!("truncated sample ({} bytes)", self.b.len()))?;
+        self.pos = at + n;
+        Ok(s)
+    }
+
+    fn u32(&mut self) -> Result<u32, String> {
+        let a: [u8; 4] = self.take(4, 4)?.try_into().unwrap_or_default();
+        Ok(if self.le { u32::from_le_bytes(a) } else { u32::from_be_bytes(a) })
+    }
+
+    fn f64(&mut self) -> Result<f64, String> {
+        let a: [u8; 8] = self.take(8, 8)?.try_into().unwrap_or_default();
+        Ok(f64::from_bits(if self.le { u64::from_le_bytes(a) } else { u64::from_be_bytes(a) }))
+    }
+}
+
+/// The stock messages of per-item mode, read from and written as raw CDR.
+pub mod stock {
+    use super::{split_header, Reader};
+
+    /// `std_msgs/msg/Float64` from a serialized sample.
+    pub fn float64(raw: &[u8]) -> Result<f64, String> {
+        let (le, b) = split_header(raw)?;
+        Reader { b, pos: 0, le }.f64()
+    }
+
+    /// `std_msgs/msg/Bool` from a serialized sample.
+    pub fn boolean(raw: &[u8]) -> Result<bool, String> {
+        let (_, b) = split_header(raw)?;
+        b.first().map(|&v| v != 0).ok_or_else(|| "truncated sample (0 bytes)".to_string())
+    }
+
+    /// The data of a `std_msgs/msg/Float64MultiArray` from a serialized sample (its layout
+    /// is read past, not used).
+    pub fn float64_array(raw: &[u8]) -> Result<Vec<f64>, String> {
+        let (le, b) = split_header(raw)?;
+        let mut r = Reader { b, pos: 0, le };
+        let dims = r.u32()?;
+        for _ in 0..dims {
+            let label = r.u32()? as usize;
+            r.take(label, 1)?;
+            r.u32()?;
+            r.u32()?;
+        }
+        r.u32()?;
+        let n = r.u32()? as usize;
+        if n > b.len() / 8 {
+            return Err(format!("a sequence of {n} doubles in {} bytes", b.len()));
+        }
+        (0..n).map(|_| r.f64()).collect()
+    }
+
+    /// The little-endian CDR body of a `Float64`.
+    pub fn encode_float64(v: f64, out: &mut Vec<u8>) {
+        out.clear();
+        out.extend_from_slice(&v.to_le_bytes());
+    }
+
+    /// The body of a `Bool`.
+    pub fn encode_bool(v: bool, out: &mut Vec<u8>) {
+        out.clear();
+        out.push(u8::from(v));
+    }
+
+    /// The body of a `Float64MultiArray` with an empty layout.
+    pub fn encode_float64_array(v: impl ExactSizeIterator<Item = f64>, out: &mut Vec<u8>) {
+        out.clear();
+        out.extend_from_slice(&0u32.to_le_bytes()); // no dimensions
+        out.extend_from_slice(&0u32.to_le_bytes()); // data_offset
+        out.extend_from_slice(&(v.len() as u32).to_le_bytes());
+        out.extend_from_slice(&[0; 4]); // the doubles are aligned to 8
+        for x in v {
+            out.extend_from_slice(&x.to_le_bytes());
+        }
+    }
+}
+
 /// A CDR body already encoded, passed through ros2-client's serde-only publisher: a tuple
 /// of bytes is written verbatim (no length prefix, bytes need no alignment).
 #[derive(Debug, Clone, Default)]
@@ -292,6 +441,71 @@ mod tests {
         let got = seed.deserialize(&mut CdrDeserializer::<byteorder::BigEndian>::new(&be)).unwrap();
         assert_eq!(got.data, shm);
         let _ = (RepresentationIdentifier::CDR_LE, LE::new());
+    }
+
+    #[test]
+    fn the_raw_decoder_reads_what_the_serde_decoder_reads_in_both_byte_orders() {
+        let items = item("a", "boolean")
+            + &item("s", "int16")
+            + "<item name=\"d\"><type>double</type><length>2</length></item>"
+            + &item("f", "float32");
+        let (c, l) = codec(&items);
+        let mut shm = vec![0u8; l.size as usize];
+        for (i, b) in shm.iter_mut().enumerate() {
+            *b = (i * 7 + 3) as u8;
+        }
+        shm[l.leaf("a").unwrap().offset as usize] = 1;
+        // Only the leaves travel: compare with what the serde path rebuilds.
+        let mut body = Vec::new();
+        c.encode(9, 1.5, &shm, &mut body);
+        let seed = SetSeed(Arc::new(c.clone()));
+        let want = seed.deserialize(&mut CdrDeserializer::<byteorder::LittleEndian>::new(&body)).unwrap();
+        let raw = [&HEADER_LE[..], &body].concat();
+        assert_eq!(c.decode(&raw).unwrap(), want);
+        // The same sample big-endian: every element reversed in place.
+        let mut be = body.clone();
+        be[0..8].reverse();
+        be[8..16].reverse();
+        for f in &c.fields {
+            let size = f.ty.size() as usize;
+            be[f.cdr..f.cdr + size * f.count].chunks_exact_mut(size).for_each(<[u8]>::reverse);
+        }
+        assert_eq!(c.decode(&[&[0u8, 0, 0, 0][..], &be].concat()).unwrap(), want);
+        // Short bodies, no header, another representation.
+        for n in [0, 3, 4, 20, raw.len() - 1] {
+            assert!(c.decode(&raw[..n]).is_err(), "{n} bytes accepted");
+        }
+        let err = c.decode(&[&[0u8, 7, 0, 0][..], &body].concat()).unwrap_err();
+        assert!(err.contains("0007"), "{err}");
+    }
+
+    #[test]
+    fn stock_messages_round_trip_through_the_raw_codec() {
+        let mut b = Vec::new();
+        stock::encode_float64_array([1.0, -2.5].into_iter(), &mut b);
+        let want = to_vec::<_, byteorder::LittleEndian>(&Float64MultiArray {
+            layout: Default::default(),
+            data: vec![1.0, -2.5],
+        })
+        .unwrap();
+        assert_eq!(b, want);
+        assert_eq!(stock::float64_array(&[&HEADER_LE[..], &b].concat()).unwrap(), vec![1.0, -2.5]);
+        // A layout with a labelled dimension is read past.
+        let labelled = to_vec::<_, byteorder::BigEndian>(&Float64MultiArray {
+            layout: MultiArrayLayout {
+                dim: vec![MultiArrayDimension { label: "xyz".into(), size: 3, stride: 3 }],
+                data_offset: 0,
+            },
+            data: vec![4.0, 5.0, 6.0],
+        })
+        .unwrap();
+        assert_eq!(stock::float64_array(&[&[0u8, 0, 0, 0][..], &labelled].concat()).unwrap(), vec![4.0, 5.0, 6.0]);
+        assert!(stock::float64_array(&[&HEADER_LE[..], &b[..b.len() - 1]].concat()).is_err());
+        stock::encode_float64(0.25, &mut b);
+        assert_eq!(stock::float64(&[&HEADER_LE[..], &b].concat()).unwrap(), 0.25);
+        stock::encode_bool(true, &mut b);
+        assert!(stock::boolean(&[&HEADER_LE[..], &b].concat()).unwrap());
+        assert!(stock::boolean(&HEADER_LE).is_err());
     }
 
     #[test]

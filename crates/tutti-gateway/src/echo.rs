@@ -1,21 +1,43 @@
-//! DDS peers for benchmarks, each a separate DDS participant (normally another process):
-//! the echo ([`run`]) reads the typed PUBLISH samples of a domain and writes each back,
-//! unchanged, as a SUBSCRIBE sample (the two sets must have the same layout); the sink
-//! ([`sink`]) counts the samples it receives on one of the two topics; the source
-//! ([`source`]) writes SUBSCRIBE samples as fast as it can.
+//! DDS peers for benchmarks, each a separate DDS participant (normally another process) on
+//! the engine of `opts.engine`: the echo ([`run`]) reads the typed PUBLISH samples of a
+//! domain and writes each back, unchanged, as a SUBSCRIBE sample (the two sets must have the
+//! same layout); the sink ([`sink`]) counts the samples it receives on one of the two
+//! topics; the source ([`source`]) writes SUBSCRIBE samples as fast as it can; the ping
+//! ([`ping`]) measures round trips through the echo without the gateway.
 
-use std::sync::atomic::{AtomicBool, Ordering};
-use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+use std::sync::{Arc, Mutex, PoisonError};
 use std::time::{Duration, Instant};
 
-use futures::StreamExt;
-use ros2_client::dds::{Publisher, Subscription};
 use tutti_core::ddf::{Domain, Role};
 use tutti_core::mapping::{self, Endpoint, History, Reliability};
 
-use crate::cdr::{PreEncoded, SetCodec, SetSeed, TypedSample};
-use crate::node::{prefix, Dds};
+use crate::cdr::{SetCodec, TypedSample};
+use crate::engine::{self, Data, Decode, Engine, Guid, Sink, Writer};
 use crate::{GatewayError, GatewayOptions};
+
+/// A sink that decodes typed samples of other participants and hands them to `f`.
+fn typed_sink(
+    codec: Arc<SetCodec>,
+    own: [u8; engine::PREFIX_LEN],
+    f: impl Fn(TypedSample) + Send + Sync + 'static,
+) -> Sink {
+    Arc::new(move |writer: Guid, data: Data<'_>| {
+        if writer.prefix() == own {
+            return;
+        }
+        let s = match data {
+            Data::Raw(raw) => codec.decode(raw),
+            Data::Decoded(r) => r.and_then(|p| match p {
+                crate::routes::Payload::Set(s) => Ok(s),
+                crate::routes::Payload::Item { .. } => Err("not a set".into()),
+            }),
+        };
+        if let Ok(s) = s {
+            f(s);
+        }
+    })
+}
 
 /// Echoes domain `domain` of `opts.model` until `stop`; returns the samples echoed.
 pub fn run(opts: &GatewayOptions, domain: &Domain, stop: Arc<AtomicBool>) -> Result<u64, GatewayError> {
@@ -25,33 +47,25 @@ pub fn run(opts: &GatewayOptions, domain: &Domain, stop: Arc<AtomicBool>) -> Res
             domain.name
         )));
     }
-    let rt = tokio::runtime::Builder::new_current_thread().enable_all().build().map_err(GatewayError::Runtime)?;
-    let Endpoints { dds, codec, sub, publ } = Endpoints::open(opts, domain, Role::Publish)?;
-    let own = dds.own_prefix;
-    let echoed = rt.block_on(async {
-        let stream = sub.async_stream_seed(SetSeed(codec.clone()));
-        futures::pin_mut!(stream);
-        let mut tick = tokio::time::interval(Duration::from_millis(50));
-        let mut n = 0u64;
-        let mut body = Vec::new();
-        loop {
-            tokio::select! {
-                Some(r) = stream.next() => {
-                    let Ok((s, info)) = r else { continue };
-                    if prefix(&info.publisher_gid()) == own {
-                        continue;
-                    }
-                    codec.encode(s.step, s.sim_time, &s.data, &mut body);
-                    if publ.publish(PreEncoded(std::mem::take(&mut body))).is_ok() {
-                        n += 1;
-                    }
-                }
-                _ = tick.tick() => if stop.load(Ordering::Acquire) { break n },
-            }
+    let ep = Endpoints::open(opts, domain, Role::Publish)?;
+    let n = Arc::new(AtomicU64::new(0));
+    let (codec, writer, count) = (ep.codec.clone(), Mutex::new(ep.writer), n.clone());
+    let body = Mutex::new(Vec::new());
+    let sink = typed_sink(ep.codec.clone(), ep.dds.own_prefix(), move |s| {
+        let mut body = body.lock().unwrap_or_else(PoisonError::into_inner);
+        codec.encode(s.step, s.sim_time, &s.data, &mut body);
+        let mut w = writer.lock().unwrap_or_else(PoisonError::into_inner);
+        if w.write(&body) {
+            count.fetch_add(1, Ordering::Relaxed);
         }
+        w.flush();
     });
-    drop(dds);
-    Ok(echoed)
+    ep.dds.reader(&ep.reads.topic, &ep.reads.dds_type, &ep.rq, Decode::Set(ep.codec.clone()), sink)?;
+    while !stop.load(Ordering::Acquire) {
+        std::thread::sleep(Duration::from_millis(50));
+    }
+    drop(ep.dds);
+    Ok(n.load(Ordering::Relaxed))
 }
 
 /// Counts the typed samples of `role`'s topic of `domain` that arrive in `window`, from
@@ -65,42 +79,43 @@ pub fn sink(
     window: Duration,
     patience: Duration,
 ) -> Result<(u64, f64), GatewayError> {
-    let rt = tokio::runtime::Builder::new_current_thread().enable_all().build().map_err(GatewayError::Runtime)?;
-    let mut dds = Dds::open(opts)?;
+    let dds = engine::open(opts.engine, &opts.engine_config())?;
     let pkg = mapping::package_name(&opts.ddf_path);
     let names = mapping::set_names(&pkg, &domain.name, role);
     let mut rq = mapping::qos(domain.flags, opts.profile, Endpoint::Reader, 0);
     rq.reliability = Reliability::BestEffort;
     rq.history = History::KeepLast(1 << 16);
     let codec = Arc::new(SetCodec::new(&domain.set(role).layout));
-    let sub = dds.subscription::<TypedSample>(&names.topic, &names.dds_type, &rq)?;
-    let own = dds.own_prefix;
-    let counted = rt.block_on(async {
-        let stream = sub.async_stream_seed(SetSeed(codec));
-        futures::pin_mut!(stream);
-        let mut first: Option<Instant> = None;
-        let mut n = 0u64;
-        let start = Instant::now();
-        loop {
-            let limit = match first {
-                Some(t) => (t + window).saturating_duration_since(Instant::now()),
-                None => (start + patience).saturating_duration_since(Instant::now()),
-            };
-            match tokio::time::timeout(limit, stream.next()).await {
-                Ok(Some(Ok((_, info)))) if prefix(&info.publisher_gid()) != own => {
-                    if first.is_none() {
-                        first = Some(Instant::now());
-                    } else {
-                        n += 1;
-                    }
-                }
-                Ok(Some(_)) => {}
-                Ok(None) | Err(_) => break (n, first.map_or(0.0, |t| t.elapsed().as_secs_f64())),
+    let state = Arc::new(Mutex::new((None::<Instant>, 0u64, 0.0f64)));
+    let st = state.clone();
+    let counter = typed_sink(codec.clone(), dds.own_prefix(), move |_| {
+        let mut s = st.lock().unwrap_or_else(PoisonError::into_inner);
+        match s.0 {
+            None => s.0 = Some(Instant::now()),
+            Some(t) if t.elapsed() < window => {
+                s.1 += 1;
+                s.2 = t.elapsed().as_secs_f64();
             }
+            Some(_) => {}
         }
     });
+    dds.reader(&names.topic, &names.dds_type, &rq, Decode::Set(codec), counter)?;
+    let start = Instant::now();
+    loop {
+        std::thread::sleep(Duration::from_millis(20));
+        let first = state.lock().unwrap_or_else(PoisonError::into_inner).0;
+        match first {
+            Some(t) if t.elapsed() >= window => break,
+            None if start.elapsed() >= patience => break,
+            _ => {}
+        }
+    }
     drop(dds);
-    Ok(counted)
+    let s = state.lock().unwrap_or_else(PoisonError::into_inner);
+    Ok((
+        s.1,
+        if s.0.is_some() { window.as_secs_f64().min(s.0.map_or(0.0, |t| t.elapsed().as_secs_f64())) } else { 0.0 },
+    ))
 }
 
 /// Writes typed SUBSCRIBE samples of `domain` as fast as the writer takes them until
@@ -112,13 +127,13 @@ pub fn source(
     settle: Duration,
     stop: Arc<AtomicBool>,
 ) -> Result<u64, GatewayError> {
-    let mut dds = Dds::open(opts)?;
+    let dds = engine::open(opts.engine, &opts.engine_config())?;
     let pkg = mapping::package_name(&opts.ddf_path);
     let names = mapping::set_names(&pkg, &domain.name, Role::Subscribe);
     let wq = mapping::qos(domain.flags, opts.profile, Endpoint::Writer, 0);
     let layout = &domain.subscribe.layout;
     let codec = SetCodec::new(layout);
-    let publ = dds.publisher::<PreEncoded>(&names.topic, &names.dds_type, &wq)?;
+    let mut w = dds.writer(&names.topic, &names.dds_type, &wq)?;
     std::thread::sleep(settle);
     let mut shm = vec![0u8; layout.size as usize];
     let mut body = Vec::new();
@@ -131,37 +146,47 @@ pub fn source(
             }
         }
         codec.encode(n, n as f64, &shm, &mut body);
-        if publ.publish(PreEncoded(std::mem::take(&mut body))).is_err() {
+        if !w.write(&body) {
             n -= 1;
         }
+        if n % 32 == 0 {
+            w.flush();
+        }
     }
+    w.flush();
+    drop(w);
     drop(dds);
     Ok(n)
 }
 
-/// A rustdds ping for the echo, without the gateway: writes typed PUBLISH samples of
-/// `domain` and waits (spinning, yielding the core between looks, as the benchmark's
-/// framework does) for each to come back on SUBSCRIBE. Returns the round trips (µs) of
-/// `samples` pings, after the path works once (gives up after `patience`).
+/// A ping for the echo, without the gateway: writes typed PUBLISH samples of `domain` and
+/// waits (spinning, yielding the core between looks, as the benchmark's framework does)
+/// for each to come back on SUBSCRIBE. Returns the round trips (µs) of `samples` pings,
+/// after the path works once (gives up after `patience`).
 pub fn ping(
     opts: &GatewayOptions,
     domain: &Domain,
     samples: u32,
     patience: Duration,
 ) -> Result<Vec<f64>, GatewayError> {
-    let Endpoints { dds, codec, sub, publ } = Endpoints::open(opts, domain, Role::Subscribe)?;
-    let shm = vec![0u8; codec.shm_size()];
+    let mut ep = Endpoints::open(opts, domain, Role::Subscribe)?;
+    let back = Arc::new(AtomicU64::new(0));
+    let b = back.clone();
+    let sink = typed_sink(ep.codec.clone(), ep.dds.own_prefix(), move |s| b.store(s.step, Ordering::Release));
+    ep.dds.reader(&ep.reads.topic, &ep.reads.dds_type, &ep.rq, Decode::Set(ep.codec.clone()), sink)?;
+    let shm = vec![0u8; ep.codec.shm_size()];
     let mut body = Vec::new();
     let mut once = |step: u64, limit: Duration| -> Option<f64> {
-        codec.encode(step, 0.0, &shm, &mut body);
+        ep.codec.encode(step, 0.0, &shm, &mut body);
         let t = Instant::now();
-        publ.publish(PreEncoded(body.clone())).ok()?;
+        if !ep.writer.write(&body) {
+            return None;
+        }
+        ep.writer.flush();
         let mut spins = 0u32;
         while t.elapsed() < limit {
-            if let Ok(Some((s, _))) = sub.take_seed(SetSeed(codec.clone())) {
-                if s.step == step {
-                    return Some(t.elapsed().as_secs_f64() * 1e6);
-                }
+            if back.load(Ordering::Acquire) == step {
+                return Some(t.elapsed().as_secs_f64() * 1e6);
             }
             spins += 1;
             if spins < 16 {
@@ -190,23 +215,25 @@ pub fn ping(
             times.push(t);
         }
     }
-    drop(dds);
+    drop(ep);
     Ok(times)
 }
 
-/// The DDS side of the echo and of its ping: one participant, a typed reader of one set's
-/// topic and a writer of the other's (the two sets have one layout, so one codec serves both).
+/// The DDS side of the echo and of its ping: one participant, the names and QoS of the
+/// topic read, and a writer of the other set's topic (the two sets have one layout, so one
+/// codec serves both).
 struct Endpoints {
-    dds: Dds,
+    writer: Box<dyn Writer>,
+    dds: Box<dyn Engine>,
     codec: Arc<SetCodec>,
-    sub: Subscription<TypedSample>,
-    publ: Publisher<PreEncoded>,
+    reads: mapping::SetNames,
+    rq: mapping::Qos,
 }
 
 impl Endpoints {
     /// `reads`: the set whose topic is read (the echo reads PUBLISH, the ping SUBSCRIBE).
     fn open(opts: &GatewayOptions, domain: &Domain, reads: Role) -> Result<Endpoints, GatewayError> {
-        let mut dds = Dds::open(opts)?;
+        let dds = engine::open(opts.engine, &opts.engine_config())?;
         let pkg = mapping::package_name(&opts.ddf_path);
         let writes = match reads {
             Role::Publish => Role::Subscribe,
@@ -216,8 +243,7 @@ impl Endpoints {
         let rq = mapping::qos(domain.flags, opts.profile, Endpoint::Reader, 0);
         let wq = mapping::qos(domain.flags, opts.profile, Endpoint::Writer, 0);
         let codec = Arc::new(SetCodec::new(&domain.publish.layout));
-        let sub = dds.subscription::<TypedSample>(&rn.topic, &rn.dds_type, &rq)?;
-        let publ = dds.publisher::<PreEncoded>(&wn.topic, &wn.dds_type, &wq)?;
-        Ok(Endpoints { dds, codec, sub, publ })
+        let writer = dds.writer(&wn.topic, &wn.dds_type, &wq)?;
+        Ok(Endpoints { writer, dds, codec, reads: rn, rq })
     }
 }

@@ -13,16 +13,16 @@
 #![deny(unsafe_op_in_unsafe_fn)]
 
 pub mod cdr;
-pub mod discovery;
 pub mod echo;
+pub mod engine;
 mod error;
 pub mod manager;
-pub mod node;
 mod options;
 pub mod qos;
 pub mod routes;
 pub mod stats;
 
+pub use engine::EngineKind;
 pub use error::GatewayError;
 pub use manager::run;
 pub use options::{GatewayOptions, TypeMode};

@@ -10,16 +10,14 @@ use std::sync::Arc;
 use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
-use ros2_client::Gid;
 use tokio::sync::mpsc;
 use tracing::{info, warn};
 use tutti_core::ddf::{Domain, Role};
 use tutti_core::mapping::{self, Endpoint, Qos};
 use tutti_core::shm::{Framework, FrameworkOptions, Participant, ShmError};
 
-use crate::cdr::{PreEncoded, SetCodec, SetSeed, TypedSample};
-use crate::discovery::Remote;
-use crate::node::{short, Dds};
+use crate::cdr::{SetCodec, TypedSample};
+use crate::engine::{self, Decode, Engine, Guid};
 use crate::routes::from_dds::{self, Destination, Direct, RemoteWriter};
 use crate::routes::per_item::{self, ItemWriters};
 use crate::routes::to_dds::{self, Activation, Outbound, SetWriter, Watched};
@@ -43,7 +41,7 @@ struct DomainState {
     synchronous: bool,
     own_commits: Arc<AtomicU64>,
     /// Connections standing for the remote readers of the PUBLISH set (None: connecting).
-    readers: HashMap<Gid, Option<Participant>>,
+    readers: HashMap<Guid, Option<Participant>>,
     mirror: Option<std_mpsc::Sender<TypedSample>>,
 }
 
@@ -73,7 +71,7 @@ pub fn run(
         poll: opts.poll,
         stop: Arc::new(AtomicBool::new(false)),
     };
-    let mut m = Manager::build(&opts, cfg, stats.clone(), rt.handle())?;
+    let mut m = Manager::build(&opts, cfg, stats.clone())?;
     on_status(&format!("up: {}", m.line()));
     rt.block_on(m.serve(&opts, shutdown, status_every, on_status));
     m.stop();
@@ -82,16 +80,16 @@ pub fn run(
 }
 
 struct Manager {
-    dds: Dds,
+    dds: Box<dyn Engine>,
     cfg: ShmConfig,
     stats: Arc<Stats>,
     routes: Vec<Route>,
     domains: Vec<DomainState>,
-    writers: HashMap<(usize, Gid), WriterEntry>,
+    writers: HashMap<(usize, Guid), WriterEntry>,
     threads: Vec<JoinHandle<()>>,
     events: mpsc::UnboundedReceiver<Event>,
-    connected_tx: mpsc::UnboundedSender<(usize, Gid, Result<Participant, ShmError>)>,
-    connected: mpsc::UnboundedReceiver<(usize, Gid, Result<Participant, ShmError>)>,
+    connected_tx: mpsc::UnboundedSender<(usize, Guid, Result<Participant, ShmError>)>,
+    connected: mpsc::UnboundedReceiver<(usize, Guid, Result<Participant, ShmError>)>,
     topics: usize,
     bad_log: LogLimit,
 }
@@ -103,13 +101,9 @@ impl std::fmt::Debug for Manager {
 }
 
 impl Manager {
-    fn build(
-        opts: &GatewayOptions,
-        cfg: ShmConfig,
-        stats: Arc<Stats>,
-        rt: &tokio::runtime::Handle,
-    ) -> Result<Manager, GatewayError> {
-        let mut dds = Dds::open(opts)?;
+    fn build(opts: &GatewayOptions, cfg: ShmConfig, stats: Arc<Stats>) -> Result<Manager, GatewayError> {
+        let engine = engine::open(opts.engine, &opts.engine_config())?;
+        let dds: &dyn Engine = &*engine;
         let (tx, events) = mpsc::unbounded_channel();
         let (connected_tx, connected) = mpsc::unbounded_channel();
         let pkg = mapping::package_name(&opts.ddf_path);
@@ -148,7 +142,7 @@ impl Manager {
                         mapping::set_names(&pkg, &d.name, Role::Subscribe),
                     );
                     // PUBLISH: shared memory -> DDS.
-                    let out = set_writer(&mut dds, d, Role::Publish, &pubn, &wq)?;
+                    let out = set_writer(dds, d, Role::Publish, &pubn, &wq)?;
                     let activation = route_out(&mut routes, di, vec![pubn.topic.clone()], true);
                     if d.flags.synchronous {
                         let name = format!("{} sync reader", opts.node_name);
@@ -160,8 +154,8 @@ impl Manager {
                         watched.push(Watched::new(d.name.clone(), Role::Publish, out, activation, None));
                     }
                     // SUBSCRIBE: DDS -> shared memory, and shared-memory writers -> DDS.
-                    typed_inbound(&mut dds, rt, &mut routes, &tx, &stats, di, &d.subscribe.layout, &subn, &rq)?;
-                    let out = set_writer(&mut dds, d, Role::Subscribe, &subn, &wq)?;
+                    typed_inbound(dds, &mut routes, &tx, &stats, di, &d.subscribe.layout, &subn, &rq)?;
+                    let out = set_writer(dds, d, Role::Subscribe, &subn, &wq)?;
                     let activation = route_out(&mut routes, di, vec![subn.topic], false);
                     watched.push(Watched::new(d.name.clone(), Role::Subscribe, out, activation, Some(own_commits)));
                 }
@@ -171,8 +165,8 @@ impl Manager {
                         mapping::set_names(&pkg, &d.name, Role::Publish),
                         mapping::set_names(&pkg, &d.name, Role::Subscribe),
                     );
-                    typed_inbound(&mut dds, rt, &mut routes, &tx, &stats, di, &d.publish.layout, &pubn, &rq)?;
-                    let out = set_writer(&mut dds, d, Role::Subscribe, &subn, &wq)?;
+                    typed_inbound(dds, &mut routes, &tx, &stats, di, &d.publish.layout, &pubn, &rq)?;
+                    let out = set_writer(dds, d, Role::Subscribe, &subn, &wq)?;
                     let (mtx, mrx) = std_mpsc::channel();
                     let host = hosts
                         .get_mut(di)
@@ -188,16 +182,17 @@ impl Manager {
                     let pub_topics = mapping::item_topics(d, Role::Publish);
                     let sub_topics = mapping::item_topics(d, Role::Subscribe);
                     topics += pub_topics.len() + sub_topics.len();
-                    let out = Outbound::Items(ItemWriters::create(&mut dds, &pub_topics, &d.publish.layout, &wq)?);
+                    let out = Outbound::Items(ItemWriters::create(dds, &pub_topics, &d.publish.layout, &wq)?);
                     let topics = pub_topics.iter().map(|t| t.topic.clone()).collect();
                     let activation = route_out(&mut routes, di, topics, true);
                     watched.push(Watched::new(d.name.clone(), Role::Publish, out, activation, None));
                     for t in &sub_topics {
                         let Some(leaf) = d.subscribe.layout.leaf(&t.path) else { continue };
                         let to = route_in(&mut routes, &tx, di, &t.topic);
-                        per_item::spawn_reader(&mut dds, t, leaf, &rq, to, stats.clone(), rt)?;
+                        let sink = from_dds::sink(per_item::decoder(leaf), to, stats.clone(), dds.own_prefix());
+                        dds.reader(&t.topic, &t.dds_type, &rq, per_item::decoder(leaf), sink)?;
                     }
-                    let out = Outbound::Items(ItemWriters::create(&mut dds, &sub_topics, &d.subscribe.layout, &wq)?);
+                    let out = Outbound::Items(ItemWriters::create(dds, &sub_topics, &d.subscribe.layout, &wq)?);
                     let topics = sub_topics.iter().map(|t| t.topic.clone()).collect();
                     let activation = route_out(&mut routes, di, topics, false);
                     watched.push(Watched::new(d.name.clone(), Role::Subscribe, out, activation, Some(own_commits)));
@@ -211,8 +206,9 @@ impl Manager {
                     .map_err(|e| GatewayError::dds("a thread", e))?,
             );
         }
+        dds.announce()?;
         Ok(Manager {
-            dds,
+            dds: engine,
             cfg,
             stats,
             routes,
@@ -234,10 +230,11 @@ impl Manager {
 
     fn line(&self) -> String {
         format!(
-            "{} domains, {} topics, DDS domain {}, remote writers {}, remote readers {} | {}",
+            "{} domains, {} topics, DDS domain {} ({}), remote writers {}, remote readers {} | {}",
             self.domains.len(),
             self.topics,
-            self.dds.participant.domain_id(),
+            self.dds.domain_id(),
+            self.dds.kind(),
             self.writers.len(),
             self.remote_readers(),
             self.stats
@@ -306,7 +303,7 @@ impl Manager {
 
     /// Gives remote writer `key.1` of inbound route `key.0` its connection (committed by
     /// the route's reader task where the domain allows); false if it cannot be started.
-    fn add_writer(&mut self, key: (usize, Gid)) -> bool {
+    fn add_writer(&mut self, key: (usize, Guid)) -> bool {
         let Some(Route::In { domain, direct, .. }) = self.routes.get(key.0) else { return false };
         let d = &self.domains[*domain];
         let gid = key.1;
@@ -320,7 +317,7 @@ impl Manager {
         );
         match spawned {
             Ok(writer) => {
-                info!(domain = %d.name, "DDS writer {} joined", short(&gid));
+                info!(domain = %d.name, "DDS writer {} joined", gid.short());
                 if writer.is_inline() {
                     direct.insert(gid, writer.clone());
                 }
@@ -342,7 +339,7 @@ impl Manager {
         }
     }
 
-    fn on_connected(&mut self, di: usize, gid: Gid, r: Result<Participant, ShmError>) {
+    fn on_connected(&mut self, di: usize, gid: Guid, r: Result<Participant, ShmError>) {
         let Some(d) = self.domains.get_mut(di) else { return };
         match (d.readers.get_mut(&gid), r) {
             (Some(slot @ None), Ok(p)) => *slot = Some(p),
@@ -357,9 +354,9 @@ impl Manager {
     /// Compares discovery with the routes: (de)activates writers, gives new remote writers
     /// and PUBLISH readers connections, releases those that left.
     fn rediscover(&mut self) {
-        let remote = Remote::discover(&self.dds.participant, &self.dds.own_prefix);
-        let mut wanted_readers: Vec<BTreeSet<Gid>> = vec![BTreeSet::new(); self.domains.len()];
-        let mut matched_writers: BTreeSet<(usize, Gid)> = BTreeSet::new();
+        let remote = self.dds.remote();
+        let mut wanted_readers: Vec<BTreeSet<Guid>> = vec![BTreeSet::new(); self.domains.len()];
+        let mut matched_writers: BTreeSet<(usize, Guid)> = BTreeSet::new();
         for (ri, route) in self.routes.iter().enumerate() {
             match route {
                 Route::Out { domain, topics, activation, counts_readers } => {
@@ -389,7 +386,7 @@ impl Manager {
             if keep {
                 w.writer.tick();
             } else {
-                info!("DDS writer {} left: its connection is released", short(&key.1));
+                info!("DDS writer {} left: its connection is released", key.1.short());
                 if let Some(Route::In { direct, .. }) = routes.get(key.0) {
                     direct.remove(&key.1);
                 }
@@ -405,7 +402,7 @@ impl Manager {
                     continue;
                 }
                 d.readers.insert(gid, None);
-                let opts = self.cfg.connect_options(format!("dds-reader {}", short(&gid)), Duration::from_millis(100));
+                let opts = self.cfg.connect_options(format!("dds-reader {}", gid.short()), Duration::from_millis(100));
                 let (name, tx) = (d.name.clone(), self.connected_tx.clone());
                 tokio::task::spawn_blocking(move || {
                     let _ = tx.send((di, gid, Participant::connect(&name, opts)));
@@ -444,8 +441,7 @@ impl Manager {
 /// reports under.
 #[allow(clippy::too_many_arguments)]
 fn typed_inbound(
-    dds: &mut Dds,
-    rt: &tokio::runtime::Handle,
+    dds: &dyn Engine,
     routes: &mut Vec<Route>,
     tx: &mpsc::UnboundedSender<Event>,
     stats: &Arc<Stats>,
@@ -455,10 +451,9 @@ fn typed_inbound(
     rq: &Qos,
 ) -> Result<(), GatewayError> {
     let codec = Arc::new(SetCodec::new(layout));
-    let sub = dds.subscription::<TypedSample>(&names.topic, &names.dds_type, rq)?;
     let to = route_in(routes, tx, domain, &names.topic);
-    rt.spawn(from_dds::forward_typed(sub, SetSeed(codec), to, stats.clone(), dds.own_prefix));
-    Ok(())
+    let sink = from_dds::sink(Decode::Set(codec.clone()), to, stats.clone(), dds.own_prefix());
+    dds.reader(&names.topic, &names.dds_type, rq, Decode::Set(codec), sink)
 }
 
 /// A DDS -> shared-memory route over `topic`, registered in `routes`: where its reader task
@@ -471,15 +466,15 @@ fn route_in(routes: &mut Vec<Route>, tx: &mpsc::UnboundedSender<Event>, domain: 
 
 /// The typed shared-memory -> DDS writer of one set.
 fn set_writer(
-    dds: &mut Dds,
+    dds: &dyn Engine,
     d: &Domain,
     role: Role,
     names: &mapping::SetNames,
     q: &Qos,
 ) -> Result<Outbound, GatewayError> {
     let codec = Arc::new(SetCodec::new(&d.set(role).layout));
-    let publisher = dds.publisher::<PreEncoded>(&names.topic, &names.dds_type, q)?;
-    Ok(Outbound::Set(Box::new(SetWriter::new(codec, publisher))))
+    let writer = dds.writer(&names.topic, &names.dds_type, q)?;
+    Ok(Outbound::Set(Box::new(SetWriter::new(codec, writer))))
 }
 
 /// A shared-memory -> DDS route over `topics`: registered in `routes`, and its activation

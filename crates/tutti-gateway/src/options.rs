@@ -8,6 +8,8 @@ use tutti_core::ddf::Model;
 use tutti_core::mapping::Profile;
 use tutti_core::shm::WaitMode;
 
+use crate::engine::{EngineConfig, EngineKind};
+
 /// The two type mappings of SPEC section 5.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub enum TypeMode {
@@ -47,6 +49,10 @@ pub struct GatewayOptions {
     pub poll: Duration,
     /// How often discovery data is compared with the routes' connections.
     pub discovery_every: Duration,
+    /// The DDS engine.
+    pub engine: EngineKind,
+    /// Unicast discovery peers (Cyclone engine).
+    pub peers: Vec<String>,
 }
 
 impl GatewayOptions {
@@ -67,6 +73,19 @@ impl GatewayOptions {
             wait: WaitMode::Block,
             poll: Duration::from_micros(500),
             discovery_every: Duration::from_millis(200),
+            engine: EngineKind::from_env().unwrap_or_default(),
+            peers: Vec::new(),
+        }
+    }
+
+    /// How the engine's participant joins DDS.
+    pub fn engine_config(&self) -> EngineConfig {
+        EngineConfig {
+            domain_id: self.ros_domain_id,
+            interfaces: self.interfaces.clone(),
+            peers: self.peers.clone(),
+            node_name: self.node_name.clone(),
+            node_namespace: "/".into(),
         }
     }
 }

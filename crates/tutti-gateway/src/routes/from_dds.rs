@@ -19,29 +19,25 @@ use std::sync::{Arc, Mutex, PoisonError};
 use std::thread;
 use std::time::{Duration, Instant};
 
-use futures::{Stream, StreamExt};
-use ros2_client::dds::Subscription;
-use ros2_client::{Gid, MessageInfo};
 use tokio::sync::mpsc::UnboundedSender;
 use tracing::{debug, info, warn};
 use tutti_core::shm::{Participant, ShmError};
 
-use super::{Event, Inbound, Payload, ShmConfig};
-use crate::cdr::{SetSeed, TypedSample};
-use crate::node::{prefix, short, PREFIX_LEN};
+use super::{per_item, Event, Inbound, Payload, ShmConfig};
+use crate::engine::{Data, Decode, Guid, Sink, PREFIX_LEN};
 use crate::stats::{LogLimit, Stats};
 
 /// The remote writers of one route whose samples the reader task commits itself
 /// (asynchronous domains); the manager adds and removes them as discovery changes.
 #[derive(Debug, Clone, Default)]
-pub struct Direct(Arc<Mutex<HashMap<Gid, RemoteWriter>>>);
+pub struct Direct(Arc<Mutex<HashMap<Guid, RemoteWriter>>>);
 
 impl Direct {
-    pub fn insert(&self, gid: Gid, w: RemoteWriter) {
+    pub fn insert(&self, gid: Guid, w: RemoteWriter) {
         self.0.lock().unwrap_or_else(PoisonError::into_inner).insert(gid, w);
     }
 
-    pub fn remove(&self, gid: &Gid) {
+    pub fn remove(&self, gid: &Guid) {
         self.0.lock().unwrap_or_else(PoisonError::into_inner).remove(gid);
     }
 
@@ -49,12 +45,12 @@ impl Direct {
         self.0.lock().unwrap_or_else(PoisonError::into_inner).clear();
     }
 
-    fn get(&self, gid: &Gid) -> Option<RemoteWriter> {
+    fn get(&self, gid: &Guid) -> Option<RemoteWriter> {
         self.0.lock().unwrap_or_else(PoisonError::into_inner).get(gid).cloned()
     }
 
     /// Commits `payload` of `writer` here if the writer is known; else hands it back.
-    pub fn commit(&self, writer: &Gid, payload: Payload) -> Option<Payload> {
+    pub fn commit(&self, writer: &Guid, payload: Payload) -> Option<Payload> {
         match self.get(writer) {
             Some(w) => {
                 w.send(payload);
@@ -65,53 +61,37 @@ impl Direct {
     }
 }
 
-/// Forwards the samples of a typed subscription as route `to.0`.
-pub async fn forward_typed(
-    sub: Subscription<TypedSample>,
-    seed: SetSeed,
-    to: Destination,
-    stats: Arc<Stats>,
-    own: [u8; PREFIX_LEN],
-) {
-    forward(sub.async_stream_seed(seed), |sample| Ok(Payload::Set(sample)), to, stats, own).await;
-}
-
-/// Where a reader task's samples go: its route, the manager, the writers it commits itself.
+/// Where a reader's samples go: its route, the manager, the writers it commits itself.
 pub type Destination = (usize, UnboundedSender<Event>, Direct);
 
-/// The loop of every reader task: a sample from a writer that is not the gateway's own
-/// becomes a payload (`to_payload`), committed right here for the writers in `direct` or
-/// else handed to the manager; what cannot be decoded is reported. Ends with the manager.
-pub async fn forward<M, E: std::fmt::Debug>(
-    stream: impl Stream<Item = Result<(M, MessageInfo), E>>,
-    mut to_payload: impl FnMut(M) -> Result<Payload, String>,
-    (route, tx, direct): Destination,
-    stats: Arc<Stats>,
-    own: [u8; PREFIX_LEN],
-) {
-    futures::pin_mut!(stream);
-    while let Some(r) = stream.next().await {
-        let ev = match r {
-            Ok((m, info)) => {
-                let writer = info.publisher_gid();
-                if prefix(&writer) == own {
-                    Stats::add(&stats.own_samples, 1);
-                    continue;
-                }
-                match to_payload(m) {
-                    Ok(payload) => {
-                        let Some(payload) = direct.commit(&writer, payload) else { continue };
-                        Event::Sample(Inbound { route, writer, payload })
-                    }
-                    Err(error) => Event::Bad { route, error },
-                }
-            }
-            Err(e) => Event::Bad { route, error: format!("{e:?}") },
-        };
-        if tx.send(ev).is_err() {
-            break;
+/// The sink of every reader: a sample from a writer that is not the gateway's own becomes a
+/// payload (decoded here when the engine hands over raw bytes), committed right away for
+/// the writers in `direct` (on the engine's receive path: no thread hop) or else handed to
+/// the manager; what cannot be decoded is reported.
+pub fn sink(decode: Decode, (route, tx, direct): Destination, stats: Arc<Stats>, own: [u8; PREFIX_LEN]) -> Sink {
+    Arc::new(move |writer: Guid, data: Data<'_>| {
+        if writer.prefix() == own {
+            Stats::add(&stats.own_samples, 1);
+            return;
         }
-    }
+        let payload = match data {
+            Data::Decoded(r) => r,
+            Data::Raw(raw) => match &decode {
+                Decode::Set(codec) => codec.decode(raw).map(Payload::Set),
+                Decode::Item(leaf, path) => {
+                    per_item::decode(leaf, raw).map(|bytes| Payload::Item { path: path.clone(), bytes })
+                }
+            },
+        };
+        let ev = match payload {
+            Ok(payload) => {
+                let Some(payload) = direct.commit(&writer, payload) else { return };
+                Event::Sample(Inbound { route, writer, payload })
+            }
+            Err(error) => Event::Bad { route, error },
+        };
+        let _ = tx.send(ev);
+    })
 }
 
 /// The shared-memory connection of one remote DDS writer.
@@ -222,13 +202,13 @@ impl RemoteWriter {
     /// or [`RemoteWriter::tick`] if the domain is not there).
     pub fn spawn(
         domain: String,
-        writer: Gid,
+        writer: Guid,
         synchronous: bool,
         cfg: ShmConfig,
         stats: Arc<Stats>,
         own_commits: Arc<AtomicU64>,
     ) -> std::io::Result<Self> {
-        let name = format!("dds-writer {}", short(&writer));
+        let name = format!("dds-writer {}", writer.short());
         let out = Delivery::new(domain, name, stats, own_commits);
         if !synchronous {
             let mut inline = Inline { out, cfg, p: None, next_try: Instant::now() };

@@ -11,7 +11,7 @@ use std::sync::atomic::AtomicBool;
 use std::sync::Arc;
 use std::time::Duration;
 
-use ros2_client::Gid;
+use crate::engine::Guid;
 use tutti_core::shm::{ConnectOptions, WaitMode};
 
 use crate::cdr::TypedSample;
@@ -34,7 +34,7 @@ pub enum Payload {
 #[derive(Debug)]
 pub struct Inbound {
     pub route: usize,
-    pub writer: Gid,
+    pub writer: Guid,
     pub payload: Payload,
 }
 

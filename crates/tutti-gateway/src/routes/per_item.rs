@@ -5,16 +5,11 @@
 
 use std::sync::Arc;
 
-use ros2_client::dds::{Publisher, Subscription};
-use serde::de::DeserializeOwned;
 use tutti_core::ddf::{Leaf, ScalarType, SetLayout, Value};
 use tutti_core::mapping::{self, ItemTopic, Qos};
 
-use super::from_dds::{self, Destination};
-use super::Payload;
-use crate::cdr::{Bool, Float64, Float64MultiArray};
-use crate::node::{Dds, PREFIX_LEN};
-use crate::stats::Stats;
+use crate::cdr::stock;
+use crate::engine::{Decode, Engine, Writer};
 use crate::GatewayError;
 
 /// The stock type of a leaf.
@@ -35,21 +30,17 @@ impl Stock {
     }
 }
 
-enum ItemPub {
-    Float64(Publisher<Float64>),
-    Bool(Publisher<Bool>),
-    Array(Publisher<Float64MultiArray>),
-}
-
 struct ItemWriter {
     leaf: Leaf,
-    publisher: ItemPub,
+    stock: Stock,
+    writer: Box<dyn Writer>,
     last: Option<Vec<u8>>,
 }
 
 /// The writers of every item of one set.
 pub struct ItemWriters {
     items: Vec<ItemWriter>,
+    body: Vec<u8>,
 }
 
 impl std::fmt::Debug for ItemWriters {
@@ -58,7 +49,7 @@ impl std::fmt::Debug for ItemWriters {
     }
 }
 
-fn elements<'a>(leaf: &Leaf, bytes: &'a [u8]) -> impl Iterator<Item = Value> + 'a {
+fn elements<'a>(leaf: &Leaf, bytes: &'a [u8]) -> impl ExactSizeIterator<Item = Value> + 'a {
     let ty = leaf.ty;
     bytes.chunks_exact(ty.size() as usize).map(move |c| ty.decode(c))
 }
@@ -66,7 +57,7 @@ fn elements<'a>(leaf: &Leaf, bytes: &'a [u8]) -> impl Iterator<Item = Value> + '
 impl ItemWriters {
     /// Creates a writer for every topic of `topics` (leaves looked up in `layout`).
     pub fn create(
-        dds: &mut Dds,
+        dds: &dyn Engine,
         topics: &[ItemTopic],
         layout: &SetLayout,
         q: &Qos,
@@ -74,42 +65,37 @@ impl ItemWriters {
         let mut items = Vec::with_capacity(topics.len());
         for t in topics {
             let Some(leaf) = layout.leaf(&t.path) else { continue };
-            let publisher = match Stock::of(leaf) {
-                Stock::Float64 => ItemPub::Float64(dds.publisher(&t.topic, &t.dds_type, q)?),
-                Stock::Bool => ItemPub::Bool(dds.publisher(&t.topic, &t.dds_type, q)?),
-                Stock::Array => ItemPub::Array(dds.publisher(&t.topic, &t.dds_type, q)?),
-            };
-            items.push(ItemWriter { leaf: leaf.clone(), publisher, last: None });
+            let writer = dds.writer(&t.topic, &t.dds_type, q)?;
+            items.push(ItemWriter { leaf: leaf.clone(), stock: Stock::of(leaf), writer, last: None });
         }
-        Ok(ItemWriters { items })
+        Ok(ItemWriters { items, body: Vec::new() })
     }
 
     /// Writes every item of `shm` that changed since the last call; returns (written, failed).
     pub fn send(&mut self, shm: &[u8]) -> (u64, u64) {
         let (mut sent, mut failed) = (0, 0);
+        let body = &mut self.body;
         for w in &mut self.items {
             let Some(bytes) = shm.get(w.leaf.range()) else { continue };
             if w.last.as_deref() == Some(bytes) {
                 continue;
             }
-            let ok = match &w.publisher {
-                ItemPub::Float64(p) => {
-                    p.publish(Float64 { data: elements(&w.leaf, bytes).next().map_or(0.0, Value::as_f64) }).is_ok()
+            match w.stock {
+                Stock::Float64 => {
+                    stock::encode_float64(elements(&w.leaf, bytes).next().map_or(0.0, Value::as_f64), body)
                 }
-                ItemPub::Bool(p) => p.publish(Bool { data: bytes.first().is_some_and(|&b| b != 0) }).is_ok(),
-                ItemPub::Array(p) => p
-                    .publish(Float64MultiArray {
-                        layout: Default::default(),
-                        data: elements(&w.leaf, bytes).map(Value::as_f64).collect(),
-                    })
-                    .is_ok(),
-            };
-            if ok {
+                Stock::Bool => stock::encode_bool(bytes.first().is_some_and(|&b| b != 0), body),
+                Stock::Array => stock::encode_float64_array(elements(&w.leaf, bytes).map(Value::as_f64), body),
+            }
+            if w.writer.write(body) {
                 sent += 1;
                 w.last = Some(bytes.to_vec());
             } else {
                 failed += 1;
             }
+        }
+        for w in &mut self.items {
+            w.writer.flush();
         }
         (sent, failed)
     }
@@ -119,12 +105,8 @@ impl ItemWriters {
     }
 }
 
-/// A stock message turned into the bytes of its leaf.
-trait IntoLeaf {
-    fn into_leaf(self, leaf: &Leaf) -> Result<Vec<u8>, String>;
-}
-
-fn encode(ty: ScalarType, values: impl Iterator<Item = Value>, n: usize) -> Vec<u8> {
+/// `n` values of type `ty`, in shared-memory layout.
+pub fn leaf_bytes(ty: ScalarType, values: impl Iterator<Item = Value>, n: usize) -> Vec<u8> {
     let size = ty.size() as usize;
     let mut out = vec![0u8; size * n];
     for (chunk, v) in out.chunks_exact_mut(size).zip(values) {
@@ -133,62 +115,25 @@ fn encode(ty: ScalarType, values: impl Iterator<Item = Value>, n: usize) -> Vec<
     out
 }
 
-impl IntoLeaf for Float64 {
-    fn into_leaf(self, leaf: &Leaf) -> Result<Vec<u8>, String> {
-        Ok(encode(leaf.ty, std::iter::once(Value::Float(self.data)), 1))
+/// The bytes of array `leaf` from the data of a `Float64MultiArray`.
+pub fn array_leaf(leaf: &Leaf, data: Vec<f64>) -> Result<Vec<u8>, String> {
+    let n = usize::from(leaf.length);
+    if data.len() != n {
+        return Err(format!("{} has {n} elements, the sample {}", leaf.path, data.len()));
     }
+    Ok(leaf_bytes(leaf.ty, data.into_iter().map(Value::Float), n))
 }
 
-impl IntoLeaf for Bool {
-    fn into_leaf(self, leaf: &Leaf) -> Result<Vec<u8>, String> {
-        Ok(encode(leaf.ty, std::iter::once(Value::Bool(self.data)), 1))
-    }
-}
-
-impl IntoLeaf for Float64MultiArray {
-    fn into_leaf(self, leaf: &Leaf) -> Result<Vec<u8>, String> {
-        let n = usize::from(leaf.length);
-        if self.data.len() != n {
-            return Err(format!("{} has {n} elements, the sample {}", leaf.path, self.data.len()));
-        }
-        Ok(encode(leaf.ty, self.data.into_iter().map(Value::Float), n))
-    }
-}
-
-/// Creates the reader of one item topic and the task that forwards its samples as route
-/// `to.0`.
-pub fn spawn_reader(
-    dds: &mut Dds,
-    topic: &ItemTopic,
-    leaf: &Leaf,
-    q: &Qos,
-    to: Destination,
-    stats: Arc<Stats>,
-    rt: &tokio::runtime::Handle,
-) -> Result<(), GatewayError> {
-    let own = dds.own_prefix;
+/// The bytes of `leaf` from a serialized stock sample.
+pub fn decode(leaf: &Leaf, raw: &[u8]) -> Result<Vec<u8>, String> {
     match Stock::of(leaf) {
-        Stock::Float64 => {
-            let s: Subscription<Float64> = dds.subscription(&topic.topic, &topic.dds_type, q)?;
-            rt.spawn(forward(s, leaf.clone(), to, stats, own));
-        }
-        Stock::Bool => {
-            let s: Subscription<Bool> = dds.subscription(&topic.topic, &topic.dds_type, q)?;
-            rt.spawn(forward(s, leaf.clone(), to, stats, own));
-        }
-        Stock::Array => {
-            let s: Subscription<Float64MultiArray> = dds.subscription(&topic.topic, &topic.dds_type, q)?;
-            rt.spawn(forward(s, leaf.clone(), to, stats, own));
-        }
+        Stock::Float64 => Ok(leaf_bytes(leaf.ty, std::iter::once(Value::Float(stock::float64(raw)?)), 1)),
+        Stock::Bool => Ok(leaf_bytes(leaf.ty, std::iter::once(Value::Bool(stock::boolean(raw)?)), 1)),
+        Stock::Array => array_leaf(leaf, stock::float64_array(raw)?),
     }
-    Ok(())
 }
 
-async fn forward<M>(sub: Subscription<M>, leaf: Leaf, to: Destination, stats: Arc<Stats>, own: [u8; PREFIX_LEN])
-where
-    M: DeserializeOwned + IntoLeaf + 'static,
-{
-    let path: Arc<str> = Arc::from(leaf.path.as_str());
-    let to_payload = |m: M| m.into_leaf(&leaf).map(|bytes| Payload::Item { path: path.clone(), bytes });
-    from_dds::forward(sub.async_stream(), to_payload, to, stats, own).await;
+/// How the samples of item `leaf`'s topic are decoded.
+pub fn decoder(leaf: &Leaf) -> Decode {
+    Decode::Item(Arc::new(leaf.clone()), Arc::from(leaf.path.as_str()))
 }

@@ -13,8 +13,6 @@ use std::sync::Arc;
 use std::thread::{self, JoinHandle, Thread};
 use std::time::{Duration, Instant};
 
-use ros2_client::dds::Publisher;
-use ros2_client::Gid;
 use tracing::{debug, info, warn};
 use tutti_core::ddf::Role;
 use tutti_core::shm::segment::Segment;
@@ -22,13 +20,14 @@ use tutti_core::shm::{Participant, ShmError};
 
 use super::per_item::ItemWriters;
 use super::ShmConfig;
-use crate::cdr::{PreEncoded, SetCodec};
+use crate::cdr::SetCodec;
+use crate::engine::{Guid, Writer};
 use crate::stats::{LogLimit, Stats};
 
 /// The typed writer of one set.
 pub struct SetWriter {
     codec: Arc<SetCodec>,
-    publisher: Publisher<PreEncoded>,
+    writer: Box<dyn Writer>,
     body: Vec<u8>,
 }
 
@@ -39,21 +38,16 @@ impl std::fmt::Debug for SetWriter {
 }
 
 impl SetWriter {
-    pub fn new(codec: Arc<SetCodec>, publisher: Publisher<PreEncoded>) -> Self {
-        SetWriter { codec, publisher, body: Vec::new() }
+    pub fn new(codec: Arc<SetCodec>, writer: Box<dyn Writer>) -> Self {
+        SetWriter { codec, writer, body: Vec::new() }
     }
 
     /// Encodes and writes one sample; false when DDS refused it.
     pub fn send(&mut self, step: u64, sim_time: f64, shm: &[u8]) -> bool {
         self.codec.encode(step, sim_time, shm, &mut self.body);
-        let sample = PreEncoded(std::mem::take(&mut self.body));
-        match self.publisher.publish(sample) {
-            Ok(()) => true,
-            Err(e) => {
-                debug!("DDS write failed: {e:?}");
-                false
-            }
-        }
+        let ok = self.writer.write(&self.body);
+        self.writer.flush();
+        ok
     }
 }
 
@@ -98,13 +92,13 @@ pub struct Activation {
     /// items that changed, so a reader joining one item's topic late must be sent every item
     /// again (an item whose value never changes would never reach it otherwise).
     joined: AtomicU64,
-    readers: std::sync::Mutex<BTreeSet<Gid>>,
+    readers: std::sync::Mutex<BTreeSet<Guid>>,
     thread: std::sync::OnceLock<Thread>,
 }
 
 impl Activation {
     /// The remote readers now on the route's topics (from discovery).
-    pub fn set_readers(&self, readers: &BTreeSet<Gid>) {
+    pub fn set_readers(&self, readers: &BTreeSet<Guid>) {
         let joined = {
             let mut known = self.readers.lock().unwrap_or_else(|e| e.into_inner());
             let joined = readers.difference(&known).next().is_some();

@@ -1,0 +1,193 @@
+//! The DDS engine layer: all the gateway needs from a DDS implementation, and nothing more.
+//!
+//! Routes, the CDR codec, the QoS table, exclusivity, echo suppression, stats and the mirror
+//! are written once above this layer; an [`Engine`] only moves pre-encoded CDR bytes
+//! between topics and the gateway, and tells who is on the other side. Two engines
+//! implement it: [`cyclone`] (Cyclone DDS through `cyclors`, the default) and [`rustdds`]
+//! (the pure-Rust stack, ros2-client over rustdds).
+
+use std::collections::{BTreeSet, HashMap};
+use std::fmt;
+use std::net::IpAddr;
+use std::sync::Arc;
+
+use tutti_core::ddf::Leaf;
+use tutti_core::mapping::Qos;
+
+use crate::cdr::SetCodec;
+use crate::routes::Payload;
+use crate::GatewayError;
+
+pub mod cyclone;
+pub mod rustdds;
+
+/// Bytes of a GUID prefix (the participant part of an endpoint GUID).
+pub const PREFIX_LEN: usize = 12;
+
+/// The GUID of a DDS endpoint: the 12-byte prefix of its participant and its entity id.
+#[derive(Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord, Default)]
+pub struct Guid(pub [u8; 16]);
+
+impl Guid {
+    /// The participant part.
+    pub fn prefix(&self) -> [u8; PREFIX_LEN] {
+        let mut p = [0u8; PREFIX_LEN];
+        p.copy_from_slice(&self.0[..PREFIX_LEN]);
+        p
+    }
+
+    /// A short printable form, for connection names and logs.
+    pub fn short(&self) -> String {
+        self.0.iter().map(|b| format!("{b:02x}")).collect()
+    }
+}
+
+impl fmt::Debug for Guid {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(&self.short())
+    }
+}
+
+/// The two engines.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum EngineKind {
+    /// Cyclone DDS, through `cyclors`.
+    #[default]
+    Cyclone,
+    /// rustdds and ros2-client (pure Rust).
+    Rustdds,
+}
+
+impl EngineKind {
+    pub fn name(self) -> &'static str {
+        match self {
+            EngineKind::Cyclone => "cyclone",
+            EngineKind::Rustdds => "rustdds",
+        }
+    }
+
+    /// Both engines, for tests and benchmarks that run against each.
+    pub const ALL: [EngineKind; 2] = [EngineKind::Cyclone, EngineKind::Rustdds];
+
+    /// The engine `TUTTI_DDS` names, if set (an unknown name is an error).
+    pub fn from_env() -> Option<EngineKind> {
+        std::env::var("TUTTI_DDS").ok().filter(|v| !v.trim().is_empty()).and_then(|v| v.parse().ok())
+    }
+}
+
+impl std::str::FromStr for EngineKind {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, String> {
+        match s.trim().to_ascii_lowercase().as_str() {
+            "cyclone" | "cyclonedds" => Ok(EngineKind::Cyclone),
+            "rustdds" => Ok(EngineKind::Rustdds),
+            other => Err(format!("unknown DDS engine '{other}' (expected cyclone or rustdds)")),
+        }
+    }
+}
+
+impl fmt::Display for EngineKind {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+/// How a participant joins DDS.
+#[derive(Debug, Clone, Default)]
+pub struct EngineConfig {
+    /// DDS domain id (ROS_DOMAIN_ID).
+    pub domain_id: u16,
+    /// Addresses DDS may use; empty: the engine's default (Cyclone: `CYCLONEDDS_URI`).
+    pub interfaces: Vec<IpAddr>,
+    /// Unicast discovery peers (addresses or host names), for networks without multicast.
+    pub peers: Vec<String>,
+    /// The ROS 2 node the participant announces on `ros_discovery_info`.
+    pub node_name: String,
+    /// Its namespace ("/" for none).
+    pub node_namespace: String,
+}
+
+/// How the samples of a reader are decoded into a [`Payload`].
+#[derive(Debug, Clone)]
+pub enum Decode {
+    /// A typed set (`tutti idl`'s struct).
+    Set(Arc<SetCodec>),
+    /// One item of per-item mode: its leaf and its path.
+    Item(Arc<Leaf>, Arc<str>),
+}
+
+/// One sample as a reader delivers it.
+#[derive(Debug)]
+pub enum Data<'a> {
+    /// The serialized sample, encapsulation header included (decoded above the engine).
+    Raw(&'a [u8]),
+    /// Already decoded by the engine (rustdds decodes through serde as it reads).
+    Decoded(Result<Payload, String>),
+}
+
+/// Where a reader's samples go: called on the engine's receive path with the writer's GUID.
+/// It must not block for long: on Cyclone it runs on the receive thread.
+pub type Sink = Arc<dyn Fn(Guid, Data<'_>) + Send + Sync>;
+
+/// A writer of pre-encoded samples.
+pub trait Writer: Send {
+    /// Writes one sample whose CDR body (little-endian, no encapsulation header) is `body`;
+    /// false when DDS refused it.
+    fn write(&mut self, body: &[u8]) -> bool;
+    /// Sends what batching held back (a no-op where writes are not batched).
+    fn flush(&mut self) {}
+}
+
+/// One remote endpoint as discovery reports it.
+#[derive(Debug, Clone, PartialEq)]
+pub struct RemoteEndpoint {
+    pub guid: Guid,
+    pub type_name: String,
+    /// Its QoS where the engine reports it.
+    pub qos: Option<Qos>,
+}
+
+/// Remote (not our participant's) endpoints per topic name.
+#[derive(Debug, Default, Clone, PartialEq, Eq)]
+pub struct Remote {
+    pub writers: HashMap<String, BTreeSet<Guid>>,
+    pub readers: HashMap<String, BTreeSet<Guid>>,
+}
+
+impl Remote {
+    /// Remote writers on `topic`.
+    pub fn writers_on<'a>(&'a self, topic: &str) -> impl Iterator<Item = Guid> + 'a {
+        self.writers.get(topic).into_iter().flatten().copied()
+    }
+
+    /// Remote readers on any of `topics` (each once).
+    pub fn readers_on(&self, topics: &[String]) -> BTreeSet<Guid> {
+        topics.iter().filter_map(|t| self.readers.get(t)).flatten().copied().collect()
+    }
+}
+
+/// A DDS participant, as the gateway uses it.
+pub trait Engine: Send + Sync {
+    fn kind(&self) -> EngineKind;
+    /// The DDS domain id it joined.
+    fn domain_id(&self) -> u16;
+    /// The GUID prefix of its participant: endpoints with it are our own.
+    fn own_prefix(&self) -> [u8; PREFIX_LEN];
+    /// A writer on `topic` (DDS type `type_name`) with QoS `q`.
+    fn writer(&self, topic: &str, type_name: &str, q: &Qos) -> Result<Box<dyn Writer>, GatewayError>;
+    /// A reader on `topic` with QoS `q`; its samples go to `sink` for as long as the engine
+    /// lives. `decode` is used by engines that decode as they read.
+    fn reader(&self, topic: &str, type_name: &str, q: &Qos, decode: Decode, sink: Sink) -> Result<(), GatewayError>;
+    /// The remote endpoints discovered so far (our own participant's left out).
+    fn remote(&self) -> Remote;
+    /// Announces (again) the node with every endpoint created so far on `ros_discovery_info`.
+    fn announce(&self) -> Result<(), GatewayError>;
+}
+
+/// Opens a participant of engine `kind`.
+pub fn open(kind: EngineKind, cfg: &EngineConfig) -> Result<Box<dyn Engine>, GatewayError> {
+    match kind {
+        EngineKind::Cyclone => Ok(Box::new(cyclone::Cyclone::open(cfg)?)),
+        EngineKind::Rustdds => Ok(Box::new(rustdds::Rustdds::open(cfg)?)),
+    }
+}

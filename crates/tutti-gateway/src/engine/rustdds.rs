@@ -1,0 +1,270 @@
+//! The pure-Rust engine: ros2-client over rustdds.
+//!
+//! Every endpoint is created through ros2-client's `Node`, so that ros_discovery_info lists
+//! it under the gateway's node (plain rustdds endpoints work on the wire but are not
+//! attributed to any node). Topics are created with rustdds directly, because only the
+//! topic can carry OWNERSHIP (ros2-client's `QosProfile` has none).
+//!
+//! Data path: a write hands the sample to rustdds' event-loop thread, which sends it; a
+//! received sample is decoded through serde by a task on this engine's own tokio runtime
+//! (one worker thread) and handed to the sink there. Known limits (docs/gateway.md): one
+//! datagram and two thread hops per sample; no unicast peers (`--peer` is refused);
+//! EXCLUSIVE ownership is not matched with Cyclone's readers; matching is read from the
+//! discovery database, since rustdds 0.15 has no working matched-endpoint queries.
+
+use std::collections::HashMap;
+use std::sync::{Arc, Mutex, PoisonError};
+
+use futures::{Stream, StreamExt};
+use ros2_client::dds::rustdds::{DomainParticipant, DomainParticipantBuilder, RTPSEntity, Topic, TopicKind};
+use ros2_client::dds::{Publisher, Subscription};
+use ros2_client::{Context, Gid, MessageInfo, Node, NodeName, NodeOptions};
+use serde::de::DeserializeOwned;
+use serde::Serialize;
+use tutti_core::ddf::{Leaf, Value};
+use tutti_core::mapping::Qos;
+
+use super::{Data, Decode, Engine, EngineConfig, EngineKind, Guid, Remote, Sink, Writer, PREFIX_LEN};
+use crate::cdr::{Bool, Float64, Float64MultiArray, PreEncoded, SetSeed};
+use crate::routes::per_item::{self, Stock};
+use crate::routes::Payload;
+use crate::{qos, GatewayError};
+
+/// The participant, the node and the topics created so far.
+pub struct Rustdds {
+    participant: DomainParticipant,
+    node: Mutex<Node>,
+    own_prefix: [u8; PREFIX_LEN],
+    topics: Mutex<HashMap<String, Topic>>,
+    rt: Option<tokio::runtime::Runtime>,
+    // Last, so that the node goes before the context.
+    _context: Context,
+}
+
+impl std::fmt::Debug for Rustdds {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Rustdds").field("own_prefix", &self.own_prefix).finish()
+    }
+}
+
+fn guid(g: &Gid) -> Guid {
+    let mut b = [0u8; 16];
+    b.copy_from_slice(&g.as_bytes()[..16]);
+    Guid(b)
+}
+
+impl Rustdds {
+    /// Joins DDS domain `cfg.domain_id` (restricted to `cfg.interfaces` when given) and
+    /// announces the node `cfg.node_name`.
+    pub fn open(cfg: &EngineConfig) -> Result<Rustdds, GatewayError> {
+        if !cfg.peers.is_empty() {
+            return Err(GatewayError::Invalid(
+                "the rustdds engine cannot be given unicast peers (--peer); use --dds cyclone".into(),
+            ));
+        }
+        let ns = if cfg.node_namespace.is_empty() { "/" } else { cfg.node_namespace.as_str() };
+        let node_name = NodeName::new(ns, &cfg.node_name)
+            .map_err(|e| GatewayError::Invalid(format!("invalid ROS 2 node name '{}': {e:?}", cfg.node_name)))?;
+        let mut b = DomainParticipantBuilder::new(cfg.domain_id);
+        if !cfg.interfaces.is_empty() {
+            b = b.with_only_networks(cfg.interfaces.clone());
+        }
+        let participant =
+            b.build().map_err(|e| GatewayError::dds(format!("a participant in DDS domain {}", cfg.domain_id), e))?;
+        let context = Context::from_domain_participant(participant.clone())
+            .map_err(|e| GatewayError::dds("the ROS 2 context", e))?;
+        let node = context
+            .new_node(node_name, NodeOptions::new().enable_rosout(false))
+            .map_err(|e| GatewayError::dds(format!("the ROS 2 node '{}'", cfg.node_name), format!("{e:?}")))?;
+        let own_prefix = guid(&Gid::from(participant.guid())).prefix();
+        let rt = tokio::runtime::Builder::new_multi_thread()
+            .worker_threads(1)
+            .thread_name("tutti-rustdds")
+            .enable_all()
+            .build()
+            .map_err(GatewayError::Runtime)?;
+        Ok(Rustdds {
+            participant,
+            node: Mutex::new(node),
+            own_prefix,
+            topics: Mutex::new(HashMap::new()),
+            rt: Some(rt),
+            _context: context,
+        })
+    }
+
+    fn topic(&self, name: &str, type_name: &str, q: &Qos) -> Result<Topic, GatewayError> {
+        let mut topics = self.topics.lock().unwrap_or_else(PoisonError::into_inner);
+        if let Some(t) = topics.get(name) {
+            return Ok(t.clone());
+        }
+        let t = self
+            .participant
+            .create_topic(name.to_string(), type_name.to_string(), &qos::topic_qos(q), TopicKind::NoKey)
+            .map_err(|e| GatewayError::dds(format!("topic {name}"), e))?;
+        topics.insert(name.to_string(), t.clone());
+        Ok(t)
+    }
+
+    /// A node publisher on `topic` (type `type_name`) with the writer QoS `q`.
+    fn publisher<M: Serialize>(&self, topic: &str, type_name: &str, q: &Qos) -> Result<Publisher<M>, GatewayError> {
+        let t = self.topic(topic, type_name, q)?;
+        self.node
+            .lock()
+            .unwrap_or_else(PoisonError::into_inner)
+            .create_publisher::<M>(&t, Some(qos::profile(q)))
+            .map_err(|e| GatewayError::dds(format!("a writer on {topic}"), e))
+    }
+
+    /// A node subscription on `topic` (type `type_name`) with the reader QoS `q`.
+    fn subscription<M: 'static>(&self, topic: &str, type_name: &str, q: &Qos) -> Result<Subscription<M>, GatewayError> {
+        let t = self.topic(topic, type_name, q)?;
+        self.node
+            .lock()
+            .unwrap_or_else(PoisonError::into_inner)
+            .create_subscription::<M>(&t, Some(qos::profile(q)))
+            .map_err(|e| GatewayError::dds(format!("a reader on {topic}"), e))
+    }
+
+    fn item_reader<M>(
+        &self,
+        topic: &str,
+        type_name: &str,
+        q: &Qos,
+        leaf: Arc<Leaf>,
+        sink: Sink,
+    ) -> Result<(), GatewayError>
+    where
+        M: DeserializeOwned + IntoLeaf + Send + Sync + 'static,
+    {
+        let sub: Subscription<M> = self.subscription(topic, type_name, q)?;
+        let path: Arc<str> = Arc::from(leaf.path.as_str());
+        let to_payload = move |m: M| m.into_leaf(&leaf).map(|bytes| Payload::Item { path: path.clone(), bytes });
+        if let Some(rt) = &self.rt {
+            rt.spawn(async move { pump(sub.async_stream(), to_payload, sink).await });
+        }
+        Ok(())
+    }
+}
+
+impl Drop for Rustdds {
+    fn drop(&mut self) {
+        if let Some(rt) = self.rt.take() {
+            rt.shutdown_background();
+        }
+    }
+}
+
+/// The task of one reader: every sample (or error) to the sink, decoded by `to_payload`.
+async fn pump<M, E: std::fmt::Debug>(
+    stream: impl Stream<Item = Result<(M, MessageInfo), E>>,
+    mut to_payload: impl FnMut(M) -> Result<Payload, String>,
+    sink: Sink,
+) {
+    futures::pin_mut!(stream);
+    while let Some(r) = stream.next().await {
+        match r {
+            Ok((m, info)) => sink(guid(&info.publisher_gid()), Data::Decoded(to_payload(m))),
+            Err(e) => sink(Guid::default(), Data::Decoded(Err(format!("{e:?}")))),
+        }
+    }
+}
+
+/// A writer of pre-encoded bodies: rustdds' serde publisher writes a tuple of bytes
+/// verbatim.
+struct RustddsWriter(Publisher<PreEncoded>);
+
+impl Writer for RustddsWriter {
+    fn write(&mut self, body: &[u8]) -> bool {
+        match self.0.publish(PreEncoded(body.to_vec())) {
+            Ok(()) => true,
+            Err(e) => {
+                tracing::debug!("DDS write failed: {e:?}");
+                false
+            }
+        }
+    }
+}
+
+impl Engine for Rustdds {
+    fn kind(&self) -> EngineKind {
+        EngineKind::Rustdds
+    }
+
+    fn domain_id(&self) -> u16 {
+        self.participant.domain_id()
+    }
+
+    fn own_prefix(&self) -> [u8; PREFIX_LEN] {
+        self.own_prefix
+    }
+
+    fn writer(&self, topic: &str, type_name: &str, q: &Qos) -> Result<Box<dyn Writer>, GatewayError> {
+        Ok(Box::new(RustddsWriter(self.publisher::<PreEncoded>(topic, type_name, q)?)))
+    }
+
+    fn reader(&self, topic: &str, type_name: &str, q: &Qos, decode: Decode, sink: Sink) -> Result<(), GatewayError> {
+        match decode {
+            Decode::Set(codec) => {
+                let sub = self.subscription(topic, type_name, q)?;
+                if let Some(rt) = &self.rt {
+                    rt.spawn(async move {
+                        pump(sub.async_stream_seed(SetSeed(codec)), |s| Ok(Payload::Set(s)), sink).await;
+                    });
+                }
+            }
+            Decode::Item(leaf, _) => match Stock::of(&leaf) {
+                Stock::Float64 => self.item_reader::<Float64>(topic, type_name, q, leaf, sink)?,
+                Stock::Bool => self.item_reader::<Bool>(topic, type_name, q, leaf, sink)?,
+                Stock::Array => self.item_reader::<Float64MultiArray>(topic, type_name, q, leaf, sink)?,
+            },
+        }
+        Ok(())
+    }
+
+    fn remote(&self) -> Remote {
+        let own = self.own_prefix;
+        let mut r = Remote::default();
+        for w in self.participant.discovered_writers() {
+            let g = guid(&Gid::from(w.writer_proxy.remote_writer_guid));
+            if g.prefix() != own {
+                r.writers.entry(w.publication_topic_data.topic_name.clone()).or_default().insert(g);
+            }
+        }
+        for rd in self.participant.discovered_readers() {
+            let g = guid(&Gid::from(rd.reader_proxy.remote_reader_guid));
+            if g.prefix() != own {
+                r.readers.entry(rd.subscription_topic_data.topic_name().clone()).or_default().insert(g);
+            }
+        }
+        r
+    }
+
+    /// ros2-client announces the node and its endpoints as they are created.
+    fn announce(&self) -> Result<(), GatewayError> {
+        Ok(())
+    }
+}
+
+/// A stock message turned into the bytes of its leaf.
+pub(crate) trait IntoLeaf {
+    fn into_leaf(self, leaf: &Leaf) -> Result<Vec<u8>, String>;
+}
+
+impl IntoLeaf for Float64 {
+    fn into_leaf(self, leaf: &Leaf) -> Result<Vec<u8>, String> {
+        Ok(per_item::leaf_bytes(leaf.ty, std::iter::once(Value::Float(self.data)), 1))
+    }
+}
+
+impl IntoLeaf for Bool {
+    fn into_leaf(self, leaf: &Leaf) -> Result<Vec<u8>, String> {
+        Ok(per_item::leaf_bytes(leaf.ty, std::iter::once(Value::Bool(self.data)), 1))
+    }
+}
+
+impl IntoLeaf for Float64MultiArray {
+    fn into_leaf(self, leaf: &Leaf) -> Result<Vec<u8>, String> {
+        per_item::array_leaf(leaf, self.data)
+    }
+}
