@@ -38,15 +38,15 @@ fn build_subscriber() -> Option<PathBuf> {
     Some(dir.join("fastdds_sub"))
 }
 
-#[test]
-fn a_fast_dds_subscriber_receives_typed_samples() {
+fn a_fast_dds_subscriber_receives_typed_samples(e: Eng) {
     let Some(bin) = build_subscriber() else { return };
-    let (dom, ns) = (111, "gwtest111");
+    let (dom, ns) = (e.dom(111), e.ns("gwtest111"));
+    let ns = ns.as_str();
     // multiuav_uav1 PUBLISH: autopilot, x, y, z, airspeed, altitude, time.
     let _host = Host::start_with("ddf/multiuav.ddf", ns, "multiuav_uav1", Duration::from_millis(10), |k| {
         [1.0, 12.5, 0.0, 0.0, k as f64, 300.0, k as f64 * 0.01].iter().flat_map(|v: &f64| v.to_ne_bytes()).collect()
     });
-    let gw = gateway("ddf/multiuav.ddf", dom, ns, &[]);
+    let gw = e.gateway("ddf/multiuav.ddf", dom, ns, &[]);
     let mut cmd = Command::new(&bin);
     cmd.args([dom.to_string().as_str(), "3", "20"]);
     let mut sub = Proc::spawn("fastdds_sub", cmd, Duration::from_secs(90));
@@ -59,3 +59,7 @@ fn a_fast_dds_subscriber_receives_typed_samples() {
     assert_eq!(field("airspeed"), field("step"), "the step number travels with the step's values: {line}");
     let _ = std::fs::remove_dir_all(bin.parent().unwrap());
 }
+
+per_engine!(
+    a_fast_dds_subscriber_receives_typed_samples,
+);

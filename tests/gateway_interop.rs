@@ -45,12 +45,12 @@ fn async_publish(k: u64) -> Vec<u8> {
     b
 }
 
-#[test]
-fn shared_memory_values_reach_a_cyclone_reader_as_typed_samples() {
+fn shared_memory_values_reach_a_cyclone_reader_as_typed_samples(e: Eng) {
     let Some(py) = python() else { return };
-    let (dom, ns) = (101, "gwtest101");
+    let (dom, ns) = (e.dom(101), e.ns("gwtest101"));
+    let ns = ns.as_str();
     let _host = Host::start(ns, "gw_async", Duration::from_millis(10), async_publish);
-    let gw = gateway(DDF, dom, ns, &[]);
+    let gw = e.gateway(DDF, dom, ns, &[]);
     let (stop, t) = keep_committing(ns, 2.5, 7);
     let mut sub = peer(
         &py,
@@ -104,12 +104,12 @@ fn shared_memory_values_reach_a_cyclone_reader_as_typed_samples() {
     );
 }
 
-#[test]
-fn per_item_mode_uses_stock_types_both_ways() {
+fn per_item_mode_uses_stock_types_both_ways(e: Eng) {
     let Some(py) = python() else { return };
-    let (dom, ns) = (102, "gwtest102");
+    let (dom, ns) = (e.dom(102), e.ns("gwtest102"));
+    let ns = ns.as_str();
     let host = Host::start(ns, "gw_async", Duration::from_millis(10), async_publish);
-    let gw = gateway(DDF, dom, ns, &["--ros2-types", "per-item"]);
+    let gw = e.gateway(DDF, dom, ns, &["--ros2-types", "per-item"]);
     // A shared-memory writer's value reaches DDS; it then leaves, so that a DDS writer may
     // own the (exclusive) SUBSCRIBE set.
     let (stop, t) = keep_committing(ns, 6.25, 0);
@@ -188,12 +188,12 @@ fn per_item_mode_uses_stock_types_both_ways() {
     assert!(k.is_some(), "the framework never read n=42\n{}", gw.dump());
 }
 
-#[test]
-fn a_reader_joining_one_item_late_in_per_item_mode_gets_items_that_never_change() {
+fn a_reader_joining_one_item_late_in_per_item_mode_gets_items_that_never_change(e: Eng) {
     let Some(py) = python() else { return };
-    let (dom, ns) = (113, "gwtest113");
+    let (dom, ns) = (e.dom(113), e.ns("gwtest113"));
+    let ns = ns.as_str();
     let _host = Host::start(ns, "gw_async", Duration::from_millis(10), async_publish);
-    let gw = gateway(DDF, dom, ns, &["--ros2-types", "per-item"]);
+    let gw = e.gateway(DDF, dom, ns, &["--ros2-types", "per-item"]);
     // The first reader (of v, which changes every step) turns the PUBLISH route on and gets
     // every item sent once; flag (always true) never changes after that. v's reader stays,
     // so the route stays on while flag's reader joins.
@@ -208,12 +208,12 @@ fn a_reader_joining_one_item_late_in_per_item_mode_gets_items_that_never_change(
     assert_eq!(json_lines(&flag, "data")[0]["data"], true);
 }
 
-#[test]
-fn a_cyclone_writer_is_read_by_the_framework_through_a_remote_connection() {
+fn a_cyclone_writer_is_read_by_the_framework_through_a_remote_connection(e: Eng) {
     let Some(py) = python() else { return };
-    let (dom, ns) = (103, "gwtest103");
+    let (dom, ns) = (e.dom(103), e.ns("gwtest103"));
+    let ns = ns.as_str();
     let host = Host::start(ns, "gw_async", Duration::from_millis(10), async_publish);
-    let gw = gateway(DDF, dom, ns, &[]);
+    let gw = e.gateway(DDF, dom, ns, &[]);
     let mut w = peer(
         &py,
         "pub subscribe",
@@ -242,11 +242,10 @@ fn a_cyclone_writer_is_read_by_the_framework_through_a_remote_connection() {
     assert_eq!(remote_writers, 1, "{:?}", seg.status().connections);
 }
 
-#[test]
-fn the_gateway_writers_offer_the_qos_table_on_the_wire() {
+fn the_gateway_writers_offer_the_qos_table_on_the_wire(e: Eng) {
     let Some(py) = python() else { return };
     for (dom, ns, profile) in [(104, "gwtest104", "ros2"), (105, "gwtest105", "dds")] {
-        let gw = gateway(DDF, dom, ns, &["--qos-profile", profile, "--strength", "9"]);
+        let gw = e.gateway(DDF, dom, ns, &["--qos-profile", profile, "--strength", "9"]);
         let q = |topic: &str| {
             let mut p = peer(&py, &format!("qos {topic}"), dom, "qos", &["--topic", topic, "--timeout", "45"]);
             assert_eq!(p.wait(SECS(60)), Some(0), "{}\n{}", p.dump(), gw.dump());
@@ -270,11 +269,11 @@ fn the_gateway_writers_offer_the_qos_table_on_the_wire() {
     }
 }
 
-#[test]
-fn the_gateway_is_a_ros2_node_in_ros_discovery_info() {
+fn the_gateway_is_a_ros2_node_in_ros_discovery_info(e: Eng) {
     let Some(py) = python() else { return };
-    let (dom, ns) = (106, "gwtest106");
-    let gw = gateway(DDF, dom, ns, &["--node-name", "tutti_gw_test"]);
+    let (dom, ns) = (e.dom(106), e.ns("gwtest106"));
+    let ns = ns.as_str();
+    let gw = e.gateway(DDF, dom, ns, &["--node-name", "tutti_gw_test"]);
     let mut p = peer(&py, "nodes", dom, "nodes", &["--name", "tutti_gw_test", "--timeout", "45"]);
     assert_eq!(p.wait(SECS(60)), Some(0), "{}\n{}", p.dump(), gw.dump());
     let n = &json_lines(&p, "name")[0];
@@ -285,12 +284,12 @@ fn the_gateway_is_a_ros2_node_in_ros_discovery_info() {
     assert_eq!(n["readers"], 3, "{n}");
 }
 
-#[test]
-fn bad_samples_and_a_second_writer_are_dropped_and_counted() {
+fn bad_samples_and_a_second_writer_are_dropped_and_counted(e: Eng) {
     let Some(py) = python() else { return };
-    let (dom, ns) = (107, "gwtest107");
+    let (dom, ns) = (e.dom(107), e.ns("gwtest107"));
+    let ns = ns.as_str();
     let host = Host::start(ns, "gw_async", Duration::from_millis(10), async_publish);
-    let mut gw = gateway(DDF, dom, ns, &[]);
+    let mut gw = e.gateway(DDF, dom, ns, &[]);
     // Truncated: the right type name, but only the header fields.
     let mut bad = peer(
         &py,
@@ -330,10 +329,10 @@ fn bad_samples_and_a_second_writer_are_dropped_and_counted() {
     assert!(rejected >= 1, "the domain header counts the refused commits");
 }
 
-#[test]
-fn a_dds_writer_takes_part_in_lock_step_through_the_gateway() {
+fn a_dds_writer_takes_part_in_lock_step_through_the_gateway(e: Eng) {
     let Some(py) = python() else { return };
-    let (dom, ns) = (108, "gwtest108");
+    let (dom, ns) = (e.dom(108), e.ns("gwtest108"));
+    let ns = ns.as_str();
     let mut answer = peer(
         &py,
         "answer",
@@ -359,7 +358,7 @@ fn a_dds_writer_takes_part_in_lock_step_through_the_gateway() {
         ],
     );
     let host = Host::start(ns, "gw_sync", Duration::from_millis(5), |k| (k as f64 * 10.0).to_ne_bytes().to_vec());
-    let gw = gateway(DDF, dom, ns, &[]);
+    let gw = e.gateway(DDF, dom, ns, &[]);
     // In lock-step, the SUBSCRIBE set read at the end of step k answers step k's PUBLISH set.
     let answered = |k: u64, b: &[u8]| f64_at(b, 0) == k as f64 * 10.0 + 1.0;
     let first = host.wait_for(SECS(75), answered);
@@ -371,12 +370,12 @@ fn a_dds_writer_takes_part_in_lock_step_through_the_gateway() {
     let _ = answer.interrupt(SECS(15));
 }
 
-#[test]
-fn the_cyclone_uav_listener_prints_the_states_a_uav_model_commits() {
+fn the_cyclone_uav_listener_prints_the_states_a_uav_model_commits(e: Eng) {
     let Some(py) = python() else { return };
-    let (dom, ns) = (112, "gwtest112");
+    let (dom, ns) = (e.dom(112), e.ns("gwtest112"));
+    let ns = ns.as_str();
     let host = Host::start_with("ddf/multiuav.ddf", ns, "multiuav_uav1", Duration::from_millis(10), |_| vec![0; 56]);
-    let gw = gateway("ddf/multiuav.ddf", dom, ns, &[]);
+    let gw = e.gateway("ddf/multiuav.ddf", dom, ns, &[]);
     // The UAV model: in lock-step, answers every step with its state.
     let stop = Arc::new(AtomicBool::new(false));
     let (s, ns2) = (stop.clone(), ns.to_string());
@@ -403,3 +402,15 @@ fn the_cyclone_uav_listener_prints_the_states_a_uav_model_commits() {
     assert_eq!(s["latitude"], 45.5);
     assert_eq!(s["elevation"], 120.0);
 }
+
+per_engine!(
+    shared_memory_values_reach_a_cyclone_reader_as_typed_samples,
+    per_item_mode_uses_stock_types_both_ways,
+    a_reader_joining_one_item_late_in_per_item_mode_gets_items_that_never_change,
+    a_cyclone_writer_is_read_by_the_framework_through_a_remote_connection,
+    the_gateway_writers_offer_the_qos_table_on_the_wire,
+    the_gateway_is_a_ros2_node_in_ros_discovery_info,
+    bad_samples_and_a_second_writer_are_dropped_and_counted,
+    a_dds_writer_takes_part_in_lock_step_through_the_gateway,
+    the_cyclone_uav_listener_prints_the_states_a_uav_model_commits,
+);

@@ -14,21 +14,22 @@ use gateway::*;
 
 const SECS: fn(u64) -> Duration = Duration::from_secs;
 
-#[test]
-fn a_component_on_the_mirror_side_drives_an_asynchronous_domain() {
+fn a_component_on_the_mirror_side_drives_an_asynchronous_domain(e: Eng) {
     let Some(_py) = python() else { return };
-    let (dom, home, away) = (109, "gwtest109a", "gwtest109b");
+    let (dom, home, away) = (e.dom(109), e.ns("gwtest109a"), e.ns("gwtest109b"));
+    let (home, away) = (home.as_str(), away.as_str());
     let host = Host::start(home, "gw_async", Duration::from_millis(10), |_| {
         let mut b = vec![0u8; 40];
         b[0..8].copy_from_slice(&4.5f64.to_ne_bytes());
         b
     });
-    let gw_home = gateway(DDF, dom, home, &[]);
-    let gw_away = gateway(DDF, dom, away, &["--mirror"]);
+    let gw_home = e.gateway(DDF, dom, home, &[]);
+    let gw_away = e.gateway(DDF, dom, away, &["--mirror"]);
     let stop = Arc::new(AtomicBool::new(false));
     let s = stop.clone();
+    let away_ns = away.to_string();
     let component = thread::spawn(move || {
-        let mut p = connect(away, "gw_async");
+        let mut p = connect(&away_ns, "gw_async");
         let end = Instant::now() + SECS(60);
         let mut x = 0.0;
         while Instant::now() < end && x != 4.5 {
@@ -50,17 +51,18 @@ fn a_component_on_the_mirror_side_drives_an_asynchronous_domain() {
     assert!(got.is_some(), "the framework never read the mirror side's commit\n{}\n{}", gw_home.dump(), gw_away.dump());
 }
 
-#[test]
-fn a_component_on_the_mirror_side_takes_part_in_lock_step() {
+fn a_component_on_the_mirror_side_takes_part_in_lock_step(e: Eng) {
     let Some(_py) = python() else { return };
-    let (dom, home, away) = (110, "gwtest110a", "gwtest110b");
+    let (dom, home, away) = (e.dom(110), e.ns("gwtest110a"), e.ns("gwtest110b"));
+    let (home, away) = (home.as_str(), away.as_str());
     let host = Host::start(home, "gw_sync", Duration::from_millis(5), |k| (k as f64 * 10.0).to_ne_bytes().to_vec());
-    let gw_home = gateway(DDF, dom, home, &[]);
-    let gw_away = gateway(DDF, dom, away, &["--mirror", "--timeout", "500ms"]);
+    let gw_home = e.gateway(DDF, dom, home, &[]);
+    let gw_away = e.gateway(DDF, dom, away, &["--mirror", "--timeout", "500ms"]);
     let stop = Arc::new(AtomicBool::new(false));
     let s = stop.clone();
+    let away_ns = away.to_string();
     let component = thread::spawn(move || {
-        let mut p = connect(away, "gw_sync");
+        let mut p = connect(&away_ns, "gw_sync");
         let mut steps = 0;
         while !s.load(Ordering::Acquire) {
             if p.subscribe_lock().is_err() {
@@ -86,3 +88,8 @@ fn a_component_on_the_mirror_side_takes_part_in_lock_step() {
     assert!(first.is_some(), "no step was answered ({steps} commits)\n{}\n{}", gw_home.dump(), gw_away.dump());
     assert_lock_step(&seen, first.unwrap(), answered);
 }
+
+per_engine!(
+    a_component_on_the_mirror_side_drives_an_asynchronous_domain,
+    a_component_on_the_mirror_side_takes_part_in_lock_step,
+);

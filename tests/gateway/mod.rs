@@ -184,6 +184,53 @@ pub fn gateway(ddf: &str, domain_id: u16, ns: &str, extra: &[&str]) -> Proc {
     p
 }
 
+/// The DDS engine a gateway test runs against. Every interop test runs once per engine
+/// ([`per_engine!`]), each run with a DDS domain and namespace of its own, so that both
+/// runs go in parallel.
+#[derive(Debug, Clone, Copy)]
+pub struct Eng {
+    pub name: &'static str,
+    offset: u16,
+}
+
+impl Eng {
+    pub const CYCLONE: Eng = Eng { name: "cyclone", offset: 0 };
+    pub const RUSTDDS: Eng = Eng { name: "rustdds", offset: 50 };
+
+    /// The DDS domain id of this engine's run of a test numbered `base`.
+    pub fn dom(self, base: u16) -> u16 {
+        base + self.offset
+    }
+
+    /// The shared-memory namespace of this engine's run of a test.
+    pub fn ns(self, base: &str) -> String {
+        format!("{base}{}", &self.name[..2])
+    }
+
+    /// `tutti gateway --dds ENGINE DDF` (see [`gateway`]).
+    pub fn gateway(self, ddf: &str, domain_id: u16, ns: &str, extra: &[&str]) -> Proc {
+        let args: Vec<&str> = ["--dds", self.name].into_iter().chain(extra.iter().copied()).collect();
+        gateway(ddf, domain_id, ns, &args)
+    }
+}
+
+/// Turns each named `fn NAME(e: Eng)` into two tests, `NAME::cyclone` and `NAME::rustdds`.
+#[macro_export]
+macro_rules! per_engine {
+    ($($name:ident),* $(,)?) => {$(
+        mod $name {
+            #[test]
+            fn cyclone() {
+                super::$name(super::gateway::Eng::CYCLONE)
+            }
+            #[test]
+            fn rustdds() {
+                super::$name(super::gateway::Eng::RUSTDDS)
+            }
+        }
+    )*};
+}
+
 /// The Cyclone peer in `mode`.
 pub fn peer(py: &Path, name: &str, domain_id: u16, mode: &str, args: &[&str]) -> Proc {
     let mut cmd = Command::new(py);
