@@ -8,10 +8,11 @@ cd "$(dirname "$0")/.."
 step() { printf '\n== %s\n' "$*"; }
 . launch-scripts/lib.sh
 
-# --- Debian packages: DDS peers and tools for the interop tests, C toolchain, valgrind, the
-# font the UAV demo draws its figures with.
+# --- Debian packages: DDS peers and tools for the interop tests, what the Cyclone engine's
+# build needs (cmake, libclang for bindgen), C toolchain, valgrind, iproute2 for the
+# network-namespace tests, the font the UAV demo draws its figures with.
 ensure_debian_packages cyclonedds-tools cyclonedds-dev fastddsgen libfastrtps-dev fastdds-tools valgrind gcc g++ make \
-    python3-venv fonts-dejavu-core
+    cmake libclang-dev iproute2 python3-venv fonts-dejavu-core
 
 # --- Python: a local venv with the Cyclone DDS binding (the stand-in for rclpy nodes).
 if ! .venv/bin/python -c 'import cyclonedds' 2>/dev/null; then

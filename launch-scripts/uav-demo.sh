@@ -5,7 +5,8 @@
 #   ./launch-scripts/uav-demo.sh                      # the paper's run: 120 s simulated, ~30 s wall
 #   ./launch-scripts/uav-demo.sh --scenario short     # any option of `tutti demo uav`
 #
-# Installs what it needs (gcc for the C components, the DejaVu font for the figures, Python 3),
+# Installs what it needs (gcc for the C components, the DejaVu font for the figures, Python 3,
+# cmake and libclang for the Cyclone DDS engine),
 # builds tutti and librtapi in release, then runs `tutti demo uav --out out/uav`. Results:
 # out/uav/figure5.png, out/uav/figure6.png, the CSV files and summary.txt. The exit status is
 # the demo's: non-zero when a check fails.
@@ -15,9 +16,10 @@ cd "$(dirname "$0")/.."
 step() { printf '\n== %s\n' "$*" >&2; }
 . launch-scripts/lib.sh
 
-# --- Debian packages: C compiler, the font plotters renders text with, Python 3.
+# --- Debian packages: C compiler, the font plotters renders text with, Python 3, and what
+# the gateway's Cyclone DDS engine builds with (cmake, libclang for bindgen).
 # Without apt-get the demo goes on: what is missing fails later with its own message.
-ensure_debian_packages gcc libc6-dev fonts-dejavu-core python3 || true
+ensure_debian_packages gcc g++ libc6-dev cmake libclang-dev fonts-dejavu-core python3 || true
 
 # --- Python: the monitoring script needs only the standard library and python/tutti_rtapi.py.
 if [ -z "${TUTTI_PYTHON:-}" ]; then

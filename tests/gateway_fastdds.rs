@@ -60,6 +60,4 @@ fn a_fast_dds_subscriber_receives_typed_samples(e: Eng) {
     let _ = std::fs::remove_dir_all(bin.parent().unwrap());
 }
 
-per_engine!(
-    a_fast_dds_subscriber_receives_typed_samples,
-);
+per_engine!(a_fast_dds_subscriber_receives_typed_samples,);

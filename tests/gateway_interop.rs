@@ -403,6 +403,61 @@ fn the_cyclone_uav_listener_prints_the_states_a_uav_model_commits(e: Eng) {
     assert_eq!(s["elevation"], 120.0);
 }
 
+/// In the `dds` profile, ownership is matched on the wire: a Cyclone EXCLUSIVE reader takes
+/// the gateway's EXCLUSIVE writer's samples, and the gateway's EXCLUSIVE reader takes only
+/// the strongest live DDS writer's samples, so a weaker writer never reaches the framework
+/// while the stronger one lives. Cyclone engine only: rustdds does not match EXCLUSIVE
+/// endpoints with Cyclone's (docs/gateway.md, "Known limits").
+#[test]
+fn dds_profile_ownership_is_matched_on_the_wire_by_the_cyclone_engine() {
+    let Some(py) = python() else { return };
+    let e = Eng::CYCLONE;
+    let (dom, ns) = (e.dom(114), e.ns("gwtest114"));
+    let ns = ns.as_str();
+    let host = Host::start(ns, "gw_async", Duration::from_millis(10), async_publish);
+    let gw = e.gateway(DDF, dom, ns, &["--qos-profile", "dds", "--strength", "9"]);
+    let mut reader = peer(
+        &py,
+        "exclusive reader",
+        dom,
+        "sub",
+        &[
+            "--topic",
+            "rt/gw_async/publish",
+            "--type",
+            "gw_msgs::msg::dds_::GwAsyncPublish_",
+            "--fields",
+            PUB_FIELDS,
+            "--count",
+            "3",
+            "--exclusive",
+        ],
+    );
+    assert_eq!(reader.wait(SECS(75)), Some(0), "{}\n{}", reader.dump(), gw.dump());
+    assert_eq!(json_lines(&reader, "x")[0]["x"], 4.5);
+
+    let values = |y: f64, n: usize| format!("[{}]", vec![format!(r#"{{"y": {y}}}"#); n].join(","));
+    let (strong_values, weak_values) = (values(1.0, 150), values(2.0, 40));
+    let a =
+        ["--topic", "rt/gw_async/subscribe", "--type", "gw_msgs::msg::dds_::GwAsyncSubscribe_", "--fields", SUB_FIELDS];
+    let writer = |name: &str, vals: &str, strength: &str| {
+        let opts = ["--values", vals, "--period-ms", "20", "--exclusive", "--strength", strength];
+        peer(&py, name, dom, "pub", &[&a[..], &opts].concat())
+    };
+    let mut strong = writer("strong writer", &strong_values, "10");
+    assert!(host.wait_for(SECS(60), |_, b| f64_at(b, 0) == 1.0).is_some(), "{}\n{}", strong.dump(), gw.dump());
+    let mut weak = writer("weak writer", &weak_values, "3");
+    assert_eq!(weak.wait(SECS(60)), Some(0), "{}", weak.dump());
+    assert_eq!(json_lines(&weak, "wrote").len(), 40, "{}", weak.dump());
+    let strong_rc = strong.wait(SECS(60));
+    assert_eq!(strong_rc, Some(0), "{}", strong.dump());
+    assert!(
+        host.seen.lock().unwrap().iter().all(|(_, b)| f64_at(b, 0) != 2.0),
+        "a weaker writer's sample reached the framework while the stronger one lived\n{}",
+        gw.dump()
+    );
+}
+
 per_engine!(
     shared_memory_values_reach_a_cyclone_reader_as_typed_samples,
     per_item_mode_uses_stock_types_both_ways,

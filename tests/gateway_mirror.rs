@@ -17,14 +17,62 @@ const SECS: fn(u64) -> Duration = Duration::from_secs;
 fn a_component_on_the_mirror_side_drives_an_asynchronous_domain(e: Eng) {
     let Some(_py) = python() else { return };
     let (dom, home, away) = (e.dom(109), e.ns("gwtest109a"), e.ns("gwtest109b"));
-    let (home, away) = (home.as_str(), away.as_str());
+    mirror_async(&home, &away, || (e.gateway(DDF, dom, &home, &[]), e.gateway(DDF, dom, &away, &["--mirror"])));
+}
+
+/// The mirror across two network stacks: each gateway in a network namespace of its own,
+/// joined by a veth pair, discovering the other by multicast on the veth (both engines).
+fn the_mirror_discovers_across_network_namespaces_by_multicast(e: Eng) {
+    let Some(_py) = python() else { return };
+    let Some(net) = netns(&format!("mc{}", &e.name[..2])) else { return };
+    let (dom, home, away) = (e.dom(115), e.ns("gwtest115a"), e.ns("gwtest115b"));
+    mirror_async(&home, &away, || {
+        (net.gateway(0, e, DDF, dom, &home, &[], &[]), net.gateway(1, e, DDF, dom, &away, &["--mirror"], &[]))
+    });
+}
+
+/// As above with multicast switched off (CYCLONEDDS_URI): discovery by `--peer` unicast
+/// only, as between two machines without multicast (Cyclone engine; rustdds cannot be given
+/// unicast peers).
+#[test]
+fn the_mirror_discovers_across_network_namespaces_by_unicast_peers() {
+    let Some(_py) = python() else { return };
+    let Some(net) = netns("uc") else { return };
+    let e = Eng::CYCLONE;
+    let (dom, home, away) = (e.dom(116), e.ns("gwtest116a"), e.ns("gwtest116b"));
+    let no_multicast = "<CycloneDDS><Domain id=\"any\"><General><AllowMulticast>false</AllowMulticast></General></Domain></CycloneDDS>";
+    let env = [("CYCLONEDDS_URI", no_multicast)];
+    let [a, b] = NetnsPair::ADDRS;
+    mirror_async(&home, &away, || {
+        (
+            net.gateway(0, e, DDF, dom, &home, &["--peer", b], &env),
+            net.gateway(1, e, DDF, dom, &away, &["--mirror", "--peer", a], &env),
+        )
+    });
+}
+
+/// The pair of namespaces of a test, or None (skipped with the reason) where this machine
+/// does not let a test create them.
+fn netns(tag: &str) -> Option<NetnsPair> {
+    match NetnsPair::create(tag) {
+        Ok(n) => Some(n),
+        Err(why) => {
+            eprintln!("network namespaces cannot be created here ({why}): test skipped");
+            None
+        }
+    }
+}
+
+/// A framework on the home side publishes x = 4.5; a component on the mirror side reads it
+/// and answers y = x + 4; the framework must see 8.5. `gateways` starts the home and the
+/// mirror gateway once the framework is up.
+fn mirror_async(home: &str, away: &str, gateways: impl FnOnce() -> (Proc, Proc)) {
     let host = Host::start(home, "gw_async", Duration::from_millis(10), |_| {
         let mut b = vec![0u8; 40];
         b[0..8].copy_from_slice(&4.5f64.to_ne_bytes());
         b
     });
-    let gw_home = e.gateway(DDF, dom, home, &[]);
-    let gw_away = e.gateway(DDF, dom, away, &["--mirror"]);
+    let (gw_home, gw_away) = gateways();
     let stop = Arc::new(AtomicBool::new(false));
     let s = stop.clone();
     let away_ns = away.to_string();
@@ -90,6 +138,7 @@ fn a_component_on_the_mirror_side_takes_part_in_lock_step(e: Eng) {
 }
 
 per_engine!(
+    the_mirror_discovers_across_network_namespaces_by_multicast,
     a_component_on_the_mirror_side_drives_an_asynchronous_domain,
     a_component_on_the_mirror_side_takes_part_in_lock_step,
 );

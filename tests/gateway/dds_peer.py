@@ -6,7 +6,7 @@ e.g. '[["step","uint64"],["sim_time","float64"],["x","float64"],["v","float64[3]
 Every mode prints JSON lines on stdout and exits 0 on success, 3 on timeout.
 
   sub    --topic T --type TN --fields F [--count N] [--timeout S] [--best-effort] [--exclusive]
-  pub    --topic T --type TN --fields F --values '[{...}, ...]' [--period-ms P] [--exclusive]
+  pub    --topic T --type TN --fields F --values '[{...}, ...]' [--period-ms P] [--exclusive [--strength S]]
          [--linger S]: waits for a matched reader, writes each sample
   answer --topic T --type TN --fields F --reply-topic T2 --reply-type TN2 --reply-fields F2
          --count N: for each sample read on T (a step k) writes one sample on T2 with step k
@@ -81,7 +81,7 @@ def reader_qos(a):
 def writer_qos(a):
     pol = [Policy.Reliability.Reliable(duration(milliseconds=100)), Policy.History.KeepLast(100), Policy.Durability.Volatile]
     if a.exclusive:
-        pol += [Policy.Ownership.Exclusive, Policy.OwnershipStrength(5)]
+        pol += [Policy.Ownership.Exclusive, Policy.OwnershipStrength(a.strength)]
     else:
         pol.append(Policy.Ownership.Shared)
     return Qos(*pol)
@@ -244,6 +244,7 @@ def main():
     p.add_argument("--linger", type=float, default=0.5)
     p.add_argument("--best-effort", action="store_true")
     p.add_argument("--exclusive", action="store_true")
+    p.add_argument("--strength", type=int, default=5)
     a = p.parse_args()
     dp = DomainParticipant(a.domain)
     sys.exit({"sub": cmd_sub, "pub": cmd_pub, "answer": cmd_answer, "qos": cmd_qos, "nodes": cmd_nodes}[a.mode](dp, a))

@@ -165,23 +165,87 @@ impl Drop for Proc {
 
 /// `tutti gateway DDF` on loopback in DDS domain `domain_id`, namespace `ns`.
 pub fn gateway(ddf: &str, domain_id: u16, ns: &str, extra: &[&str]) -> Proc {
-    let mut cmd = Command::new(env!("CARGO_BIN_EXE_tutti"));
-    cmd.args([
-        "gateway",
-        ddf,
-        "--ros-domain-id",
-        &domain_id.to_string(),
-        "--interface",
-        "127.0.0.1",
-        "--status-every",
-        "300ms",
-    ])
-    .args(extra)
-    .env("TUTTI_NAMESPACE", ns)
-    .env("RUST_LOG", "info,rustdds=off,ros2_client=off");
+    start_gateway(Command::new(env!("CARGO_BIN_EXE_tutti")), ddf, domain_id, ns, "127.0.0.1", extra)
+}
+
+/// `tutti gateway DDF` run by `cmd` (the binary itself, or `ip netns exec NS` before it)
+/// on interface `addr`; returns once it is up.
+fn start_gateway(mut cmd: Command, ddf: &str, domain_id: u16, ns: &str, addr: &str, extra: &[&str]) -> Proc {
+    cmd.args(["gateway", ddf, "--ros-domain-id", &domain_id.to_string(), "--interface", addr])
+        .args(["--status-every", "300ms"])
+        .args(extra)
+        .env("TUTTI_NAMESPACE", ns)
+        .env("RUST_LOG", "info,rustdds=off,ros2_client=off");
     let p = Proc::spawn(&format!("gateway {ns}"), cmd, Duration::from_secs(180));
     assert!(p.wait_line("tutti gateway: up", Duration::from_secs(60)).is_some(), "gateway did not start\n{}", p.dump());
     p
+}
+
+/// Two network namespaces joined by a veth pair (`veth0` in each, 192.0.2.1/24 in the first,
+/// 192.0.2.2/24 in the second: addresses that exist only inside them), both removed on drop.
+/// Shared memory (/dev/shm) and pids are shared with the test, as on one machine with two
+/// network stacks.
+pub struct NetnsPair {
+    pub names: [String; 2],
+}
+
+impl NetnsPair {
+    pub const ADDRS: [&'static str; 2] = ["192.0.2.1", "192.0.2.2"];
+
+    /// Creates the pair, named after `tag` and this process; Err with the reason when this
+    /// machine does not let the test create namespaces (no root, no `ip`).
+    pub fn create(tag: &str) -> Result<NetnsPair, String> {
+        let names = [0, 1].map(|i| format!("tutti-{}-{tag}-{i}", std::process::id()));
+        let pair = NetnsPair { names: names.clone() };
+        let ip = |args: &[&str]| -> Result<(), String> {
+            let out = Command::new("ip").args(args).output().map_err(|e| format!("ip: {e}"))?;
+            if out.status.success() {
+                Ok(())
+            } else {
+                Err(format!("ip {}: {}", args.join(" "), String::from_utf8_lossy(&out.stderr).trim()))
+            }
+        };
+        for n in &names {
+            ip(&["netns", "add", n])?;
+        }
+        ip(&["link", "add", "veth0", "netns", &names[0], "type", "veth", "peer", "name", "veth0", "netns", &names[1]])?;
+        for (n, addr) in names.iter().zip(Self::ADDRS) {
+            ip(&["-n", n, "addr", "add", &format!("{addr}/24"), "dev", "veth0"])?;
+            ip(&["-n", n, "link", "set", "veth0", "up", "multicast", "on"])?;
+            ip(&["-n", n, "link", "set", "lo", "up"])?;
+            ip(&["-n", n, "route", "add", "224.0.0.0/4", "dev", "veth0"])?;
+        }
+        Ok(pair)
+    }
+
+    /// `tutti gateway` inside namespace `i`, on its veth address, with `env` added to its
+    /// environment.
+    #[allow(clippy::too_many_arguments)]
+    pub fn gateway(
+        &self,
+        i: usize,
+        e: Eng,
+        ddf: &str,
+        domain_id: u16,
+        ns: &str,
+        extra: &[&str],
+        env: &[(&str, &str)],
+    ) -> Proc {
+        let mut cmd = Command::new("ip");
+        cmd.args(["netns", "exec", &self.names[i], env!("CARGO_BIN_EXE_tutti")]);
+        cmd.envs(env.iter().copied());
+        let args: Vec<&str> = ["--dds", e.name].into_iter().chain(extra.iter().copied()).collect();
+        start_gateway(cmd, ddf, domain_id, ns, Self::ADDRS[i], &args)
+    }
+}
+
+impl Drop for NetnsPair {
+    fn drop(&mut self) {
+        // Deleting a namespace deletes its end of the veth pair, and with it the other end.
+        for n in &self.names {
+            let _ = Command::new("ip").args(["netns", "del", n]).status();
+        }
+    }
 }
 
 /// The DDS engine a gateway test runs against. Every interop test runs once per engine
