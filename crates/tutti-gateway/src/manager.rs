@@ -279,7 +279,7 @@ impl Manager {
                     if !self.writers.contains_key(&key) && !self.add_writer(key) {
                         return;
                     }
-                    if self.writers.get(&key).is_some_and(|w| w.writer.send(inb.payload.clone())) {
+                    if self.writers.get(&key).is_some_and(|w| w.writer.send(inb.payload.clone()).is_ok()) {
                         return;
                     }
                     self.writers.remove(&key);
@@ -318,9 +318,7 @@ impl Manager {
         match spawned {
             Ok(writer) => {
                 info!(domain = %d.name, "DDS writer {} joined", gid.short());
-                if writer.is_inline() {
-                    direct.insert(gid, writer.clone());
-                }
+                direct.insert(gid, writer.clone());
                 self.writers.insert(key, WriterEntry { writer, created: Instant::now() });
                 true
             }

@@ -1,16 +1,20 @@
 //! DDS -> shared memory.
 //!
-//! A reader task per topic decodes samples and drops the gateway's own. Each DDS writer that
+//! Each reader's sink ([`sink`], called on the engine's receive path: Cyclone's receive
+//! thread, or a task of the rustdds engine) decodes samples and drops the gateway's own.
+//! Each DDS writer that
 //! sends to the framework is a [`RemoteWriter`]: a shared-memory connection (marked remote)
 //! that commits its samples, so the core's rules apply unchanged — the first writer to
 //! publish owns an exclusive set until its connection goes, a synchronous domain waits for
 //! its commit of each step (`publish_lock` waits for the step the sample answers), and its
 //! first commit seeds a `states=yes` domain.
 //!
-//! In an asynchronous domain a commit never waits, so the reader task commits the sample
-//! itself, the moment it is decoded ([`Direct`]): no hand-off to another thread, which on
-//! these machines costs tens of µs per sample. In a synchronous domain a commit waits for
-//! the step, so the connection has its own thread and the manager hands it the samples.
+//! In an asynchronous domain a commit never waits, so the sink commits the sample itself,
+//! the moment it is decoded ([`Direct`]): no hand-off to another thread, which on these
+//! machines costs tens of µs per sample. In a synchronous domain a commit may wait for the
+//! step, which must not hold up the receive path, so the connection has its own thread and
+//! the sink hands it the samples directly (the manager only sees a writer's first sample,
+//! before it has a connection).
 
 use std::collections::HashMap;
 use std::sync::atomic::{AtomicU64, Ordering};
@@ -49,13 +53,11 @@ impl Direct {
         self.0.lock().unwrap_or_else(PoisonError::into_inner).get(gid).cloned()
     }
 
-    /// Commits `payload` of `writer` here if the writer is known; else hands it back.
+    /// Commits `payload` of `writer` here (or hands it straight to the writer's thread in a
+    /// synchronous domain) if the writer is known and working; else hands it back.
     pub fn commit(&self, writer: &Guid, payload: Payload) -> Option<Payload> {
         match self.get(writer) {
-            Some(w) => {
-                w.send(payload);
-                None
-            }
+            Some(w) => w.send(payload).err(),
             None => Some(payload),
         }
     }
@@ -220,19 +222,14 @@ impl RemoteWriter {
         Ok(RemoteWriter { kind: Kind::Thread(tx) })
     }
 
-    /// Whether the reader task commits this writer's samples itself.
-    pub fn is_inline(&self) -> bool {
-        matches!(self.kind, Kind::Inline(_))
-    }
-
-    /// Commits a sample (inline) or hands it to the connection's thread; false when that
-    /// thread has gone.
-    pub fn send(&self, p: Payload) -> bool {
+    /// Commits a sample (inline) or hands it to the connection's thread; hands it back when
+    /// that thread has gone.
+    pub fn send(&self, p: Payload) -> Result<(), Payload> {
         match &self.kind {
-            Kind::Thread(tx) => tx.send(p).is_ok(),
+            Kind::Thread(tx) => tx.send(p).map_err(|e| e.0),
             Kind::Inline(i) => {
                 i.lock().unwrap_or_else(PoisonError::into_inner).send(p);
-                true
+                Ok(())
             }
         }
     }
