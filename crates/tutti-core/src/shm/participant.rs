@@ -346,6 +346,20 @@ impl Participant {
         &mut self.snapshot
     }
 
+    /// Whether [`Participant::publish_lock`] would return at once, without waiting for a
+    /// step: always in an asynchronous domain; in a synchronous one when the framework has
+    /// published a step this connection has not answered yet (or awaits a seed). Lets a
+    /// caller that must not block (a DDS receive thread) commit in place when it can.
+    pub fn publish_ready(&self) -> bool {
+        let seg = &self.seg;
+        if !seg.info.flags.synchronous || (self.has_read && self.last_read > self.last_commit) {
+            return true;
+        }
+        let h = seg.header();
+        let k = h.pub_step.load(Ordering::Acquire);
+        k > self.last_commit || (seg.info.flags.states && k == 0 && h.seeded.load(Ordering::Acquire) == 0)
+    }
+
     /// Starts a SUBSCRIBE write: declares this connection a writer, claims exclusive
     /// ownership where the domain allows one writer, and in a synchronous domain waits for
     /// the step this commit answers (the seed needs no step).

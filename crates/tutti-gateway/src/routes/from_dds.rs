@@ -17,7 +17,7 @@
 //! before it has a connection).
 
 use std::collections::HashMap;
-use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::atomic::{AtomicU64, AtomicUsize, Ordering};
 use std::sync::mpsc::{self, Receiver, RecvTimeoutError, Sender};
 use std::sync::{Arc, Mutex, PoisonError};
 use std::thread;
@@ -104,8 +104,9 @@ pub struct RemoteWriter {
 
 #[derive(Debug, Clone)]
 enum Kind {
-    /// Synchronous domain: a thread that commits (and waits for the steps).
-    Thread(Sender<Payload>),
+    /// Synchronous domain: committed by the caller when that needs no wait, else by a thread
+    /// that waits for the step.
+    Thread(Arc<Lockstep>),
     /// Asynchronous domain: committed by the caller.
     Inline(Arc<Mutex<Inline>>),
 }
@@ -218,15 +219,20 @@ impl RemoteWriter {
             return Ok(RemoteWriter { kind: Kind::Inline(Arc::new(Mutex::new(inline))) });
         }
         let (tx, rx) = mpsc::channel();
-        thread::Builder::new().name("tutti-gw-writer".into()).stack_size(256 << 10).spawn(move || run(out, rx, cfg))?;
-        Ok(RemoteWriter { kind: Kind::Thread(tx) })
+        let shared = Arc::new(LockstepState { pending: AtomicUsize::new(0), state: Mutex::new((out, None)) });
+        let ls = Arc::new(Lockstep { tx, shared: shared.clone() });
+        thread::Builder::new()
+            .name("tutti-gw-writer".into())
+            .stack_size(256 << 10)
+            .spawn(move || run(&shared, rx, cfg))?;
+        Ok(RemoteWriter { kind: Kind::Thread(ls) })
     }
 
     /// Commits a sample (inline) or hands it to the connection's thread; hands it back when
     /// that thread has gone.
     pub fn send(&self, p: Payload) -> Result<(), Payload> {
         match &self.kind {
-            Kind::Thread(tx) => tx.send(p).map_err(|e| e.0),
+            Kind::Thread(ls) => ls.send(p),
             Kind::Inline(i) => {
                 i.lock().unwrap_or_else(PoisonError::into_inner).send(p);
                 Ok(())
@@ -242,31 +248,77 @@ impl RemoteWriter {
     }
 }
 
+/// A synchronous domain's remote writer: its connection, committed in place by the reader's
+/// sink whenever that needs no wait (the framework is at the step the sample answers, the
+/// usual case in lock-step: no thread hop), else by its own thread, which waits for the step.
+/// Dropping it (with every clone of its [`RemoteWriter`]) ends the thread, which then releases
+/// the connection.
+#[derive(Debug)]
+struct Lockstep {
+    tx: Sender<Payload>,
+    shared: Arc<LockstepState>,
+}
+
+/// What the sink and the thread share.
+#[derive(Debug)]
+struct LockstepState {
+    /// Samples handed to the thread and not yet committed: while any are, later samples
+    /// follow them there, so that they are committed in order.
+    pending: AtomicUsize,
+    state: Mutex<(Delivery, Option<Participant>)>,
+}
+
+impl Lockstep {
+    fn send(&self, payload: Payload) -> Result<(), Payload> {
+        let sh = &self.shared;
+        if sh.pending.load(Ordering::Acquire) == 0 {
+            if let Ok(mut st) = sh.state.try_lock() {
+                let (out, p) = &mut *st;
+                if p.as_ref().is_some_and(Participant::publish_ready) && sh.pending.load(Ordering::Acquire) == 0 {
+                    out.deliver(p, payload);
+                    return Ok(());
+                }
+            }
+        }
+        sh.pending.fetch_add(1, Ordering::AcqRel);
+        self.tx.send(payload).map_err(|e| {
+            sh.pending.fetch_sub(1, Ordering::AcqRel);
+            e.0
+        })
+    }
+}
+
 /// The thread of a synchronous domain's remote writer: commits each sample it is handed
 /// (waiting for its step), connecting again whenever the connection is gone.
-fn run(mut out: Delivery, rx: Receiver<Payload>, cfg: ShmConfig) {
+fn run(ls: &LockstepState, rx: Receiver<Payload>, cfg: ShmConfig) {
     let connect = |out: &Delivery| {
         Participant::connect(&out.domain, cfg.connect_options(out.name.clone(), Duration::from_millis(100))).ok()
     };
-    let mut p = connect(&out);
+    {
+        let mut st = ls.state.lock().unwrap_or_else(PoisonError::into_inner);
+        let (out, p) = &mut *st;
+        *p = connect(out);
+    }
     loop {
-        let msg = if p.is_some() {
+        let connected = ls.state.lock().unwrap_or_else(PoisonError::into_inner).1.is_some();
+        let msg = if connected {
             rx.recv().map_err(|_| RecvTimeoutError::Disconnected)
         } else {
             rx.recv_timeout(Duration::from_millis(500))
         };
-        let payload = match msg {
-            Ok(m) => m,
-            Err(RecvTimeoutError::Timeout) => {
-                p = connect(&out);
-                continue;
+        let mut st = ls.state.lock().unwrap_or_else(PoisonError::into_inner);
+        let (out, p) = &mut *st;
+        match msg {
+            Ok(payload) => {
+                if p.is_none() {
+                    *p = connect(out);
+                }
+                out.deliver(p, payload);
+                ls.pending.fetch_sub(1, Ordering::AcqRel);
             }
+            Err(RecvTimeoutError::Timeout) => *p = connect(out),
             Err(RecvTimeoutError::Disconnected) => break,
-        };
-        if p.is_none() {
-            p = connect(&out);
         }
-        out.deliver(&mut p, payload);
     }
 }
 
