@@ -9,13 +9,14 @@ use std::time::Duration;
 
 use gateway::*;
 
-/// Builds the subscriber in the test's scratch directory; None when TUTTI_SKIP_DDS=1.
-fn build_subscriber() -> Option<PathBuf> {
+/// Builds the subscriber in a scratch directory of `run`'s own (the runs of the engines go
+/// in parallel); None when TUTTI_SKIP_DDS=1.
+fn build_subscriber(run: &str) -> Option<PathBuf> {
     if std::env::var("TUTTI_SKIP_DDS").is_ok_and(|v| v == "1") {
         eprintln!("TUTTI_SKIP_DDS=1: Fast DDS interop test skipped");
         return None;
     }
-    let dir = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("gateway-fastdds");
+    let dir = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join(format!("gateway-fastdds-{run}"));
     let _ = std::fs::remove_dir_all(&dir);
     std::fs::create_dir_all(&dir).unwrap();
     let idl = root().join("idl/multiuav_msgs/msg/dds_/MultiuavUav1Publish_.idl");
@@ -39,7 +40,7 @@ fn build_subscriber() -> Option<PathBuf> {
 }
 
 fn a_fast_dds_subscriber_receives_typed_samples(e: Eng) {
-    let Some(bin) = build_subscriber() else { return };
+    let Some(bin) = build_subscriber(e.name) else { return };
     let (dom, ns) = (e.dom(111), e.ns("gwtest111"));
     let ns = ns.as_str();
     // multiuav_uav1 PUBLISH: autopilot, x, y, z, airspeed, altitude, time.
