@@ -12,9 +12,10 @@
 //! In an asynchronous domain a commit never waits, so the sink commits the sample itself,
 //! the moment it is decoded ([`Direct`]): no hand-off to another thread, which on these
 //! machines costs tens of µs per sample. In a synchronous domain a commit may wait for the
-//! step, which must not hold up the receive path, so the connection has its own thread and
-//! the sink hands it the samples directly (the manager only sees a writer's first sample,
-//! before it has a connection).
+//! step, which must not hold up the receive path: the sink commits in place when no wait is
+//! needed (the sample answers the step the framework is at, the usual case in lock-step),
+//! and otherwise hands the sample to the connection's own thread, which waits for the step
+//! (the manager only sees a writer's first sample, before it has a connection).
 
 use std::collections::HashMap;
 use std::sync::atomic::{AtomicU64, AtomicUsize, Ordering};
