@@ -94,10 +94,14 @@ impl ItemWriters {
                 failed += 1;
             }
         }
+        (sent, failed)
+    }
+
+    /// Sends what batching writers hold.
+    pub fn flush(&mut self) {
         for w in &mut self.items {
             w.writer.flush();
         }
-        (sent, failed)
     }
 
     pub fn reset(&mut self) {

@@ -42,12 +42,15 @@ impl SetWriter {
         SetWriter { codec, writer, body: Vec::new() }
     }
 
-    /// Encodes and writes one sample; false when DDS refused it.
+    /// Encodes and writes one sample (held by a batching engine until [`SetWriter::flush`]);
+    /// false when DDS refused it.
     pub fn send(&mut self, step: u64, sim_time: f64, shm: &[u8]) -> bool {
         self.codec.encode(step, sim_time, shm, &mut self.body);
-        let ok = self.writer.write(&self.body);
+        self.writer.write(&self.body)
+    }
+
+    pub fn flush(&mut self) {
         self.writer.flush();
-        ok
     }
 }
 
@@ -59,8 +62,24 @@ pub enum Outbound {
 }
 
 impl Outbound {
-    /// Writes the set `shm`; returns the samples written.
+    /// Writes the set `shm` and sends it at once; returns the samples written.
     pub fn send(&mut self, step: u64, sim_time: f64, shm: &[u8], stats: &Stats) -> u64 {
+        let n = self.write(step, sim_time, shm, stats);
+        self.flush();
+        n
+    }
+
+    /// Sends what [`Outbound::write`] left in the writers' batches.
+    pub fn flush(&mut self) {
+        match self {
+            Outbound::Set(w) => w.flush(),
+            Outbound::Items(w) => w.flush(),
+        }
+    }
+
+    /// Writes the set `shm`, leaving it in the writers' batches where the engine batches;
+    /// returns the samples written.
+    pub fn write(&mut self, step: u64, sim_time: f64, shm: &[u8], stats: &Stats) -> u64 {
         let (sent, failed) = match self {
             Outbound::Set(w) => {
                 if w.send(step, sim_time, shm) {
@@ -152,7 +171,13 @@ pub struct Watched {
     buf: Vec<u8>,
     /// `activation.joined()` as last acted on.
     joined: u64,
+    /// Whether the last look wrote a sample, and the samples written but not yet flushed.
+    hot: bool,
+    unflushed: u32,
 }
+
+/// Samples of a set changing flat out that go out in one batch at most.
+const FLUSH_EVERY: u32 = 32;
 
 impl Watched {
     pub fn new(
@@ -176,11 +201,13 @@ impl Watched {
             last_local: 0,
             buf: Vec::new(),
             joined: 0,
+            hot: false,
+            unflushed: 0,
         }
     }
 
-    /// Looks at the set once; returns true when something was sent.
-    fn poll(&mut self, cfg: &ShmConfig, stats: &Stats) -> bool {
+    /// Looks at the set once; returns true when something was written.
+    fn poll_once(&mut self, cfg: &ShmConfig, stats: &Stats) -> bool {
         if !self.activation.is_active() {
             if self.seg.is_some() {
                 self.seg = None;
@@ -252,7 +279,25 @@ impl Watched {
         }
         let step = h.pub_step.load(Ordering::Acquire);
         let sim_time = f64::from_bits(h.sim_time_bits.load(Ordering::Relaxed));
-        self.out.send(step, sim_time, &self.buf, stats) > 0
+        self.out.write(step, sim_time, &self.buf, stats) > 0
+    }
+
+    /// Looks at the set once (see `poll_once`) and sends what it wrote: at once when the set
+    /// had been idle (no latency added to occasional changes), else every [`FLUSH_EVERY`]
+    /// samples and whenever the set goes idle, so that a set changing flat out goes out in
+    /// batches (one datagram for many samples on a batching engine).
+    fn poll(&mut self, cfg: &ShmConfig, stats: &Stats) -> bool {
+        let was_hot = self.hot;
+        let sent = self.poll_once(cfg, stats);
+        self.hot = sent;
+        if sent {
+            self.unflushed += 1;
+        }
+        if self.unflushed > 0 && (!sent || !was_hot || self.unflushed >= FLUSH_EVERY) {
+            self.out.flush();
+            self.unflushed = 0;
+        }
+        sent
     }
 }
 
