@@ -2,8 +2,9 @@
 //! the engine of `opts.engine`: the echo ([`run`]) reads the typed PUBLISH samples of a
 //! domain and writes each back, unchanged, as a SUBSCRIBE sample (the two sets must have the
 //! same layout); the sink ([`sink`]) counts the samples it receives on one of the two
-//! topics; the source ([`source`]) writes SUBSCRIBE samples as fast as it can; the ping
-//! ([`ping`]) measures round trips through the echo without the gateway.
+//! topics, and can check that steps arrive once and in order; the source ([`source`])
+//! writes SUBSCRIBE samples as fast as it can; the ping ([`ping`]) measures round trips
+//! through the echo without the gateway.
 
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::{Arc, Mutex, PoisonError};
@@ -68,35 +69,62 @@ pub fn run(opts: &GatewayOptions, domain: &Domain, stop: Arc<AtomicBool>) -> Res
     Ok(n.load(Ordering::Relaxed))
 }
 
+/// What a [`sink`] received in its window.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct Received {
+    /// Samples counted (those after the first, within the window).
+    pub samples: u64,
+    /// Seconds they were counted over: the window, or less if the sink gave up earlier.
+    pub secs: f64,
+    /// Ordered sinks: steps missing between two received ones.
+    pub lost: u64,
+    /// Ordered sinks: samples whose step was not after the previous one (duplicated or
+    /// reordered).
+    pub misordered: u64,
+}
+
 /// Counts the typed samples of `role`'s topic of `domain` that arrive in `window`, from
-/// the first one (gives up after `patience` without any); returns (samples, seconds).
-/// The reader keeps every sample (best effort, deep history), so what is counted is what
-/// reached this participant, not what a KEEP_LAST 1 reader happened to see.
+/// the first one (gives up after `patience` without any).
+///
+/// Unordered, the reader keeps every sample (best effort, deep history), so what is counted
+/// is what reached this participant, not what a KEEP_LAST 1 reader happened to see.
+/// `ordered`, the reader has the QoS the domain's flags call for (RELIABLE, KEEP_ALL in a
+/// synchronous domain) and the steps are checked: each must be the one after the previous.
 pub fn sink(
     opts: &GatewayOptions,
     domain: &Domain,
     role: Role,
     window: Duration,
     patience: Duration,
-) -> Result<(u64, f64), GatewayError> {
+    ordered: bool,
+) -> Result<Received, GatewayError> {
     let dds = engine::open(opts.engine, &opts.engine_config())?;
     let pkg = mapping::package_name(&opts.ddf_path);
     let names = mapping::set_names(&pkg, &domain.name, role);
     let mut rq = mapping::qos(domain.flags, opts.profile, Endpoint::Reader, 0);
-    rq.reliability = Reliability::BestEffort;
-    rq.history = History::KeepLast(1 << 16);
+    if !ordered {
+        rq.reliability = Reliability::BestEffort;
+        rq.history = History::KeepLast(1 << 16);
+    }
     let codec = Arc::new(SetCodec::new(&domain.set(role).layout));
-    let state = Arc::new(Mutex::new((None::<Instant>, 0u64, 0.0f64)));
+    // First sample's time, the result so far, the last step seen.
+    let state = Arc::new(Mutex::new((None::<Instant>, Received::default(), None::<u64>)));
     let st = state.clone();
-    let counter = typed_sink(codec.clone(), dds.own_prefix(), move |_| {
-        let mut s = st.lock().unwrap_or_else(PoisonError::into_inner);
-        match s.0 {
-            None => s.0 = Some(Instant::now()),
-            Some(t) if t.elapsed() < window => {
-                s.1 += 1;
-                s.2 = t.elapsed().as_secs_f64();
+    let counter = typed_sink(codec.clone(), dds.own_prefix(), move |s| {
+        let mut guard = st.lock().unwrap_or_else(PoisonError::into_inner);
+        let (first, got, last) = &mut *guard;
+        match *first {
+            None => *first = Some(Instant::now()),
+            Some(t) if t.elapsed() < window => got.samples += 1,
+            Some(_) => return,
+        }
+        if ordered {
+            match *last {
+                Some(prev) if s.step <= prev => got.misordered += 1,
+                Some(prev) => got.lost += s.step - prev - 1,
+                None => {}
             }
-            Some(_) => {}
+            *last = Some(last.map_or(s.step, |prev| prev.max(s.step)));
         }
     });
     dds.reader(&names.topic, &names.dds_type, &rq, Decode::Set(codec), counter)?;
@@ -111,11 +139,9 @@ pub fn sink(
         }
     }
     drop(dds);
-    let s = state.lock().unwrap_or_else(PoisonError::into_inner);
-    Ok((
-        s.1,
-        if s.0.is_some() { window.as_secs_f64().min(s.0.map_or(0.0, |t| t.elapsed().as_secs_f64())) } else { 0.0 },
-    ))
+    let (first, mut got, _) = *state.lock().unwrap_or_else(PoisonError::into_inner);
+    got.secs = first.map_or(0.0, |t| t.elapsed().min(window).as_secs_f64());
+    Ok(got)
 }
 
 /// Writes typed SUBSCRIBE samples of `domain` as fast as the writer takes them until

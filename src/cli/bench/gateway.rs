@@ -1,13 +1,18 @@
-//! `tutti bench gateway`: the round trip shared memory -> gateway -> DDS -> echo peer ->
-//! DDS -> gateway -> shared memory, against Cyclone's `ddsperf` ping-pong in the same run
-//! and with the same core placement; the rate of an 8-item asynchronous set through the
-//! gateway each way, next to rustdds alone on the same cores; and the start-up and memory
-//! of a gateway serving ddf/large-1000.ddf.
+//! `tutti bench gateway`: for each core placement and each DDS engine, the round trip
+//! shared memory -> gateway -> DDS -> echo peer -> DDS -> gateway -> shared memory and the
+//! engine's own ping -> echo without the gateway; Cyclone's `ddsperf` and a Fast DDS
+//! ping-pong on the same cores; the rate of an 8-item asynchronous set through the gateway
+//! each way and of a synchronous set out to DDS (every step once, in order); lock-step steps
+//! per second with the DDS echo answering each step; and, per engine, the start-up and
+//! memory of a gateway serving ddf/large-1000.ddf.
 //!
 //! The framework is this process; the gateway and the DDS peers (`--echo`, `--sink`,
-//! `--source`: separate DDS participants using the gateway's codec) are child processes,
-//! each pinned to its CPU.
+//! `--source`: separate DDS participants on the engine under test, using the gateway's
+//! codec) are child processes, each pinned to its CPU. Every sub-run has a DDS domain id and
+//! a shared-memory namespace of its own, so nothing left of one reaches the next.
 
+use std::collections::hash_map::DefaultHasher;
+use std::hash::{Hash, Hasher};
 use std::io::{BufRead, BufReader};
 use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
@@ -16,56 +21,84 @@ use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 use anyhow::{bail, Context as _};
+use serde::Serialize;
 use tutti_core::ddf::Role;
-use tutti_core::shm::{os, Framework, FrameworkOptions, WaitMode};
-use tutti_gateway::GatewayOptions;
+use tutti_core::shm::{os, DomainHost, Framework, FrameworkOptions, WaitMode};
+use tutti_gateway::echo::Received;
+use tutti_gateway::{EngineKind, GatewayOptions};
 
 use super::super::child::{self, Kid, SIGINT};
-use super::super::{load_ddf, CliResult};
+use super::super::{load_ddf, CliResult, Failure};
+use super::nearest_rank;
 
 const ITEMS: usize = 8;
 /// The log filter of the benchmark's children: errors only, nothing from the DDS stack.
 const QUIET_LOG: &str = "error,rustdds=off,ros2_client=off";
 const LOOPBACK: &str = "<CycloneDDS xmlns=\"https://cdds.io/config\"><Domain id=\"any\"><General><Interfaces><NetworkInterface name=\"lo\"/></Interfaces><AllowMulticast>false</AllowMulticast></General><Discovery><Peers><Peer address=\"127.0.0.1\"/></Peers><ParticipantIndex>auto</ParticipantIndex><MaxAutoParticipantIndex>20</MaxAutoParticipantIndex></Discovery></Domain></CycloneDDS>";
+/// The Fast DDS ping-pong, built with g++ on first use.
+const FASTDDS_SRC: &str = include_str!("fastdds_pingpong.cpp");
+/// Longest wait for a path to work end to end (discovery, start-up).
+const PATIENCE: Duration = Duration::from_secs(30);
+/// The highest DDS domain id (port mapping of the RTPS specification).
+const MAX_DOMAIN_ID: u16 = 232;
+/// Targets of the Cyclone engine.
+const TARGET_RTT_RATIO: f64 = 1.3;
+const TARGET_RATE: f64 = 300_000.0;
+const TARGET_STARTUP_S: f64 = 2.0;
 
-/// Round trip and throughput through the gateway, next to Cyclone's ddsperf.
+/// Round trips and throughput through the gateway on each DDS engine, next to ddsperf and
+/// Fast DDS.
 #[derive(Debug, clap::Args)]
 #[command(
-    after_help = "Example:\n  cargo build --release && target/release/tutti bench gateway\n\nNeeds ddsperf (apt-get install -y cyclonedds-tools) for the comparison; figures go to docs/benchmarks.md."
+    after_help = "Examples:\n  cargo build --release && target/release/tutti bench gateway\n  tutti bench gateway --engines rustdds --placement same --samples 300 --duration 1s --json\n\nNeeds ddsperf (apt-get install -y cyclonedds-tools) and, for the Fast DDS ping-pong, g++ and\nlibfastrtps-dev; without them those rows say \"not run\". Progress goes to stderr; figures go\nto docs/benchmarks.md."
 )]
 pub struct Args {
-    /// Round trips timed per placement.
+    /// Round trips timed per placement, engine and mode.
     #[arg(long, default_value_t = 2000)]
     samples: u32,
-    /// How long the throughput run lasts.
+    /// How long each throughput and lock-step run lasts.
     #[arg(long, default_value = "3s", value_parser = super::super::host::parse_duration)]
     duration: Duration,
     /// Core placements to run: same (everything on CPU 0), split (the gateway alone on CPU 1),
     /// apart (the DDS peer alone on CPU 1), both (same and split), all.
     #[arg(long, default_value = "all")]
     placement: String,
-    /// DDS domain id of the runs.
-    #[arg(long, default_value_t = 230)]
+    /// DDS engines to measure (comma-separated).
+    #[arg(long, value_delimiter = ',', default_value = "cyclone,rustdds", value_name = "ENGINES")]
+    engines: Vec<EngineKind>,
+    /// First DDS domain id of the runs; each sub-run takes the next one.
+    #[arg(long, default_value_t = 170)]
     ros_domain_id: u16,
-    /// Also start a gateway on this DDF and record its start-up time and memory.
+    /// Also start a gateway on this DDF, per engine, and record its start-up time and memory.
     #[arg(long, default_value = "ddf/large-1000.ddf")]
     large: PathBuf,
+    /// Print one JSON object on stdout instead of the tables.
+    #[arg(long)]
+    json: bool,
+    /// Internal: the DDS engine of a peer mode.
+    #[arg(long = "dds", hide = true, default_value = "cyclone", value_name = "ENGINE")]
+    dds: EngineKind,
     /// Internal: run the echo peer for DDF (used by the benchmark itself).
     #[arg(long, hide = true, value_name = "DDF")]
     echo: Option<PathBuf>,
     /// Internal: count the samples on DDF's PUBLISH (`publish`) or SUBSCRIBE topic.
     #[arg(long, hide = true, num_args = 2, value_names = ["DDF", "ROLE"])]
     sink: Vec<String>,
+    /// Internal: with --sink, read with the domain's QoS and check the steps' order.
+    #[arg(long, hide = true)]
+    ordered: bool,
     /// Internal: write SUBSCRIBE samples of DDF flat out.
     #[arg(long, hide = true, value_name = "DDF")]
     source: Option<PathBuf>,
 }
 
-fn ddf_text() -> String {
+/// The benchmark's DDF: one domain `name` whose PUBLISH and SUBSCRIBE sets are 8 x float64.
+fn ddf_text(name: &str, synchronous: bool) -> String {
     let items: String = (0..ITEMS).map(|i| format!("<item name=\"v{i}\"><type>double</type></item>")).collect();
+    let sync = if synchronous { "yes" } else { "no" };
     format!(
-        "<orchestra><domain name=\"gwbench\"><synchronous>no</synchronous><multiplePublishAllowed>yes</multiplePublishAllowed><states>no</states>\
-         <block name=\"gwbench/Publish\">{items}</block><block name=\"gwbench/Subscribe\">{items}</block></domain></orchestra>"
+        "<orchestra><domain name=\"{name}\"><synchronous>{sync}</synchronous><multiplePublishAllowed>yes</multiplePublishAllowed><states>no</states>\
+         <block name=\"{name}/Publish\">{items}</block><block name=\"{name}/Subscribe\">{items}</block></domain></orchestra>"
     )
 }
 
@@ -73,6 +106,16 @@ fn ddf_text() -> String {
 /// says goodbye on DDS), then SIGKILL.
 fn start(name: &str, cmd: Command, cpu: usize) -> anyhow::Result<Kid> {
     Ok(child::spawn(name, cmd, Some(cpu))?.stop_on_drop(Some(SIGINT), Duration::from_secs(3)))
+}
+
+/// Fails if one of `kids` has exited (a gateway or a peer that could not start or died).
+fn check_alive(kids: &mut [&mut Kid]) -> anyhow::Result<()> {
+    for kid in kids.iter_mut() {
+        if let Some(status) = kid.poll() {
+            bail!("{} exited ({status})", kid.name);
+        }
+    }
+    Ok(())
 }
 
 /// Pins this process's main thread (the framework) to `cpu`.
@@ -87,11 +130,9 @@ fn fill(data: &mut [u8], v: f64) {
     }
 }
 
-fn percentile(sorted: &[f64], p: f64) -> f64 {
-    if sorted.is_empty() {
-        return f64::NAN;
-    }
-    sorted[((sorted.len() - 1) as f64 * p).round() as usize]
+/// The first item of a set.
+fn first_item(set: &[u8]) -> f64 {
+    set.get(..8).and_then(|b| b.try_into().ok()).map_or(f64::NAN, f64::from_ne_bytes)
 }
 
 fn rss_kib(pid: u32) -> Option<u64> {
@@ -99,395 +140,928 @@ fn rss_kib(pid: u32) -> Option<u64> {
     s.lines().find_map(|l| l.strip_prefix("VmRSS:")).and_then(|v| v.split_whitespace().next()?.parse().ok())
 }
 
-pub fn run(args: Args) -> CliResult {
-    if let Some(ddf) = &args.echo {
-        return echo(ddf, args.ros_domain_id);
-    }
-    if let [ddf, role] = &args.sink[..] {
-        return sink(Path::new(ddf), role, args.ros_domain_id, args.duration);
-    }
-    if let Some(ddf) = &args.source {
-        return source(ddf, args.ros_domain_id);
-    }
-    let exe = std::env::current_exe().context("locating tutti")?;
-    let dir = std::env::temp_dir().join(format!("tutti-bench-gw-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).context("creating a scratch directory")?;
-    let ddf = dir.join("gwbench.ddf");
-    std::fs::write(&ddf, ddf_text()).context("writing the benchmark DDF")?;
-    let same = Cpus { name: "same core (all on CPU 0)", fw: 0, gw: 0, peer: 0 };
-    let split = Cpus { name: "two cores (gateway CPU 1; framework and DDS peer CPU 0)", fw: 0, gw: 1, peer: 0 };
-    let apart = Cpus { name: "two cores (framework and gateway CPU 0; DDS peer CPU 1)", fw: 0, gw: 0, peer: 1 };
-    let placements = match args.placement.as_str() {
-        "same" => vec![same],
-        "split" => vec![split],
-        "apart" => vec![apart],
-        "both" => vec![same, split],
-        _ => vec![same, split, apart],
-    };
-    println!("gateway round trip: shm -> gateway -> DDS -> echo -> DDS -> gateway -> shm, {ITEMS} x float64 async set");
-    println!("{:<58} {:>10} {:>10} {:>10}", "placement / path", "p50 µs", "p99 µs", "lost");
-    for cpus in placements {
-        let name = cpus.name;
-        let (r, paced) = round_trip(&exe, &ddf, &args, cpus).with_context(|| format!("placement {name}"))?;
-        println!("{name}");
-        println!(
-            "  {:<56} {:>10.1} {:>10.1} {:>10}",
-            "gateway (rustdds) round trip, back to back", r.p50, r.p99, r.lost
-        );
-        match rustdds_ping(&exe, &ddf, &args, cpus) {
-            Ok(mut t) => {
-                t.sort_by(f64::total_cmp);
-                let lost = args.samples as usize - t.len();
-                let (p50, p99) = (percentile(&t, 0.5), percentile(&t, 0.99));
-                println!(
-                    "  {:<56} {:>10.1} {:>10.1} {:>10}",
-                    "rustdds ping -> echo round trip (no gateway)", p50, p99, lost
-                );
-            }
-            Err(e) => println!("  rustdds ping: not run ({e:#})"),
-        }
-        // ddsperf's two processes: one per core when the DDS sides are on two cores.
-        let (lo, hi) = (cpus.gw.min(cpus.peer), cpus.gw.max(cpus.peer));
-        match ddsperf(lo, hi, None) {
-            Ok((p50, p99)) => {
-                println!("  {:<56} {:>10.1} {:>10.1}", "ddsperf ping-pong round trip, back to back", p50, p99);
-                println!(
-                    "  {:<56} {:>10.2}",
-                    "ratio gateway / ddsperf, back to back, p50 (target <= 1.5)",
-                    r.p50 / p50
-                );
-            }
-            Err(e) => println!("  ddsperf: not run ({e:#})"),
-        }
-        println!(
-            "  {:<56} {:>10.1} {:>10.1} {:>10}",
-            "gateway (rustdds) round trip, paced at 1 kHz", paced.p50, paced.p99, paced.lost
-        );
-        match ddsperf(lo, hi, Some("1kHz")) {
-            Ok((p50, p99)) => {
-                println!("  {:<56} {:>10.1} {:>10.1}", "ddsperf ping-pong round trip, ping 1kHz", p50, p99);
-                println!("  {:<56} {:>10.2}", "ratio gateway / ddsperf, paced at 1 kHz, p50", paced.p50 / p50);
-            }
-            Err(e) => println!("  ddsperf: not run ({e:#})"),
-        }
-        let t = throughput(&exe, &ddf, &args, cpus).with_context(|| format!("placement {name}"))?;
-        println!("  {:<56} {:>10.0}", "shm -> gateway -> DDS sink, samples/s", t.to_dds);
-        println!("  {:<56} {:>10.0}", "DDS source -> gateway -> shm, samples/s", t.from_dds);
-        println!("  {:<56} {:>10.0}", "DDS source -> DDS sink (rustdds alone), samples/s", t.direct);
-    }
-    if args.large.exists() {
-        let (up, rss) = large(&exe, &args)?;
-        println!(
-            "gateway on {}: up in {:.2} s, RSS {:.1} MiB",
-            args.large.display(),
-            up.as_secs_f64(),
-            rss as f64 / 1024.0
-        );
-    }
-    let _ = std::fs::remove_dir_all(&dir);
-    Ok(())
-}
-
-struct RoundTrip {
-    p50: f64,
-    p99: f64,
-    lost: u32,
-}
-
 /// Where the framework (this process), the gateway and the DDS peer run.
 #[derive(Debug, Clone, Copy)]
 struct Cpus {
+    key: &'static str,
     name: &'static str,
     fw: usize,
     gw: usize,
     peer: usize,
 }
 
-/// The gateway round trip back to back, then paced at 1 kHz (same processes).
-fn round_trip(exe: &Path, ddf: &Path, args: &Args, cpus: Cpus) -> anyhow::Result<(RoundTrip, RoundTrip)> {
-    let ns = format!("gwbench{}", std::process::id());
-    let model = load_ddf(ddf).map_err(|f| f.error)?;
-    let opts = FrameworkOptions { namespace: ns.clone(), wait: WaitMode::Spin, ..Default::default() };
-    let mut fw = Framework::create(&model, &opts).context("creating the benchmark domain")?;
-    let host = &mut fw.domains[0];
-    let dom = args.ros_domain_id.to_string();
-    let _gw = gateway(exe, ddf, cpus.gw, &dom, &ns)?;
-    let _echo = echo_peer(exe, ddf, cpus.peer, &dom)?;
-    pin_self(cpus.fw);
-    let mut data = vec![0u8; ITEMS * 8];
-    let mut seq = 0f64;
-    let mut send = |host: &mut tutti_core::shm::DomainHost, seq: f64| {
-        fill(&mut data, seq);
-        host.publish_step(&data, seq).map(|_| ())
-    };
-    let back = |host: &mut tutti_core::shm::DomainHost| -> f64 {
-        host.read_subscribe().map(|b| f64::from_ne_bytes(b[0..8].try_into().unwrap_or_default())).unwrap_or(f64::NAN)
-    };
-    // Until the echo path works end to end.
-    let end = Instant::now() + Duration::from_secs(30);
-    loop {
-        seq += 1.0;
-        send(host, seq)?;
-        let t = Instant::now();
-        while t.elapsed() < Duration::from_millis(100) && back(host) != seq {
-            std::hint::spin_loop();
-        }
-        if back(host) == seq {
-            break;
-        }
-        if Instant::now() > end {
-            bail!("no echo within 30 s (is the loopback interface up?)");
+impl Cpus {
+    const SAME: Cpus = Cpus { key: "same", name: "same core (all on CPU 0)", fw: 0, gw: 0, peer: 0 };
+    const SPLIT: Cpus =
+        Cpus { key: "split", name: "two cores (gateway CPU 1; framework and DDS peer CPU 0)", fw: 0, gw: 1, peer: 0 };
+    const APART: Cpus =
+        Cpus { key: "apart", name: "two cores (framework and gateway CPU 0; DDS peer CPU 1)", fw: 0, gw: 0, peer: 1 };
+
+    fn parse(s: &str) -> anyhow::Result<Vec<Cpus>> {
+        Ok(match s {
+            "same" => vec![Cpus::SAME],
+            "split" => vec![Cpus::SPLIT],
+            "apart" => vec![Cpus::APART],
+            "both" => vec![Cpus::SAME, Cpus::SPLIT],
+            "all" => vec![Cpus::SAME, Cpus::SPLIT, Cpus::APART],
+            other => bail!("--placement {other}: expected same, split, apart, both or all"),
+        })
+    }
+
+    /// How the framework and the gateway wait for each other in shared memory: spinning,
+    /// except in lock-step on one core, where a spinner holds the core the other one needs
+    /// (until it yields, every few thousand looks: a few hundred µs a step).
+    fn wait(self, synchronous: bool) -> WaitMode {
+        if synchronous && self.fw == self.gw {
+            WaitMode::Block
+        } else {
+            WaitMode::Spin
         }
     }
-    let mut measure = |paced: bool| -> anyhow::Result<RoundTrip> {
-        let mut times = Vec::with_capacity(args.samples as usize);
-        let mut lost = 0;
-        let start = Instant::now();
-        for k in 0..args.samples {
-            if paced {
-                // One round trip per millisecond, as ddsperf's `ping 1kHz`: everything may
-                // go idle between them.
-                let due = start + Duration::from_millis(u64::from(k));
-                if let Some(wait) = due.checked_duration_since(Instant::now()) {
-                    std::thread::sleep(wait);
-                }
-            }
-            seq += 1.0;
-            let t = Instant::now();
-            send(host, seq)?;
-            let mut spins = 0u32;
-            while back(host) != seq && t.elapsed() < Duration::from_secs(1) {
-                // Spin, but give the core away between looks: the echo and the gateway may
-                // share it (a pure spinner is only preempted at the end of its time slice).
-                spins += 1;
-                if spins < 16 {
-                    std::hint::spin_loop();
-                } else {
-                    std::thread::yield_now();
-                }
-            }
-            if back(host) == seq {
-                times.push(t.elapsed().as_secs_f64() * 1e6);
-            } else {
-                lost += 1;
-            }
-        }
-        times.sort_by(f64::total_cmp);
-        Ok(RoundTrip { p50: percentile(&times, 0.5), p99: percentile(&times, 0.99), lost })
-    };
-    let hot = measure(false)?;
-    let paced = measure(true)?;
-    Ok((hot, paced))
+
+    /// The CPUs of a ping-pong between two DDS programs (ping, pong): one per core when the
+    /// DDS sides of the placement are on two cores.
+    fn ping_pong(self) -> (usize, usize) {
+        (self.gw.min(self.peer), self.gw.max(self.peer))
+    }
 }
 
-/// ddsperf ping-pong with the same placement, back to back (`rate` None: a ping as soon as
-/// the pong is in) or at a rate ("1kHz"); returns (p50, p99) of the round trip in µs.
-fn ddsperf(main_cpu: usize, other_cpu: usize, rate: Option<&str>) -> anyhow::Result<(f64, f64)> {
-    let domain = "229";
-    let mut pong = Command::new("ddsperf");
-    pong.args(["-i", domain, "-D8", "pong"])
-        .env("CYCLONEDDS_URI", LOOPBACK)
-        .stdout(Stdio::null())
-        .stderr(Stdio::null());
-    let _pong = start("ddsperf pong", pong, other_cpu)?;
-    let mut ping = Command::new("ddsperf");
-    ping.args(["-i", domain, "-D5", "-Qminmatch:1", "-Qinitwait:5", "ping"])
-        .args(rate)
-        .env("CYCLONEDDS_URI", LOOPBACK)
-        .stderr(Stdio::null());
-    child::prepare(&mut ping, Some(main_cpu));
-    let out = ping.output().context("running ddsperf ping")?;
-    let mut p50s = Vec::new();
-    let mut p99s = Vec::new();
-    for line in String::from_utf8_lossy(&out.stdout).lines().filter(|l| l.contains(" 50% ")) {
-        let num = |key: &str| -> Option<f64> { line.split(key).nth(1)?.split("us").next()?.trim().parse().ok() };
-        if let (Some(a), Some(b)) = (num(" 50% "), num(" 99% ")) {
-            p50s.push(a);
-            p99s.push(b);
-        }
-    }
-    if p50s.is_empty() {
-        bail!("no ddsperf output (apt-get install -y cyclonedds-tools)");
-    }
-    p50s.sort_by(f64::total_cmp);
-    p99s.sort_by(f64::total_cmp);
-    // ddsperf prints half the round trip.
-    Ok((2.0 * percentile(&p50s, 0.5), 2.0 * percentile(&p99s, 0.5)))
+/// Round-trip percentiles (µs) and round trips that got no answer.
+#[derive(Debug, Clone, Copy)]
+struct Rtt {
+    p50: f64,
+    p99: f64,
+    lost: u32,
 }
 
-/// Starts a gateway on the large DDF; returns its start-up time and RSS (KiB) once up.
-fn large(exe: &Path, args: &Args) -> anyhow::Result<(Duration, u64)> {
-    let t = Instant::now();
-    let mut cmd = Command::new(exe);
-    cmd.args(["gateway", &args.large.to_string_lossy(), "--ros-domain-id", &(args.ros_domain_id - 1).to_string()])
-        .args(["--interface", "127.0.0.1", "--status-every", "1h"])
-        .env("TUTTI_NAMESPACE", format!("gwbenchlarge{}", std::process::id()))
-        .env("RUST_LOG", QUIET_LOG)
-        .stdin(Stdio::null())
-        .stderr(Stdio::piped());
-    let mut kid =
-        child::spawn("the gateway on the large DDF", cmd, None)?.stop_on_drop(Some(SIGINT), Duration::from_secs(3));
-    let stderr = kid.child.stderr.take();
-    let mut up = None;
-    if let Some(s) = stderr {
-        for line in BufReader::new(s).lines().map_while(Result::ok) {
-            if line.contains("tutti gateway: up") {
-                up = Some(t.elapsed());
-                break;
-            }
+impl Rtt {
+    fn of(mut us: Vec<f64>, lost: u32) -> anyhow::Result<Rtt> {
+        if us.is_empty() {
+            bail!("no round trip completed");
         }
+        us.sort_by(f64::total_cmp);
+        Ok(Rtt { p50: nearest_rank(&us, 0.5), p99: nearest_rank(&us, 0.99), lost })
     }
-    let up = up.context("the gateway on the large DDF did not start")?;
-    std::thread::sleep(Duration::from_millis(500));
-    let rss = rss_kib(kid.pid()).unwrap_or(0);
-    Ok((up, rss))
 }
 
-fn echo(ddf: &Path, domain_id: u16) -> CliResult {
-    let (opts, d) = peer_opts(ddf, domain_id)?;
-    let stop = Arc::new(AtomicBool::new(false));
-    let s = stop.clone();
-    ctrlc::set_handler(move || s.store(true, Ordering::SeqCst)).context("installing the signal handler")?;
-    tutti_gateway::echo::run(&opts, &d, stop).map_err(anyhow::Error::new)?;
+/// A figure, or why it was not measured.
+type Fig<T> = Result<T, String>;
+
+fn fig<T>(r: anyhow::Result<T>) -> Fig<T> {
+    r.map_err(|e| format!("{e:#}"))
+}
+
+/// [`fig`], with a failure also reported as progress under `what`.
+fn noted<T>(r: anyhow::Result<T>, what: &str) -> Fig<T> {
+    let r = fig(r);
+    if let Err(why) = &r {
+        progress(&format!("{what}: not run ({why})"));
+    }
+    r
+}
+
+/// Lock-step across DDS: steps per second and steps whose answer was not the step's own.
+#[derive(Debug, Clone, Copy)]
+struct LockStep {
+    per_s: f64,
+    unanswered: u64,
+}
+
+/// The figures of one engine in one placement.
+#[derive(Debug)]
+struct EngineRun {
+    engine: EngineKind,
+    rtt: Fig<Rtt>,
+    paced: Fig<Rtt>,
+    ping: Fig<Rtt>,
+    to_dds: Fig<f64>,
+    from_dds: Fig<f64>,
+    alone: Fig<f64>,
+    sync: Fig<Received>,
+    lock: Fig<LockStep>,
+}
+
+/// DDS without tutti, once per placement.
+#[derive(Debug)]
+struct Peers {
+    ddsperf: Fig<Rtt>,
+    ddsperf_paced: Fig<Rtt>,
+    fastdds: Fig<Rtt>,
+}
+
+#[derive(Debug)]
+struct PlacementRun {
+    cpus: Cpus,
+    peers: Peers,
+    engines: Vec<EngineRun>,
+}
+
+/// One sub-run's DDS domain id and shared-memory namespace.
+#[derive(Debug)]
+struct Slot {
+    dom: u16,
+    ns: String,
+}
+
+/// DDS domain ids taken per placement (ddsperf twice, Fast DDS), per engine and placement
+/// (round trip, ping, three throughput runs, the synchronous set, lock-step) and per engine
+/// (the check that it opens, the large DDF).
+const IDS_PER_PLACEMENT: u16 = 3;
+const IDS_PER_ENGINE_RUN: u16 = 7;
+const IDS_PER_ENGINE: u16 = 2;
+
+/// The state of a benchmark run: where things are and the next sub-run's number.
+struct Bench<'a> {
+    args: &'a Args,
+    exe: PathBuf,
+    dir: PathBuf,
+    async_ddf: PathBuf,
+    sync_ddf: PathBuf,
+    next: u16,
+}
+
+pub fn run(args: Args) -> CliResult {
+    if let Some(ddf) = &args.echo {
+        return echo(ddf, &args);
+    }
+    if let [ddf, role] = &args.sink[..] {
+        return sink(Path::new(ddf), role, &args);
+    }
+    if let Some(ddf) = &args.source {
+        return source(ddf, &args);
+    }
+    let placements = Cpus::parse(&args.placement).map_err(Failure::invalid)?;
+    let n_eng = args.engines.len() as u16;
+    let needed = placements.len() as u16 * (IDS_PER_PLACEMENT + n_eng * IDS_PER_ENGINE_RUN) + n_eng * IDS_PER_ENGINE;
+    if u32::from(args.ros_domain_id) + u32::from(needed) > u32::from(MAX_DOMAIN_ID) + 1 {
+        return Err(Failure::invalid(anyhow::anyhow!(
+            "--ros-domain-id {}: this run needs {needed} DDS domain ids from it, up to {MAX_DOMAIN_ID}",
+            args.ros_domain_id
+        )));
+    }
+    let exe = std::env::current_exe().context("locating tutti")?;
+    let dir = std::env::temp_dir().join(format!("tutti-bench-gw-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).context("creating a scratch directory")?;
+    let (async_ddf, sync_ddf) = (dir.join("gwbench.ddf"), dir.join("gwsync.ddf"));
+    std::fs::write(&async_ddf, ddf_text("gwbench", false)).context("writing the benchmark DDF")?;
+    std::fs::write(&sync_ddf, ddf_text("gwsync", true)).context("writing the benchmark DDF")?;
+    let mut b = Bench { args: &args, exe, dir, async_ddf, sync_ddf, next: 0 };
+    let result = b.run_all(&placements);
+    let _ = std::fs::remove_dir_all(&b.dir);
+    let (runs, large) = result?;
+    if args.json {
+        let json = to_json(&runs, &large);
+        println!("{}", serde_json::to_string(&json).context("writing JSON")?);
+    } else {
+        print_tables(&runs, &large, &args.large);
+    }
     Ok(())
 }
 
-struct Throughput {
-    to_dds: f64,
-    from_dds: f64,
-    direct: f64,
+/// Progress, on stderr.
+fn progress(what: &str) {
+    eprintln!("bench gateway: {what}");
 }
 
-fn gateway(exe: &Path, ddf: &Path, cpu: usize, dom: &str, ns: &str) -> anyhow::Result<Kid> {
-    let mut cmd = Command::new(exe);
-    cmd.args(["gateway", &ddf.to_string_lossy(), "--ros-domain-id", dom, "--interface", "127.0.0.1"])
-        .args(["--poll", "0", "--wait", "spin", "-q"])
-        .env("TUTTI_NAMESPACE", ns)
-        .env("RUST_LOG", QUIET_LOG)
-        .stdin(Stdio::null());
-    start("the gateway", cmd, cpu)
+impl Bench<'_> {
+    fn run_all(&mut self, placements: &[Cpus]) -> anyhow::Result<(Vec<PlacementRun>, LargeRuns)> {
+        let args = self.args;
+        let engines: Vec<(EngineKind, Fig<()>)> = args.engines.iter().map(|&e| (e, self.check_engine(e))).collect();
+        progress("building the Fast DDS ping-pong (once)");
+        let fastdds = fig(self.fastdds_program());
+        let mut runs = Vec::new();
+        for &cpus in placements {
+            progress(&format!("{}: ddsperf and Fast DDS", cpus.key));
+            let peers = self.peers(cpus, &fastdds);
+            let mut per_engine = Vec::new();
+            for (engine, ok) in &engines {
+                per_engine.push(match ok {
+                    Ok(()) => self.engine_run(*engine, cpus),
+                    Err(e) => EngineRun::not_run(*engine, e),
+                });
+            }
+            runs.push(PlacementRun { cpus, peers, engines: per_engine });
+        }
+        let mut large = Vec::new();
+        if self.args.large.exists() {
+            for (engine, ok) in &engines {
+                progress(&format!("{engine}: gateway on {}", self.args.large.display()));
+                let slot = self.slot();
+                large.push((*engine, ok.clone().and_then(|()| fig(self.large(*engine, &slot)))));
+            }
+        } else {
+            progress(&format!("{} not found: no start-up figures", self.args.large.display()));
+        }
+        Ok((runs, large))
+    }
+
+    /// The next sub-run's DDS domain id and namespace.
+    fn slot(&mut self) -> Slot {
+        let n = self.next;
+        self.next += 1;
+        Slot { dom: self.args.ros_domain_id + n, ns: format!("gwb{}x{n}", std::process::id()) }
+    }
+
+    /// Whether engine `e` opens a participant here (the Cyclone engine may not be built).
+    fn check_engine(&mut self, e: EngineKind) -> Fig<()> {
+        let slot = self.slot();
+        let r = peer_opts(&self.async_ddf, slot.dom, e)
+            .and_then(|(opts, _)| tutti_gateway::engine::open(e, &opts.engine_config()).map_err(anyhow::Error::new));
+        noted(r.map(drop), e.name())
+    }
+
+    /// Every figure of engine `e` in placement `cpus`; one that fails is reported, not fatal.
+    fn engine_run(&mut self, e: EngineKind, cpus: Cpus) -> EngineRun {
+        let at = |what: &str| format!("{}: {e}: {what}", cpus.key);
+        let step = |what: &str| progress(&at(what));
+        step("gateway round trip");
+        let rtt = noted(self.round_trip(e, cpus), &at("round trip"));
+        step("ping -> echo without the gateway");
+        let ping = noted(self.engine_ping(e, cpus), &at("ping"));
+        step("async set shm -> DDS");
+        let to_dds = noted(self.outbound(e, cpus, false).map(|r| rate(&r)), &at("shm -> DDS"));
+        step("async set DDS -> shm");
+        let from_dds = noted(self.inbound(e, cpus), &at("DDS -> shm"));
+        step("DDS source -> DDS sink, no gateway");
+        let alone = noted(self.alone(e, cpus), &at("source -> sink"));
+        step("sync set shm -> DDS");
+        let sync = noted(self.outbound(e, cpus, true), &at("sync set"));
+        step("lock-step");
+        let lock = noted(self.lock_step(e, cpus), &at("lock-step"));
+        let (rtt, paced) = match rtt {
+            Ok((hot, paced)) => (Ok(hot), Ok(paced)),
+            Err(why) => (Err(why.clone()), Err(why)),
+        };
+        EngineRun { engine: e, rtt, paced, ping, to_dds, from_dds, alone, sync, lock }
+    }
+
+    fn ddf(&self, synchronous: bool) -> &Path {
+        if synchronous {
+            &self.sync_ddf
+        } else {
+            &self.async_ddf
+        }
+    }
+
+    /// A `tutti` child on engine `e` in `slot`'s DDS domain and namespace.
+    fn tutti(&self, e: EngineKind, slot: &Slot, args: &[&str]) -> Command {
+        let mut cmd = Command::new(&self.exe);
+        cmd.args(args)
+            .args(["--ros-domain-id", &slot.dom.to_string(), "--dds", e.name()])
+            .env("TUTTI_NAMESPACE", &slot.ns)
+            .env("RUST_LOG", QUIET_LOG)
+            .stdin(Stdio::null());
+        cmd
+    }
+
+    /// `tutti gateway` on the benchmark's DDF, on `cpu`, as fast as it goes.
+    fn gateway(&self, e: EngineKind, slot: &Slot, synchronous: bool, cpus: Cpus) -> anyhow::Result<Kid> {
+        let ddf = self.ddf(synchronous).to_string_lossy();
+        let wait = if cpus.wait(synchronous) == WaitMode::Spin { "spin" } else { "block" };
+        let args = ["gateway", &ddf, "--interface", "127.0.0.1", "--poll", "0", "--wait", wait, "-q"];
+        start("the gateway", self.tutti(e, slot, &args), cpus.gw)
+    }
+
+    /// A DDS peer of the benchmark (`--echo`, `--sink`, `--source` …) on `cpu`.
+    fn peer(&self, e: EngineKind, slot: &Slot, cpu: usize, what: &[&str]) -> anyhow::Result<Kid> {
+        let window = format!("{}ms", self.args.duration.as_millis());
+        let args: Vec<&str> =
+            ["bench", "gateway", "--duration", &window].into_iter().chain(what.iter().copied()).collect();
+        let mut cmd = self.tutti(e, slot, &args);
+        cmd.stdout(Stdio::piped());
+        start(&format!("the DDS peer ({})", what.first().unwrap_or(&"")), cmd, cpu)
+    }
+
+    fn echo_peer(&self, e: EngineKind, slot: &Slot, synchronous: bool, cpu: usize) -> anyhow::Result<Kid> {
+        self.peer(e, slot, cpu, &["--echo", &self.ddf(synchronous).to_string_lossy()])
+    }
+
+    /// The framework of the benchmark's domain in `slot`'s namespace.
+    fn framework(&self, slot: &Slot, synchronous: bool, cpus: Cpus) -> anyhow::Result<Framework> {
+        let model = load_ddf(self.ddf(synchronous)).map_err(|f| f.error)?;
+        let wait = cpus.wait(synchronous);
+        let opts = FrameworkOptions { namespace: slot.ns.clone(), wait, ..Default::default() };
+        Framework::create(&model, &opts).context("creating the benchmark domain")
+    }
+
+    /// The gateway round trip back to back, then paced at 1 kHz (same processes).
+    fn round_trip(&mut self, e: EngineKind, cpus: Cpus) -> anyhow::Result<(Rtt, Rtt)> {
+        let slot = self.slot();
+        let mut fw = self.framework(&slot, false, cpus)?;
+        let host = &mut fw.domains[0];
+        let mut gw = self.gateway(e, &slot, false, cpus)?;
+        let mut echo = self.echo_peer(e, &slot, false, cpus.peer)?;
+        pin_self(cpus.fw);
+        let mut data = vec![0u8; ITEMS * 8];
+        let mut seq = 0f64;
+        let mut send = |host: &mut DomainHost, seq: f64| {
+            fill(&mut data, seq);
+            host.publish_step(&data, seq).map(|_| ())
+        };
+        let back = |host: &mut DomainHost| host.read_subscribe().map_or(f64::NAN, first_item);
+        // Until the echo path works end to end.
+        let end = Instant::now() + PATIENCE;
+        loop {
+            seq += 1.0;
+            send(host, seq)?;
+            let t = Instant::now();
+            while t.elapsed() < Duration::from_millis(100) && back(host) != seq {
+                std::hint::spin_loop();
+            }
+            if back(host) == seq {
+                break;
+            }
+            check_alive(&mut [&mut gw, &mut echo])?;
+            if Instant::now() > end {
+                bail!("no echo within {} s (is the loopback interface up?)", PATIENCE.as_secs());
+            }
+        }
+        let mut measure = |paced: bool| -> anyhow::Result<Rtt> {
+            let mut times = Vec::with_capacity(self.args.samples as usize);
+            let mut lost = 0;
+            let start = Instant::now();
+            for k in 0..self.args.samples {
+                if paced {
+                    // One round trip per millisecond, as ddsperf's `ping 1kHz`: everything may
+                    // go idle between them.
+                    let due = start + Duration::from_millis(u64::from(k));
+                    if let Some(wait) = due.checked_duration_since(Instant::now()) {
+                        std::thread::sleep(wait);
+                    }
+                }
+                seq += 1.0;
+                let t = Instant::now();
+                send(host, seq)?;
+                let mut spins = 0u32;
+                while back(host) != seq && t.elapsed() < Duration::from_secs(1) {
+                    // Spin, but give the core away between looks: the echo and the gateway may
+                    // share it (a pure spinner is only preempted at the end of its time slice).
+                    spins += 1;
+                    super::relax(spins >= 16);
+                }
+                if back(host) == seq {
+                    times.push(t.elapsed().as_secs_f64() * 1e6);
+                } else {
+                    lost += 1;
+                    check_alive(&mut [&mut gw, &mut echo])?;
+                }
+            }
+            Rtt::of(times, lost)
+        };
+        let hot = measure(false)?;
+        let paced = measure(true)?;
+        Ok((hot, paced))
+    }
+
+    /// The echo pinged by a participant of the same engine in this process (where the
+    /// gateway was), with no gateway and no shared memory: what the engine itself costs on
+    /// this path.
+    fn engine_ping(&mut self, e: EngineKind, cpus: Cpus) -> anyhow::Result<Rtt> {
+        let slot = self.slot();
+        let _echo = self.echo_peer(e, &slot, false, cpus.peer)?;
+        let (mut opts, d) = peer_opts(&self.async_ddf, slot.dom, e)?;
+        opts.node_name = "tutti_bench_ping".into();
+        pin_self(cpus.gw);
+        let t = tutti_gateway::echo::ping(&opts, &d, self.args.samples, PATIENCE);
+        pin_self(cpus.fw);
+        let t = t?;
+        let lost = self.args.samples.saturating_sub(t.len() as u32);
+        Rtt::of(t, lost)
+    }
+
+    /// shm -> DDS: this process steps flat out (an asynchronous set: publishes, yielding
+    /// between steps so a peer on the same core runs; a synchronous one: publishes and
+    /// completes each step, the gateway's lock-step reader taking part); the gateway sends
+    /// what it sees; a sink in another process counts what arrives over `--duration`
+    /// (for the synchronous set with the domain's QoS, checking the steps' order).
+    fn outbound(&mut self, e: EngineKind, cpus: Cpus, synchronous: bool) -> anyhow::Result<Received> {
+        let slot = self.slot();
+        let mut fw = self.framework(&slot, synchronous, cpus)?;
+        let host = &mut fw.domains[0];
+        pin_self(cpus.fw);
+        let mut gw = self.gateway(e, &slot, synchronous, cpus)?;
+        let ddf = self.ddf(synchronous).to_string_lossy();
+        let mut what = vec!["--sink", &ddf, "publish"];
+        if synchronous {
+            what.push("--ordered");
+        }
+        let mut sink = self.peer(e, &slot, cpus.peer, &what)?;
+        let mut data = vec![0u8; ITEMS * 8];
+        let end = Instant::now() + self.args.duration + PATIENCE + Duration::from_secs(10);
+        let mut k = 0u64;
+        while sink.poll().is_none() {
+            if k % 1024 == 0 {
+                check_alive(&mut [&mut gw])?;
+                if Instant::now() > end {
+                    bail!("the sink did not finish");
+                }
+            }
+            k += 1;
+            fill(&mut data, k as f64);
+            host.publish_step(&data, k as f64)?;
+            if synchronous {
+                host.complete_step()?;
+            } else {
+                std::thread::yield_now();
+            }
+        }
+        sink_result(&mut sink)
+    }
+
+    /// DDS -> shm: a source writes SUBSCRIBE samples flat out; the commits the gateway makes
+    /// in shared memory are counted over `--duration`.
+    fn inbound(&mut self, e: EngineKind, cpus: Cpus) -> anyhow::Result<f64> {
+        let slot = self.slot();
+        let fw = self.framework(&slot, false, cpus)?;
+        let host = &fw.domains[0];
+        pin_self(cpus.fw);
+        let mut gw = self.gateway(e, &slot, false, cpus)?;
+        let mut source = self.peer(e, &slot, cpus.peer, &["--source", &self.async_ddf.to_string_lossy()])?;
+        let commits = || host.status().subscribe_commits;
+        let c0 = commits();
+        let end = Instant::now() + PATIENCE;
+        while commits() < c0 + 100 {
+            check_alive(&mut [&mut gw, &mut source])?;
+            if Instant::now() > end {
+                bail!("no commits from DDS within {} s", PATIENCE.as_secs());
+            }
+            std::thread::sleep(Duration::from_millis(1));
+        }
+        let (c1, t) = (commits(), Instant::now());
+        std::thread::sleep(self.args.duration);
+        Ok((commits() - c1) as f64 / t.elapsed().as_secs_f64())
+    }
+
+    /// The same source and a sink on the gateway's and the peer's cores, without the
+    /// gateway: the engine's own ceiling.
+    fn alone(&mut self, e: EngineKind, cpus: Cpus) -> anyhow::Result<f64> {
+        let slot = self.slot();
+        let ddf = self.async_ddf.to_string_lossy();
+        let mut sink = self.peer(e, &slot, cpus.gw, &["--sink", &ddf, "subscribe"])?;
+        let _source = self.peer(e, &slot, cpus.peer, &["--source", &ddf])?;
+        Ok(rate(&sink_result(&mut sink)?))
+    }
+
+    /// Lock-step across DDS: this process steps a synchronous domain flat out; the DDS echo
+    /// answers each step through the gateway, whose commit for the step completes it.
+    fn lock_step(&mut self, e: EngineKind, cpus: Cpus) -> anyhow::Result<LockStep> {
+        let slot = self.slot();
+        let mut fw = self.framework(&slot, true, cpus)?;
+        let host = &mut fw.domains[0];
+        pin_self(cpus.fw);
+        let mut gw = self.gateway(e, &slot, true, cpus)?;
+        let mut echo = self.echo_peer(e, &slot, true, cpus.peer)?;
+        let mut data = vec![0u8; ITEMS * 8];
+        let mut k = 0u64;
+        // One step; true when the SUBSCRIBE set it read is the echo's answer to it.
+        let mut step = |host: &mut DomainHost| -> anyhow::Result<bool> {
+            k += 1;
+            fill(&mut data, k as f64);
+            host.step(&data, k as f64)?;
+            Ok(first_item(host.subscribe()) == k as f64)
+        };
+        let end = Instant::now() + PATIENCE;
+        let mut tries = 0u64;
+        while !step(host)? {
+            tries += 1;
+            if tries % 256 == 0 {
+                check_alive(&mut [&mut gw, &mut echo])?;
+                if Instant::now() > end {
+                    bail!("no step answered within {} s", PATIENCE.as_secs());
+                }
+            }
+        }
+        let (mut steps, mut unanswered) = (0u64, 0u64);
+        let t = Instant::now();
+        while t.elapsed() < self.args.duration {
+            steps += 1;
+            if !step(host)? {
+                unanswered += 1;
+            }
+        }
+        check_alive(&mut [&mut gw, &mut echo])?;
+        Ok(LockStep { per_s: steps as f64 / t.elapsed().as_secs_f64(), unanswered })
+    }
+
+    /// ddsperf (back to back and paced) and Fast DDS on the placement's cores.
+    fn peers(&mut self, cpus: Cpus, fastdds: &Fig<PathBuf>) -> Peers {
+        let at = |what: &str| format!("{}: {what}", cpus.key);
+        let ddsperf = noted(self.ddsperf(cpus, None), &at("ddsperf"));
+        let ddsperf_paced = noted(self.ddsperf(cpus, Some("1kHz")), &at("ddsperf 1kHz"));
+        let fastdds = match fastdds {
+            Ok(bin) => noted(self.fastdds(bin, cpus), &at("fastdds")),
+            Err(why) => Err(why.clone()),
+        };
+        Peers { ddsperf, ddsperf_paced, fastdds }
+    }
+
+    /// ddsperf ping-pong, back to back (`rate` None: a ping as soon as the pong is in) or at
+    /// a rate ("1kHz"). Its samples are 12 bytes; it prints half the round trip.
+    fn ddsperf(&mut self, cpus: Cpus, rate: Option<&str>) -> anyhow::Result<Rtt> {
+        let dom = self.slot().dom.to_string();
+        let mut pong = Command::new("ddsperf");
+        pong.args(["-i", &dom, "-D8", "pong"]).env("CYCLONEDDS_URI", LOOPBACK).stdout(Stdio::null());
+        let mut ping = Command::new("ddsperf");
+        ping.args(["-i", &dom, "-D5", "-Qminmatch:1", "-Qinitwait:5", "ping"])
+            .args(rate)
+            .env("CYCLONEDDS_URI", LOOPBACK);
+        let out = ping_pong("ddsperf", pong, ping, cpus).context("apt-get install -y cyclonedds-tools")?;
+        let mut p50s = Vec::new();
+        let mut p99s = Vec::new();
+        for line in out.lines().filter(|l| l.contains(" 50% ")) {
+            let num = |key: &str| -> Option<f64> { line.split(key).nth(1)?.split("us").next()?.trim().parse().ok() };
+            if let (Some(a), Some(b)) = (num(" 50% "), num(" 99% ")) {
+                p50s.push(2.0 * a);
+                p99s.push(2.0 * b);
+            }
+        }
+        if p50s.is_empty() {
+            bail!("no ddsperf output (apt-get install -y cyclonedds-tools)");
+        }
+        p50s.sort_by(f64::total_cmp);
+        p99s.sort_by(f64::total_cmp);
+        // The median of its per-second lines.
+        Ok(Rtt { p50: nearest_rank(&p50s, 0.5), p99: nearest_rank(&p99s, 0.5), lost: 0 })
+    }
+
+    /// The Fast DDS ping-pong program, built on first use and kept next to `tutti`
+    /// (`bench-cache/`, keyed by its source), else in the scratch directory.
+    fn fastdds_program(&self) -> anyhow::Result<PathBuf> {
+        let mut h = DefaultHasher::new();
+        FASTDDS_SRC.hash(&mut h);
+        let name = format!("fastdds_pingpong-{:016x}", h.finish());
+        let cache = self
+            .exe
+            .parent()
+            .map(|d| d.join("bench-cache"))
+            .filter(|d| std::fs::create_dir_all(d).is_ok())
+            .unwrap_or_else(|| self.dir.clone());
+        let bin = cache.join(&name);
+        if bin.exists() {
+            return Ok(bin);
+        }
+        let src = self.dir.join("fastdds_pingpong.cpp");
+        std::fs::write(&src, FASTDDS_SRC).context("writing the Fast DDS ping-pong")?;
+        let tmp = cache.join(format!("{name}.{}", std::process::id()));
+        let out = Command::new("g++")
+            .args(["-std=c++11", "-O2", "-o"])
+            .arg(&tmp)
+            .arg(&src)
+            .args(["-lfastrtps", "-lfastcdr"])
+            .output();
+        match out {
+            Err(e) if e.kind() == std::io::ErrorKind::NotFound => bail!("g++ not found: apt-get install -y g++"),
+            Err(e) => return Err(e).context("running g++"),
+            Ok(o) if !o.status.success() => {
+                let err = String::from_utf8_lossy(&o.stderr);
+                let first = err.lines().find(|l| l.contains("error")).unwrap_or("g++ failed");
+                bail!("building against libfastrtps failed (apt-get install -y libfastrtps-dev): {first}");
+            }
+            Ok(_) => {}
+        }
+        std::fs::rename(&tmp, &bin).context("caching the Fast DDS ping-pong")?;
+        Ok(bin)
+    }
+
+    /// The Fast DDS ping-pong (UDP on loopback, samples as large as the gateway's).
+    fn fastdds(&mut self, bin: &Path, cpus: Cpus) -> anyhow::Result<Rtt> {
+        let dom = self.slot().dom.to_string();
+        let mut pong = Command::new(bin);
+        pong.args([&dom, "pong"]).stdout(Stdio::null());
+        let mut ping = Command::new(bin);
+        ping.args([&dom, "ping", &self.args.samples.to_string()]);
+        let out = ping_pong("fastdds", pong, ping, cpus)?;
+        let line = out.lines().find(|l| l.starts_with("rtt_us")).context("no output from the Fast DDS ping")?;
+        let num = |key: &str| -> Option<f64> {
+            line.split_whitespace().find_map(|w| w.strip_prefix(key)).and_then(|v| v.parse().ok())
+        };
+        match (num("p50="), num("p99="), num("lost=")) {
+            (Some(p50), Some(p99), Some(lost)) => Ok(Rtt { p50, p99, lost: lost as u32 }),
+            _ => bail!("unexpected output from the Fast DDS ping: {line}"),
+        }
+    }
+
+    /// Starts a gateway on the large DDF; returns its start-up time and RSS once up.
+    fn large(&self, e: EngineKind, slot: &Slot) -> anyhow::Result<(Duration, u64)> {
+        let t = Instant::now();
+        let ddf = self.args.large.to_string_lossy();
+        let mut cmd = self.tutti(e, slot, &["gateway", &ddf, "--interface", "127.0.0.1", "--status-every", "1h"]);
+        cmd.stderr(Stdio::piped());
+        let mut kid =
+            child::spawn("the gateway on the large DDF", cmd, None)?.stop_on_drop(Some(SIGINT), Duration::from_secs(3));
+        let stderr = kid.child.stderr.take();
+        let mut up = None;
+        if let Some(s) = stderr {
+            for line in BufReader::new(s).lines().map_while(Result::ok) {
+                if line.contains("tutti gateway: up") {
+                    up = Some(t.elapsed());
+                    break;
+                }
+            }
+        }
+        let up = up.context("the gateway on the large DDF did not start")?;
+        std::thread::sleep(Duration::from_millis(500));
+        let rss = rss_kib(kid.pid()).unwrap_or(0);
+        Ok((up, rss))
+    }
 }
 
-/// The echo peer (`--echo`) on `cpu`.
-fn echo_peer(exe: &Path, ddf: &Path, cpu: usize, dom: &str) -> anyhow::Result<Kid> {
-    let mut cmd = Command::new(exe);
-    cmd.args(["bench", "gateway", "--echo", &ddf.to_string_lossy(), "--ros-domain-id", dom]).stdin(Stdio::null());
-    start("the echo peer", cmd, cpu)
+impl EngineRun {
+    fn not_run(engine: EngineKind, why: &str) -> EngineRun {
+        fn no<T>(why: &str) -> Fig<T> {
+            Err(why.to_string())
+        }
+        EngineRun {
+            engine,
+            rtt: no(why),
+            paced: no(why),
+            ping: no(why),
+            to_dds: no(why),
+            from_dds: no(why),
+            alone: no(why),
+            sync: no(why),
+            lock: no(why),
+        }
+    }
 }
 
-fn peer(exe: &Path, cpu: usize, dom: &str, duration: Duration, what: &[&str]) -> anyhow::Result<Kid> {
-    let mut cmd = Command::new(exe);
-    cmd.args(["bench", "gateway", "--ros-domain-id", dom, "--duration"])
-        .arg(format!("{}ms", duration.as_millis()))
-        .args(what)
-        .env("RUST_LOG", QUIET_LOG)
-        .stdin(Stdio::null())
-        .stdout(Stdio::piped());
-    start("a benchmark peer", cmd, cpu)
+/// Runs `pong` in the background and `ping` to its end, on the placement's ping-pong CPUs;
+/// returns what ping printed.
+fn ping_pong(name: &str, mut pong: Command, mut ping: Command, cpus: Cpus) -> anyhow::Result<String> {
+    let (ping_cpu, pong_cpu) = cpus.ping_pong();
+    pong.stdin(Stdio::null()).stderr(Stdio::null());
+    let _pong = start(&format!("{name} pong"), pong, pong_cpu)?;
+    ping.stdin(Stdio::null()).stderr(Stdio::null());
+    child::prepare(&mut ping, Some(ping_cpu));
+    let out = ping.output().with_context(|| format!("running {name}"))?;
+    Ok(String::from_utf8_lossy(&out.stdout).into_owned())
 }
 
-/// The sink's "samples seconds" line; waits for it to exit.
-fn sink_rate(kid: &mut Kid) -> anyhow::Result<f64> {
+/// Samples per second of a sink's result.
+fn rate(r: &Received) -> f64 {
+    if r.secs > 0.0 {
+        r.samples as f64 / r.secs
+    } else {
+        0.0
+    }
+}
+
+/// The sink's "samples seconds lost misordered" line; waits for it to exit.
+fn sink_result(kid: &mut Kid) -> anyhow::Result<Received> {
     let mut line = String::new();
     if let Some(out) = kid.child.stdout.take() {
         BufReader::new(out).read_line(&mut line)?;
     }
-    let mut it = line.split_whitespace().map(str::parse::<f64>);
-    match (it.next(), it.next()) {
-        (Some(Ok(n)), Some(Ok(secs))) if secs > 0.0 => Ok(n / secs),
+    let v: Vec<f64> = line.split_whitespace().filter_map(|w| w.parse().ok()).collect();
+    match v[..] {
+        [samples, secs, lost, misordered] if secs > 0.0 => {
+            Ok(Received { samples: samples as u64, secs, lost: lost as u64, misordered: misordered as u64 })
+        }
         _ => bail!("the sink received nothing"),
     }
 }
 
-/// Samples per second, each way, of the 8-item asynchronous set, and rustdds alone.
-///
-/// * shm -> DDS: this process commits PUBLISH values flat out (yielding between commits,
-///   so a peer on the same core runs); the gateway sends each new value it sees; a rustdds
-///   sink in another process counts what arrives over `duration`.
-/// * DDS -> shm: a rustdds source writes SUBSCRIBE samples flat out; the commits the
-///   gateway makes in shared memory are counted over `duration`.
-/// * rustdds alone: the same source and sink on the same cores, without the gateway.
-fn throughput(exe: &Path, ddf: &Path, args: &Args, cpus: Cpus) -> anyhow::Result<Throughput> {
-    let ns = format!("gwbenchtp{}", std::process::id());
-    let model = load_ddf(ddf).map_err(|f| f.error)?;
-    let opts = FrameworkOptions { namespace: ns.clone(), wait: WaitMode::Spin, ..Default::default() };
-    let mut fw = Framework::create(&model, &opts).context("creating the benchmark domain")?;
-    let host = &mut fw.domains[0];
-    let dom = (args.ros_domain_id + 2).to_string();
-    let ddfs = ddf.to_string_lossy().into_owned();
-    pin_self(cpus.fw);
-    let _gw = gateway(exe, ddf, cpus.gw, &dom, &ns)?;
+// --- The hidden peer modes (child processes of the benchmark). ---
 
-    // shm -> DDS.
-    let mut sink = peer(exe, cpus.peer, &dom, args.duration, &["--sink", &ddfs, "publish"])?;
-    let mut data = vec![0u8; ITEMS * 8];
-    let mut seq = 0f64;
-    let end = Instant::now() + args.duration + Duration::from_secs(40);
-    while sink.poll().is_none() && Instant::now() < end {
-        seq += 1.0;
-        fill(&mut data, seq);
-        host.publish_step(&data, seq)?;
-        std::thread::yield_now();
-    }
-    let to_dds = sink_rate(&mut sink)?;
-
-    // DDS -> shm.
-    let source = peer(exe, cpus.peer, &dom, args.duration, &["--source", &ddfs])?;
-    let commits = |host: &tutti_core::shm::DomainHost| host.status().subscribe_commits;
-    let c0 = commits(host);
-    let end = Instant::now() + Duration::from_secs(40);
-    while commits(host) < c0 + 100 && Instant::now() < end {
-        std::thread::sleep(Duration::from_millis(1));
-    }
-    let (c1, t) = (commits(host), Instant::now());
-    std::thread::sleep(args.duration);
-    let from_dds = (commits(host) - c1) as f64 / t.elapsed().as_secs_f64();
-    drop(source);
-    drop(_gw);
-
-    // rustdds alone, on the same cores.
-    let mut sink = peer(exe, cpus.gw, &dom, args.duration, &["--sink", &ddfs, "subscribe"])?;
-    let _source = peer(exe, cpus.peer, &dom, args.duration, &["--source", &ddfs])?;
-    let direct = sink_rate(&mut sink)?;
-    Ok(Throughput { to_dds, from_dds, direct })
-}
-
-fn peer_opts(ddf: &Path, domain_id: u16) -> anyhow::Result<(GatewayOptions, tutti_core::ddf::Domain)> {
+fn peer_opts(
+    ddf: &Path,
+    domain_id: u16,
+    engine: EngineKind,
+) -> anyhow::Result<(GatewayOptions, tutti_core::ddf::Domain)> {
     let model = load_ddf(ddf).map_err(|f| f.error)?;
     let mut opts = GatewayOptions::new(ddf, model.clone());
     opts.ros_domain_id = domain_id;
+    opts.engine = engine;
     opts.interfaces = vec![std::net::IpAddr::V4(std::net::Ipv4Addr::LOCALHOST)];
     let d = model.domains.first().context("the DDF has no domain")?.clone();
     Ok((opts, d))
 }
 
-fn sink(ddf: &Path, role: &str, domain_id: u16, window: Duration) -> CliResult {
-    let (opts, d) = peer_opts(ddf, domain_id)?;
-    let role = if role == "publish" { Role::Publish } else { Role::Subscribe };
-    let (n, secs) =
-        tutti_gateway::echo::sink(&opts, &d, role, window, Duration::from_secs(30)).map_err(anyhow::Error::new)?;
-    println!("{n} {secs}");
-    Ok(())
-}
-
-fn source(ddf: &Path, domain_id: u16) -> CliResult {
-    let (opts, d) = peer_opts(ddf, domain_id)?;
+/// A flag set by Ctrl-C or SIGTERM.
+fn stop_flag() -> anyhow::Result<Arc<AtomicBool>> {
     let stop = Arc::new(AtomicBool::new(false));
     let s = stop.clone();
     ctrlc::set_handler(move || s.store(true, Ordering::SeqCst)).context("installing the signal handler")?;
-    tutti_gateway::echo::source(&opts, &d, Duration::from_millis(500), stop).map_err(anyhow::Error::new)?;
+    Ok(stop)
+}
+
+fn echo(ddf: &Path, args: &Args) -> CliResult {
+    let (opts, d) = peer_opts(ddf, args.ros_domain_id, args.dds)?;
+    tutti_gateway::echo::run(&opts, &d, stop_flag()?).map_err(anyhow::Error::new)?;
     Ok(())
 }
 
-/// The echo pinged by a rustdds participant in this process (where the gateway was), with
-/// no gateway and no shared memory: what rustdds itself costs on this path.
-fn rustdds_ping(exe: &Path, ddf: &Path, args: &Args, cpus: Cpus) -> anyhow::Result<Vec<f64>> {
-    let dom = (args.ros_domain_id + 4).to_string();
-    let _echo = echo_peer(exe, ddf, cpus.peer, &dom)?;
-    pin_self(cpus.gw);
-    let (mut opts, d) = peer_opts(ddf, args.ros_domain_id + 4)?;
-    opts.node_name = "tutti_bench_ping".into();
-    let t = tutti_gateway::echo::ping(&opts, &d, args.samples, Duration::from_secs(30));
-    pin_self(cpus.fw);
-    t.map_err(anyhow::Error::new)
+fn sink(ddf: &Path, role: &str, args: &Args) -> CliResult {
+    let (opts, d) = peer_opts(ddf, args.ros_domain_id, args.dds)?;
+    let role = if role == "publish" { Role::Publish } else { Role::Subscribe };
+    let r = tutti_gateway::echo::sink(&opts, &d, role, args.duration, PATIENCE, args.ordered)
+        .map_err(anyhow::Error::new)?;
+    println!("{} {} {} {}", r.samples, r.secs, r.lost, r.misordered);
+    Ok(())
+}
+
+fn source(ddf: &Path, args: &Args) -> CliResult {
+    let (opts, d) = peer_opts(ddf, args.ros_domain_id, args.dds)?;
+    tutti_gateway::echo::source(&opts, &d, Duration::from_millis(500), stop_flag()?).map_err(anyhow::Error::new)?;
+    Ok(())
+}
+
+// --- Output. ---
+
+/// Start-up time and RSS (KiB) of the gateway on the large DDF.
+type LargeFig = Fig<(Duration, u64)>;
+type LargeRuns = Vec<(EngineKind, LargeFig)>;
+/// Which figure of an engine's run a row shows.
+type Get<T> = fn(&EngineRun) -> &Fig<T>;
+/// The engine a target applies to and whether a figure meets it.
+type Target = Option<(EngineKind, fn(f64) -> bool)>;
+
+/// One row of a placement's table: a label and one cell per engine.
+fn row(label: &str, cells: impl IntoIterator<Item = String>) {
+    let cells: String = cells.into_iter().map(|c| format!(" {c:>14}")).collect();
+    println!("  {label:<62}{cells}");
+}
+
+/// A figure's cell: `show` of it, "-" when not measured; "ok" or "MISSED" after the
+/// Cyclone engine's figure where `target` says whether it met its target.
+fn cell<T>(f: &Fig<T>, show: impl Fn(&T) -> f64, digits: usize, target: Target) -> String {
+    match f {
+        Ok(v) => {
+            let x = show(v);
+            let mark = match target {
+                Some((EngineKind::Cyclone, met)) if met(x) => " ok",
+                Some((EngineKind::Cyclone, _)) => " MISSED",
+                _ => "",
+            };
+            format!("{x:.digits$}{mark}")
+        }
+        Err(_) => "-".into(),
+    }
+}
+
+/// The ratio of two round trips' p50.
+fn ratio(a: &Fig<Rtt>, b: &Fig<Rtt>) -> Fig<f64> {
+    match (a, b) {
+        (Ok(a), Ok(b)) => Ok(a.p50 / b.p50),
+        (Err(e), _) | (_, Err(e)) => Err(e.clone()),
+    }
+}
+
+fn print_tables(runs: &[PlacementRun], large: &[(EngineKind, LargeFig)], large_ddf: &Path) {
+    println!(
+        "gateway: shm -> gateway -> DDS -> echo -> DDS -> gateway -> shm, {ITEMS} x float64 sets (typed samples of 80 bytes)"
+    );
+    for run in runs {
+        let engines = &run.engines;
+        println!();
+        println!("{}", run.cpus.name);
+        row("figure", engines.iter().map(|r| r.engine.name().to_string()));
+        let each = |label: &str, get: &dyn Fn(&EngineRun) -> String| row(label, engines.iter().map(get));
+        let rtt_rows: [(&str, Get<Rtt>); 3] = [
+            ("gateway round trip, back to back", |r| &r.rtt),
+            ("gateway round trip, paced at 1 kHz", |r| &r.paced),
+            ("engine ping -> echo, no gateway, back to back", |r| &r.ping),
+        ];
+        for (label, get) in rtt_rows {
+            each(&format!("{label}, p50 µs"), &|r| cell(get(r), |t| t.p50, 1, None));
+            each(&format!("{label}, p99 µs"), &|r| cell(get(r), |t| t.p99, 1, None));
+            each(&format!("{label}, lost"), &|r| cell(get(r), |t| f64::from(t.lost), 0, None));
+        }
+        let peers = &run.peers;
+        for (label, f) in [
+            ("ddsperf ping-pong (12 B), back to back", &peers.ddsperf),
+            ("ddsperf ping-pong (12 B), ping 1kHz", &peers.ddsperf_paced),
+            ("Fast DDS ping-pong (UDP, 80 B), back to back", &peers.fastdds),
+        ] {
+            match f {
+                Ok(t) => row(&format!("{label}, p50 / p99 µs"), [format!("{:.1} / {:.1}", t.p50, t.p99)]),
+                Err(why) => {
+                    println!("  {}: not run ({why})", if label.starts_with("Fast") { "fastdds" } else { "ddsperf" })
+                }
+            }
+        }
+        let met_rtt: fn(f64) -> bool = |x| x <= TARGET_RTT_RATIO;
+        each(&format!("ratio gateway / ddsperf p50, back to back (cyclone <= {TARGET_RTT_RATIO})"), &|r| {
+            cell(&ratio(&r.rtt, &peers.ddsperf), |x| *x, 2, Some((r.engine, met_rtt)))
+        });
+        each("ratio gateway / ddsperf p50, paced at 1 kHz", &|r| {
+            cell(&ratio(&r.paced, &peers.ddsperf_paced), |x| *x, 2, None)
+        });
+        each("ratio gateway / Fast DDS p50, back to back", &|r| cell(&ratio(&r.rtt, &peers.fastdds), |x| *x, 2, None));
+        let met_rate: fn(f64) -> bool = |x| x >= TARGET_RATE;
+        let rate_rows: [(&str, Get<f64>, bool); 3] = [
+            ("async set shm -> gateway -> DDS sink, samples/s", |r| &r.to_dds, true),
+            ("async set DDS source -> gateway -> shm, samples/s", |r| &r.from_dds, true),
+            ("async set DDS source -> DDS sink, no gateway, samples/s", |r| &r.alone, false),
+        ];
+        for (label, get, targeted) in rate_rows {
+            each(label, &|r| cell(get(r), |x| *x, 0, targeted.then_some((r.engine, met_rate))));
+        }
+        each("sync set shm -> gateway -> DDS sink, samples/s", &|r| cell(&r.sync, rate, 0, None));
+        each("sync set steps lost", &|r| cell(&r.sync, |s| s.lost as f64, 0, None));
+        each("sync set steps duplicated or reordered", &|r| cell(&r.sync, |s| s.misordered as f64, 0, None));
+        each("lock-step, DDS echo answering each step, steps/s", &|r| cell(&r.lock, |l| l.per_s, 0, None));
+        each("lock-step steps not answered for themselves", &|r| cell(&r.lock, |l| l.unanswered as f64, 0, None));
+        for r in engines {
+            let mut reasons: Vec<&String> = [&r.rtt, &r.ping].into_iter().filter_map(|f| f.as_ref().err()).collect();
+            let others = [&r.to_dds, &r.from_dds, &r.alone].into_iter().filter_map(|f| f.as_ref().err());
+            reasons.extend(others.chain(r.sync.as_ref().err()).chain(r.lock.as_ref().err()));
+            reasons.dedup();
+            for why in reasons {
+                println!("  {}: not run ({why})", r.engine);
+            }
+        }
+    }
+    println!();
+    for (engine, f) in large {
+        match f {
+            Ok((up, rss)) => println!(
+                "gateway ({engine}) on {}: up in {:.2} s{}, RSS {:.1} MiB",
+                large_ddf.display(),
+                up.as_secs_f64(),
+                if *engine == EngineKind::Cyclone {
+                    format!(" (target < {TARGET_STARTUP_S} s)")
+                } else {
+                    String::new()
+                },
+                *rss as f64 / 1024.0
+            ),
+            Err(why) => println!("gateway ({engine}) on {}: not run ({why})", large_ddf.display()),
+        }
+    }
+}
+
+/// One engine in one placement, as `--json` prints it.
+#[derive(Debug, Serialize)]
+struct JsonRun {
+    engine: &'static str,
+    placement: &'static str,
+    rtt_p50_us: Option<f64>,
+    rtt_p99_us: Option<f64>,
+    ddsperf_rtt_p50_us: Option<f64>,
+    fastdds_rtt_p50_us: Option<f64>,
+    shm_to_dds_per_s: Option<f64>,
+    dds_to_shm_per_s: Option<f64>,
+    sync_steps_per_s: Option<f64>,
+    rtt_paced_p50_us: Option<f64>,
+    ddsperf_rtt_paced_p50_us: Option<f64>,
+    engine_rtt_p50_us: Option<f64>,
+    engine_alone_per_s: Option<f64>,
+    sync_shm_to_dds_per_s: Option<f64>,
+    sync_in_order: Option<bool>,
+    sync_steps_unanswered: Option<u64>,
+}
+
+#[derive(Debug, Serialize)]
+struct JsonLarge {
+    engine: &'static str,
+    startup_s: Option<f64>,
+    rss_mib: Option<f64>,
+}
+
+#[derive(Debug, Serialize)]
+struct Json {
+    runs: Vec<JsonRun>,
+    large: Vec<JsonLarge>,
+}
+
+/// `x` rounded to one decimal.
+fn tenths(x: f64) -> f64 {
+    (x * 10.0).round() / 10.0
+}
+
+fn to_json(runs: &[PlacementRun], large: &[(EngineKind, LargeFig)]) -> Json {
+    let p50 = |f: &Fig<Rtt>| f.as_ref().ok().map(|t| tenths(t.p50));
+    let runs = runs
+        .iter()
+        .flat_map(|run| {
+            run.engines.iter().map(move |r| JsonRun {
+                engine: r.engine.name(),
+                placement: run.cpus.key,
+                rtt_p50_us: p50(&r.rtt),
+                rtt_p99_us: r.rtt.as_ref().ok().map(|t| tenths(t.p99)),
+                ddsperf_rtt_p50_us: p50(&run.peers.ddsperf),
+                fastdds_rtt_p50_us: p50(&run.peers.fastdds),
+                shm_to_dds_per_s: r.to_dds.as_ref().ok().map(|x| x.round()),
+                dds_to_shm_per_s: r.from_dds.as_ref().ok().map(|x| x.round()),
+                sync_steps_per_s: r.lock.as_ref().ok().map(|l| l.per_s.round()),
+                rtt_paced_p50_us: p50(&r.paced),
+                ddsperf_rtt_paced_p50_us: p50(&run.peers.ddsperf_paced),
+                engine_rtt_p50_us: p50(&r.ping),
+                engine_alone_per_s: r.alone.as_ref().ok().map(|x| x.round()),
+                sync_shm_to_dds_per_s: r.sync.as_ref().ok().map(|s| rate(s).round()),
+                sync_in_order: r.sync.as_ref().ok().map(|s| s.lost == 0 && s.misordered == 0),
+                sync_steps_unanswered: r.lock.as_ref().ok().map(|l| l.unanswered),
+            })
+        })
+        .collect();
+    let large = large
+        .iter()
+        .map(|(engine, f)| JsonLarge {
+            engine: engine.name(),
+            startup_s: f.as_ref().ok().map(|(up, _)| (up.as_secs_f64() * 1000.0).round() / 1000.0),
+            rss_mib: f.as_ref().ok().map(|(_, rss)| tenths(*rss as f64 / 1024.0)),
+        })
+        .collect();
+    Json { runs, large }
 }

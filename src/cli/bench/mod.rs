@@ -21,7 +21,8 @@ pub struct Args {
 enum What {
     /// Parse and validate a large DDF (default: the 1,000-domain file) and print the time.
     Ddf(ddf::Args),
-    /// Round trip and throughput through the DDS gateway, next to Cyclone's ddsperf.
+    /// The gateway per DDS engine: round trips, throughput, lock-step rate and start-up, next to
+    /// Cyclone's ddsperf and a Fast DDS ping-pong.
     Gateway(gateway::Args),
     /// Round trips through shared-memory domains, next to iceoryx2 in the same run.
     Shm(shm::Args),
