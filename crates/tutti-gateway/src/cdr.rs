@@ -105,12 +105,32 @@ impl SetCodec {
     /// plain CDR (XCDR1) in either byte order; a short body or another representation is
     /// refused with a message.
     pub fn decode(&self, raw: &[u8]) -> Result<TypedSample, String> {
+        let (le, body) = self.check(raw)?;
+        Ok(self.decode_body(le, body))
+    }
+
+    /// Checks a serialized sample: (little-endian?, CDR body) when it is plain CDR and long
+    /// enough for this set.
+    pub fn check<'a>(&self, raw: &'a [u8]) -> Result<(bool, &'a [u8]), String> {
         let (le, body) = split_header(raw)?;
+        if body.len() < self.cdr_size {
+            return Err(format!("a typed sample of {} bytes, expected {}", body.len(), self.cdr_size));
+        }
+        Ok((le, body))
+    }
+
+    /// The step of a checked body.
+    pub fn step(&self, le: bool, body: &[u8]) -> u64 {
+        read_u64(body, 0, le)
+    }
+
+    /// Decodes a checked body ([`SetCodec::check`]).
+    pub fn decode_body(&self, le: bool, body: &[u8]) -> TypedSample {
         let mut data = vec![0u8; self.shm_size];
-        self.decode_into(le, body, &mut data)?;
+        let _ = self.decode_into(le, body, &mut data);
         let step = read_u64(body, 0, le);
         let sim_time = f64::from_bits(read_u64(body, 8, le));
-        Ok(TypedSample { step, sim_time, data })
+        TypedSample { step, sim_time, data }
     }
 
     /// Writes the items of CDR body `body` into `shm` (the set in shared-memory layout).

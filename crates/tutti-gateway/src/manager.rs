@@ -18,7 +18,7 @@ use tutti_core::shm::{Framework, FrameworkOptions, Participant, ShmError};
 
 use crate::cdr::{SetCodec, TypedSample};
 use crate::engine::{self, Decode, Engine, Guid};
-use crate::routes::from_dds::{self, Destination, Direct, RemoteWriter};
+use crate::routes::from_dds::{self, Destination, Direct, RemoteWriter, Sample};
 use crate::routes::per_item::{self, ItemWriters};
 use crate::routes::to_dds::{self, Activation, Outbound, SetWriter, Watched};
 use crate::routes::{mirror, Event, Payload, ShmConfig};
@@ -279,7 +279,8 @@ impl Manager {
                     if !self.writers.contains_key(&key) && !self.add_writer(key) {
                         return;
                     }
-                    if self.writers.get(&key).is_some_and(|w| w.writer.send(inb.payload.clone()).is_ok()) {
+                    if self.writers.get(&key).is_some_and(|w| w.writer.send(Sample::Owned(inb.payload.clone())).is_ok())
+                    {
                         return;
                     }
                     self.writers.remove(&key);

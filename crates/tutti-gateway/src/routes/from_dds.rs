@@ -29,6 +29,7 @@ use tracing::{debug, info, warn};
 use tutti_core::shm::{Participant, ShmError};
 
 use super::{per_item, Event, Inbound, Payload, ShmConfig};
+use crate::cdr::SetCodec;
 use crate::engine::{Data, Decode, Guid, Sink, PREFIX_LEN};
 use crate::stats::{LogLimit, Stats};
 
@@ -56,10 +57,10 @@ impl Direct {
 
     /// Commits `payload` of `writer` here (or hands it straight to the writer's thread in a
     /// synchronous domain) if the writer is known and working; else hands it back.
-    pub fn commit(&self, writer: &Guid, payload: Payload) -> Option<Payload> {
+    pub fn commit(&self, writer: &Guid, sample: Sample<'_>) -> Option<Payload> {
         match self.get(writer) {
-            Some(w) => w.send(payload).err(),
-            None => Some(payload),
+            Some(w) => w.send(sample).err(),
+            None => Some(sample.into_owned()),
         }
     }
 }
@@ -77,18 +78,19 @@ pub fn sink(decode: Decode, (route, tx, direct): Destination, stats: Arc<Stats>,
             Stats::add(&stats.own_samples, 1);
             return;
         }
-        let payload = match data {
-            Data::Decoded(r) => r,
+        let sample = match data {
+            Data::Decoded(r) => r.map(Sample::Owned),
             Data::Raw(raw) => match &decode {
-                Decode::Set(codec) => codec.decode(raw).map(Payload::Set),
+                // Checked here, decoded straight into shared memory by the commit.
+                Decode::Set(codec) => codec.check(raw).map(|(le, body)| Sample::Encoded { codec, le, body }),
                 Decode::Item(leaf, path) => {
-                    per_item::decode(leaf, raw).map(|bytes| Payload::Item { path: path.clone(), bytes })
+                    per_item::decode(leaf, raw).map(|bytes| Sample::Owned(Payload::Item { path: path.clone(), bytes }))
                 }
             },
         };
-        let ev = match payload {
-            Ok(payload) => {
-                let Some(payload) = direct.commit(&writer, payload) else { return };
+        let ev = match sample {
+            Ok(sample) => {
+                let Some(payload) = direct.commit(&writer, sample) else { return };
                 Event::Sample(Inbound { route, writer, payload })
             }
             Err(error) => Event::Bad { route, error },
@@ -133,7 +135,7 @@ impl Delivery {
     /// Commits `payload` through `p` (None: the domain is not running, and the sample is
     /// dropped); a connection that cannot go on is dropped (`p` set to None) for the caller
     /// to connect again.
-    fn deliver(&mut self, p: &mut Option<Participant>, payload: Payload) {
+    fn deliver(&mut self, p: &mut Option<Participant>, sample: Sample<'_>) {
         let (domain, name, stats) = (&self.domain, &self.name, &self.stats);
         let Some(part) = p.as_mut() else {
             Stats::add(&stats.errors, 1);
@@ -142,7 +144,7 @@ impl Delivery {
             }
             return;
         };
-        match commit(part, payload, &self.own_commits) {
+        match commit(part, sample, &self.own_commits) {
             Ok(Committed::Yes) => Stats::add(&stats.from_dds, 1),
             Ok(Committed::Late) => Stats::add(&stats.late, 1),
             Err(e @ ShmError::NotOwner { .. }) => {
@@ -194,9 +196,9 @@ impl Inline {
         self.p.is_some()
     }
 
-    fn send(&mut self, payload: Payload) {
+    fn send(&mut self, sample: Sample<'_>) {
         self.connect();
-        self.out.deliver(&mut self.p, payload);
+        self.out.deliver(&mut self.p, sample);
     }
 }
 
@@ -231,11 +233,11 @@ impl RemoteWriter {
 
     /// Commits a sample (inline) or hands it to the connection's thread; hands it back when
     /// that thread has gone.
-    pub fn send(&self, p: Payload) -> Result<(), Payload> {
+    pub fn send(&self, sample: Sample<'_>) -> Result<(), Payload> {
         match &self.kind {
-            Kind::Thread(ls) => ls.send(p),
+            Kind::Thread(ls) => ls.send(sample),
             Kind::Inline(i) => {
-                i.lock().unwrap_or_else(PoisonError::into_inner).send(p);
+                i.lock().unwrap_or_else(PoisonError::into_inner).send(sample);
                 Ok(())
             }
         }
@@ -270,19 +272,19 @@ struct LockstepState {
 }
 
 impl Lockstep {
-    fn send(&self, payload: Payload) -> Result<(), Payload> {
+    fn send(&self, sample: Sample<'_>) -> Result<(), Payload> {
         let sh = &self.shared;
         if sh.pending.load(Ordering::Acquire) == 0 {
             if let Ok(mut st) = sh.state.try_lock() {
                 let (out, p) = &mut *st;
                 if p.as_ref().is_some_and(Participant::publish_ready) && sh.pending.load(Ordering::Acquire) == 0 {
-                    out.deliver(p, payload);
+                    out.deliver(p, sample);
                     return Ok(());
                 }
             }
         }
         sh.pending.fetch_add(1, Ordering::AcqRel);
-        self.tx.send(payload).map_err(|e| {
+        self.tx.send(sample.into_owned()).map_err(|e| {
             sh.pending.fetch_sub(1, Ordering::AcqRel);
             e.0
         })
@@ -314,7 +316,7 @@ fn run(ls: &LockstepState, rx: Receiver<Payload>, cfg: ShmConfig) {
                 if p.is_none() {
                     *p = connect(out);
                 }
-                out.deliver(p, payload);
+                out.deliver(p, Sample::Owned(payload));
                 ls.pending.fetch_sub(1, Ordering::AcqRel);
             }
             Err(RecvTimeoutError::Timeout) => *p = connect(out),
@@ -330,7 +332,7 @@ enum Committed {
     Late,
 }
 
-fn commit(p: &mut Participant, payload: Payload, own_commits: &AtomicU64) -> Result<Committed, ShmError> {
+fn commit(p: &mut Participant, sample: Sample<'_>, own_commits: &AtomicU64) -> Result<Committed, ShmError> {
     if p.info().flags.synchronous {
         // Waits for the step this sample answers (a seed needs none). A sample answering an
         // earlier step is not committed for the current one, or every later step would
@@ -338,25 +340,56 @@ fn commit(p: &mut Participant, payload: Payload, own_commits: &AtomicU64) -> Res
         // the framework waits for the next answer.
         p.publish_lock()?;
         let locked = p.segment().header().pub_step.load(Ordering::Acquire);
-        if let Payload::Set(s) = &payload {
-            if s.step != 0 && s.step < locked {
+        if let Some(step) = sample.step() {
+            if step != 0 && step < locked {
                 return Ok(Committed::Late);
             }
         }
     }
-    match payload {
-        Payload::Set(s) => {
+    own_commits.fetch_add(1, Ordering::AcqRel);
+    let r = match sample {
+        Sample::Owned(Payload::Set(s)) => {
             let staging = p.staging_mut();
             if staging.len() == s.data.len() {
                 staging.copy_from_slice(&s.data);
             }
+            p.commit()
         }
-        Payload::Item { path, bytes } => p.stage(&path, &bytes)?,
-    }
-    own_commits.fetch_add(1, Ordering::AcqRel);
-    let r = p.commit();
+        Sample::Owned(Payload::Item { path, bytes }) => p.stage(&path, &bytes).and_then(|()| p.commit()),
+        // Decoded straight into the slot being filled: no copy on the way.
+        Sample::Encoded { codec, le, body } => p.commit_all_with(|_, out| {
+            let _ = codec.decode_into(le, body, out);
+        }),
+    };
     if r.is_err() {
         own_commits.fetch_sub(1, Ordering::AcqRel);
     }
     r.map(|()| Committed::Yes)
+}
+
+/// A sample on its way to a commit: decoded already, or a typed set still in its CDR body
+/// (checked: long enough, plain CDR), decoded by the commit straight into shared memory.
+#[derive(Debug)]
+pub enum Sample<'a> {
+    Owned(Payload),
+    Encoded { codec: &'a SetCodec, le: bool, body: &'a [u8] },
+}
+
+impl Sample<'_> {
+    /// The step a typed sample answers.
+    fn step(&self) -> Option<u64> {
+        match self {
+            Sample::Owned(Payload::Set(s)) => Some(s.step),
+            Sample::Owned(Payload::Item { .. }) => None,
+            Sample::Encoded { codec, le, body } => Some(codec.step(*le, body)),
+        }
+    }
+
+    /// The sample as a [`Payload`], for a hand-off to another thread.
+    fn into_owned(self) -> Payload {
+        match self {
+            Sample::Owned(p) => p,
+            Sample::Encoded { codec, le, body } => Payload::Set(codec.decode_body(le, body)),
+        }
+    }
 }
