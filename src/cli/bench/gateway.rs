@@ -656,7 +656,8 @@ impl Bench<'_> {
     }
 
     /// ddsperf ping-pong, back to back (`rate` None: a ping as soon as the pong is in) or at
-    /// a rate ("1kHz"). Its samples are 12 bytes; it prints half the round trip.
+    /// a rate ("1kHz"), with samples of the gateway's size (`size 80`: the 16 header bytes and
+    /// the 8 doubles); it prints half the round trip.
     fn ddsperf(&mut self, cpus: Cpus, rate: Option<&str>) -> anyhow::Result<Rtt> {
         let dom = self.slot().dom.to_string();
         let mut pong = Command::new("ddsperf");
@@ -664,6 +665,7 @@ impl Bench<'_> {
         let mut ping = Command::new("ddsperf");
         ping.args(["-i", &dom, "-D5", "-Qminmatch:1", "-Qinitwait:5", "ping"])
             .args(rate)
+            .args(["size", "80"])
             .env("CYCLONEDDS_URI", LOOPBACK);
         let out = ping_pong("ddsperf", pong, ping, cpus).context("apt-get install -y cyclonedds-tools")?;
         let mut p50s = Vec::new();
@@ -929,8 +931,8 @@ fn print_tables(runs: &[PlacementRun], large: &[(EngineKind, LargeFig)], large_d
         }
         let peers = &run.peers;
         for (label, f) in [
-            ("ddsperf ping-pong (12 B), back to back", &peers.ddsperf),
-            ("ddsperf ping-pong (12 B), ping 1kHz", &peers.ddsperf_paced),
+            ("ddsperf ping-pong (80 B), back to back", &peers.ddsperf),
+            ("ddsperf ping-pong (80 B), ping 1kHz", &peers.ddsperf_paced),
             ("Fast DDS ping-pong (UDP, 80 B), back to back", &peers.fastdds),
         ] {
             match f {
