@@ -49,7 +49,8 @@ fn run_uav_reader(test: &str, program: &std::path::Path, wrapper: &[&str], steps
         assert_eq!(w[1], w[0] + 1.0, "steps skipped or repeated: {values:?}");
     }
     assert!(stdout.lines().all(|l| l.ends_with("status=1")), "{stdout}");
-    let seen = host.seen();
+    let last = values.last().map_or(0, |v| *v as u64);
+    let seen = host.seen_through(&[("multiuav_uav2", last)], Duration::from_secs(30));
     drop(host);
     // The framework's view: the answer to step k (Elevation, SUBSCRIBE offset 16) is 2k.
     // The first step read is skipped: a connection counts as a writer from its first
@@ -121,7 +122,9 @@ fn two_connections_to_two_domains_in_one_process() {
         assert_eq!(w[1].0, w[0].0 + 1.0, "{stdout}");
         assert_eq!(w[1].1, w[0].1 + 1.0, "{stdout}");
     }
-    let seen = host.seen();
+    let last = steps.last().copied().unwrap_or_default();
+    let until = [("multiuav_uav1", last.0 as u64), ("multiuav_uav3", last.1 as u64)];
+    let seen = host.seen_through(&until, Duration::from_secs(30));
     drop(host);
     // Each domain got back the value it published that step (Latitude, SUBSCRIBE offset 0).
     // (From the second step on: see run_uav_reader.)

@@ -96,6 +96,21 @@ impl Host {
     pub fn seen(&self) -> Vec<Seen> {
         self.seen.lock().unwrap_or_else(|e| e.into_inner()).clone()
     }
+
+    /// What the framework saw, once it has finished each (domain, step) of `until` (or after
+    /// `timeout`): a client that exits right after its last commit can be faster than the
+    /// framework completing the step that commit answers, above all on a loaded machine.
+    pub fn seen_through(&self, until: &[(&str, u64)], timeout: Duration) -> Vec<Seen> {
+        let end = std::time::Instant::now() + timeout;
+        loop {
+            let seen = self.seen();
+            let done = |&(d, k): &(&str, u64)| seen.iter().any(|s| s.domain == d && s.step >= k);
+            if until.iter().all(done) || std::time::Instant::now() > end {
+                return seen;
+            }
+            std::thread::sleep(Duration::from_millis(5));
+        }
+    }
 }
 
 impl Drop for Host {
