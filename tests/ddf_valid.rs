@@ -238,3 +238,36 @@ fn committed_large_ddf_is_the_generator_output() {
     assert_eq!(code, 0);
     assert!(out.contains("(1000 domains, 20000 items)"), "{out}");
 }
+
+#[test]
+fn show_names_the_dds_engine_and_refuses_an_unknown_one() {
+    let engine = |args: &[&str]| -> String {
+        let mut cmd = std::process::Command::new(env!("CARGO_BIN_EXE_tutti"));
+        cmd.args(["show", "--json", "ddf/multiuav.ddf"]).args(args).current_dir(env!("CARGO_MANIFEST_DIR"));
+        cmd.env_remove("TUTTI_DDS");
+        let (status, out, err) = common::run_with_timeout(cmd, std::time::Duration::from_secs(60));
+        assert!(status.success(), "{args:?}: {err}");
+        let v: Value = serde_json::from_str(&out).expect("show --json prints JSON");
+        v["dds_engine"].as_str().expect("dds_engine").to_string()
+    };
+    assert_eq!(engine(&[]), "cyclone", "Cyclone is the default engine");
+    assert_eq!(engine(&["--dds", "rustdds"]), "rustdds");
+    let (code, _, err) = tutti(["show", "ddf/multiuav.ddf", "--dds", "opendds"]);
+    assert_eq!(code, 2);
+    assert!(err.contains("unknown DDS engine 'opendds'") && err.contains("cyclone or rustdds"), "{err}");
+    let (code, out, _) = tutti(["show", "ddf/multiuav.ddf", "--dds", "rustdds"]);
+    assert_eq!(code, 0);
+    assert!(out.lines().next().is_some_and(|l| l.ends_with("DDS engine rustdds")), "{out}");
+}
+
+#[test]
+fn the_rustdds_engine_refuses_unicast_peers_with_status_2() {
+    let mut cmd = std::process::Command::new(env!("CARGO_BIN_EXE_tutti"));
+    cmd.args(["gateway", "tests/gateway/gw.ddf", "--dds", "rustdds", "--peer", "127.0.0.1", "--duration", "5s"])
+        .args(["--ros-domain-id", "199", "--interface", "127.0.0.1"])
+        .current_dir(env!("CARGO_MANIFEST_DIR"))
+        .env("TUTTI_NAMESPACE", "ddfvalid-peer");
+    let (status, _, err) = common::run_with_timeout(cmd, std::time::Duration::from_secs(60));
+    assert_eq!(status.code(), Some(2), "{err}");
+    assert!(err.contains("--peer") && err.contains("--dds cyclone"), "{err}");
+}

@@ -69,7 +69,8 @@ impl EngineKind {
     /// Both engines, for tests and benchmarks that run against each.
     pub const ALL: [EngineKind; 2] = [EngineKind::Cyclone, EngineKind::Rustdds];
 
-    /// The engine `TUTTI_DDS` names, if set (an unknown name is an error).
+    /// The engine `TUTTI_DDS` names, if it is set to a known name (the CLI refuses an
+    /// unknown one; library users get the default).
     pub fn from_env() -> Option<EngineKind> {
         std::env::var("TUTTI_DDS").ok().filter(|v| !v.trim().is_empty()).and_then(|v| v.parse().ok())
     }
