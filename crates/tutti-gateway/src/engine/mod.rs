@@ -139,15 +139,6 @@ pub trait Writer: Send {
     fn flush(&mut self) {}
 }
 
-/// One remote endpoint as discovery reports it.
-#[derive(Debug, Clone, PartialEq)]
-pub struct RemoteEndpoint {
-    pub guid: Guid,
-    pub type_name: String,
-    /// Its QoS where the engine reports it.
-    pub qos: Option<Qos>,
-}
-
 /// Remote (not our participant's) endpoints per topic name.
 #[derive(Debug, Default, Clone, PartialEq, Eq)]
 pub struct Remote {
