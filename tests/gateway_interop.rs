@@ -7,7 +7,7 @@ mod gateway;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 use std::thread;
-use std::time::Duration;
+use std::time::{Duration, Instant};
 
 use gateway::*;
 use tutti_core::ddf::Role;
@@ -458,7 +458,40 @@ fn dds_profile_ownership_is_matched_on_the_wire_by_the_cyclone_engine() {
     );
 }
 
+/// `/clock`: the simulated time of the first synchronous domain (gw_sync, stepped every
+/// 10 ms with time k × 0.01 s) reaches a reader of `rt/clock` with ROS 2's type and ClockQoS:
+/// each time one the domain had, never going back, and none once the host has stopped.
+fn the_simulated_time_goes_out_on_clock(e: Eng) {
+    let Some(py) = python() else { return };
+    let (dom, ns) = (e.dom(117), e.ns("gwtest117"));
+    let ns = ns.as_str();
+    let host = Host::start(ns, "gw_sync", Duration::from_millis(10), |k| (k as f64).to_ne_bytes().to_vec());
+    let gw = e.gateway(DDF, dom, ns, &[]);
+    let mut clock = peer(&py, "clock", dom, "clock", &["--timeout", "90"]);
+    let end = Instant::now() + SECS(75);
+    while json_lines(&clock, "clock").len() < 30 && Instant::now() < end {
+        thread::sleep(Duration::from_millis(50));
+    }
+    assert!(json_lines(&clock, "clock").len() >= 30, "too few /clock samples\n{}\n{}", clock.dump(), gw.dump());
+    drop(host);
+    thread::sleep(Duration::from_millis(700));
+    let stopped = json_lines(&clock, "clock").len();
+    thread::sleep(Duration::from_millis(1200));
+    let times: Vec<f64> = json_lines(&clock, "clock").iter().map(|v| v["clock"].as_f64().unwrap()).collect();
+    assert_eq!(times.len(), stopped, "/clock went on after the host stopped: {times:?}");
+    for w in times.windows(2) {
+        assert!(w[1] >= w[0], "/clock went back: {} then {}", w[0], w[1]);
+    }
+    for t in &times {
+        let k = (t / 0.01).round();
+        assert!(k >= 1.0 && (t - k * 0.01).abs() < 1e-6, "{t} is not a simulated time of the domain");
+    }
+    assert!(times[times.len() - 1] > times[0], "{times:?}");
+    let _ = clock.interrupt(SECS(10));
+}
+
 per_engine!(
+    the_simulated_time_goes_out_on_clock,
     shared_memory_values_reach_a_cyclone_reader_as_typed_samples,
     per_item_mode_uses_stock_types_both_ways,
     a_reader_joining_one_item_late_in_per_item_mode_gets_items_that_never_change,

@@ -10,7 +10,7 @@ use super::show::ProfileArg;
 use anyhow::Context;
 use clap::ValueEnum;
 use tutti_core::shm::WaitMode;
-use tutti_gateway::{EngineKind, GatewayError, GatewayOptions, TypeMode};
+use tutti_gateway::{ClockSource, EngineKind, GatewayError, GatewayOptions, TypeMode};
 
 use super::host::{parse_duration, parse_wait};
 use super::{load_ddf, CliResult, Failure};
@@ -21,7 +21,7 @@ use super::{load_ddf, CliResult, Failure};
 /// DDS, so components on another machine connect through shared memory.
 #[derive(Debug, clap::Args)]
 #[command(
-    after_help = "Examples:\n  tutti gateway ddf/multiuav.ddf\n  ROS_DOMAIN_ID=7 tutti gateway ddf/multiuav.ddf --ros2-types per-item\n  tutti gateway ddf/product-sample.ddf --qos-profile dds --strength 10\n  TUTTI_NAMESPACE=site2 tutti gateway ddf/multiuav.ddf --mirror --interface 192.0.2.2\n  tutti gateway ddf/multiuav.ddf --mirror --peer 192.0.2.1   # discovery without multicast\n  tutti gateway ddf/multiuav.ddf --dds rustdds\n\nEnvironment:\n  ROS_DOMAIN_ID            DDS domain when --ros-domain-id is absent (default 0)\n  TUTTI_DDS                default for --dds\n  CYCLONEDDS_URI           Cyclone DDS configuration (cyclone engine)\n  TUTTI_NAMESPACE          namespace of the shared-memory segments\n  TUTTI_GATEWAY_INTERFACE  default for --interface (comma-separated addresses)\n  RUST_LOG                 log filter (default: info, DDS internals off)\n\nStop with Ctrl-C. Exit status: 0 stopped cleanly, 2 invalid input, 1 runtime failure."
+    after_help = "Examples:\n  tutti gateway ddf/multiuav.ddf\n  ROS_DOMAIN_ID=7 tutti gateway ddf/multiuav.ddf --ros2-types per-item\n  tutti gateway ddf/product-sample.ddf --qos-profile dds --strength 10\n  TUTTI_NAMESPACE=site2 tutti gateway ddf/multiuav.ddf --mirror --interface 192.0.2.2\n  tutti gateway ddf/multiuav.ddf --mirror --peer 192.0.2.1   # discovery without multicast\n  tutti gateway ddf/multiuav.ddf --dds rustdds\n  tutti gateway ddf/multiuav.ddf --clock multiuav_uav1 --clock-rate 100   # /clock for use_sim_time\n\nEnvironment:\n  ROS_DOMAIN_ID            DDS domain when --ros-domain-id is absent (default 0)\n  TUTTI_DDS                default for --dds\n  CYCLONEDDS_URI           Cyclone DDS configuration (cyclone engine)\n  TUTTI_NAMESPACE          namespace of the shared-memory segments\n  TUTTI_GATEWAY_INTERFACE  default for --interface (comma-separated addresses)\n  RUST_LOG                 log filter (default: info, DDS internals off)\n\nStop with Ctrl-C. Exit status: 0 stopped cleanly, 2 invalid input, 1 runtime failure."
 )]
 pub struct Args {
     /// The DDF whose domains to bridge.
@@ -57,6 +57,13 @@ pub struct Args {
     /// multicast, e.g. the other machine of a --mirror pair (cyclone engine).
     #[arg(long = "peer", value_name = "ADDR")]
     peers: Vec<String>,
+    /// Publish this domain's simulated time on /clock (rosgraph_msgs/msg/Clock, for ROS 2
+    /// nodes with use_sim_time); default: the first synchronous domain; `none`: no /clock.
+    #[arg(long, value_name = "DOMAIN")]
+    clock: Option<String>,
+    /// At most this many /clock samples a second (default: one per step).
+    #[arg(long, value_name = "HZ", value_parser = parse_rate)]
+    clock_rate: Option<f64>,
     /// Longest shared-memory wait; with --mirror, the framework's step timeout.
     #[arg(long, default_value = "1s", value_parser = parse_duration)]
     timeout: Duration,
@@ -81,6 +88,14 @@ pub struct Args {
 enum Types {
     Typed,
     PerItem,
+}
+
+/// A positive rate in Hz.
+fn parse_rate(s: &str) -> Result<f64, String> {
+    match s.trim().trim_end_matches("Hz").trim_end_matches("hz").parse::<f64>() {
+        Ok(r) if r > 0.0 && r.is_finite() => Ok(r),
+        _ => Err(format!("'{s}' is not a rate in Hz (e.g. 100)")),
+    }
 }
 
 /// The DDS domain: the flag, else ROS_DOMAIN_ID, else 0.
@@ -139,6 +154,12 @@ pub fn run(args: Args) -> CliResult {
     opts.interfaces = interfaces(args.interfaces)?;
     opts.engine = args.engine;
     opts.peers = args.peers;
+    opts.clock = match args.clock.as_deref() {
+        None => ClockSource::FirstSynchronous,
+        Some("none") => ClockSource::Off,
+        Some(d) => ClockSource::Domain(d.to_string()),
+    };
+    opts.clock_rate = args.clock_rate;
     opts.timeout = args.timeout;
     opts.wait = args.wait;
     opts.poll = args.poll;

@@ -13,6 +13,8 @@ Every mode prints JSON lines on stdout and exits 0 on success, 3 on timeout.
          and every other field of F2 = the first data field of the sample + 1
   qos    --topic T [--timeout S]: the QoS of the first remote writer on T (DCPSPublication)
   nodes  --name NAME [--timeout S]: waits until ros_discovery_info lists node NAME
+  clock  [--timeout S]: prints every rosgraph_msgs/msg/Clock sample on rt/clock (as rclcpp's
+         ClockQoS subscription reads it: best effort, keep last 1) until the timeout
 """
 import argparse
 import json
@@ -208,6 +210,30 @@ class ParticipantEntitiesInfo(IdlStruct, typename="rmw_dds_common::msg::dds_::Pa
     node_entities_info_seq: T.sequence[NodeEntitiesInfo]
 
 
+@dataclass
+class Time(IdlStruct, typename="builtin_interfaces::msg::dds_::Time_"):
+    sec: T.int32
+    nanosec: T.uint32
+
+
+@dataclass
+class Clock(IdlStruct, typename="rosgraph_msgs::msg::dds_::Clock_"):
+    clock: Time
+
+
+def cmd_clock(dp, a):
+    q = Qos(Policy.Reliability.BestEffort, Policy.History.KeepLast(1), Policy.Durability.Volatile)
+    rd = DataReader(dp, Topic(dp, "rt/clock", Clock), qos=q)
+    emit({"ready": True})
+    end = time.time() + a.timeout
+    while time.time() < end:
+        for s in rd.take(N=100):
+            if s.sample_info.valid_data:
+                emit({"clock": s.clock.sec + s.clock.nanosec * 1e-9, "sec": s.clock.sec, "nanosec": s.clock.nanosec})
+        time.sleep(0.001)
+    return 0
+
+
 def cmd_nodes(dp, a):
     q = Qos(Policy.Reliability.Reliable(duration(milliseconds=100)), Policy.History.KeepLast(1),
             Policy.Durability.TransientLocal)
@@ -228,7 +254,7 @@ def cmd_nodes(dp, a):
 
 def main():
     p = argparse.ArgumentParser()
-    p.add_argument("mode", choices=["sub", "pub", "answer", "qos", "nodes"])
+    p.add_argument("mode", choices=["sub", "pub", "answer", "qos", "nodes", "clock"])
     p.add_argument("--domain", type=int, required=True)
     p.add_argument("--topic")
     p.add_argument("--type")
@@ -247,7 +273,8 @@ def main():
     p.add_argument("--strength", type=int, default=5)
     a = p.parse_args()
     dp = DomainParticipant(a.domain)
-    sys.exit({"sub": cmd_sub, "pub": cmd_pub, "answer": cmd_answer, "qos": cmd_qos, "nodes": cmd_nodes}[a.mode](dp, a))
+    sys.exit({"sub": cmd_sub, "pub": cmd_pub, "answer": cmd_answer, "qos": cmd_qos, "nodes": cmd_nodes,
+              "clock": cmd_clock}[a.mode](dp, a))
 
 
 if __name__ == "__main__":

@@ -25,5 +25,5 @@ pub mod stats;
 pub use engine::EngineKind;
 pub use error::GatewayError;
 pub use manager::run;
-pub use options::{GatewayOptions, TypeMode};
+pub use options::{ClockSource, GatewayOptions, TypeMode};
 pub use stats::Stats;

@@ -18,6 +18,7 @@ use tutti_core::shm::{Framework, FrameworkOptions, Participant, ShmError};
 
 use crate::cdr::{SetCodec, TypedSample};
 use crate::engine::{self, Decode, Engine, Guid};
+use crate::routes::clock::{self, ClockPump};
 use crate::routes::from_dds::{self, Destination, Direct, RemoteWriter, Sample};
 use crate::routes::per_item::{self, ItemWriters};
 use crate::routes::to_dds::{self, Activation, Outbound, SetWriter, Watched};
@@ -120,7 +121,7 @@ impl Manager {
         };
         let mut routes = Vec::new();
         let mut domains = Vec::new();
-        let mut watched = Vec::new();
+        let mut watched: Vec<Box<dyn to_dds::Polled>> = Vec::new();
         let mut threads = Vec::new();
         let mut topics = 0usize;
         for (di, d) in opts.model.domains.iter().enumerate() {
@@ -151,13 +152,19 @@ impl Manager {
                                 .map_err(|e| GatewayError::dds("a thread", e))?,
                         );
                     } else {
-                        watched.push(Watched::new(d.name.clone(), Role::Publish, out, activation, None));
+                        watched.push(Box::new(Watched::new(d.name.clone(), Role::Publish, out, activation, None)));
                     }
                     // SUBSCRIBE: DDS -> shared memory, and shared-memory writers -> DDS.
                     typed_inbound(dds, &mut routes, &tx, &stats, di, &d.subscribe.layout, &subn, &rq)?;
                     let out = set_writer(dds, d, Role::Subscribe, &subn, &wq)?;
                     let activation = route_out(&mut routes, di, vec![subn.topic], false);
-                    watched.push(Watched::new(d.name.clone(), Role::Subscribe, out, activation, Some(own_commits)));
+                    watched.push(Box::new(Watched::new(
+                        d.name.clone(),
+                        Role::Subscribe,
+                        out,
+                        activation,
+                        Some(own_commits),
+                    )));
                 }
                 (TypeMode::Typed, true) => {
                     topics += 2;
@@ -185,7 +192,7 @@ impl Manager {
                     let out = Outbound::Items(ItemWriters::create(dds, &pub_topics, &d.publish.layout, &wq)?);
                     let topics = pub_topics.iter().map(|t| t.topic.clone()).collect();
                     let activation = route_out(&mut routes, di, topics, true);
-                    watched.push(Watched::new(d.name.clone(), Role::Publish, out, activation, None));
+                    watched.push(Box::new(Watched::new(d.name.clone(), Role::Publish, out, activation, None)));
                     for t in &sub_topics {
                         let Some(leaf) = d.subscribe.layout.leaf(&t.path) else { continue };
                         let to = route_in(&mut routes, &tx, di, &t.topic);
@@ -195,10 +202,24 @@ impl Manager {
                     let out = Outbound::Items(ItemWriters::create(dds, &sub_topics, &d.subscribe.layout, &wq)?);
                     let topics = sub_topics.iter().map(|t| t.topic.clone()).collect();
                     let activation = route_out(&mut routes, di, topics, false);
-                    watched.push(Watched::new(d.name.clone(), Role::Subscribe, out, activation, Some(own_commits)));
+                    watched.push(Box::new(Watched::new(
+                        d.name.clone(),
+                        Role::Subscribe,
+                        out,
+                        activation,
+                        Some(own_commits),
+                    )));
                 }
             }
             domains.push(state);
+        }
+        if let Some(di) = opts.clock_domain()? {
+            let d = &opts.model.domains[di];
+            let writer = dds.writer(clock::TOPIC, clock::TYPE, &clock::qos())?;
+            let activation = route_out(&mut routes, di, vec![clock::TOPIC.to_string()], false);
+            watched.push(Box::new(ClockPump::new(d.name.clone(), writer, activation, opts.clock_rate)));
+            topics += 1;
+            info!(domain = %d.name, "/clock: the simulated time of {}", d.name);
         }
         if !watched.is_empty() {
             threads.push(

@@ -53,6 +53,20 @@ pub struct GatewayOptions {
     pub engine: EngineKind,
     /// Unicast discovery peers (Cyclone engine).
     pub peers: Vec<String>,
+    /// Which domain's simulated time goes out on `/clock`.
+    pub clock: ClockSource,
+    /// At most this many `/clock` samples a second (None: one per step).
+    pub clock_rate: Option<f64>,
+}
+
+/// The domain whose simulated time the gateway publishes on `/clock`.
+#[derive(Debug, Clone, PartialEq, Eq, Default)]
+pub enum ClockSource {
+    /// The first synchronous domain of the DDF (none if it has none).
+    #[default]
+    FirstSynchronous,
+    Domain(String),
+    Off,
 }
 
 impl GatewayOptions {
@@ -75,6 +89,27 @@ impl GatewayOptions {
             discovery_every: Duration::from_millis(200),
             engine: EngineKind::from_env().unwrap_or_default(),
             peers: Vec::new(),
+            clock: ClockSource::default(),
+            clock_rate: None,
+        }
+    }
+
+    /// The index of the domain whose time goes out on `/clock`, if any; an unknown name is
+    /// an error. A mirror publishes no clock (the home gateway does).
+    pub fn clock_domain(&self) -> Result<Option<usize>, crate::GatewayError> {
+        if self.mirror {
+            return Ok(None);
+        }
+        match &self.clock {
+            ClockSource::Off => Ok(None),
+            ClockSource::FirstSynchronous => Ok(self.model.domains.iter().position(|d| d.flags.synchronous)),
+            ClockSource::Domain(name) => match self.model.domains.iter().position(|d| &d.name == name) {
+                Some(i) => Ok(Some(i)),
+                None => Err(crate::GatewayError::Invalid(format!(
+                    "--clock {name}: the DDF has no domain '{name}' (domains: {})",
+                    self.model.domains.iter().map(|d| d.name.as_str()).collect::<Vec<_>>().join(", ")
+                ))),
+            },
         }
     }
 

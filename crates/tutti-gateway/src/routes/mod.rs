@@ -16,6 +16,7 @@ use tutti_core::shm::{ConnectOptions, WaitMode};
 
 use crate::cdr::TypedSample;
 
+pub mod clock;
 pub mod from_dds;
 pub mod mirror;
 pub mod per_item;

@@ -152,19 +152,79 @@ impl Activation {
     }
 }
 
+/// A domain's segment as a passive observer holds it: opened while a framework is there,
+/// let go when it stops, looked for again every 200 ms.
+#[derive(Debug)]
+pub struct LiveSegment {
+    pub domain: String,
+    seg: Option<Segment>,
+    next_open: Instant,
+    /// When to look at the framework's process again (a /proc read costs microseconds).
+    next_alive_check: Instant,
+}
+
+/// What [`LiveSegment::look`] found.
+#[derive(Debug)]
+pub enum Look<'a> {
+    /// No running framework.
+    Gone,
+    /// Opened just now (a new framework, or the first look).
+    Fresh(&'a Segment),
+    Same(&'a Segment),
+}
+
+impl LiveSegment {
+    pub fn new(domain: String) -> Self {
+        LiveSegment { domain, seg: None, next_open: Instant::now(), next_alive_check: Instant::now() }
+    }
+
+    pub fn close(&mut self) {
+        self.seg = None;
+    }
+
+    pub fn look(&mut self, namespace: &str) -> Look<'_> {
+        let now = Instant::now();
+        if let Some(seg) = &self.seg {
+            if now >= self.next_alive_check {
+                self.next_alive_check = now + Duration::from_millis(50);
+                if !seg.framework_alive() {
+                    info!(domain = %self.domain, "framework stopped; waiting for it to come back");
+                    self.seg = None;
+                }
+            }
+        }
+        let mut fresh = false;
+        if self.seg.is_none() {
+            if now < self.next_open {
+                return Look::Gone;
+            }
+            self.next_open = now + Duration::from_millis(200);
+            match Segment::open(namespace, &self.domain) {
+                Ok(s) if s.framework_alive() => {
+                    self.seg = Some(s);
+                    fresh = true;
+                }
+                Ok(_) | Err(ShmError::NoSuchDomain { .. } | ShmError::NotReady { .. }) => {}
+                Err(e) => warn!(domain = %self.domain, "cannot open the domain: {e}"),
+            }
+        }
+        match &self.seg {
+            Some(seg) if fresh => Look::Fresh(seg),
+            Some(seg) => Look::Same(seg),
+            None => Look::Gone,
+        }
+    }
+}
+
 /// One set watched by the poller.
 #[derive(Debug)]
 pub struct Watched {
-    pub domain: String,
     pub role: Role,
     pub out: Outbound,
     pub activation: Arc<Activation>,
     /// SUBSCRIBE: commits made by the gateway itself (not sent back to DDS).
     pub own_commits: Option<Arc<AtomicU64>>,
-    seg: Option<Segment>,
-    next_open: Instant,
-    /// When to look at the framework's process again (a /proc read costs microseconds).
-    next_alive_check: Instant,
+    live: LiveSegment,
     last_gen: Option<u64>,
     base: (u64, u64),
     last_local: u64,
@@ -188,14 +248,11 @@ impl Watched {
         own_commits: Option<Arc<AtomicU64>>,
     ) -> Self {
         Watched {
-            domain,
             role,
             out,
             activation,
             own_commits,
-            seg: None,
-            next_open: Instant::now(),
-            next_alive_check: Instant::now(),
+            live: LiveSegment::new(domain),
             last_gen: None,
             base: (0, 0),
             last_local: 0,
@@ -209,10 +266,8 @@ impl Watched {
     /// Looks at the set once; returns true when something was written.
     fn poll_once(&mut self, cfg: &ShmConfig, stats: &Stats) -> bool {
         if !self.activation.is_active() {
-            if self.seg.is_some() {
-                self.seg = None;
-                self.last_gen = None;
-            }
+            self.live.close();
+            self.last_gen = None;
             return false;
         }
         let joined = self.activation.joined();
@@ -220,36 +275,19 @@ impl Watched {
             self.joined = joined;
             self.out.reset();
         }
-        let now = Instant::now();
-        if let Some(seg) = &self.seg {
-            if now >= self.next_alive_check {
-                self.next_alive_check = now + Duration::from_millis(50);
-                if !seg.framework_alive() {
-                    info!(domain = %self.domain, "framework stopped; waiting for it to come back");
-                    self.seg = None;
-                    self.last_gen = None;
-                }
-            }
-        }
-        if self.seg.is_none() {
-            if now < self.next_open {
+        let seg = match self.live.look(&cfg.namespace) {
+            Look::Gone => {
+                self.last_gen = None;
                 return false;
             }
-            self.next_open = now + Duration::from_millis(200);
-            match Segment::open(&cfg.namespace, &self.domain) {
-                Ok(s) if s.framework_alive() => {
-                    self.buf = vec![0; s.info.set(self.role).size as usize];
-                    self.seg = Some(s);
-                    self.out.reset();
-                }
-                Ok(_) | Err(ShmError::NoSuchDomain { .. } | ShmError::NotReady { .. }) => return false,
-                Err(e) => {
-                    warn!(domain = %self.domain, "cannot open the domain: {e}");
-                    return false;
-                }
+            Look::Fresh(seg) => {
+                self.buf = vec![0; seg.info.set(self.role).size as usize];
+                self.out.reset();
+                self.last_gen = None;
+                seg
             }
-        }
-        let Some(seg) = &self.seg else { return false };
+            Look::Same(seg) => seg,
+        };
         let h = seg.header();
         let gen = seg.generation(self.role);
         if self.last_gen == Some(gen) {
@@ -301,19 +339,41 @@ impl Watched {
     }
 }
 
+/// What the poller thread looks at, one turn after the other.
+pub trait Polled: Send + std::fmt::Debug {
+    /// Whether a remote reader wants what it sends (the poller parks while none does).
+    fn activation(&self) -> &Activation;
+    /// Looks once; true when something was sent.
+    fn poll(&mut self, cfg: &ShmConfig, stats: &Stats) -> bool;
+}
+
+impl Polled for Watched {
+    fn activation(&self) -> &Activation {
+        &self.activation
+    }
+
+    fn poll(&mut self, cfg: &ShmConfig, stats: &Stats) -> bool {
+        Watched::poll(self, cfg, stats)
+    }
+}
+
 /// Starts the poller thread over `routes`.
-pub fn spawn_poller(mut routes: Vec<Watched>, cfg: ShmConfig, stats: Arc<Stats>) -> std::io::Result<JoinHandle<()>> {
+pub fn spawn_poller(
+    mut routes: Vec<Box<dyn Polled>>,
+    cfg: ShmConfig,
+    stats: Arc<Stats>,
+) -> std::io::Result<JoinHandle<()>> {
     thread::Builder::new().name("tutti-gw-poll".into()).spawn(move || {
         let me = thread::current();
         for r in &routes {
-            let _ = r.activation.thread.set(me.clone());
+            let _ = r.activation().thread.set(me.clone());
         }
         let mut idle_turns = 0u32;
         while !cfg.stop.load(Ordering::Acquire) {
             let mut busy = false;
             let mut any_active = false;
             for r in routes.iter_mut() {
-                any_active |= r.activation.is_active();
+                any_active |= r.activation().is_active();
                 busy |= r.poll(&cfg, &stats);
             }
             if !any_active {

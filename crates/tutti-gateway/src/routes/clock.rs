@@ -1,0 +1,154 @@
+//! `/clock`: the simulated time of one domain as `rosgraph_msgs/msg/Clock` on `rt/clock`, so
+//! that ROS 2 nodes started with `use_sim_time:=true` follow the co-simulation.
+//!
+//! The poller thread reads the domain's header as a passive observer (no connection, so the
+//! clock never paces or stalls the domain): each new step's simulated time is written once,
+//! at most every `1 / --clock-rate` seconds (the latest time goes out when the cap allows),
+//! never going back while one framework runs. When the framework pauses or stops, nothing is
+//! written, so ROS 2 time stops too. The writer is RELIABLE, KEEP_LAST 1, VOLATILE: it
+//! matches rclcpp's `ClockQoS` subscriptions (BEST_EFFORT, KEEP_LAST 1) and reliable ones.
+
+use std::sync::atomic::Ordering;
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+
+use tracing::info;
+use tutti_core::mapping::{Durability, History, Ownership, Qos, Reliability};
+
+use super::to_dds::{Activation, LiveSegment, Look, Polled};
+use super::ShmConfig;
+use crate::engine::Writer;
+use crate::stats::Stats;
+
+/// The DDS topic of ROS 2's `/clock`.
+pub const TOPIC: &str = "rt/clock";
+/// The DDS type name of `rosgraph_msgs/msg/Clock`.
+pub const TYPE: &str = "rosgraph_msgs::msg::dds_::Clock_";
+
+/// The writer's QoS.
+pub fn qos() -> Qos {
+    Qos {
+        reliability: Reliability::Reliable,
+        history: History::KeepLast(1),
+        durability: Durability::Volatile,
+        ownership: Ownership::Shared,
+    }
+}
+
+/// The CDR body of a `Clock`: `builtin_interfaces/Time clock` = `int32 sec; uint32 nanosec`
+/// (rounded to the nanosecond; negative times clamp to zero).
+pub fn encode(sim_time: f64, out: &mut [u8; 8]) {
+    let ns = (sim_time.max(0.0) * 1e9).round();
+    let ns = if ns.is_finite() { ns as u128 } else { 0 };
+    let sec = i32::try_from(ns / 1_000_000_000).unwrap_or(i32::MAX);
+    let nanosec = (ns % 1_000_000_000) as u32;
+    out[..4].copy_from_slice(&sec.to_le_bytes());
+    out[4..].copy_from_slice(&nanosec.to_le_bytes());
+}
+
+/// The `/clock` publisher of one domain.
+pub struct ClockPump {
+    live: LiveSegment,
+    writer: Box<dyn Writer>,
+    activation: Arc<Activation>,
+    /// Shortest time between two samples (zero: one per step).
+    min_interval: Duration,
+    last_step: Option<u64>,
+    last_time: f64,
+    next_allowed: Instant,
+}
+
+impl std::fmt::Debug for ClockPump {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("ClockPump").field("domain", &self.live.domain).finish()
+    }
+}
+
+impl ClockPump {
+    /// The clock of `domain`, written by `writer` while `activation` is on, at most `rate`
+    /// times a second (None: every step).
+    pub fn new(domain: String, writer: Box<dyn Writer>, activation: Arc<Activation>, rate: Option<f64>) -> Self {
+        let min_interval = rate.filter(|r| *r > 0.0).map_or(Duration::ZERO, |r| Duration::from_secs_f64(1.0 / r));
+        ClockPump {
+            live: LiveSegment::new(domain),
+            writer,
+            activation,
+            min_interval,
+            last_step: None,
+            last_time: f64::NEG_INFINITY,
+            next_allowed: Instant::now(),
+        }
+    }
+}
+
+impl Polled for ClockPump {
+    fn activation(&self) -> &Activation {
+        &self.activation
+    }
+
+    fn poll(&mut self, cfg: &ShmConfig, stats: &Stats) -> bool {
+        if !self.activation.is_active() {
+            self.live.close();
+            return false;
+        }
+        let seg = match self.live.look(&cfg.namespace) {
+            Look::Gone => return false,
+            Look::Fresh(seg) => {
+                if self.last_step.is_some() {
+                    info!("/clock follows a new framework of its domain from its start");
+                }
+                self.last_step = None;
+                self.last_time = f64::NEG_INFINITY;
+                seg
+            }
+            Look::Same(seg) => seg,
+        };
+        let h = seg.header();
+        let step = h.pub_step.load(Ordering::Acquire);
+        if step == 0 || self.last_step == Some(step) {
+            return false;
+        }
+        let now = Instant::now();
+        if now < self.next_allowed {
+            return false;
+        }
+        self.last_step = Some(step);
+        let t = f64::from_bits(h.sim_time_bits.load(Ordering::Acquire));
+        if t < self.last_time {
+            return false;
+        }
+        let mut body = [0u8; 8];
+        encode(t, &mut body);
+        let ok = self.writer.write(&body);
+        self.writer.flush();
+        if ok {
+            self.last_time = t;
+            self.next_allowed = now + self.min_interval;
+            Stats::add(&stats.to_dds, 1);
+        } else {
+            Stats::add(&stats.errors, 1);
+        }
+        ok
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn times_become_seconds_and_nanoseconds() {
+        let mut b = [0u8; 8];
+        let decode = |b: &[u8; 8]| {
+            (i32::from_le_bytes(b[..4].try_into().unwrap()), u32::from_le_bytes(b[4..].try_into().unwrap()))
+        };
+        encode(12.25, &mut b);
+        assert_eq!(decode(&b), (12, 250_000_000));
+        encode(0.01 * 3.0, &mut b);
+        assert_eq!(decode(&b), (0, 30_000_000), "rounded to the nanosecond");
+        encode(-1.0, &mut b);
+        assert_eq!(decode(&b), (0, 0));
+        encode(f64::NAN, &mut b);
+        assert_eq!(decode(&b), (0, 0));
+    }
+}
