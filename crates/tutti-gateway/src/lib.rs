@@ -3,12 +3,13 @@
 //! node. With `mirror`, the gateway is the framework of local segments fed from DDS, so that
 //! a co-simulation spans machines.
 //!
-//! Shape: [`node`] builds the DDS participant, the ROS 2 node and every endpoint; [`routes`]
-//! has one module per route kind; [`manager`] runs the one `select!` loop that takes DDS
-//! samples and matching changes ([`discovery`]) and hands shared-memory work that waits to
-//! dedicated threads (no waiting call runs on the async runtime; the reader tasks of
-//! asynchronous domains commit themselves, since such a commit never waits). [`cdr`] encodes
-//! and decodes the types, [`qos`] turns the QoS table into rustdds QoS.
+//! Shape: [`engine`] is all the gateway needs from DDS, with two implementations (Cyclone
+//! DDS through `cyclors`, the default, and rustdds); [`routes`] has one module per route
+//! kind, written once above the engines; [`manager`] builds every route and runs one
+//! `select!` loop that compares discovery with the routes' connections and prints status,
+//! while samples go straight from each engine's receive path to shared memory (no waiting
+//! call runs on the async runtime). [`cdr`] encodes and decodes the types, [`qos`] turns the
+//! QoS table into rustdds QoS.
 
 #![deny(unsafe_op_in_unsafe_fn)]
 
