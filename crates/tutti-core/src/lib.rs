@@ -5,6 +5,7 @@
 //! links it alone. The gateway, the real-time host and the demo sit on top of it.
 #![deny(unsafe_op_in_unsafe_fn)]
 
+pub mod cdr;
 pub mod ddf;
 pub mod idl;
 pub mod mapping;

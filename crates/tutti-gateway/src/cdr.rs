@@ -1,14 +1,8 @@
-//! Plain CDR (XCDR1, final structs) of the DDS types of a set: the typed struct that
-//! `tutti idl` writes (`uint64 step; double sim_time;` then the items in DDF order, arrays
-//! fixed-size, buses nested), and the stock `std_msgs` types of per-item mode.
-//!
-//! The typed struct has only fixed-size members, so its body is a fixed plan: every
-//! element aligned to its own size relative to the start of the body (right after the
-//! 4-byte encapsulation header), nested structs adding no padding of their own. The plan
-//! maps each leaf of the shared-memory layout ([`SetLayout`]) to its place in the body.
-//! [`SetCodec::encode`] writes a little-endian body by hand (sent as [`PreEncoded`]);
-//! [`SetSeed`] reads a body through rustdds' CDR deserializer, which handles both byte
-//! orders, and refuses a short one.
+//! Plain CDR of the DDS types: the typed struct of a set ([`SetCodec`], in the core, shared
+//! with the recordings), its serde forms for the rustdds engine ([`PreEncoded`] writes an
+//! encoded body verbatim, [`SetSeed`] reads one through rustdds' CDR deserializer, either
+//! byte order), and the stock `std_msgs` types of per-item mode ([`stock`], raw CDR both
+//! ways, and their serde forms).
 
 use std::fmt;
 use std::sync::Arc;
@@ -16,171 +10,8 @@ use std::sync::Arc;
 use serde::de::{DeserializeSeed, SeqAccess, Visitor};
 use serde::ser::SerializeTuple;
 use serde::{Deserialize, Serialize};
-use tutti_core::ddf::{ScalarType, SetLayout};
-
-/// One leaf of a set in the CDR body.
-#[derive(Debug, Clone, PartialEq, Eq)]
-struct Field {
-    ty: ScalarType,
-    /// Elements (1 for a scalar).
-    count: usize,
-    /// Offset in the shared-memory set.
-    shm: usize,
-    /// Offset in the CDR body.
-    cdr: usize,
-}
-
-/// Bytes of the `step` and `sim_time` header fields.
-const HEADER: usize = 16;
-
-/// The CDR plan of one set's typed struct.
-#[derive(Debug, Clone, PartialEq, Eq)]
-pub struct SetCodec {
-    fields: Vec<Field>,
-    shm_size: usize,
-    cdr_size: usize,
-}
-
-/// A decoded typed sample: the header fields and the set in shared-memory layout.
-#[derive(Debug, Clone, PartialEq)]
-pub struct TypedSample {
-    pub step: u64,
-    pub sim_time: f64,
-    pub data: Vec<u8>,
-}
-
-impl SetCodec {
-    /// The plan for a set laid out as `layout` (its leaves are in DDF order, depth first,
-    /// which is the member order of the struct and its nested bus structs).
-    pub fn new(layout: &SetLayout) -> SetCodec {
-        let mut pos = HEADER;
-        let fields = layout
-            .leaves
-            .iter()
-            .map(|leaf| {
-                let size = leaf.ty.size() as usize;
-                pos = pos.next_multiple_of(size);
-                let f = Field { ty: leaf.ty, count: usize::from(leaf.length), shm: leaf.offset as usize, cdr: pos };
-                pos += size * f.count;
-                f
-            })
-            .collect();
-        SetCodec { fields, shm_size: layout.size as usize, cdr_size: pos }
-    }
-
-    /// Bytes of the CDR body (without the encapsulation header).
-    pub fn cdr_size(&self) -> usize {
-        self.cdr_size
-    }
-
-    /// Bytes of the set in shared memory.
-    pub fn shm_size(&self) -> usize {
-        self.shm_size
-    }
-
-    /// Writes the little-endian CDR body of (`step`, `sim_time`, `shm`) into `out`
-    /// (cleared first). `shm` is the set in shared-memory layout, native (little-endian)
-    /// byte order.
-    pub fn encode(&self, step: u64, sim_time: f64, shm: &[u8], out: &mut Vec<u8>) {
-        out.clear();
-        out.resize(self.cdr_size, 0);
-        out[0..8].copy_from_slice(&step.to_le_bytes());
-        out[8..16].copy_from_slice(&sim_time.to_le_bytes());
-        for f in &self.fields {
-            let n = f.ty.size() as usize * f.count;
-            if let Some(src) = shm.get(f.shm..f.shm + n) {
-                out[f.cdr..f.cdr + n].copy_from_slice(src);
-                if cfg!(target_endian = "big") {
-                    for el in out[f.cdr..f.cdr + n].chunks_exact_mut(f.ty.size() as usize) {
-                        el.reverse();
-                    }
-                }
-            }
-        }
-    }
-}
-
-impl SetCodec {
-    /// Reads a serialized sample (encapsulation header first) into a [`TypedSample`]:
-    /// plain CDR (XCDR1) in either byte order; a short body or another representation is
-    /// refused with a message.
-    pub fn decode(&self, raw: &[u8]) -> Result<TypedSample, String> {
-        let (le, body) = self.check(raw)?;
-        Ok(self.decode_body(le, body))
-    }
-
-    /// Checks a serialized sample: (little-endian?, CDR body) when it is plain CDR and long
-    /// enough for this set.
-    pub fn check<'a>(&self, raw: &'a [u8]) -> Result<(bool, &'a [u8]), String> {
-        let (le, body) = split_header(raw)?;
-        if body.len() < self.cdr_size {
-            return Err(format!("a typed sample of {} bytes, expected {}", body.len(), self.cdr_size));
-        }
-        Ok((le, body))
-    }
-
-    /// The step of a checked body.
-    pub fn step(&self, le: bool, body: &[u8]) -> u64 {
-        read_u64(body, 0, le)
-    }
-
-    /// Decodes a checked body ([`SetCodec::check`]).
-    pub fn decode_body(&self, le: bool, body: &[u8]) -> TypedSample {
-        let mut data = vec![0u8; self.shm_size];
-        let _ = self.decode_into(le, body, &mut data);
-        let step = read_u64(body, 0, le);
-        let sim_time = f64::from_bits(read_u64(body, 8, le));
-        TypedSample { step, sim_time, data }
-    }
-
-    /// Writes the items of CDR body `body` into `shm` (the set in shared-memory layout).
-    pub fn decode_into(&self, le: bool, body: &[u8], shm: &mut [u8]) -> Result<(), String> {
-        if body.len() < self.cdr_size {
-            return Err(format!("a typed sample of {} bytes, expected {}", body.len(), self.cdr_size));
-        }
-        if shm.len() < self.shm_size {
-            return Err(format!("a set of {} bytes, expected {}", shm.len(), self.shm_size));
-        }
-        for f in &self.fields {
-            let size = f.ty.size() as usize;
-            let n = size * f.count;
-            let dst = &mut shm[f.shm..f.shm + n];
-            dst.copy_from_slice(&body[f.cdr..f.cdr + n]);
-            if le != cfg!(target_endian = "little") && size > 1 {
-                dst.chunks_exact_mut(size).for_each(<[u8]>::reverse);
-            }
-        }
-        Ok(())
-    }
-}
-
-/// The representation identifiers of plain CDR (XCDR1), big- and little-endian.
-const CDR_BE: [u8; 2] = [0, 0];
-const CDR_LE: [u8; 2] = [0, 1];
-
-/// The encapsulation header of little-endian plain CDR, as written by every engine.
-pub const HEADER_LE: [u8; 4] = [0, 1, 0, 0];
-
-/// Splits a serialized sample into (little-endian?, body).
-pub fn split_header(raw: &[u8]) -> Result<(bool, &[u8]), String> {
-    let Some((id, body)) = raw.split_first_chunk::<4>() else {
-        return Err(format!("a sample of {} bytes has no encapsulation header", raw.len()));
-    };
-    match [id[0], id[1]] {
-        CDR_LE => Ok((true, body)),
-        CDR_BE => Ok((false, body)),
-        other => Err(format!("unsupported data representation {:02x}{:02x} (expected plain CDR)", other[0], other[1])),
-    }
-}
-
-fn read_u64(b: &[u8], at: usize, le: bool) -> u64 {
-    let a: [u8; 8] = b[at..at + 8].try_into().unwrap_or_default();
-    if le {
-        u64::from_le_bytes(a)
-    } else {
-        u64::from_be_bytes(a)
-    }
-}
+pub use tutti_core::cdr::{split_header, SetCodec, TypedSample, HEADER_LE};
+use tutti_core::ddf::ScalarType;
 
 /// A cursor over a CDR body that refuses to read past its end.
 struct Reader<'a> {
@@ -291,7 +122,7 @@ pub struct SetSeed(pub Arc<SetCodec>);
 impl<'de> DeserializeSeed<'de> for SetSeed {
     type Value = TypedSample;
     fn deserialize<D: serde::Deserializer<'de>>(self, d: D) -> Result<TypedSample, D::Error> {
-        let elements = 2 + self.0.fields.iter().map(|f| f.count).sum::<usize>();
+        let elements = 2 + self.0.fields().iter().map(|f| f.count).sum::<usize>();
         d.deserialize_tuple(elements, self)
     }
 }
@@ -300,7 +131,7 @@ impl<'de> Visitor<'de> for SetSeed {
     type Value = TypedSample;
 
     fn expecting(&self, f: &mut fmt::Formatter) -> fmt::Result {
-        write!(f, "a typed set sample of {} CDR bytes", self.0.cdr_size)
+        write!(f, "a typed set sample of {} CDR bytes", self.0.cdr_size())
     }
 
     fn visit_seq<A: SeqAccess<'de>>(self, mut seq: A) -> Result<TypedSample, A::Error> {
@@ -309,8 +140,8 @@ impl<'de> Visitor<'de> for SetSeed {
         }
         let step: u64 = next(&mut seq)?;
         let sim_time: f64 = next(&mut seq)?;
-        let mut data = vec![0u8; self.0.shm_size];
-        for f in &self.0.fields {
+        let mut data = vec![0u8; self.0.shm_size()];
+        for f in self.0.fields() {
             let size = f.ty.size() as usize;
             for i in 0..f.count {
                 let at = f.shm + i * size;
@@ -374,7 +205,7 @@ mod tests {
     use super::*;
     use ros2_client::dds::rustdds::cdr_encoding::{from_bytes, to_vec};
     use ros2_client::dds::rustdds::{CdrDeserializer, RepresentationIdentifier};
-    use tutti_core::ddf::parse_str;
+    use tutti_core::ddf::{parse_str, SetLayout};
 
     type LE = ros2_client::dds::rustdds::bytes::Bytes;
 
@@ -400,7 +231,7 @@ mod tests {
                 + "<item name=\"v\"><type>double</type><length>3</length></item>"
                 + &item("t", "int8")),
         );
-        assert_eq!(c.fields.iter().map(|f| f.cdr).collect::<Vec<_>>(), vec![16, 24, 48]);
+        assert_eq!(c.fields().iter().map(|f| f.cdr).collect::<Vec<_>>(), vec![16, 24, 48]);
         assert_eq!(c.cdr_size(), 49);
     }
 
@@ -486,7 +317,7 @@ mod tests {
         let mut be = body.clone();
         be[0..8].reverse();
         be[8..16].reverse();
-        for f in &c.fields {
+        for f in c.fields() {
             let size = f.ty.size() as usize;
             be[f.cdr..f.cdr + size * f.count].chunks_exact_mut(size).for_each(<[u8]>::reverse);
         }

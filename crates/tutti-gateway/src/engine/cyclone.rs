@@ -58,10 +58,9 @@ use cyclors::{
 use tutti_core::mapping::{Durability, History, Ownership, Qos, Reliability};
 
 use super::{Data, Decode, Engine, EngineConfig, EngineKind, Guid, Remote, Sink, Writer, PREFIX_LEN};
+use crate::cdr::HEADER_LE;
 use crate::GatewayError;
 
-/// The encapsulation header of little-endian plain CDR.
-const CDR_LE: [u8; 4] = [0x00, 0x01, 0x00, 0x00];
 /// Samples taken per `dds_takecdr` in a reader's listener.
 const TAKE_BATCH: usize = 64;
 /// Samples taken per `dds_take` on a built-in topic.
@@ -697,7 +696,7 @@ impl Engine for Cyclone {
         }
         let a = announcer.as_ref().expect("created above");
         // SAFETY: the sertype of `a.writer`, alive as long as our participant.
-        if !unsafe { write_pieces(a.writer, a.sertype, &[&CDR_LE, &body]) } {
+        if !unsafe { write_pieces(a.writer, a.sertype, &[&HEADER_LE, &body]) } {
             return Err(GatewayError::dds("a ros_discovery_info sample", "write refused"));
         }
         // SAFETY: any handle is accepted.
@@ -760,7 +759,7 @@ unsafe impl Send for CycloneWriter {}
 impl Writer for CycloneWriter {
     fn write(&mut self, body: &[u8]) -> bool {
         // SAFETY: `sertype` belongs to `writer`, which lives until we drop.
-        unsafe { write_pieces(self.writer, self.sertype, &[&CDR_LE, body]) }
+        unsafe { write_pieces(self.writer, self.sertype, &[&HEADER_LE, body]) }
     }
 
     fn flush(&mut self) {
