@@ -14,11 +14,17 @@ step() { printf '\n== %s\n' "$*"; }
 ensure_debian_packages cyclonedds-tools cyclonedds-dev fastddsgen libfastrtps-dev fastdds-tools valgrind gcc g++ make \
     cmake libclang-dev iproute2 python3-venv fonts-dejavu-core
 
-# --- Python: a local venv with the Cyclone DDS binding (the stand-in for rclpy nodes).
+# --- Python: a local venv with the Cyclone DDS binding (the stand-in for rclpy nodes) and the
+# MCAP readers.
 if ! .venv/bin/python -c 'import cyclonedds' 2>/dev/null; then
     step "creating .venv with cyclonedds"
     python3 -m venv .venv
     .venv/bin/pip install -q --disable-pip-version-check cyclonedds==11.0.1
+fi
+# The MCAP libraries of the ROS ecosystem, which read the recordings in the tests.
+if ! .venv/bin/python -c 'import mcap, mcap_ros2' 2>/dev/null; then
+    step "installing mcap and mcap-ros2-support into .venv"
+    .venv/bin/pip install -q --disable-pip-version-check mcap==1.6.0 mcap-ros2-support==0.6.0
 fi
 export PATH="$PWD/.venv/bin:$PATH"
 

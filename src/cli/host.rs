@@ -1,15 +1,13 @@
 //! `tutti host DDF`: a generic framework that creates every domain of a DDF and steps them
 //! at a fixed period; optionally records both sets of every domain to CSV.
 
-use std::fs::File;
-use std::io::{BufWriter, Write};
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 use anyhow::Context;
-use tutti_core::ddf::{Domain, Leaf, Role};
+use tutti_core::ddf::Domain;
 use tutti_core::shm::{Framework, FrameworkOptions, WaitMode};
 
 use super::{load_ddf, CliResult, Failure};
@@ -18,7 +16,7 @@ use crate::rt::{self, Ticker};
 /// Run the framework of every domain in a DDF: create the segments, step at a fixed period.
 #[derive(Debug, clap::Args)]
 #[command(
-    after_help = "Examples:\n  tutti host ddf/multiuav.ddf --step 10ms --duration 60s\n  tutti host ddf/product-sample.ddf --set grid_clock/tick=1 --record out/run.csv\n  TUTTI_NAMESPACE=lab2 tutti host ddf/large-1000.ddf --step 1ms\n  sudo tutti host ddf/multiuav.ddf --step 1ms --realtime --cpu 1 --priority 80\n\nStop with Ctrl-C: the segments are removed on exit."
+    after_help = "Examples:\n  tutti host ddf/multiuav.ddf --step 10ms --duration 60s\n  tutti host ddf/product-sample.ddf --set grid_clock/tick=1 --record out/run.csv\n  tutti host ddf/multiuav.ddf --step 10ms --duration 60s --record out/run.mcap   # Foxglove, ros2 bag\n  TUTTI_NAMESPACE=lab2 tutti host ddf/large-1000.ddf --step 1ms\n  sudo tutti host ddf/multiuav.ddf --step 1ms --realtime --cpu 1 --priority 80\n\nStop with Ctrl-C: the segments are removed on exit."
 )]
 pub struct Args {
     /// The DDF whose domains to host.
@@ -30,10 +28,11 @@ pub struct Args {
     /// Stop after this long (default: run until Ctrl-C).
     #[arg(long, value_parser = parse_duration)]
     duration: Option<Duration>,
-    /// Record both sets of every domain to CSV (one file per domain when there are several:
-    /// FILE's stem + '-DOMAIN.csv').
+    /// Record both sets of every domain at every step, by FILE's extension: `.mcap` (one
+    /// file, ROS 2 CDR with schemas: Foxglove, ros2 bag) or CSV (one file per domain when
+    /// there are several: FILE's stem + '-DOMAIN.csv'). Repeatable.
     #[arg(long, value_name = "FILE")]
-    record: Option<PathBuf>,
+    record: Vec<PathBuf>,
     /// Longest wait for the participants of a synchronous step, and for a seed.
     #[arg(long, default_value = "1s", value_parser = parse_duration)]
     timeout: Duration,
@@ -68,63 +67,6 @@ pub fn parse_wait(s: &str) -> Result<WaitMode, String> {
     }
 }
 
-struct Recorder {
-    out: BufWriter<File>,
-    leaves: Vec<(Role, Leaf)>,
-}
-
-impl Recorder {
-    fn create(path: &Path, d: &Domain) -> anyhow::Result<Recorder> {
-        if let Some(dir) = path.parent().filter(|p| !p.as_os_str().is_empty()) {
-            std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
-        }
-        let file = File::create(path).with_context(|| format!("creating {}", path.display()))?;
-        let mut out = BufWriter::new(file);
-        let leaves: Vec<(Role, Leaf)> = d.leaves().map(|(r, l)| (r, l.clone())).collect();
-        let mut header = vec!["step".to_string(), "sim_time".into(), "wall_s".into(), "connections".into()];
-        for (role, leaf) in &leaves {
-            let prefix = role.lower();
-            if leaf.length == 1 {
-                header.push(format!("{prefix}.{}", leaf.path));
-            } else {
-                header.extend((0..leaf.length).map(|i| format!("{prefix}.{}[{i}]", leaf.path)));
-            }
-        }
-        writeln!(out, "{}", header.join(","))?;
-        Ok(Recorder { out, leaves })
-    }
-
-    fn row(
-        &mut self,
-        step: u64,
-        sim: f64,
-        wall: f64,
-        conns: u32,
-        publish: &[u8],
-        subscribe: &[u8],
-    ) -> anyhow::Result<()> {
-        let mut row = format!("{step},{sim:.6},{wall:.6},{conns}");
-        for (role, leaf) in &self.leaves {
-            let buf = if *role == Role::Publish { publish } else { subscribe };
-            let n = leaf.ty.size() as usize;
-            for chunk in buf[leaf.range()].chunks_exact(n) {
-                row.push(',');
-                row.push_str(&leaf.ty.decode(chunk).to_string());
-            }
-        }
-        writeln!(self.out, "{row}")?;
-        Ok(())
-    }
-}
-
-fn record_path(base: &Path, domain: &str, several: bool) -> PathBuf {
-    if !several {
-        return base.to_path_buf();
-    }
-    let stem = base.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_else(|| "record".into());
-    base.with_file_name(format!("{stem}-{domain}.csv"))
-}
-
 /// Applies `--set DOMAIN/ITEM=VALUE` to the PUBLISH buffers.
 fn apply_sets(sets: &[String], domains: &[Domain], buffers: &mut [Vec<u8>]) -> Result<(), Failure> {
     for s in sets {
@@ -152,6 +94,11 @@ fn apply_sets(sets: &[String], domains: &[Domain], buffers: &mut [Vec<u8>]) -> R
     Ok(())
 }
 
+/// Wall-clock time, nanoseconds since the Unix epoch.
+fn wall_ns() -> u64 {
+    std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH).map_or(0, |d| d.as_nanos() as u64)
+}
+
 pub fn run(args: Args) -> CliResult {
     let model = load_ddf(&args.file)?;
     if args.step.is_zero() {
@@ -168,15 +115,12 @@ pub fn run(args: Args) -> CliResult {
         FrameworkOptions { timeout: args.timeout, wait: args.wait, hold: args.hold.is_some(), ..Default::default() };
     let started = Instant::now();
     let mut fw = Framework::create(&model, &opts).with_context(|| format!("hosting {}", args.file.display()))?;
-    let several = model.domains.len() > 1;
-    let mut recorders = match &args.record {
-        None => Vec::new(),
-        Some(base) => model
-            .domains
-            .iter()
-            .map(|d| Recorder::create(&record_path(base, &d.name, several), d))
-            .collect::<anyhow::Result<Vec<_>>>()?,
-    };
+    let mut recorders = args
+        .record
+        .iter()
+        .map(|path| tutti_record::create(path, &model, &args.file))
+        .collect::<Result<Vec<_>, _>>()
+        .context("starting the recording")?;
     if !args.quiet {
         eprintln!(
             "host: {} domain(s) of {} created in {:.1} ms (namespace {}), step {:?}",
@@ -219,9 +163,19 @@ pub fn run(args: Args) -> CliResult {
         let reports = rt::step_all(&mut fw, &publish, sim, args.step, &tick)?;
         for (i, (host, report)) in fw.domains.iter().zip(reports).enumerate() {
             timeouts += u64::from(report.timed_out > 0);
-            if let Some(rec) = recorders.get_mut(i) {
-                let conns = host.connection_count();
-                rec.row(report.step, sim, run_start.elapsed().as_secs_f64(), conns, &publish[i], host.subscribe())?;
+            if !recorders.is_empty() {
+                let step = tutti_record::Step {
+                    step: report.step,
+                    sim_time: sim,
+                    wall_ns: wall_ns(),
+                    elapsed_s: run_start.elapsed().as_secs_f64(),
+                    connections: host.connection_count(),
+                    publish: &publish[i],
+                    subscribe: host.subscribe(),
+                };
+                for rec in &mut recorders {
+                    rec.step(i, &step).context("recording")?;
+                }
             }
         }
         if !args.quiet && last_report.elapsed() >= Duration::from_secs(1) {
@@ -238,8 +192,8 @@ pub fn run(args: Args) -> CliResult {
             );
         }
     }
-    for rec in &mut recorders {
-        rec.out.flush().context("writing the recording")?;
+    for rec in recorders {
+        rec.finish().context("writing the recording")?;
     }
     if !args.quiet {
         eprintln!(

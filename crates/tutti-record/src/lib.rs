@@ -1,0 +1,78 @@
+//! Recordings of a co-simulation: both sets of every domain at every step, in one of two
+//! formats behind one interface ([`Recorder`]), chosen by the file's extension ([`create`]):
+//!
+//! * **CSV** ([`csv`]): one file per domain, a row per step, a column per element;
+//! * **MCAP** ([`mcap`]): one file for the run, a channel per set named like its ROS 2 topic
+//!   (`/DOMAIN/publish`, `/DOMAIN/subscribe`), messages in the gateway's CDR with a `ros2msg`
+//!   schema equal to what `tutti idl` writes, zstd-compressed chunks with an index: it opens
+//!   in Foxglove and plays with `ros2 bag play`. Connection changes go on `/tutti/events`.
+//!
+//! The crate sits above the core and depends on no DDS crate.
+
+use std::path::Path;
+
+use tutti_core::ddf::Model;
+
+pub mod csv;
+pub mod mcap;
+
+/// What went wrong, with the file involved.
+#[derive(Debug, thiserror::Error)]
+pub enum RecordError {
+    #[error("{path}: {source}")]
+    Io {
+        path: String,
+        #[source]
+        source: std::io::Error,
+    },
+    #[error("{path}: {detail}")]
+    Format { path: String, detail: String },
+}
+
+/// One step of one domain, as the framework saw it.
+#[derive(Debug, Clone, Copy)]
+pub struct Step<'a> {
+    pub step: u64,
+    /// Simulated time, seconds.
+    pub sim_time: f64,
+    /// Wall-clock time, nanoseconds since the Unix epoch.
+    pub wall_ns: u64,
+    /// Seconds since the run started.
+    pub elapsed_s: f64,
+    /// Connections of the domain during the step.
+    pub connections: u32,
+    /// The PUBLISH and SUBSCRIBE sets, in shared-memory layout.
+    pub publish: &'a [u8],
+    pub subscribe: &'a [u8],
+}
+
+/// A recording being written.
+pub trait Recorder {
+    /// Records step `s` of domain number `domain` (its index in the model).
+    fn step(&mut self, domain: usize, s: &Step<'_>) -> Result<(), RecordError>;
+    /// Writes what is buffered and closes the recording (an MCAP file gets its index here).
+    fn finish(self: Box<Self>) -> Result<(), RecordError>;
+}
+
+/// The recording `path` of `model` (read from `ddf_path`, whose stem names the ROS 2
+/// package): MCAP for `*.mcap`, else CSV (one file per domain when there are several:
+/// `STEM-DOMAIN.csv`).
+pub fn create(path: &Path, model: &Model, ddf_path: &Path) -> Result<Box<dyn Recorder>, RecordError> {
+    if path.extension().is_some_and(|e| e.eq_ignore_ascii_case("mcap")) {
+        Ok(Box::new(mcap::McapRecorder::create(path, model, ddf_path)?))
+    } else {
+        Ok(Box::new(csv::CsvRecorder::create(path, model)?))
+    }
+}
+
+pub(crate) fn io_error(path: &Path) -> impl FnOnce(std::io::Error) -> RecordError + '_ {
+    move |source| RecordError::Io { path: path.display().to_string(), source }
+}
+
+/// Creates the directory of `path` if it has one.
+pub(crate) fn create_parent(path: &Path) -> Result<(), RecordError> {
+    match path.parent().filter(|p| !p.as_os_str().is_empty()) {
+        Some(dir) => std::fs::create_dir_all(dir).map_err(io_error(dir)),
+        None => Ok(()),
+    }
+}
