@@ -173,6 +173,27 @@ fn the_short_uav_demo_reproduces_figures_5_and_6() {
         }
     }
 
+    // run.mcap, read with the ROS ecosystem's MCAP libraries: every schema parses, and each
+    // step's values are those of framework.csv.
+    let py = root().join(".venv/bin/python");
+    if Command::new(&py).args(["-c", "import mcap, mcap_ros2"]).status().is_ok_and(|s| s.success()) {
+        let check = Command::new(&py)
+            .arg(root().join("tests/record/check_mcap.py"))
+            .arg("--demo")
+            .arg(out.join("run.mcap"))
+            .arg(out.join("framework.csv"))
+            .output()
+            .unwrap();
+        let report = String::from_utf8_lossy(&check.stdout);
+        assert!(check.status.success(), "run.mcap: {report}{}", String::from_utf8_lossy(&check.stderr));
+        let v: serde_json::Value = serde_json::from_str(report.trim()).unwrap();
+        assert_eq!(v["schemas"], 8, "{v}");
+        assert_eq!(v["messages"].as_u64(), Some(8 * sim.len() as u64), "both sets of 4 domains at every step: {v}");
+    } else {
+        assert!(std::env::var("CI").map_or(true, |v| v != "true"), "CI=true: the MCAP Python libraries are missing");
+        eprintln!("the MCAP Python libraries are missing: run.mcap not checked");
+    }
+
     // Nothing left behind: no segment of the run's namespace.
     let left = tutti_core::shm::os::list_shm(&format!("tutti.{ns}.")).unwrap();
     assert!(left.is_empty(), "segments left behind: {left:?}");

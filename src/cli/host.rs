@@ -94,11 +94,6 @@ fn apply_sets(sets: &[String], domains: &[Domain], buffers: &mut [Vec<u8>]) -> R
     Ok(())
 }
 
-/// Wall-clock time, nanoseconds since the Unix epoch.
-fn wall_ns() -> u64 {
-    std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH).map_or(0, |d| d.as_nanos() as u64)
-}
-
 pub fn run(args: Args) -> CliResult {
     let model = load_ddf(&args.file)?;
     if args.step.is_zero() {
@@ -167,7 +162,7 @@ pub fn run(args: Args) -> CliResult {
                 let step = tutti_record::Step {
                     step: report.step,
                     sim_time: sim,
-                    wall_ns: wall_ns(),
+                    wall_ns: tutti_record::now_ns(),
                     elapsed_s: run_start.elapsed().as_secs_f64(),
                     connections: host.connection_count(),
                     publish: &publish[i],

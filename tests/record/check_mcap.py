@@ -3,10 +3,13 @@
 the MCAP libraries of the ROS ecosystem (`mcap`, `mcap-ros2-support`), not tutti's code.
 
 Usage: check_mcap.py RUN.mcap CSV_BASE DOMAIN [DOMAIN...]
+       check_mcap.py --demo RUN.mcap FRAMEWORK.csv   (tutti demo uav's run.mcap)
 CSV_BASE is the path given to `--record` for the CSV (STEM-DOMAIN.csv per domain when there
 are several). Every schema must parse; every message must decode; each step's message on
 /DOMAIN/publish and /DOMAIN/subscribe must equal that step's CSV row, element by element (in
-DDF order, buses depth first). Prints one JSON line with the counts; exit 0 when all is equal.
+DDF order, buses depth first). With --demo, the UAV demo's recording is compared with its
+framework.csv: each step's Elevation and Time read back (SUBSCRIBE) and Altitude published.
+Prints one JSON line with the counts; exit 0 when all is equal.
 """
 import csv
 import json
@@ -43,7 +46,52 @@ def same(a, b):
     return a == b or math.isclose(a, b, rel_tol=1e-6, abs_tol=1e-9)
 
 
+def read_decoded(path):
+    """(topic, log_time, publish_time, decoded or JSON) of every message; every schema parsed."""
+    factory = DecoderFactory()
+    out = []
+    with open(path, "rb") as fh:
+        reader = make_reader(fh, decoder_factories=[factory])
+        decoders = {}
+        for schema in reader.get_summary().schemas.values():
+            if schema.encoding == "ros2msg":
+                decoders[schema.id] = factory.decoder_for("cdr", schema)
+        for schema, channel, message in reader.iter_messages():
+            if channel.message_encoding == "json":
+                out.append((channel.topic, message.log_time, message.publish_time, json.loads(message.data)))
+            else:
+                out.append((channel.topic, message.log_time, message.publish_time, decoders[schema.id](message.data)))
+    return decoders, out
+
+
+def demo(path, framework_csv):
+    with open(framework_csv, newline="") as fh:
+        rows = {int(r["step"]): r for r in csv.DictReader(fh)}
+    decoders, messages = read_decoded(path)
+    checked = 0
+    for topic, _, _, m in messages:
+        if topic == "/tutti/events":
+            continue
+        _, domain, role = topic.split("/")
+        uav = domain.rsplit("_", 1)[1]
+        row = rows.get(m.step)
+        if row is None:
+            print(f"{topic} step {m.step} is not in framework.csv", file=sys.stderr)
+            return 1
+        pairs = [(m.elevation, f"{uav}_elevation"), (m.time, f"{uav}_time")] if role == "subscribe" else \
+            [(m.altitude, f"{uav}_altitude_pub")]
+        for got, col in pairs:
+            if not same(got, float(row[col])):
+                print(f"{topic} step {m.step}: {got} vs framework.csv {col}={row[col]}", file=sys.stderr)
+                return 1
+        checked += 1
+    print(json.dumps({"schemas": len(decoders), "messages": checked, "rows": len(rows)}))
+    return 0
+
+
 def main():
+    if sys.argv[1] == "--demo":
+        return demo(sys.argv[2], sys.argv[3])
     path, base, domains = sys.argv[1], sys.argv[2], sys.argv[3:]
     stem, _ = os.path.splitext(base)
     rows = {}

@@ -65,6 +65,11 @@ pub fn create(path: &Path, model: &Model, ddf_path: &Path) -> Result<Box<dyn Rec
     }
 }
 
+/// Wall-clock time now, nanoseconds since the Unix epoch (for [`Step::wall_ns`]).
+pub fn now_ns() -> u64 {
+    std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH).map_or(0, |d| d.as_nanos() as u64)
+}
+
 pub(crate) fn io_error(path: &Path) -> impl FnOnce(std::io::Error) -> RecordError + '_ {
     move |source| RecordError::Io { path: path.display().to_string(), source }
 }

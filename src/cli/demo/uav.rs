@@ -258,6 +258,8 @@ fn simulate(args: &UavArgs, scenario: &Scenario, out: &Path, interrupted: &Atomi
         ..Default::default()
     };
     let mut fw = Framework::create(&model, &opts).context("creating the domains of multiuav.ddf")?;
+    // The whole run as ROS 2 tools read it (Foxglove, ros2 bag): docs/recording.md.
+    let mut recording = tutti_record::create(&out.join("run.mcap"), &model, &ddf_path).context("starting run.mcap")?;
     let items: Vec<DomainItems> = model
         .domains
         .iter()
@@ -412,6 +414,19 @@ fn simulate(args: &UavArgs, scenario: &Scenario, out: &Path, interrupted: &Atomi
             row.push_str(&format!(",{e},{t},{published},{}", host.connection_count()));
         }
         writeln!(csv, "{row}")?;
+        let wall_ns = tutti_record::now_ns();
+        for (i, (host, report)) in fw.domains.iter().zip(&reports).enumerate() {
+            let record = tutti_record::Step {
+                step: report.step,
+                sim_time: sim,
+                wall_ns,
+                elapsed_s: wall0.elapsed().as_secs_f64(),
+                connections: host.connection_count(),
+                publish: &publish[i],
+                subscribe: host.subscribe(),
+            };
+            recording.step(i, &record).context("writing run.mcap")?;
+        }
         // The C components, on schedule.
         while readers.len() < scenario.c_readers.len() && sim >= scenario.c_readers[readers.len()] {
             let j = readers.len() + 1;
@@ -444,6 +459,7 @@ fn simulate(args: &UavArgs, scenario: &Scenario, out: &Path, interrupted: &Atomi
     }
     drop(monitor_in.take());
     csv.flush().context("writing framework.csv")?;
+    recording.finish().context("writing run.mcap")?;
     if interrupted.load(Ordering::SeqCst) {
         return Ok(());
     }
