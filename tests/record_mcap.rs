@@ -87,3 +87,46 @@ fn an_mcap_recording_reads_back_with_ros_tools_and_equals_the_csv_of_the_same_ru
     // The component connects during the seed wait or the first steps, and leaves mid-run.
     assert!(v["events"].as_u64().unwrap() >= 1, "the component's departure: {v}");
 }
+
+/// `tutti record` beside a running host: a passive observer (the host's recording shows no
+/// connection for it), whose MCAP steps equal the host's own CSV rows for the same steps.
+#[test]
+fn tutti_record_follows_a_live_run_without_taking_part() {
+    let Some(py) = python() else { return };
+    let dir = tempfile::tempdir().unwrap();
+    let ns = format!("recpassive{}", std::process::id());
+    let (csv, mcap) = (dir.path().join("host.csv"), dir.path().join("observed.mcap"));
+    let tutti = |args: &[&str]| {
+        let mut c = Command::new(env!("CARGO_BIN_EXE_tutti"));
+        c.args(args).current_dir(env!("CARGO_MANIFEST_DIR")).env("TUTTI_NAMESPACE", &ns);
+        c
+    };
+    let mut host =
+        tutti(&["host", "ddf/product-sample.ddf", "--step", "10ms", "--duration", "4s", "--timeout", "50ms"]);
+    host.args(["-q", "--set", "grid_feeder/voltage_abc=231.25", "--record"]).arg(&csv);
+    let host = thread::spawn(move || common::run_with_timeout(host, Duration::from_secs(120)));
+    let mut record = tutti(&["record", "ddf/product-sample.ddf", "--duration", "2500ms", "--out"]);
+    record.arg(&mcap);
+    let (status, _, err) = common::run_with_timeout(record, Duration::from_secs(120));
+    assert!(status.success(), "tutti record failed: {err}");
+    assert!(err.contains("following its framework"), "{err}");
+    let (status, _, herr) = host.join().unwrap();
+    assert!(status.success(), "tutti host failed: {herr}");
+    // Not a participant: no connection during the whole run.
+    let text = std::fs::read_to_string(dir.path().join("host-grid_feeder.csv")).unwrap();
+    let header: Vec<&str> = text.lines().next().unwrap().split(',').collect();
+    let col = header.iter().position(|h| *h == "connections").unwrap();
+    assert!(text.lines().skip(1).all(|l| l.split(',').nth(col) == Some("0")), "the recorder took part");
+    let mut check = Command::new(py);
+    check
+        .arg("tests/record/check_mcap.py")
+        .arg("--subset")
+        .arg(&mcap)
+        .arg(&csv)
+        .args(["grid_feeder", "grid_clock"])
+        .current_dir(env!("CARGO_MANIFEST_DIR"));
+    let (status, out, err) = common::run_with_timeout(check, Duration::from_secs(120));
+    assert!(status.success(), "the observed recording differs from the host's:\n{out}\n{err}");
+    let v: serde_json::Value = serde_json::from_str(out.trim()).expect("one JSON line");
+    assert!(v["messages"].as_u64().unwrap() > 2 * 2 * 50, "at least 50 steps of each domain observed: {v}");
+}

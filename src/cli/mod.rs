@@ -12,6 +12,7 @@ mod demo;
 mod gateway;
 mod host;
 mod idl;
+mod record;
 mod show;
 mod status;
 
@@ -39,6 +40,7 @@ enum Command {
     Idl(idl::Args),
     Host(host::Args),
     Status(status::Args),
+    Record(record::Args),
     Bench(bench::Args),
     Gateway(gateway::Args),
     Demo(demo::Args),
@@ -94,6 +96,7 @@ pub fn run(cli: Cli) -> ExitCode {
         Command::Idl(a) => idl::run(a),
         Command::Host(a) => host::run(a),
         Command::Status(a) => status::run(a),
+        Command::Record(a) => record::run(a),
         Command::Bench(a) => bench::run(a),
         Command::Gateway(a) => gateway::run(a),
         Command::Demo(a) => demo::run(a),

@@ -1,0 +1,156 @@
+//! `tutti record DDF --out FILE`: records live domains of the namespace as a passive
+//! observer: it opens their segments read-only in effect (no connection, so it never counts
+//! as a participant and never paces a step), and writes each step it sees, in the same
+//! formats as `tutti host --record` (by extension: MCAP or CSV).
+//!
+//! A step is written when the next one is published: its PUBLISH set as read when it was
+//! published, and the SUBSCRIBE set as it stands when the framework moves on (in a
+//! synchronous domain, the answers the framework read for that step). Steps published
+//! faster than it looks (every 100 µs) are counted as missed, never invented.
+
+use std::path::PathBuf;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+
+use anyhow::Context as _;
+use tutti_core::ddf::Role;
+use tutti_core::shm::segment::{namespace_from_env, Segment};
+
+use super::host::parse_duration;
+use super::{load_ddf, CliResult, Failure};
+
+/// Record live domains without taking part in them (MCAP or CSV, by the file's extension).
+#[derive(Debug, clap::Args)]
+#[command(
+    after_help = "Examples:\n  tutti record ddf/multiuav.ddf --out run.mcap --duration 60s\n  TUTTI_NAMESPACE=lab2 tutti record ddf/multiuav.ddf --domain multiuav_uav2 --out uav2.csv\n\nStop with Ctrl-C (the file is completed). Layouts: docs/recording.md."
+)]
+pub struct Args {
+    /// The DDF of the co-simulation.
+    #[arg(value_name = "DDF")]
+    file: PathBuf,
+    /// Record only this domain (repeatable; default: all of the DDF).
+    #[arg(long = "domain", value_name = "NAME")]
+    domains: Vec<String>,
+    /// The recording: `.mcap` or CSV.
+    #[arg(long, value_name = "FILE")]
+    out: PathBuf,
+    /// Stop after this long (default: until Ctrl-C).
+    #[arg(long, value_parser = parse_duration)]
+    duration: Option<Duration>,
+}
+
+/// One domain as the recorder follows it.
+struct Followed {
+    name: String,
+    seg: Option<Segment>,
+    /// The step last seen published, with its PUBLISH set and simulated time.
+    pending: Option<(u64, f64, Vec<u8>)>,
+    subscribe: Vec<u8>,
+    recorded: u64,
+    missed: u64,
+}
+
+pub fn run(args: Args) -> CliResult {
+    let mut model = load_ddf(&args.file)?;
+    for d in &args.domains {
+        if model.domain(d).is_none() {
+            return Err(Failure::invalid(anyhow::anyhow!("{}: no domain '{d}'", args.file.display())));
+        }
+    }
+    if !args.domains.is_empty() {
+        model.domains.retain(|d| args.domains.contains(&d.name));
+    }
+    let ns = namespace_from_env();
+    let mut recorder = tutti_record::create(&args.out, &model, &args.file).context("starting the recording")?;
+    let stop = Arc::new(AtomicBool::new(false));
+    {
+        let stop = stop.clone();
+        ctrlc::set_handler(move || stop.store(true, Ordering::SeqCst)).context("installing the signal handler")?;
+    }
+    let mut followed: Vec<Followed> = model
+        .domains
+        .iter()
+        .map(|d| Followed {
+            name: d.name.clone(),
+            seg: None,
+            pending: None,
+            subscribe: vec![0; d.subscribe.layout.size as usize],
+            recorded: 0,
+            missed: 0,
+        })
+        .collect();
+    eprintln!(
+        "record: {} domain(s) of {} in namespace {ns} -> {}",
+        followed.len(),
+        args.file.display(),
+        args.out.display()
+    );
+    let start = Instant::now();
+    let mut next_open = Instant::now();
+    let mut last_report = Instant::now();
+    while !stop.load(Ordering::SeqCst) && args.duration.map_or(true, |d| start.elapsed() < d) {
+        let look_for_new = Instant::now() >= next_open;
+        if look_for_new {
+            next_open = Instant::now() + Duration::from_millis(200);
+        }
+        for (i, f) in followed.iter_mut().enumerate() {
+            if f.seg.as_ref().is_some_and(|s| !s.framework_alive()) {
+                eprintln!("record: {}: the framework stopped", f.name);
+                f.seg = None;
+                f.pending = None;
+            }
+            if f.seg.is_none() && look_for_new {
+                if let Ok(s) = Segment::open(&ns, &f.name) {
+                    if s.framework_alive() {
+                        eprintln!("record: {}: following its framework (pid {})", f.name, s.framework_id().pid);
+                        f.seg = Some(s);
+                    }
+                }
+            }
+            let Some(seg) = &f.seg else { continue };
+            let h = seg.header();
+            let step = h.pub_step.load(Ordering::Acquire);
+            if step == 0 || f.pending.as_ref().is_some_and(|(k, _, _)| *k == step) {
+                continue;
+            }
+            // The framework moved on: the pending step is complete.
+            if let Some((k, sim, publish)) = f.pending.take() {
+                if seg.read_set(Role::Subscribe, &mut f.subscribe).is_ok() {
+                    let s = tutti_record::Step {
+                        step: k,
+                        sim_time: sim,
+                        wall_ns: tutti_record::now_ns(),
+                        elapsed_s: start.elapsed().as_secs_f64(),
+                        connections: seg.connection_count(),
+                        publish: &publish,
+                        subscribe: &f.subscribe,
+                    };
+                    recorder.step(i, &s).context("writing the recording")?;
+                    f.recorded += 1;
+                    f.missed += step.saturating_sub(k + 1);
+                }
+            }
+            let sim = f64::from_bits(h.sim_time_bits.load(Ordering::Acquire));
+            let mut publish = vec![0; seg.info.publish.size as usize];
+            // Still step `step` after the copy: else it is caught at the next look.
+            if seg.read_set(Role::Publish, &mut publish).is_ok() && h.pub_step.load(Ordering::Acquire) == step {
+                f.pending = Some((step, sim, publish));
+            }
+        }
+        if last_report.elapsed() >= Duration::from_secs(5) {
+            last_report = Instant::now();
+            report(&followed, start);
+        }
+        std::thread::sleep(Duration::from_micros(100));
+    }
+    recorder.finish().context("writing the recording")?;
+    report(&followed, start);
+    Ok(())
+}
+
+fn report(followed: &[Followed], start: Instant) {
+    let parts: Vec<String> =
+        followed.iter().map(|f| format!("{} {} steps ({} missed)", f.name, f.recorded, f.missed)).collect();
+    eprintln!("record: t={:.1}s {}", start.elapsed().as_secs_f64(), parts.join(", "));
+}
