@@ -8,6 +8,7 @@ use super::CliResult;
 mod ddf;
 mod gateway;
 mod iceoryx;
+mod record;
 mod shm;
 
 /// Run a benchmark.
@@ -24,6 +25,9 @@ enum What {
     /// The gateway per DDS engine: round trips, throughput, lock-step rate and start-up, next to
     /// Cyclone's ddsperf and a Fast DDS ping-pong.
     Gateway(gateway::Args),
+    /// What recording costs a real-time host: step lateness without a recording, with MCAP
+    /// and with CSV, and MB per minute.
+    Record(record::Args),
     /// Round trips through shared-memory domains, next to iceoryx2 in the same run.
     Shm(shm::Args),
     /// (internal) the pong side of `bench shm`.
@@ -38,6 +42,7 @@ pub fn run(args: Args) -> CliResult {
     match args.what {
         What::Ddf(a) => ddf::run(a),
         What::Gateway(a) => gateway::run(a),
+        What::Record(a) => record::run(a),
         What::Shm(a) => shm::run(a),
         What::ShmPong(a) => shm::pong(a),
         What::IoxPong(a) => iceoryx::pong_main(a),
