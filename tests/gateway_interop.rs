@@ -473,12 +473,15 @@ fn the_simulated_time_goes_out_on_clock(e: Eng) {
         thread::sleep(Duration::from_millis(50));
     }
     assert!(json_lines(&clock, "clock").len() >= 30, "too few /clock samples\n{}\n{}", clock.dump(), gw.dump());
+    let seen = host.seen.clone();
     drop(host);
-    thread::sleep(Duration::from_millis(700));
-    let stopped = json_lines(&clock, "clock").len();
-    thread::sleep(Duration::from_millis(1200));
+    // The last step the framework made before it stopped: no /clock time may go past it,
+    // however late the reader prints what it got.
+    let last = seen.lock().unwrap().iter().map(|(k, _)| *k).max().unwrap();
+    thread::sleep(Duration::from_millis(1500));
     let times: Vec<f64> = json_lines(&clock, "clock").iter().map(|v| v["clock"].as_f64().unwrap()).collect();
-    assert_eq!(times.len(), stopped, "/clock went on after the host stopped: {times:?}");
+    let end = last as f64 * 0.01 + 1e-6;
+    assert!(times.iter().all(|&t| t <= end), "/clock went on after the host stopped at {end} s: {times:?}");
     for w in times.windows(2) {
         assert!(w[1] >= w[0], "/clock went back: {} then {}", w[0], w[1]);
     }
