@@ -9,21 +9,23 @@ use std::time::Duration;
 
 use gateway::*;
 
-/// Builds the subscriber in a scratch directory of `run`'s own (the runs of the engines go
-/// in parallel); None when TUTTI_SKIP_DDS=1.
-fn build_subscriber(run: &str) -> Option<PathBuf> {
+/// Builds the subscriber in a scratch directory of its own (the runs of the engines go in
+/// parallel), removed when the returned guard drops, even on failure; None when
+/// TUTTI_SKIP_DDS=1.
+fn build_subscriber() -> Option<(tempfile::TempDir, PathBuf)> {
     if std::env::var("TUTTI_SKIP_DDS").is_ok_and(|v| v == "1") {
         eprintln!("TUTTI_SKIP_DDS=1: Fast DDS interop test skipped");
         return None;
     }
-    let dir = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join(format!("gateway-fastdds-{run}"));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
+    let scratch = tempfile::Builder::new().prefix("gateway-fastdds").tempdir_in(env!("CARGO_TARGET_TMPDIR")).unwrap();
+    let dir = scratch.path().to_path_buf();
     let idl = root().join("idl/multiuav_msgs/msg/dds_/MultiuavUav1Publish_.idl");
     std::fs::copy(&idl, dir.join("MultiuavUav1Publish_.idl")).unwrap();
     std::fs::copy(root().join("tests/gateway/fastdds_sub.cpp"), dir.join("fastdds_sub.cpp")).unwrap();
     let hint = "install them with `apt-get install -y libfastrtps-dev fastddsgen`, or set TUTTI_SKIP_DDS=1";
-    let gen = Command::new("fastddsgen").args(["-replace", "MultiuavUav1Publish_.idl"]).current_dir(&dir).output();
+    // -t: fastddsgen's preprocessed copies go to the scratch directory, not to /tmp.
+    let gen =
+        Command::new("fastddsgen").args(["-replace", "-t", ".", "MultiuavUav1Publish_.idl"]).current_dir(&dir).output();
     assert!(gen.as_ref().is_ok_and(|o| o.status.success()), "fastddsgen failed ({gen:?}): {hint}");
     let out = Command::new("g++")
         .args(["-std=c++11", "-O1", "-o", "fastdds_sub", "fastdds_sub.cpp", "MultiuavUav1Publish_.cxx"])
@@ -36,11 +38,11 @@ fn build_subscriber(run: &str) -> Option<PathBuf> {
         "building the Fast DDS subscriber failed: {hint}\n{}",
         String::from_utf8_lossy(&out.stderr)
     );
-    Some(dir.join("fastdds_sub"))
+    Some((scratch, dir.join("fastdds_sub")))
 }
 
 fn a_fast_dds_subscriber_receives_typed_samples(e: Eng) {
-    let Some(bin) = build_subscriber(e.name) else { return };
+    let Some((_scratch, bin)) = build_subscriber() else { return };
     let (dom, ns) = (e.dom(111), e.ns("gwtest111"));
     let ns = ns.as_str();
     // multiuav_uav1 PUBLISH: autopilot, x, y, z, airspeed, altitude, time.
@@ -58,7 +60,6 @@ fn a_fast_dds_subscriber_receives_typed_samples(e: Eng) {
     };
     assert_eq!(field("x"), 12.5, "{line}");
     assert_eq!(field("airspeed"), field("step"), "the step number travels with the step's values: {line}");
-    let _ = std::fs::remove_dir_all(bin.parent().unwrap());
 }
 
 per_engine!(a_fast_dds_subscriber_receives_typed_samples,);

@@ -224,6 +224,8 @@ fn fastddsgen_accepts_every_generated_idl() {
         let relative = |p: &Path| p.strip_prefix(case.dir.path()).expect("under the case directory").to_path_buf();
         let mut cmd = Command::new(&fastddsgen);
         cmd.arg("-d").arg(relative(&cxx_dir)).arg("-I").arg(relative(&out)).arg("-replace");
+        // Its preprocessed copies of the IDL go to the case's directory, not to /tmp.
+        cmd.arg("-t").arg(".");
         cmd.args(idl_files.iter().map(|p| relative(p)));
         run(cmd, case.dir.path());
         let mut sources = Vec::new();
