@@ -6,7 +6,9 @@
 //! A step is written when the next one is published: its PUBLISH set as read when it was
 //! published, and the SUBSCRIBE set as it stands when the framework moves on (in a
 //! synchronous domain, the answers the framework read for that step). Steps published
-//! faster than it looks (every 100 µs) are counted as missed, never invented.
+//! faster than it looks (every 100 µs) are counted as missed, never invented. Following a
+//! domain (opening it, noticing its framework stop or come back) is the core's
+//! [`Observer`], as for the gateway's poller.
 
 use std::path::PathBuf;
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -15,7 +17,8 @@ use std::time::{Duration, Instant};
 
 use anyhow::Context as _;
 use tutti_core::ddf::Role;
-use tutti_core::shm::segment::{namespace_from_env, Segment};
+use tutti_core::shm::observer::{Look, Observer};
+use tutti_core::shm::segment::namespace_from_env;
 
 use super::host::parse_duration;
 use super::{load_ddf, CliResult, Failure};
@@ -42,10 +45,10 @@ pub struct Args {
 
 /// One domain as the recorder follows it.
 struct Followed {
-    name: String,
-    seg: Option<Segment>,
-    /// The step last seen published, with its PUBLISH set and simulated time.
-    pending: Option<(u64, f64, Vec<u8>)>,
+    obs: Observer,
+    /// The step last seen published, with its simulated time; its PUBLISH set is `publish`.
+    pending: Option<(u64, f64)>,
+    publish: Vec<u8>,
     subscribe: Vec<u8>,
     recorded: u64,
     missed: u64,
@@ -72,9 +75,9 @@ pub fn run(args: Args) -> CliResult {
         .domains
         .iter()
         .map(|d| Followed {
-            name: d.name.clone(),
-            seg: None,
+            obs: Observer::new(d.name.clone()),
             pending: None,
+            publish: vec![0; d.publish.layout.size as usize],
             subscribe: vec![0; d.subscribe.layout.size as usize],
             recorded: 0,
             missed: 0,
@@ -87,35 +90,34 @@ pub fn run(args: Args) -> CliResult {
         args.out.display()
     );
     let start = Instant::now();
-    let mut next_open = Instant::now();
     let mut last_report = Instant::now();
     while !stop.load(Ordering::SeqCst) && args.duration.map_or(true, |d| start.elapsed() < d) {
-        let look_for_new = Instant::now() >= next_open;
-        if look_for_new {
-            next_open = Instant::now() + Duration::from_millis(200);
-        }
         for (i, f) in followed.iter_mut().enumerate() {
-            if f.seg.as_ref().is_some_and(|s| !s.framework_alive()) {
-                eprintln!("record: {}: the framework stopped", f.name);
-                f.seg = None;
-                f.pending = None;
-            }
-            if f.seg.is_none() && look_for_new {
-                if let Ok(s) = Segment::open(&ns, &f.name) {
-                    if s.framework_alive() {
-                        eprintln!("record: {}: following its framework (pid {})", f.name, s.framework_id().pid);
-                        f.seg = Some(s);
-                    }
+            match f.obs.look(&ns) {
+                Look::Fresh => {
+                    eprintln!("record: {}: following its framework", f.obs.domain);
+                    f.pending = None;
+                }
+                Look::Same => {}
+                Look::Gone => continue,
+                Look::Stopped => {
+                    eprintln!("record: {}: the framework stopped", f.obs.domain);
+                    f.pending = None;
+                    continue;
+                }
+                Look::Refused(e) => {
+                    eprintln!("record: {}: {e}", f.obs.domain);
+                    continue;
                 }
             }
-            let Some(seg) = &f.seg else { continue };
+            let Some(seg) = f.obs.segment() else { continue };
             let h = seg.header();
             let step = h.pub_step.load(Ordering::Acquire);
-            if step == 0 || f.pending.as_ref().is_some_and(|(k, _, _)| *k == step) {
+            if step == 0 || f.pending.is_some_and(|(k, _)| k == step) {
                 continue;
             }
             // The framework moved on: the pending step is complete.
-            if let Some((k, sim, publish)) = f.pending.take() {
+            if let Some((k, sim)) = f.pending.take() {
                 if seg.read_set(Role::Subscribe, &mut f.subscribe).is_ok() {
                     let s = tutti_record::Step {
                         step: k,
@@ -123,7 +125,7 @@ pub fn run(args: Args) -> CliResult {
                         wall_ns: tutti_record::now_ns(),
                         elapsed_s: start.elapsed().as_secs_f64(),
                         connections: seg.connection_count(),
-                        publish: &publish,
+                        publish: &f.publish,
                         subscribe: &f.subscribe,
                     };
                     recorder.step(i, &s).context("writing the recording")?;
@@ -132,10 +134,9 @@ pub fn run(args: Args) -> CliResult {
                 }
             }
             let sim = f64::from_bits(h.sim_time_bits.load(Ordering::Acquire));
-            let mut publish = vec![0; seg.info.publish.size as usize];
             // Still step `step` after the copy: else it is caught at the next look.
-            if seg.read_set(Role::Publish, &mut publish).is_ok() && h.pub_step.load(Ordering::Acquire) == step {
-                f.pending = Some((step, sim, publish));
+            if seg.read_set(Role::Publish, &mut f.publish).is_ok() && h.pub_step.load(Ordering::Acquire) == step {
+                f.pending = Some((step, sim));
             }
         }
         if last_report.elapsed() >= Duration::from_secs(5) {
@@ -151,6 +152,6 @@ pub fn run(args: Args) -> CliResult {
 
 fn report(followed: &[Followed], start: Instant) {
     let parts: Vec<String> =
-        followed.iter().map(|f| format!("{} {} steps ({} missed)", f.name, f.recorded, f.missed)).collect();
+        followed.iter().map(|f| format!("{} {} steps ({} missed)", f.obs.domain, f.recorded, f.missed)).collect();
     eprintln!("record: t={:.1}s {}", start.elapsed().as_secs_f64(), parts.join(", "));
 }

@@ -10,6 +10,8 @@ mod error;
 mod framework;
 pub mod handshake;
 #[cfg(not(tutti_loom))]
+pub mod observer;
+#[cfg(not(tutti_loom))]
 pub mod os;
 #[cfg(not(tutti_loom))]
 mod participant;

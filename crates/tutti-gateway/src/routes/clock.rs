@@ -15,7 +15,9 @@ use std::time::{Duration, Instant};
 use tracing::info;
 use tutti_core::mapping::{Durability, History, Ownership, Qos, Reliability};
 
-use super::to_dds::{Activation, LiveSegment, Look, Polled};
+use tutti_core::shm::observer::Observer;
+
+use super::to_dds::{look, Activation, Polled};
 use super::ShmConfig;
 use crate::engine::Writer;
 use crate::stats::Stats;
@@ -48,7 +50,7 @@ pub fn encode(sim_time: f64, out: &mut [u8; 8]) {
 
 /// The `/clock` publisher of one domain.
 pub struct ClockPump {
-    live: LiveSegment,
+    live: Observer,
     writer: Box<dyn Writer>,
     activation: Arc<Activation>,
     /// Shortest time between two samples (zero: one per step).
@@ -70,7 +72,7 @@ impl ClockPump {
     pub fn new(domain: String, writer: Box<dyn Writer>, activation: Arc<Activation>, rate: Option<f64>) -> Self {
         let min_interval = rate.filter(|r| *r > 0.0).map_or(Duration::ZERO, |r| Duration::from_secs_f64(1.0 / r));
         ClockPump {
-            live: LiveSegment::new(domain),
+            live: Observer::new(domain),
             writer,
             activation,
             min_interval,
@@ -91,18 +93,14 @@ impl Polled for ClockPump {
             self.live.close();
             return false;
         }
-        let seg = match self.live.look(&cfg.namespace) {
-            Look::Gone => return false,
-            Look::Fresh(seg) => {
-                if self.last_step.is_some() {
-                    info!("/clock follows a new framework of its domain from its start");
-                }
-                self.last_step = None;
-                self.last_time = f64::NEG_INFINITY;
-                seg
+        let Some((seg, fresh)) = look(&mut self.live, &cfg.namespace) else { return false };
+        if fresh {
+            if self.last_step.is_some() {
+                info!("/clock follows a new framework of its domain from its start");
             }
-            Look::Same(seg) => seg,
-        };
+            self.last_step = None;
+            self.last_time = f64::NEG_INFINITY;
+        }
         let h = seg.header();
         let step = h.pub_step.load(Ordering::Acquire);
         if step == 0 || self.last_step == Some(step) {

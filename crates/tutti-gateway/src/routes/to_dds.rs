@@ -11,10 +11,11 @@ use std::collections::BTreeSet;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::Arc;
 use std::thread::{self, JoinHandle, Thread};
-use std::time::{Duration, Instant};
+use std::time::Duration;
 
 use tracing::{debug, info, warn};
 use tutti_core::ddf::Role;
+use tutti_core::shm::observer::{Look, Observer};
 use tutti_core::shm::segment::Segment;
 use tutti_core::shm::{Participant, ShmError};
 
@@ -152,68 +153,23 @@ impl Activation {
     }
 }
 
-/// A domain's segment as a passive observer holds it: opened while a framework is there,
-/// let go when it stops, looked for again every 200 ms.
-#[derive(Debug)]
-pub struct LiveSegment {
-    pub domain: String,
-    seg: Option<Segment>,
-    next_open: Instant,
-    /// When to look at the framework's process again (a /proc read costs microseconds).
-    next_alive_check: Instant,
-}
-
-/// What [`LiveSegment::look`] found.
-#[derive(Debug)]
-pub enum Look<'a> {
-    /// No running framework.
-    Gone,
-    /// Opened just now (a new framework, or the first look).
-    Fresh(&'a Segment),
-    Same(&'a Segment),
-}
-
-impl LiveSegment {
-    pub fn new(domain: String) -> Self {
-        LiveSegment { domain, seg: None, next_open: Instant::now(), next_alive_check: Instant::now() }
-    }
-
-    pub fn close(&mut self) {
-        self.seg = None;
-    }
-
-    pub fn look(&mut self, namespace: &str) -> Look<'_> {
-        let now = Instant::now();
-        if let Some(seg) = &self.seg {
-            if now >= self.next_alive_check {
-                self.next_alive_check = now + Duration::from_millis(50);
-                if !seg.framework_alive() {
-                    info!(domain = %self.domain, "framework stopped; waiting for it to come back");
-                    self.seg = None;
-                }
-            }
+/// The observer's look as a route uses it: the segment, or None (logged when the
+/// framework stopped or the segment is refused).
+pub fn look<'a>(obs: &'a mut Observer, namespace: &str) -> Option<(&'a Segment, bool)> {
+    let fresh = match obs.look(namespace) {
+        Look::Fresh => true,
+        Look::Same => false,
+        Look::Gone => return None,
+        Look::Stopped => {
+            info!(domain = %obs.domain, "framework stopped; waiting for it to come back");
+            return None;
         }
-        let mut fresh = false;
-        if self.seg.is_none() {
-            if now < self.next_open {
-                return Look::Gone;
-            }
-            self.next_open = now + Duration::from_millis(200);
-            match Segment::open(namespace, &self.domain) {
-                Ok(s) if s.framework_alive() => {
-                    self.seg = Some(s);
-                    fresh = true;
-                }
-                Ok(_) | Err(ShmError::NoSuchDomain { .. } | ShmError::NotReady { .. }) => {}
-                Err(e) => warn!(domain = %self.domain, "cannot open the domain: {e}"),
-            }
+        Look::Refused(e) => {
+            warn!(domain = %obs.domain, "cannot open the domain: {e}");
+            return None;
         }
-        match &self.seg {
-            Some(seg) if fresh => Look::Fresh(seg),
-            Some(seg) => Look::Same(seg),
-            None => Look::Gone,
-        }
-    }
+    };
+    obs.segment().map(|seg| (seg, fresh))
 }
 
 /// One set watched by the poller.
@@ -224,7 +180,7 @@ pub struct Watched {
     pub activation: Arc<Activation>,
     /// SUBSCRIBE: commits made by the gateway itself (not sent back to DDS).
     pub own_commits: Option<Arc<AtomicU64>>,
-    live: LiveSegment,
+    live: Observer,
     last_gen: Option<u64>,
     base: (u64, u64),
     last_local: u64,
@@ -252,7 +208,7 @@ impl Watched {
             out,
             activation,
             own_commits,
-            live: LiveSegment::new(domain),
+            live: Observer::new(domain),
             last_gen: None,
             base: (0, 0),
             last_local: 0,
@@ -275,19 +231,15 @@ impl Watched {
             self.joined = joined;
             self.out.reset();
         }
-        let seg = match self.live.look(&cfg.namespace) {
-            Look::Gone => {
-                self.last_gen = None;
-                return false;
-            }
-            Look::Fresh(seg) => {
-                self.buf = vec![0; seg.info.set(self.role).size as usize];
-                self.out.reset();
-                self.last_gen = None;
-                seg
-            }
-            Look::Same(seg) => seg,
+        let Some((seg, fresh)) = look(&mut self.live, &cfg.namespace) else {
+            self.last_gen = None;
+            return false;
         };
+        if fresh {
+            self.buf = vec![0; seg.info.set(self.role).size as usize];
+            self.out.reset();
+            self.last_gen = None;
+        }
         let h = seg.header();
         let gen = seg.generation(self.role);
         if self.last_gen == Some(gen) {
@@ -319,24 +271,6 @@ impl Watched {
         let sim_time = f64::from_bits(h.sim_time_bits.load(Ordering::Relaxed));
         self.out.write(step, sim_time, &self.buf, stats) > 0
     }
-
-    /// Looks at the set once (see `poll_once`) and sends what it wrote: at once when the set
-    /// had been idle (no latency added to occasional changes), else every [`FLUSH_EVERY`]
-    /// samples and whenever the set goes idle, so that a set changing flat out goes out in
-    /// batches (one datagram for many samples on a batching engine).
-    fn poll(&mut self, cfg: &ShmConfig, stats: &Stats) -> bool {
-        let was_hot = self.hot;
-        let sent = self.poll_once(cfg, stats);
-        self.hot = sent;
-        if sent {
-            self.unflushed += 1;
-        }
-        if self.unflushed > 0 && (!sent || !was_hot || self.unflushed >= FLUSH_EVERY) {
-            self.out.flush();
-            self.unflushed = 0;
-        }
-        sent
-    }
 }
 
 /// What the poller thread looks at, one turn after the other.
@@ -352,8 +286,22 @@ impl Polled for Watched {
         &self.activation
     }
 
+    /// Looks at the set once (see `poll_once`) and sends what it wrote: at once when the set
+    /// had been idle (no latency added to occasional changes), else every `FLUSH_EVERY` (32)
+    /// samples and whenever the set goes idle, so that a set changing flat out goes out in
+    /// batches (one datagram for many samples on a batching engine).
     fn poll(&mut self, cfg: &ShmConfig, stats: &Stats) -> bool {
-        Watched::poll(self, cfg, stats)
+        let was_hot = self.hot;
+        let sent = self.poll_once(cfg, stats);
+        self.hot = sent;
+        if sent {
+            self.unflushed += 1;
+        }
+        if self.unflushed > 0 && (!sent || !was_hot || self.unflushed >= FLUSH_EVERY) {
+            self.out.flush();
+            self.unflushed = 0;
+        }
+        sent
     }
 }
 

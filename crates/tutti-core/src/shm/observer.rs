@@ -1,0 +1,92 @@
+//! A domain's segment as a passive observer holds it: no connection, so the observer is
+//! never counted as a participant and never paces a step (the gateway's poller and
+//! `/clock`, `tutti record`). The segment is opened while a framework is there, let go when
+//! it stops, and looked for again every 200 ms; whether the framework's process still lives
+//! (a `/proc` read, microseconds) is checked at most every 50 ms, so a look is cheap enough
+//! for a loop that spins.
+
+use std::time::{Duration, Instant};
+
+use super::segment::Segment;
+use super::ShmError;
+
+/// How often a missing domain is looked for.
+const REOPEN: Duration = Duration::from_millis(200);
+/// How often the framework's process is checked.
+const ALIVE_CHECK: Duration = Duration::from_millis(50);
+
+/// One domain, followed from outside.
+#[derive(Debug)]
+pub struct Observer {
+    pub domain: String,
+    seg: Option<Segment>,
+    next_open: Instant,
+    next_alive_check: Instant,
+}
+
+/// What [`Observer::look`] found ([`Observer::segment`] is the segment after `Fresh` and
+/// `Same`).
+#[derive(Debug)]
+pub enum Look {
+    /// No running framework (not yet, or still not).
+    Gone,
+    /// The framework stopped since the last look; its segment was let go.
+    Stopped,
+    /// The segment is there but refused (corrupted, another format): the error, at most
+    /// every 200 ms.
+    Refused(ShmError),
+    /// Opened just now (a new framework, or the first look).
+    Fresh,
+    /// Open, as at the last look.
+    Same,
+}
+
+impl Observer {
+    pub fn new(domain: String) -> Self {
+        Observer { domain, seg: None, next_open: Instant::now(), next_alive_check: Instant::now() }
+    }
+
+    /// Lets the segment go (it is opened again at the next look).
+    pub fn close(&mut self) {
+        self.seg = None;
+    }
+
+    /// Looks at the domain of namespace `namespace`.
+    pub fn look(&mut self, namespace: &str) -> Look {
+        let now = Instant::now();
+        if let Some(seg) = &self.seg {
+            if now >= self.next_alive_check {
+                self.next_alive_check = now + ALIVE_CHECK;
+                if !seg.framework_alive() {
+                    self.seg = None;
+                    return Look::Stopped;
+                }
+            }
+        }
+        let mut fresh = false;
+        if self.seg.is_none() {
+            if now < self.next_open {
+                return Look::Gone;
+            }
+            self.next_open = now + REOPEN;
+            match Segment::open(namespace, &self.domain) {
+                Ok(s) if s.framework_alive() => {
+                    self.seg = Some(s);
+                    fresh = true;
+                }
+                Ok(_) | Err(ShmError::NoSuchDomain { .. } | ShmError::NotReady { .. }) => {}
+                Err(e) => return Look::Refused(e),
+            }
+        }
+        match (&self.seg, fresh) {
+            (Some(_), true) => Look::Fresh,
+            (Some(_), false) => Look::Same,
+            (None, _) => Look::Gone,
+        }
+    }
+
+    /// The segment, while a framework is there.
+    pub fn segment(&self) -> Option<&Segment> {
+        self.seg.as_ref()
+    }
+}
