@@ -19,7 +19,7 @@ use tutti_core::shm::{Framework, FrameworkOptions, Participant, ShmError};
 use crate::cdr::{SetCodec, TypedSample};
 use crate::engine::{self, Decode, Engine, Guid};
 use crate::routes::clock::{self, ClockPump};
-use crate::routes::from_dds::{self, Destination, Direct, RemoteWriter, Sample};
+use crate::routes::from_dds::{self, Direct, RemoteWriter, Sample};
 use crate::routes::per_item::{self, ItemWriters};
 use crate::routes::to_dds::{self, Activation, Outbound, SetWriter, Watched};
 use crate::routes::{mirror, Event, Payload, ShmConfig};
@@ -155,7 +155,8 @@ impl Manager {
                         watched.push(Box::new(Watched::new(d.name.clone(), Role::Publish, out, activation, None)));
                     }
                     // SUBSCRIBE: DDS -> shared memory, and shared-memory writers -> DDS.
-                    typed_inbound(dds, &mut routes, &tx, &stats, di, &d.subscribe.layout, &subn, &rq)?;
+                    let decode = Decode::Set(Arc::new(SetCodec::new(&d.subscribe.layout)));
+                    inbound(dds, &mut routes, &tx, &stats, di, &subn.topic, &subn.dds_type, decode, &rq)?;
                     let out = set_writer(dds, d, Role::Subscribe, &subn, &wq)?;
                     let activation = route_out(&mut routes, di, vec![subn.topic], false);
                     watched.push(Box::new(Watched::new(
@@ -172,7 +173,8 @@ impl Manager {
                         mapping::set_names(&pkg, &d.name, Role::Publish),
                         mapping::set_names(&pkg, &d.name, Role::Subscribe),
                     );
-                    typed_inbound(dds, &mut routes, &tx, &stats, di, &d.publish.layout, &pubn, &rq)?;
+                    let decode = Decode::Set(Arc::new(SetCodec::new(&d.publish.layout)));
+                    inbound(dds, &mut routes, &tx, &stats, di, &pubn.topic, &pubn.dds_type, decode, &rq)?;
                     let out = set_writer(dds, d, Role::Subscribe, &subn, &wq)?;
                     let (mtx, mrx) = std_mpsc::channel();
                     let host = hosts
@@ -195,9 +197,8 @@ impl Manager {
                     watched.push(Box::new(Watched::new(d.name.clone(), Role::Publish, out, activation, None)));
                     for t in &sub_topics {
                         let Some(leaf) = d.subscribe.layout.leaf(&t.path) else { continue };
-                        let to = route_in(&mut routes, &tx, di, &t.topic);
-                        let sink = from_dds::sink(per_item::decoder(leaf), to, stats.clone(), dds.own_prefix());
-                        dds.reader(&t.topic, &t.dds_type, &rq, per_item::decoder(leaf), sink)?;
+                        let decode = per_item::decoder(leaf);
+                        inbound(dds, &mut routes, &tx, &stats, di, &t.topic, &t.dds_type, decode, &rq)?;
                     }
                     let out = Outbound::Items(ItemWriters::create(dds, &sub_topics, &d.subscribe.layout, &wq)?);
                     let topics = sub_topics.iter().map(|t| t.topic.clone()).collect();
@@ -456,32 +457,26 @@ impl Manager {
     }
 }
 
-/// A typed DDS -> shared-memory route for one set: its subscription, the reader task that
-/// decodes (and, in asynchronous domains, commits) its samples, and the route entry the task
-/// reports under.
+/// A DDS -> shared-memory route over `topic` (DDS type `dds_type`, samples read by
+/// `decode`): its reader, whose sink decodes (and, in asynchronous domains, commits) its
+/// samples on the engine's receive path, and the route entry the sink reports under.
 #[allow(clippy::too_many_arguments)]
-fn typed_inbound(
+fn inbound(
     dds: &dyn Engine,
     routes: &mut Vec<Route>,
     tx: &mpsc::UnboundedSender<Event>,
     stats: &Arc<Stats>,
     domain: usize,
-    layout: &tutti_core::ddf::SetLayout,
-    names: &mapping::SetNames,
+    topic: &str,
+    dds_type: &str,
+    decode: Decode,
     rq: &Qos,
 ) -> Result<(), GatewayError> {
-    let codec = Arc::new(SetCodec::new(layout));
-    let to = route_in(routes, tx, domain, &names.topic);
-    let sink = from_dds::sink(Decode::Set(codec.clone()), to, stats.clone(), dds.own_prefix());
-    dds.reader(&names.topic, &names.dds_type, rq, Decode::Set(codec), sink)
-}
-
-/// A DDS -> shared-memory route over `topic`, registered in `routes`: where its reader task
-/// sends (the route's number, the manager, the writers it commits itself).
-fn route_in(routes: &mut Vec<Route>, tx: &mpsc::UnboundedSender<Event>, domain: usize, topic: &str) -> Destination {
     let direct = Direct::default();
     routes.push(Route::In { domain, topic: topic.to_string(), direct: direct.clone() });
-    (routes.len() - 1, tx.clone(), direct)
+    let to = (routes.len() - 1, tx.clone(), direct);
+    let sink = from_dds::sink(decode.clone(), to, stats.clone(), dds.own_prefix());
+    dds.reader(topic, dds_type, rq, decode, sink)
 }
 
 /// The typed shared-memory -> DDS writer of one set.
