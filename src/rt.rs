@@ -96,6 +96,37 @@ pub fn step_all(
     Ok(reports)
 }
 
+/// Records the step every domain of `fw` just made (as [`step_all`] reported it, with the
+/// `publish` sets it published at simulated time `sim`) in each of `recorders`.
+pub fn record_step(
+    recorders: &mut [Box<dyn tutti_record::Recorder>],
+    fw: &Framework,
+    reports: &[StepReport],
+    publish: &[Vec<u8>],
+    sim: f64,
+    run_start: Instant,
+) -> anyhow::Result<()> {
+    if recorders.is_empty() {
+        return Ok(());
+    }
+    let (wall_ns, elapsed_s) = (tutti_record::now_ns(), run_start.elapsed().as_secs_f64());
+    for (i, (host, report)) in fw.domains.iter().zip(reports).enumerate() {
+        let step = tutti_record::Step {
+            step: report.step,
+            sim_time: sim,
+            wall_ns,
+            elapsed_s,
+            connections: host.connection_count(),
+            publish: &publish[i],
+            subscribe: host.subscribe(),
+        };
+        for rec in recorders.iter_mut() {
+            rec.step(i, &step).context("writing the recording")?;
+        }
+    }
+    Ok(())
+}
+
 /// Periodic deadlines.
 #[derive(Debug)]
 pub struct Ticker {

@@ -156,23 +156,8 @@ pub fn run(args: Args) -> CliResult {
         }
         let sim = tick.k as f64 * args.step.as_secs_f64();
         let reports = rt::step_all(&mut fw, &publish, sim, args.step, &tick)?;
-        for (i, (host, report)) in fw.domains.iter().zip(reports).enumerate() {
-            timeouts += u64::from(report.timed_out > 0);
-            if !recorders.is_empty() {
-                let step = tutti_record::Step {
-                    step: report.step,
-                    sim_time: sim,
-                    wall_ns: tutti_record::now_ns(),
-                    elapsed_s: run_start.elapsed().as_secs_f64(),
-                    connections: host.connection_count(),
-                    publish: &publish[i],
-                    subscribe: host.subscribe(),
-                };
-                for rec in &mut recorders {
-                    rec.step(i, &step).context("recording")?;
-                }
-            }
-        }
+        timeouts += reports.iter().filter(|r| r.timed_out > 0).count() as u64;
+        rt::record_step(&mut recorders, &fw, &reports, &publish, sim, run_start)?;
         if !args.quiet && last_report.elapsed() >= Duration::from_secs(1) {
             last_report = Instant::now();
             let conns: u32 = fw.domains.iter().map(|d| d.connection_count()).sum();

@@ -118,9 +118,9 @@ fn one_run(
         Mode::Mcap => "run.mcap",
         _ => "run.csv",
     });
-    let mut recorder = match mode {
-        Mode::None => None,
-        _ => Some(tutti_record::create(&path, model, &args.file)?),
+    let mut recorders = match mode {
+        Mode::None => Vec::new(),
+        _ => vec![tutti_record::create(&path, model, &args.file)?],
     };
     let mut publish: Vec<Vec<u8>> = model.domains.iter().map(|d| d.publish.layout.default_bytes()).collect();
     let mut late = Vec::with_capacity((args.duration.as_secs_f64() / args.step.as_secs_f64()) as usize + 16);
@@ -139,24 +139,10 @@ fn one_run(
             }
         }
         let reports = rt::step_all(&mut fw, &publish, sim, args.step, &tick)?;
-        if let Some(rec) = recorder.as_mut() {
-            let wall_ns = tutti_record::now_ns();
-            for (i, (host, report)) in fw.domains.iter().zip(&reports).enumerate() {
-                let step = tutti_record::Step {
-                    step: report.step,
-                    sim_time: sim,
-                    wall_ns,
-                    elapsed_s: start.elapsed().as_secs_f64(),
-                    connections: host.connection_count(),
-                    publish: &publish[i],
-                    subscribe: host.subscribe(),
-                };
-                rec.step(i, &step)?;
-            }
-        }
+        rt::record_step(&mut recorders, &fw, &reports, &publish, sim, start)?;
     }
     let secs = start.elapsed().as_secs_f64();
-    if let Some(rec) = recorder {
+    for rec in recorders {
         rec.finish()?;
     }
     let bytes = match mode {

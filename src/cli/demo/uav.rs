@@ -414,19 +414,7 @@ fn simulate(args: &UavArgs, scenario: &Scenario, out: &Path, interrupted: &Atomi
             row.push_str(&format!(",{e},{t},{published},{}", host.connection_count()));
         }
         writeln!(csv, "{row}")?;
-        let wall_ns = tutti_record::now_ns();
-        for (i, (host, report)) in fw.domains.iter().zip(&reports).enumerate() {
-            let record = tutti_record::Step {
-                step: report.step,
-                sim_time: sim,
-                wall_ns,
-                elapsed_s: wall0.elapsed().as_secs_f64(),
-                connections: host.connection_count(),
-                publish: &publish[i],
-                subscribe: host.subscribe(),
-            };
-            recording.step(i, &record).context("writing run.mcap")?;
-        }
+        rt::record_step(std::slice::from_mut(&mut recording), &fw, &reports, &publish, sim, wall0)?;
         // The C components, on schedule.
         while readers.len() < scenario.c_readers.len() && sim >= scenario.c_readers[readers.len()] {
             let j = readers.len() + 1;
