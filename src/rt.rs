@@ -117,6 +117,7 @@ pub fn record_step(
             wall_ns,
             elapsed_s,
             connections: host.connection_count(),
+            owner_pid: host.segment().exclusive_owner_pid(),
             publish: &publish[i],
             subscribe: host.subscribe(),
         };
@@ -125,6 +126,53 @@ pub fn record_step(
         }
     }
     Ok(())
+}
+
+/// `--wait-for DOMAIN=N`: hold the first step until N writers have connected to DOMAIN.
+pub fn parse_wait_for(s: &str) -> Result<(String, usize), String> {
+    let (domain, n) = s.split_once('=').ok_or_else(|| format!("'{s}': expected DOMAIN=N (e.g. multiuav_uav2=1)"))?;
+    let n: usize = n.trim().parse().map_err(|_| format!("'{s}': '{n}' is not a number of writers"))?;
+    Ok((domain.trim().to_string(), n))
+}
+
+/// Holds the participants of `fw` in wait-to-go until each domain of `wants` has its number
+/// of writers (participants that have claimed the SUBSCRIBE set, e.g. by a first commit), so
+/// that the first step is answered by all of them; prints progress every 5 s as `who`.
+/// Returns false when `stop` was set first. The framework must have been created holding.
+pub fn wait_for_writers(
+    fw: &mut Framework,
+    wants: &[(String, usize)],
+    stop: &std::sync::atomic::AtomicBool,
+    who: &str,
+    quiet: bool,
+) -> anyhow::Result<bool> {
+    let started = Instant::now();
+    let mut last_report = Instant::now();
+    for (domain, n) in wants {
+        let host = fw.domain(domain).ok_or_else(|| anyhow::anyhow!("--wait-for {domain}={n}: no domain '{domain}'"))?;
+        loop {
+            if stop.load(std::sync::atomic::Ordering::SeqCst) {
+                return Ok(false);
+            }
+            let seen =
+                host.wait_for_writers(*n, Duration::from_millis(200)).with_context(|| format!("domain '{domain}'"))?;
+            if seen >= *n {
+                break;
+            }
+            if !quiet && last_report.elapsed() >= Duration::from_secs(5) {
+                last_report = Instant::now();
+                eprintln!(
+                    "{who}: waiting {:.0} s for {n} writer(s) in {domain} ({seen} so far)",
+                    started.elapsed().as_secs_f64()
+                );
+            }
+        }
+    }
+    if !quiet && !wants.is_empty() {
+        let list: Vec<String> = wants.iter().map(|(d, n)| format!("{d}={n}")).collect();
+        eprintln!("{who}: writers connected ({}): stepping", list.join(", "));
+    }
+    Ok(true)
 }
 
 /// Periodic deadlines.

@@ -16,7 +16,7 @@ use crate::rt::{self, Ticker};
 /// Run the framework of every domain in a DDF: create the segments, step at a fixed period.
 #[derive(Debug, clap::Args)]
 #[command(
-    after_help = "Examples:\n  tutti host ddf/multiuav.ddf --step 10ms --duration 60s\n  tutti host ddf/product-sample.ddf --set grid_clock/tick=1 --record out/run.csv\n  tutti host ddf/multiuav.ddf --step 10ms --duration 60s --record out/run.mcap   # Foxglove, ros2 bag\n  TUTTI_NAMESPACE=lab2 tutti host ddf/large-1000.ddf --step 1ms\n  sudo tutti host ddf/multiuav.ddf --step 1ms --realtime --cpu 1 --priority 80\n\nStop with Ctrl-C: the segments are removed on exit."
+    after_help = "Examples:\n  tutti host ddf/multiuav.ddf --step 10ms --duration 60s\n  tutti host ddf/product-sample.ddf --set grid_clock/tick=1 --record out/run.csv\n  tutti host ddf/multiuav.ddf --step 10ms --duration 60s --record out/run.mcap   # Foxglove, ros2 bag\n  TUTTI_NAMESPACE=lab2 tutti host ddf/large-1000.ddf --step 1ms\n  sudo tutti host ddf/multiuav.ddf --step 1ms --realtime --cpu 1 --priority 80\n  tutti host ddf/multiuav.ddf --wait-for multiuav_uav2=1 --record run.mcap   # replay later: tutti replay\n\nStop with Ctrl-C: the segments are removed on exit."
 )]
 pub struct Args {
     /// The DDF whose domains to host.
@@ -45,6 +45,11 @@ pub struct Args {
     /// Hold participants in connect (wait-to-go) for this long after start.
     #[arg(long, value_parser = parse_duration)]
     hold: Option<Duration>,
+    /// Before the first step, hold participants in wait-to-go until N writers (participants
+    /// that have committed once) are connected to DOMAIN, so that they answer every step
+    /// from the first; repeatable.
+    #[arg(long = "wait-for", value_name = "DOMAIN=N", value_parser = rt::parse_wait_for)]
+    wait_for: Vec<(String, usize)>,
     #[command(flatten)]
     rt: super::RealtimeArgs,
     /// Print no progress lines.
@@ -106,8 +111,16 @@ pub fn run(args: Args) -> CliResult {
         let stop = stop.clone();
         ctrlc::set_handler(move || stop.store(true, Ordering::SeqCst)).context("installing the signal handler")?;
     }
-    let opts =
-        FrameworkOptions { timeout: args.timeout, wait: args.wait, hold: args.hold.is_some(), ..Default::default() };
+    for (d, n) in &args.wait_for {
+        if model.domain(d).is_none() {
+            return Err(Failure::invalid(anyhow::anyhow!(
+                "--wait-for {d}={n}: no domain '{d}' in {}",
+                args.file.display()
+            )));
+        }
+    }
+    let hold = args.hold.is_some() || !args.wait_for.is_empty();
+    let opts = FrameworkOptions { timeout: args.timeout, wait: args.wait, hold, ..Default::default() };
     let started = Instant::now();
     let mut fw = Framework::create(&model, &opts).with_context(|| format!("hosting {}", args.file.display()))?;
     let mut recorders = args
@@ -139,6 +152,12 @@ pub fn run(args: Args) -> CliResult {
             "host: {unseeded} domain(s) with states=yes got no seed within {:?}; they start from their defaults",
             args.timeout
         );
+    }
+    if !rt::wait_for_writers(&mut fw, &args.wait_for, &stop, "host", args.quiet)? {
+        return Ok(());
+    }
+    if args.hold.is_none() {
+        fw.domains.iter().for_each(|d| d.set_hold(false));
     }
     let mut ticker = Ticker::new(args.step);
     let run_start = Instant::now();

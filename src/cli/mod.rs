@@ -13,6 +13,7 @@ mod gateway;
 mod host;
 mod idl;
 mod record;
+mod replay;
 mod show;
 mod status;
 
@@ -41,6 +42,7 @@ enum Command {
     Host(host::Args),
     Status(status::Args),
     Record(record::Args),
+    Replay(replay::Args),
     Bench(bench::Args),
     Gateway(gateway::Args),
     Demo(demo::Args),
@@ -97,6 +99,7 @@ pub fn run(cli: Cli) -> ExitCode {
         Command::Host(a) => host::run(a),
         Command::Status(a) => status::run(a),
         Command::Record(a) => record::run(a),
+        Command::Replay(a) => replay::run(a),
         Command::Bench(a) => bench::run(a),
         Command::Gateway(a) => gateway::run(a),
         Command::Demo(a) => demo::run(a),

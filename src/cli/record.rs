@@ -125,6 +125,7 @@ pub fn run(args: Args) -> CliResult {
                         wall_ns: tutti_record::now_ns(),
                         elapsed_s: start.elapsed().as_secs_f64(),
                         connections: seg.connection_count(),
+                        owner_pid: seg.exclusive_owner_pid(),
                         publish: &f.publish,
                         subscribe: &f.subscribe,
                     };

@@ -124,7 +124,7 @@ def main():
         for schema, channel, message in reader.iter_messages():
             if channel.topic == "/tutti/events":
                 event = json.loads(message.data)
-                assert event["kind"] in ("connect", "disconnect"), event
+                assert event["kind"] in ("start", "connect", "disconnect", "owner"), event
                 events += 1
                 continue
             decoded = decoders[schema.id](message.data)

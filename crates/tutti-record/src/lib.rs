@@ -5,7 +5,9 @@
 //! * **MCAP** ([`mcap`]): one file for the run, a channel per set named like its ROS 2 topic
 //!   (`/DOMAIN/publish`, `/DOMAIN/subscribe`), messages in the gateway's CDR with a `ros2msg`
 //!   schema equal to what `tutti idl` writes, zstd-compressed chunks with an index: it opens
-//!   in Foxglove and plays with `ros2 bag play`. Connection changes go on `/tutti/events`.
+//!   in Foxglove and plays with `ros2 bag play`. Connection and owner changes go on
+//!   `/tutti/events`; the DDF travels inside as an attachment, so that `tutti replay` needs
+//!   nothing but the file ([`replay`] reads it back).
 //!
 //! The crate sits above the core and depends on no DDS crate.
 
@@ -15,6 +17,7 @@ use tutti_core::ddf::Model;
 
 pub mod csv;
 pub mod mcap;
+pub mod replay;
 
 /// What went wrong, with the file involved.
 #[derive(Debug, thiserror::Error)]
@@ -41,6 +44,8 @@ pub struct Step<'a> {
     pub elapsed_s: f64,
     /// Connections of the domain during the step.
     pub connections: u32,
+    /// The process that holds the SUBSCRIBE set exclusively, if one does.
+    pub owner_pid: Option<u32>,
     /// The PUBLISH and SUBSCRIBE sets, in shared-memory layout.
     pub publish: &'a [u8],
     pub subscribe: &'a [u8],

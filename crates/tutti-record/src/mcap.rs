@@ -6,7 +6,11 @@
 //! * its schema is `ros2msg`, named `PKG/msg/TYPE`: the `.msg` that `tutti idl` writes, with
 //!   the `.msg` of every nested bus type appended after a `MSG: PKG/msg/BUS` separator line;
 //! * log time = wall-clock time, publish time = simulated time (nanoseconds);
-//! * `/tutti/events` (JSON): a message whenever a domain's connection count changes;
+//! * `/tutti/events` (JSON): a `start` message at a domain's first recorded step (its
+//!   connections and exclusive owner then), then one whenever its connection count
+//!   (`connect`, `disconnect`) or its exclusive owner (`owner`) changes;
+//! * the DDF, as read when the recording started, as an attachment named like its file
+//!   (media type `application/xml`), and a `tutti` metadata record (`ddf`, `package`);
 //! * chunks compressed with zstd, with message indexes and a summary, so that readers seek.
 
 use std::collections::{BTreeMap, HashMap};
@@ -25,7 +29,12 @@ use super::{create_parent, io_error, RecordError, Recorder, Step};
 /// The channel of connection events.
 pub const EVENTS_TOPIC: &str = "/tutti/events";
 
-const EVENT_SCHEMA: &str = r#"{"type":"object","properties":{"domain":{"type":"string"},"step":{"type":"integer"},"sim_time":{"type":"number"},"kind":{"type":"string","enum":["connect","disconnect"]},"connections":{"type":"integer"},"change":{"type":"integer"}}}"#;
+const EVENT_SCHEMA: &str = r#"{"type":"object","properties":{"domain":{"type":"string"},"step":{"type":"integer"},"sim_time":{"type":"number"},"kind":{"type":"string","enum":["start","connect","disconnect","owner"]},"connections":{"type":"integer"},"change":{"type":"integer"},"owner_pid":{"type":["integer","null"]}}}"#;
+
+/// The media type of the DDF attachment.
+pub const DDF_MEDIA_TYPE: &str = "application/xml";
+/// The name of the metadata record that describes the recording.
+pub const METADATA_NAME: &str = "tutti";
 
 /// The separator of the message definitions in a `ros2msg` schema.
 const SEPARATOR: &str = "================================================================================";
@@ -39,7 +48,8 @@ struct DomainChannels {
     name: String,
     publish: SetChannel,
     subscribe: SetChannel,
-    last_connections: Option<u32>,
+    /// Connections and exclusive owner at the last recorded step (None before the first).
+    last: Option<(u32, Option<u32>)>,
 }
 
 /// An MCAP recording being written.
@@ -134,8 +144,24 @@ impl McapRecorder {
             };
             let publish = channel(Role::Publish)?;
             let subscribe = channel(Role::Subscribe)?;
-            domains.push(DomainChannels { name: d.name.clone(), publish, subscribe, last_connections: None });
+            domains.push(DomainChannels { name: d.name.clone(), publish, subscribe, last: None });
         }
+        // The DDF inside, so that the recording replays on its own (`tutti replay`).
+        let ddf_text = std::fs::read(ddf_path).map_err(io_error(ddf_path))?;
+        let ddf_name = ddf_path.file_name().map_or_else(|| "run.ddf".into(), |n| n.to_string_lossy().into_owned());
+        let now = super::now_ns();
+        let attachment = ::mcap::Attachment {
+            log_time: now,
+            create_time: now,
+            name: ddf_name.clone(),
+            media_type: DDF_MEDIA_TYPE.into(),
+            data: std::borrow::Cow::Owned(ddf_text),
+        };
+        writer.attach(&attachment).map_err(mcap_error)?;
+        let metadata = BTreeMap::from([("ddf".to_string(), ddf_name), ("package".to_string(), package.clone())]);
+        writer
+            .write_metadata(&::mcap::records::Metadata { name: METADATA_NAME.into(), metadata })
+            .map_err(mcap_error)?;
         let event_schema =
             writer.add_schema("tutti/Event", "jsonschema", EVENT_SCHEMA.as_bytes()).map_err(mcap_error)?;
         let events = writer.add_channel(event_schema, EVENTS_TOPIC, "json", &no_metadata).map_err(mcap_error)?;
@@ -180,17 +206,31 @@ impl Recorder for McapRecorder {
                 return Err(RecordError::Format { path: self.path.display().to_string(), detail: e.to_string() });
             }
         }
-        let before = d.last_connections.replace(s.connections);
-        if let Some(before) = before.filter(|&b| b != s.connections) {
-            let change = i64::from(s.connections) - i64::from(before);
-            let event = serde_json::json!({
-                "domain": d.name,
-                "step": s.step,
-                "sim_time": s.sim_time,
-                "kind": if change > 0 { "connect" } else { "disconnect" },
-                "connections": s.connections,
-                "change": change,
-            });
+        let now = (s.connections, s.owner_pid);
+        let mut events = Vec::new();
+        match d.last.replace(now) {
+            None => events.push(serde_json::json!({
+                "kind": "start", "connections": s.connections, "owner_pid": s.owner_pid,
+            })),
+            Some((connections, owner_pid)) => {
+                if connections != s.connections {
+                    let change = i64::from(s.connections) - i64::from(connections);
+                    events.push(serde_json::json!({
+                        "kind": if change > 0 { "connect" } else { "disconnect" },
+                        "connections": s.connections,
+                        "change": change,
+                    }));
+                }
+                if owner_pid != s.owner_pid {
+                    events.push(serde_json::json!({ "kind": "owner", "owner_pid": s.owner_pid }));
+                }
+            }
+        }
+        let name = d.name.clone();
+        for mut event in events {
+            event["domain"] = name.clone().into();
+            event["step"] = s.step.into();
+            event["sim_time"] = s.sim_time.into();
             self.event_seq += 1;
             let header = MessageHeader { channel_id: self.events, sequence: self.event_seq, log_time, publish_time };
             let text = event.to_string();
@@ -255,6 +295,7 @@ mod tests {
                     wall_ns: t0 + k,
                     elapsed_s: 0.0,
                     connections: k as u32,
+                    owner_pid: (k == 3).then_some(42),
                     publish: p,
                     subscribe: s,
                 };
@@ -292,6 +333,10 @@ mod tests {
             n += 1;
         }
         assert_eq!(n, 3 * 2 * m.domains.len());
-        assert_eq!(events, 2 * m.domains.len(), "a connection change per domain at steps 2 and 3");
+        // Per domain: its start, a connection change at steps 2 and 3, an owner at step 3.
+        assert_eq!(events, 4 * m.domains.len());
+        let recording = crate::replay::Recording::read(&path).unwrap();
+        assert_eq!(recording.ddf_name, "product-sample.ddf");
+        assert_eq!(recording.model.domains.len(), m.domains.len());
     }
 }

@@ -613,6 +613,13 @@ impl Segment {
         self.header().conn_count.load(Ordering::Acquire)
     }
 
+    /// The process holding the SUBSCRIBE set exclusively (a domain without
+    /// `multiple_publish_allowed`), if one does now.
+    pub fn exclusive_owner_pid(&self) -> Option<u32> {
+        let owner = self.header().owner_conn.load(Ordering::Acquire);
+        (owner != 0).then(|| self.conn(Self::slot_of(owner)).map(|c| c.active.load(Ordering::Relaxed))).flatten()
+    }
+
     /// How many times a set was written: a cheap test for new data before copying it.
     pub fn generation(&self, role: Role) -> u64 {
         self.header().sets[role as usize].current.load(Ordering::Acquire)
@@ -752,9 +759,7 @@ impl Segment {
                 alive: os::is_alive(ProcessId { pid, start_time: c.start_time.load(Ordering::Relaxed) }),
             });
         }
-        let owner = h.owner_conn.load(Ordering::Acquire);
-        let owner_pid =
-            (owner != 0).then(|| self.conn(Self::slot_of(owner)).map(|c| c.active.load(Ordering::Relaxed))).flatten();
+        let owner_pid = self.exclusive_owner_pid();
         DomainStatus {
             domain: self.info.name.clone(),
             segment: format!("{}/{}", os::SHM_DIR, self.shm_name),
