@@ -271,3 +271,26 @@ fn the_rustdds_engine_refuses_unicast_peers_with_status_2() {
     assert_eq!(status.code(), Some(2), "{err}");
     assert!(err.contains("--peer") && err.contains("--dds cyclone"), "{err}");
 }
+
+/// The three `<connection>` forms the product's tools write are accepted and shown, in text
+/// and JSON, with every attribute and setting as written.
+#[test]
+fn the_three_connection_forms_are_accepted_and_shown() {
+    let (code, out, err) = tutti(["check", "tests/ddf/connection-forms.ddf"]);
+    assert_eq!(code, 0, "{out}{err}");
+    let (code, out, err) = tutti(["show", "tests/ddf/connection-forms.ddf"]);
+    assert_eq!(code, 0, "{err}");
+    assert!(out.contains("connection remote card=\"test\" pciindex=\"0\""), "{out}");
+    assert!(out.contains("connection dolphin nodeIdFramework=\"0\" segmentId=\"0\""), "{out}");
+    assert!(out.contains("connection local extcomm=\"udp\" addrframework=\"\" portframework=\"10000\""), "{out}");
+    let (code, out, err) = tutti(["show", "--json", "tests/ddf/connection-forms.ddf"]);
+    assert_eq!(code, 0, "{err}");
+    let v: Value = serde_json::from_str(&out).expect("JSON");
+    let c: Vec<&Value> = v["domains"].as_array().unwrap().iter().map(|d| &d["connection"]).collect();
+    assert_eq!(c[0]["type"], "local");
+    assert_eq!(c[0]["attributes"][3], serde_json::json!(["portframework", "10000"]));
+    assert_eq!(c[1]["type"], "remote");
+    assert_eq!(c[1]["settings"], serde_json::json!([["card", "test"], ["pciindex", "0"]]));
+    assert_eq!(c[2]["type"], "dolphin");
+    assert_eq!(c[2]["settings"], serde_json::json!([["nodeIdFramework", "0"], ["segmentId", "0"]]));
+}

@@ -145,6 +145,16 @@ fn domain_json<'a>(d: &'a Domain, package: &str, profile: Profile) -> DomainJson
     }
 }
 
+/// `remote card=test pciindex=0`: the kind, then every attribute and setting as written.
+fn connection_text(c: &tutti_core::ddf::Connection) -> String {
+    let rest = c.attributes.iter().filter(|(k, _)| k != "type").chain(&c.settings);
+    let mut out = c.kind.as_str().to_string();
+    for (k, v) in rest {
+        out.push_str(&format!(" {k}={v:?}"));
+    }
+    out
+}
+
 fn yn(b: bool) -> &'static str {
     if b {
         "yes"
@@ -198,8 +208,7 @@ fn text(v: &ShowJson<'_>) -> String {
             let _ = writeln!(s, "  one external writer at a time on SUBSCRIBE (enforced by: {how})");
         }
         if let Some(c) = d.connection {
-            let attrs: Vec<String> = c.attributes.iter().map(|(k, v)| format!("{k}={v}")).collect();
-            let _ = writeln!(s, "  connection {}", attrs.join(" "));
+            let _ = writeln!(s, "  connection {}", connection_text(c));
         }
         for set in &d.sets {
             let _ = writeln!(

@@ -23,7 +23,7 @@ pub mod synth;
 pub mod validate;
 
 pub use layout::SetLayout;
-pub use model::{Connection, Domain, Flags, Item, ItemKind, Leaf, Model, Role, ScalarType, Set, Value};
+pub use model::{Connection, ConnectionKind, Domain, Flags, Item, ItemKind, Leaf, Model, Role, ScalarType, Set, Value};
 
 /// Largest DDF accepted, in bytes.
 pub const MAX_FILE_BYTES: u64 = 64 << 20;

@@ -79,10 +79,55 @@ impl Domain {
     }
 }
 
-/// The `<connection>` element of the product dialect: attributes in document order.
+/// The `<connection>` element of the product dialect: how the product's clients reach the
+/// framework. tutti keeps it (and writes it back) but moves data the same way for every kind:
+/// shared memory on the framework's machine, DDS through a gateway between machines
+/// (`docs/ddf.md`).
 #[derive(Debug, Clone, PartialEq, Eq, Serialize)]
 pub struct Connection {
+    #[serde(rename = "type")]
+    pub kind: ConnectionKind,
+    /// The attributes as written, in document order (`type` included; the `local` form's
+    /// `extcomm`, `addrframework`, `portframework`, `nicframework`, `nicclient`,
+    /// `coreframework`, `coreclient`).
     pub attributes: Vec<(String, String)>,
+    /// The child elements as written, name and text, in document order (`remote`: `card`,
+    /// `pciindex`; `dolphin`: `nodeIdFramework`, `segmentId`).
+    pub settings: Vec<(String, String)>,
+}
+
+/// The kinds of `<connection>` the product's tools write.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum ConnectionKind {
+    /// A client on the framework's machine (attributes: the external communication process).
+    Local,
+    /// A client on another machine, through a reflective-memory card (`card`, `pciindex`).
+    Remote,
+    /// A client on another machine, through a Dolphin interconnect (`nodeIdFramework`, `segmentId`).
+    Dolphin,
+}
+
+impl ConnectionKind {
+    pub fn as_str(self) -> &'static str {
+        match self {
+            ConnectionKind::Local => "local",
+            ConnectionKind::Remote => "remote",
+            ConnectionKind::Dolphin => "dolphin",
+        }
+    }
+}
+
+impl Connection {
+    /// The value of setting (child element) `name`.
+    pub fn setting(&self, name: &str) -> Option<&str> {
+        self.settings.iter().find(|(n, _)| n == name).map(|(_, v)| v.as_str())
+    }
+
+    /// The value of attribute `name`.
+    pub fn attribute(&self, name: &str) -> Option<&str> {
+        self.attributes.iter().find(|(n, _)| n == name).map(|(_, v)| v.as_str())
+    }
 }
 
 /// Which side writes a set.

@@ -68,7 +68,11 @@ fn domain(out: &mut String, d: usize, items: usize) {
     let _ = writeln!(out, "    <multiplePublishAllowed>{}</multiplePublishAllowed>", yes_no(d % 3 != 0));
     let _ = writeln!(out, "    <states>{}</states>", yes_no(d % 5 == 0));
     if !paper && d % 7 == 0 {
-        let _ = writeln!(out, "    <connection type=\"{}\"/>", if d % 14 == 0 { "local" } else { "remote" });
+        if d % 14 == 0 {
+            let _ = writeln!(out, "    <connection type=\"local\" extcomm=\"udp\" portframework=\"{}\"/>", 10000 + d);
+        } else {
+            let _ = writeln!(out, "    <connection type=\"remote\"><card>rfm{d}</card><pciindex>0</pciindex></connection>");
+        }
     }
     let publish = items / 2;
     let with_bus = publish > BUS_MEMBERS.len();

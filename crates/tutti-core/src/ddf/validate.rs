@@ -4,7 +4,7 @@
 use std::collections::HashMap;
 
 use super::layout::{self, SetLayout, MAX_SET_BYTES};
-use super::model::{join_path, Connection, Domain, Flags, Item, ItemKind, Model, Role, Set, TypeName};
+use super::model::{join_path, Connection, ConnectionKind, Domain, Flags, Item, ItemKind, Model, Role, Set, TypeName};
 use super::raw::RawElement;
 use super::{Diagnostic, Pos};
 
@@ -149,6 +149,7 @@ fn domain(el: &RawElement, d: &mut Diags) -> Option<Domain> {
     let mut flags = Flags { synchronous: false, multiple_publish_allowed: true, states: false };
     let mut flag_seen: HashMap<&str, Pos> = HashMap::new();
     let mut connection = None;
+    let mut connection_seen = false;
     let mut sets: [Option<(Set, Pos)>; 2] = [None, None];
     for child in &el.children {
         match &*child.name {
@@ -173,21 +174,11 @@ fn domain(el: &RawElement, d: &mut Diags) -> Option<Domain> {
                 }
             }
             "connection" => {
-                no_text(child, d);
-                for c in &child.children {
-                    d.at(c.pos, format!("unexpected element <{}> inside <connection>", c.name));
-                }
-                if connection.is_some() {
+                if connection_seen {
                     d.at(child.pos, format!("domain '{label}' has a second <connection>"));
                 }
-                if let Some(t) = child.attr("type") {
-                    if !matches!(t.to_ascii_lowercase().as_str(), "local" | "remote") {
-                        d.at(child.pos, format!("<connection> type must be local or remote, found '{}'", shorten(t)));
-                    }
-                }
-                connection = Some(Connection {
-                    attributes: child.attrs.iter().map(|a| (a.name.to_string(), a.value.to_string())).collect(),
-                });
+                connection_seen = true;
+                connection = connection_element(child, &label, d).or(connection);
             }
             "block" | "set" => {
                 let Some(role) = set_role(child, d) else { continue };
@@ -223,6 +214,114 @@ fn domain(el: &RawElement, d: &mut Diags) -> Option<Domain> {
     let subscribe = subscribe.map(|(s, _)| s).unwrap_or_else(|| empty(Role::Subscribe));
     let layout_hash = layout::layout_hash(&name, flags, &publish.layout, &subscribe.layout);
     Some(Domain { name, flags, connection, publish, subscribe, layout_hash, pos: el.pos })
+}
+
+/// The attributes of a `local` connection, and the integer range of those that are numbers.
+const LOCAL_ATTRIBUTES: &[(&str, Option<(i64, i64)>)] = &[
+    ("extcomm", None),
+    ("addrframework", None),
+    ("portframework", Some((0, 65535))),
+    ("nicframework", None),
+    ("nicclient", None),
+    ("coreframework", Some((-1, 4095))),
+    ("coreclient", Some((-1, 4095))),
+];
+
+/// The settings (child elements) of the `remote` and `dolphin` connections: name, and the
+/// integer range when it is a number (`None`: a name, such as the card's).
+const REMOTE_SETTINGS: &[(&str, Option<(i64, i64)>)] = &[("card", None), ("pciindex", Some((0, 255)))];
+const DOLPHIN_SETTINGS: &[(&str, Option<(i64, i64)>)] =
+    &[("nodeIdFramework", Some((0, 65535))), ("segmentId", Some((0, u32::MAX as i64)))];
+
+/// `value` as an integer within `range`, or what is wrong with it.
+fn integer_in(value: &str, (lo, hi): (i64, i64)) -> Result<i64, String> {
+    match value.trim().parse::<i64>() {
+        Ok(v) if (lo..=hi).contains(&v) => Ok(v),
+        Ok(_) => Err(format!("out of range {lo}..{hi}")),
+        Err(_) => Err(format!("not an integer ({lo}..{hi})")),
+    }
+}
+
+/// A `<connection>` in one of the three forms the product's tools write:
+/// `<connection type="local" extcomm=".." addrframework=".." portframework=".." .../>`,
+/// `<connection type="remote"><card>NAME</card><pciindex>N</pciindex></connection>`,
+/// `<connection type="dolphin"><nodeIdFramework>N</nodeIdFramework><segmentId>N</segmentId></connection>`.
+fn connection_element(el: &RawElement, domain: &str, d: &mut Diags) -> Option<Connection> {
+    no_text(el, d);
+    let kind = match el.attr("type").map(str::to_ascii_lowercase).as_deref() {
+        None | Some("local") => ConnectionKind::Local,
+        Some("remote") => ConnectionKind::Remote,
+        Some("dolphin") => ConnectionKind::Dolphin,
+        Some(_) => {
+            let t = el.attr("type").unwrap_or_default();
+            d.at(el.pos, format!("<connection> type must be local, remote or dolphin, found '{}'", shorten(t)));
+            return None;
+        }
+    };
+    let before = d.0.len();
+    let attributes: Vec<(String, String)> =
+        el.attrs.iter().map(|a| (a.name.to_string(), a.value.to_string())).collect();
+    let mut settings = Vec::new();
+    match kind {
+        ConnectionKind::Local => {
+            for a in &el.attrs {
+                if a.name == "type" {
+                    continue;
+                }
+                match LOCAL_ATTRIBUTES.iter().find(|(n, _)| *n == a.name) {
+                    None => d.at(
+                        el.pos,
+                        format!(
+                            "unknown attribute '{}' on a local <connection> of domain '{domain}'; expected {}",
+                            shorten(&a.name),
+                            LOCAL_ATTRIBUTES.iter().map(|(n, _)| *n).collect::<Vec<_>>().join(", ")
+                        ),
+                    ),
+                    Some((_, Some(range))) if !(a.value.trim().is_empty()) => {
+                        if let Err(e) = integer_in(&a.value, *range) {
+                            d.at(el.pos, format!("<connection> {}='{}': {e}", a.name, shorten(&a.value)));
+                        }
+                    }
+                    Some(_) => {}
+                }
+            }
+            for c in &el.children {
+                d.at(c.pos, format!("unexpected element <{}> inside a local <connection> (it takes attributes)", c.name));
+            }
+        }
+        ConnectionKind::Remote | ConnectionKind::Dolphin => {
+            only_attrs(el, &["type"], d);
+            let expected = if kind == ConnectionKind::Remote { REMOTE_SETTINGS } else { DOLPHIN_SETTINGS };
+            let names = || expected.iter().map(|(n, _)| format!("<{n}>")).collect::<Vec<_>>().join(" and ");
+            for c in &el.children {
+                let Some((_, range)) = expected.iter().find(|(n, _)| *n == c.name) else {
+                    d.at(
+                        c.pos,
+                        format!("unexpected element <{}> inside a {} <connection>; expected {}", c.name, kind.as_str(), names()),
+                    );
+                    continue;
+                };
+                leaf_element(c, d);
+                if settings.iter().any(|(n, _): &(String, String)| *n == c.name) {
+                    d.at(c.pos, format!("a second <{}> in the <connection> of domain '{domain}'", c.name));
+                    continue;
+                }
+                let text = c.text().trim().to_string();
+                if let Some(range) = range {
+                    if let Err(e) = integer_in(&text, *range) {
+                        d.at(c.text_pos.unwrap_or(c.pos), format!("<{}> '{}': {e}", c.name, shorten(&text)));
+                    }
+                }
+                settings.push((c.name.to_string(), text));
+            }
+            for (n, _) in expected {
+                if !settings.iter().any(|(s, _)| s == n) {
+                    d.at(el.pos, format!("the {} <connection> of domain '{domain}' has no <{n}>", kind.as_str()));
+                }
+            }
+        }
+    }
+    (d.0.len() == before).then_some(Connection { kind, attributes, settings })
 }
 
 fn set_role(el: &RawElement, d: &mut Diags) -> Option<Role> {
