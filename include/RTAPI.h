@@ -137,6 +137,12 @@ typedef int RTAPIReturn_t;
  */
 #define RTAPI_ERROR_VERSION_MISMATCH 21
 
+/**
+ * A remote connection (`RTSetupRefMemRemoteConnection`) to a domain that no framework or
+ * mirror gateway serves on this machine: start `tutti gateway --mirror DDF` here.
+ */
+#define RTAPI_ERROR_REMOTE_NOT_SERVED 22
+
 #ifdef __cplusplus
 extern "C" {
 #endif // __cplusplus
@@ -289,6 +295,21 @@ RTAPIReturn_t RTWaitReadyToGo(void);
  * Whether the next RTConnect / RTConnectWithFile returns without waiting for wait-to-go.
  */
 RTAPIReturn_t RTSetSkipWaitToGoAtConnection(bool skip);
+
+/**
+ * The product's call for a domain whose DDF connection is `remote` (a client on another
+ * machine than the framework, through a reflective-memory card `cardName` at PCI index
+ * `pciIndex`). In tutti another machine is reached through DDS, with `tutti gateway
+ * --mirror DDF` serving the domain on the client's machine: on a connected key it succeeds
+ * when the domain is served (by its framework or a mirror) and returns
+ * RTAPI_ERROR_REMOTE_NOT_SERVED otherwise; before the connection it is remembered, and a
+ * connect of that key that finds no framework returns RTAPI_ERROR_REMOTE_NOT_SERVED. The card
+ * and index are not used. A negative `pciIndex`: RTAPI_ERROR_INVALID_ARGUMENT.
+ *
+ * # Safety
+ * `cardName` must be NULL or a NUL-terminated string.
+ */
+RTAPIReturn_t RTSetupRefMemRemoteConnection(const char *cardName, int pciIndex);
 
 /**
  * Waits by polling every `microseconds` µs instead of sleeping in the kernel (0 = spin).

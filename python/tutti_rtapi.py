@@ -55,6 +55,7 @@ CODES = {
     19: "RTAPI_ERROR_CONNECTION_LOST",
     20: "RTAPI_ERROR_SYSTEM",
     21: "RTAPI_ERROR_VERSION_MISMATCH",
+    22: "RTAPI_ERROR_REMOTE_NOT_SERVED",
 }
 globals().update({name: code for code, name in CODES.items()})
 
@@ -106,6 +107,7 @@ _SIGNATURES = {
     "RTDefineFlagDelay": [ctypes.c_uint],
     "RTUseFlagWithTool": [ctypes.c_uint],
     "RTGetConnectionCount": [ctypes.c_char_p, _c_uint_p],
+    "RTSetupRefMemRemoteConnection": [ctypes.c_char_p, ctypes.c_int],
 }
 for _name, _args in _SIGNATURES.items():
     _fn = getattr(_lib, _name)
@@ -250,9 +252,17 @@ class Connection:
             _call(name, *args)
         except RTAPIError as e:
             if e.code in (1, 2, 19):
+                # The framework went away: release the connection (the library keeps it,
+                # answering these codes, until RTDisconnect).
+                _lib.RTDisconnect()
                 self.connected = False
                 self._status = None
             raise
+
+    def setup_ref_mem_remote_connection(self, card, pci_index):
+        """RTSetupRefMemRemoteConnection: checks that this (remote) domain is served on this
+        machine, by its framework or a `tutti gateway --mirror`; RTAPIError 22 otherwise."""
+        self._exchange("RTSetupRefMemRemoteConnection", _b(card), int(pci_index))
 
     def subscribe_lock(self):
         self._exchange("RTSubscribeLock")

@@ -369,6 +369,26 @@ pub extern "C" fn RTSetSkipWaitToGoAtConnection(skip: bool) -> RTAPIReturn_t {
     })
 }
 
+/// The product's call for a domain whose DDF connection is `remote` (a client on another
+/// machine than the framework, through a reflective-memory card `cardName` at PCI index
+/// `pciIndex`). In tutti another machine is reached through DDS, with `tutti gateway
+/// --mirror DDF` serving the domain on the client's machine: on a connected key it succeeds
+/// when the domain is served (by its framework or a mirror) and returns
+/// RTAPI_ERROR_REMOTE_NOT_SERVED otherwise; before the connection it is remembered, and a
+/// connect of that key that finds no framework returns RTAPI_ERROR_REMOTE_NOT_SERVED. The card
+/// and index are not used. A negative `pciIndex`: RTAPI_ERROR_INVALID_ARGUMENT.
+///
+/// # Safety
+/// `cardName` must be NULL or a NUL-terminated string.
+#[no_mangle]
+pub unsafe extern "C" fn RTSetupRefMemRemoteConnection(cardName: *const c_char, pciIndex: c_int) -> RTAPIReturn_t {
+    guard("RTSetupRefMemRemoteConnection", || {
+        // SAFETY: the caller promises a NUL-terminated string or NULL.
+        let card = unsafe { c_str(cardName, "cardName") }?;
+        state().setup_remote(card, pciIndex)
+    })
+}
+
 fn flag_delay(microseconds: c_uint) -> WaitMode {
     if microseconds == 0 {
         WaitMode::Spin

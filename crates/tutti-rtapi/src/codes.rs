@@ -61,9 +61,12 @@ pub const RTAPI_ERROR_CONNECTION_LOST: RTAPIReturn_t = 19;
 pub const RTAPI_ERROR_SYSTEM: RTAPIReturn_t = 20;
 /// The segment was written by an incompatible version of the library.
 pub const RTAPI_ERROR_VERSION_MISMATCH: RTAPIReturn_t = 21;
+/// A remote connection (`RTSetupRefMemRemoteConnection`) to a domain that no framework or
+/// mirror gateway serves on this machine: start `tutti gateway --mirror DDF` here.
+pub const RTAPI_ERROR_REMOTE_NOT_SERVED: RTAPIReturn_t = 22;
 
 /// Every code, in order (code `i` is at index `i`).
-pub const ALL: [RTAPIReturn_t; 22] = [
+pub const ALL: [RTAPIReturn_t; 23] = [
     RTAPI_SUCCESS,
     RTAPI_SUBSCRIBE_FAILED_RTLAB_SUBSYSTEM_UNMAPPED,
     RTAPI_PUBLISH_FAILED_RTLAB_SUBSYSTEM_UNMAPPED,
@@ -86,6 +89,7 @@ pub const ALL: [RTAPIReturn_t; 22] = [
     RTAPI_ERROR_CONNECTION_LOST,
     RTAPI_ERROR_SYSTEM,
     RTAPI_ERROR_VERSION_MISMATCH,
+    RTAPI_ERROR_REMOTE_NOT_SERVED,
 ];
 
 /// The C name of a code (`None` for an unknown code).
@@ -103,11 +107,11 @@ fn describe(code: RTAPIReturn_t) -> Option<(&'static str, &'static CStr)> {
         RTAPI_SUCCESS => ("RTAPI_SUCCESS", c"success"),
         RTAPI_SUBSCRIBE_FAILED_RTLAB_SUBSYSTEM_UNMAPPED => (
             "RTAPI_SUBSCRIBE_FAILED_RTLAB_SUBSYSTEM_UNMAPPED",
-            c"subscribe failed: the framework has stopped (the connection was closed)",
+            c"subscribe failed: the framework has stopped (call RTDisconnect)",
         ),
         RTAPI_PUBLISH_FAILED_RTLAB_SUBSYSTEM_UNMAPPED => (
             "RTAPI_PUBLISH_FAILED_RTLAB_SUBSYSTEM_UNMAPPED",
-            c"publish failed: the framework has stopped (the connection was closed)",
+            c"publish failed: the framework has stopped (call RTDisconnect)",
         ),
         RTAPI_ERROR_NULL_POINTER => ("RTAPI_ERROR_NULL_POINTER", c"a pointer argument is NULL"),
         RTAPI_ERROR_NOT_CONNECTED => ("RTAPI_ERROR_NOT_CONNECTED", c"the connection is not connected to a domain"),
@@ -137,12 +141,16 @@ fn describe(code: RTAPIReturn_t) -> Option<(&'static str, &'static CStr)> {
         RTAPI_ERROR_ALREADY_CONNECTED => ("RTAPI_ERROR_ALREADY_CONNECTED", c"the connection is already connected"),
         RTAPI_ERROR_INVALID_ARGUMENT => ("RTAPI_ERROR_INVALID_ARGUMENT", c"invalid argument"),
         RTAPI_ERROR_CONNECTION_LOST => {
-            ("RTAPI_ERROR_CONNECTION_LOST", c"the framework removed this connection (the connection was closed)")
+            ("RTAPI_ERROR_CONNECTION_LOST", c"the framework removed this connection (call RTDisconnect)")
         }
         RTAPI_ERROR_SYSTEM => ("RTAPI_ERROR_SYSTEM", c"a system call failed (shared-memory segment)"),
         RTAPI_ERROR_VERSION_MISMATCH => {
             ("RTAPI_ERROR_VERSION_MISMATCH", c"the domain's segment was written by an incompatible library version")
         }
+        RTAPI_ERROR_REMOTE_NOT_SERVED => (
+            "RTAPI_ERROR_REMOTE_NOT_SERVED",
+            c"the remote domain is not served on this machine: start `tutti gateway --mirror DDF` here",
+        ),
         _ => return None,
     })
 }

@@ -27,6 +27,34 @@ pub struct Conn {
     pub participant: Participant,
     pub sub_locked: bool,
     pub pub_locked: bool,
+    /// Set when the other side went away (the framework stopped, or it removed this
+    /// connection): every exchange then fails the same way until `RTDisconnect`, and the
+    /// buffers stay valid until then.
+    pub ended: Option<Ended>,
+}
+
+/// Why a connection ended, with the detail of the error that ended it.
+#[derive(Debug, Clone)]
+pub struct Ended {
+    stopped: bool,
+    detail: String,
+}
+
+impl Ended {
+    fn of(e: &ShmError) -> Ended {
+        Ended { stopped: matches!(e, ShmError::FrameworkStopped { .. }), detail: e.to_string() }
+    }
+
+    /// The failure of any exchange on an ended connection: the product's UNMAPPED codes
+    /// after the framework stopped, CONNECTION_LOST after it removed this connection.
+    fn failure(&self, side: Side) -> Failure {
+        let code = match (self.stopped, side) {
+            (false, _) => RTAPI_ERROR_CONNECTION_LOST,
+            (true, Side::Publish) => RTAPI_PUBLISH_FAILED_RTLAB_SUBSYSTEM_UNMAPPED,
+            (true, _) => RTAPI_SUBSCRIBE_FAILED_RTLAB_SUBSYSTEM_UNMAPPED,
+        };
+        Failure::new(code, format!("{} (call RTDisconnect, then connect again)", self.detail))
+    }
 }
 
 #[derive(Debug)]
@@ -36,6 +64,8 @@ pub struct State {
     current: u32,
     skip_wait_to_go: bool,
     wait: WaitMode,
+    /// Keys for which `RTSetupRefMemRemoteConnection` was called: (card, PCI index).
+    remote: BTreeMap<u32, (String, i32)>,
 }
 
 static STATE: Mutex<State> = Mutex::new(State {
@@ -44,12 +74,25 @@ static STATE: Mutex<State> = Mutex::new(State {
     current: DEFAULT_KEY,
     skip_wait_to_go: false,
     wait: WaitMode::Block,
+    remote: BTreeMap::new(),
 });
 
 /// The state, locked. A panic in an earlier call (caught by the guard) poisons the mutex;
 /// the state stays usable, so the poison is ignored.
 pub fn state() -> MutexGuard<'static, State> {
     STATE.lock().unwrap_or_else(|poisoned| poisoned.into_inner())
+}
+
+/// The failure of a remote connection to a domain that no framework or mirror serves here.
+fn not_served(domain: &str, card: &str, pci_index: i32, why: &str) -> Failure {
+    Failure::new(
+        RTAPI_ERROR_REMOTE_NOT_SERVED,
+        format!(
+            "domain '{domain}' is not served on this machine ({why}): a remote connection (card '{card}', PCI index \
+             {pci_index}) reaches the framework through DDS, so start `tutti gateway --mirror DDF` on this machine \
+             (docs/rtapi.md)"
+        ),
+    )
 }
 
 fn not_connected(key: u32) -> Failure {
@@ -117,7 +160,12 @@ impl State {
         }
         let key = self.current;
         let (skip, wait) = (self.skip_wait_to_go, self.wait);
+        let remote = self.remote.get(&key).cloned();
         let slot = self.conn(key)?;
+        // A connection whose framework went away connects again without RTDisconnect.
+        if slot.as_ref().is_some_and(|c| c.ended.is_some()) {
+            *slot = None;
+        }
         if slot.is_some() {
             return Err(Failure::new(
                 RTAPI_ERROR_ALREADY_CONNECTED,
@@ -131,7 +179,15 @@ impl State {
             skip_wait_to_go: skip,
             ..ConnectOptions::default()
         };
-        let shm = |e: ShmError| Failure::shm(&e, Side::Connect);
+        let shm = |e: ShmError| {
+            let f = Failure::shm(&e, Side::Connect);
+            match &remote {
+                Some((card, pci)) if matches!(f.code, RTAPI_ERROR_TIMEOUT | RTAPI_ERROR_DOMAIN_NOT_FOUND) => {
+                    not_served(domain, card, *pci, &f.detail)
+                }
+                _ => f,
+            }
+        };
         let participant = match ddf_path {
             None => Participant::connect(domain, opts).map_err(shm)?,
             Some(path) => {
@@ -142,7 +198,29 @@ impl State {
                 Participant::connect_checked(d, opts).map_err(shm)?
             }
         };
-        *slot = Some(Conn { participant, sub_locked: false, pub_locked: false });
+        *slot = Some(Conn { participant, sub_locked: false, pub_locked: false, ended: None });
+        Ok(())
+    }
+
+    /// `RTSetupRefMemRemoteConnection`: the product prepares the current connection to reach
+    /// a framework on another machine through a reflective-memory card. Here another machine
+    /// is reached through DDS, by a mirror gateway that serves the domain on this one; so the
+    /// call succeeds when the domain is served here (by its framework or a mirror), and says
+    /// to start the mirror otherwise. Before the connection is made it is remembered, and a
+    /// connect that finds no framework says the same.
+    pub fn setup_remote(&mut self, card: &str, pci_index: i32) -> CallResult {
+        if pci_index < 0 {
+            return Err(Failure::new(RTAPI_ERROR_INVALID_ARGUMENT, format!("PCI index {pci_index} is negative")));
+        }
+        let key = self.current;
+        let slot = self.conn(key)?;
+        if let Some(conn) = slot.as_mut() {
+            let domain = conn.participant.info().name.clone();
+            if conn.ended.is_some() || conn.participant.check().is_err() {
+                return Err(not_served(&domain, card, pci_index, "its framework has stopped"));
+            }
+        }
+        self.remote.insert(key, (card.to_string(), pci_index));
         Ok(())
     }
 
@@ -157,14 +235,22 @@ impl State {
     /// side is gone, the connection is closed (see docs/rtapi.md, "Errors").
     pub fn exchange<T>(&mut self, side: Side, op: impl FnOnce(&mut Conn) -> Result<T, ShmError>) -> CallResult<T> {
         let key = self.current;
-        let slot = self.conn(key)?;
-        let conn = slot.as_mut().ok_or_else(|| not_connected(key))?;
-        op(conn).map_err(|e| {
-            if codes::disconnects(&e) {
-                *slot = None;
+        let conn = self.conn(key)?.as_mut().ok_or_else(|| not_connected(key))?;
+        if let Some(ended) = &conn.ended {
+            return Err(ended.failure(side));
+        }
+        match op(conn) {
+            Ok(v) => Ok(v),
+            Err(e) => {
+                if codes::disconnects(&e) {
+                    let ended = Ended::of(&e);
+                    let f = ended.failure(side);
+                    conn.ended = Some(ended);
+                    return Err(f);
+                }
+                Err(Failure::shm(&e, side))
             }
-            Failure::shm(&e, side)
-        })
+        }
     }
 
     /// Connection count of `domain`: from a connection of this process if one is connected

@@ -418,9 +418,62 @@ fn framework_stop_disconnects_with_the_product_codes() {
         // SAFETY: still valid: the connection maps the segment until it disconnects.
         assert_eq!(unsafe { status.read_volatile() }, 2);
         expect(lock(), want);
-        // The error closed the connection.
+        // Every publish and subscribe call says so until RTDisconnect (VILLASnode stops on
+        // these codes), and the status word stays readable.
+        for _ in 0..2 {
+            expect(RTSubscribeLock(), RTAPI_SUBSCRIBE_FAILED_RTLAB_SUBSYSTEM_UNMAPPED);
+            expect(RTPublishLock(), RTAPI_PUBLISH_FAILED_RTLAB_SUBSYSTEM_UNMAPPED);
+            expect(publish("a", &1.0f64.to_ne_bytes()), RTAPI_PUBLISH_FAILED_RTLAB_SUBSYSTEM_UNMAPPED);
+            expect(RTWaitReadyToGo(), RTAPI_SUBSCRIBE_FAILED_RTLAB_SUBSYSTEM_UNMAPPED);
+        }
+        // SAFETY: still valid until RTDisconnect.
+        assert_eq!(unsafe { status.read_volatile() }, 2);
+        expect(RTDisconnect(), RTAPI_SUCCESS);
         expect(RTSubscribeLock(), RTAPI_ERROR_NOT_CONNECTED);
         expect(RTDisconnect(), RTAPI_ERROR_NOT_CONNECTED);
+    }
+}
+
+/// A framework that restarts: the key of a connection it left connects again, with or
+/// without RTDisconnect first.
+#[test]
+fn a_stopped_connection_connects_again_to_a_restarted_framework() {
+    let _turn = serial();
+    let fw = framework("again1", false, true);
+    key();
+    expect(connect("again1", 2), RTAPI_SUCCESS);
+    drop(fw);
+    expect(RTSubscribeLock(), RTAPI_SUBSCRIBE_FAILED_RTLAB_SUBSYSTEM_UNMAPPED);
+    let _fw = framework("again1", false, true);
+    expect(connect("again1", 2), RTAPI_SUCCESS);
+    expect(publish("a", &3.0f64.to_ne_bytes()), RTAPI_SUCCESS);
+    expect(RTDisconnect(), RTAPI_SUCCESS);
+}
+
+/// RTSetupRefMemRemoteConnection: succeeds on a domain served here; before the connection it
+/// is remembered, and a connect that finds no framework (or a framework that stopped) says to
+/// start a mirror gateway.
+#[test]
+fn remote_connection_setup_checks_the_domain_is_served_here() {
+    let _turn = serial();
+    let card = c"rfm2g";
+    // SAFETY: NULL is allowed (reported); the others are NUL-terminated literals.
+    unsafe {
+        key();
+        expect(RTSetupRefMemRemoteConnection(null(), 0), RTAPI_ERROR_NULL_POINTER);
+        expect(RTSetupRefMemRemoteConnection(card.as_ptr(), -1), RTAPI_ERROR_INVALID_ARGUMENT);
+        // Nothing serves the domain: the connect says what to start.
+        expect(RTSetupRefMemRemoteConnection(card.as_ptr(), 0), RTAPI_SUCCESS);
+        expect(connect("remote_nowhere1", 1), RTAPI_ERROR_REMOTE_NOT_SERVED);
+        assert!(detail().contains("tutti gateway --mirror"), "{}", detail());
+        // Served here: the call succeeds after the connection too.
+        let fw = framework("remote1", false, true);
+        key();
+        expect(connect("remote1", 2), RTAPI_SUCCESS);
+        expect(RTSetupRefMemRemoteConnection(card.as_ptr(), 0), RTAPI_SUCCESS);
+        drop(fw);
+        expect(RTSetupRefMemRemoteConnection(card.as_ptr(), 0), RTAPI_ERROR_REMOTE_NOT_SERVED);
+        expect(RTDisconnect(), RTAPI_SUCCESS);
     }
 }
 
@@ -434,6 +487,8 @@ fn connection_removed_by_the_framework_is_reported_and_closed() {
     let seg = Segment::open(&ns(), "lost1").expect("segment");
     assert!(seg.release_slot(0, std::process::id()));
     expect(publish("a", &1.0f64.to_ne_bytes()), RTAPI_ERROR_CONNECTION_LOST);
+    expect(RTSubscribeLock(), RTAPI_ERROR_CONNECTION_LOST);
+    expect(RTDisconnect(), RTAPI_SUCCESS);
     expect(RTDisconnect(), RTAPI_ERROR_NOT_CONNECTED);
 }
 

@@ -71,7 +71,8 @@ fn domain(out: &mut String, d: usize, items: usize) {
         if d % 14 == 0 {
             let _ = writeln!(out, "    <connection type=\"local\" extcomm=\"udp\" portframework=\"{}\"/>", 10000 + d);
         } else {
-            let _ = writeln!(out, "    <connection type=\"remote\"><card>rfm{d}</card><pciindex>0</pciindex></connection>");
+            let _ =
+                writeln!(out, "    <connection type=\"remote\"><card>rfm{d}</card><pciindex>0</pciindex></connection>");
         }
     }
     let publish = items / 2;

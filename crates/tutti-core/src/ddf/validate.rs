@@ -286,7 +286,10 @@ fn connection_element(el: &RawElement, domain: &str, d: &mut Diags) -> Option<Co
                 }
             }
             for c in &el.children {
-                d.at(c.pos, format!("unexpected element <{}> inside a local <connection> (it takes attributes)", c.name));
+                d.at(
+                    c.pos,
+                    format!("unexpected element <{}> inside a local <connection> (it takes attributes)", c.name),
+                );
             }
         }
         ConnectionKind::Remote | ConnectionKind::Dolphin => {
@@ -297,7 +300,12 @@ fn connection_element(el: &RawElement, domain: &str, d: &mut Diags) -> Option<Co
                 let Some((_, range)) = expected.iter().find(|(n, _)| *n == c.name) else {
                     d.at(
                         c.pos,
-                        format!("unexpected element <{}> inside a {} <connection>; expected {}", c.name, kind.as_str(), names()),
+                        format!(
+                            "unexpected element <{}> inside a {} <connection>; expected {}",
+                            c.name,
+                            kind.as_str(),
+                            names()
+                        ),
                     );
                     continue;
                 };
