@@ -355,6 +355,29 @@ fn connect_errors() {
     // A DDF that describes other domains only.
     expect(connect_file(&good, "conn2"), RTAPI_ERROR_DDF_INVALID);
     expect(connect_file(&other, "conn1"), RTAPI_ERROR_LAYOUT_MISMATCH);
+    assert!(detail().contains("SUBSCRIBE item: the DDF has b int64[1], the running domain b int32[1]"), "{}", detail());
+    // The same items in another order (VILLASnode's two DDF generators disagree on it):
+    // accepted, and every item is reached through the running domain's layout.
+    let reordered = dir.path().join("reordered.ddf");
+    std::fs::write(
+        &reordered,
+        r#"<orchestra><domain name="conn1"><synchronous>no</synchronous><multiplePublishAllowed>no</multiplePublishAllowed><states>no</states>
+        <set name="PUBLISH"><item name="v"><type>float32</type><length>3</length></item><item name="x"><type>float64</type></item></set>
+        <set name="SUBSCRIBE"><item name="b"><type>int32</type></item><item name="a"><type>float64</type><default>2.5</default></item></set>
+        </domain></orchestra>"#,
+    )
+    .expect("write");
+    expect(connect_file(&reordered, "conn1"), RTAPI_SUCCESS);
+    let mut item_key: c_ushort = 0;
+    // SAFETY: NUL-terminated literal, valid out-pointer.
+    expect(unsafe { RTGetKeyForItem(c"x".as_ptr(), &mut item_key) }, RTAPI_SUCCESS);
+    assert_eq!(item_key, 0, "keys follow the running domain, where x comes first");
+    expect(RTDisconnect(), RTAPI_SUCCESS);
+    // One item more: refused, naming it.
+    let more = dir.path().join("more.ddf");
+    std::fs::write(&more, ddf_text("conn1", false, false, "int32").replace("</set>\n        </domain>", "<item name=\"c\"><type>uint8</type></item></set>\n        </domain>")).expect("write");
+    expect(connect_file(&more, "conn1"), RTAPI_ERROR_LAYOUT_MISMATCH);
+    assert!(detail().contains("SUBSCRIBE item 'c' is not in the running domain"), "{}", detail());
     assert_eq!(count("conn1"), Ok(0), "a refused connection leaves no trace");
     expect(connect_file(&good, "conn1"), RTAPI_SUCCESS);
     let _k2 = key();

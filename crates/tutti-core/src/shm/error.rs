@@ -27,8 +27,8 @@ pub enum ShmError {
     NotReady { domain: String },
     #[error("no domain '{domain}' in namespace '{namespace}': is its framework (tutti host) running, with the same TUTTI_NAMESPACE?")]
     NoSuchDomain { domain: String, namespace: String },
-    #[error("domain '{domain}': the DDF's layout (hash {expected:016x}) does not match the running domain's (hash {found:016x})")]
-    LayoutMismatch { domain: String, expected: u64, found: u64 },
+    #[error("domain '{domain}': the DDF does not describe the running domain: {difference} (layout hash {expected:016x}, running {found:016x})")]
+    LayoutMismatch { domain: String, expected: u64, found: u64, difference: String },
     #[error("domain '{domain}': the framework has stopped")]
     FrameworkStopped { domain: String },
     #[error("domain '{domain}': timed out after {ms} ms waiting for {what}")]

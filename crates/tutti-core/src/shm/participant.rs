@@ -125,15 +125,21 @@ impl Participant {
         Ok(p)
     }
 
-    /// Connects and checks that the running domain has the layout `domain` (from a DDF).
+    /// Connects and checks that `domain` (from a DDF) describes the running domain: the same
+    /// flags and, in each set, the same items (paths, types, lengths). The items may be listed
+    /// in another order (the product's tools do not agree on one): every access goes through
+    /// the running domain's layout, by path or item key.
     pub fn connect_checked(domain: &Domain, opts: ConnectOptions) -> Result<Participant, ShmError> {
         let p = Participant::connect(&domain.name, opts)?;
         if p.seg.info.layout_hash != domain.layout_hash {
-            return Err(ShmError::LayoutMismatch {
-                domain: domain.name.clone(),
-                expected: domain.layout_hash,
-                found: p.seg.info.layout_hash,
-            });
+            if let Some(difference) = describe_difference(domain, &p.seg.info) {
+                return Err(ShmError::LayoutMismatch {
+                    domain: domain.name.clone(),
+                    expected: domain.layout_hash,
+                    found: p.seg.info.layout_hash,
+                    difference,
+                });
+            }
         }
         Ok(p)
     }
@@ -630,4 +636,37 @@ impl Drop for Participant {
     fn drop(&mut self) {
         self.release();
     }
+}
+
+/// The first way `domain` (from a DDF) differs from the running domain `live`, ignoring the
+/// order of the items; `None` when they have the same flags and items.
+pub fn describe_difference(domain: &Domain, live: &DomainInfo) -> Option<String> {
+    let yn = |b: bool| if b { "yes" } else { "no" };
+    for (name, ddf, running) in [
+        ("synchronous", domain.flags.synchronous, live.flags.synchronous),
+        ("multiplePublishAllowed", domain.flags.multiple_publish_allowed, live.flags.multiple_publish_allowed),
+        ("states", domain.flags.states, live.flags.states),
+    ] {
+        if ddf != running {
+            return Some(format!("<{name}> is {} in the DDF, {} in the running domain", yn(ddf), yn(running)));
+        }
+    }
+    for role in Role::ALL {
+        let ddf = &domain.set(role).layout.leaves;
+        let running = &live.set(role).leaves;
+        let describe = |l: &Leaf| format!("{} {}[{}]", l.path, l.ty.canonical(), l.length);
+        for l in ddf {
+            match running.iter().find(|r| r.path == l.path) {
+                None => return Some(format!("{role} item '{}' is not in the running domain", l.path)),
+                Some(r) if r.ty != l.ty || r.length != l.length => {
+                    return Some(format!("{role} item: the DDF has {}, the running domain {}", describe(l), describe(r)))
+                }
+                Some(_) => {}
+            }
+        }
+        if let Some(r) = running.iter().find(|r| !ddf.iter().any(|l| l.path == r.path)) {
+            return Some(format!("{role} item '{}' of the running domain is not in the DDF", r.path));
+        }
+    }
+    None
 }
