@@ -209,3 +209,33 @@ fn c_example_runs_against_a_live_tutti_host() {
     );
     assert!(!shm_path(&ns, "multiuav_uav2").exists());
 }
+
+/// A client that reads a synchronous domain in one thread and writes it in another (as
+/// VILLASnode does), with and without a mutex of its own around every call: it keeps up with
+/// the framework, reads every step once, and never makes a step wait for its timeout.
+#[test]
+fn a_two_thread_client_keeps_lock_step_with_and_without_its_own_mutex() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let program = compile(&root().join("crates/tutti-rtapi/tests/c/two_threads.c"), dir.path());
+    for mode in ["own-mutex", "no-mutex"] {
+        let ns = namespace(&format!("threads-{mode}"));
+        let host = Host::start(&load("ddf/multiuav.ddf"), fopts(&ns), Duration::from_millis(1));
+        let mut cmd = Command::new(&program);
+        cmd.env("TUTTI_NAMESPACE", &ns).args(["multiuav_uav2", "Z", "Elevation", "300", mode]);
+        let out = run(&mut cmd, LIMIT);
+        let stdout = String::from_utf8_lossy(&out.stdout);
+        assert!(out.status.success(), "{mode}: {stdout}{}", String::from_utf8_lossy(&out.stderr));
+        let values: Vec<f64> = stdout.lines().filter_map(|l| l.strip_prefix("read ")?.parse().ok()).collect();
+        assert_eq!(values.len(), 300, "{mode}: {stdout}");
+        for w in values.windows(2) {
+            assert_eq!(w[1], w[0] + 1.0, "{mode}: steps skipped or read twice: {values:?}");
+        }
+        let writes: u64 =
+            stdout.lines().find_map(|l| l.strip_prefix("writes ")?.parse().ok()).expect("the writes line");
+        assert!(writes > 0, "{mode}: {stdout}");
+        let status = tutti_core::shm::segment::Segment::open(&ns, "multiuav_uav2").expect("segment").status();
+        drop(host);
+        // A stall would make the framework wait for its 20 s timeout at least once.
+        assert_eq!(status.step_timeouts, 0, "{mode}: the framework waited for the client's answer until its timeout");
+    }
+}

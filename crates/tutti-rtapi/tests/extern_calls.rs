@@ -375,7 +375,14 @@ fn connect_errors() {
     expect(RTDisconnect(), RTAPI_SUCCESS);
     // One item more: refused, naming it.
     let more = dir.path().join("more.ddf");
-    std::fs::write(&more, ddf_text("conn1", false, false, "int32").replace("</set>\n        </domain>", "<item name=\"c\"><type>uint8</type></item></set>\n        </domain>")).expect("write");
+    std::fs::write(
+        &more,
+        ddf_text("conn1", false, false, "int32").replace(
+            "</set>\n        </domain>",
+            "<item name=\"c\"><type>uint8</type></item></set>\n        </domain>",
+        ),
+    )
+    .expect("write");
     expect(connect_file(&more, "conn1"), RTAPI_ERROR_LAYOUT_MISMATCH);
     assert!(detail().contains("SUBSCRIBE item 'c' is not in the running domain"), "{}", detail());
     assert_eq!(count("conn1"), Ok(0), "a refused connection leaves no trace");

@@ -254,13 +254,38 @@ impl Participant {
 
     /// The start of every read: the connection is checked and, in a synchronous domain,
     /// declared a lock-step reader and made to wait for the next step.
-    fn begin_read(&self) -> Result<(), ShmError> {
+    fn begin_read(&mut self) -> Result<(), ShmError> {
         self.check()?;
         if self.seg.info.flags.synchronous {
             self.set_flag(CONN_SYNC_READER);
+            self.forfeit_owed_answer();
             self.wait_next_step()?;
         }
         Ok(())
+    }
+
+    /// A writer that asks for the next step before it has answered the step it read (a
+    /// client that reads in one thread and writes in another, each call under its own lock,
+    /// as VILLASnode does) gives up its answer to that step: the framework goes on with the
+    /// SUBSCRIBE values as they stand instead of waiting for an answer that cannot come while
+    /// this read waits, and the connection's next commit answers the step it reads next. A
+    /// client that reads, then writes, then reads (one thread) never gets here.
+    fn forfeit_owed_answer(&mut self) {
+        let k = self.last_read;
+        if !self.has_read || k <= self.last_commit {
+            return;
+        }
+        let seg = &self.seg;
+        let writer = seg.conn(self.slot).is_some_and(|c| c.flags.load(Ordering::Acquire) & CONN_WRITER != 0);
+        if !writer {
+            return;
+        }
+        if let Some(conn) = seg.conn_ctl(self.slot) {
+            seg.step_ctl().ack_commit(&conn, k);
+        }
+        let h = seg.header();
+        segment::wake(&h.ack_seq, &h.ack_waiters);
+        self.last_commit = k;
     }
 
     /// The end of every read of PUBLISH generation `generation`: returns the step read and,
@@ -378,6 +403,14 @@ impl Participant {
             if self.has_read && self.last_read > self.last_commit {
                 // Answer the step this connection read and has not answered yet.
                 self.locked_step = self.last_read;
+                return Ok(());
+            }
+            if self.has_read {
+                // A connection that reads has answered the step it read (or given up its
+                // answer, see `forfeit_owed_answer`): this commit updates the values at once
+                // and answers no step. Waiting for the next step here would count it as read
+                // for the reader, which would then skip it.
+                self.locked_step = self.last_commit;
                 return Ok(());
             }
             let last = self.last_commit;
@@ -659,7 +692,11 @@ pub fn describe_difference(domain: &Domain, live: &DomainInfo) -> Option<String>
             match running.iter().find(|r| r.path == l.path) {
                 None => return Some(format!("{role} item '{}' is not in the running domain", l.path)),
                 Some(r) if r.ty != l.ty || r.length != l.length => {
-                    return Some(format!("{role} item: the DDF has {}, the running domain {}", describe(l), describe(r)))
+                    return Some(format!(
+                        "{role} item: the DDF has {}, the running domain {}",
+                        describe(l),
+                        describe(r)
+                    ))
                 }
                 Some(_) => {}
             }

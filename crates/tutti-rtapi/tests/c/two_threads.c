@@ -1,0 +1,148 @@
+/*
+ * two_threads: a client of a synchronous domain that reads in one thread and writes in
+ * another, as VILLASnode's Orchestra node does. The reader takes each step's PUBLISH item
+ * and hands it to the writer, which answers 2 x the value. With "own-mutex", every RTAPI call
+ * (with its RTSetConnectionKey) runs under one process-wide mutex of the client's own, held
+ * for the whole call, as VILLASnode's RTConnectionLockGuard does; with "no-mutex", the
+ * threads call the library concurrently.
+ *
+ *   two_threads DOMAIN PUB_ITEM SUB_ITEM STEPS own-mutex|no-mutex
+ *
+ * Prints "read V" for every value read (in order), then "writes N".
+ */
+#define _POSIX_C_SOURCE 200809L
+#include <pthread.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "RTAPI.h"
+
+static unsigned int key;
+static unsigned short in_key, out_key;
+static void *in_buf, *out_buf;
+static long steps;
+static int own_mutex;
+
+static pthread_mutex_t client_lock = PTHREAD_MUTEX_INITIALIZER; /* the client's own, around calls */
+static pthread_mutex_t queue_lock = PTHREAD_MUTEX_INITIALIZER;  /* reader -> writer hand-over */
+static pthread_cond_t queue_cond = PTHREAD_COND_INITIALIZER;
+static double latest;
+static int fresh, done, failed;
+static double *values;
+static long writes;
+
+static void call_lock(void)
+{
+    if (own_mutex) {
+        pthread_mutex_lock(&client_lock);
+    }
+}
+
+static void call_unlock(void)
+{
+    if (own_mutex) {
+        pthread_mutex_unlock(&client_lock);
+    }
+}
+
+static int check(RTAPIReturn_t rc, const char *what)
+{
+    if (rc != RTAPI_SUCCESS) {
+        fprintf(stderr, "two_threads: %s failed: %s (%d): %s\n", what, RTGetErrorMessage(rc), (int)rc,
+                RTGetLastErrorDetail());
+        return 0;
+    }
+    return 1;
+}
+
+static void *reader(void *arg)
+{
+    (void)arg;
+    for (long i = 0; i < steps; i++) {
+        call_lock();
+        int ok = check(RTSetConnectionKey(key), "RTSetConnectionKey") && check(RTSubscribeLock(), "RTSubscribeLock");
+        double v = ok ? *(const double *)in_buf : 0.0;
+        ok = ok && check(RTSubscribeUnlock(), "RTSubscribeUnlock");
+        call_unlock();
+        if (!ok) {
+            failed = 1;
+            break;
+        }
+        values[i] = v;
+        pthread_mutex_lock(&queue_lock);
+        latest = v;
+        fresh = 1;
+        pthread_cond_signal(&queue_cond);
+        pthread_mutex_unlock(&queue_lock);
+    }
+    pthread_mutex_lock(&queue_lock);
+    done = 1;
+    pthread_cond_signal(&queue_cond);
+    pthread_mutex_unlock(&queue_lock);
+    return NULL;
+}
+
+static void *writer(void *arg)
+{
+    (void)arg;
+    for (;;) {
+        pthread_mutex_lock(&queue_lock);
+        while (!fresh && !done) {
+            pthread_cond_wait(&queue_cond, &queue_lock);
+        }
+        if (!fresh) {
+            pthread_mutex_unlock(&queue_lock);
+            return NULL;
+        }
+        double v = latest;
+        fresh = 0;
+        pthread_mutex_unlock(&queue_lock);
+
+        call_lock();
+        int ok = check(RTSetConnectionKey(key), "RTSetConnectionKey") && check(RTPublishLock(), "RTPublishLock");
+        if (ok) {
+            *(double *)out_buf = 2.0 * v;
+        }
+        ok = ok && check(RTPublishUnlock(), "RTPublishUnlock");
+        call_unlock();
+        if (!ok) {
+            failed = 1;
+            return NULL;
+        }
+        writes++;
+    }
+}
+
+int main(int argc, char **argv)
+{
+    if (argc < 6) {
+        fprintf(stderr, "usage: %s DOMAIN PUB_ITEM SUB_ITEM STEPS own-mutex|no-mutex\n", argv[0]);
+        return 2;
+    }
+    steps = atol(argv[4]);
+    own_mutex = strcmp(argv[5], "own-mutex") == 0;
+    values = calloc((size_t)steps, sizeof *values);
+    if (!values) {
+        return 1;
+    }
+    if (!check(RTNewConnectionKey(&key), "RTNewConnectionKey") || !check(RTSetConnectionKey(key), "RTSetConnectionKey")
+        || !check(RTConnect(argv[1], 30), "RTConnect") || !check(RTGetKeyForItem(argv[2], &in_key), "RTGetKeyForItem")
+        || !check(RTGetKeyForItem(argv[3], &out_key), "RTGetKeyForItem")
+        || !check(RTGetBuffer(key, in_key, &in_buf), "RTGetBuffer")
+        || !check(RTGetBuffer(key, out_key, &out_buf), "RTGetBuffer")) {
+        return 1;
+    }
+    pthread_t r, w;
+    pthread_create(&w, NULL, writer, NULL);
+    pthread_create(&r, NULL, reader, NULL);
+    pthread_join(r, NULL);
+    pthread_join(w, NULL);
+    for (long i = 0; i < steps; i++) {
+        printf("read %.17g\n", values[i]);
+    }
+    printf("writes %ld\n", writes);
+    free(values);
+    check(RTDisconnect(), "RTDisconnect");
+    return failed;
+}
