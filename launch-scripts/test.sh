@@ -12,7 +12,7 @@ step() { printf '\n== %s\n' "$*"; }
 # build needs (cmake, libclang for bindgen), C toolchain, valgrind, iproute2 for the
 # network-namespace tests, the font the UAV demo draws its figures with.
 ensure_debian_packages cyclonedds-tools cyclonedds-dev fastddsgen libfastrtps-dev fastdds-tools valgrind gcc g++ make \
-    cmake libclang-dev iproute2 python3-venv fonts-dejavu-core
+    cmake libclang-dev iproute2 python3-venv fonts-dejavu-core pkgconf
 
 # --- Python: a local venv with the Cyclone DDS binding (the stand-in for rclpy nodes) and the
 # MCAP readers.

@@ -10,7 +10,9 @@
     print(rt.connection_count("multiuav_uav2"))
 
 The library is found through the environment variable TUTTI_RTAPI_LIB (a path to
-librtapi.so), else in ../target/release then ../target/debug relative to this file.
+librtapi.so), else in ../target/release then ../target/debug relative to this file (a
+checkout), else where an installed RTAPI is (launch-scripts/install.sh): pkg-config's
+`rtapi` package, then the system's library path, then /usr/local/lib.
 
 Item types: with a DDF (connect(..., ddf=PATH)) every item is converted according to its
 DDF type. Without one, the library only tells the element size, and the type is assumed
@@ -25,7 +27,9 @@ The RTAPI is single-threaded: use a connection from one thread at a time.
 
 import contextlib
 import ctypes
+import ctypes.util
 import os
+import subprocess
 import struct
 import xml.etree.ElementTree as ET
 
@@ -83,7 +87,25 @@ def _find_library():
         path = os.path.join(here, "..", "target", profile, "librtapi.so")
         if os.path.exists(path):
             return os.path.normpath(path)
-    raise OSError("librtapi.so not found: build it (cargo build --release -p tutti-rtapi) or set TUTTI_RTAPI_LIB")
+    # An installed RTAPI: pkg-config first (it knows a prefix given in PKG_CONFIG_PATH).
+    try:
+        libdir = subprocess.run(
+            ["pkg-config", "--variable=libdir", "rtapi"], capture_output=True, text=True, timeout=10, check=True
+        ).stdout.strip()
+        if libdir and os.path.exists(os.path.join(libdir, "librtapi.so.0")):
+            return os.path.join(libdir, "librtapi.so.0")
+    except (OSError, subprocess.SubprocessError):
+        pass
+    found = ctypes.util.find_library("rtapi")
+    if found:
+        return found
+    for path in ("/usr/local/lib/librtapi.so.0", "/usr/lib/librtapi.so.0"):
+        if os.path.exists(path):
+            return path
+    raise OSError(
+        "librtapi.so not found: build it (cargo build --release -p tutti-rtapi), install it "
+        "(launch-scripts/install.sh; add PREFIX/lib/pkgconfig to PKG_CONFIG_PATH), or set TUTTI_RTAPI_LIB"
+    )
 
 
 _lib = ctypes.CDLL(_find_library())

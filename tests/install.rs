@@ -1,0 +1,176 @@
+//! `launch-scripts/install.sh` into a temporary prefix, then clients built the ways real
+//! projects build them, each run against a live `tutti host`: a C program with pkg-config,
+//! one with CMake's `find_package(tutti)`, one the way the product's clients look for the
+//! product (`RTAPI.h` and a library named `OpalOrchestra`), and the Python module installed
+//! with pip into a fresh venv.
+
+mod common;
+
+use std::path::{Path, PathBuf};
+use std::process::{Child, Command, Stdio};
+use std::time::Duration;
+
+const LIMIT: Duration = Duration::from_secs(300);
+
+fn root() -> &'static Path {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+}
+
+/// A tool the test needs: present, or (outside CI) None and the test is skipped.
+fn tool(name: &str) -> Option<()> {
+    let ok = Command::new(name).arg("--version").stdout(Stdio::null()).stderr(Stdio::null()).status().is_ok();
+    if ok {
+        return Some(());
+    }
+    assert!(
+        std::env::var("CI").map_or(true, |v| v != "true"),
+        "CI=true: {name} is missing (launch-scripts/test.sh installs it)"
+    );
+    eprintln!("{name} missing: test skipped");
+    None
+}
+
+/// `tutti host` in its own namespace, stopped (SIGINT: it removes its segments) when dropped.
+struct HostGuard(Child, String);
+
+impl Drop for HostGuard {
+    fn drop(&mut self) {
+        let _ = Command::new("kill").args(["-INT", &self.0.id().to_string()]).status();
+        for _ in 0..500 {
+            if self.0.try_wait().ok().flatten().is_some() {
+                break;
+            }
+            std::thread::sleep(Duration::from_millis(10));
+        }
+        let _ = self.0.kill();
+        let _ = self.0.wait();
+        for d in ["multiuav_uav1", "multiuav_uav2", "multiuav_uav3", "multiuav_uav4"] {
+            let _ = std::fs::remove_file(format!("/dev/shm/tutti.{}.{d}", self.1));
+        }
+    }
+}
+
+fn run(cmd: Command, what: &str) -> String {
+    let (status, out, err) = common::run_with_timeout(cmd, LIMIT);
+    assert!(status.success(), "{what} failed ({status}):\n{out}\n{err}");
+    out
+}
+
+/// Runs the uav_reader program `exe` for 20 steps against the host: it reads Z = 1.5.
+fn reads_from_the_host(exe: &Path, ns: &str, what: &str) {
+    let mut c = Command::new(exe);
+    c.env("TUTTI_NAMESPACE", ns).arg(root().join("ddf/multiuav.ddf")).args([
+        "multiuav_uav2",
+        "Z",
+        "Elevation",
+        "20",
+        "2",
+    ]);
+    let out = run(c, what);
+    assert_eq!(out.lines().filter(|l| l.contains("Z=1.5")).count(), 20, "{what}: {out}");
+}
+
+#[test]
+fn an_installed_rtapi_builds_c_programs_with_pkg_config_and_cmake_and_a_pip_installed_python_module() {
+    let (Some(()), Some(()), Some(())) = (tool("pkg-config"), tool("cmake"), tool("gcc")) else { return };
+    let dir = tempfile::tempdir().unwrap();
+    let prefix = dir.path().join("prefix");
+    let build_dir: PathBuf = Path::new(env!("CARGO_BIN_EXE_tutti")).parent().unwrap().to_path_buf();
+    let mut install = Command::new("bash");
+    install
+        .arg(root().join("launch-scripts/install.sh"))
+        .arg("--prefix")
+        .arg(&prefix)
+        .arg("--build-dir")
+        .arg(&build_dir)
+        .arg("--no-cli");
+    run(install, "install.sh");
+    for f in
+        ["include/RTAPI.h", "lib/librtapi.so.0", "lib/librtapi.a", "lib/libOpalOrchestra.so", "lib/pkgconfig/rtapi.pc"]
+    {
+        assert!(prefix.join(f).exists(), "{f} not installed");
+    }
+
+    let ns = format!("install{}", std::process::id());
+    let host = Command::new(env!("CARGO_BIN_EXE_tutti"))
+        .args(["host", "ddf/multiuav.ddf", "--step", "2ms", "-q", "--set", "multiuav_uav2/Z=1.5"])
+        .current_dir(root())
+        .env("TUTTI_NAMESPACE", &ns)
+        .stdout(Stdio::null())
+        .stderr(Stdio::null())
+        .spawn()
+        .expect("tutti host");
+    let _host = HostGuard(host, ns.clone());
+    let pc_path = prefix.join("lib/pkgconfig");
+    let reader = root().join("examples/c/uav_reader.c");
+
+    // pkg-config
+    let mut pc = Command::new("pkg-config");
+    pc.args(["--cflags", "--libs", "rtapi"]).env("PKG_CONFIG_PATH", &pc_path);
+    let flags = run(pc, "pkg-config --cflags --libs rtapi");
+    let exe = dir.path().join("reader-pkgconfig");
+    let mut gcc = Command::new("gcc");
+    gcc.args(["-std=c99", "-Wall", "-Wextra", "-Werror"])
+        .arg(&reader)
+        .args(flags.split_whitespace())
+        .arg(format!("-Wl,-rpath,{}", prefix.join("lib").display()))
+        .arg("-o")
+        .arg(&exe);
+    run(gcc, "gcc with pkg-config's flags");
+    reads_from_the_host(&exe, &ns, "the pkg-config build");
+
+    // CMake: find_package(tutti), and the product's way (RTAPI.h + a library OpalOrchestra).
+    for (name, body) in [
+        ("find-package", "find_package(tutti 0.1 REQUIRED)\nadd_executable(reader ${READER})\ntarget_link_libraries(reader tutti::rtapi)\n"),
+        (
+            "product-style",
+            "find_path(OPAL_ORCHESTRA_INCLUDE_DIR NAMES RTAPI.h REQUIRED)\nfind_library(OPAL_ORCHESTRA_LIBRARY NAMES OpalOrchestra REQUIRED)\nadd_executable(reader ${READER})\ntarget_include_directories(reader PRIVATE ${OPAL_ORCHESTRA_INCLUDE_DIR})\ntarget_link_libraries(reader ${OPAL_ORCHESTRA_LIBRARY})\n",
+        ),
+    ] {
+        let src = dir.path().join(format!("cmake-{name}"));
+        std::fs::create_dir_all(&src).unwrap();
+        let text = format!("cmake_minimum_required(VERSION 3.18)\nproject(reader_{} C)\n{body}", name.replace('-', "_"));
+        std::fs::write(src.join("CMakeLists.txt"), text).unwrap();
+        let build = src.join("build");
+        let mut configure = Command::new("cmake");
+        configure
+            .arg("-S")
+            .arg(&src)
+            .arg("-B")
+            .arg(&build)
+            .arg(format!("-DCMAKE_PREFIX_PATH={}", prefix.display()))
+            .arg(format!("-DREADER={}", reader.display()));
+        run(configure, &format!("cmake configure ({name})"));
+        let mut make = Command::new("cmake");
+        make.arg("--build").arg(&build);
+        run(make, &format!("cmake build ({name})"));
+        reads_from_the_host(&build.join("reader"), &ns, &format!("the CMake build ({name})"));
+    }
+
+    // pip install of the Python module into a fresh venv (from a copy: a build writes beside
+    // its sources), run outside the checkout: it finds the library through pkg-config.
+    let Some(()) = tool("python3") else { return };
+    let pysrc = dir.path().join("python-src");
+    std::fs::create_dir_all(&pysrc).unwrap();
+    for f in ["pyproject.toml", "README.md", "tutti_rtapi.py"] {
+        std::fs::copy(root().join("python").join(f), pysrc.join(f)).unwrap();
+    }
+    let venv = dir.path().join("venv");
+    let mut mk = Command::new("python3");
+    mk.arg("-m").arg("venv").arg(&venv);
+    run(mk, "python3 -m venv");
+    let mut pip = Command::new(venv.join("bin/pip"));
+    pip.args(["install", "-q", "--disable-pip-version-check"]).arg(&pysrc).current_dir(dir.path());
+    run(pip, "pip install ./python");
+    let script = "import tutti_rtapi as rt\nwith rt.connect('multiuav_uav2', timeout=30) as c:\n    for _ in range(5):\n        with c.reading():\n            z = c.subscribe('Z')\n        with c.writing():\n            c.publish('Elevation', 2 * z)\nprint('z', z, rt._find_library())\n";
+    let mut py = Command::new(venv.join("bin/python"));
+    py.args(["-c", script])
+        .current_dir(dir.path())
+        .env("TUTTI_NAMESPACE", &ns)
+        .env("PKG_CONFIG_PATH", &pc_path)
+        .env_remove("TUTTI_RTAPI_LIB")
+        .env_remove("PYTHONPATH");
+    let out = run(py, "the pip-installed Python component");
+    assert!(out.contains("z 1.5"), "{out}");
+    assert!(out.contains(&prefix.join("lib/librtapi.so.0").display().to_string()), "the installed library: {out}");
+}
