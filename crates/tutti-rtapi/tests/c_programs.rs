@@ -239,3 +239,59 @@ fn a_two_thread_client_keeps_lock_step_with_and_without_its_own_mutex() {
         assert_eq!(status.step_timeouts, 0, "{mode}: the framework waited for the client's answer until its timeout");
     }
 }
+
+/// Every RTAPI call VILLASnode's Orchestra node makes, with the argument types it declares,
+/// compiled as C++ with -Wconversion (and the C examples with it too), run against `tutti
+/// host` in the three connection forms of the product's DDFs: a synchronous local domain, an
+/// asynchronous remote one (with RTSetupRefMemRemoteConnection) and a synchronous dolphin one.
+/// The host's recording shows each answer (y = 2 x).
+#[test]
+fn a_client_making_villasnodes_calls_runs_in_every_connection_form() {
+    let tutti = profile_dir().join("tutti");
+    assert!(tutti.exists(), "{} missing: build the workspace first (cargo build --workspace)", tutti.display());
+    let dir = tempfile::tempdir().expect("temp dir");
+    let strict = ["-Wconversion"];
+    let program = compile_with(&root().join("crates/tutti-rtapi/tests/c/villas_calls.cpp"), dir.path(), &strict);
+    for example in ["uav_reader.c", "uav_altitude_log.c", "two_domains.c"] {
+        let out = dir.path().join("strict");
+        std::fs::create_dir_all(&out).expect("dir");
+        compile_with(&root().join("examples/c").join(example), &out, &strict);
+    }
+    let ns = namespace("villas");
+    let ddf = root().join("tests/ddf/connection-forms.ddf");
+    let csv = dir.path().join("rec.csv");
+    let mut host = Command::new(&tutti);
+    host.current_dir(root()).env("TUTTI_NAMESPACE", &ns).arg("host").arg(&ddf).args(["--step", "2ms", "--quiet"]);
+    for set in ["local_link/x=1.25", "remote_link/x=2.5", "dolphin_link/x=3.75"] {
+        host.args(["--set", set]);
+    }
+    host.arg("--record").arg(&csv);
+    let host = spawn(&mut host);
+    for (domain, x, remote) in [("local_link", 1.25, false), ("remote_link", 2.5, true), ("dolphin_link", 3.75, false)]
+    {
+        let mut cmd = Command::new(&program);
+        cmd.env("TUTTI_NAMESPACE", &ns).arg(&ddf).args([domain, "20"]);
+        if remote {
+            cmd.args(["rfm2g", "0"]);
+        }
+        let out = run(&mut cmd, LIMIT);
+        let stdout = String::from_utf8_lossy(&out.stdout);
+        assert!(out.status.success(), "{domain}: {stdout}{}", String::from_utf8_lossy(&out.stderr));
+        assert_eq!(stdout.lines().filter(|l| *l == format!("x={x} status=1")).count(), 20, "{domain}: {stdout}");
+    }
+    let pid = host.0.as_ref().expect("host").id();
+    let _ = Command::new("kill").args(["-INT", &pid.to_string()]).status();
+    let _ = host.wait_output(LIMIT);
+    for (domain, y) in [("local_link", "2.5"), ("remote_link", "5"), ("dolphin_link", "7.5")] {
+        let rec = std::fs::read_to_string(dir.path().join(format!("rec-{domain}.csv"))).expect("recording");
+        let header: Vec<&str> = rec.lines().next().expect("header").split(',').collect();
+        let col = header.iter().position(|c| *c == "subscribe.y").expect("y column");
+        assert!(
+            rec.lines().skip(1).any(|l| l.split(',').nth(col) == Some(y)),
+            "{domain}: the answer {y} never reached the host"
+        );
+    }
+    for d in ["local_link", "remote_link", "dolphin_link"] {
+        assert!(!shm_path(&ns, d).exists());
+    }
+}

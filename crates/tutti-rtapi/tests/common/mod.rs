@@ -177,6 +177,11 @@ pub fn run(cmd: &mut Command, limit: Duration) -> Output {
 /// Compiles `source` (C, or C++ if it ends in .cpp) against include/RTAPI.h and librtapi.so
 /// into `out_dir`; returns the program's path.
 pub fn compile(source: &Path, out_dir: &Path) -> PathBuf {
+    compile_with(source, out_dir, &[])
+}
+
+/// [`compile`] with extra compiler flags (e.g. `-Wconversion`).
+pub fn compile_with(source: &Path, out_dir: &Path, extra: &[&str]) -> PathBuf {
     let lib = lib_dir();
     let cpp = source.extension().is_some_and(|e| e == "cpp");
     let out = out_dir.join(source.file_stem().expect("file name"));
@@ -186,6 +191,7 @@ pub fn compile(source: &Path, out_dir: &Path) -> PathBuf {
     } else {
         cmd.args(["-std=c99", "-Wall", "-Wextra", "-Werror", "-pedantic"]);
     }
+    cmd.args(extra);
     cmd.arg("-g").arg(format!("-I{}", root().join("include").display())).arg(source).arg("-o").arg(&out);
     cmd.arg(format!("-L{}", lib.display())).arg(format!("-Wl,-rpath,{}", lib.display())).arg("-lrtapi");
     let output = run(&mut cmd, Duration::from_secs(120));
