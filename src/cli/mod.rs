@@ -15,6 +15,7 @@ mod idl;
 mod record;
 mod show;
 mod status;
+mod studio;
 
 /// Exit status for invalid input or usage.
 pub const EXIT_INVALID: u8 = 2;
@@ -44,6 +45,7 @@ enum Command {
     Bench(bench::Args),
     Gateway(gateway::Args),
     Demo(demo::Args),
+    Studio(studio::Args),
 }
 
 /// `--realtime [--cpu N] [--priority P]`, shared by the commands that step domains.
@@ -100,6 +102,7 @@ pub fn run(cli: Cli) -> ExitCode {
         Command::Bench(a) => bench::run(a),
         Command::Gateway(a) => gateway::run(a),
         Command::Demo(a) => demo::run(a),
+        Command::Studio(a) => studio::run(a),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

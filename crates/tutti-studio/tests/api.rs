@@ -1,0 +1,221 @@
+//! The studio's JSON API through HTTP (no browser): opening, checking, saving with its
+//! refusals, root confinement and the token.
+
+use std::path::Path;
+
+use serde_json::{json, Value};
+use tutti_studio::{Config, Running};
+
+struct Studio {
+    running: Running,
+    agent: ureq::Agent,
+    token: Option<String>,
+    _dir: tempfile::TempDir,
+    root: std::path::PathBuf,
+}
+
+fn studio(token: Option<&str>, read_only: bool) -> Studio {
+    let dir = tempfile::tempdir().unwrap();
+    let root = dir.path().join("root");
+    std::fs::create_dir(&root).unwrap();
+    let ddf = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../ddf");
+    for f in ["paper-figure2.ddf", "multiuav.ddf"] {
+        std::fs::copy(ddf.join(f), root.join(f)).unwrap();
+    }
+    std::fs::write(dir.path().join("outside.ddf"), "secret").unwrap();
+    let running = Running::start(Config {
+        listen: "127.0.0.1:0".parse().unwrap(),
+        root: root.clone(),
+        files: vec!["paper-figure2.ddf".into()],
+        read_only,
+        token: token.map(str::to_string),
+        namespace: "studio-api-test".into(),
+    })
+    .unwrap();
+    let agent: ureq::Agent = ureq::Agent::config_builder()
+        .http_status_as_error(false)
+        .timeout_global(Some(std::time::Duration::from_secs(20)))
+        .build()
+        .into();
+    Studio { running, agent, token: token.map(str::to_string), _dir: dir, root }
+}
+
+impl Studio {
+    fn url(&self, path: &str) -> String {
+        format!("http://{}{path}", self.running.addr())
+    }
+
+    fn get(&self, path: &str) -> (u16, Value) {
+        let mut req = self.agent.get(self.url(path));
+        if let Some(t) = &self.token {
+            req = req.header("x-tutti-token", t);
+        }
+        let mut resp = req.call().unwrap();
+        (resp.status().as_u16(), resp.body_mut().read_json().unwrap_or(Value::Null))
+    }
+
+    fn post(&self, path: &str, body: Value) -> (u16, Value) {
+        let mut req = self.agent.post(self.url(path));
+        if let Some(t) = &self.token {
+            req = req.header("x-tutti-token", t);
+        }
+        let mut resp = req.send_json(&body).unwrap();
+        (resp.status().as_u16(), resp.body_mut().read_json().unwrap_or(Value::Null))
+    }
+}
+
+fn figure2(name: &str) -> Value {
+    let item = |n: &str| json!({ "name": n, "type": "double" });
+    json!({ "domains": [{
+        "name": name, "synchronous": true, "multiple_publish_allowed": false, "states": false,
+        "publish": [item("Autopilot"), item("X")],
+        "subscribe": [item("Latitude"), item("Longitude"), item("Elevation")],
+    }]})
+}
+
+#[test]
+fn page_and_files_are_served() {
+    let s = studio(None, false);
+    let mut resp = s.agent.get(s.url("/")).call().unwrap();
+    assert_eq!(resp.status().as_u16(), 200);
+    assert!(resp.body_mut().read_to_string().unwrap().contains("tutti studio"));
+    let (status, files) = s.get("/api/files");
+    assert_eq!(status, 200);
+    assert_eq!(files["files"], json!(["multiuav.ddf", "paper-figure2.ddf"]));
+    let (_, info) = s.get("/api/info");
+    assert_eq!(info["files"], json!(["paper-figure2.ddf"]));
+    let (status, body) = s.get("/api/nothing");
+    assert_eq!(status, 404);
+    assert!(body["error"].as_str().unwrap().contains("no such"));
+}
+
+#[test]
+fn open_gives_the_document_the_layout_and_the_topics() {
+    let s = studio(None, false);
+    let (status, body) = s.get("/api/open?path=paper-figure2.ddf");
+    assert_eq!(status, 200, "{body}");
+    let checked = &body["checked"];
+    assert_eq!(checked["valid"], true);
+    let doc = &checked["document"]["domains"][0];
+    assert_eq!(doc["name"], "multiuav_uav1");
+    assert_eq!((&doc["synchronous"], &doc["multiple_publish_allowed"]), (&json!(true), &json!(false)));
+    assert_eq!(doc["subscribe"][2]["name"], "Elevation");
+    assert_eq!(doc["subscribe"][2]["type"], "float64");
+    let set = &checked["show"]["domains"][0]["sets"][1];
+    assert_eq!(set["role"], "SUBSCRIBE");
+    assert_eq!(set["size"], 24);
+    assert_eq!(set["items"][2]["offset"], 16);
+    assert_eq!(set["dds"]["topic"], "rt/multiuav_uav1/subscribe");
+    assert!(set["reader_qos"].is_object());
+}
+
+#[test]
+fn check_puts_each_diagnostic_at_its_field() {
+    let s = studio(None, false);
+    let mut doc = figure2("uav one");
+    doc["domains"][0]["subscribe"][1]["length"] = json!("0");
+    let (status, body) = s.post("/api/check", json!({ "document": doc }));
+    assert_eq!(status, 200);
+    assert_eq!(body["valid"], false);
+    let fields: Vec<&str> =
+        body["diagnostics"].as_array().unwrap().iter().filter_map(|d| d["field"].as_str()).collect();
+    assert_eq!(fields, vec!["d0", "d0.subscribe.i1.length"], "{body}");
+    assert!(body["xml"].as_str().unwrap().contains("<set name=\"PUBLISH\">"));
+    let (_, body) = s.post("/api/check", json!({ "document": figure2("uav1") }));
+    assert_eq!(body["valid"], true, "{body}");
+    assert_eq!(body["show"]["domains"][0]["name"], "uav1");
+    // A body that is not a document: a clear message, not a crash.
+    let (status, _) = s.post("/api/check", json!({ "document": 3 }));
+    assert!((400..500).contains(&status));
+}
+
+#[test]
+fn parse_reads_xml_typed_by_hand() {
+    let s = studio(None, false);
+    let xml = std::fs::read_to_string(s.root.join("multiuav.ddf")).unwrap();
+    let (_, body) = s.post("/api/parse", json!({ "xml": xml }));
+    assert_eq!(body["valid"], true);
+    assert!(body["document"]["domains"].as_array().unwrap().len() >= 2);
+    let (_, body) = s.post("/api/parse", json!({ "xml": "<orchestra><domain name=\"a b\"/></orchestra>" }));
+    assert_eq!(body["valid"], false);
+    assert_eq!(body["diagnostics"][0]["line"], 1);
+}
+
+#[test]
+fn save_is_atomic_and_refuses_what_it_must() {
+    let s = studio(None, false);
+    // A new file.
+    let (status, body) = s.post("/api/save", json!({ "path": "new.ddf", "document": figure2("uav1") }));
+    assert_eq!(status, 200, "{body}");
+    let version = body["version"].as_str().unwrap().to_string();
+    let saved = std::fs::read_to_string(s.root.join("new.ddf")).unwrap();
+    assert!(tutti_core::ddf::parse_str(&saved, "new.ddf").is_ok());
+    // Saving it again as new: it exists.
+    let (status, body) = s.post("/api/save", json!({ "path": "new.ddf", "document": figure2("uav1") }));
+    assert_eq!((status, body["code"].as_str()), (409, Some("exists")));
+    // Saved over with its version: fine.
+    let (status, body) =
+        s.post("/api/save", json!({ "path": "new.ddf", "document": figure2("uav2"), "version": version }));
+    assert_eq!(status, 200, "{body}");
+    let version = body["version"].as_str().unwrap().to_string();
+    // Changed on disk since: refused, file untouched.
+    std::fs::write(s.root.join("new.ddf"), "changed by someone else").unwrap();
+    let (status, body) =
+        s.post("/api/save", json!({ "path": "new.ddf", "document": figure2("uav3"), "version": version }));
+    assert_eq!((status, body["code"].as_str()), (409, Some("changed")));
+    assert!(body["error"].as_str().unwrap().contains("changed on disk"));
+    assert_eq!(std::fs::read_to_string(s.root.join("new.ddf")).unwrap(), "changed by someone else");
+    // Invalid: refused unless forced.
+    let (status, body) = s.post("/api/save", json!({ "path": "bad.ddf", "document": figure2("a b") }));
+    assert_eq!((status, body["code"].as_str()), (422, Some("invalid")));
+    assert!(body["details"][0]["message"].as_str().unwrap().contains("a b"));
+    assert!(!s.root.join("bad.ddf").exists());
+    let (status, _) = s.post("/api/save", json!({ "path": "bad.ddf", "document": figure2("a b"), "force": true }));
+    assert_eq!(status, 200);
+    assert!(s.root.join("bad.ddf").exists());
+    // No temp file left behind.
+    let names: Vec<String> =
+        std::fs::read_dir(&s.root).unwrap().map(|e| e.unwrap().file_name().to_string_lossy().into_owned()).collect();
+    assert!(names.iter().all(|n| !n.contains("tmp")), "{names:?}");
+}
+
+#[test]
+fn paths_outside_the_root_are_refused() {
+    let s = studio(None, false);
+    std::os::unix::fs::symlink(s.root.join("../outside.ddf"), s.root.join("link.ddf")).unwrap();
+    for bad in ["../../etc/passwd", "/etc/passwd", "../outside.ddf", "link.ddf", "..%2Foutside.ddf"] {
+        let (status, body) = s.get(&format!("/api/open?path={bad}"));
+        assert!(status == 403 || status == 404, "{bad}: {status} {body}");
+        assert!(body["error"].is_string(), "{bad}: {body}");
+        if !bad.contains('%') {
+            let (status, body) = s.post("/api/save", json!({ "path": bad, "document": figure2("x"), "force": true }));
+            assert!((400..500).contains(&status), "{bad}: {status} {body}");
+        }
+    }
+    let (status, body) = s.get("/api/open?path=../../etc/passwd");
+    assert_eq!(status, 403);
+    assert!(body["error"].as_str().unwrap().contains("outside the studio's root"));
+    assert_eq!(std::fs::read_to_string(s.root.join("../outside.ddf")).unwrap(), "secret");
+}
+
+#[test]
+fn read_only_refuses_to_save() {
+    let s = studio(None, true);
+    let (status, body) = s.post("/api/save", json!({ "path": "new.ddf", "document": figure2("uav1") }));
+    assert_eq!((status, body["code"].as_str()), (403, Some("read-only")));
+}
+
+#[test]
+fn a_token_is_required_when_set() {
+    let mut s = studio(Some("sesame"), false);
+    let (status, _) = s.get("/api/files");
+    assert_eq!(status, 200);
+    let (status, _) = s.get("/api/files?token=sesame");
+    assert_eq!(status, 200);
+    s.token = None;
+    let (status, body) = s.get("/api/files");
+    assert_eq!(status, 401);
+    assert!(body["error"].as_str().unwrap().contains("token"));
+    let (status, _) = s.get("/api/files?token=wrong");
+    assert_eq!(status, 401);
+}
