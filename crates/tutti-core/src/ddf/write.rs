@@ -1,6 +1,6 @@
 //! The product dialect, written: an editable [`Document`] (a DDF as a person edits it, not
 //! yet validated: every field is text, so a wrong value reaches the validator and gets its
-//! diagnostic) and [`write`], which turns it into XML with one element per line and tells
+//! diagnostic) and [`write()`], which turns it into XML with one element per line and tells
 //! which line holds which field, so that a diagnostic's line leads back to the field it is
 //! about (`tutti studio`).
 //!
@@ -104,7 +104,7 @@ impl From<&Item> for DocItem {
     }
 }
 
-/// What [`write`] produced: the XML, and for each line that holds a field, which one.
+/// What [`write()`] produced: the XML, and for each line that holds a field, which one.
 #[derive(Debug, Clone, Default, PartialEq, Eq, Serialize)]
 pub struct Written {
     pub xml: String,
