@@ -64,6 +64,7 @@ impl Drop for Proc {
 struct World {
     client: Option<Client>,
     root: PathBuf,
+    namespace: String,
     // Dropped in this order: the browser's driver first, then the studio, then the folders.
     _driver: Proc,
     _studio: Proc,
@@ -133,7 +134,15 @@ impl World {
             }
         };
         client.goto(&url).await.expect("open the studio");
-        Some(World { client: Some(client), root, _driver: driver, _studio: studio, _profile: profile, _dir: dir })
+        Some(World {
+            client: Some(client),
+            root,
+            namespace,
+            _driver: driver,
+            _studio: studio,
+            _profile: profile,
+            _dir: dir,
+        })
     }
 
     fn c(&self) -> &Client {
@@ -330,6 +339,94 @@ async fn refuses_a_changed_file_and_paths_outside_the_root() {
         let msg = w.message_contains("outside the studio's root").await;
         assert!(msg.contains("refused"), "{msg}");
         assert!(!w.text("#form").await.contains("root:"), "the page shows nothing of the file");
+        w.close().await;
+    })
+    .await;
+}
+
+/// Compiles tests/studio/ramp.c against the RTAPI into `dir`.
+fn compile_ramp(dir: &Path) -> PathBuf {
+    let lib = common::ensure_rtapi();
+    let out = dir.join("ramp");
+    let mut cmd = Command::new("gcc");
+    cmd.args(["-std=c99", "-Wall", "-Wextra", "-Werror"])
+        .arg(format!("-I{}", repo().join("include").display()))
+        .arg(repo().join("tests/studio/ramp.c"))
+        .arg("-o")
+        .arg(&out)
+        .arg(format!("-L{}", lib.display()))
+        .arg(format!("-Wl,-rpath,{}", lib.display()))
+        .arg("-lrtapi");
+    let (status, _, err) = common::run_with_timeout(cmd, Duration::from_secs(120));
+    assert!(status.success(), "compiling ramp.c: {err}");
+    out
+}
+
+fn shm_left(namespace: &str) -> Vec<String> {
+    let prefix = format!("tutti.{namespace}.");
+    std::fs::read_dir("/dev/shm")
+        .map(|d| {
+            d.flatten()
+                .map(|e| e.file_name().to_string_lossy().into_owned())
+                .filter(|n| n.starts_with(&prefix))
+                .collect()
+        })
+        .unwrap_or_default()
+}
+
+/// (b) ddf/multiuav.ddf opened, its host started from the page, a C component connected:
+/// its connection appears in the table and the item it writes changes in the plot; killed
+/// with SIGKILL, its connection goes.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn monitor_follows_a_host_started_from_the_page_and_a_c_component() {
+    with_limit(async {
+        let Some(w) = World::start("monitor", &["multiuav.ddf"], &[]).await else { return };
+        let ramp = compile_ramp(w.root.parent().expect("temp dir"));
+        w.message_contains("opened multiuav.ddf").await;
+        w.click("#tab-monitor").await;
+        w.type_into("#run-step", "10ms").await;
+        w.click("#start-host").await;
+        w.message_contains("started tutti host").await;
+        w.until(
+            "the domain with its framework",
+            "(document.querySelector(\"[data-domain='multiuav_uav1']\") || {textContent: ''}).textContent.includes('steps/s')",
+        )
+        .await;
+        let key = "multiuav_uav1#SUBSCRIBE#Elevation";
+        w.until("the item in the plot menu", &format!("document.querySelector(\"#plot-item option[value='{key}']\")")).await;
+        w.find("#plot-item").await.select_by_value(key).await.expect("select the item");
+        w.click("#plot-add").await;
+        w.until("the item plotted", &format!("document.querySelector(\"[data-series='{key}']\")")).await;
+
+        let mut cmd = Command::new(&ramp);
+        cmd.args(["multiuav_uav1", "Elevation"])
+            .env("TUTTI_NAMESPACE", &w.namespace)
+            .stdin(Stdio::null())
+            .stdout(Stdio::null());
+        let component = Proc::spawn("ramp", cmd);
+        let pid = component.child.id();
+        w.until("the component's connection", &format!("document.querySelector(\"#domains tr[data-pid='{pid}']\")")).await;
+        let value = format!("+document.querySelector(\"[data-series='{key}']\").dataset.value");
+        let first = w.until("the plotted value moving", &format!("{value} > 1 ? {value} : 0")).await;
+        let first = first.as_f64().expect("a number");
+        w.until("the plotted value changing", &format!("{value} > {first}")).await;
+        if std::env::var("TUTTI_SCREENSHOTS").as_deref() == Ok("1") {
+            // A few seconds of the ramp in the picture.
+            w.until("a longer ramp", &format!("{value} > {first} + 150")).await;
+        }
+        w.screenshot("studio-monitor.png").await;
+
+        Command::new("kill").args(["-KILL", &pid.to_string()]).status().expect("kill -9");
+        w.until("the connection gone", &format!("!document.querySelector(\"#domains tr[data-pid='{pid}']\")")).await;
+        drop(component);
+
+        w.click("#stop-host").await;
+        w.message_contains("stopped tutti host").await;
+        let deadline = Instant::now() + WAIT;
+        while !shm_left(&w.namespace).is_empty() {
+            assert!(Instant::now() < deadline, "segments left: {:?}", shm_left(&w.namespace));
+            tokio::time::sleep(Duration::from_millis(100)).await;
+        }
         w.close().await;
     })
     .await;

@@ -45,6 +45,7 @@ pub fn run(args: Args) -> CliResult {
         read_only: args.read_only,
         token: token.clone(),
         namespace: namespace_from_env(),
+        tutti_exe: std::env::current_exe().ok(),
     };
     let running = Running::start(config).map_err(|e| {
         if e.is_usage() {

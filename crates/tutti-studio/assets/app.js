@@ -378,3 +378,180 @@ async function start() {
 }
 
 start();
+
+// ---------------------------------------------------------------- live monitor
+
+const mon = {
+  source: null,
+  plotted: [],          // keys DOMAIN#ROLE#PATH
+  series: {},           // "KEY[i]" -> [[t, v], ...]
+  history: [],          // [t, {domain: connection count}]
+  last: {},             // domain -> [t, step] for the step rate
+  rates: {},
+  window: 20,           // seconds shown
+};
+const COLORS = ["#2563eb", "#dc2626", "#16a34a", "#9333ea", "#ea580c", "#0891b2", "#4d7c0f", "#be185d"];
+
+function follow() {
+  if (mon.source) mon.source.close();
+  const q = new URLSearchParams({ namespace: $("namespace").value.trim(), items: mon.plotted.join(",") });
+  if (token) q.set("token", token);
+  mon.source = new EventSource("api/monitor?" + q.toString());
+  mon.source.onmessage = (e) => {
+    let ev;
+    try { ev = JSON.parse(e.data); } catch (_) { return; }
+    $("live-state").textContent = "live, namespace " + ev.namespace;
+    onEvent(ev);
+  };
+  mon.source.onerror = () => { $("live-state").textContent = "reconnecting…"; };
+}
+
+window.monitorShown = () => { if (!mon.source) follow(); };
+
+function fmtNs(ns) {
+  return ns >= 1e6 ? (ns / 1e6).toFixed(2) + " ms" : (ns / 1e3).toFixed(1) + " µs";
+}
+
+function onEvent(ev) {
+  const box = $("domains");
+  box.replaceChildren();
+  if (ev.error) box.append(el("p", { class: "fielddiag" }, ev.error));
+  if (!ev.domains.length) box.append(el("p", {}, "no live domain in namespace " + ev.namespace));
+  const counts = {};
+  for (const d of ev.domains) {
+    if (d.error) { box.append(el("p", { class: "fielddiag" }, d.error)); continue; }
+    counts[d.domain] = d.connection_count;
+    const prev = mon.last[d.domain];
+    if (prev && ev.t - prev[0] >= 0.5) {
+      mon.rates[d.domain] = (d.steps - prev[1]) / (ev.t - prev[0]);
+      mon.last[d.domain] = [ev.t, d.steps];
+    } else if (!prev) mon.last[d.domain] = [ev.t, d.steps];
+    const rate = mon.rates[d.domain] === undefined ? "…" : mon.rates[d.domain].toFixed(0);
+    const rows = d.connections.map((c) => el("tr", { "data-pid": String(c.pid) },
+      el("td", {}, String(c.pid)), el("td", {}, c.name), el("td", {}, c.writer ? "writer" : (c.sync_reader ? "sync reader" : "reader")),
+      el("td", {}, ((ev.t * 1e9 - c.since_ns) / 1e9).toFixed(1) + " s" + (c.alive ? "" : " (dead, being removed)")),
+      el("td", {}, d.owner_pid === c.pid ? "owner" : "")));
+    box.append(el("div", { class: "live-domain" + (d.framework_alive ? "" : " stopped"), "data-domain": d.domain },
+      el("strong", {}, d.domain), " ",
+      (d.flags.synchronous ? "sync" : "async") + (d.flags.multiple_publish_allowed ? "" : ", exclusive") + (d.flags.states ? ", states" : ""),
+      el("div", {}, "framework pid " + d.framework_pid + (d.framework_alive ? "" : " (stopped)") + "  step " + d.step +
+        "  " + rate + " steps/s  overruns " + d.overruns + "  late last " + fmtNs(d.last_late_ns) + " max " + fmtNs(d.max_late_ns) +
+        "  connections " + d.connection_count + (d.owner_pid ? "  owner pid " + d.owner_pid : "")),
+      el("table", { class: "connections" }, el("tr", {}, el("th", {}, "pid"), el("th", {}, "name"), el("th", {}, "role"),
+        el("th", {}, "since"), el("th", {}, "")), ...rows)));
+  }
+  mon.history.push([ev.t, counts]);
+  while (mon.history.length && mon.history[0][0] < ev.t - 60) mon.history.shift();
+  drawTimeline(ev.t);
+  if (ev.catalog) fillCatalog(ev.catalog);
+  for (const [key, v] of Object.entries(ev.values || {})) {
+    if (!v.v) continue;
+    v.v.forEach((x, i) => {
+      const name = v.v.length > 1 ? key + "[" + i + "]" : key;
+      (mon.series[name] = mon.series[name] || []).push([ev.t, x]);
+    });
+  }
+  for (const s of Object.values(mon.series)) while (s.length && s[0][0] < ev.t - mon.window) s.shift();
+  drawPlot(ev.t, ev.values || {});
+  renderRuns(ev.runs || {});
+}
+
+function fillCatalog(catalog) {
+  const sel = $("plot-item");
+  const keep = sel.value;
+  sel.replaceChildren(...catalog.map((c) => {
+    const key = c.domain + "#" + c.role + "#" + c.path;
+    return el("option", { value: key }, c.domain + " " + c.role + " " + c.path + (c.length > 1 ? "[" + c.length + "]" : ""));
+  }));
+  if (keep && catalog.some((c) => c.domain + "#" + c.role + "#" + c.path === keep)) sel.value = keep;
+}
+
+function axes(ctx, w, h) {
+  ctx.clearRect(0, 0, w, h);
+  ctx.strokeStyle = "#d8dde5";
+  ctx.strokeRect(40, 10, w - 50, h - 30);
+}
+
+function drawLines(canvas, lines, t1, span) {
+  const ctx = canvas.getContext("2d");
+  const w = canvas.width, h = canvas.height;
+  axes(ctx, w, h);
+  let lo = Infinity, hi = -Infinity;
+  for (const l of lines) for (const [, v] of l.points) { lo = Math.min(lo, v); hi = Math.max(hi, v); }
+  if (!isFinite(lo)) return;
+  if (hi - lo < 1e-12) { lo -= 1; hi += 1; }
+  const x = (t) => 40 + (w - 50) * (1 - (t1 - t) / span);
+  const y = (v) => 10 + (h - 30) * (1 - (v - lo) / (hi - lo));
+  ctx.fillStyle = "#5b6678";
+  ctx.font = "11px sans-serif";
+  ctx.fillText(hi.toPrecision(4), 2, 18);
+  ctx.fillText(lo.toPrecision(4), 2, h - 22);
+  ctx.fillText("-" + span + " s", 40, h - 6);
+  ctx.fillText("now", w - 30, h - 6);
+  lines.forEach((l, i) => {
+    ctx.strokeStyle = COLORS[i % COLORS.length];
+    ctx.beginPath();
+    l.points.forEach(([t, v], k) => (k ? ctx.lineTo(x(t), y(v)) : ctx.moveTo(x(t), y(v))));
+    ctx.stroke();
+  });
+}
+
+function drawTimeline(t) {
+  const names = [...new Set(mon.history.flatMap(([, c]) => Object.keys(c)))].sort();
+  drawLines($("timeline"), names.map((n) => ({ points: mon.history.map(([tt, c]) => [tt, c[n] || 0]) })), t, 60);
+}
+
+function drawPlot(t, values) {
+  const names = Object.keys(mon.series).sort();
+  drawLines($("plot"), names.map((n) => ({ points: mon.series[n] })), t, mon.window);
+  const legend = $("plot-legend");
+  legend.replaceChildren(...names.map((n, i) => {
+    const s = mon.series[n];
+    const last = s.length ? s[s.length - 1][1] : NaN;
+    return el("span", { "data-series": n, "data-value": String(last), style: "color:" + COLORS[i % COLORS.length] },
+      n.replace(/#/g, " ") + " = " + (isNaN(last) ? "…" : last.toPrecision(6)));
+  }));
+  for (const [key, v] of Object.entries(values)) {
+    if (v.error) legend.append(el("span", { class: "fielddiag" }, key.replace(/#/g, " ") + ": " + v.error));
+  }
+}
+
+function renderRuns(runs) {
+  const lines = [];
+  for (const [kind, r] of Object.entries(runs)) {
+    lines.push("== " + kind + " " + r.path + " (pid " + r.pid + ", namespace " + r.namespace + "): " +
+      (r.running ? "running " + r.seconds.toFixed(0) + " s" : "exited " + r.exit));
+    lines.push(...r.log);
+  }
+  const text = lines.join("\n");
+  const pre = $("logs");
+  if (pre.textContent !== text) { pre.textContent = text; pre.scrollTop = pre.scrollHeight; }
+}
+
+async function runStart(kind) {
+  const path = ed.path || $("path").value.trim();
+  if (!path) { say("open or save a DDF in the editor first: run control starts the DDF open there", "error"); return; }
+  try {
+    const r = await api("POST", "run/start", { kind, path, step: $("run-step").value.trim(),
+      duration: $("run-duration").value.trim(), namespace: $("namespace").value.trim() });
+    say("started tutti " + r.kind + " on " + r.path + " (pid " + r.pid + ", namespace " + r.namespace + ")", "ok");
+  } catch (e) { fail(e); }
+}
+
+async function runStop(kind) {
+  try {
+    const r = await api("POST", "run/stop", { kind });
+    say("stopped tutti " + r.kind + (r.exit ? " (" + r.exit + ")" : ""), "ok");
+  } catch (e) { fail(e); }
+}
+
+$("follow").addEventListener("click", () => { mon.series = {}; mon.history = []; mon.last = {}; mon.rates = {}; follow(); });
+$("plot-add").addEventListener("click", () => {
+  const key = $("plot-item").value;
+  if (key && !mon.plotted.includes(key)) { mon.plotted.push(key); follow(); }
+});
+$("plot-clear").addEventListener("click", () => { mon.plotted = []; mon.series = {}; follow(); });
+$("start-host").addEventListener("click", () => runStart("host"));
+$("stop-host").addEventListener("click", () => runStop("host"));
+$("start-gateway").addEventListener("click", () => runStart("gateway"));
+$("stop-gateway").addEventListener("click", () => runStop("gateway"));

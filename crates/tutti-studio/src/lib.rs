@@ -12,6 +12,8 @@
 //! | `POST /api/check` | a document: its XML, diagnostics at their fields, `tutti show` view |
 //! | `POST /api/parse` | XML typed by hand: diagnostics, document |
 //! | `POST /api/save` | atomic write of the product dialect (refusals: see [`editor::save`]) |
+//! | `GET /api/monitor` | Server-Sent Events at 10 Hz: domains, plotted items, runs ([`monitor`]) |
+//! | `POST /api/run/start`, `/api/run/stop` | a `tutti host` or `tutti gateway` as a child ([`run`]) |
 //!
 //! Safety: the server binds 127.0.0.1 unless told otherwise, and any other address needs
 //! the token made at start ([`Config::token`]); files are read and written only under the
@@ -33,6 +35,8 @@ use serde_json::json;
 pub mod editor;
 pub mod error;
 pub mod files;
+pub mod monitor;
+pub mod run;
 
 use error::ApiError;
 
@@ -51,6 +55,8 @@ pub struct Config {
     pub token: Option<String>,
     /// The namespace the monitor shows first.
     pub namespace: String,
+    /// The `tutti` executable run control starts (`None`: no run control).
+    pub tutti_exe: Option<PathBuf>,
 }
 
 /// Shared by the handlers.
@@ -61,6 +67,7 @@ pub struct AppState {
     pub token: Option<String>,
     pub files: Vec<String>,
     pub namespace: String,
+    pub runs: run::Runs,
 }
 
 /// Why the studio could not start.
@@ -106,6 +113,7 @@ async fn info(State(st): State<Arc<AppState>>) -> Json<serde_json::Value> {
         "files": st.files,
         "read_only": st.read_only,
         "namespace": st.namespace,
+        "run_control": st.runs.exe.is_some() && !st.read_only,
         "version": env!("CARGO_PKG_VERSION"),
     }))
 }
@@ -140,6 +148,9 @@ pub fn router(state: Arc<AppState>) -> Router {
         .route("/check", post(editor::check))
         .route("/parse", post(editor::parse))
         .route("/save", post(editor::save))
+        .route("/monitor", get(monitor::stream))
+        .route("/run/start", post(run::start))
+        .route("/run/stop", post(run::stop))
         .fallback(not_found)
         .layer(middleware::from_fn_with_state(state.clone(), require_token));
     Router::new()
@@ -155,6 +166,7 @@ pub fn router(state: Arc<AppState>) -> Router {
 #[derive(Debug)]
 pub struct Running {
     addr: SocketAddr,
+    state: Arc<AppState>,
     stop: Option<tokio::sync::oneshot::Sender<()>>,
     thread: Option<JoinHandle<()>>,
 }
@@ -193,8 +205,9 @@ impl Running {
             token: config.token,
             files: offered,
             namespace: config.namespace,
+            runs: run::Runs::new(config.tutti_exe),
         });
-        let app = router(state);
+        let app = router(state.clone());
         let (stop, stopped) = tokio::sync::oneshot::channel::<()>();
         let thread = std::thread::Builder::new()
             .name("studio-server".into())
@@ -209,7 +222,7 @@ impl Running {
                 rt.shutdown_timeout(std::time::Duration::from_millis(500));
             })
             .map_err(StudioError::Runtime)?;
-        Ok(Running { addr, stop: Some(stop), thread: Some(thread) })
+        Ok(Running { addr, state, stop: Some(stop), thread: Some(thread) })
     }
 
     /// The address it listens on.
@@ -229,6 +242,7 @@ impl Running {
         if let Some(t) = self.thread.take() {
             let _ = t.join();
         }
+        self.state.runs.stop_all();
     }
 }
 

@@ -30,6 +30,7 @@ fn studio(token: Option<&str>, read_only: bool) -> Studio {
         read_only,
         token: token.map(str::to_string),
         namespace: "studio-api-test".into(),
+        tutti_exe: None,
     })
     .unwrap();
     let agent: ureq::Agent = ureq::Agent::config_builder()
