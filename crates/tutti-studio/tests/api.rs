@@ -15,6 +15,10 @@ struct Studio {
 }
 
 fn studio(token: Option<&str>, read_only: bool) -> Studio {
+    studio_with(token, read_only, None)
+}
+
+fn studio_with(token: Option<&str>, read_only: bool, exe: Option<&str>) -> Studio {
     let dir = tempfile::tempdir().unwrap();
     let root = dir.path().join("root");
     std::fs::create_dir(&root).unwrap();
@@ -29,8 +33,8 @@ fn studio(token: Option<&str>, read_only: bool) -> Studio {
         files: vec!["paper-figure2.ddf".into()],
         read_only,
         token: token.map(str::to_string),
-        namespace: "studio-api-test".into(),
-        tutti_exe: None,
+        namespace: format!("studioapi{}", std::process::id()),
+        tutti_exe: exe.map(Into::into),
     })
     .unwrap();
     let agent: ureq::Agent = ureq::Agent::config_builder()
@@ -219,4 +223,79 @@ fn a_token_is_required_when_set() {
     assert!(body["error"].as_str().unwrap().contains("token"));
     let (status, _) = s.get("/api/files?token=wrong");
     assert_eq!(status, 401);
+}
+
+/// A file in /dev/shm, removed when dropped.
+struct ShmFile(std::path::PathBuf);
+
+impl Drop for ShmFile {
+    fn drop(&mut self) {
+        let _ = std::fs::remove_file(&self.0);
+    }
+}
+
+/// The first event of the monitor's stream.
+fn first_event(s: &Studio, query: &str) -> Value {
+    use std::io::BufRead;
+    let resp = s.agent.get(s.url(&format!("/api/monitor?{query}"))).call().unwrap();
+    assert_eq!(resp.status().as_u16(), 200);
+    let reader = std::io::BufReader::new(resp.into_body().into_reader());
+    for line in reader.lines() {
+        let line = line.unwrap();
+        if let Some(data) = line.strip_prefix("data: ") {
+            return serde_json::from_str(data).unwrap();
+        }
+    }
+    panic!("the stream ended without an event");
+}
+
+#[test]
+fn the_monitor_reports_a_corrupted_segment_and_keeps_running() {
+    let s = studio(None, false);
+    let ns = format!("studiobad{}", std::process::id());
+    let junk = ShmFile(format!("/dev/shm/tutti.{ns}.broken").into());
+    std::fs::write(&junk.0, vec![0xa5u8; 4096]).unwrap();
+    for _ in 0..2 {
+        let ev = first_event(&s, &format!("namespace={ns}&items=broken%23PUBLISH%23x,gone%23SUBSCRIBE%23y"));
+        assert_eq!(ev["namespace"], ns.as_str());
+        assert!(ev["domains"][0]["error"].is_string(), "{ev}");
+        assert!(ev["values"]["broken#PUBLISH#x"]["error"].is_string(), "{ev}");
+        assert_eq!(ev["values"]["gone#SUBSCRIBE#y"]["error"], "no running framework");
+    }
+    let (status, body) = s.get("/api/monitor?namespace=a%20b");
+    assert_eq!(status, 400, "{body}");
+    let (status, body) = s.get("/api/monitor?items=x%23BOTH%23y");
+    assert_eq!(status, 400, "{body}");
+}
+
+#[test]
+fn run_control_refuses_what_it_must_and_keeps_the_log() {
+    let s = studio_with(None, false, Some("/bin/echo"));
+    std::fs::write(s.root.join("bad.ddf"), "<orchestra/>").unwrap();
+    let start =
+        |path: &str, step: &str| s.post("/api/run/start", json!({ "kind": "host", "path": path, "step": step }));
+    let (status, body) = start("bad.ddf", "10ms");
+    assert_eq!((status, body["code"].as_str()), (422, Some("invalid")), "{body}");
+    let (status, _) = start("../../etc/passwd", "10ms");
+    assert_eq!(status, 403);
+    let (status, body) = start("multiuav.ddf", "1ms; rm -rf /");
+    assert_eq!(status, 400, "{body}");
+    let (status, body) = start("multiuav.ddf", "10ms");
+    assert_eq!(status, 200, "{body}");
+    let (status, body) = s.post("/api/run/stop", json!({ "kind": "host" }));
+    assert_eq!(status, 200, "{body}");
+    // echo printed its arguments: the log holds them.
+    let ev = first_event(&s, "");
+    let log = ev["runs"]["host"]["log"].to_string();
+    assert!(log.contains("host") && log.contains("--step 10ms"), "{ev}");
+    assert_eq!(ev["runs"]["host"]["running"], false);
+    let (status, _) = s.post("/api/run/stop", json!({ "kind": "gateway" }));
+    assert_eq!(status, 404);
+
+    let s = studio_with(None, true, Some("/bin/echo"));
+    let (status, body) = s.post("/api/run/start", json!({ "kind": "host", "path": "multiuav.ddf" }));
+    assert_eq!((status, body["code"].as_str()), (403, Some("read-only")));
+    let s = studio(None, false);
+    let (status, body) = s.post("/api/run/start", json!({ "kind": "host", "path": "multiuav.ddf" }));
+    assert_eq!((status, body["code"].as_str()), (503, Some("no-exe")));
 }
