@@ -302,6 +302,13 @@ async fn build_figure2_from_an_empty_file() {
         )
         .await;
         w.screenshot("studio-editor.png").await;
+        // Duplicate the domain, then delete the copy.
+        w.click("[data-action='duplicate-domain']").await;
+        w.until("the copy", "(document.querySelector(\"[data-field='d1']\") || {}).value === 'multiuav_uav1_copy'")
+            .await;
+        w.until("the copy in the XML", "document.getElementById('xml').value.includes('multiuav_uav1_copy')").await;
+        w.click(".domain:nth-of-type(2) [data-action='delete-domain']").await;
+        w.until("the copy gone", "!document.getElementById('xml').value.includes('multiuav_uav1_copy')").await;
         w.click("#save").await;
         w.message_contains("saved fig2.ddf").await;
         let saved = w.root.join("fig2.ddf");

@@ -129,6 +129,17 @@ fn check_puts_each_diagnostic_at_its_field() {
     let (_, body) = s.post("/api/check", json!({ "document": figure2("uav1") }));
     assert_eq!(body["valid"], true, "{body}");
     assert_eq!(body["show"]["domains"][0]["name"], "uav1");
+    // A bus nests its members: paths join with '/'.
+    let mut doc = figure2("uav1");
+    doc["domains"][0]["publish"][1] = json!({ "name": "gps", "type": "bus", "items": [
+        { "name": "lat", "type": "double" }, { "name": "fix", "type": "uint8", "length": "3", "default": "1" } ] });
+    let (_, body) = s.post("/api/check", json!({ "document": doc }));
+    assert_eq!(body["valid"], true, "{body}");
+    let items = &body["show"]["domains"][0]["sets"][0]["items"];
+    assert_eq!(
+        (&items[1]["path"], &items[2]["path"], &items[2]["length"]),
+        (&json!("gps/lat"), &json!("gps/fix"), &json!(3))
+    );
     // A body that is not a document: a clear message, not a crash.
     let (status, _) = s.post("/api/check", json!({ "document": 3 }));
     assert!((400..500).contains(&status));
