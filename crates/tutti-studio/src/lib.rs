@@ -87,6 +87,8 @@ pub enum StudioError {
         #[source]
         source: std::io::Error,
     },
+    #[error("listening on {0}, beyond this machine, requires a token")]
+    NeedsToken(SocketAddr),
     #[error("cannot start the server's runtime: {0}")]
     Runtime(#[source] std::io::Error),
 }
@@ -118,7 +120,28 @@ async fn info(State(st): State<Arc<AppState>>) -> Json<serde_json::Value> {
     }))
 }
 
+/// Whether a `Host` header names this machine's loopback (so that a page of another site,
+/// whose name was rebound to 127.0.0.1, cannot use the API).
+fn loopback_host(host: &str) -> bool {
+    let name = match host.strip_prefix('[') {
+        Some(v6) => v6.split(']').next().unwrap_or(""),
+        None => host.rsplit_once(':').map_or(host, |(h, _)| h),
+    };
+    name.eq_ignore_ascii_case("localhost") || name.parse::<std::net::IpAddr>().is_ok_and(|ip| ip.is_loopback())
+}
+
 async fn require_token(State(st): State<Arc<AppState>>, req: Request, next: Next) -> Response {
+    if st.token.is_none() {
+        let host = req.headers().get(header::HOST).and_then(|v| v.to_str().ok()).unwrap_or("");
+        if !loopback_host(host) {
+            return ApiError::new(
+                StatusCode::FORBIDDEN,
+                "host",
+                format!("request for host '{host}' refused: this studio answers only to 127.0.0.1 or localhost"),
+            )
+            .into_response();
+        }
+    }
     if let Some(token) = &st.token {
         let header_ok = req.headers().get("x-tutti-token").and_then(|v| v.to_str().ok()) == Some(token.as_str());
         let query_ok =
@@ -175,13 +198,16 @@ impl StudioError {
     /// Whether the user asked for something impossible (exit status 2), rather than the
     /// machine failing (1).
     pub fn is_usage(&self) -> bool {
-        matches!(self, StudioError::Root { .. } | StudioError::File { .. })
+        matches!(self, StudioError::Root { .. } | StudioError::File { .. } | StudioError::NeedsToken(_))
     }
 }
 
 impl Running {
     /// Binds and starts serving.
     pub fn start(config: Config) -> Result<Running, StudioError> {
+        if !config.listen.ip().is_loopback() && config.token.is_none() {
+            return Err(StudioError::NeedsToken(config.listen));
+        }
         let root = files::Root::new(&config.root)
             .map_err(|source| StudioError::Root { path: config.root.display().to_string(), source })?;
         let mut offered = Vec::new();
@@ -249,5 +275,20 @@ impl Running {
 impl Drop for Running {
     fn drop(&mut self) {
         self.shutdown();
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn only_loopback_hosts_pass() {
+        for ok in ["127.0.0.1:8470", "localhost:8470", "LOCALHOST", "[::1]:8470", "127.0.0.2:1"] {
+            assert!(loopback_host(ok), "{ok}");
+        }
+        for bad in ["", "evil.example:8470", "10.0.0.1:8470", "[::2]:1", "localhost.evil.example"] {
+            assert!(!loopback_host(bad), "{bad}");
+        }
     }
 }

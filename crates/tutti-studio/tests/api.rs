@@ -310,3 +310,28 @@ fn run_control_refuses_what_it_must_and_keeps_the_log() {
     let (status, body) = s.post("/api/run/start", json!({ "kind": "host", "path": "multiuav.ddf" }));
     assert_eq!((status, body["code"].as_str()), (503, Some("no-exe")));
 }
+
+#[test]
+fn requests_for_another_host_name_are_refused() {
+    let s = studio(None, false);
+    let mut resp = s.agent.get(s.url("/api/files")).header("host", "rebound.example:8470").call().unwrap();
+    assert_eq!(resp.status().as_u16(), 403);
+    let body: Value = resp.body_mut().read_json().unwrap();
+    assert_eq!(body["code"], "host");
+}
+
+#[test]
+fn a_non_loopback_address_needs_a_token() {
+    let dir = tempfile::tempdir().unwrap();
+    let err = Running::start(Config {
+        listen: "0.0.0.0:0".parse().unwrap(),
+        root: dir.path().to_path_buf(),
+        files: vec![],
+        read_only: true,
+        token: None,
+        namespace: "x".into(),
+        tutti_exe: None,
+    })
+    .unwrap_err();
+    assert!(err.to_string().contains("token"), "{err}");
+}
