@@ -341,6 +341,18 @@ async fn refuses_a_changed_file_and_paths_outside_the_root() {
         w.message_contains("opened paper-figure2.ddf").await;
         w.until("the file as on disk", "document.querySelector(\"[data-field='d0.publish.i1']\").value === 'X'").await;
 
+        // An invalid file opens as XML with its problems; fixed there, it fills the forms.
+        std::fs::write(w.root.join("bad.ddf"), "<orchestra>\n<domain name=\"a b\"/>\n</orchestra>\n").expect("bad.ddf");
+        w.type_into("#path", "bad.ddf").await;
+        w.click("#open").await;
+        w.message_contains("not a valid DDF").await;
+        assert!(w.text("#diags").await.contains("line 2"), "{}", w.text("#diags").await);
+        let fixed = "<orchestra><domain name=\"ab\"><set name=\"PUBLISH\"><item name=\"x\"><type>double</type></item></set></domain></orchestra>";
+        w.type_into("#xml", fixed).await;
+        w.click("#apply-xml").await;
+        w.message_contains("XML applied").await;
+        w.until("the forms filled", "(document.querySelector(\"[data-field='d0']\") || {}).value === 'ab'").await;
+
         w.type_into("#path", "../../etc/passwd").await;
         w.click("#open").await;
         let msg = w.message_contains("outside the studio's root").await;
