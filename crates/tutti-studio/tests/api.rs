@@ -335,3 +335,39 @@ fn a_non_loopback_address_needs_a_token() {
     .unwrap_err();
     assert!(err.to_string().contains("token"), "{err}");
 }
+
+/// The first event of the stream whose JSON passes `ok`, within 10 s.
+fn event_where(s: &Studio, query: &str, ok: impl Fn(&Value) -> bool) -> Value {
+    let deadline = std::time::Instant::now() + std::time::Duration::from_secs(10);
+    loop {
+        let ev = first_event(s, query);
+        if ok(&ev) {
+            return ev;
+        }
+        assert!(std::time::Instant::now() < deadline, "no such event; last: {ev}");
+        std::thread::sleep(std::time::Duration::from_millis(100));
+    }
+}
+
+#[test]
+fn the_monitor_reads_items_of_a_live_domain_as_an_observer() {
+    let s = studio(None, false);
+    let ns = format!("studiolive{}", std::process::id());
+    let model = tutti_core::ddf::load(s.root.join("paper-figure2.ddf")).unwrap();
+    let opts = tutti_core::shm::FrameworkOptions { namespace: ns.clone(), ..Default::default() };
+    let mut fw = tutti_core::shm::Framework::create(&model, &opts).unwrap();
+    let mut publish = vec![0u8; 16];
+    publish[8..].copy_from_slice(&2.5f64.to_ne_bytes());
+    fw.domains[0].publish_step(&publish, 0.01).unwrap();
+    let query = format!("namespace={ns}&items=multiuav_uav1%23PUBLISH%23X");
+    let ev = event_where(&s, &query, |ev| ev["values"]["multiuav_uav1#PUBLISH#X"]["v"].is_array());
+    assert_eq!(ev["values"]["multiuav_uav1#PUBLISH#X"]["v"], json!([2.5]));
+    let d = &ev["domains"][0];
+    assert_eq!((&d["domain"], &d["framework_alive"]), (&json!("multiuav_uav1"), &json!(true)));
+    // The studio is no participant.
+    assert_eq!(d["connection_count"], 0);
+    assert!(ev["catalog"].as_array().unwrap().iter().any(|c| c["path"] == "Elevation"));
+    drop(fw);
+    let ev = event_where(&s, &query, |ev| ev["domains"].as_array().is_some_and(Vec::is_empty));
+    assert_eq!(ev["values"]["multiuav_uav1#PUBLISH#X"]["error"], "no running framework");
+}
