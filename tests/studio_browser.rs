@@ -295,6 +295,8 @@ async fn build_figure2_from_an_empty_file() {
         w.type_into("[data-field='d0']", "multiuav_uav1").await;
         w.click("[data-field='d0.synchronous']").await;
         w.click("[data-field='d0.multiple_publish_allowed']").await;
+        w.until("the flags in the XML", "document.getElementById('xml').value.includes('<multiplePublishAllowed>no')")
+            .await;
         w.until("no problem left", "document.getElementById('diag-count').textContent === '(none)'").await;
         w.until(
             "the layout shown",
