@@ -372,6 +372,8 @@ async function start() {
     const info = await api("GET", "info");
     $("root").textContent = "root " + info.root + (info.read_only ? " (read-only)" : "");
     $("namespace").value = info.namespace;
+    if (info.read_only) { $("save").hidden = true; $("save").dataset.off = "1"; }
+    if (!info.run_control) $("run-bar").hidden = true;
     refreshFiles();
     if (info.files.length) await openFile(info.files[0]);
   } catch (e) { fail(e); }
