@@ -311,6 +311,12 @@ async fn build_figure2_from_an_empty_file() {
         w.until("the copy in the XML", "document.getElementById('xml').value.includes('multiuav_uav1_copy')").await;
         w.click(".domain:nth-of-type(2) [data-action='delete-domain']").await;
         w.until("the copy gone", "!document.getElementById('xml').value.includes('multiuav_uav1_copy')").await;
+        // The same from the tree.
+        w.click("#tree [data-tree-domain='d0'] [data-action='duplicate-domain']").await;
+        w.until("the copy in the tree", "document.getElementById('tree').textContent.includes('multiuav_uav1_copy')")
+            .await;
+        w.click("#tree [data-tree-domain='d1'] [data-action='delete-domain']").await;
+        w.until("the copy gone again", "!document.getElementById('xml').value.includes('multiuav_uav1_copy')").await;
         w.click("#save").await;
         w.message_contains("saved fig2.ddf").await;
         let saved = w.root.join("fig2.ddf");

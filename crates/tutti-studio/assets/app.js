@@ -157,12 +157,7 @@ function renderForm() {
         flag("synchronous", "synchronous"),
         flag("multiple_publish_allowed", "multiplePublishAllowed"),
         flag("states", "states"),
-        el("button", { class: "small", title: "up", onclick: () => moveIn(ed.doc.domains, n, -1) }, "↑"),
-        el("button", { class: "small", title: "down", onclick: () => moveIn(ed.doc.domains, n, 1) }, "↓"),
-        el("button", { class: "small", "data-action": "duplicate-domain", onclick: () => {
-          const copy = JSON.parse(JSON.stringify(d)); copy.name += "_copy"; ed.doc.domains.splice(n + 1, 0, copy); changed(true);
-        } }, "duplicate"),
-        el("button", { class: "small", "data-action": "delete-domain", onclick: () => { ed.doc.domains.splice(n, 1); changed(true); } }, "delete")));
+        ...domainButtons(n, ["duplicate", "delete"])));
     for (const role of ["publish", "subscribe"]) {
       const tbody = el("tbody");
       itemRows(tbody, d[role], id + "." + role, 0);
@@ -176,6 +171,19 @@ function renderForm() {
     form.append(box);
   });
   markFields();
+}
+
+// Move up, move down, duplicate and delete domain `n`: in the forms and in the tree.
+function domainButtons(n, labels) {
+  const domains = ed.doc.domains;
+  return [
+    el("button", { class: "small", title: "up", onclick: () => moveIn(domains, n, -1) }, "↑"),
+    el("button", { class: "small", title: "down", onclick: () => moveIn(domains, n, 1) }, "↓"),
+    el("button", { class: "small", title: "duplicate", "data-action": "duplicate-domain", onclick: () => {
+      const copy = JSON.parse(JSON.stringify(domains[n])); copy.name += "_copy"; domains.splice(n + 1, 0, copy); changed(true);
+    } }, labels[0]),
+    el("button", { class: "small", title: "delete", "data-action": "delete-domain", onclick: () => { domains.splice(n, 1); changed(true); } }, labels[1]),
+  ];
 }
 
 function treeItems(list, prefix) {
@@ -195,7 +203,8 @@ function renderTree() {
   if (!ed.doc) return;
   ed.doc.domains.forEach((d, n) => {
     const id = "d" + n;
-    const li = el("li", {}, el("span", { "data-tree": id, onclick: () => goTo(id) }, "▸ " + d.name));
+    const li = el("li", { "data-tree-domain": id }, el("span", { "data-tree": id, onclick: () => goTo(id) }, "▸ " + d.name),
+      " ", ...domainButtons(n, ["dup", "✕"]));
     const sets = el("ul");
     for (const role of ["publish", "subscribe"]) {
       sets.append(el("li", {}, el("span", { "data-tree": id + "." + role, onclick: () => goTo(id + "." + role) }, role.toUpperCase()),
