@@ -10,9 +10,10 @@ step() { printf '\n== %s\n' "$*"; }
 
 # --- Debian packages: DDS peers and tools for the interop tests, what the Cyclone engine's
 # build needs (cmake, libclang for bindgen), C toolchain, valgrind, iproute2 for the
-# network-namespace tests, the font the UAV demo draws its figures with.
+# network-namespace tests, the font the UAV demo draws its figures with, headless Chromium
+# and its WebDriver for the studio's browser tests.
 ensure_debian_packages cyclonedds-tools cyclonedds-dev fastddsgen libfastrtps-dev fastdds-tools valgrind gcc g++ make \
-    cmake libclang-dev iproute2 python3-venv fonts-dejavu-core pkgconf
+    cmake libclang-dev iproute2 python3-venv fonts-dejavu-core pkgconf chromium chromium-driver
 
 # --- Python: a local venv with the Cyclone DDS binding (the stand-in for rclpy nodes) and the
 # MCAP readers.

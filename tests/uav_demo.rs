@@ -6,6 +6,8 @@
 //! framework published, the connection counts follow the script. Needs gcc and python3
 //! (launch-scripts/test.sh installs them); skipped with a message when they are missing.
 
+mod common;
+
 use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
@@ -16,22 +18,6 @@ fn root() -> PathBuf {
 
 fn have(program: &str) -> bool {
     Command::new(program).arg("--version").stdout(Stdio::null()).stderr(Stdio::null()).status().is_ok()
-}
-
-/// librtapi.so next to the tutti executable (the demo looks there); built when missing.
-fn ensure_rtapi() {
-    let exe = PathBuf::from(env!("CARGO_BIN_EXE_tutti"));
-    let dir = exe.parent().unwrap();
-    if dir.join("librtapi.so").is_file() || dir.join("deps/librtapi.so").is_file() {
-        return;
-    }
-    let cargo = std::env::var("CARGO").unwrap_or_else(|_| "cargo".into());
-    let mut cmd = Command::new(cargo);
-    cmd.args(["build", "-q", "-p", "tutti-rtapi"]).current_dir(root());
-    if dir.file_name().is_some_and(|n| n == "release") {
-        cmd.arg("--release");
-    }
-    assert!(cmd.status().expect("running cargo").success(), "building librtapi");
 }
 
 /// A CSV of numbers: header and rows.
@@ -60,7 +46,7 @@ fn the_short_uav_demo_reproduces_figures_5_and_6() {
         eprintln!("skipped: the UAV demo needs {python} and {cc}");
         return;
     }
-    ensure_rtapi();
+    common::ensure_rtapi();
     let tmp = tempfile::tempdir().unwrap();
     let out = tmp.path().join("uav");
     let ns = format!("tdemo{}", std::process::id());

@@ -16,6 +16,7 @@ mod record;
 mod replay;
 mod show;
 mod status;
+mod studio;
 
 /// Exit status for invalid input or usage.
 pub const EXIT_INVALID: u8 = 2;
@@ -46,6 +47,7 @@ enum Command {
     Bench(bench::Args),
     Gateway(gateway::Args),
     Demo(demo::Args),
+    Studio(studio::Args),
 }
 
 /// `--realtime [--cpu N] [--priority P]`, shared by the commands that step domains.
@@ -103,6 +105,7 @@ pub fn run(cli: Cli) -> ExitCode {
         Command::Bench(a) => bench::run(a),
         Command::Gateway(a) => gateway::run(a),
         Command::Demo(a) => demo::run(a),
+        Command::Studio(a) => studio::run(a),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

@@ -4,9 +4,8 @@
 use std::fmt::Write as _;
 use std::path::PathBuf;
 
-use serde::Serialize;
-use tutti_core::ddf::{Domain, Leaf, Model, Role};
-use tutti_core::mapping::{self, Endpoint, ItemTopic, Profile, Qos, SetNames};
+use tutti_core::mapping::{self, Profile, Qos};
+use tutti_core::show::{show, ShowJson};
 
 use tutti_gateway::EngineKind;
 
@@ -48,101 +47,16 @@ impl From<ProfileArg> for Profile {
     }
 }
 
-/// `tutti show --json` output, version 1.
-#[derive(Debug, Serialize)]
-struct ShowJson<'a> {
-    schema: &'static str,
-    source: &'a str,
-    package: String,
-    qos_profile: Profile,
-    /// The gateway's DDS engine: "cyclone" or "rustdds".
-    dds_engine: &'static str,
-    domains: Vec<DomainJson<'a>>,
-}
-
-#[derive(Debug, Serialize)]
-struct DomainJson<'a> {
-    name: &'a str,
-    synchronous: bool,
-    multiple_publish_allowed: bool,
-    states: bool,
-    connection: Option<&'a tutti_core::ddf::Connection>,
-    layout_hash: String,
-    /// How writer exclusivity is enforced: null, "gateway" (the core's first-writer rule,
-    /// over DDS too) or "gateway+dds" (also EXCLUSIVE ownership matched on the wire).
-    exclusive_writer: Option<&'static str>,
-    sets: Vec<SetJson<'a>>,
-}
-
-#[derive(Debug, Serialize)]
-struct SetJson<'a> {
-    role: Role,
-    size: u32,
-    align: u32,
-    items: &'a [Leaf],
-    dds: SetNames,
-    per_item_topics: Vec<ItemTopic>,
-    writer_qos: Qos,
-    reader_qos: Qos,
-}
-
 pub fn run(args: Args) -> CliResult {
     let model = load_ddf(&args.file)?;
     let profile = Profile::from(args.qos_profile);
-    let view = build(&model, &args.file, profile, args.engine);
+    let view = show(&model, &args.file, profile, args.engine.name());
     if args.json {
         println!("{}", serde_json::to_string_pretty(&view).map_err(anyhow::Error::from)?);
     } else {
         print!("{}", text(&view));
     }
     Ok(())
-}
-
-fn build<'a>(model: &'a Model, path: &std::path::Path, profile: Profile, engine: EngineKind) -> ShowJson<'a> {
-    let package = mapping::package_name(path);
-    let domains = model.domains.iter().map(|d| domain_json(d, &package, profile)).collect();
-    ShowJson {
-        schema: "tutti-show/1",
-        source: &model.source,
-        package,
-        qos_profile: profile,
-        dds_engine: engine.name(),
-        domains,
-    }
-}
-
-fn domain_json<'a>(d: &'a Domain, package: &str, profile: Profile) -> DomainJson<'a> {
-    let sets = Role::ALL
-        .iter()
-        .map(|&role| {
-            let set = d.set(role);
-            SetJson {
-                role,
-                size: set.layout.size,
-                align: set.layout.align,
-                items: &set.layout.leaves,
-                dds: mapping::set_names(package, &d.name, role),
-                per_item_topics: mapping::item_topics(d, role),
-                writer_qos: mapping::qos(d.flags, profile, Endpoint::Writer, 100),
-                reader_qos: mapping::qos(d.flags, profile, Endpoint::Reader, 100),
-            }
-        })
-        .collect();
-    let exclusive_writer = match (d.flags.multiple_publish_allowed, profile) {
-        (true, _) => None,
-        (false, Profile::Ros2) => Some("gateway"),
-        (false, Profile::Dds) => Some("gateway+dds"),
-    };
-    DomainJson {
-        name: &d.name,
-        synchronous: d.flags.synchronous,
-        multiple_publish_allowed: d.flags.multiple_publish_allowed,
-        states: d.flags.states,
-        connection: d.connection.as_ref(),
-        layout_hash: format!("{:016x}", d.layout_hash),
-        exclusive_writer,
-        sets,
-    }
 }
 
 /// `remote card=test pciindex=0`: the kind, then every attribute and setting as written.

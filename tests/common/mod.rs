@@ -55,3 +55,21 @@ pub fn run_with_timeout(mut cmd: Command, limit: Duration) -> (ExitStatus, Strin
     };
     (status, out.join().expect("stdout reader"), err.join().expect("stderr reader"))
 }
+
+/// The folder of librtapi.so next to the tutti executable (the demo looks there); built
+/// when missing.
+pub fn ensure_rtapi() -> std::path::PathBuf {
+    let exe = std::path::PathBuf::from(env!("CARGO_BIN_EXE_tutti"));
+    let dir = exe.parent().expect("the executable's folder");
+    if let Some(d) = [dir.to_path_buf(), dir.join("deps")].into_iter().find(|d| d.join("librtapi.so").is_file()) {
+        return d;
+    }
+    let cargo = std::env::var("CARGO").unwrap_or_else(|_| "cargo".into());
+    let mut cmd = Command::new(cargo);
+    cmd.args(["build", "-q", "-p", "tutti-rtapi"]).current_dir(env!("CARGO_MANIFEST_DIR"));
+    if dir.file_name().is_some_and(|n| n == "release") {
+        cmd.arg("--release");
+    }
+    assert!(cmd.status().expect("running cargo").success(), "building librtapi");
+    dir.to_path_buf()
+}

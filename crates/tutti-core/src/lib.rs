@@ -10,4 +10,5 @@ pub mod ddf;
 pub mod idl;
 pub mod mapping;
 pub mod shm;
+pub mod show;
 pub mod sync;

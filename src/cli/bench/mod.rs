@@ -10,6 +10,7 @@ mod gateway;
 mod iceoryx;
 mod record;
 mod shm;
+mod studio;
 
 /// Run a benchmark.
 #[derive(Debug, clap::Args)]
@@ -30,6 +31,7 @@ enum What {
     Record(record::Args),
     /// Round trips through shared-memory domains, next to iceoryx2 in the same run.
     Shm(shm::Args),
+    Studio(studio::Args),
     /// (internal) the pong side of `bench shm`.
     #[command(hide = true)]
     ShmPong(shm::PongArgs),
@@ -44,6 +46,7 @@ pub fn run(args: Args) -> CliResult {
         What::Gateway(a) => gateway::run(a),
         What::Record(a) => record::run(a),
         What::Shm(a) => shm::run(a),
+        What::Studio(a) => studio::run(a),
         What::ShmPong(a) => shm::pong(a),
         What::IoxPong(a) => iceoryx::pong_main(a),
     }

@@ -122,26 +122,10 @@ fn one_run(
         Mode::None => Vec::new(),
         _ => vec![tutti_record::create(&path, model, &args.file)?],
     };
-    let mut publish: Vec<Vec<u8>> = model.domains.iter().map(|d| d.publish.layout.default_bytes()).collect();
-    let mut late = Vec::with_capacity((args.duration.as_secs_f64() / args.step.as_secs_f64()) as usize + 16);
-    let mut ticker = Ticker::new(args.step);
-    let start = Instant::now();
-    while start.elapsed() < args.duration {
-        let tick = ticker.wait();
-        late.push(tick.late);
-        let sim = tick.k as f64 * args.step.as_secs_f64();
-        // Values that change every step, as a simulation's would.
-        for (buf, d) in publish.iter_mut().zip(&model.domains) {
-            for leaf in d.publish.layout.leaves.iter().filter(|l| l.ty == ScalarType::Float64) {
-                for c in buf[leaf.range()].chunks_exact_mut(8) {
-                    c.copy_from_slice(&(sim * 1.5 + leaf.offset as f64).to_ne_bytes());
-                }
-            }
-        }
-        let reports = rt::step_all(&mut fw, &publish, sim, args.step, &tick)?;
-        rt::record_step(&mut recorders, &fw, &reports, &publish, sim, start)?;
-    }
-    let secs = start.elapsed().as_secs_f64();
+    let (late, overruns, secs) =
+        step_run(model, &mut fw, args.step, args.duration, |fw, reports, publish, sim, start| {
+            rt::record_step(&mut recorders, fw, reports, publish, sim, start)
+        })?;
     for rec in recorders {
         rec.finish()?;
     }
@@ -158,5 +142,38 @@ fn one_run(
     for e in std::fs::read_dir(dir)?.filter_map(Result::ok) {
         let _ = std::fs::remove_file(e.path());
     }
-    Ok(RunResult { late, overruns: ticker.overruns, bytes, secs })
+    Ok(RunResult { late, overruns, bytes, secs })
+}
+
+/// Steps every domain of `fw` at period `step` for `duration`, as `tutti host` does but with
+/// float64 PUBLISH values that change every step, as a simulation's would; `after` runs after
+/// each step (a recording, or nothing). Returns each step's lateness, the overruns and the
+/// seconds run. Shared by the benchmarks that measure what something beside the framework
+/// costs it (`bench record`, `bench studio`).
+pub(super) fn step_run(
+    model: &tutti_core::ddf::Model,
+    fw: &mut Framework,
+    step: Duration,
+    duration: Duration,
+    mut after: impl FnMut(&Framework, &[tutti_core::shm::StepReport], &[Vec<u8>], f64, Instant) -> anyhow::Result<()>,
+) -> anyhow::Result<(Vec<Duration>, u64, f64)> {
+    let mut publish: Vec<Vec<u8>> = model.domains.iter().map(|d| d.publish.layout.default_bytes()).collect();
+    let mut late = Vec::with_capacity((duration.as_secs_f64() / step.as_secs_f64()) as usize + 16);
+    let mut ticker = Ticker::new(step);
+    let start = Instant::now();
+    while start.elapsed() < duration {
+        let tick = ticker.wait();
+        late.push(tick.late);
+        let sim = tick.k as f64 * step.as_secs_f64();
+        for (buf, d) in publish.iter_mut().zip(&model.domains) {
+            for leaf in d.publish.layout.leaves.iter().filter(|l| l.ty == ScalarType::Float64) {
+                for c in buf[leaf.range()].chunks_exact_mut(8) {
+                    c.copy_from_slice(&(sim * 1.5 + leaf.offset as f64).to_ne_bytes());
+                }
+            }
+        }
+        let reports = rt::step_all(fw, &publish, sim, step, &tick)?;
+        after(fw, &reports, &publish, sim, start)?;
+    }
+    Ok((late, ticker.overruns, start.elapsed().as_secs_f64()))
 }

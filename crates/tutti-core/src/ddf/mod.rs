@@ -21,6 +21,7 @@ pub mod model;
 pub mod raw;
 pub mod synth;
 pub mod validate;
+pub mod write;
 
 pub use layout::SetLayout;
 pub use model::{Connection, ConnectionKind, Domain, Flags, Item, ItemKind, Leaf, Model, Role, ScalarType, Set, Value};

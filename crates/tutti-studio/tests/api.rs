@@ -1,0 +1,380 @@
+//! The studio's JSON API through HTTP (no browser): opening, checking, saving with its
+//! refusals, root confinement and the token.
+
+use std::path::Path;
+
+use serde_json::{json, Value};
+use tutti_studio::{Config, Running};
+
+struct Studio {
+    running: Running,
+    agent: ureq::Agent,
+    token: Option<String>,
+    _dir: tempfile::TempDir,
+    root: std::path::PathBuf,
+}
+
+fn studio(token: Option<&str>, read_only: bool) -> Studio {
+    studio_with(token, read_only, None)
+}
+
+fn studio_with(token: Option<&str>, read_only: bool, exe: Option<&str>) -> Studio {
+    let dir = tempfile::tempdir().unwrap();
+    let root = dir.path().join("root");
+    std::fs::create_dir(&root).unwrap();
+    let ddf = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../ddf");
+    for f in ["paper-figure2.ddf", "multiuav.ddf"] {
+        std::fs::copy(ddf.join(f), root.join(f)).unwrap();
+    }
+    std::fs::write(dir.path().join("outside.ddf"), "secret").unwrap();
+    let running = Running::start(Config {
+        listen: "127.0.0.1:0".parse().unwrap(),
+        root: root.clone(),
+        files: vec!["paper-figure2.ddf".into()],
+        read_only,
+        token: token.map(str::to_string),
+        namespace: format!("studioapi{}", std::process::id()),
+        tutti_exe: exe.map(Into::into),
+    })
+    .unwrap();
+    let agent: ureq::Agent = ureq::Agent::config_builder()
+        .http_status_as_error(false)
+        .timeout_global(Some(std::time::Duration::from_secs(20)))
+        .build()
+        .into();
+    Studio { running, agent, token: token.map(str::to_string), _dir: dir, root }
+}
+
+impl Studio {
+    fn url(&self, path: &str) -> String {
+        format!("http://{}{path}", self.running.addr())
+    }
+
+    fn get(&self, path: &str) -> (u16, Value) {
+        let mut req = self.agent.get(self.url(path));
+        if let Some(t) = &self.token {
+            req = req.header("x-tutti-token", t);
+        }
+        let mut resp = req.call().unwrap();
+        (resp.status().as_u16(), resp.body_mut().read_json().unwrap_or(Value::Null))
+    }
+
+    fn post(&self, path: &str, body: Value) -> (u16, Value) {
+        let mut req = self.agent.post(self.url(path));
+        if let Some(t) = &self.token {
+            req = req.header("x-tutti-token", t);
+        }
+        let mut resp = req.send_json(&body).unwrap();
+        (resp.status().as_u16(), resp.body_mut().read_json().unwrap_or(Value::Null))
+    }
+}
+
+fn figure2(name: &str) -> Value {
+    let item = |n: &str| json!({ "name": n, "type": "double" });
+    json!({ "domains": [{
+        "name": name, "synchronous": true, "multiple_publish_allowed": false, "states": false,
+        "publish": [item("Autopilot"), item("X")],
+        "subscribe": [item("Latitude"), item("Longitude"), item("Elevation")],
+    }]})
+}
+
+#[test]
+fn page_and_files_are_served() {
+    let s = studio(None, false);
+    let mut resp = s.agent.get(s.url("/")).call().unwrap();
+    assert_eq!(resp.status().as_u16(), 200);
+    assert!(resp.body_mut().read_to_string().unwrap().contains("tutti studio"));
+    let (status, files) = s.get("/api/files");
+    assert_eq!(status, 200);
+    assert_eq!(files["files"], json!(["multiuav.ddf", "paper-figure2.ddf"]));
+    let (_, info) = s.get("/api/info");
+    assert_eq!(info["files"], json!(["paper-figure2.ddf"]));
+    let (status, body) = s.get("/api/nothing");
+    assert_eq!(status, 404);
+    assert!(body["error"].as_str().unwrap().contains("no such"));
+}
+
+#[test]
+fn open_gives_the_document_the_layout_and_the_topics() {
+    let s = studio(None, false);
+    let (status, body) = s.get("/api/open?path=paper-figure2.ddf");
+    assert_eq!(status, 200, "{body}");
+    let checked = &body["checked"];
+    assert_eq!(checked["valid"], true);
+    let doc = &checked["document"]["domains"][0];
+    assert_eq!(doc["name"], "multiuav_uav1");
+    assert_eq!((&doc["synchronous"], &doc["multiple_publish_allowed"]), (&json!(true), &json!(false)));
+    assert_eq!(doc["subscribe"][2]["name"], "Elevation");
+    assert_eq!(doc["subscribe"][2]["type"], "float64");
+    let set = &checked["show"]["domains"][0]["sets"][1];
+    assert_eq!(set["role"], "SUBSCRIBE");
+    assert_eq!(set["size"], 24);
+    assert_eq!(set["items"][2]["offset"], 16);
+    assert_eq!(set["dds"]["topic"], "rt/multiuav_uav1/subscribe");
+    assert!(set["reader_qos"].is_object());
+}
+
+#[test]
+fn check_puts_each_diagnostic_at_its_field() {
+    let s = studio(None, false);
+    let mut doc = figure2("uav one");
+    doc["domains"][0]["subscribe"][1]["length"] = json!("0");
+    let (status, body) = s.post("/api/check", json!({ "document": doc }));
+    assert_eq!(status, 200);
+    assert_eq!(body["valid"], false);
+    let fields: Vec<&str> =
+        body["diagnostics"].as_array().unwrap().iter().filter_map(|d| d["field"].as_str()).collect();
+    assert_eq!(fields, vec!["d0", "d0.subscribe.i1.length"], "{body}");
+    assert!(body["xml"].as_str().unwrap().contains("<set name=\"PUBLISH\">"));
+    let (_, body) = s.post("/api/check", json!({ "document": figure2("uav1") }));
+    assert_eq!(body["valid"], true, "{body}");
+    assert_eq!(body["show"]["domains"][0]["name"], "uav1");
+    // A bus nests its members: paths join with '/'.
+    let mut doc = figure2("uav1");
+    doc["domains"][0]["publish"][1] = json!({ "name": "gps", "type": "bus", "items": [
+        { "name": "lat", "type": "double" }, { "name": "fix", "type": "uint8", "length": "3", "default": "1" } ] });
+    let (_, body) = s.post("/api/check", json!({ "document": doc }));
+    assert_eq!(body["valid"], true, "{body}");
+    let items = &body["show"]["domains"][0]["sets"][0]["items"];
+    assert_eq!(
+        (&items[1]["path"], &items[2]["path"], &items[2]["length"]),
+        (&json!("gps/lat"), &json!("gps/fix"), &json!(3))
+    );
+    // A body that is not a document: a clear message, not a crash.
+    let (status, _) = s.post("/api/check", json!({ "document": 3 }));
+    assert!((400..500).contains(&status));
+}
+
+#[test]
+fn parse_reads_xml_typed_by_hand() {
+    let s = studio(None, false);
+    let xml = std::fs::read_to_string(s.root.join("multiuav.ddf")).unwrap();
+    let (_, body) = s.post("/api/parse", json!({ "xml": xml }));
+    assert_eq!(body["valid"], true);
+    assert!(body["document"]["domains"].as_array().unwrap().len() >= 2);
+    let (_, body) = s.post("/api/parse", json!({ "xml": "<orchestra><domain name=\"a b\"/></orchestra>" }));
+    assert_eq!(body["valid"], false);
+    assert_eq!(body["diagnostics"][0]["line"], 1);
+}
+
+#[test]
+fn save_is_atomic_and_refuses_what_it_must() {
+    let s = studio(None, false);
+    // A new file.
+    let (status, body) = s.post("/api/save", json!({ "path": "new.ddf", "document": figure2("uav1") }));
+    assert_eq!(status, 200, "{body}");
+    let version = body["version"].as_str().unwrap().to_string();
+    let saved = std::fs::read_to_string(s.root.join("new.ddf")).unwrap();
+    assert!(tutti_core::ddf::parse_str(&saved, "new.ddf").is_ok());
+    // Saving it again as new: it exists.
+    let (status, body) = s.post("/api/save", json!({ "path": "new.ddf", "document": figure2("uav1") }));
+    assert_eq!((status, body["code"].as_str()), (409, Some("exists")));
+    // Saved over with its version: fine.
+    let (status, body) =
+        s.post("/api/save", json!({ "path": "new.ddf", "document": figure2("uav2"), "version": version }));
+    assert_eq!(status, 200, "{body}");
+    let version = body["version"].as_str().unwrap().to_string();
+    // Changed on disk since: refused, file untouched.
+    std::fs::write(s.root.join("new.ddf"), "changed by someone else").unwrap();
+    let (status, body) =
+        s.post("/api/save", json!({ "path": "new.ddf", "document": figure2("uav3"), "version": version }));
+    assert_eq!((status, body["code"].as_str()), (409, Some("changed")));
+    assert!(body["error"].as_str().unwrap().contains("changed on disk"));
+    assert_eq!(std::fs::read_to_string(s.root.join("new.ddf")).unwrap(), "changed by someone else");
+    // Invalid: refused unless forced.
+    let (status, body) = s.post("/api/save", json!({ "path": "bad.ddf", "document": figure2("a b") }));
+    assert_eq!((status, body["code"].as_str()), (422, Some("invalid")));
+    assert!(body["details"][0]["message"].as_str().unwrap().contains("a b"));
+    assert!(!s.root.join("bad.ddf").exists());
+    let (status, _) = s.post("/api/save", json!({ "path": "bad.ddf", "document": figure2("a b"), "force": true }));
+    assert_eq!(status, 200);
+    assert!(s.root.join("bad.ddf").exists());
+    // No temp file left behind.
+    let names: Vec<String> =
+        std::fs::read_dir(&s.root).unwrap().map(|e| e.unwrap().file_name().to_string_lossy().into_owned()).collect();
+    assert!(names.iter().all(|n| !n.contains("tmp")), "{names:?}");
+}
+
+#[test]
+fn paths_outside_the_root_are_refused() {
+    let s = studio(None, false);
+    std::os::unix::fs::symlink(s.root.join("../outside.ddf"), s.root.join("link.ddf")).unwrap();
+    for bad in ["../../etc/passwd", "/etc/passwd", "../outside.ddf", "link.ddf", "..%2Foutside.ddf"] {
+        let (status, body) = s.get(&format!("/api/open?path={bad}"));
+        assert!(status == 403 || status == 404, "{bad}: {status} {body}");
+        assert!(body["error"].is_string(), "{bad}: {body}");
+        if !bad.contains('%') {
+            let (status, body) = s.post("/api/save", json!({ "path": bad, "document": figure2("x"), "force": true }));
+            assert!((400..500).contains(&status), "{bad}: {status} {body}");
+        }
+    }
+    let (status, body) = s.get("/api/open?path=../../etc/passwd");
+    assert_eq!(status, 403);
+    assert!(body["error"].as_str().unwrap().contains("outside the studio's root"));
+    assert_eq!(std::fs::read_to_string(s.root.join("../outside.ddf")).unwrap(), "secret");
+}
+
+#[test]
+fn read_only_refuses_to_save() {
+    let s = studio(None, true);
+    let (status, body) = s.post("/api/save", json!({ "path": "new.ddf", "document": figure2("uav1") }));
+    assert_eq!((status, body["code"].as_str()), (403, Some("read-only")));
+}
+
+#[test]
+fn a_token_is_required_when_set() {
+    let mut s = studio(Some("sesame"), false);
+    let (status, _) = s.get("/api/files");
+    assert_eq!(status, 200);
+    let (status, _) = s.get("/api/files?token=sesame");
+    assert_eq!(status, 200);
+    s.token = None;
+    let (status, body) = s.get("/api/files");
+    assert_eq!(status, 401);
+    assert!(body["error"].as_str().unwrap().contains("token"));
+    let (status, _) = s.get("/api/files?token=wrong");
+    assert_eq!(status, 401);
+}
+
+/// A file in /dev/shm, removed when dropped.
+struct ShmFile(std::path::PathBuf);
+
+impl Drop for ShmFile {
+    fn drop(&mut self) {
+        let _ = std::fs::remove_file(&self.0);
+    }
+}
+
+/// The first event of the monitor's stream.
+fn first_event(s: &Studio, query: &str) -> Value {
+    use std::io::BufRead;
+    let resp = s.agent.get(s.url(&format!("/api/monitor?{query}"))).call().unwrap();
+    assert_eq!(resp.status().as_u16(), 200);
+    let reader = std::io::BufReader::new(resp.into_body().into_reader());
+    for line in reader.lines() {
+        let line = line.unwrap();
+        if let Some(data) = line.strip_prefix("data: ") {
+            return serde_json::from_str(data).unwrap();
+        }
+    }
+    panic!("the stream ended without an event");
+}
+
+#[test]
+fn the_monitor_reports_a_corrupted_segment_and_keeps_running() {
+    let s = studio(None, false);
+    let ns = format!("studiobad{}", std::process::id());
+    let junk = ShmFile(format!("/dev/shm/tutti.{ns}.broken").into());
+    std::fs::write(&junk.0, vec![0xa5u8; 4096]).unwrap();
+    for _ in 0..2 {
+        let ev = first_event(&s, &format!("namespace={ns}&items=broken%23PUBLISH%23x,gone%23SUBSCRIBE%23y"));
+        assert_eq!(ev["namespace"], ns.as_str());
+        assert!(ev["domains"][0]["error"].is_string(), "{ev}");
+        assert!(ev["values"]["broken#PUBLISH#x"]["error"].is_string(), "{ev}");
+        assert_eq!(ev["values"]["gone#SUBSCRIBE#y"]["error"], "no running framework");
+    }
+    let (status, body) = s.get("/api/monitor?namespace=a%20b");
+    assert_eq!(status, 400, "{body}");
+    let (status, body) = s.get("/api/monitor?items=x%23BOTH%23y");
+    assert_eq!(status, 400, "{body}");
+}
+
+#[test]
+fn run_control_refuses_what_it_must_and_keeps_the_log() {
+    let s = studio_with(None, false, Some("/bin/echo"));
+    std::fs::write(s.root.join("bad.ddf"), "<orchestra/>").unwrap();
+    let start =
+        |path: &str, step: &str| s.post("/api/run/start", json!({ "kind": "host", "path": path, "step": step }));
+    let (status, body) = start("bad.ddf", "10ms");
+    assert_eq!((status, body["code"].as_str()), (422, Some("invalid")), "{body}");
+    let (status, _) = start("../../etc/passwd", "10ms");
+    assert_eq!(status, 403);
+    let (status, body) = start("multiuav.ddf", "1ms; rm -rf /");
+    assert_eq!(status, 400, "{body}");
+    let (status, body) = start("multiuav.ddf", "10ms");
+    assert_eq!(status, 200, "{body}");
+    // echo prints its arguments and exits: the log holds them once the thread that reads
+    // the child's output has taken them (it runs beside the child: poll, with a watchdog).
+    let deadline = std::time::Instant::now() + std::time::Duration::from_secs(30);
+    let mut ev = first_event(&s, "");
+    while !ev["runs"]["host"]["log"].to_string().contains("--step 10ms") {
+        assert!(std::time::Instant::now() < deadline, "echo's output never reached the log: {ev}");
+        std::thread::sleep(std::time::Duration::from_millis(20));
+        ev = first_event(&s, "");
+    }
+    assert!(ev["runs"]["host"]["log"].to_string().contains("host"), "{ev}");
+    let (status, body) = s.post("/api/run/stop", json!({ "kind": "host" }));
+    assert_eq!(status, 200, "{body}");
+    let ev = first_event(&s, "");
+    assert_eq!(ev["runs"]["host"]["running"], false, "{ev}");
+    let (status, _) = s.post("/api/run/stop", json!({ "kind": "gateway" }));
+    assert_eq!(status, 404);
+
+    let s = studio_with(None, true, Some("/bin/echo"));
+    let (status, body) = s.post("/api/run/start", json!({ "kind": "host", "path": "multiuav.ddf" }));
+    assert_eq!((status, body["code"].as_str()), (403, Some("read-only")));
+    let s = studio(None, false);
+    let (status, body) = s.post("/api/run/start", json!({ "kind": "host", "path": "multiuav.ddf" }));
+    assert_eq!((status, body["code"].as_str()), (503, Some("no-exe")));
+}
+
+#[test]
+fn requests_for_another_host_name_are_refused() {
+    let s = studio(None, false);
+    let mut resp = s.agent.get(s.url("/api/files")).header("host", "rebound.example:8470").call().unwrap();
+    assert_eq!(resp.status().as_u16(), 403);
+    let body: Value = resp.body_mut().read_json().unwrap();
+    assert_eq!(body["code"], "host");
+}
+
+#[test]
+fn a_non_loopback_address_needs_a_token() {
+    let dir = tempfile::tempdir().unwrap();
+    let err = Running::start(Config {
+        listen: "0.0.0.0:0".parse().unwrap(),
+        root: dir.path().to_path_buf(),
+        files: vec![],
+        read_only: true,
+        token: None,
+        namespace: "x".into(),
+        tutti_exe: None,
+    })
+    .unwrap_err();
+    assert!(err.to_string().contains("token"), "{err}");
+}
+
+/// The first event of the stream whose JSON passes `ok`, within 10 s.
+fn event_where(s: &Studio, query: &str, ok: impl Fn(&Value) -> bool) -> Value {
+    let deadline = std::time::Instant::now() + std::time::Duration::from_secs(10);
+    loop {
+        let ev = first_event(s, query);
+        if ok(&ev) {
+            return ev;
+        }
+        assert!(std::time::Instant::now() < deadline, "no such event; last: {ev}");
+        std::thread::sleep(std::time::Duration::from_millis(100));
+    }
+}
+
+#[test]
+fn the_monitor_reads_items_of_a_live_domain_as_an_observer() {
+    let s = studio(None, false);
+    let ns = format!("studiolive{}", std::process::id());
+    let model = tutti_core::ddf::load(s.root.join("paper-figure2.ddf")).unwrap();
+    let opts = tutti_core::shm::FrameworkOptions { namespace: ns.clone(), ..Default::default() };
+    let mut fw = tutti_core::shm::Framework::create(&model, &opts).unwrap();
+    let mut publish = vec![0u8; 16];
+    publish[8..].copy_from_slice(&2.5f64.to_ne_bytes());
+    fw.domains[0].publish_step(&publish, 0.01).unwrap();
+    let query = format!("namespace={ns}&items=multiuav_uav1%23PUBLISH%23X");
+    let ev = event_where(&s, &query, |ev| ev["values"]["multiuav_uav1#PUBLISH#X"]["v"].is_array());
+    assert_eq!(ev["values"]["multiuav_uav1#PUBLISH#X"]["v"], json!([2.5]));
+    let d = &ev["domains"][0];
+    assert_eq!((&d["domain"], &d["framework_alive"]), (&json!("multiuav_uav1"), &json!(true)));
+    // The studio is no participant.
+    assert_eq!(d["connection_count"], 0);
+    assert!(ev["catalog"].as_array().unwrap().iter().any(|c| c["path"] == "Elevation"));
+    drop(fw);
+    let ev = event_where(&s, &query, |ev| ev["domains"].as_array().is_some_and(Vec::is_empty));
+    assert_eq!(ev["values"]["multiuav_uav1#PUBLISH#X"]["error"], "no running framework");
+}

@@ -1,0 +1,175 @@
+//! `tutti bench studio`: what watching costs a real-time host. The framework of a DDF steps
+//! every domain at a fixed rate (the stepping loop of `bench record`) for `--duration`,
+//! alone and with a `tutti studio` (a child process) streaming the live monitor with
+//! `--items` items plotted to a reader of its event stream, in alternating rounds; it prints
+//! the step lateness and overruns of each, and the events the monitor delivered per second.
+
+use std::io::{BufRead, BufReader, Read, Write};
+use std::net::TcpStream;
+use std::path::PathBuf;
+use std::process::{Command, Stdio};
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+use std::sync::Arc;
+use std::time::Duration;
+
+use anyhow::{bail, Context as _};
+use tutti_core::shm::{Framework, FrameworkOptions};
+
+use super::super::child;
+use super::super::host::parse_duration;
+use super::super::{load_ddf, CliResult};
+use super::nearest_rank;
+use super::record::step_run;
+
+/// Step lateness at a fixed rate with and without the studio's live monitor plotting items.
+#[derive(Debug, clap::Args)]
+#[command(after_help = "Example:\n  cargo run --release -- bench studio --duration 20s --rounds 2 --items 20")]
+pub struct Args {
+    /// The DDF whose domains are hosted.
+    #[arg(long, value_name = "DDF", default_value = "ddf/multiuav.ddf")]
+    file: PathBuf,
+    /// Step period.
+    #[arg(long, default_value = "1ms", value_parser = parse_duration)]
+    step: Duration,
+    /// Length of each run.
+    #[arg(long, default_value = "10s", value_parser = parse_duration)]
+    duration: Duration,
+    /// Rounds of the two runs (alone, monitored), interleaved.
+    #[arg(long, default_value_t = 2)]
+    rounds: u32,
+    /// Items the monitor plots (the first ones of the DDF, PUBLISH then SUBSCRIBE).
+    #[arg(long, default_value_t = 20)]
+    items: usize,
+}
+
+/// A studio child process and a reader of its monitor stream, counting events.
+struct Watcher {
+    _studio: child::Kid,
+    stop: Arc<AtomicBool>,
+    events: Arc<AtomicU64>,
+    reader: Option<std::thread::JoinHandle<()>>,
+}
+
+impl Drop for Watcher {
+    fn drop(&mut self) {
+        self.stop.store(true, Ordering::SeqCst);
+        if let Some(r) = self.reader.take() {
+            let _ = r.join();
+        }
+    }
+}
+
+fn watch(namespace: &str, file: &std::path::Path, items: &[String]) -> anyhow::Result<Watcher> {
+    let exe = std::env::current_exe().context("finding the tutti executable")?;
+    let root = file.parent().filter(|p| !p.as_os_str().is_empty()).unwrap_or(std::path::Path::new("."));
+    let mut cmd = Command::new(exe);
+    cmd.args(["studio", "--listen", "127.0.0.1:0", "--read-only", "--root"])
+        .arg(root)
+        .env("TUTTI_NAMESPACE", namespace)
+        .stdin(Stdio::null())
+        .stdout(Stdio::null())
+        .stderr(Stdio::piped());
+    let mut studio = child::spawn("tutti studio", cmd, None)?;
+    let stderr = studio.child.stderr.take().context("the studio's stderr")?;
+    let mut lines = BufReader::new(stderr).lines();
+    let addr = loop {
+        match lines.next() {
+            Some(Ok(line)) => {
+                if let Some(url) = line.strip_prefix("tutti studio: listening on http://") {
+                    break url.trim_end_matches('/').to_string();
+                }
+            }
+            _ => bail!("the studio stopped before it listened"),
+        }
+    };
+    std::thread::spawn(move || for _ in lines.by_ref() {});
+    let mut conn = TcpStream::connect(&addr).with_context(|| format!("connecting to the studio at {addr}"))?;
+    conn.set_read_timeout(Some(Duration::from_millis(200)))?;
+    let query: String = items.iter().map(|i| i.replace('#', "%23").replace('/', "%2F")).collect::<Vec<_>>().join(",");
+    write!(conn, "GET /api/monitor?items={query} HTTP/1.1\r\nHost: {addr}\r\nAccept: text/event-stream\r\n\r\n")?;
+    let stop = Arc::new(AtomicBool::new(false));
+    let events = Arc::new(AtomicU64::new(0));
+    let reader = {
+        let (stop, events) = (stop.clone(), events.clone());
+        std::thread::spawn(move || {
+            let mut buf = vec![0u8; 1 << 16];
+            let mut tail = Vec::new();
+            while !stop.load(Ordering::SeqCst) {
+                match conn.read(&mut buf) {
+                    Ok(0) => break,
+                    Ok(n) => {
+                        tail.extend_from_slice(&buf[..n]);
+                        let text = String::from_utf8_lossy(&tail);
+                        let count = text.matches("data: ").count() as u64;
+                        if count > 0 {
+                            events.fetch_add(count, Ordering::Relaxed);
+                            let cut = text.rfind("data: ").map_or(0, |i| i + 6);
+                            tail.drain(..cut.min(tail.len()));
+                        }
+                    }
+                    Err(e) if matches!(e.kind(), std::io::ErrorKind::WouldBlock | std::io::ErrorKind::TimedOut) => {}
+                    Err(_) => break,
+                }
+            }
+        })
+    };
+    Ok(Watcher { _studio: studio, stop, events, reader: Some(reader) })
+}
+
+pub fn run(args: Args) -> CliResult {
+    let model = load_ddf(&args.file)?;
+    let items: Vec<String> = model
+        .domains
+        .iter()
+        .flat_map(|d| d.leaves().map(move |(role, leaf)| format!("{}#{role}#{}", d.name, leaf.path)))
+        .take(args.items)
+        .collect();
+    println!(
+        "monitoring cost: {} ({} domains), step {:?}, {:?} per run, {} round(s), interleaved; the monitor plots {} item(s)",
+        args.file.display(),
+        model.domains.len(),
+        args.step,
+        args.duration,
+        args.rounds,
+        items.len()
+    );
+    println!(
+        "{:<28} {:>12} {:>12} {:>12} {:>9} {:>10}",
+        "run", "late p50 µs", "late p99 µs", "late max µs", "overruns", "events/s"
+    );
+    for round in 1..=args.rounds {
+        for monitored in [false, true] {
+            let name = if monitored { "studio monitor" } else { "no monitor" };
+            eprintln!("bench studio: round {round}: {name}");
+            let opts = FrameworkOptions {
+                namespace: format!("benchstudio{}x{round}x{}", std::process::id(), u8::from(monitored)),
+                timeout: Duration::from_millis(50),
+                ..Default::default()
+            };
+            let mut fw = Framework::create(&model, &opts).context("creating the domains")?;
+            let watcher = if monitored { Some(watch(&opts.namespace, &args.file, &items)?) } else { None };
+            // Let the studio find the segments before measuring.
+            if watcher.is_some() {
+                std::thread::sleep(Duration::from_millis(500));
+            }
+            let before = watcher.as_ref().map_or(0, |w| w.events.load(Ordering::Relaxed));
+            let (mut late, overruns, secs) =
+                step_run(&model, &mut fw, args.step, args.duration, |_, _, _, _, _| Ok(()))?;
+            let events = watcher.as_ref().map_or(0, |w| w.events.load(Ordering::Relaxed)) - before;
+            drop(watcher);
+            drop(fw);
+            late.sort();
+            let us = |d: Duration| d.as_secs_f64() * 1e6;
+            println!(
+                "{:<28} {:>12.1} {:>12.1} {:>12.1} {:>9} {:>10}",
+                format!("{name} #{round}"),
+                us(nearest_rank(&late, 0.5)),
+                us(nearest_rank(&late, 0.99)),
+                us(late[late.len() - 1]),
+                overruns,
+                if monitored { format!("{:.1}", events as f64 / secs) } else { "-".to_string() }
+            );
+        }
+    }
+    Ok(())
+}
