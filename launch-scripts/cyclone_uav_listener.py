@@ -46,7 +46,7 @@ def state_type(n):
 def main():
     p = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     p.add_argument("--domain", type=int, default=int(os.environ.get("ROS_DOMAIN_ID", "0") or 0))
-    p.add_argument("--uavs", default="1,2,3,4", help="UAV numbers, comma-separated")
+    p.add_argument("--uavs", nargs="+", default=["1,2,3,4"], help="UAV numbers: 1,2,3,4 or 1 2 3 4")
     p.add_argument("--count", type=int, default=0, help="stop after this many samples (0: never)")
     p.add_argument("--timeout", type=float, default=0, help="give up after this many seconds (0: never)")
     p.add_argument("--any-interface", action="store_true", help="do not restrict DDS to loopback")
@@ -65,7 +65,7 @@ def main():
     qos = Qos(Policy.Reliability.Reliable(duration(milliseconds=100)), Policy.History.KeepLast(10),
               Policy.Durability.Volatile)
     readers = {}
-    for n in (int(x) for x in a.uavs.split(",") if x.strip()):
+    for n in (int(x) for x in ",".join(a.uavs).split(",") if x.strip()):
         readers[n] = DataReader(dp, Topic(dp, f"rt/multiuav_uav{n}/subscribe", state_type(n)), qos=qos)
     got, end = 0, (time.time() + a.timeout if a.timeout else None)
     try:

@@ -141,7 +141,7 @@ fn a_valid_file_among_invalid_ones_still_fails_the_run() {
     fs::write(&bad, "<orchestra>\n  <domain name=\"d\"><states>maybe</states></domain>\n</orchestra>\n").unwrap();
     let (code, stdout, stderr) = tutti(&[&good, &bad]);
     assert_eq!(code, 2);
-    assert!(stdout.contains("good.ddf: ok (1 domains, 0 items)"), "{stdout}");
+    assert!(stdout.contains("good.ddf: ok (1 domain, 0 items)"), "{stdout}");
     let problems =
         compare(&bad, &stderr, &[Expected { line: 2, col: 28, message: "<states> must be yes or no".into() }]);
     assert!(problems.is_empty(), "{problems:?}\n{stderr}");

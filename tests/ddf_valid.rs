@@ -294,3 +294,21 @@ fn the_three_connection_forms_are_accepted_and_shown() {
     assert_eq!(c[2]["type"], "dolphin");
     assert_eq!(c[2]["settings"], serde_json::json!([["nodeIdFramework", "0"], ["segmentId", "0"]]));
 }
+
+/// `tutti bench ddf` outside a checkout times the same 1,000-domain file, generated, and
+/// leaves nothing behind.
+#[test]
+fn bench_ddf_runs_outside_the_checkout() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_tutti"))
+        .args(["bench", "ddf", "--iterations", "1"])
+        .current_dir(dir.path())
+        .env("TMPDIR", dir.path())
+        .output()
+        .unwrap();
+    let (stdout, stderr) = (String::from_utf8_lossy(&out.stdout), String::from_utf8_lossy(&out.stderr));
+    assert!(out.status.success(), "{stdout}{stderr}");
+    assert!(stdout.contains("1000 domains, 20000 items"), "{stdout}");
+    let generated = stderr.split("generated as ").nth(1).map(str::trim).expect("says which file it generated");
+    assert!(!std::path::Path::new(generated).exists(), "{generated} left behind");
+}

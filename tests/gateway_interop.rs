@@ -102,6 +102,8 @@ fn shared_memory_values_reach_a_cyclone_reader_as_typed_samples(e: Eng) {
         serde_json::json!([k as f64, k as f64 + 1.0, k as f64 + 2.0]),
         "step and values from the same step"
     );
+    // Its log went to a pipe, not a terminal: plain text, no colour codes.
+    assert!(!gw.dump().contains('\u{1b}'), "ANSI escapes in a piped log:\n{}", gw.dump());
 }
 
 fn per_item_mode_uses_stock_types_both_ways(e: Eng) {

@@ -135,3 +135,26 @@ fn host_refuses_bad_arguments_with_status_2() {
         assert!(!out.stderr.is_empty());
     }
 }
+
+/// Errors a new user meets first say it once, in the user's words.
+#[test]
+fn first_errors_are_said_once_and_plainly() {
+    let run = |args: &[&str]| {
+        let out =
+            Command::new(TUTTI).args(args).current_dir(root()).env("TUTTI_NAMESPACE", "hc-words").output().unwrap();
+        (out.status.code(), String::from_utf8_lossy(&out.stderr).into_owned())
+    };
+    for cmd in ["host", "show", "gateway", "check"] {
+        let (code, err) = run(&[cmd, "nofile.ddf"]);
+        assert_eq!(code, Some(2), "{cmd}: {err}");
+        assert_eq!(err.matches("No such file or directory").count(), 1, "{cmd}: the OS error once: {err}");
+        assert!(err.contains("nofile.ddf"), "{err}");
+    }
+    let (code, err) = run(&["host", "ddf/multiuav.ddf", "--step", "fast"]);
+    assert_eq!(code, Some(2), "{err}");
+    assert!(err.contains("'fast' is not a duration: a number and a unit, like 10ms"), "{err}");
+    assert!(!err.contains("expected number at"), "the parser's own wording: {err}");
+    let (code, err) = run(&["gateway", "ddf/multiuav.ddf", "--ros-domain-id", "300"]);
+    assert_eq!(code, Some(2), "{err}");
+    assert!(err.contains("300") && err.contains("0..=232"), "{err}");
+}

@@ -25,7 +25,12 @@ pub fn run(args: Args) -> CliResult {
             Ok(model) => {
                 if !args.quiet {
                     let items: usize = model.domains.iter().map(|d| d.leaves().count()).sum();
-                    println!("{}: ok ({} domains, {} items)", file.display(), model.domains.len(), items);
+                    println!(
+                        "{}: ok ({}, {})",
+                        file.display(),
+                        super::count(model.domains.len(), "domain"),
+                        super::count(items, "item")
+                    );
                 }
             }
             Err(e) => {

@@ -27,8 +27,8 @@ pub struct Args {
     /// The DDF whose domains to bridge.
     #[arg(value_name = "DDF")]
     file: PathBuf,
-    /// DDS domain id (default: ROS_DOMAIN_ID, else 0).
-    #[arg(long, value_name = "N")]
+    /// DDS domain id, 0-232 (default: ROS_DOMAIN_ID, else 0).
+    #[arg(long, value_name = "N", value_parser = clap::value_parser!(u16).range(0..=232))]
     ros_domain_id: Option<u16>,
     /// Type mapping: one struct per set (tutti idl's types) or one stock-typed topic per item.
     #[arg(long, value_enum, default_value_t = Types::Typed)]
@@ -138,6 +138,8 @@ pub fn run(args: Args) -> CliResult {
                 .unwrap_or_else(|_| tracing_subscriber::EnvFilter::new("info,rustdds=off,ros2_client=off")),
         )
         .with_writer(std::io::stderr)
+        // Colour only for a terminal: logs piped to a file or another program stay plain text.
+        .with_ansi(std::io::IsTerminal::is_terminal(&std::io::stderr()))
         .with_target(false)
         .try_init();
     let model = load_ddf(&args.file)?;

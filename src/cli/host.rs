@@ -58,7 +58,8 @@ pub struct Args {
 }
 
 pub fn parse_duration(s: &str) -> Result<Duration, String> {
-    humantime::parse_duration(s.trim()).map_err(|e| format!("'{s}' is not a duration like 10ms, 500us or 2s: {e}"))
+    humantime::parse_duration(s.trim())
+        .map_err(|_| format!("'{s}' is not a duration: a number and a unit, like 10ms, 500us, 2s or 1min"))
 }
 
 pub fn parse_wait(s: &str) -> Result<WaitMode, String> {

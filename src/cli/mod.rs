@@ -116,6 +116,15 @@ pub fn run(cli: Cli) -> ExitCode {
     }
 }
 
+/// `1 domain`, `4 domains`: a count with its noun.
+pub fn count(n: usize, noun: &str) -> String {
+    if n == 1 {
+        format!("1 {noun}")
+    } else {
+        format!("{n} {noun}s")
+    }
+}
+
 /// Loads a DDF, mapping its diagnostics to exit status 2.
 pub fn load_ddf(path: &std::path::Path) -> Result<tutti_core::ddf::Model, Failure> {
     tutti_core::ddf::load(path).map_err(Failure::invalid)

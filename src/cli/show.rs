@@ -101,11 +101,11 @@ fn text(v: &ShowJson<'_>) -> String {
     let mut s = String::new();
     let _ = writeln!(
         s,
-        "{}: {} domain(s), ROS 2 package {}, QoS profile {:?}, DDS engine {}",
+        "{}: {}, ROS 2 package {}, QoS profile {}, DDS engine {}",
         v.source,
-        v.domains.len(),
+        super::count(v.domains.len(), "domain"),
         v.package,
-        v.qos_profile,
+        v.qos_profile.name(),
         v.dds_engine
     );
     for d in &v.domains {

@@ -27,6 +27,9 @@ pub struct Args {
     namespace: Option<String>,
 }
 
+/// How long a one-shot `tutti status` watches to measure the rates.
+const RATE_WINDOW: Duration = Duration::from_millis(250);
+
 fn fmt_ns(ns: u64) -> String {
     if ns >= 1_000_000 {
         format!("{:.2}ms", ns as f64 / 1e6)
@@ -110,8 +113,19 @@ pub fn run(args: Args) -> CliResult {
     let ns = args.namespace.unwrap_or_else(namespace_from_env);
     let mut previous: HashMap<String, (u64, u64)> = HashMap::new();
     let mut last = Instant::now();
+    let mut first = true;
     loop {
-        let domains = list_domains(&ns).with_context(|| format!("listing namespace '{ns}'"))?;
+        let mut domains = list_domains(&ns).with_context(|| format!("listing namespace '{ns}'"))?;
+        // One look: a second one a moment later gives the rates (else they would read 0).
+        if first && !args.watch && !domains.is_empty() {
+            for d in domains.iter().flatten() {
+                previous.insert(d.domain.clone(), (d.steps, d.subscribe_commits));
+            }
+            last = Instant::now();
+            std::thread::sleep(RATE_WINDOW);
+            domains = list_domains(&ns).with_context(|| format!("listing namespace '{ns}'"))?;
+        }
+        first = false;
         let dt = last.elapsed().as_secs_f64().max(1e-9);
         last = Instant::now();
         let mut rates = HashMap::new();
@@ -129,7 +143,16 @@ pub fn run(args: Args) -> CliResult {
             let items: Vec<serde_json::Value> = domains
                 .iter()
                 .map(|d| match d {
-                    Ok(d) => serde_json::to_value(d).unwrap_or_default(),
+                    Ok(d) => {
+                        let mut v = serde_json::to_value(d).unwrap_or_default();
+                        // Simulated time to the nanosecond: 3.05, not 3.0500000000000003.
+                        v["sim_time"] = serde_json::json!((d.sim_time * 1e9).round() / 1e9);
+                        if let Some(&(steps, commits)) = rates.get(&d.domain) {
+                            v["steps_per_s"] = serde_json::json!(steps.round());
+                            v["commits_per_s"] = serde_json::json!(commits.round());
+                        }
+                        v
+                    }
                     Err(e) => serde_json::json!({ "error": e.to_string() }),
                 })
                 .collect();

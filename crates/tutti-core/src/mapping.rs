@@ -363,6 +363,16 @@ pub enum Profile {
     Dds,
 }
 
+impl Profile {
+    /// The name `--qos-profile` takes.
+    pub fn name(self) -> &'static str {
+        match self {
+            Profile::Ros2 => "ros2",
+            Profile::Dds => "dds",
+        }
+    }
+}
+
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
 #[serde(rename_all = "SCREAMING_SNAKE_CASE")]
 pub enum Reliability {

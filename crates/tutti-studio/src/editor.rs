@@ -48,7 +48,7 @@ fn show_json(model: &Model, path: &str) -> Option<Value> {
 
 fn diagnostics(err: &DdfError, written: Option<&Written>) -> Vec<DiagJson> {
     match err {
-        DdfError::Io { source, .. } => {
+        DdfError::Io { cause: source, .. } => {
             vec![DiagJson { line: 1, col: 1, message: source.to_string(), field: None }]
         }
         DdfError::Invalid { diagnostics, .. } => diagnostics

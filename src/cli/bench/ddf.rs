@@ -14,19 +14,47 @@ use anyhow::Context as _;
 use super::super::{CliResult, Failure};
 use super::nearest_rank;
 
+/// The default input, as the checkout has it.
+const DEFAULT: &str = "ddf/large-1000.ddf";
+
 /// Time parsing and validating a DDF: min, p50, p99 and max over N runs.
 #[derive(Debug, clap::Args)]
-#[command(after_help = "Example:\n  cargo run --release -- bench ddf --iterations 200")]
+#[command(
+    after_help = "Example:\n  cargo run --release -- bench ddf --iterations 200\n\nWithout --file: ddf/large-1000.ddf of the current directory, or, outside a checkout, the same\nfile generated (1,000 domains of 20 items) into a temporary file."
+)]
 pub struct Args {
-    /// The DDF to parse.
-    #[arg(long, value_name = "DDF", default_value = "ddf/large-1000.ddf")]
-    file: PathBuf,
+    /// The DDF to parse (default: ddf/large-1000.ddf).
+    #[arg(long, value_name = "DDF")]
+    file: Option<PathBuf>,
     /// Timed runs of each phase.
     #[arg(long, value_name = "N", default_value_t = 50, value_parser = clap::value_parser!(u32).range(1..))]
     iterations: u32,
 }
 
+/// A generated copy of the default input, removed when dropped.
+struct Generated(PathBuf);
+
+impl Drop for Generated {
+    fn drop(&mut self) {
+        let _ = std::fs::remove_file(&self.0);
+    }
+}
+
 pub fn run(args: Args) -> CliResult {
+    let mut generated = None;
+    let file = match args.file {
+        Some(f) => f,
+        None if std::path::Path::new(DEFAULT).exists() => PathBuf::from(DEFAULT),
+        None => {
+            // Outside a checkout: the committed file is this generator's output.
+            let path = std::env::temp_dir().join(format!("tutti-bench-large-1000-{}.ddf", std::process::id()));
+            std::fs::write(&path, tutti_core::ddf::synth::large_ddf(1000, 20))
+                .with_context(|| format!("writing {}", path.display()))?;
+            eprintln!("{DEFAULT} is not here: timing the same file generated as {}", path.display());
+            generated.insert(Generated(path)).0.clone()
+        }
+    };
+    let args = Resolved { file, iterations: args.iterations };
     let shown = args.file.display().to_string();
     let bytes = std::fs::read(&args.file).with_context(|| format!("cannot read {shown}")).map_err(Failure::invalid)?;
     // Validate once (and warm caches and the allocator) before timing anything.
@@ -66,6 +94,12 @@ pub fn run(args: Args) -> CliResult {
         );
     }
     Ok(())
+}
+
+/// The arguments with the input chosen.
+struct Resolved {
+    file: PathBuf,
+    iterations: u32,
 }
 
 /// Order statistics of a set of timings.

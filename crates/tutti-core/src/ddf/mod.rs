@@ -47,12 +47,10 @@ pub struct Diagnostic {
 #[derive(Debug, thiserror::Error)]
 pub enum DdfError {
     /// The file could not be read at all.
-    #[error("{path}: error: cannot read the file: {source}")]
-    Io {
-        path: String,
-        #[source]
-        source: std::io::Error,
-    },
+    /// (The OS error is in the message, not the error's source: a caller that prints the
+    /// chain, as `anyhow`'s `{:#}` does, would print it twice.)
+    #[error("{path}: error: cannot read the file: {cause}")]
+    Io { path: String, cause: std::io::Error },
     /// The file was read and found invalid; every problem is listed.
     #[error("{}", render(path, diagnostics))]
     Invalid { path: String, diagnostics: Vec<Diagnostic> },
@@ -82,7 +80,7 @@ impl fmt::Display for Diagnostic {
 pub fn load(path: impl AsRef<Path>) -> Result<Model, DdfError> {
     let path = path.as_ref();
     let shown = path.display().to_string();
-    let io = |source| DdfError::Io { path: shown.clone(), source };
+    let io = |cause| DdfError::Io { path: shown.clone(), cause };
     let file = std::fs::File::open(path).map_err(io)?;
     let len = file.metadata().map_err(io)?.len();
     if len > MAX_FILE_BYTES {
