@@ -9,6 +9,7 @@ mod bench;
 mod check;
 mod child;
 mod demo;
+mod fmu;
 mod gateway;
 mod host;
 mod idl;
@@ -44,6 +45,7 @@ enum Command {
     Bench(bench::Args),
     Gateway(gateway::Args),
     Demo(demo::Args),
+    Fmu(fmu::Args),
 }
 
 /// `--realtime [--cpu N] [--priority P]`, shared by the commands that step domains.
@@ -100,6 +102,7 @@ pub fn run(cli: Cli) -> ExitCode {
         Command::Bench(a) => bench::run(a),
         Command::Gateway(a) => gateway::run(a),
         Command::Demo(a) => demo::run(a),
+        Command::Fmu(a) => fmu::run(a),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

@@ -1,0 +1,59 @@
+"""A first-order lag with an integrator, exported as an FMI 2.0 co-simulation FMU by pythonfmu.
+
+Used by tutti's FMU tests (tests/fmu_*.rs). Explicit Euler with the communication step, so
+that fmpy and tutti, given the same inputs and step, compute the same numbers bit for bit.
+Outputs: y (lag of u), integral (of u), t (the time at the end of the step), count (steps
+made, an Integer), positive (y > 0, a Boolean). Parameters: tau (time constant), gain.
+Setting `fail_at` > 0 makes doStep fail (status Error, with a log message) once the time
+reaches it.
+"""
+
+from pythonfmu import Fmi2Causality, Fmi2Variability, Fmi2Slave, Real, Integer, Boolean
+
+
+class Lag(Fmi2Slave):
+    author = "tutti"
+    description = "First-order lag and integrator (tutti test model)"
+
+    def __init__(self, **kwargs):
+        super().__init__(**kwargs)
+        self.u = 0.0
+        self.tau = 0.5
+        self.gain = 2.0
+        self.fail_at = 0.0
+        self.y = 0.0
+        self.integral = 0.0
+        self.t = 0.0
+        self.count = 0
+        self.positive = False
+        self.register_variable(Real("u", causality=Fmi2Causality.input))
+        self.register_variable(
+            Real("tau", causality=Fmi2Causality.parameter, variability=Fmi2Variability.tunable)
+        )
+        self.register_variable(
+            Real("gain", causality=Fmi2Causality.parameter, variability=Fmi2Variability.tunable)
+        )
+        self.register_variable(
+            Real("fail_at", causality=Fmi2Causality.parameter, variability=Fmi2Variability.tunable)
+        )
+        self.register_variable(Real("y", causality=Fmi2Causality.output))
+        self.register_variable(Real("integral", causality=Fmi2Causality.output))
+        self.register_variable(Real("t", causality=Fmi2Causality.output))
+        self.register_variable(
+            Integer("count", causality=Fmi2Causality.output, variability=Fmi2Variability.discrete)
+        )
+        self.register_variable(
+            Boolean("positive", causality=Fmi2Causality.output, variability=Fmi2Variability.discrete)
+        )
+
+    def do_step(self, current_time, step_size):
+        end = current_time + step_size
+        if self.fail_at > 0.0 and end >= self.fail_at:
+            self.log(f"Lag: refusing to step past fail_at={self.fail_at} (t={end})", status=3)
+            return False
+        self.y += step_size * (self.gain * self.u - self.y) / self.tau
+        self.integral += step_size * self.u
+        self.t = end
+        self.count += 1
+        self.positive = self.y > 0.0
+        return True
