@@ -229,18 +229,18 @@ impl FmuParticipant {
     pub fn step(&mut self) -> Result<(), RunError> {
         let p = self.participant();
         p.subscribe_lock().map_err(|e| self.shm(e))?;
-        let (start, target) = match self.mode {
+        let (start, h) = match self.mode {
             StepMode::Synchronous => {
+                let fallback = self.fallback_step;
                 let p = self.participant();
-                let sim = p.sim_time();
                 let period_ns = p.segment().header().period_ns.load(Ordering::Relaxed);
-                let h = if period_ns > 0 { period_ns as f64 * 1e-9 } else { self.fallback_step };
-                (sim, sim + h)
+                let h = if period_ns > 0 { period_ns as f64 * 1e-9 } else { fallback };
+                (p.sim_time(), h)
             }
             StepMode::Asynchronous { step } => {
-                let h = step.as_secs_f64();
                 // Time k·h rather than a running sum: no drift over long runs.
-                (0.0, (self.steps + 1) as f64 * h)
+                let h = step.as_secs_f64();
+                (self.steps as f64 * h, h)
             }
         };
         match self.time {
@@ -248,16 +248,20 @@ impl FmuParticipant {
             Some(_) => self.set_inputs()?,
         }
         let now = self.time.unwrap_or(start);
-        if target > now {
-            let h = target - now;
-            // The usual case is exactly the framework's (s, h); a gap left by a missed step
-            // is covered by one longer step from the FMU's own time.
-            let (t, h) =
-                if (now - start).abs() <= 1e-12 * start.abs().max(1.0) { (start, target - start) } else { (now, h) };
-            self.instance.do_step(t, h)?;
-            self.time = Some(target);
-            self.steps += 1;
+        let target = start + h;
+        if now == start {
+            // The usual case: exactly the framework's time and period.
+            self.instance.do_step(start, h)?;
+        } else if target > now {
+            // A gap left by a step the framework made without this FMU's answer (it timed
+            // out): one longer step from the FMU's own time.
+            self.instance.do_step(now, target - now)?;
+        } else {
+            // Already there (the first step read raced with the framework's next one).
+            return self.commit_outputs();
         }
+        self.time = Some(target);
+        self.steps += 1;
         self.commit_outputs()
     }
 

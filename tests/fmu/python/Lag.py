@@ -8,7 +8,8 @@ Setting `fail_at` > 0 makes doStep fail (status Error, with a log message) once 
 reaches it.
 """
 
-from pythonfmu import Fmi2Causality, Fmi2Variability, Fmi2Slave, Real, Integer, Boolean
+from pythonfmu import Boolean, Fmi2Causality, Fmi2Slave, Fmi2Variability, Integer, Real
+from pythonfmu.enums import Fmi2Status
 
 
 class Lag(Fmi2Slave):
@@ -49,7 +50,7 @@ class Lag(Fmi2Slave):
     def do_step(self, current_time, step_size):
         end = current_time + step_size
         if self.fail_at > 0.0 and end >= self.fail_at:
-            self.log(f"Lag: refusing to step past fail_at={self.fail_at} (t={end})", status=3)
+            self.log(f"Lag: refusing to step past fail_at={self.fail_at} (t={end})", status=Fmi2Status.error)
             return False
         self.y += step_size * (self.gain * self.u - self.y) / self.tau
         self.integral += step_size * self.u
