@@ -19,7 +19,7 @@ use std::process::{Command, ExitStatus};
 use std::thread;
 use std::time::Duration;
 
-use fmu_common::{build_lag, libpython, python, repo};
+use fmu_common::{build_lag, close, libpython, python};
 
 const H: f64 = 0.01;
 const OUTPUTS: [&str; 5] = ["y", "integral", "t", "count", "positive"];
@@ -44,18 +44,6 @@ fn setup(py: &Path, dir: &Path, synchronous: bool) -> (PathBuf, PathBuf) {
     (fmu, ddf)
 }
 
-/// Starts `tutti host DDF` for `duration` with u=1.5, recording to `csv`; joined by the caller.
-fn host(ns: &str, ddf: &Path, csv: &Path, duration: &str) -> thread::JoinHandle<(ExitStatus, String, String)> {
-    let mut cmd = Command::new(env!("CARGO_BIN_EXE_tutti"));
-    cmd.args(["host"])
-        .arg(ddf)
-        .args(["--step", "10ms", "--duration", duration, "--timeout", "2s", "--set", "lag/u=1.5", "-q", "--record"])
-        .arg(csv)
-        .env("TUTTI_NAMESPACE", ns);
-    thread::spawn(move || common::run_with_timeout(cmd, Duration::from_secs(120)))
-}
-
-/// `tutti fmu run Lag.fmu --ddf DDF --domain lag ARGS`.
 /// The FMU is unpacked under the test's temp dir (TMPDIR), which goes even if the run crashes.
 fn fmu_run(ns: &str, py: &Path, fmu: &Path, ddf: &Path, args: &[&str]) -> (ExitStatus, String, String) {
     let tmp = fmu.parent().expect("the FMU is in the test's temp dir");
@@ -73,67 +61,20 @@ fn fmu_run(ns: &str, py: &Path, fmu: &Path, ddf: &Path, args: &[&str]) -> (ExitS
     common::run_with_timeout(cmd, Duration::from_secs(120))
 }
 
-/// The recorded rows the FMU answered, by its step count: (sim_time, outputs).
+fn host(ns: &str, ddf: &Path, csv: &Path, duration: &str) -> thread::JoinHandle<(ExitStatus, String, String)> {
+    fmu_common::host(ns, ddf, csv, duration, "lag/u=1.5")
+}
+
 fn recorded(csv: &Path) -> BTreeMap<u64, (f64, Vec<f64>)> {
-    let text = std::fs::read_to_string(csv).unwrap();
-    let mut lines = text.lines();
-    let head: Vec<&str> = lines.next().unwrap().split(',').collect();
-    let col = |name: &str| head.iter().position(|h| *h == name).unwrap_or_else(|| panic!("no column {name}"));
-    let cols: Vec<usize> = OUTPUTS.iter().map(|o| col(&format!("subscribe.{o}"))).collect();
-    let sim = col("sim_time");
-    let mut rows = BTreeMap::new();
-    for line in lines {
-        let f: Vec<&str> = line.split(',').collect();
-        let values: Vec<f64> = cols
-            .iter()
-            .map(|&i| match f[i] {
-                "yes" => 1.0,
-                "no" => 0.0,
-                v => v.parse().unwrap(),
-            })
-            .collect();
-        let count = values[3] as u64;
-        if count > 0 {
-            // A step seen twice (asynchronous: the framework was faster) keeps its first row.
-            rows.entry(count).or_insert((f[sim].parse().unwrap(), values));
-        }
-    }
-    rows
+    fmu_common::recorded(csv, &OUTPUTS, 3)
 }
 
-/// fmpy's trajectory from `start` for `steps` steps: step number -> outputs.
 fn reference(py: &Path, fmu: &Path, start: f64, steps: u64) -> BTreeMap<u64, Vec<f64>> {
-    let mut cmd = Command::new(py);
-    cmd.arg(repo().join("tests/fmu/reference.py"))
-        .arg(fmu)
-        .args([start.to_string(), steps.to_string(), H.to_string(), "u".into(), "1.5".into()])
-        .arg(r#"{"tau": 0.25, "gain": 2.0}"#)
-        .arg(OUTPUTS.join(","));
-    let (status, out, err) = common::run_with_timeout(cmd, Duration::from_secs(120));
-    assert!(status.success(), "fmpy failed: {err}");
-    out.lines()
-        .map(|l| {
-            let f: Vec<f64> = l.split(',').map(|v| v.parse().unwrap()).collect();
-            (f[0] as u64, f[1..].to_vec())
-        })
-        .collect()
+    fmu_common::reference(py, fmu, start, steps, H, ("u", 1.5), r#"{"tau": 0.25, "gain": 2.0}"#, &OUTPUTS)
 }
 
-fn close(a: f64, b: f64) -> bool {
-    a == b || (a - b).abs() <= 1e-9 * a.abs().max(b.abs())
-}
-
-/// Every recorded step equals fmpy's (t compared to the FMU's start time too).
 fn compare(rows: &BTreeMap<u64, (f64, Vec<f64>)>, reference: &BTreeMap<u64, Vec<f64>>) -> usize {
-    let mut compared = 0;
-    for (n, (_, got)) in rows {
-        let Some(want) = reference.get(n) else { continue };
-        for ((name, g), w) in OUTPUTS.iter().zip(got).zip(want) {
-            assert!(close(*g, *w), "step {n}: {name} = {g} through tutti, {w} with fmpy");
-        }
-        compared += 1;
-    }
-    compared
+    fmu_common::compare(rows, reference, &OUTPUTS)
 }
 
 #[test]
