@@ -325,3 +325,35 @@ fn kill_9_of_tutti_fmu_run_leaves_the_framework_stepping_and_a_new_run_reconnect
     let (status, err) = second.wait(Duration::from_secs(30));
     assert!(status.success(), "the second tutti fmu run failed: {err}");
 }
+
+#[test]
+fn ctrl_c_ends_tutti_fmu_run_cleanly_and_the_framework_steps_on() {
+    let Some(py) = python() else { return };
+    let dir = tempfile::tempdir().unwrap();
+    let ns = format!("fmuint{}", std::process::id());
+    let fmu = build_lag(&py, dir.path());
+    let ddf = dir.path().join("fmu_c.ddf");
+    std::fs::write(&ddf, ddf_text(true)).unwrap();
+    // An explicit mapping from a file, comments and blank lines included.
+    let map = dir.path().join("lag.map");
+    std::fs::write(&map, "# FMU variable = item\n\ny = y\ncount=count\n").unwrap();
+    let model = tutti_core::ddf::load(&ddf).unwrap();
+    let host = Host::start(&model, &ns);
+    let child = spawn_fmu(&ns, &py, &fmu, &ddf, &["--map-file", map.to_str().unwrap()]);
+    host.wait_for("the FMU to step", |s| s.last().is_some_and(|l| l.connections == 1 && l.count > 20));
+    let (status, _, _) = common::run_with_timeout(
+        {
+            let mut kill = Command::new("kill");
+            kill.args(["-INT", &child.0.id().to_string()]);
+            kill
+        },
+        Duration::from_secs(10),
+    );
+    assert!(status.success());
+    let (status, err) = child.wait(Duration::from_secs(30));
+    assert!(status.success(), "tutti fmu run after SIGINT: {status:?} {err}");
+    // Disconnected, not swept: the count drops at once, and the framework steps on.
+    let after = host.steps().len();
+    host.wait_for("the connection to go", |s| s.last().is_some_and(|l| l.connections == 0));
+    host.wait_for("steps after the disconnection", |s| s.len() > after + 20);
+}
