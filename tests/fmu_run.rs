@@ -152,3 +152,22 @@ fn a_failing_do_step_ends_the_component_with_the_fmu_log_and_the_framework_steps
     assert_eq!(f[3], "0", "connections at the end: {last}");
     assert!(f[1].parse::<f64>().unwrap() > 2.5, "the framework stopped early: {last}");
 }
+
+#[test]
+fn a_python_exception_in_do_step_is_reported_with_the_fmu_log_not_a_crash() {
+    let Some(py) = python() else { return };
+    let dir = tempfile::tempdir().unwrap();
+    let ns = format!("fmuraise{}", std::process::id());
+    let (fmu, ddf) = setup(&py, dir.path(), true);
+    let csv = dir.path().join("run.csv");
+    let host = host(&ns, &ddf, &csv, "2s");
+    // PythonFMU reports the exception at status Fatal with a NULL log category.
+    let (status, _, err) = fmu_run(&ns, &py, &fmu, &ddf, &["--param", "raise_at=1.0"]);
+    let (host_status, _, host_err) = host.join().unwrap();
+    assert_eq!(status.code(), Some(1), "tutti fmu run: {err}");
+    assert!(
+        err.contains("doStep") && err.contains("Fatal") && err.contains("RuntimeError('Lag: raise_at=1.0 reached')"),
+        "{err}"
+    );
+    assert!(host_status.success(), "tutti host failed: {host_err}");
+}

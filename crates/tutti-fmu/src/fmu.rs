@@ -7,11 +7,11 @@
 use std::io::Read;
 use std::path::{Path, PathBuf};
 
-use fmi::fmi2::instance::{CoSimulation as _, Common as _};
 use fmi::fmi3::{CoSimulation as _, Common as _, Fmi3Model as _, GetSet as _};
 use fmi::traits::FmiImport as _;
 use tutti_core::ddf::Value;
 
+use crate::fmi2::Fmi2Cs;
 use crate::log_capture;
 use crate::model::{FmiVersion, ModelDescription, ModelError, VarType, Variable};
 
@@ -177,7 +177,10 @@ impl Fmu {
                 let import: fmi::fmi2::import::Fmi2Import = fmi::import::from_path(&self.path).map_err(import_err)?;
                 self.check_library(import.archive_path(), &entry, FMI2_SYMBOLS)?;
                 let _ = log_capture::take();
-                let inst = import.instantiate_cs(instance_name, false, true).map_err(|_| self.instantiate_failed())?;
+                let binding = import.binding(self.model_identifier()?).map_err(import_err)?;
+                let url = import.canonical_resource_path_string();
+                let inst = Fmi2Cs::instantiate(binding, instance_name, &self.model.token, &url)
+                    .ok_or_else(|| self.instantiate_failed())?;
                 Inner::V2 { inst: Box::new(inst), _import: Box::new(import) }
             }
             FmiVersion::Fmi3 => {
@@ -243,7 +246,7 @@ fn log_text() -> String {
 
 enum Inner {
     // Field order matters: the instance is freed before its import (and its directory) goes.
-    V2 { inst: Box<fmi::fmi2::instance::InstanceCS>, _import: Box<fmi::fmi2::import::Fmi2Import> },
+    V2 { inst: Box<Fmi2Cs>, _import: Box<fmi::fmi2::import::Fmi2Import> },
     V3 { inst: Box<fmi::fmi3::instance::InstanceCS>, _import: Box<fmi::fmi3::import::Fmi3Import> },
 }
 
@@ -264,23 +267,23 @@ pub struct Instance {
 }
 
 impl Instance {
-    fn fail(&self, call: impl Into<String>, status: impl std::fmt::Debug) -> CallError {
-        CallError { model: self.model.clone(), call: call.into(), status: format!("{status:?}"), log: log_text() }
+    fn fail(&self, call: impl Into<String>, status: impl std::fmt::Display) -> CallError {
+        CallError { model: self.model.clone(), call: call.into(), status: status.to_string(), log: log_text() }
     }
 
     /// `setupExperiment` (FMI 2.0) and `enterInitializationMode` at `start`.
     pub fn enter_initialization(&mut self, start: f64) -> Result<(), CallError> {
         match &mut self.inner {
             Inner::V2 { inst, .. } => {
-                let r = inst.setup_experiment(None, start, None);
+                let r = inst.setup_experiment(start);
                 r.map_err(|e| self.fail("fmi2SetupExperiment", e))?;
                 let Inner::V2 { inst, .. } = &mut self.inner else { unreachable!() };
                 let r = inst.enter_initialization_mode();
-                r.map_err(|e| self.fail("fmi2EnterInitializationMode", e)).map(drop)
+                r.map_err(|e| self.fail("fmi2EnterInitializationMode", e))
             }
             Inner::V3 { inst, .. } => {
                 let r = inst.enter_initialization_mode(None, start, None);
-                r.map_err(|e| self.fail("fmi3EnterInitializationMode", e)).map(drop)
+                r.map_err(|e| self.fail("fmi3EnterInitializationMode", format!("{e:?}"))).map(drop)
             }
         }
     }
@@ -288,7 +291,7 @@ impl Instance {
     /// `exitInitializationMode`.
     pub fn exit_initialization(&mut self) -> Result<(), CallError> {
         let r = match &mut self.inner {
-            Inner::V2 { inst, .. } => inst.exit_initialization_mode().map(drop).map_err(|e| format!("{e:?}")),
+            Inner::V2 { inst, .. } => inst.exit_initialization_mode().map_err(String::from),
             Inner::V3 { inst, .. } => inst.exit_initialization_mode().map(drop).map_err(|e| format!("{e:?}")),
         };
         r.map_err(|e| self.fail("exitInitializationMode", e))
@@ -297,7 +300,7 @@ impl Instance {
     /// One `doStep` from `t` over `h`.
     pub fn do_step(&mut self, t: f64, h: f64) -> Result<(), CallError> {
         let r = match &mut self.inner {
-            Inner::V2 { inst, .. } => inst.do_step(t, h, true).map(drop).map_err(|e| format!("{e:?}")),
+            Inner::V2 { inst, .. } => inst.do_step(t, h).map_err(String::from),
             Inner::V3 { inst, .. } => {
                 let (mut event, mut terminate, mut early, mut last) = (false, false, false, 0.0);
                 inst.do_step(t, h, true, &mut event, &mut terminate, &mut early, &mut last)
@@ -320,16 +323,16 @@ impl Instance {
     pub fn set(&mut self, var: &Variable, value: Value) -> Result<(), CallError> {
         let vr = [var.value_reference];
         let r: Result<(), String> = match &mut self.inner {
-            Inner::V2 { inst, .. } => match var.ty {
-                VarType::Float64 => inst.set_real(&vr, &[value.as_f64()]).map(drop).map_err(|e| format!("{e:?}")),
-                VarType::Int32 | VarType::Enumeration => {
-                    inst.set_integer(&vr, &[value.as_i64() as i32]).map(drop).map_err(|e| format!("{e:?}"))
-                }
-                VarType::Boolean => {
-                    inst.set_boolean(&vr, &[i32::from(value.as_f64() != 0.0)]).map(drop).map_err(|e| format!("{e:?}"))
-                }
-                other => Err(format!("type {other:?} is not exchanged")),
-            },
+            Inner::V2 { inst, .. } => {
+                let vr = var.value_reference;
+                let r = match var.ty {
+                    VarType::Float64 => inst.set_real(vr, value.as_f64()),
+                    VarType::Int32 | VarType::Enumeration => inst.set_integer(vr, value.as_i64() as i32),
+                    VarType::Boolean => inst.set_boolean(vr, value.as_f64() != 0.0),
+                    _ => Err("not exchanged"),
+                };
+                r.map_err(String::from)
+            }
             Inner::V3 { inst, .. } => {
                 macro_rules! set {
                     ($f:ident, $v:expr) => {
@@ -359,21 +362,16 @@ impl Instance {
     pub fn get(&mut self, var: &Variable) -> Result<Value, CallError> {
         let vr = [var.value_reference];
         let r: Result<Value, String> = match &mut self.inner {
-            Inner::V2 { inst, .. } => match var.ty {
-                VarType::Float64 => {
-                    let mut v = [0.0];
-                    inst.get_real(&vr, &mut v).map(|_| Value::Float(v[0])).map_err(|e| format!("{e:?}"))
-                }
-                VarType::Int32 | VarType::Enumeration => {
-                    let mut v = [0];
-                    inst.get_integer(&vr, &mut v).map(|_| Value::Int(v[0].into())).map_err(|e| format!("{e:?}"))
-                }
-                VarType::Boolean => {
-                    let mut v = [0];
-                    inst.get_boolean(&vr, &mut v).map(|_| Value::Bool(v[0] != 0)).map_err(|e| format!("{e:?}"))
-                }
-                other => Err(format!("type {other:?} is not exchanged")),
-            },
+            Inner::V2 { inst, .. } => {
+                let vr = var.value_reference;
+                let r = match var.ty {
+                    VarType::Float64 => inst.get_real(vr).map(Value::Float),
+                    VarType::Int32 | VarType::Enumeration => inst.get_integer(vr).map(|v| Value::Int(v.into())),
+                    VarType::Boolean => inst.get_boolean(vr).map(Value::Bool),
+                    _ => Err("not exchanged"),
+                };
+                r.map_err(String::from)
+            }
             Inner::V3 { inst, .. } => {
                 macro_rules! get {
                     ($f:ident, $zero:expr, $wrap:expr) => {{

@@ -11,6 +11,7 @@
 //! See docs/fmu.md.
 
 pub mod ddf;
+pub mod fmi2;
 pub mod fmu;
 pub mod log_capture;
 pub mod mapping;

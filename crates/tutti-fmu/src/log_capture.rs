@@ -1,5 +1,6 @@
-//! The FMU's log. The `fmi` crate hands the messages an FMU logs (its logger callback) to
-//! the `log` facade; this module installs a `log` backend that keeps the latest of them, so
+//! The FMU's log. FMI 2.0 messages come from tutti's own logger callback (src/fmi2.rs); the
+//! `fmi` crate hands FMI 3.0 messages to the `log` facade, for which this module installs a
+//! backend. The latest messages are kept, so
 //! that a failing call can be reported with what the FMU said. With `TUTTI_FMU_LOG=1` every
 //! message is also printed to stderr as it comes.
 
@@ -27,16 +28,7 @@ impl log::Log for Capture {
         if !matches!(record.module_path(), Some("logger") | Some("fmu")) || !self.enabled(record.metadata()) {
             return;
         }
-        let line = format!("[{}] {}: {}", record.level(), record.target(), record.args());
-        if self.echo {
-            eprintln!("fmu log: {line}");
-        }
-        if let Ok(mut lines) = LINES.lock() {
-            if lines.len() == KEEP {
-                lines.pop_front();
-            }
-            lines.push_back(line);
-        }
+        record_line(format!("[{}] {}: {}", record.level(), record.target(), record.args()), self.echo);
     }
 
     fn flush(&self) {}
@@ -51,6 +43,23 @@ pub fn install() {
             log::set_max_level(log::LevelFilter::Info);
         }
     });
+}
+
+fn record_line(line: String, echo: bool) {
+    if echo {
+        eprintln!("fmu log: {line}");
+    }
+    if let Ok(mut lines) = LINES.lock() {
+        if lines.len() == KEEP {
+            lines.pop_front();
+        }
+        lines.push_back(line);
+    }
+}
+
+/// Keeps one message of the FMU (from tutti's own FMI 2.0 logger).
+pub fn record(line: String) {
+    record_line(line, std::env::var("TUTTI_FMU_LOG").is_ok_and(|v| v == "1"));
 }
 
 /// The messages logged since the last call (oldest first).

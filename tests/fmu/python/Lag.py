@@ -4,8 +4,8 @@ Used by tutti's FMU tests (tests/fmu_*.rs). Explicit Euler with the communicatio
 that fmpy and tutti, given the same inputs and step, compute the same numbers bit for bit.
 Outputs: y (lag of u), integral (of u), t (the time at the end of the step), count (steps
 made, an Integer), positive (y > 0, a Boolean). Parameters: tau (time constant), gain.
-Setting `fail_at` > 0 makes doStep fail (status Error, with a log message) once the time
-reaches it.
+Setting `fail_at` > 0 makes doStep refuse (with a log message at status Error) once the time
+reaches it; `raise_at` > 0 makes it raise a Python exception instead (status Fatal).
 """
 
 from pythonfmu import Boolean, Fmi2Causality, Fmi2Slave, Fmi2Variability, Integer, Real
@@ -22,6 +22,7 @@ class Lag(Fmi2Slave):
         self.tau = 0.5
         self.gain = 2.0
         self.fail_at = 0.0
+        self.raise_at = 0.0
         self.y = 0.0
         self.integral = 0.0
         self.t = 0.0
@@ -36,6 +37,9 @@ class Lag(Fmi2Slave):
         )
         self.register_variable(
             Real("fail_at", causality=Fmi2Causality.parameter, variability=Fmi2Variability.tunable)
+        )
+        self.register_variable(
+            Real("raise_at", causality=Fmi2Causality.parameter, variability=Fmi2Variability.tunable)
         )
         self.register_variable(Real("y", causality=Fmi2Causality.output))
         self.register_variable(Real("integral", causality=Fmi2Causality.output))
@@ -52,6 +56,8 @@ class Lag(Fmi2Slave):
         if self.fail_at > 0.0 and end >= self.fail_at:
             self.log(f"Lag: refusing to step past fail_at={self.fail_at} (t={end})", status=Fmi2Status.error)
             return False
+        if self.raise_at > 0.0 and end >= self.raise_at:
+            raise RuntimeError(f"Lag: raise_at={self.raise_at} reached")
         self.y += step_size * (self.gain * self.u - self.y) / self.tau
         self.integral += step_size * self.u
         self.t = end
