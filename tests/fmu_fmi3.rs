@@ -75,3 +75,30 @@ fn an_fmi3_fmu_in_a_synchronous_domain_matches_fmpy_at_every_step() {
     assert!(compared + 1 >= counts.len(), "compared {compared} of {} steps", counts.len());
     assert!(close(rows[&50].1[0], 50.0 * H * 0.5 * 2.0), "y after 50 steps: {:?}", rows[&50]);
 }
+
+#[test]
+fn bad_parameters_are_refused_before_connecting() {
+    let dir = tempfile::tempdir().unwrap();
+    let fmu = build_integrator(dir.path());
+    let ddf = dir.path().join("integrator.ddf");
+    let (code, _, err) = tutti(&["fmu".as_ref(), "ddf".as_ref(), fmu.as_os_str(), "--out".as_ref(), ddf.as_os_str()]);
+    assert_eq!(code, 0, "{err}");
+    for (param, expected) in [
+        ("nope=1", "model 'Integrator' has no such variable"),
+        ("k=abc", "'abc' is not a float64 value"),
+        ("y=1", "the variable is output, not a parameter or input"),
+        ("k", "expected NAME=VALUE"),
+    ] {
+        let mut cmd = Command::new(env!("CARGO_BIN_EXE_tutti"));
+        cmd.args(["fmu", "run"])
+            .arg(&fmu)
+            .arg("--ddf")
+            .arg(&ddf)
+            .args(["--domain", "integrator", "--connect-timeout", "100ms", "--param", param])
+            .env("TUTTI_NAMESPACE", format!("fmu3param{}", std::process::id()))
+            .env("TMPDIR", dir.path());
+        let (status, _, err) = common::run_with_timeout(cmd, Duration::from_secs(60));
+        assert_eq!(status.code(), Some(2), "--param {param}: {err}");
+        assert!(err.contains(expected), "--param {param}: {err}");
+    }
+}
