@@ -27,7 +27,7 @@ extern "C" {
 ///
 /// # Safety
 /// `p` is NULL or points to a NUL-terminated string valid for this call.
-unsafe fn text(p: *const c_char) -> String {
+pub(crate) unsafe fn text(p: *const c_char) -> String {
     if p.is_null() {
         return String::new();
     }

@@ -7,13 +7,13 @@
 use std::io::Read;
 use std::path::{Path, PathBuf};
 
-use fmi::fmi3::{CoSimulation as _, Common as _, Fmi3Model as _, GetSet as _};
 use fmi::traits::FmiImport as _;
 use tutti_core::ddf::Value;
 
 use crate::fmi2::Fmi2Cs;
+use crate::fmi3::Fmi3Cs;
 use crate::log_capture;
-use crate::model::{FmiVersion, ModelDescription, ModelError, VarType, Variable};
+use crate::model::{Causality, FmiVersion, ModelDescription, ModelError, VarType, Variable};
 
 /// Why an FMU cannot be opened or instantiated (the user's FMU is at fault: exit 2).
 #[derive(Debug, thiserror::Error)]
@@ -69,7 +69,8 @@ const FMI2_SYMBOLS: &[&str] = &[
     "fmi2DoStep",
 ];
 
-/// The functions an FMI 3.0 co-simulation FMU must export for tutti.
+/// The functions an FMI 3.0 co-simulation FMU must export for tutti, besides the getters and
+/// setters of the types its variables have (see [`fmi3_symbols`]).
 const FMI3_SYMBOLS: &[&str] = &[
     "fmi3GetVersion",
     "fmi3InstantiateCoSimulation",
@@ -77,10 +78,33 @@ const FMI3_SYMBOLS: &[&str] = &[
     "fmi3EnterInitializationMode",
     "fmi3ExitInitializationMode",
     "fmi3Terminate",
-    "fmi3GetFloat64",
-    "fmi3SetFloat64",
     "fmi3DoStep",
 ];
+
+/// Every FMI 3.0 function tutti may call on `md`'s FMU: a missing getter is an error at load
+/// time rather than a failed call later.
+fn fmi3_symbols(md: &ModelDescription) -> Vec<String> {
+    let mut out: Vec<String> = FMI3_SYMBOLS.iter().map(|s| s.to_string()).collect();
+    for v in &md.variables {
+        let used = matches!(
+            v.causality,
+            Causality::Input | Causality::Output | Causality::Parameter | Causality::StructuralParameter
+        );
+        if !used || v.ty.ddf_type(md.fmi_version).is_none() || v.is_array {
+            continue;
+        }
+        let name = match v.ty {
+            VarType::Enumeration => "Int64",
+            t => t.fmi_name(FmiVersion::Fmi3),
+        };
+        for f in [format!("fmi3Get{name}"), format!("fmi3Set{name}")] {
+            if !out.contains(&f) {
+                out.push(f);
+            }
+        }
+    }
+    out
+}
 
 /// An FMU archive, opened and described.
 #[derive(Debug)]
@@ -170,7 +194,6 @@ impl Fmu {
                 }
             }
         }
-        log_capture::install();
         let import_err = |e: fmi::Error| LoadError::Import { path: self.path.clone(), message: e.to_string() };
         let inner = match self.model.fmi_version {
             FmiVersion::Fmi2 => {
@@ -185,11 +208,14 @@ impl Fmu {
             }
             FmiVersion::Fmi3 => {
                 let import: fmi::fmi3::import::Fmi3Import = fmi::import::from_path(&self.path).map_err(import_err)?;
-                self.check_library(import.archive_path(), &entry, FMI3_SYMBOLS)?;
+                let symbols = fmi3_symbols(&self.model);
+                let symbols: Vec<&str> = symbols.iter().map(String::as_str).collect();
+                self.check_library(import.archive_path(), &entry, &symbols)?;
                 let _ = log_capture::take();
-                let inst = import
-                    .instantiate_cs(instance_name, false, true, false, false, &[])
-                    .map_err(|_| self.instantiate_failed())?;
+                let binding = import.binding(self.model_identifier()?).map_err(import_err)?;
+                let resources = import.canonical_resource_path_string();
+                let inst = Fmi3Cs::instantiate(binding, instance_name, &self.model.token, &resources)
+                    .ok_or_else(|| self.instantiate_failed())?;
                 Inner::V3 { inst: Box::new(inst), _import: Box::new(import) }
             }
         };
@@ -247,7 +273,7 @@ fn log_text() -> String {
 enum Inner {
     // Field order matters: the instance is freed before its import (and its directory) goes.
     V2 { inst: Box<Fmi2Cs>, _import: Box<fmi::fmi2::import::Fmi2Import> },
-    V3 { inst: Box<fmi::fmi3::instance::InstanceCS>, _import: Box<fmi::fmi3::import::Fmi3Import> },
+    V3 { inst: Box<Fmi3Cs>, _import: Box<fmi::fmi3::import::Fmi3Import> },
 }
 
 impl std::fmt::Debug for Inner {
@@ -282,8 +308,8 @@ impl Instance {
                 r.map_err(|e| self.fail("fmi2EnterInitializationMode", e))
             }
             Inner::V3 { inst, .. } => {
-                let r = inst.enter_initialization_mode(None, start, None);
-                r.map_err(|e| self.fail("fmi3EnterInitializationMode", format!("{e:?}"))).map(drop)
+                let r = inst.enter_initialization_mode(start);
+                r.map_err(|e| self.fail("fmi3EnterInitializationMode", e))
             }
         }
     }
@@ -292,7 +318,7 @@ impl Instance {
     pub fn exit_initialization(&mut self) -> Result<(), CallError> {
         let r = match &mut self.inner {
             Inner::V2 { inst, .. } => inst.exit_initialization_mode().map_err(String::from),
-            Inner::V3 { inst, .. } => inst.exit_initialization_mode().map(drop).map_err(|e| format!("{e:?}")),
+            Inner::V3 { inst, .. } => inst.exit_initialization_mode().map_err(String::from),
         };
         r.map_err(|e| self.fail("exitInitializationMode", e))
     }
@@ -301,12 +327,7 @@ impl Instance {
     pub fn do_step(&mut self, t: f64, h: f64) -> Result<(), CallError> {
         let r = match &mut self.inner {
             Inner::V2 { inst, .. } => inst.do_step(t, h).map_err(String::from),
-            Inner::V3 { inst, .. } => {
-                let (mut event, mut terminate, mut early, mut last) = (false, false, false, 0.0);
-                inst.do_step(t, h, true, &mut event, &mut terminate, &mut early, &mut last)
-                    .map(drop)
-                    .map_err(|e| format!("{e:?}"))
-            }
+            Inner::V3 { inst, .. } => inst.do_step(t, h).map_err(String::from),
         };
         r.map_err(|e| self.fail(format!("doStep(t={t}, h={h})"), e))
     }
@@ -321,7 +342,6 @@ impl Instance {
 
     /// Sets `var` to `value` (converted to the variable's type).
     pub fn set(&mut self, var: &Variable, value: Value) -> Result<(), CallError> {
-        let vr = [var.value_reference];
         let r: Result<(), String> = match &mut self.inner {
             Inner::V2 { inst, .. } => {
                 let vr = var.value_reference;
@@ -334,25 +354,22 @@ impl Instance {
                 r.map_err(String::from)
             }
             Inner::V3 { inst, .. } => {
-                macro_rules! set {
-                    ($f:ident, $v:expr) => {
-                        inst.$f(&vr, &[$v]).map(drop).map_err(|e| format!("{e:?}"))
-                    };
-                }
-                match var.ty {
-                    VarType::Float64 => set!(set_float64, value.as_f64()),
-                    VarType::Float32 => set!(set_float32, value.as_f64() as f32),
-                    VarType::Int8 => set!(set_int8, value.as_i64() as i8),
-                    VarType::Int16 => set!(set_int16, value.as_i64() as i16),
-                    VarType::Int32 => set!(set_int32, value.as_i64() as i32),
-                    VarType::Int64 | VarType::Enumeration => set!(set_int64, value.as_i64()),
-                    VarType::UInt8 => set!(set_uint8, value.as_u64() as u8),
-                    VarType::UInt16 => set!(set_uint16, value.as_u64() as u16),
-                    VarType::UInt32 => set!(set_uint32, value.as_u64() as u32),
-                    VarType::UInt64 => set!(set_uint64, value.as_u64()),
-                    VarType::Boolean => set!(set_boolean, value.as_f64() != 0.0),
-                    other => Err(format!("type {other:?} is not exchanged")),
-                }
+                let vr = var.value_reference;
+                let r = match var.ty {
+                    VarType::Float64 => inst.set_float64(vr, value.as_f64()),
+                    VarType::Float32 => inst.set_float32(vr, value.as_f64() as f32),
+                    VarType::Int8 => inst.set_int8(vr, value.as_i64() as i8),
+                    VarType::Int16 => inst.set_int16(vr, value.as_i64() as i16),
+                    VarType::Int32 => inst.set_int32(vr, value.as_i64() as i32),
+                    VarType::Int64 | VarType::Enumeration => inst.set_int64(vr, value.as_i64()),
+                    VarType::UInt8 => inst.set_uint8(vr, value.as_u64() as u8),
+                    VarType::UInt16 => inst.set_uint16(vr, value.as_u64() as u16),
+                    VarType::UInt32 => inst.set_uint32(vr, value.as_u64() as u32),
+                    VarType::UInt64 => inst.set_uint64(vr, value.as_u64()),
+                    VarType::Boolean => inst.set_boolean(vr, value.as_f64() != 0.0),
+                    _ => Err("not exchanged"),
+                };
+                r.map_err(String::from)
             }
         };
         r.map_err(|e| self.fail(format!("set '{}'", var.name), e))
@@ -360,7 +377,6 @@ impl Instance {
 
     /// The value of `var`.
     pub fn get(&mut self, var: &Variable) -> Result<Value, CallError> {
-        let vr = [var.value_reference];
         let r: Result<Value, String> = match &mut self.inner {
             Inner::V2 { inst, .. } => {
                 let vr = var.value_reference;
@@ -373,26 +389,22 @@ impl Instance {
                 r.map_err(String::from)
             }
             Inner::V3 { inst, .. } => {
-                macro_rules! get {
-                    ($f:ident, $zero:expr, $wrap:expr) => {{
-                        let mut v = [$zero];
-                        inst.$f(&vr, &mut v).map(|_| $wrap(v[0])).map_err(|e| format!("{e:?}"))
-                    }};
-                }
-                match var.ty {
-                    VarType::Float64 => get!(get_float64, 0.0, Value::Float),
-                    VarType::Float32 => get!(get_float32, 0.0f32, |v: f32| Value::Float(v.into())),
-                    VarType::Int8 => get!(get_int8, 0i8, |v: i8| Value::Int(v.into())),
-                    VarType::Int16 => get!(get_int16, 0i16, |v: i16| Value::Int(v.into())),
-                    VarType::Int32 => get!(get_int32, 0i32, |v: i32| Value::Int(v.into())),
-                    VarType::Int64 | VarType::Enumeration => get!(get_int64, 0i64, Value::Int),
-                    VarType::UInt8 => get!(get_uint8, 0u8, |v: u8| Value::UInt(v.into())),
-                    VarType::UInt16 => get!(get_uint16, 0u16, |v: u16| Value::UInt(v.into())),
-                    VarType::UInt32 => get!(get_uint32, 0u32, |v: u32| Value::UInt(v.into())),
-                    VarType::UInt64 => get!(get_uint64, 0u64, Value::UInt),
-                    VarType::Boolean => get!(get_boolean, false, Value::Bool),
-                    other => Err(format!("type {other:?} is not exchanged")),
-                }
+                let vr = var.value_reference;
+                let r = match var.ty {
+                    VarType::Float64 => inst.get_float64(vr).map(Value::Float),
+                    VarType::Float32 => inst.get_float32(vr).map(|v| Value::Float(v.into())),
+                    VarType::Int8 => inst.get_int8(vr).map(|v| Value::Int(v.into())),
+                    VarType::Int16 => inst.get_int16(vr).map(|v| Value::Int(v.into())),
+                    VarType::Int32 => inst.get_int32(vr).map(|v| Value::Int(v.into())),
+                    VarType::Int64 | VarType::Enumeration => inst.get_int64(vr).map(Value::Int),
+                    VarType::UInt8 => inst.get_uint8(vr).map(|v| Value::UInt(v.into())),
+                    VarType::UInt16 => inst.get_uint16(vr).map(|v| Value::UInt(v.into())),
+                    VarType::UInt32 => inst.get_uint32(vr).map(|v| Value::UInt(v.into())),
+                    VarType::UInt64 => inst.get_uint64(vr).map(Value::UInt),
+                    VarType::Boolean => inst.get_boolean(vr).map(Value::Bool),
+                    _ => Err("not exchanged"),
+                };
+                r.map_err(String::from)
             }
         };
         r.map_err(|e| self.fail(format!("get '{}'", var.name), e))

@@ -2,7 +2,8 @@
 //! joins a domain as an external participant, with no code written.
 //!
 //! * [`model`]: what `modelDescription.xml` says (variables, capabilities, experiment);
-//! * [`fmu`]: opening an archive and instantiating it (through the `fmi` crate);
+//! * [`fmu`]: opening an archive and instantiating it (the `fmi` crate unpacks it and binds
+//!   its functions; [`fmi2`] and [`fmi3`] call them);
 //! * [`ddf`]: a DDF with one domain for an FMU, and the name mapping between both;
 //! * [`mapping`]: FMU variables paired with domain items, checked before the first step;
 //! * [`participant`]: the FMU as a participant, stepping with a synchronous framework or on
@@ -12,6 +13,7 @@
 
 pub mod ddf;
 pub mod fmi2;
+pub mod fmi3;
 pub mod fmu;
 pub mod log_capture;
 pub mod mapping;
