@@ -28,6 +28,10 @@ const PERIOD: Duration = Duration::from_millis(10);
 /// One step as the framework saw it.
 #[derive(Debug, Clone, Copy)]
 struct Step {
+    /// The simulated time the framework published.
+    sim: f64,
+    /// The FMU's output `t`: its time after the step.
+    t: f64,
     connections: u32,
     /// SUBSCRIBE `y` (the FMU's output), `c_cmd`, `c_seen` (what the C component read).
     y: f64,
@@ -46,6 +50,7 @@ fn ddf_text(synchronous: bool) -> String {
   <set name="SUBSCRIBE">
     <item name="y"><type>float64</type></item>
     <item name="count"><type>int32</type></item>
+    <item name="t"><type>float64</type></item>
     <item name="c_cmd"><type>float64</type></item>
     <item name="c_seen"><type>float64</type></item>
   </set>
@@ -54,7 +59,8 @@ fn ddf_text(synchronous: bool) -> String {
     )
 }
 
-/// A framework stepping every PERIOD in a thread, routing c_cmd -> u and y -> lag_y.
+/// A framework stepping every PERIOD of wall time and `sim_step` of simulated time, in a
+/// thread, routing c_cmd -> u and y -> lag_y.
 struct Host {
     stop: Arc<AtomicBool>,
     steps: Arc<Mutex<Vec<Step>>>,
@@ -62,7 +68,7 @@ struct Host {
 }
 
 impl Host {
-    fn start(model: &Model, ns: &str) -> Host {
+    fn start(model: &Model, ns: &str, sim_step: f64) -> Host {
         let opts = FrameworkOptions { namespace: ns.into(), timeout: Duration::from_secs(2), ..Default::default() };
         let mut fw = Framework::create(model, &opts).expect("framework");
         let (stop, steps) = (Arc::new(AtomicBool::new(false)), Arc::new(Mutex::new(Vec::new())));
@@ -73,6 +79,7 @@ impl Host {
             let leaf =
                 |role: Role, path: &str| info.set(role).leaves.iter().find(|l| l.path == path).expect("item").range();
             let (u, lag_y) = (leaf(Role::Publish, "u"), leaf(Role::Publish, "lag_y"));
+            let t_out = leaf(Role::Subscribe, "t");
             let (y, count, c_cmd, c_seen) = (
                 leaf(Role::Subscribe, "y"),
                 leaf(Role::Subscribe, "count"),
@@ -84,11 +91,14 @@ impl Host {
             let mut k = 0u32;
             while !stop2.load(Ordering::Acquire) {
                 host.set_period(PERIOD);
-                host.publish_step(&publish, f64::from(k) * PERIOD.as_secs_f64()).expect("publish");
+                let sim = f64::from(k) * sim_step;
+                host.publish_step(&publish, sim).expect("publish");
                 host.complete_step().expect("step");
                 let sub = host.subscribe();
                 let f = |r: std::ops::Range<usize>| f64::from_ne_bytes(sub[r].try_into().unwrap());
                 let step = Step {
+                    sim,
+                    t: f(t_out.clone()),
                     connections: host.connection_count(),
                     y: f(y.clone()),
                     c_seen: f(c_seen.clone()),
@@ -257,7 +267,7 @@ fn exchange(synchronous: bool) {
     let (status, _, err) = common::run_with_timeout(cc, Duration::from_secs(60));
     assert!(status.success(), "gcc: {err}");
 
-    let host = Host::start(&model, &ns);
+    let host = Host::start(&model, &ns, PERIOD.as_secs_f64());
     let mut step_arg = vec![];
     if !synchronous {
         step_arg = vec!["--step", "10ms"];
@@ -304,7 +314,7 @@ fn kill_9_of_tutti_fmu_run_leaves_the_framework_stepping_and_a_new_run_reconnect
     let ddf = dir.path().join("fmu_c.ddf");
     std::fs::write(&ddf, ddf_text(true)).unwrap();
     let model = tutti_core::ddf::load(&ddf).unwrap();
-    let host = Host::start(&model, &ns);
+    let host = Host::start(&model, &ns, PERIOD.as_secs_f64());
     let mut first = spawn_fmu(&ns, &py, &fmu, &ddf, &[]);
     host.wait_for("the FMU to step", |s| s.last().is_some_and(|l| l.connections == 1 && l.count > 30));
     // SIGKILL, wherever it is in its step.
@@ -338,7 +348,7 @@ fn ctrl_c_ends_tutti_fmu_run_cleanly_and_the_framework_steps_on() {
     let map = dir.path().join("lag.map");
     std::fs::write(&map, "# FMU variable = item\n\ny = y\ncount=count\n").unwrap();
     let model = tutti_core::ddf::load(&ddf).unwrap();
-    let host = Host::start(&model, &ns);
+    let host = Host::start(&model, &ns, PERIOD.as_secs_f64());
     let child = spawn_fmu(&ns, &py, &fmu, &ddf, &["--map-file", map.to_str().unwrap()]);
     host.wait_for("the FMU to step", |s| s.last().is_some_and(|l| l.connections == 1 && l.count > 20));
     let (status, _, _) = common::run_with_timeout(
@@ -356,4 +366,28 @@ fn ctrl_c_ends_tutti_fmu_run_cleanly_and_the_framework_steps_on() {
     let after = host.steps().len();
     host.wait_for("the connection to go", |s| s.last().is_some_and(|l| l.connections == 0));
     host.wait_for("steps after the disconnection", |s| s.len() > after + 20);
+}
+
+#[test]
+fn a_framework_faster_than_real_time_sets_the_step_by_its_simulated_time() {
+    let Some(py) = python() else { return };
+    let dir = tempfile::tempdir().unwrap();
+    let ns = format!("fmufast{}", std::process::id());
+    let fmu = build_lag(&py, dir.path());
+    let ddf = dir.path().join("fmu_c.ddf");
+    std::fs::write(&ddf, ddf_text(true)).unwrap();
+    let model = tutti_core::ddf::load(&ddf).unwrap();
+    // 50 ms of simulated time per 10 ms step of wall time (as `tutti demo uav --speed 5`).
+    let host = Host::start(&model, &ns, 0.05);
+    let child = spawn_fmu(&ns, &py, &fmu, &ddf, &[]);
+    host.wait_for("the FMU to step", |s| s.last().is_some_and(|l| l.count > 30));
+    let steps = host.steps();
+    drop(host);
+    let _ = child.wait(Duration::from_secs(30));
+    // From the FMU's third step on, its time after each step is the framework's + 50 ms.
+    let answered: Vec<&Step> = steps.iter().filter(|s| s.count > 2).collect();
+    assert!(answered.len() > 20);
+    for s in answered {
+        assert!(fmu_common::close(s.t, s.sim + 0.05), "the FMU is at {} after the step at {}", s.t, s.sim);
+    }
 }

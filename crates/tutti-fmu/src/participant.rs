@@ -1,7 +1,8 @@
 //! An FMU as an external participant of a domain.
 //!
 //! * **Synchronous domain**: one `doStep` per framework step. At the step published at
-//!   simulated time `s` with period `h` (both from the segment), the FMU reads its inputs
+//!   simulated time `s` with period `h` (both from the segment; see [`step_size`] for a
+//!   framework whose simulated time runs faster than its period), the FMU reads its inputs
 //!   from that step's PUBLISH set, advances from its time to `s + h` (normally `doStep(s, h)`)
 //!   and commits its outputs as its answer to that step. The FMU is initialised at the time
 //!   of the first step it reads. If the framework went on without it (a step timed out), the
@@ -88,6 +89,27 @@ pub struct FmuParticipant {
     steps: u64,
     max_steps: Option<u64>,
     framework_stopped: bool,
+    /// The last framework step read and its simulated time.
+    last_seen: Option<(u64, f64)>,
+}
+
+/// The step size of a synchronous step: the framework's period, unless its simulated time
+/// advances by something else per step (a framework running faster or slower than real
+/// time, such as `tutti demo uav --speed`): then the simulated time per step, measured over
+/// the steps since the last one read (steps this participant missed count). The period is
+/// kept exactly when it agrees, so that `doStep` gets the framework's own number.
+pub fn step_size(period: f64, last: Option<(u64, f64)>, now: (u64, f64)) -> f64 {
+    match last {
+        Some((k0, s0)) if now.0 > k0 && now.1 > s0 => {
+            let per_step = (now.1 - s0) / (now.0 - k0) as f64;
+            if (per_step - period).abs() <= 1e-9 * per_step.max(period) {
+                period
+            } else {
+                per_step
+            }
+        }
+        _ => period,
+    }
 }
 
 /// Sets `--param` values on a freshly instantiated FMU.
@@ -142,6 +164,7 @@ impl FmuParticipant {
             steps: 0,
             max_steps: opts.max_steps,
             framework_stopped: false,
+            last_seen: None,
         })
     }
 
@@ -228,14 +251,16 @@ impl FmuParticipant {
     /// reads the latest inputs, advances the FMU by the step and commits (the caller paces).
     pub fn step(&mut self) -> Result<(), RunError> {
         let p = self.participant();
-        p.subscribe_lock().map_err(|e| self.shm(e))?;
+        let step = p.subscribe_lock().map_err(|e| self.shm(e))?;
         let (start, h) = match self.mode {
             StepMode::Synchronous => {
-                let fallback = self.fallback_step;
                 let p = self.participant();
+                let sim = p.sim_time();
                 let period_ns = p.segment().header().period_ns.load(Ordering::Relaxed);
-                let h = if period_ns > 0 { period_ns as f64 * 1e-9 } else { fallback };
-                (p.sim_time(), h)
+                let period = if period_ns > 0 { period_ns as f64 * 1e-9 } else { self.fallback_step };
+                let h = step_size(period, self.last_seen, (step, sim));
+                self.last_seen = Some((step, sim));
+                (sim, h)
             }
             StepMode::Asynchronous { step } => {
                 // Time k·h rather than a running sum: no drift over long runs.
@@ -323,5 +348,21 @@ impl Drop for FmuParticipant {
         if let Some(p) = self.participant.take() {
             p.disconnect();
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::step_size;
+
+    #[test]
+    fn the_step_is_the_period_unless_simulated_time_says_otherwise() {
+        assert_eq!(step_size(0.01, None, (1, 0.0)), 0.01);
+        // 0.07 - 0.06 is not 0.01 in floating point: the period itself is used.
+        assert_eq!(step_size(0.01, Some((6, 0.06)), (7, 0.07)), 0.01);
+        // Two steps missed: still one period per step.
+        assert_eq!(step_size(0.01, Some((6, 0.06)), (9, 0.09)), 0.01);
+        // Simulated time runs 8 times faster than the wall-clock period.
+        assert!((step_size(0.00625, Some((1, 0.0)), (2, 0.05)) - 0.05).abs() < 1e-15);
     }
 }
