@@ -18,6 +18,7 @@ pub mod fmu;
 pub mod log_capture;
 pub mod mapping;
 pub mod model;
+pub mod pack;
 pub mod participant;
 
 pub use fmu::{CallError, Fmu, Instance, LoadError};
