@@ -27,6 +27,16 @@ if ! .venv/bin/python -c 'import mcap, mcap_ros2' 2>/dev/null; then
     step "installing mcap and mcap-ros2-support into .venv"
     .venv/bin/pip install -q --disable-pip-version-check mcap==1.6.0 mcap-ros2-support==0.6.0
 fi
+# The FMU tests: pythonfmu exports a test model as an FMI 2.0 co-simulation FMU, fmpy simulates
+# it standalone for the reference results. fmpy is installed without its `cmake` requirement
+# (only used to compile source FMUs): that wheel's cmake 4 would shadow the system cmake on
+# PATH below and break the Cyclone DDS build.
+if ! .venv/bin/python -c 'import pythonfmu, fmpy' 2>/dev/null; then
+    step "installing pythonfmu and fmpy into .venv"
+    .venv/bin/pip install -q --disable-pip-version-check pythonfmu==0.7.0 attrs==26.1.0 jinja2==3.1.6 lark==1.3.1 \
+        lxml==6.1.3 msgpack==1.2.4 nbformat==5.11.1 numpy==2.4.6
+    .venv/bin/pip install -q --disable-pip-version-check --no-deps fmpy==0.3.32
+fi
 export PATH="$PWD/.venv/bin:$PATH"
 
 segments_before=$(ls /dev/shm 2>/dev/null | grep '^tutti\.' || true)

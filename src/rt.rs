@@ -85,6 +85,8 @@ pub fn step_all(
     tick: &Tick,
 ) -> anyhow::Result<Vec<StepReport>> {
     for (host, data) in fw.domains.iter_mut().zip(publish) {
+        // Known before the step is: a participant sizes its step by it (tutti fmu run).
+        host.set_period(period);
         host.publish_step(data, sim).with_context(|| format!("domain '{}'", host.info().name))?;
     }
     let mut reports = Vec::with_capacity(fw.domains.len());

@@ -9,6 +9,7 @@ mod bench;
 mod check;
 mod child;
 mod demo;
+mod fmu;
 mod gateway;
 mod host;
 mod idl;
@@ -48,6 +49,7 @@ enum Command {
     Gateway(gateway::Args),
     Demo(demo::Args),
     Studio(studio::Args),
+    Fmu(fmu::Args),
 }
 
 /// `--realtime [--cpu N] [--priority P]`, shared by the commands that step domains.
@@ -106,6 +108,7 @@ pub fn run(cli: Cli) -> ExitCode {
         Command::Gateway(a) => gateway::run(a),
         Command::Demo(a) => demo::run(a),
         Command::Studio(a) => studio::run(a),
+        Command::Fmu(a) => fmu::run(a),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

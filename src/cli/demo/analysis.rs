@@ -9,7 +9,9 @@
 //! * `uavN.csv`: `time,altitude,connected`, the altitude the UAV model computed;
 //! * `connections.csv`: `sim_time,wall_s,uav1..uav4`, the connection counts the monitoring
 //!   script saw; `events.csv`: `sim_time,uav,event`, the requests it sent;
-//! * `c_readerN.csv`: `time,altitude,connections`, what the C component N read.
+//! * `c_readerN.csv`: `time,altitude,connections`, what the C component N read;
+//! * `altitude_filter.csv`: `step,sim_time,elevation,altitude,climb_rate,steps,connections`,
+//!   the FMU component's domain: UAV 1's elevation published, the FMU's answer read.
 
 use std::path::Path;
 
@@ -59,6 +61,8 @@ pub struct RunData {
     pub connections: Table,
     pub events: Table,
     pub c_readers: Vec<Table>,
+    /// The FMU component's domain (`altitude_filter.csv`).
+    pub fmu: Table,
 }
 
 impl RunData {
@@ -71,6 +75,7 @@ impl RunData {
             connections: read("connections.csv"),
             events: read("events.csv"),
             c_readers: (1..=scenario.c_readers.len()).map(|i| read(&format!("c_reader{i}.csv"))).collect(),
+            fmu: read("altitude_filter.csv"),
         }
     }
 }
@@ -171,7 +176,42 @@ pub fn run_checks(s: &Scenario, d: &RunData, step: f64) -> Vec<Check> {
         out.push(c_reader(d, s.c_domain_uav, j, start));
     }
     out.push(connection_counts(s, d));
+    out.push(fmu_filter(d, step));
     out
+}
+
+/// The FMU component (AltitudeFilter through `tutti fmu run`) answered the steps in lock-step
+/// with UAV 1's elevation filtered as its model says: each answer is recomputed here from the
+/// elevation published at that step (from its third step on, when its step size is the
+/// simulated step; the first ones use the wall-clock period, see docs/fmu.md).
+fn fmu_filter(d: &RunData, step: f64) -> Check {
+    let name = "the FMU component filtered UAV1's elevation at every step".to_string();
+    let (elev, alt, n) = (d.fmu.col("elevation"), d.fmu.col("altitude"), d.fmu.col("steps"));
+    if n.iter().all(|&k| k.is_nan() || k < 1.0) {
+        return Check::new(name, false, "altitude_filter.csv: the FMU never answered".into());
+    }
+    let a = (step / crate::cli::demo::uav::FMU_TAU).min(1.0);
+    let (mut judged, mut skipped, mut worst) = (0usize, 0usize, 0.0f64);
+    for i in 1..n.len() {
+        if n[i - 1] < 2.0 {
+            continue;
+        }
+        if n[i] != n[i - 1] + 1.0 {
+            skipped += 1;
+            continue;
+        }
+        let want = alt[i - 1] + a * (elev[i] - alt[i - 1]);
+        worst = worst.max((alt[i] - want).abs());
+        judged += 1;
+    }
+    let pass = judged >= 10 && skipped * 10 <= judged && worst <= 1e-6;
+    Check::new(
+        name,
+        pass,
+        format!(
+            "{judged} answers recomputed (max difference {worst:.1e} m), {skipped} steps not answered in lock-step"
+        ),
+    )
 }
 
 /// The monitoring script sent every scripted request, within a second of its time.
@@ -421,7 +461,23 @@ mod tests {
                 .map(|e| vec![e.t + 0.1, e.uav as f64, f64::from(u8::from(e.action == Action::Connect)), e.t])
                 .collect(),
         };
-        RunData { framework: fw, uavs, connections: conns, events, c_readers }
+        // The FMU answers every step from the first: its filter of UAV1's elevation read.
+        let mut fmu = Table {
+            header: ["step", "sim_time", "elevation", "altitude", "climb_rate", "steps", "connections"]
+                .map(String::from)
+                .to_vec(),
+            rows: vec![],
+        };
+        let elev_col = fw.header.iter().position(|h| h == "uav1_elevation").unwrap();
+        let a = (step / crate::cli::demo::uav::FMU_TAU).min(1.0);
+        let mut filtered = f64::NAN;
+        for (k, r) in fw.rows.iter().enumerate() {
+            let e = r[elev_col];
+            let before = if filtered.is_nan() { e } else { filtered };
+            filtered = before + a * (e - before);
+            fmu.rows.push(vec![r[0], r[1], e, filtered, (filtered - before) / step, k as f64 + 1.0, 1.0]);
+        }
+        RunData { framework: fw, uavs, connections: conns, events, c_readers, fmu }
     }
 
     #[test]
@@ -446,7 +502,7 @@ mod tests {
         let s = Scenario::short();
         let checks = run_checks(&s, &perfect_run(&s, 0.05), 0.05);
         // framework + (held + merged) × 2 UAVs + requests + 2 readers + counts.
-        assert_eq!(checks.len(), 1 + 4 + 1 + 2 + 1, "{checks:#?}");
+        assert_eq!(checks.len(), 1 + 4 + 1 + 2 + 1 + 1, "{checks:#?}");
         assert!(checks.iter().all(|c| c.pass), "{checks:#?}");
     }
 
@@ -487,6 +543,13 @@ mod tests {
             failing(&d),
             vec!["the monitoring script sent every scripted disconnect / connect request on time".to_string()]
         );
+        // The FMU component computed one answer wrong, or never answered.
+        let mut d = base.clone();
+        d.fmu.rows[40][3] += 0.01;
+        assert_eq!(failing(&d), vec!["the FMU component filtered UAV1's elevation at every step".to_string()]);
+        let mut d = base.clone();
+        d.fmu.rows.iter_mut().for_each(|r| r[5] = 0.0);
+        assert_eq!(failing(&d), vec!["the FMU component filtered UAV1's elevation at every step".to_string()]);
         // A UAV that never disconnected.
         let mut d = base;
         d.uavs[3].rows.iter_mut().for_each(|r| r[2] = 1.0);

@@ -34,10 +34,33 @@ use crate::rt::{self, Ticker};
 const DDF_TEXT: &str = include_str!("../../../ddf/multiuav.ddf");
 /// The source tree (C component, monitoring script, Python module, header).
 const ROOT: &str = env!("CARGO_MANIFEST_DIR");
+/// The domain of the demo's FMU component (examples/fmu/altitude_filter, docs/fmu.md): the
+/// framework publishes UAV 1's elevation as it read it, the FMU answers with it filtered.
+const FMU_DOMAIN: &str = "uav1_altitude_filter";
+const FMU_DDF_TEXT: &str = r#"<?xml version="1.0" encoding="UTF-8"?>
+<!-- The UAV demo's FMU component (AltitudeFilter, run with `tutti fmu run`). -->
+<orchestra>
+  <domain name="uav1_altitude_filter">
+    <synchronous>yes</synchronous>
+    <multiplePublishAllowed>no</multiplePublishAllowed>
+    <states>no</states>
+    <set name="PUBLISH">
+      <item name="elevation"><type>float64</type><length>1</length></item>
+    </set>
+    <set name="SUBSCRIBE">
+      <item name="altitude"><type>float64</type><length>1</length></item>
+      <item name="climb_rate"><type>float64</type><length>1</length></item>
+      <item name="steps"><type>int32</type><length>1</length></item>
+    </set>
+  </domain>
+</orchestra>
+"#;
+/// The FMU's time constant (s), given with `--param tau=`; the checks recompute the filter.
+pub const FMU_TAU: f64 = 2.0;
 
 #[derive(Debug, clap::Args)]
 #[command(
-    after_help = "Examples:\n  tutti demo uav\n  tutti demo uav --out /tmp/uav --speed 8 --scenario short\n  tutti demo uav-report --out out/uav      # re-check and re-draw a finished run\n\nEnvironment:\n  TUTTI_NAMESPACE   namespace of the segments (default: demo-PID)\n  TUTTI_PYTHON      Python 3 for the monitoring script (default: python3)\n  TUTTI_RTAPI_LIB   librtapi.so to use (default: next to this executable)\n  TUTTI_FONT        TrueType font for the figures (default: DejaVu Sans)\n  CC                C compiler for the C component (default: gcc)"
+    after_help = "Examples:\n  tutti demo uav\n  tutti demo uav --out /tmp/uav --speed 8 --scenario short\n  tutti demo uav-report --out out/uav      # re-check and re-draw a finished run\n\nEnvironment:\n  TUTTI_NAMESPACE   namespace of the segments (default: demo-PID)\n  TUTTI_PYTHON      Python 3 for the monitoring script (default: python3)\n  TUTTI_RTAPI_LIB   librtapi.so to use (default: next to this executable)\n  TUTTI_FONT        TrueType font for the figures (default: DejaVu Sans)\n  CC                C compiler for the C component and the FMU (default: gcc)"
 )]
 pub struct UavArgs {
     #[command(flatten)]
@@ -142,6 +165,33 @@ fn build_c_reader(out: &Path, lib: &Path) -> anyhow::Result<PathBuf> {
         .with_context(|| format!("running the C compiler '{cc}' (install gcc, or pass --c-reader)"))?;
     anyhow::ensure!(status.success(), "compiling {} failed ({status})", src.display());
     Ok(bin)
+}
+
+/// Builds the demo's FMU from examples/fmu/altitude_filter: the C source compiled into a
+/// shared library, packed with its modelDescription.xml into bin/AltitudeFilter.fmu.
+fn build_fmu(out: &Path) -> anyhow::Result<PathBuf> {
+    let src = Path::new(ROOT).join("examples/fmu/altitude_filter");
+    let so = out.join("bin/AltitudeFilter.so");
+    std::fs::create_dir_all(so.parent().unwrap_or(out))?;
+    let cc = std::env::var("CC").unwrap_or_else(|_| "gcc".into());
+    let status = Command::new(&cc)
+        .args(["-std=c99", "-O2", "-Wall", "-Wextra", "-shared", "-fPIC"])
+        .arg(src.join("AltitudeFilter.c"))
+        .arg("-o")
+        .arg(&so)
+        .status()
+        .with_context(|| format!("running the C compiler '{cc}' for the FMU"))?;
+    anyhow::ensure!(status.success(), "compiling {} failed ({status})", src.join("AltitudeFilter.c").display());
+    let md_path = src.join("modelDescription.xml");
+    let md = std::fs::read(&md_path).with_context(|| format!("reading {}", md_path.display()))?;
+    let lib = std::fs::read(&so).with_context(|| format!("reading {}", so.display()))?;
+    let fmu = out.join("bin/AltitudeFilter.fmu");
+    tutti_fmu::pack::write_fmu(
+        &fmu,
+        &[("modelDescription.xml", &md), ("binaries/x86_64-linux/AltitudeFilter.so", &lib)],
+    )
+    .with_context(|| format!("writing {}", fmu.display()))?;
+    Ok(fmu)
 }
 
 /// Offsets of the items the framework writes and reads in one domain.
@@ -258,6 +308,24 @@ fn simulate(args: &UavArgs, scenario: &Scenario, out: &Path, interrupted: &Atomi
         ..Default::default()
     };
     let mut fw = Framework::create(&model, &opts).context("creating the domains of multiuav.ddf")?;
+    // The FMU component's domain, hosted beside the UAVs' (its own DDF: multiuav.ddf is the
+    // paper's, bridged to DDS as it is).
+    let fmu_ddf = out.join("altitude_filter.ddf");
+    std::fs::write(&fmu_ddf, FMU_DDF_TEXT).with_context(|| format!("writing {}", fmu_ddf.display()))?;
+    let fmu_model =
+        tutti_core::ddf::parse_str(FMU_DDF_TEXT, &fmu_ddf.display().to_string()).map_err(|e| anyhow::anyhow!("{e}"))?;
+    let mut fw_fmu = Framework::create(&fmu_model, &opts).context("creating the FMU's domain")?;
+    let fmu_leaf = |role: Role, p: &str| -> anyhow::Result<std::ops::Range<usize>> {
+        let leaf = fmu_model.domains[0].set(role).layout.leaf(p).with_context(|| format!("{FMU_DOMAIN}: no {p}"))?;
+        Ok(leaf.range())
+    };
+    let (fmu_elevation, fmu_altitude, fmu_climb, fmu_steps) = (
+        fmu_leaf(Role::Publish, "elevation")?,
+        fmu_leaf(Role::Subscribe, "altitude")?,
+        fmu_leaf(Role::Subscribe, "climb_rate")?,
+        fmu_leaf(Role::Subscribe, "steps")?,
+    );
+    let fmu_path = build_fmu(out)?;
     // The whole run as ROS 2 tools read it (Foxglove, ros2 bag): docs/recording.md.
     let mut recording = tutti_record::create(&out.join("run.mcap"), &model, &ddf_path).context("starting run.mcap")?;
     let items: Vec<DomainItems> = model
@@ -294,18 +362,30 @@ fn simulate(args: &UavArgs, scenario: &Scenario, out: &Path, interrupted: &Atomi
         env(&mut cmd);
         uavs.push(spawn(&format!("UAV {i}"), cmd, None)?);
     }
+    // The FMU component: `tutti fmu run`, as a user would start it.
+    let mut fmu_kid = {
+        let mut cmd = Command::new(&exe);
+        cmd.args(["fmu", "run"])
+            .arg(&fmu_path)
+            .arg("--ddf")
+            .arg(&fmu_ddf)
+            .args(["--domain", FMU_DOMAIN, "--param", &format!("tau={FMU_TAU}"), "--name", "fmu:AltitudeFilter", "-q"])
+            .env("TMPDIR", out.join("bin"));
+        env(&mut cmd);
+        spawn("FMU component (AltitudeFilter)", cmd, None)?
+    };
     let connect_deadline = Instant::now() + Duration::from_secs(30);
-    while fw.domains.iter().any(|d| d.connection_count() == 0) {
-        for k in &mut uavs {
+    while fw.domains.iter().chain(&fw_fmu.domains).any(|d| d.connection_count() == 0) {
+        for k in uavs.iter_mut().chain(std::iter::once(&mut fmu_kid)) {
             if let Some(st) = k.poll() {
                 bail!("{} exited before connecting ({st})", k.name);
             }
         }
         anyhow::ensure!(!interrupted.load(Ordering::SeqCst), "interrupted");
-        anyhow::ensure!(Instant::now() < connect_deadline, "the UAV components did not connect within 30 s");
+        anyhow::ensure!(Instant::now() < connect_deadline, "the UAV and FMU components did not connect within 30 s");
         std::thread::sleep(Duration::from_millis(20));
     }
-    eprintln!("demo: 4 UAV components connected");
+    eprintln!("demo: 4 UAV components and the FMU component (AltitudeFilter, tutti fmu run) connected");
     let mut gateway = None;
     if !args.no_gateway {
         let mut cmd = Command::new(&exe);
@@ -328,6 +408,10 @@ fn simulate(args: &UavArgs, scenario: &Scenario, out: &Path, interrupted: &Atomi
         }
     }
     writeln!(csv, "{}", header.join(","))?;
+    let mut fmu_csv =
+        BufWriter::new(File::create(out.join("altitude_filter.csv")).context("creating altitude_filter.csv")?);
+    writeln!(fmu_csv, "step,sim_time,elevation,altitude,climb_rate,steps,connections")?;
+    let mut fmu_publish = vec![fmu_model.domains[0].publish.layout.default_bytes()];
     let mut publish: Vec<Vec<u8>> = model.domains.iter().map(|d| d.publish.layout.default_bytes()).collect();
     let mut read_elevation = [0.0f64; UAVS];
 
@@ -414,6 +498,23 @@ fn simulate(args: &UavArgs, scenario: &Scenario, out: &Path, interrupted: &Atomi
             row.push_str(&format!(",{e},{t},{published},{}", host.connection_count()));
         }
         writeln!(csv, "{row}")?;
+        // The FMU's step: UAV 1's elevation as just read in, its filter out.
+        fmu_publish[0][fmu_elevation.clone()].copy_from_slice(&read_elevation[0].to_ne_bytes());
+        let fmu_reports = rt::step_all(&mut fw_fmu, &fmu_publish, sim, period, &tick)?;
+        {
+            let host = &fw_fmu.domains[0];
+            let sub = host.subscribe();
+            let steps_done = i32::from_ne_bytes(sub[fmu_steps.clone()].try_into().unwrap_or_default());
+            writeln!(
+                fmu_csv,
+                "{},{sim:.6},{},{},{},{steps_done},{}",
+                fmu_reports.first().map_or(0, |r| r.step),
+                read_elevation[0],
+                f64_at(sub, fmu_altitude.start),
+                f64_at(sub, fmu_climb.start),
+                host.connection_count()
+            )?;
+        }
         rt::record_step(std::slice::from_mut(&mut recording), &fw, &reports, &publish, sim, wall0)?;
         // The C components, on schedule.
         while readers.len() < scenario.c_readers.len() && sim >= scenario.c_readers[readers.len()] {
@@ -425,7 +526,9 @@ fn simulate(args: &UavArgs, scenario: &Scenario, out: &Path, interrupted: &Atomi
             readers.push(spawn(&format!("C component {j}"), cmd, None)?);
         }
         if tick.k % 20 == 0 {
-            for k in uavs.iter_mut().chain(readers.iter_mut()).chain(gateway.iter_mut()) {
+            for k in
+                uavs.iter_mut().chain(readers.iter_mut()).chain(gateway.iter_mut()).chain(std::iter::once(&mut fmu_kid))
+            {
                 if let Some(st) = k.poll() {
                     bail!("{} exited during the run ({st})", k.name);
                 }
@@ -447,6 +550,7 @@ fn simulate(args: &UavArgs, scenario: &Scenario, out: &Path, interrupted: &Atomi
     }
     drop(monitor_in.take());
     csv.flush().context("writing framework.csv")?;
+    fmu_csv.flush().context("writing altitude_filter.csv")?;
     recording.finish().context("writing run.mcap")?;
     if interrupted.load(Ordering::SeqCst) {
         return Ok(());
@@ -462,6 +566,11 @@ fn simulate(args: &UavArgs, scenario: &Scenario, out: &Path, interrupted: &Atomi
         k.stop(Some(SIGTERM), Duration::from_secs(3));
     }
     drop(fw);
+    // Its framework gone, the FMU component terminates its FMU and exits.
+    drop(fw_fmu);
+    if fmu_kid.wait(Duration::from_secs(3)).is_none() {
+        fmu_kid.stop(Some(SIGTERM), Duration::from_secs(1));
+    }
     for k in &mut readers {
         if k.wait(Duration::from_secs(3)).is_none() {
             k.stop(Some(SIGTERM), Duration::from_secs(1));
@@ -473,7 +582,7 @@ fn simulate(args: &UavArgs, scenario: &Scenario, out: &Path, interrupted: &Atomi
     if let Some(g) = &mut gateway {
         g.stop(Some(SIGINT), Duration::from_secs(3));
     }
-    for k in uavs.iter_mut().chain(readers.iter_mut()).chain(std::iter::once(&mut monitor)) {
+    for k in uavs.iter_mut().chain(readers.iter_mut()).chain([&mut monitor, &mut fmu_kid]) {
         if let Some(st) = k.poll().filter(|st| !st.success() && st.code().is_some()) {
             eprintln!("demo: warning: {} ended with {st}", k.name);
         }

@@ -327,6 +327,14 @@ impl DomainHost {
         }
     }
 
+    /// Publishes the step period, so that participants know the step they are answering
+    /// (an FMU's `doStep` size) from the first step on; call before the first
+    /// [`publish_step`](Self::publish_step). [`record_timing`](Self::record_timing) keeps it
+    /// up to date afterwards.
+    pub fn set_period(&self, period: Duration) {
+        self.seg.header().period_ns.store(period.as_nanos() as u64, Ordering::Relaxed);
+    }
+
     /// Records timing of the real-time loop, shown by `tutti status`.
     pub fn record_timing(&self, period: Duration, late: Duration, overrun: bool) {
         let h = self.seg.header();

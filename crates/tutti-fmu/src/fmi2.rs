@@ -1,0 +1,209 @@
+//! An FMI 2.0 co-simulation instance over the `fmi` crate's binding (`fmi-sys`), with tutti's
+//! own callbacks: the crate's instance type logs through a callback that dereferences the
+//! message category without a NULL check, and PythonFMU passes NULL when the Python model
+//! raises, which crashed the process instead of reporting the FMU's failure. The logger here
+//! is a C shim (src/fmi2_logger.c, for the printf-style arguments) calling
+//! [`tutti_fmu_fmi2_log`], which takes NULLs.
+
+use std::ffi::{c_char, c_uint, c_void, CStr, CString};
+
+use fmi::fmi2::binding::{self, Fmi2Binding};
+
+use crate::log_capture;
+
+extern "C" {
+    /// The C shim (src/fmi2_logger.c): formats and calls [`tutti_fmu_fmi2_log`].
+    fn tutti_fmu_fmi2_logger(
+        env: binding::fmi2ComponentEnvironment,
+        instance: binding::fmi2String,
+        status: binding::fmi2Status,
+        category: binding::fmi2String,
+        message: binding::fmi2String,
+        ...
+    );
+}
+
+/// A C string that may be NULL or not UTF-8.
+///
+/// # Safety
+/// `p` is NULL or points to a NUL-terminated string valid for this call.
+pub(crate) unsafe fn text(p: *const c_char) -> String {
+    if p.is_null() {
+        return String::new();
+    }
+    // SAFETY: not NULL, and NUL-terminated by the caller's contract.
+    unsafe { CStr::from_ptr(p) }.to_string_lossy().into_owned()
+}
+
+/// Receives every message an FMI 2.0 FMU logs (through the C shim).
+///
+/// # Safety
+/// Called by the shim with strings that are NULL or NUL-terminated.
+#[no_mangle]
+pub unsafe extern "C" fn tutti_fmu_fmi2_log(
+    _env: *mut c_void,
+    instance: *const c_char,
+    status: c_uint,
+    category: *const c_char,
+    message: *const c_char,
+) {
+    let level = match status {
+        0 => "INFO",
+        1 => "WARN",
+        2 => "DISCARD",
+        3 => "ERROR",
+        4 => "FATAL",
+        _ => "PENDING",
+    };
+    // SAFETY: the shim passes the FMU's strings (NULL or NUL-terminated) and its own buffer.
+    let (instance, category, message) = unsafe { (text(instance), text(category), text(message)) };
+    let category = if category.is_empty() { String::new() } else { format!(" ({category})") };
+    log_capture::record(format!("[{level}] {instance}{category}: {message}"));
+}
+
+/// What an FMI 2.0 call returned, when it is not OK or Warning.
+pub fn status_name(status: binding::fmi2Status) -> &'static str {
+    match status {
+        2 => "Discard",
+        3 => "Error",
+        4 => "Fatal",
+        5 => "Pending",
+        _ => "unknown",
+    }
+}
+
+fn check(status: binding::fmi2Status) -> Result<(), &'static str> {
+    if status <= 1 {
+        Ok(())
+    } else {
+        Err(status_name(status))
+    }
+}
+
+/// One FMI 2.0 co-simulation instance. Freed on drop.
+pub struct Fmi2Cs {
+    binding: Fmi2Binding,
+    component: binding::fmi2Component,
+    /// The FMU may keep a pointer to these for the life of the instance.
+    _callbacks: Box<binding::fmi2CallbackFunctions>,
+}
+
+impl std::fmt::Debug for Fmi2Cs {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Fmi2Cs").field("component", &self.component).finish()
+    }
+}
+
+impl Fmi2Cs {
+    /// `fmi2Instantiate` for co-simulation; `None` when the FMU refuses (see the log).
+    pub fn instantiate(binding: Fmi2Binding, instance_name: &str, guid: &str, resource_url: &str) -> Option<Fmi2Cs> {
+        let callbacks = Box::new(binding::fmi2CallbackFunctions {
+            logger: Some(tutti_fmu_fmi2_logger),
+            allocateMemory: Some(calloc),
+            freeMemory: Some(free),
+            stepFinished: None,
+            componentEnvironment: std::ptr::null_mut(),
+        });
+        // Interior NULs cannot come from XML attributes; refuse rather than truncate.
+        let (name, guid, url) =
+            (CString::new(instance_name).ok()?, CString::new(guid).ok()?, CString::new(resource_url).ok()?);
+        // SAFETY: every pointer is valid for the call; the callbacks outlive the instance (they
+        // are kept in it and the instance is freed before them, in `drop`).
+        let component = unsafe {
+            binding.fmi2Instantiate(
+                name.as_ptr(),
+                binding::fmi2Type_fmi2CoSimulation,
+                guid.as_ptr(),
+                url.as_ptr(),
+                &*callbacks,
+                0,
+                1,
+            )
+        };
+        (!component.is_null()).then_some(Fmi2Cs { binding, component, _callbacks: callbacks })
+    }
+
+    pub fn setup_experiment(&mut self, start: f64) -> Result<(), &'static str> {
+        // SAFETY: a live component of this binding.
+        check(unsafe { self.binding.fmi2SetupExperiment(self.component, 0, 0.0, start, 0, 0.0) })
+    }
+
+    pub fn enter_initialization_mode(&mut self) -> Result<(), &'static str> {
+        // SAFETY: a live component of this binding.
+        check(unsafe { self.binding.fmi2EnterInitializationMode(self.component) })
+    }
+
+    pub fn exit_initialization_mode(&mut self) -> Result<(), &'static str> {
+        // SAFETY: a live component of this binding.
+        check(unsafe { self.binding.fmi2ExitInitializationMode(self.component) })
+    }
+
+    pub fn do_step(&mut self, t: f64, h: f64) -> Result<(), &'static str> {
+        // SAFETY: a live component of this binding.
+        check(unsafe { self.binding.fmi2DoStep(self.component, t, h, 1) })
+    }
+
+    pub fn terminate(&mut self) -> Result<(), &'static str> {
+        // SAFETY: a live component of this binding.
+        check(unsafe { self.binding.fmi2Terminate(self.component) })
+    }
+
+    pub fn get_real(&mut self, vr: u32) -> Result<f64, &'static str> {
+        let mut v = 0.0;
+        // SAFETY: one value reference, one value, both valid for the call.
+        check(unsafe { self.binding.fmi2GetReal(self.component, &vr, 1, &mut v) }).map(|()| v)
+    }
+
+    pub fn get_integer(&mut self, vr: u32) -> Result<i32, &'static str> {
+        let mut v = 0;
+        // SAFETY: one value reference, one value, both valid for the call.
+        check(unsafe { self.binding.fmi2GetInteger(self.component, &vr, 1, &mut v) }).map(|()| v)
+    }
+
+    pub fn get_boolean(&mut self, vr: u32) -> Result<bool, &'static str> {
+        let mut v = 0;
+        // SAFETY: one value reference, one value, both valid for the call.
+        check(unsafe { self.binding.fmi2GetBoolean(self.component, &vr, 1, &mut v) }).map(|()| v != 0)
+    }
+
+    pub fn set_real(&mut self, vr: u32, v: f64) -> Result<(), &'static str> {
+        // SAFETY: one value reference, one value, both valid for the call.
+        check(unsafe { self.binding.fmi2SetReal(self.component, &vr, 1, &v) })
+    }
+
+    pub fn set_integer(&mut self, vr: u32, v: i32) -> Result<(), &'static str> {
+        // SAFETY: one value reference, one value, both valid for the call.
+        check(unsafe { self.binding.fmi2SetInteger(self.component, &vr, 1, &v) })
+    }
+
+    pub fn set_boolean(&mut self, vr: u32, v: bool) -> Result<(), &'static str> {
+        let v = i32::from(v);
+        // SAFETY: one value reference, one value, both valid for the call.
+        check(unsafe { self.binding.fmi2SetBoolean(self.component, &vr, 1, &v) })
+    }
+}
+
+impl Drop for Fmi2Cs {
+    fn drop(&mut self) {
+        // SAFETY: the component is live and freed exactly once, here.
+        unsafe { self.binding.fmi2FreeInstance(self.component) };
+    }
+}
+
+/// FMI 2.0's memory callbacks: the C allocator.
+unsafe extern "C" fn calloc(n: usize, size: usize) -> *mut c_void {
+    // SAFETY: the C allocator, called as the FMU asks.
+    unsafe { libc_calloc(n, size) }
+}
+
+unsafe extern "C" fn free(p: *mut c_void) {
+    // SAFETY: `p` was allocated by `calloc` above (the FMU's contract).
+    unsafe { libc_free(p) }
+}
+
+extern "C" {
+    #[link_name = "calloc"]
+    fn libc_calloc(n: usize, size: usize) -> *mut c_void;
+    #[link_name = "free"]
+    fn libc_free(p: *mut c_void);
+}

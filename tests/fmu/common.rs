@@ -1,0 +1,232 @@
+//! Support for the FMU tests: FMUs built from the sources in tests/fmu/ into a test's temp
+//! dir, the venv's Python with pythonfmu and fmpy, and small FMU archives made here.
+#![allow(dead_code)]
+
+use std::collections::BTreeMap;
+use std::io::Write as _;
+use std::path::{Path, PathBuf};
+use std::process::{Command, ExitStatus};
+use std::thread;
+use std::time::Duration;
+
+use super::common::run_with_timeout;
+
+pub fn repo() -> &'static Path {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+}
+
+/// Whether a missing tool must fail the test (CI) rather than skip it.
+fn required() -> bool {
+    std::env::var("CI").is_ok_and(|v| v == "true")
+}
+
+/// The venv's Python with pythonfmu and fmpy, or None (skipped) outside CI when missing.
+pub fn python() -> Option<PathBuf> {
+    let py = repo().join(".venv/bin/python");
+    let ok = Command::new(&py).args(["-c", "import pythonfmu, fmpy"]).status().is_ok_and(|s| s.success());
+    if ok {
+        return Some(py);
+    }
+    let hint = "run `.venv/bin/pip install pythonfmu fmpy` (launch-scripts/test.sh does)";
+    assert!(!required(), "CI=true: {hint}");
+    eprintln!("pythonfmu or fmpy is missing: test skipped ({hint})");
+    None
+}
+
+/// The shared libpython of `py`, which a PythonFMU model needs its host to load.
+pub fn libpython(py: &Path) -> PathBuf {
+    let out = Command::new(py)
+        .args([
+            "-c",
+            "import sysconfig, os; print(os.path.join(sysconfig.get_config_var('LIBDIR'), sysconfig.get_config_var('LDLIBRARY')))",
+        ])
+        .output()
+        .expect("python runs");
+    PathBuf::from(String::from_utf8_lossy(&out.stdout).trim())
+}
+
+/// Builds tests/fmu/python/Lag.py into `dir/Lag.fmu` with pythonfmu (FMI 2.0 co-simulation).
+pub fn build_lag(py: &Path, dir: &Path) -> PathBuf {
+    let mut cmd = Command::new(py);
+    cmd.args(["-m", "pythonfmu", "build", "-f"])
+        .arg(repo().join("tests/fmu/python/Lag.py"))
+        .arg("-d")
+        .arg(dir)
+        .current_dir(dir);
+    let (status, out, err) = run_with_timeout(cmd, Duration::from_secs(120));
+    assert!(status.success(), "pythonfmu build failed:\n{out}\n{err}");
+    let fmu = dir.join("Lag.fmu");
+    assert!(fmu.exists(), "pythonfmu made no Lag.fmu:\n{out}\n{err}");
+    fmu
+}
+
+/// Writes a zip at `path` with `entries` (name, bytes).
+pub fn write_zip(path: &Path, entries: &[(&str, &[u8])]) {
+    let file = std::fs::File::create(path).unwrap();
+    let mut zip = zip::ZipWriter::new(file);
+    let opts = zip::write::SimpleFileOptions::default().compression_method(zip::CompressionMethod::Stored);
+    for (name, bytes) in entries {
+        zip.start_file(*name, opts).unwrap();
+        zip.write_all(bytes).unwrap();
+    }
+    zip.finish().unwrap();
+}
+
+/// A small FMI 2.0 co-simulation model description: input `u`, output `y` (Real).
+pub fn model_description(model_identifier: &str) -> String {
+    format!(
+        r#"<?xml version="1.0" encoding="UTF-8"?>
+<fmiModelDescription fmiVersion="2.0" modelName="Stub" guid="{{stub}}">
+  <CoSimulation modelIdentifier="{model_identifier}"/>
+  <ModelVariables>
+    <ScalarVariable name="u" valueReference="0" causality="input"><Real start="0"/></ScalarVariable>
+    <ScalarVariable name="y" valueReference="1" causality="output"><Real/></ScalarVariable>
+  </ModelVariables>
+  <ModelStructure><Outputs><Unknown index="2"/></Outputs></ModelStructure>
+</fmiModelDescription>
+"#
+    )
+}
+
+/// Compiles C `source` into a shared library at `out` with gcc.
+pub fn compile_so(source: &str, out: &Path) {
+    let c = out.with_extension("c");
+    std::fs::write(&c, source).unwrap();
+    let mut cmd = Command::new("gcc");
+    cmd.args(["-shared", "-fPIC", "-o"]).arg(out).arg(&c);
+    let (status, _, err) = run_with_timeout(cmd, Duration::from_secs(60));
+    assert!(status.success(), "gcc failed: {err}");
+}
+
+/// Starts `tutti host DDF` (10 ms steps) for `duration` with PUBLISH value `set`
+/// (DOMAIN/ITEM=VALUE), recording to `csv`; joined by the caller.
+pub fn host(
+    ns: &str,
+    ddf: &Path,
+    csv: &Path,
+    duration: &str,
+    set: &str,
+) -> thread::JoinHandle<(ExitStatus, String, String)> {
+    let mut cmd = Command::new(env!("CARGO_BIN_EXE_tutti"));
+    cmd.args(["host"])
+        .arg(ddf)
+        .args(["--step", "10ms", "--duration", duration, "--timeout", "2s", "--set", set, "-q", "--record"])
+        .arg(csv)
+        .env("TUTTI_NAMESPACE", ns);
+    thread::spawn(move || run_with_timeout(cmd, Duration::from_secs(120)))
+}
+
+/// The rows of a `tutti host --record` CSV that the FMU answered, by its step count (output
+/// `outputs[count]`): (sim_time, outputs, booleans as 0/1).
+pub fn recorded(csv: &Path, outputs: &[&str], count: usize) -> BTreeMap<u64, (f64, Vec<f64>)> {
+    let text = std::fs::read_to_string(csv).unwrap();
+    let mut lines = text.lines();
+    let head: Vec<&str> = lines.next().unwrap().split(',').collect();
+    let col = |name: &str| head.iter().position(|h| *h == name).unwrap_or_else(|| panic!("no column {name}"));
+    let cols: Vec<usize> = outputs.iter().map(|o| col(&format!("subscribe.{o}"))).collect();
+    let sim = col("sim_time");
+    let mut rows = BTreeMap::new();
+    for line in lines {
+        let f: Vec<&str> = line.split(',').collect();
+        let values: Vec<f64> = cols
+            .iter()
+            .map(|&i| match f[i] {
+                "yes" => 1.0,
+                "no" => 0.0,
+                v => v.parse().unwrap(),
+            })
+            .collect();
+        let n = values[count] as u64;
+        if n > 0 {
+            // A step seen twice (asynchronous: the framework was faster) keeps its first row.
+            rows.entry(n).or_insert((f[sim].parse().unwrap(), values));
+        }
+    }
+    rows
+}
+
+/// fmpy's trajectory of `fmu` (tests/fmu/reference.py) from `start` for `steps` steps of
+/// `h`, with a constant `input` and `params` (JSON): step number -> outputs.
+#[allow(clippy::too_many_arguments)]
+pub fn reference(
+    py: &Path,
+    fmu: &Path,
+    start: f64,
+    steps: u64,
+    h: f64,
+    input: (&str, f64),
+    params: &str,
+    outputs: &[&str],
+) -> BTreeMap<u64, Vec<f64>> {
+    let mut cmd = Command::new(py);
+    cmd.arg(repo().join("tests/fmu/reference.py"))
+        .arg(fmu)
+        .args([start.to_string(), steps.to_string(), h.to_string(), input.0.to_string(), input.1.to_string()])
+        .arg(params)
+        .arg(outputs.join(","));
+    let (status, out, err) = run_with_timeout(cmd, Duration::from_secs(120));
+    assert!(status.success(), "fmpy failed: {err}");
+    out.lines()
+        .map(|l| {
+            let f: Vec<f64> = l.split(',').map(|v| v.parse().unwrap()).collect();
+            (f[0] as u64, f[1..].to_vec())
+        })
+        .collect()
+}
+
+/// Equal within 1e-9 relative.
+pub fn close(a: f64, b: f64) -> bool {
+    a == b || (a - b).abs() <= 1e-9 * a.abs().max(b.abs())
+}
+
+/// Asserts that every recorded step equals fmpy's; returns how many were compared.
+pub fn compare(rows: &BTreeMap<u64, (f64, Vec<f64>)>, reference: &BTreeMap<u64, Vec<f64>>, outputs: &[&str]) -> usize {
+    let mut compared = 0;
+    for (n, (_, got)) in rows {
+        let Some(want) = reference.get(n) else { continue };
+        for ((name, g), w) in outputs.iter().zip(got).zip(want) {
+            assert!(close(*g, *w), "step {n}: {name} = {g} through tutti, {w} with fmpy");
+        }
+        compared += 1;
+    }
+    compared
+}
+
+/// The FMI 3.0 headers of the `fmi-sys` crate (found with `cargo metadata`).
+pub fn fmi3_headers() -> PathBuf {
+    let out = Command::new(env!("CARGO"))
+        .args(["metadata", "--format-version", "1", "--offline"])
+        .current_dir(repo())
+        .output()
+        .expect("cargo metadata");
+    assert!(out.status.success(), "cargo metadata: {}", String::from_utf8_lossy(&out.stderr));
+    let meta: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let sys = meta["packages"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|p| p["name"] == "fmi-sys")
+        .expect("fmi-sys in the dependency graph");
+    let manifest = PathBuf::from(sys["manifest_path"].as_str().unwrap());
+    manifest.parent().unwrap().join("fmi-standard3/headers")
+}
+
+/// Builds tests/fmu/c/Integrator.c (FMI 3.0, C) into `dir/Integrator.fmu`.
+pub fn build_integrator(dir: &Path) -> PathBuf {
+    let src = repo().join("tests/fmu/c");
+    let so = dir.join("Integrator.so");
+    let mut cmd = Command::new("gcc");
+    cmd.args(["-Wall", "-Wextra", "-Werror", "-shared", "-fPIC"])
+        .arg(format!("-I{}", fmi3_headers().display()))
+        .arg(src.join("Integrator.c"))
+        .arg(src.join("stubs.c"))
+        .arg("-o")
+        .arg(&so);
+    let (status, _, err) = run_with_timeout(cmd, Duration::from_secs(60));
+    assert!(status.success(), "gcc failed: {err}");
+    let fmu = dir.join("Integrator.fmu");
+    let md = std::fs::read(src.join("modelDescription.xml")).unwrap();
+    let lib = std::fs::read(&so).unwrap();
+    write_zip(&fmu, &[("modelDescription.xml", &md), ("binaries/x86_64-linux/Integrator.so", &lib)]);
+    fmu
+}
