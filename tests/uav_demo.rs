@@ -83,6 +83,19 @@ fn the_short_uav_demo_reproduces_figures_5_and_6() {
     assert!(stderr.contains("0 failed"), "{stderr}");
     assert!(out.join("figure5.png").metadata().unwrap().len() > 10_000, "{stderr}");
     assert!(out.join("figure6.png").metadata().unwrap().len() > 10_000, "{stderr}");
+    for svg in ["figure5.svg", "figure6.svg"] {
+        let text = std::fs::read_to_string(out.join(svg)).unwrap();
+        assert!(text.starts_with("<svg") && text.contains("simulated time (s)"), "{svg}");
+    }
+    // The UAV logs carry the state a user plots, units in the column names; the summary is
+    // also JSON, every check passed.
+    let uav1 = csv(&out.join("uav1.csv"));
+    assert_eq!(uav1.0.join(","), "time_s,latitude_deg,longitude_deg,altitude_m,heading_deg,airspeed_mps,connected");
+    assert!(col(&uav1, "airspeed_mps").iter().all(|v| (10.0..40.0).contains(v)), "airspeed out of range");
+    let summary: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("summary.json")).unwrap()).unwrap();
+    assert_eq!(summary["failed"], 0, "{summary}");
+    assert!(summary["checks"].as_array().unwrap().iter().all(|c| c["pass"] == true), "{summary}");
 
     let fw = csv(&out.join("framework.csv"));
     let sim = col(&fw, "sim_time");
@@ -92,7 +105,7 @@ fn the_short_uav_demo_reproduces_figures_5_and_6() {
     for (uav, from, to) in [(3, 10.0, 20.0), (4, 12.0, 22.0)] {
         let elevation = col(&fw, &format!("uav{uav}_elevation"));
         let model = csv(&out.join(format!("uav{uav}.csv")));
-        let (mt, ma, mc) = (col(&model, "time"), col(&model, "altitude"), col(&model, "connected"));
+        let (mt, ma, mc) = (col(&model, "time_s"), col(&model, "altitude_m"), col(&model, "connected"));
         let held: Vec<f64> =
             sim.iter().zip(&elevation).filter(|(&t, _)| t > from + 1.0 && t < to - 0.5).map(|(_, &e)| e).collect();
         assert!(held.len() > 100, "UAV{uav}: {} steps in the window", held.len());

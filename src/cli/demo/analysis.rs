@@ -6,7 +6,7 @@
 //!   (SUBSCRIBE Elevation and Time as the framework read them this step), `uavN_altitude_pub`
 //!   (PUBLISH Altitude of this step: the elevation read at the step before) and
 //!   `uavN_connections`;
-//! * `uavN.csv`: `time,altitude,connected`, the altitude the UAV model computed;
+//! * `uavN.csv`: `time_s,latitude_deg,longitude_deg,altitude_m,heading_deg,airspeed_mps,connected`, the state the UAV model computed;
 //! * `connections.csv`: `sim_time,wall_s,uav1..uav4`, the connection counts the monitoring
 //!   script saw; `events.csv`: `sim_time,uav,event`, the requests it sent;
 //! * `c_readerN.csv`: `time,altitude,connections`, what the C component N read;
@@ -116,7 +116,7 @@ pub fn interp(xs: &[f64], ys: &[f64], x: f64) -> Option<f64> {
 /// The disconnected stretches of a UAV log: `(first disconnected time, time of the first
 /// row connected again)`, the second infinite when it stayed disconnected.
 pub fn observed_windows(uav: &Table) -> Vec<(f64, f64)> {
-    let (t, c) = (uav.col("time"), uav.col("connected"));
+    let (t, c) = (uav.col("time_s"), uav.col("connected"));
     let mut out = Vec::new();
     let mut open: Option<f64> = None;
     for (&t, &c) in t.iter().zip(&c) {
@@ -247,7 +247,7 @@ fn held_level(d: &RunData, uav: usize, (a, b): (f64, f64), found: Option<(f64, f
     }
     let spread = range(&held);
     let table = &d.uavs[uav - 1];
-    let (ut, ua) = (table.col("time"), table.col("altitude"));
+    let (ut, ua) = (table.col("time_s"), table.col("altitude_m"));
     let moved: Vec<f64> = ut.iter().zip(&ua).filter(|(&t, _)| t >= x && t <= y).map(|(_, &v)| v).collect();
     let model_range = range(&moved);
     Check::new(
@@ -280,7 +280,7 @@ fn merged(
     let fw = &d.framework;
     let (t, e, ut) = (fw.col("sim_time"), fw.col(&format!("uav{uav}_elevation")), fw.col(&format!("uav{uav}_time")));
     let table = &d.uavs[uav - 1];
-    let (mt, ma) = (table.col("time"), table.col("altitude"));
+    let (mt, ma) = (table.col("time_s"), table.col("altitude_m"));
     let (mut n, mut worst, mut worst_clock) = (0usize, 0.0f64, 0.0f64);
     for i in 0..t.len() {
         if t[i] < y + 1.0 || t[i] >= until - step {
@@ -412,7 +412,10 @@ mod tests {
             }
         }
         let mut uavs: Vec<Table> = (0..UAVS)
-            .map(|_| Table { header: vec!["time".into(), "altitude".into(), "connected".into()], rows: vec![] })
+            .map(|_| Table {
+                header: crate::cli::demo::node::UAV_LOG_HEADER.split(',').map(String::from).collect(),
+                rows: vec![],
+            })
             .collect();
         let mut last_read = [0.0f64; UAVS];
         let mut last_time = [0.0f64; UAVS];
@@ -422,7 +425,7 @@ mod tests {
             let mut row = vec![k as f64 + 1.0, t, t / 4.0];
             for i in 1..=UAVS {
                 let away = s.windows(i).iter().any(|&(a, b)| t >= a && t < b);
-                uavs[i - 1].rows.push(vec![t, alt(i, t), if away { 0.0 } else { 1.0 }]);
+                uavs[i - 1].rows.push(vec![t, 45.5, -73.6, alt(i, t), 90.0, 25.0, if away { 0.0 } else { 1.0 }]);
                 pubs[i - 1] = last_read[i - 1];
                 if !away {
                     last_read[i - 1] = alt(i, t);
@@ -493,7 +496,7 @@ mod tests {
     fn interpolation_and_windows() {
         assert_eq!(interp(&[0.0, 1.0], &[0.0, 10.0], 0.25), Some(2.5));
         assert_eq!(interp(&[0.0, 1.0], &[0.0, 10.0], 2.0), None);
-        let u = Table::parse("time,altitude,connected\n0,1,1\n1,1,0\n2,1,0\n3,1,1\n4,1,0\n");
+        let u = Table::parse("time_s,altitude_m,connected\n0,1,1\n1,1,0\n2,1,0\n3,1,1\n4,1,0\n");
         assert_eq!(observed_windows(&u), vec![(1.0, 3.0), (4.0, f64::INFINITY)]);
     }
 
@@ -552,7 +555,7 @@ mod tests {
         assert_eq!(failing(&d), vec!["the FMU component filtered UAV1's elevation at every step".to_string()]);
         // A UAV that never disconnected.
         let mut d = base;
-        d.uavs[3].rows.iter_mut().for_each(|r| r[2] = 1.0);
+        d.uavs[3].rows.iter_mut().for_each(|r| r[6] = 1.0);
         assert_eq!(failing(&d).iter().filter(|n| n.contains("UAV4")).count(), 2);
     }
 }

@@ -40,7 +40,7 @@ pub struct NodeArgs {
     /// Simulated seconds per wall second (pacing while disconnected).
     #[arg(long, default_value_t = 4.0)]
     speed: f64,
-    /// CSV of the altitude the model computes: time,altitude,connected.
+    /// CSV of the state the model computes (`UAV_LOG_HEADER`).
     #[arg(long)]
     out: PathBuf,
     /// Start disconnected (until SIGUSR2).
@@ -91,11 +91,27 @@ impl Node {
         }
         if self.uav.time() > self.logged + 1e-9 || self.logged.is_nan() {
             self.logged = self.uav.time();
-            writeln!(self.log, "{},{},{}", self.uav.time(), self.uav.altitude_msl(), u8::from(self.connected))?;
+            let o = self.uav.outputs();
+            writeln!(
+                self.log,
+                "{},{},{},{},{},{},{}",
+                self.uav.time(),
+                o.lat_deg,
+                o.lon_deg,
+                self.uav.altitude_msl(),
+                o.heading_deg,
+                o.airspeed,
+                u8::from(self.connected)
+            )?;
         }
         Ok(())
     }
 }
+
+/// The columns of a UAV's log, units in their names: simulated time, position (WGS-84),
+/// altitude above mean sea level, heading (from north, clockwise), airspeed, and whether the
+/// UAV was connected to its domain.
+pub const UAV_LOG_HEADER: &str = "time_s,latitude_deg,longitude_deg,altitude_m,heading_deg,airspeed_mps,connected";
 
 pub fn run(args: NodeArgs) -> CliResult {
     Ok(fly(args)?)
@@ -110,7 +126,7 @@ fn fly(args: NodeArgs) -> anyhow::Result<()> {
     let uav = formation.build_uav(args.index - 1).map_err(|e| anyhow::anyhow!("UAV {}: {e}", args.index))?;
     let file = File::create(&args.out).with_context(|| format!("creating {}", args.out.display()))?;
     let mut log = BufWriter::new(file);
-    writeln!(log, "time,altitude,connected")?;
+    writeln!(log, "{UAV_LOG_HEADER}")?;
 
     let disconnect = Arc::new(AtomicBool::new(false));
     let reconnect = Arc::new(AtomicBool::new(false));

@@ -1,13 +1,16 @@
-//! The two pictures of the demo, after Figures 5 and 6 of the paper, drawn with plotters
-//! (bitmap backend, PNG). Text is rendered with ab_glyph from a TrueType font loaded at run
-//! time (DejaVu Sans from Debian's fonts-dejavu-core, or the file in `TUTTI_FONT`), so no
-//! fontconfig development package is needed to build.
+//! The two pictures of the demo, after Figures 5 and 6 of the paper, drawn with plotters,
+//! each twice from one drawing function: PNG (bitmap backend) and SVG beside it (the SVG's
+//! text is laid out by the viewer, with the font's own spacing). PNG text is rendered with
+//! ab_glyph from a TrueType font loaded at run time (DejaVu Sans from Debian's
+//! fonts-dejavu-core, or the file in `TUTTI_FONT`), so no fontconfig development package is
+//! needed to build.
 
 use std::path::{Path, PathBuf};
 use std::sync::OnceLock;
 
 use anyhow::Context;
 use plotters::coord::types::RangedCoordf64;
+use plotters::coord::Shift;
 use plotters::prelude::*;
 use plotters::style::FontStyle;
 
@@ -81,10 +84,13 @@ fn observed_events(d: &RunData) -> Vec<(f64, usize, bool)> {
 }
 
 /// The legend box of every figure: white, framed, at `position`.
-fn draw_legend<'a, 'b: 'a, CT: CoordTranslate>(
-    chart: &mut ChartContext<'a, BitMapBackend<'b>, CT>,
+fn draw_legend<'a, DB: DrawingBackend + 'a, CT: CoordTranslate>(
+    chart: &mut ChartContext<'a, DB, CT>,
     position: SeriesLabelPosition,
-) -> anyhow::Result<()> {
+) -> anyhow::Result<()>
+where
+    DB::ErrorType: 'static,
+{
     chart
         .configure_series_labels()
         .position(position)
@@ -98,14 +104,17 @@ fn draw_legend<'a, 'b: 'a, CT: CoordTranslate>(
 /// The axes every plot of the demo shares: simulated time across (0 to `duration`), `y`
 /// upwards with `y_desc`, whole-number labels, light grid; `x_area` is the height of the
 /// time axis' label area, `y_labels` the number of labels upwards (plotters' default if None).
-fn time_chart<'a, 'b>(
-    mut builder: ChartBuilder<'a, 'b, BitMapBackend<'b>>,
+fn time_chart<'a, 'b, DB: DrawingBackend + 'a>(
+    mut builder: ChartBuilder<'a, 'b, DB>,
     duration: f64,
     y: std::ops::Range<f64>,
     x_area: u32,
     y_desc: &str,
     y_labels: Option<usize>,
-) -> anyhow::Result<ChartContext<'a, BitMapBackend<'b>, Cartesian2d<RangedCoordf64, RangedCoordf64>>> {
+) -> anyhow::Result<ChartContext<'a, DB, Cartesian2d<RangedCoordf64, RangedCoordf64>>>
+where
+    DB::ErrorType: 'static,
+{
     let mut chart = builder
         .margin(20)
         .margin_right(40)
@@ -131,21 +140,37 @@ fn time_chart<'a, 'b>(
 /// the framework; the monitoring script's disconnect / connect events marked.
 pub fn figure5(path: &Path, s: &Scenario, d: &RunData) -> anyhow::Result<()> {
     font()?;
-    let root = BitMapBackend::new(path, (1400, 820)).into_drawing_area();
+    const SIZE: (u32, u32) = (1400, 820);
+    draw_figure5(BitMapBackend::new(path, SIZE).into_drawing_area(), s, d)
+        .with_context(|| format!("writing {}", path.display()))?;
+    let svg = path.with_extension("svg");
+    draw_figure5(SVGBackend::new(&svg, SIZE).into_drawing_area(), s, d)
+        .with_context(|| format!("writing {}", svg.display()))
+}
+
+fn draw_figure5<DB: DrawingBackend>(root: DrawingArea<DB, Shift>, s: &Scenario, d: &RunData) -> anyhow::Result<()>
+where
+    DB::ErrorType: 'static,
+{
     root.fill(&WHITE)?;
+    // The legend in a strip of its own on the right, so that the plot needs no empty band.
+    let (root, side) = root.split_horizontally(1130);
     let t = d.framework.col("sim_time");
-    let solid: Vec<Vec<(f64, f64)>> =
-        (1..=UAVS).map(|i| pairs(&t, &d.framework.col(&format!("uav{i}_elevation")))).collect();
-    let dotted: Vec<Vec<(f64, f64)>> = d.uavs.iter().map(|u| pairs(&u.col("time"), &u.col("altitude"))).collect();
+    // Before a UAV's first answer the framework reads the DDF's default (0): not an altitude.
+    let solid: Vec<Vec<(f64, f64)>> = (1..=UAVS)
+        .map(|i| {
+            let read = pairs(&t, &d.framework.col(&format!("uav{i}_elevation")));
+            read.into_iter().skip_while(|p| p.1 == 0.0).collect()
+        })
+        .collect();
+    let dotted: Vec<Vec<(f64, f64)>> = d.uavs.iter().map(|u| pairs(&u.col("time_s"), &u.col("altitude_m"))).collect();
     let all: Vec<&[(f64, f64)]> = solid.iter().chain(&dotted).map(|v| v.as_slice()).collect();
     let (lo, hi) = y_range(&all);
-    // Room for the event labels above and the legend below.
-    let (lo, hi) = (lo - (hi - lo) * 0.22, hi + (hi - lo) * 0.10);
+    // Room for the event labels above.
+    let (lo, hi) = (lo - (hi - lo) * 0.04, hi + (hi - lo) * 0.14);
     let mut builder = ChartBuilder::on(&root);
-    builder.caption(
-        "Figure 5. Altitude of the UAVs: computed by the UAV models (dotted) and read by the framework (solid)",
-        ("sans-serif", 26),
-    );
+    builder
+        .caption("Figure 5. Altitude of the UAVs: computed by the models, read by the framework", ("sans-serif", 24));
     let mut chart = time_chart(builder, s.duration, lo..hi, 55, "altitude above mean sea level (m)", None)?;
     for (k, (t, uav, on)) in observed_events(d).into_iter().enumerate() {
         let color = if on { RGBColor(40, 140, 40) } else { RGBColor(200, 40, 40) };
@@ -161,36 +186,46 @@ pub fn figure5(path: &Path, s: &Scenario, d: &RunData) -> anyhow::Result<()> {
     for i in 0..UAVS {
         let c = UAV_COLORS[i];
         let dark = darker(c);
-        chart
-            .draw_series(LineSeries::new(solid[i].iter().copied(), c.stroke_width(3)))?
-            .label(format!("UAV{}", i + 1))
-            .legend(move |(x, y)| {
-                EmptyElement::at((x, y))
-                    + PathElement::new(vec![(0, 0), (30, 0)], c.stroke_width(3))
-                    + Circle::new((6, 0), 2, dark.filled())
-                    + Circle::new((15, 0), 2, dark.filled())
-                    + Circle::new((24, 0), 2, dark.filled())
-            });
+        chart.draw_series(LineSeries::new(solid[i].iter().copied(), c.stroke_width(3)))?;
         chart.draw_series(DottedLineSeries::new(dotted[i].iter().copied(), 0, 7, move |p| {
             Circle::new(p, 2, dark.filled())
         }))?;
     }
-    // The two line styles, explained once.
-    chart
-        .draw_series(std::iter::empty::<PathElement<(f64, f64)>>())?
-        .label("solid: read by the framework")
-        .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 30, y)], BLACK.stroke_width(3)));
-    chart
-        .draw_series(std::iter::empty::<PathElement<(f64, f64)>>())?
-        .label("dotted: computed by the UAV model")
-        .legend(|(x, y)| {
-            EmptyElement::at((x, y))
-                + Circle::new((6, 0), 2, BLACK.filled())
-                + Circle::new((15, 0), 2, BLACK.filled())
-                + Circle::new((24, 0), 2, BLACK.filled())
-        });
-    draw_legend(&mut chart, SeriesLabelPosition::LowerRight)?;
-    root.present().with_context(|| format!("writing {}", path.display()))?;
+    // The legend: one entry per UAV, then the two line styles explained once.
+    let mut entries: Vec<(String, RGBColor, bool, bool)> =
+        (0..UAVS).map(|i| (format!("UAV{}", i + 1), UAV_COLORS[i], true, true)).collect();
+    entries.push(("read by the framework".into(), BLACK, true, false));
+    entries.push(("computed by the model".into(), BLACK, false, true));
+    side_legend(&side, &entries)?;
+    root.present()?;
+    Ok(())
+}
+
+/// A legend drawn in its own area: per entry a sample (a solid line, dots, or both) and its
+/// label, from the top, framed.
+fn side_legend<DB: DrawingBackend>(
+    area: &DrawingArea<DB, Shift>,
+    entries: &[(String, RGBColor, bool, bool)],
+) -> anyhow::Result<()>
+where
+    DB::ErrorType: 'static,
+{
+    let (x0, y0, row) = (12i32, 70i32, 30i32);
+    let height = row * entries.len() as i32 + 16;
+    area.draw(&Rectangle::new([(x0 - 8, y0 - 20), (262, y0 - 20 + height)], BLACK.stroke_width(1)))?;
+    for (k, (label, c, line, dots)) in entries.iter().enumerate() {
+        let y = y0 + row * k as i32;
+        if *line {
+            area.draw(&PathElement::new(vec![(x0, y), (x0 + 36, y)], c.stroke_width(3)))?;
+        }
+        if *dots {
+            let dark = if *line { darker(*c) } else { *c };
+            for dx in [6, 18, 30] {
+                area.draw(&Circle::new((x0 + dx, y), 2, dark.filled()))?;
+            }
+        }
+        area.draw(&Text::new(label.clone(), (x0 + 46, y - 9), ("sans-serif", 17).into_font()))?;
+    }
     Ok(())
 }
 
@@ -198,15 +233,27 @@ pub fn figure5(path: &Path, s: &Scenario, d: &RunData) -> anyhow::Result<()> {
 /// number of connected participants of each domain over time.
 pub fn figure6(path: &Path, s: &Scenario, d: &RunData) -> anyhow::Result<()> {
     font()?;
+    const SIZE: (u32, u32) = (1400, 1000);
+    draw_figure6(BitMapBackend::new(path, SIZE).into_drawing_area(), s, d)
+        .with_context(|| format!("writing {}", path.display()))?;
+    let svg = path.with_extension("svg");
+    draw_figure6(SVGBackend::new(&svg, SIZE).into_drawing_area(), s, d)
+        .with_context(|| format!("writing {}", svg.display()))
+}
+
+fn draw_figure6<DB: DrawingBackend>(root: DrawingArea<DB, Shift>, s: &Scenario, d: &RunData) -> anyhow::Result<()>
+where
+    DB::ErrorType: 'static,
+{
     let uav = s.c_domain_uav;
-    let root = BitMapBackend::new(path, (1400, 1000)).into_drawing_area();
     root.fill(&WHITE)?;
     let root =
         root.titled(&format!("Figure 6. Heterogeneous participants of domain multiuav_uav{uav}"), ("sans-serif", 26))?;
     let (top, bottom) = root.split_vertically(560);
     let t = d.framework.col("sim_time");
-    let fw_read = pairs(&t, &d.framework.col(&format!("uav{uav}_elevation")));
-    let model = d.uavs.get(uav - 1).map(|u| pairs(&u.col("time"), &u.col("altitude"))).unwrap_or_default();
+    let fw_read: Vec<(f64, f64)> =
+        pairs(&t, &d.framework.col(&format!("uav{uav}_elevation"))).into_iter().skip_while(|p| p.1 == 0.0).collect();
+    let model = d.uavs.get(uav - 1).map(|u| pairs(&u.col("time_s"), &u.col("altitude_m"))).unwrap_or_default();
     let readers: Vec<Vec<(f64, f64)>> = d.c_readers.iter().map(|r| pairs(&r.col("time"), &r.col("altitude"))).collect();
     let mut all: Vec<&[(f64, f64)]> = vec![&fw_read, &model];
     all.extend(readers.iter().map(|v| v.as_slice()));
@@ -216,7 +263,7 @@ pub fn figure6(path: &Path, s: &Scenario, d: &RunData) -> anyhow::Result<()> {
     for (j, &t) in s.c_readers.iter().enumerate() {
         let grey = RGBColor(90, 90, 90);
         chart.draw_series(DashedLineSeries::new(vec![(t, lo), (t, hi)], 8, 6, grey.stroke_width(1)))?;
-        let y = lo + (hi - lo) * 0.06;
+        let y = lo + (hi - lo) * (0.06 + 0.07 * (j % 2) as f64);
         let label = format!("C component {} connects", j + 1);
         chart.draw_series(std::iter::once(Text::new(
             label,
@@ -255,20 +302,20 @@ pub fn figure6(path: &Path, s: &Scenario, d: &RunData) -> anyhow::Result<()> {
         time_chart(ChartBuilder::on(&bottom), s.duration, -0.2..max + 0.8, 55, "connected participants", y_labels)?;
     for (i, pts) in counts.iter().enumerate() {
         let c = UAV_COLORS[i];
-        // Step lines, offset a little so that equal counts stay visible side by side.
-        let off = (i as f64 - 1.5) * 0.04;
+        // Step lines at the exact counts; drawn widest first, so that where domains have the
+        // same count every one still shows, as nested bands.
         let mut stairs = Vec::with_capacity(pts.len() * 2);
         for w in pts.windows(2) {
-            stairs.push((w[0].0, w[0].1 + off));
-            stairs.push((w[1].0, w[0].1 + off));
+            stairs.push((w[0].0, w[0].1));
+            stairs.push((w[1].0, w[0].1));
         }
-        let width = if i + 1 == uav { 4 } else { 2 };
+        let width = 11 - 3 * i as u32;
         chart
             .draw_series(LineSeries::new(stairs, c.stroke_width(width)))?
             .label(format!("multiuav_uav{}", i + 1))
             .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 30, y)], c.stroke_width(width)));
     }
     draw_legend(&mut chart, SeriesLabelPosition::UpperLeft)?;
-    root.present().with_context(|| format!("writing {}", path.display()))?;
+    root.present()?;
     Ok(())
 }

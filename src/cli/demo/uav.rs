@@ -94,7 +94,8 @@ pub struct ReportArgs {
 /// What a run is (`uav-report` must be given the values of the run it re-checks).
 #[derive(Debug, clap::Args)]
 struct RunArgs {
-    /// Directory of the results (CSV files, figure5.png, figure6.png, summary.txt).
+    /// Directory of the results (CSV files, figure5.png/.svg, figure6.png/.svg, summary.txt
+    /// and summary.json).
     #[arg(long, default_value = "out/uav")]
     out: PathBuf,
     /// The script: paper (120 s, the paper's times) or short (40 s).
@@ -259,6 +260,15 @@ fn report(out: &Path, scenario: &Scenario, step: f64) -> CliResult {
     let failed = checks.iter().filter(|c| !c.pass).count();
     text.push_str(&format!("{} passed, {} failed\n", checks.len() - failed, failed));
     let _ = std::fs::write(out.join("summary.txt"), &text);
+    // The same for programs: one object, every check with its verdict.
+    let json = serde_json::json!({
+        "scenario": scenario.name,
+        "simulated_s": scenario.duration,
+        "passed": checks.len() - failed,
+        "failed": failed,
+        "checks": checks.iter().map(|c| serde_json::json!({ "name": c.name, "pass": c.pass, "detail": c.detail })).collect::<Vec<_>>(),
+    });
+    let _ = std::fs::write(out.join("summary.json"), format!("{json:#}\n"));
     eprint!("{text}");
     eprintln!("results in {}", out.display());
     if failed > 0 {
@@ -284,6 +294,10 @@ fn simulate(args: &UavArgs, scenario: &Scenario, out: &Path, interrupted: &Atomi
     let lib = out.join("bin/librtapi.so");
     std::fs::create_dir_all(out.join("bin"))?;
     std::fs::copy(&found, &lib).with_context(|| format!("copying {}", found.display()))?;
+    // The name the library's SONAME gives, which programs linked against it load.
+    let soname = out.join("bin/librtapi.so.0");
+    let _ = std::fs::remove_file(&soname);
+    std::os::unix::fs::symlink("librtapi.so", &soname).with_context(|| format!("linking {}", soname.display()))?;
     let c_reader = match &args.c_reader {
         Some(p) => p.clone(),
         None => build_c_reader(out, &lib)?,
