@@ -82,7 +82,10 @@ fn check(status: binding::fmi2Status) -> Result<(), &'static str> {
 
 /// One FMI 2.0 co-simulation instance. Freed on drop.
 pub struct Fmi2Cs {
-    binding: Fmi2Binding,
+    /// Dropped with the instance, unless the FMU reported Fatal (see `Drop`).
+    binding: std::mem::ManuallyDrop<Fmi2Binding>,
+    /// The FMU reported Fatal: no further call is allowed, not even freeing the instance.
+    fatal: bool,
     component: binding::fmi2Component,
     /// The FMU may keep a pointer to these for the life of the instance.
     _callbacks: Box<binding::fmi2CallbackFunctions>,
@@ -95,6 +98,15 @@ impl std::fmt::Debug for Fmi2Cs {
 }
 
 impl Fmi2Cs {
+    /// The result of a call, remembering a Fatal status.
+    fn note(&mut self, status: binding::fmi2Status) -> Result<(), &'static str> {
+        let r = check(status);
+        if r == Err("Fatal") {
+            self.fatal = true;
+        }
+        r
+    }
+
     /// `fmi2Instantiate` for co-simulation; `None` when the FMU refuses (see the log).
     pub fn instantiate(binding: Fmi2Binding, instance_name: &str, guid: &str, resource_url: &str) -> Option<Fmi2Cs> {
         let callbacks = Box::new(binding::fmi2CallbackFunctions {
@@ -120,73 +132,88 @@ impl Fmi2Cs {
                 1,
             )
         };
-        (!component.is_null()).then_some(Fmi2Cs { binding, component, _callbacks: callbacks })
+        (!component.is_null()).then(|| Fmi2Cs {
+            binding: std::mem::ManuallyDrop::new(binding),
+            fatal: false,
+            component,
+            _callbacks: callbacks,
+        })
     }
 
     pub fn setup_experiment(&mut self, start: f64) -> Result<(), &'static str> {
         // SAFETY: a live component of this binding.
-        check(unsafe { self.binding.fmi2SetupExperiment(self.component, 0, 0.0, start, 0, 0.0) })
+        self.note(unsafe { self.binding.fmi2SetupExperiment(self.component, 0, 0.0, start, 0, 0.0) })
     }
 
     pub fn enter_initialization_mode(&mut self) -> Result<(), &'static str> {
         // SAFETY: a live component of this binding.
-        check(unsafe { self.binding.fmi2EnterInitializationMode(self.component) })
+        self.note(unsafe { self.binding.fmi2EnterInitializationMode(self.component) })
     }
 
     pub fn exit_initialization_mode(&mut self) -> Result<(), &'static str> {
         // SAFETY: a live component of this binding.
-        check(unsafe { self.binding.fmi2ExitInitializationMode(self.component) })
+        self.note(unsafe { self.binding.fmi2ExitInitializationMode(self.component) })
     }
 
     pub fn do_step(&mut self, t: f64, h: f64) -> Result<(), &'static str> {
         // SAFETY: a live component of this binding.
-        check(unsafe { self.binding.fmi2DoStep(self.component, t, h, 1) })
+        self.note(unsafe { self.binding.fmi2DoStep(self.component, t, h, 1) })
     }
 
     pub fn terminate(&mut self) -> Result<(), &'static str> {
+        if self.fatal {
+            return Err("Fatal");
+        }
         // SAFETY: a live component of this binding.
-        check(unsafe { self.binding.fmi2Terminate(self.component) })
+        self.note(unsafe { self.binding.fmi2Terminate(self.component) })
     }
 
     pub fn get_real(&mut self, vr: u32) -> Result<f64, &'static str> {
         let mut v = 0.0;
         // SAFETY: one value reference, one value, both valid for the call.
-        check(unsafe { self.binding.fmi2GetReal(self.component, &vr, 1, &mut v) }).map(|()| v)
+        self.note(unsafe { self.binding.fmi2GetReal(self.component, &vr, 1, &mut v) }).map(|()| v)
     }
 
     pub fn get_integer(&mut self, vr: u32) -> Result<i32, &'static str> {
         let mut v = 0;
         // SAFETY: one value reference, one value, both valid for the call.
-        check(unsafe { self.binding.fmi2GetInteger(self.component, &vr, 1, &mut v) }).map(|()| v)
+        self.note(unsafe { self.binding.fmi2GetInteger(self.component, &vr, 1, &mut v) }).map(|()| v)
     }
 
     pub fn get_boolean(&mut self, vr: u32) -> Result<bool, &'static str> {
         let mut v = 0;
         // SAFETY: one value reference, one value, both valid for the call.
-        check(unsafe { self.binding.fmi2GetBoolean(self.component, &vr, 1, &mut v) }).map(|()| v != 0)
+        self.note(unsafe { self.binding.fmi2GetBoolean(self.component, &vr, 1, &mut v) }).map(|()| v != 0)
     }
 
     pub fn set_real(&mut self, vr: u32, v: f64) -> Result<(), &'static str> {
         // SAFETY: one value reference, one value, both valid for the call.
-        check(unsafe { self.binding.fmi2SetReal(self.component, &vr, 1, &v) })
+        self.note(unsafe { self.binding.fmi2SetReal(self.component, &vr, 1, &v) })
     }
 
     pub fn set_integer(&mut self, vr: u32, v: i32) -> Result<(), &'static str> {
         // SAFETY: one value reference, one value, both valid for the call.
-        check(unsafe { self.binding.fmi2SetInteger(self.component, &vr, 1, &v) })
+        self.note(unsafe { self.binding.fmi2SetInteger(self.component, &vr, 1, &v) })
     }
 
     pub fn set_boolean(&mut self, vr: u32, v: bool) -> Result<(), &'static str> {
         let v = i32::from(v);
         // SAFETY: one value reference, one value, both valid for the call.
-        check(unsafe { self.binding.fmi2SetBoolean(self.component, &vr, 1, &v) })
+        self.note(unsafe { self.binding.fmi2SetBoolean(self.component, &vr, 1, &v) })
     }
 }
 
 impl Drop for Fmi2Cs {
     fn drop(&mut self) {
+        // After Fatal the FMU allows no call, and freeing (or unloading) a broken one can
+        // crash the process (PythonFMU does): the instance and the library are leaked.
+        if self.fatal {
+            return;
+        }
         // SAFETY: the component is live and freed exactly once, here.
         unsafe { self.binding.fmi2FreeInstance(self.component) };
+        // SAFETY: dropped once, here, and not used after.
+        unsafe { std::mem::ManuallyDrop::drop(&mut self.binding) };
     }
 }
 

@@ -40,7 +40,10 @@ fn check(status: binding::fmi3Status) -> Result<(), &'static str> {
 
 /// One FMI 3.0 co-simulation instance. Freed on drop.
 pub struct Fmi3Cs {
-    binding: Fmi3Binding,
+    /// Dropped with the instance, unless the FMU reported Fatal (see `Drop`).
+    binding: std::mem::ManuallyDrop<Fmi3Binding>,
+    /// The FMU reported Fatal: no further call is allowed, not even freeing the instance.
+    fatal: bool,
     instance: binding::fmi3Instance,
     /// The logger's environment: must outlive the instance.
     _name: Box<CString>,
@@ -57,17 +60,26 @@ macro_rules! get_set {
         pub fn $get(&mut self, vr: u32) -> Result<$t, &'static str> {
             let mut v: $t = $zero;
             // SAFETY: one value reference and one value, both valid for the call.
-            check(unsafe { self.binding.$fget(self.instance, &vr, 1, &mut v, 1) }).map(|()| v)
+            self.note(unsafe { self.binding.$fget(self.instance, &vr, 1, &mut v, 1) }).map(|()| v)
         }
 
         pub fn $set(&mut self, vr: u32, v: $t) -> Result<(), &'static str> {
             // SAFETY: one value reference and one value, both valid for the call.
-            check(unsafe { self.binding.$fset(self.instance, &vr, 1, &v, 1) })
+            self.note(unsafe { self.binding.$fset(self.instance, &vr, 1, &v, 1) })
         }
     };
 }
 
 impl Fmi3Cs {
+    /// The result of a call, remembering a Fatal status.
+    fn note(&mut self, status: binding::fmi3Status) -> Result<(), &'static str> {
+        let r = check(status);
+        if r == Err("Fatal") {
+            self.fatal = true;
+        }
+        r
+    }
+
     /// `fmi3InstantiateCoSimulation`; `None` when the FMU refuses (see the log).
     pub fn instantiate(binding: Fmi3Binding, instance_name: &str, token: &str, resources: &str) -> Option<Fmi3Cs> {
         let name = Box::new(CString::new(instance_name).ok()?);
@@ -90,30 +102,38 @@ impl Fmi3Cs {
                 None,
             )
         };
-        (!instance.is_null()).then_some(Fmi3Cs { binding, instance, _name: name })
+        (!instance.is_null()).then(|| Fmi3Cs {
+            binding: std::mem::ManuallyDrop::new(binding),
+            fatal: false,
+            instance,
+            _name: name,
+        })
     }
 
     pub fn enter_initialization_mode(&mut self, start: f64) -> Result<(), &'static str> {
         // SAFETY: a live instance of this binding.
-        check(unsafe { self.binding.fmi3EnterInitializationMode(self.instance, false, 0.0, start, false, 0.0) })
+        self.note(unsafe { self.binding.fmi3EnterInitializationMode(self.instance, false, 0.0, start, false, 0.0) })
     }
 
     pub fn exit_initialization_mode(&mut self) -> Result<(), &'static str> {
         // SAFETY: a live instance of this binding.
-        check(unsafe { self.binding.fmi3ExitInitializationMode(self.instance) })
+        self.note(unsafe { self.binding.fmi3ExitInitializationMode(self.instance) })
     }
 
     pub fn do_step(&mut self, t: f64, h: f64) -> Result<(), &'static str> {
         let (mut event, mut terminate, mut early, mut last) = (false, false, false, 0.0);
         // SAFETY: a live instance; the out-parameters are valid for the call.
-        check(unsafe {
+        self.note(unsafe {
             self.binding.fmi3DoStep(self.instance, t, h, true, &mut event, &mut terminate, &mut early, &mut last)
         })
     }
 
     pub fn terminate(&mut self) -> Result<(), &'static str> {
+        if self.fatal {
+            return Err("Fatal");
+        }
         // SAFETY: a live instance of this binding.
-        check(unsafe { self.binding.fmi3Terminate(self.instance) })
+        self.note(unsafe { self.binding.fmi3Terminate(self.instance) })
     }
 
     get_set!(get_float64, set_float64, fmi3GetFloat64, fmi3SetFloat64, f64, 0.0);
@@ -131,7 +151,14 @@ impl Fmi3Cs {
 
 impl Drop for Fmi3Cs {
     fn drop(&mut self) {
+        // After Fatal the FMU allows no call, and freeing (or unloading) a broken one can
+        // crash the process: the instance and the library are leaked.
+        if self.fatal {
+            return;
+        }
         // SAFETY: the instance is live and freed exactly once, here.
         unsafe { self.binding.fmi3FreeInstance(self.instance) };
+        // SAFETY: dropped once, here, and not used after.
+        unsafe { std::mem::ManuallyDrop::drop(&mut self.binding) };
     }
 }
