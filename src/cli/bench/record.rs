@@ -16,19 +16,26 @@ use super::super::{load_ddf, CliResult};
 use super::nearest_rank;
 use crate::rt::{self, Ticker};
 
+/// The host every stepping benchmark runs: a DDF, its period, each run's length.
+#[derive(Debug, clap::Args)]
+pub struct Stepping {
+    /// The DDF whose domains are hosted.
+    #[arg(long, value_name = "DDF", default_value = "ddf/multiuav.ddf")]
+    pub file: PathBuf,
+    /// Step period.
+    #[arg(long, default_value = "1ms", value_parser = parse_duration)]
+    pub step: Duration,
+    /// Length of each run.
+    #[arg(long, default_value = "10s", value_parser = parse_duration)]
+    pub duration: Duration,
+}
+
 /// Step lateness at a fixed rate with and without a recording, and MB per minute.
 #[derive(Debug, clap::Args)]
 #[command(after_help = "Example:\n  cargo run --release -- bench record --duration 20s --rounds 2")]
 pub struct Args {
-    /// The DDF whose domains are hosted.
-    #[arg(long, value_name = "DDF", default_value = "ddf/multiuav.ddf")]
-    file: PathBuf,
-    /// Step period.
-    #[arg(long, default_value = "1ms", value_parser = parse_duration)]
-    step: Duration,
-    /// Length of each run.
-    #[arg(long, default_value = "10s", value_parser = parse_duration)]
-    duration: Duration,
+    #[command(flatten)]
+    run: Stepping,
     /// Rounds of the three runs (none, MCAP, CSV), interleaved.
     #[arg(long, default_value_t = 2)]
     rounds: u32,
@@ -59,16 +66,16 @@ struct RunResult {
 }
 
 pub fn run(args: Args) -> CliResult {
-    let model = load_ddf(&args.file)?;
+    let model = load_ddf(&args.run.file)?;
     let dir = std::env::temp_dir().join(format!("tutti-bench-record-{}", std::process::id()));
     std::fs::create_dir_all(&dir).context("creating a scratch directory")?;
     let items: usize = model.domains.iter().map(|d| d.leaves().count()).sum();
     println!(
         "recording cost: {} ({} domains, {items} items), step {:?}, {:?} per run, {} round(s), interleaved",
-        args.file.display(),
+        args.run.file.display(),
         model.domains.len(),
-        args.step,
-        args.duration,
+        args.run.step,
+        args.run.duration,
         args.rounds
     );
     println!(
@@ -120,10 +127,10 @@ fn one_run(
     });
     let mut recorders = match mode {
         Mode::None => Vec::new(),
-        _ => vec![tutti_record::create(&path, model, &args.file)?],
+        _ => vec![tutti_record::create(&path, model, &args.run.file)?],
     };
     let (late, overruns, secs) =
-        step_run(model, &mut fw, args.step, args.duration, |fw, reports, publish, sim, start| {
+        step_run(model, &mut fw, args.run.step, args.run.duration, |fw, reports, publish, sim, start| {
             rt::record_step(&mut recorders, fw, reports, publish, sim, start)
         })?;
     for rec in recorders {

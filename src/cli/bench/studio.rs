@@ -6,7 +6,6 @@
 
 use std::io::{BufRead, BufReader, Read, Write};
 use std::net::TcpStream;
-use std::path::PathBuf;
 use std::process::{Command, Stdio};
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::Arc;
@@ -16,24 +15,16 @@ use anyhow::{bail, Context as _};
 use tutti_core::shm::{Framework, FrameworkOptions};
 
 use super::super::child;
-use super::super::host::parse_duration;
 use super::super::{load_ddf, CliResult};
 use super::nearest_rank;
-use super::record::step_run;
+use super::record::{step_run, Stepping};
 
 /// Step lateness at a fixed rate with and without the studio's live monitor plotting items.
 #[derive(Debug, clap::Args)]
 #[command(after_help = "Example:\n  cargo run --release -- bench studio --duration 20s --rounds 2 --items 20")]
 pub struct Args {
-    /// The DDF whose domains are hosted.
-    #[arg(long, value_name = "DDF", default_value = "ddf/multiuav.ddf")]
-    file: PathBuf,
-    /// Step period.
-    #[arg(long, default_value = "1ms", value_parser = parse_duration)]
-    step: Duration,
-    /// Length of each run.
-    #[arg(long, default_value = "10s", value_parser = parse_duration)]
-    duration: Duration,
+    #[command(flatten)]
+    run: Stepping,
     /// Rounds of the two runs (alone, monitored), interleaved.
     #[arg(long, default_value_t = 2)]
     rounds: u32,
@@ -117,7 +108,7 @@ fn watch(namespace: &str, file: &std::path::Path, items: &[String]) -> anyhow::R
 }
 
 pub fn run(args: Args) -> CliResult {
-    let model = load_ddf(&args.file)?;
+    let model = load_ddf(&args.run.file)?;
     let items: Vec<String> = model
         .domains
         .iter()
@@ -126,10 +117,10 @@ pub fn run(args: Args) -> CliResult {
         .collect();
     println!(
         "monitoring cost: {} ({} domains), step {:?}, {:?} per run, {} round(s), interleaved; the monitor plots {} item(s)",
-        args.file.display(),
+        args.run.file.display(),
         model.domains.len(),
-        args.step,
-        args.duration,
+        args.run.step,
+        args.run.duration,
         args.rounds,
         items.len()
     );
@@ -147,14 +138,14 @@ pub fn run(args: Args) -> CliResult {
                 ..Default::default()
             };
             let mut fw = Framework::create(&model, &opts).context("creating the domains")?;
-            let watcher = if monitored { Some(watch(&opts.namespace, &args.file, &items)?) } else { None };
+            let watcher = if monitored { Some(watch(&opts.namespace, &args.run.file, &items)?) } else { None };
             // Let the studio find the segments before measuring.
             if watcher.is_some() {
                 std::thread::sleep(Duration::from_millis(500));
             }
             let before = watcher.as_ref().map_or(0, |w| w.events.load(Ordering::Relaxed));
             let (mut late, overruns, secs) =
-                step_run(&model, &mut fw, args.step, args.duration, |_, _, _, _, _| Ok(()))?;
+                step_run(&model, &mut fw, args.run.step, args.run.duration, |_, _, _, _, _| Ok(()))?;
             let events = watcher.as_ref().map_or(0, |w| w.events.load(Ordering::Relaxed)) - before;
             drop(watcher);
             drop(fw);
