@@ -1,9 +1,8 @@
-//! The two pictures of the demo, after Figures 5 and 6 of the paper, drawn with plotters,
-//! each twice from one drawing function: PNG (bitmap backend) and SVG beside it (the SVG's
-//! text is laid out by the viewer, with the font's own spacing). PNG text is rendered with
-//! ab_glyph from a TrueType font loaded at run time (DejaVu Sans from Debian's
-//! fonts-dejavu-core, or the file in `TUTTI_FONT`), so no fontconfig development package is
-//! needed to build.
+//! The two pictures of the demo, after Figures 5 and 6 of the paper, drawn with plotters as
+//! SVG, then rasterised to PNG by resvg with the same font (plotters' own bitmap text places
+//! glyphs unevenly). Text is measured and drawn with a TrueType font loaded at run time
+//! (DejaVu Sans from Debian's fonts-dejavu-core, or the file in `TUTTI_FONT`), so no
+//! fontconfig development package is needed to build.
 
 use std::path::{Path, PathBuf};
 use std::sync::OnceLock;
@@ -27,8 +26,9 @@ pub const FONT_CANDIDATES: &[&str] = &[
 
 static FONT: OnceLock<Result<PathBuf, String>> = OnceLock::new();
 
-/// Registers the sans-serif font once; an error names what to install.
-fn font() -> anyhow::Result<()> {
+/// Registers the sans-serif font once (for plotters' text measurement); returns its file.
+/// An error names what to install.
+fn font() -> anyhow::Result<PathBuf> {
     let r = FONT.get_or_init(|| {
         let mut candidates: Vec<PathBuf> = std::env::var_os("TUTTI_FONT").map(PathBuf::from).into_iter().collect();
         candidates.extend(FONT_CANDIDATES.iter().map(PathBuf::from));
@@ -42,7 +42,28 @@ fn font() -> anyhow::Result<()> {
         }
         Err("no TrueType font found: install Debian's fonts-dejavu-core, or set TUTTI_FONT to a .ttf file".into())
     });
-    r.as_ref().map(|_| ()).map_err(|e| anyhow::anyhow!("{e}"))
+    r.clone().map_err(|e| anyhow::anyhow!("{e}"))
+}
+
+/// Writes `svg` to `path` with the extension `.svg`, and its rasterisation to `path` (PNG),
+/// text in the font of `font_file`.
+fn write_svg_and_png(svg: &str, path: &Path, font_file: &Path) -> anyhow::Result<()> {
+    let svg_path = path.with_extension("svg");
+    std::fs::write(&svg_path, svg).with_context(|| format!("writing {}", svg_path.display()))?;
+    let mut opt = resvg::usvg::Options::default();
+    let db = opt.fontdb_mut();
+    db.load_font_data(std::fs::read(font_file).with_context(|| format!("reading {}", font_file.display()))?);
+    let family = db.faces().next().and_then(|f| f.families.first()).map(|f| f.0.clone());
+    if let Some(family) = family {
+        db.set_sans_serif_family(family);
+    }
+    let tree = resvg::usvg::Tree::from_str(svg, &opt).context("reading the drawn SVG")?;
+    let size = tree.size().to_int_size();
+    let mut pixmap =
+        resvg::tiny_skia::Pixmap::new(size.width(), size.height()).context("an empty or too large picture")?;
+    pixmap.fill(resvg::tiny_skia::Color::WHITE);
+    resvg::render(&tree, resvg::tiny_skia::Transform::default(), &mut pixmap.as_mut());
+    pixmap.save_png(path).with_context(|| format!("writing {}", path.display()))
 }
 
 /// A darker shade of `c`, for the dots drawn over its solid line.
@@ -139,13 +160,10 @@ where
 /// Figure 5: altitude of the four UAVs; dotted = computed by the models, solid = read by
 /// the framework; the monitoring script's disconnect / connect events marked.
 pub fn figure5(path: &Path, s: &Scenario, d: &RunData) -> anyhow::Result<()> {
-    font()?;
-    const SIZE: (u32, u32) = (1400, 820);
-    draw_figure5(BitMapBackend::new(path, SIZE).into_drawing_area(), s, d)
-        .with_context(|| format!("writing {}", path.display()))?;
-    let svg = path.with_extension("svg");
-    draw_figure5(SVGBackend::new(&svg, SIZE).into_drawing_area(), s, d)
-        .with_context(|| format!("writing {}", svg.display()))
+    let font_file = font()?;
+    let mut svg = String::new();
+    draw_figure5(SVGBackend::with_string(&mut svg, (1400, 820)).into_drawing_area(), s, d)?;
+    write_svg_and_png(&svg, path, &font_file)
 }
 
 fn draw_figure5<DB: DrawingBackend>(root: DrawingArea<DB, Shift>, s: &Scenario, d: &RunData) -> anyhow::Result<()>
@@ -232,13 +250,10 @@ where
 /// Figure 6: UAV2's altitude as read by the framework and by the two C components, and the
 /// number of connected participants of each domain over time.
 pub fn figure6(path: &Path, s: &Scenario, d: &RunData) -> anyhow::Result<()> {
-    font()?;
-    const SIZE: (u32, u32) = (1400, 1000);
-    draw_figure6(BitMapBackend::new(path, SIZE).into_drawing_area(), s, d)
-        .with_context(|| format!("writing {}", path.display()))?;
-    let svg = path.with_extension("svg");
-    draw_figure6(SVGBackend::new(&svg, SIZE).into_drawing_area(), s, d)
-        .with_context(|| format!("writing {}", svg.display()))
+    let font_file = font()?;
+    let mut svg = String::new();
+    draw_figure6(SVGBackend::with_string(&mut svg, (1400, 1000)).into_drawing_area(), s, d)?;
+    write_svg_and_png(&svg, path, &font_file)
 }
 
 fn draw_figure6<DB: DrawingBackend>(root: DrawingArea<DB, Shift>, s: &Scenario, d: &RunData) -> anyhow::Result<()>
