@@ -160,14 +160,35 @@ impl World {
         self.c().wait().at_most(WAIT).for_element(Locator::Css(css)).await.unwrap_or_else(|e| panic!("{css}: {e}"))
     }
 
+    /// Clicks the element `css` finds. The page re-renders parts of itself when an answer of
+    /// the server arrives (validation, layout), which can replace the element between finding
+    /// and clicking it: a stale element is found again (within the wait), never clicked blind.
     async fn click(&self, css: &str) {
-        self.find(css).await.click().await.unwrap_or_else(|e| panic!("click {css}: {e}"));
+        let deadline = Instant::now() + WAIT;
+        loop {
+            match self.find(css).await.click().await {
+                Ok(()) => return,
+                Err(e) if is_stale(&e) && Instant::now() < deadline => continue,
+                Err(e) => panic!("click {css}: {e}"),
+            }
+        }
     }
 
+    /// Clears the field `css` finds and types `text` into it (found again if re-rendered).
     async fn type_into(&self, css: &str, text: &str) {
-        let e = self.find(css).await;
-        e.clear().await.unwrap_or_else(|e| panic!("clear {css}: {e}"));
-        e.send_keys(text).await.unwrap_or_else(|e| panic!("type into {css}: {e}"));
+        let deadline = Instant::now() + WAIT;
+        loop {
+            let e = self.find(css).await;
+            let r = match e.clear().await {
+                Ok(()) => e.send_keys(text).await,
+                Err(err) => Err(err),
+            };
+            match r {
+                Ok(()) => return,
+                Err(err) if is_stale(&err) && Instant::now() < deadline => continue,
+                Err(err) => panic!("type into {css}: {err}"),
+            }
+        }
     }
 
     /// Waits until `script` (a JS expression) is truthy; returns its value.
@@ -421,7 +442,15 @@ async fn monitor_follows_a_host_started_from_the_page_and_a_c_component() {
         .await;
         let key = "multiuav_uav1#SUBSCRIBE#Elevation";
         w.until("the item in the plot menu", &format!("document.querySelector(\"#plot-item option[value='{key}']\")")).await;
-        w.find("#plot-item").await.select_by_value(key).await.expect("select the item");
+        // The menu is rebuilt as the monitor's events arrive: select in the current one.
+        let deadline = Instant::now() + WAIT;
+        loop {
+            match w.find("#plot-item").await.select_by_value(key).await {
+                Ok(()) => break,
+                Err(e) if is_stale(&e) && Instant::now() < deadline => continue,
+                Err(e) => panic!("select the item: {e}"),
+            }
+        }
         w.click("#plot-add").await;
         w.until("the item plotted", &format!("document.querySelector(\"[data-series='{key}']\")")).await;
 
@@ -457,4 +486,9 @@ async fn monitor_follows_a_host_started_from_the_page_and_a_c_component() {
         w.close().await;
     })
     .await;
+}
+
+/// Whether a WebDriver error says the element was replaced since it was found.
+fn is_stale(e: &fantoccini::error::CmdError) -> bool {
+    e.to_string().contains("stale element")
 }
