@@ -12,7 +12,7 @@ mod common;
 #[path = "fmu/common.rs"]
 mod fmu_common;
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::process::{Child, Command, Stdio};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex};
@@ -193,16 +193,6 @@ fn spawn_fmu(ns: &str, py: &Path, fmu: &Path, ddf: &Path, extra: &[&str]) -> Gua
     Guard(child)
 }
 
-/// librtapi of this build: target/<profile>/deps or target/<profile>.
-fn lib_dir() -> PathBuf {
-    let exe = PathBuf::from(env!("CARGO_BIN_EXE_tutti"));
-    let profile = exe.parent().unwrap().to_path_buf();
-    [profile.join("deps"), profile.clone()]
-        .into_iter()
-        .find(|d| d.join("librtapi.so").exists())
-        .unwrap_or_else(|| panic!("librtapi.so missing under {}: run `cargo build -p tutti-rtapi`", profile.display()))
-}
-
 const C_COMPONENT: &str = r#"
 /* Reads the FMU's output (lag_y, routed by the framework), commands the FMU (c_cmd = 1.5)
  * and reports what it read (c_seen). Synchronous: one answer per step; asynchronous: every
@@ -254,18 +244,7 @@ fn exchange(synchronous: bool) {
     let model = tutti_core::ddf::load(&ddf).unwrap();
     let src = dir.path().join("component.c");
     std::fs::write(&src, C_COMPONENT).unwrap();
-    let exe = dir.path().join("component");
-    let lib = lib_dir();
-    let mut cc = Command::new("gcc");
-    cc.arg(format!("-I{}", fmu_common::repo().join("include").display()))
-        .arg(&src)
-        .arg("-o")
-        .arg(&exe)
-        .arg(format!("-L{}", lib.display()))
-        .arg(format!("-Wl,-rpath,{}", lib.display()))
-        .arg("-lrtapi");
-    let (status, _, err) = common::run_with_timeout(cc, Duration::from_secs(60));
-    assert!(status.success(), "gcc: {err}");
+    let exe = common::compile_c(&src, &dir.path().join("component"), &[]);
 
     let host = Host::start(&model, &ns, PERIOD.as_secs_f64());
     let mut step_arg = vec![];

@@ -41,23 +41,7 @@ fn tutti(ns: &str, args: &[&str]) -> Command {
 
 /// The test's C component, compiled against the workspace's librtapi.
 fn compile_answer(dir: &Path) -> PathBuf {
-    let profile = Path::new(env!("CARGO_BIN_EXE_tutti")).parent().expect("target dir").to_path_buf();
-    let lib = [profile.join("deps"), profile.clone()]
-        .into_iter()
-        .find(|d| d.join("librtapi.so").exists())
-        .unwrap_or_else(|| panic!("librtapi.so missing under {}: run `cargo build --workspace`", profile.display()));
-    let out = dir.join("answer");
-    let mut gcc = Command::new("gcc");
-    gcc.args(["-std=c99", "-Wall", "-Werror", "-Iinclude", "tests/replay/answer.c", "-L"])
-        .arg(&lib)
-        .arg("-lrtapi")
-        .arg(format!("-Wl,-rpath,{}", lib.display()))
-        .arg("-o")
-        .arg(&out)
-        .current_dir(root());
-    let (status, _, err) = common::run_with_timeout(gcc, LIMIT);
-    assert!(status.success(), "gcc failed: {err}");
-    out
+    common::compile_c(&root().join("tests/replay/answer.c"), &dir.join("answer"), &["-std=c99", "-Wall", "-Werror"])
 }
 
 /// Runs `framework` (a host or a replay, which holds its first step for one writer) beside

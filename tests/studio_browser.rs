@@ -394,20 +394,11 @@ async fn refuses_a_changed_file_and_paths_outside_the_root() {
 
 /// Compiles tests/studio/ramp.c against the RTAPI into `dir`.
 fn compile_ramp(dir: &Path) -> PathBuf {
-    let lib = common::ensure_rtapi();
-    let out = dir.join("ramp");
-    let mut cmd = Command::new("gcc");
-    cmd.args(["-std=c99", "-Wall", "-Wextra", "-Werror"])
-        .arg(format!("-I{}", repo().join("include").display()))
-        .arg(repo().join("tests/studio/ramp.c"))
-        .arg("-o")
-        .arg(&out)
-        .arg(format!("-L{}", lib.display()))
-        .arg(format!("-Wl,-rpath,{}", lib.display()))
-        .arg("-lrtapi");
-    let (status, _, err) = common::run_with_timeout(cmd, Duration::from_secs(120));
-    assert!(status.success(), "compiling ramp.c: {err}");
-    out
+    common::compile_c(
+        &repo().join("tests/studio/ramp.c"),
+        &dir.join("ramp"),
+        &["-std=c99", "-Wall", "-Wextra", "-Werror"],
+    )
 }
 
 fn shm_left(namespace: &str) -> Vec<String> {

@@ -73,3 +73,23 @@ pub fn ensure_rtapi() -> std::path::PathBuf {
     assert!(cmd.status().expect("running cargo").success(), "building librtapi");
     dir.to_path_buf()
 }
+
+/// Compiles the C program `source` against include/RTAPI.h and this build's librtapi (run
+/// path set, so it runs from there) into `out`, with the compiler flags `flags`; fails the
+/// test with the compiler's output when it does not compile.
+pub fn compile_c(source: &std::path::Path, out: &std::path::Path, flags: &[&str]) -> std::path::PathBuf {
+    let lib = ensure_rtapi();
+    let include = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("include");
+    let mut cc = Command::new("gcc");
+    cc.args(flags)
+        .arg(format!("-I{}", include.display()))
+        .arg(source)
+        .arg("-o")
+        .arg(out)
+        .arg(format!("-L{}", lib.display()))
+        .arg(format!("-Wl,-rpath,{}", lib.display()))
+        .arg("-lrtapi");
+    let (status, _, err) = run_with_timeout(cc, Duration::from_secs(120));
+    assert!(status.success(), "compiling {}: {err}", source.display());
+    out.to_path_buf()
+}
