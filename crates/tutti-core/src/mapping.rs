@@ -333,9 +333,14 @@ pub fn per_item_type(ty: crate::ddf::ScalarType, length: u16) -> &'static str {
 /// The per-item topics of one set: one per leaf, the path's segments as snake_case field
 /// names (so two items never share a topic).
 pub fn item_topics(domain: &Domain, role: Role) -> Vec<ItemTopic> {
+    item_topics_under(domain, role, &format!("rt/{}", topic_base(&domain.name, role)))
+}
+
+/// The per-item topics of one set under DDS topic `base` (a set's topic after a namespace or
+/// a remapping): `BASE/ITEM`.
+pub fn item_topics_under(domain: &Domain, role: Role, base: &str) -> Vec<ItemTopic> {
     let mut out = Vec::new();
-    let base = format!("rt/{}", topic_base(&domain.name, role));
-    collect_item_topics(&domain.set(role).items, &base, "", &mut out);
+    collect_item_topics(&domain.set(role).items, base, "", &mut out);
     out
 }
 

@@ -14,6 +14,7 @@
 #![deny(unsafe_op_in_unsafe_fn)]
 
 pub mod cdr;
+pub mod config;
 pub mod echo;
 pub mod engine;
 mod error;

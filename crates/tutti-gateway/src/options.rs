@@ -1,6 +1,6 @@
 //! What the gateway serves and how.
 
-use std::net::IpAddr;
+use std::net::{IpAddr, SocketAddr};
 use std::path::PathBuf;
 use std::time::Duration;
 
@@ -8,6 +8,7 @@ use tutti_core::ddf::Model;
 use tutti_core::mapping::Profile;
 use tutti_core::shm::WaitMode;
 
+use crate::config::TopicRules;
 use crate::engine::{EngineConfig, EngineKind};
 
 /// The two type mappings of SPEC section 5.
@@ -57,6 +58,21 @@ pub struct GatewayOptions {
     pub clock: ClockSource,
     /// At most this many `/clock` samples a second (None: one per step).
     pub clock_rate: Option<f64>,
+    /// ROS namespace of every topic and of the node (empty: none): `rt/NS/DOMAIN/publish`,
+    /// node `/NS/NODE`.
+    pub ros_namespace: String,
+    /// Bridge a domain only while a framework hosts it in `namespace` (the default; a
+    /// mirror hosts its domains itself); false: every domain of the DDF from the start.
+    pub hosted_only: bool,
+    /// How long a DDS writer of a synchronous domain may owe its answer to a step before
+    /// the gateway releases its lock-step share (a killed writer; it joins again with its
+    /// next sample).
+    pub lease: Duration,
+    /// Serve the counters over HTTP (JSON at `/stats`, Prometheus text at `/metrics`).
+    pub http: Option<SocketAddr>,
+    /// Which sets are bridged, and per-topic QoS, rate and name (the config file's
+    /// `allow`, `deny` and `topics`).
+    pub rules: TopicRules,
 }
 
 /// The domain whose simulated time the gateway publishes on `/clock`.
@@ -91,6 +107,11 @@ impl GatewayOptions {
             peers: Vec::new(),
             clock: ClockSource::default(),
             clock_rate: None,
+            ros_namespace: String::new(),
+            hosted_only: true,
+            lease: Duration::from_secs(1),
+            http: None,
+            rules: TopicRules::default(),
         }
     }
 
@@ -120,7 +141,7 @@ impl GatewayOptions {
             interfaces: self.interfaces.clone(),
             peers: self.peers.clone(),
             node_name: self.node_name.clone(),
-            node_namespace: "/".into(),
+            node_namespace: crate::config::node_namespace(self.ros_namespace.trim().trim_matches('/')),
         }
     }
 }
