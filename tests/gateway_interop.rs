@@ -247,7 +247,8 @@ fn a_cyclone_writer_is_read_by_the_framework_through_a_remote_connection(e: Eng)
 fn the_gateway_writers_offer_the_qos_table_on_the_wire(e: Eng) {
     let Some(py) = python() else { return };
     for (dom, ns, profile) in [(104, "gwtest104", "ros2"), (105, "gwtest105", "dds")] {
-        let gw = e.gateway(DDF, dom, ns, &["--qos-profile", profile, "--strength", "9"]);
+        // No framework: --all-domains bridges the domains all the same.
+        let gw = e.gateway(DDF, dom, ns, &["--qos-profile", profile, "--strength", "9", "--all-domains"]);
         let q = |topic: &str| {
             let mut p = peer(&py, &format!("qos {topic}"), dom, "qos", &["--topic", topic, "--timeout", "45"]);
             assert_eq!(p.wait(SECS(60)), Some(0), "{}\n{}", p.dump(), gw.dump());
@@ -275,7 +276,7 @@ fn the_gateway_is_a_ros2_node_in_ros_discovery_info(e: Eng) {
     let Some(py) = python() else { return };
     let (dom, ns) = (e.dom(106), e.ns("gwtest106"));
     let ns = ns.as_str();
-    let gw = e.gateway(DDF, dom, ns, &["--node-name", "tutti_gw_test"]);
+    let gw = e.gateway(DDF, dom, ns, &["--node-name", "tutti_gw_test", "--all-domains"]);
     let mut p = peer(&py, "nodes", dom, "nodes", &["--name", "tutti_gw_test", "--timeout", "45"]);
     assert_eq!(p.wait(SECS(60)), Some(0), "{}\n{}", p.dump(), gw.dump());
     let n = &json_lines(&p, "name")[0];

@@ -82,6 +82,17 @@ pub struct Args {
     /// Print no status lines.
     #[arg(short, long)]
     quiet: bool,
+    /// ROS namespace of every topic and of the node (rt/NS/DOMAIN/publish, /NS/NODE).
+    #[arg(long, value_name = "NS", default_value = "")]
+    ros_namespace: String,
+    /// Bridge every domain of the DDF from the start, not only those a framework hosts in
+    /// TUTTI_NAMESPACE.
+    #[arg(long)]
+    all_domains: bool,
+    /// How long a DDS writer of a synchronous domain may owe a step's answer, silent, before
+    /// its lock-step share is released.
+    #[arg(long, default_value = "1s", value_parser = parse_duration)]
+    lease: Duration,
 }
 
 #[derive(Debug, Clone, Copy, ValueEnum)]
@@ -165,6 +176,9 @@ pub fn run(args: Args) -> CliResult {
     opts.timeout = args.timeout;
     opts.wait = args.wait;
     opts.poll = args.poll;
+    opts.ros_namespace = args.ros_namespace;
+    opts.hosted_only = !args.all_domains;
+    opts.lease = args.lease;
 
     let stop = Arc::new(AtomicBool::new(false));
     {

@@ -177,12 +177,25 @@ pub fn run(args: Args) -> CliResult {
         let sim = tick.k as f64 * args.step.as_secs_f64();
         let reports = rt::step_all(&mut fw, &publish, sim, args.step, &tick)?;
         timeouts += reports.iter().filter(|r| r.timed_out > 0).count() as u64;
+        if !args.quiet {
+            for (d, r) in fw.domains.iter().zip(&reports) {
+                if r.timed_out > 0 {
+                    eprintln!(
+                        "host: step {} of {} timed out after {:?} waiting for {}",
+                        r.step,
+                        d.info().name,
+                        args.timeout,
+                        d.timed_out_on().join(", ")
+                    );
+                }
+            }
+        }
         rt::record_step(&mut recorders, &fw, &reports, &publish, sim, run_start)?;
         if !args.quiet && last_report.elapsed() >= Duration::from_secs(1) {
             last_report = Instant::now();
             let conns: u32 = fw.domains.iter().map(|d| d.connection_count()).sum();
             eprintln!(
-                "host: t={:.1}s step {} connections {} overruns {} late max {:?} step timeouts {}",
+                "host: t={:.1}s step {} participants {} overruns {} late max {:?} step timeouts {}",
                 run_start.elapsed().as_secs_f64(),
                 tick.k + 1,
                 conns,

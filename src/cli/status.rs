@@ -66,8 +66,8 @@ fn render(domains: &[Result<DomainStatus, ShmError>], rates: &HashMap<String, (f
                 let (step_rate, commit_rate) = rates.get(&d.domain).copied().unwrap_or((0.0, 0.0));
                 let _ = writeln!(
                     s,
-                    "{} [{mode}] framework {fw}  step {}  sim {:.3}s  {:.0} steps/s  {:.0} commits/s  connections {}",
-                    d.domain, d.step, d.sim_time, step_rate, commit_rate, d.connection_count
+                    "{} [{mode}] framework {fw}  step {}  sim {:.3}s  {:.0} steps/s  {:.0} commits/s  participants {}  DDS writers {}  DDS readers {}",
+                    d.domain, d.step, d.sim_time, step_rate, commit_rate, d.connection_count, d.dds_writers, d.dds_readers
                 );
                 let _ = writeln!(
                     s,
@@ -82,10 +82,16 @@ fn render(domains: &[Result<DomainStatus, ShmError>], rates: &HashMap<String, (f
                     d.owner_pid.map(|p| format!("  owner pid {p}")).unwrap_or_default()
                 );
                 for c in &d.connections {
-                    let role = match (c.writer, c.sync_reader) {
-                        (true, _) => "writer",
-                        (false, true) => "sync reader",
-                        (false, false) => "reader",
+                    let role = match (c.observer, c.writer, c.sync_reader) {
+                        (true, _, _) => "observer",
+                        (_, true, _) => "writer",
+                        (_, false, true) => "sync reader",
+                        (_, false, false) => "reader",
+                    };
+                    let via = match (c.observer, c.remote) {
+                        (true, _) => format!("bridges {} DDS reader(s)  ", c.dds_readers),
+                        (false, true) => "via DDS  ".to_string(),
+                        _ => String::new(),
                     };
                     let since = now_ns.saturating_sub(c.since_ns) as f64 / 1e9;
                     let _ = writeln!(
@@ -95,7 +101,7 @@ fn render(domains: &[Result<DomainStatus, ShmError>], rates: &HashMap<String, (f
                         c.pid,
                         c.name,
                         role,
-                        if c.remote { "via DDS  " } else { "" },
+                        via,
                         since,
                         c.reads,
                         c.commits,

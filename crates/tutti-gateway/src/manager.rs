@@ -1,27 +1,36 @@
-//! The route manager: builds every route of the model, then runs one `select!` loop that
+//! The route manager: bridges each domain once a framework hosts it (or all of them from
+//! the start with `hosted_only` off, or as a mirror), then runs one `select!` loop that
 //! takes DDS samples from the reader tasks, compares discovery with the connections it
 //! holds, reports status and stops on request. Shared-memory work happens on the routes'
 //! own threads; this loop only hands samples over and never blocks.
+//!
+//! DDS readers are passive: they get no shared-memory connection, so they never pace a
+//! domain and are not counted as participants; the gateway's presence in each domain it
+//! bridges (an observer connection) carries their count for `tutti status`. Each DDS writer
+//! gets a connection (counted apart from the participants), released as soon as discovery
+//! says it left, or after the lease when it owes a synchronous step's answer and is silent.
 
 use std::collections::{BTreeSet, HashMap};
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::mpsc as std_mpsc;
 use std::sync::Arc;
-use std::thread::JoinHandle;
+use std::thread::{JoinHandle, Thread};
 use std::time::{Duration, Instant};
 
 use tokio::sync::mpsc;
 use tracing::{info, warn};
 use tutti_core::ddf::{Domain, Role};
-use tutti_core::mapping::{self, Endpoint, Qos};
-use tutti_core::shm::{Framework, FrameworkOptions, Participant, ShmError};
+use tutti_core::mapping::{self, Qos};
+use tutti_core::shm::observer::{Look, Observer};
+use tutti_core::shm::{Framework, FrameworkOptions};
 
 use crate::cdr::{SetCodec, TypedSample};
+use crate::config::{self, PlannedSet};
 use crate::engine::{self, Decode, Engine, Guid};
 use crate::routes::clock::{self, ClockPump};
 use crate::routes::from_dds::{self, Direct, RemoteWriter, Sample};
 use crate::routes::per_item::{self, ItemWriters};
-use crate::routes::to_dds::{self, Activation, Outbound, SetWriter, Watched};
+use crate::routes::to_dds::{self, Activation, Outbound, Polled, SetWriter, Watched};
 use crate::routes::{mirror, Event, Payload, ShmConfig};
 use crate::stats::{LogLimit, Stats};
 use crate::{GatewayError, GatewayOptions, TypeMode};
@@ -32,8 +41,9 @@ enum Route {
     /// DDS -> shared memory (or -> the mirror's framework); `direct`: the writers whose
     /// samples the reader task commits itself (asynchronous domains).
     In { domain: usize, topic: String, direct: Direct },
-    /// Shared memory -> DDS; `counts_readers`: its remote readers get connections.
-    Out { domain: usize, topics: Vec<String>, activation: Arc<Activation>, counts_readers: bool },
+    /// Shared memory -> DDS; `set`: whether its topics are a set's (not `/clock`), whose
+    /// readers the domain counts.
+    Out { domain: usize, topics: Vec<String>, activation: Arc<Activation>, set: bool },
 }
 
 #[derive(Debug)]
@@ -41,15 +51,24 @@ struct DomainState {
     name: String,
     synchronous: bool,
     own_commits: Arc<AtomicU64>,
-    /// Connections standing for the remote readers of the PUBLISH set (None: connecting).
-    readers: HashMap<Guid, Option<Participant>>,
     mirror: Option<std_mpsc::Sender<TypedSample>>,
+    /// Its routes exist.
+    bridged: bool,
+    /// The gateway's presence in the domain (None for a mirror, which hosts it): tells
+    /// whether a framework hosts it, and shows its DDS readers in `tutti status`.
+    presence: Option<Observer>,
+    /// DDS readers of its sets (each set's readers once).
+    dds_readers: usize,
 }
 
 #[derive(Debug)]
 struct WriterEntry {
     writer: RemoteWriter,
     created: Instant,
+    /// Discovery has listed it at least once (a writer known only from its first sample
+    /// gets a grace period before discovery catches up; one that discovery listed and no
+    /// longer lists has left).
+    listed: bool,
 }
 
 /// Serves `opts` until `shutdown` is set; `on_status` is called every `status_every` with
@@ -63,6 +82,7 @@ pub fn run(
     if opts.mirror && opts.types == TypeMode::PerItem {
         return Err(GatewayError::Invalid("--mirror needs --ros2-types typed: per-item samples carry no step".into()));
     }
+    let plan = config::plan(&opts)?;
     let rt = tokio::runtime::Builder::new_current_thread().enable_all().build().map_err(GatewayError::Runtime)?;
     let stats = Arc::new(Stats::default());
     let cfg = ShmConfig {
@@ -70,17 +90,22 @@ pub fn run(
         timeout: opts.timeout,
         wait: opts.wait,
         poll: opts.poll,
+        lease: opts.lease,
         stop: Arc::new(AtomicBool::new(false)),
     };
-    let mut m = Manager::build(&opts, cfg, stats.clone())?;
+    let mut m = Manager::build(opts, plan, cfg, stats.clone())?;
     on_status(&format!("up: {}", m.line()));
-    rt.block_on(m.serve(&opts, shutdown, status_every, on_status));
+    m.warn_unhosted();
+    rt.block_on(m.serve(shutdown, status_every, on_status));
     m.stop();
     drop(rt);
     Ok(stats)
 }
 
 struct Manager {
+    opts: GatewayOptions,
+    plan: Vec<PlannedSet>,
+    clock_domain: Option<usize>,
     dds: Box<dyn Engine>,
     cfg: ShmConfig,
     stats: Arc<Stats>,
@@ -88,9 +113,11 @@ struct Manager {
     domains: Vec<DomainState>,
     writers: HashMap<(usize, Guid), WriterEntry>,
     threads: Vec<JoinHandle<()>>,
+    /// Routes for the poller thread, and the thread (woken when one is sent).
+    poller: std_mpsc::Sender<Box<dyn Polled>>,
+    poller_thread: Thread,
+    events_tx: mpsc::UnboundedSender<Event>,
     events: mpsc::UnboundedReceiver<Event>,
-    connected_tx: mpsc::UnboundedSender<(usize, Guid, Result<Participant, ShmError>)>,
-    connected: mpsc::UnboundedReceiver<(usize, Guid, Result<Participant, ShmError>)>,
     topics: usize,
     bad_log: LogLimit,
 }
@@ -102,13 +129,20 @@ impl std::fmt::Debug for Manager {
 }
 
 impl Manager {
-    fn build(opts: &GatewayOptions, cfg: ShmConfig, stats: Arc<Stats>) -> Result<Manager, GatewayError> {
-        let engine = engine::open(opts.engine, &opts.engine_config())?;
-        let dds: &dyn Engine = &*engine;
-        let (tx, events) = mpsc::unbounded_channel();
-        let (connected_tx, connected) = mpsc::unbounded_channel();
-        let pkg = mapping::package_name(&opts.ddf_path);
-        let mut hosts = if opts.mirror {
+    fn build(
+        opts: GatewayOptions,
+        plan: Vec<PlannedSet>,
+        cfg: ShmConfig,
+        stats: Arc<Stats>,
+    ) -> Result<Manager, GatewayError> {
+        let clock_domain = opts.clock_domain()?;
+        let dds = engine::open(opts.engine, &opts.engine_config())?;
+        let (events_tx, events) = mpsc::unbounded_channel();
+        let (poller, added) = std_mpsc::channel();
+        let poll_thread =
+            to_dds::spawn_poller(added, cfg.clone(), stats.clone()).map_err(|e| GatewayError::dds("a thread", e))?;
+        let poller_thread = poll_thread.thread().clone();
+        let mut hosts: Vec<Option<_>> = if opts.mirror {
             let fo = FrameworkOptions {
                 namespace: opts.namespace.clone(),
                 timeout: opts.timeout,
@@ -119,165 +153,221 @@ impl Manager {
         } else {
             Vec::new()
         };
-        let mut routes = Vec::new();
-        let mut domains = Vec::new();
-        let mut watched: Vec<Box<dyn to_dds::Polled>> = Vec::new();
-        let mut threads = Vec::new();
-        let mut topics = 0usize;
-        for (di, d) in opts.model.domains.iter().enumerate() {
-            let wq = mapping::qos(d.flags, opts.profile, Endpoint::Writer, opts.strength);
-            let rq = mapping::qos(d.flags, opts.profile, Endpoint::Reader, opts.strength);
-            let own_commits = Arc::new(AtomicU64::new(0));
-            let mut state = DomainState {
+        let domains = opts
+            .model
+            .domains
+            .iter()
+            .map(|d| DomainState {
                 name: d.name.clone(),
                 synchronous: d.flags.synchronous,
-                own_commits: own_commits.clone(),
-                readers: HashMap::new(),
+                own_commits: Arc::new(AtomicU64::new(0)),
                 mirror: None,
-            };
-            match (opts.types, opts.mirror) {
-                (TypeMode::Typed, false) => {
-                    topics += 2;
-                    let (pubn, subn) = (
-                        mapping::set_names(&pkg, &d.name, Role::Publish),
-                        mapping::set_names(&pkg, &d.name, Role::Subscribe),
-                    );
-                    // PUBLISH: shared memory -> DDS.
-                    let out = set_writer(dds, d, Role::Publish, &pubn, &wq)?;
-                    let activation = route_out(&mut routes, di, vec![pubn.topic.clone()], true);
+                bridged: false,
+                presence: (!opts.mirror).then(|| Observer::with_presence(d.name.clone(), &opts.node_name)),
+                dds_readers: 0,
+            })
+            .collect();
+        let mut m = Manager {
+            opts,
+            plan,
+            clock_domain,
+            dds,
+            cfg,
+            stats,
+            routes: Vec::new(),
+            domains,
+            writers: HashMap::new(),
+            threads: vec![poll_thread],
+            poller,
+            poller_thread,
+            events_tx,
+            events,
+            topics: 0,
+            bad_log: LogLimit::new(Duration::from_secs(5)),
+        };
+        let bridge_all = m.opts.mirror || !m.opts.hosted_only;
+        for di in 0..m.domains.len() {
+            let host = hosts.get_mut(di).and_then(Option::take);
+            if bridge_all || m.hosted(di) {
+                m.bridge(di, host)?;
+            }
+        }
+        m.dds.announce()?;
+        Ok(m)
+    }
+
+    /// Whether a framework hosts domain `di` now (looked at through its presence).
+    fn hosted(&mut self, di: usize) -> bool {
+        let ns = self.cfg.namespace.clone();
+        let Some(obs) = self.domains[di].presence.as_mut() else { return true };
+        match obs.look(&ns) {
+            Look::Fresh | Look::Same => true,
+            Look::Gone | Look::Stopped => false,
+            Look::Refused(e) => {
+                warn!(domain = %self.domains[di].name, "cannot open the domain: {e}");
+                false
+            }
+        }
+    }
+
+    fn warn_unhosted(&self) {
+        let waiting: Vec<&str> = self.domains.iter().filter(|d| !d.bridged).map(|d| d.name.as_str()).collect();
+        if !waiting.is_empty() {
+            warn!(
+                "not bridged until a framework hosts them in namespace '{}' (TUTTI_NAMESPACE): {} (--all-domains bridges every domain at once)",
+                self.cfg.namespace,
+                waiting.join(", ")
+            );
+        }
+    }
+
+    /// Creates the routes of domain `di` (`host`: its framework, for a mirror).
+    fn bridge(&mut self, di: usize, host: Option<tutti_core::shm::DomainHost>) -> Result<(), GatewayError> {
+        let d = self.opts.model.domains[di].clone();
+        let sets: Vec<PlannedSet> = self.plan.iter().filter(|p| p.domain == di).cloned().collect();
+        let planned = |role: Role| sets.iter().find(|p| p.role == role);
+        let own_commits = self.domains[di].own_commits.clone();
+        let dds: &dyn Engine = &*self.dds;
+        let mut watched: Vec<Box<dyn Polled>> = Vec::new();
+        match (self.opts.types, self.opts.mirror) {
+            (TypeMode::Typed, false) => {
+                // PUBLISH: shared memory -> DDS.
+                if let Some(p) = planned(Role::Publish) {
+                    self.topics += 1;
+                    let out = set_writer(dds, &d, p)?;
+                    let activation = route_out(&mut self.routes, di, vec![p.topic.clone()], true);
                     if d.flags.synchronous {
-                        let name = format!("{} sync reader", opts.node_name);
-                        threads.push(
-                            to_dds::spawn_sync_pump(d.name.clone(), out, activation, cfg.clone(), stats.clone(), name)
+                        self.threads.push(
+                            to_dds::spawn_sync_pump(d.name.clone(), out, activation, self.cfg.clone(), self.stats.clone())
                                 .map_err(|e| GatewayError::dds("a thread", e))?,
                         );
                     } else {
-                        watched.push(Box::new(Watched::new(d.name.clone(), Role::Publish, out, activation, None)));
+                        let w = Watched::new(d.name.clone(), Role::Publish, out, activation, None);
+                        watched.push(Box::new(w.with_max_rate(p.max_rate)));
                     }
-                    // SUBSCRIBE: DDS -> shared memory, and shared-memory writers -> DDS.
+                }
+                // SUBSCRIBE: DDS -> shared memory, and shared-memory writers -> DDS.
+                if let Some(p) = planned(Role::Subscribe) {
+                    self.topics += 1;
                     let decode = Decode::Set(Arc::new(SetCodec::new(&d.subscribe.layout)));
-                    inbound(dds, &mut routes, &tx, &stats, di, &subn.topic, &subn.dds_type, decode, &rq)?;
-                    let out = set_writer(dds, d, Role::Subscribe, &subn, &wq)?;
-                    let activation = route_out(&mut routes, di, vec![subn.topic], false);
-                    watched.push(Box::new(Watched::new(
-                        d.name.clone(),
-                        Role::Subscribe,
-                        out,
-                        activation,
-                        Some(own_commits),
-                    )));
+                    self.inbound(di, &p.topic, &p.dds_type, decode, &p.reader_qos)?;
+                    let out = set_writer(&*self.dds, &d, p)?;
+                    let activation = route_out(&mut self.routes, di, vec![p.topic.clone()], true);
+                    let w = Watched::new(d.name.clone(), Role::Subscribe, out, activation, Some(own_commits));
+                    watched.push(Box::new(w.with_max_rate(p.max_rate)));
                 }
-                (TypeMode::Typed, true) => {
-                    topics += 2;
-                    let (pubn, subn) = (
-                        mapping::set_names(&pkg, &d.name, Role::Publish),
-                        mapping::set_names(&pkg, &d.name, Role::Subscribe),
-                    );
+            }
+            (TypeMode::Typed, true) => {
+                if let Some(p) = planned(Role::Publish) {
+                    self.topics += 1;
                     let decode = Decode::Set(Arc::new(SetCodec::new(&d.publish.layout)));
-                    inbound(dds, &mut routes, &tx, &stats, di, &pubn.topic, &pubn.dds_type, decode, &rq)?;
-                    let out = set_writer(dds, d, Role::Subscribe, &subn, &wq)?;
-                    let (mtx, mrx) = std_mpsc::channel();
-                    let host = hosts
-                        .get_mut(di)
-                        .and_then(Option::take)
-                        .ok_or_else(|| GatewayError::Invalid(format!("domain '{}' was not created", d.name)))?;
-                    threads.push(
-                        mirror::spawn(host, mrx, out, cfg.clone(), stats.clone())
-                            .map_err(|e| GatewayError::dds("a thread", e))?,
-                    );
-                    state.mirror = Some(mtx);
+                    self.inbound(di, &p.topic, &p.dds_type, decode, &p.reader_qos)?;
                 }
-                (TypeMode::PerItem, _) => {
-                    let pub_topics = mapping::item_topics(d, Role::Publish);
-                    let sub_topics = mapping::item_topics(d, Role::Subscribe);
-                    topics += pub_topics.len() + sub_topics.len();
-                    let out = Outbound::Items(ItemWriters::create(dds, &pub_topics, &d.publish.layout, &wq)?);
+                let out = match planned(Role::Subscribe) {
+                    Some(p) => {
+                        self.topics += 1;
+                        Some(set_writer(&*self.dds, &d, p)?)
+                    }
+                    None => None,
+                };
+                let (mtx, mrx) = std_mpsc::channel();
+                let host =
+                    host.ok_or_else(|| GatewayError::Invalid(format!("domain '{}' was not created", d.name)))?;
+                self.threads.push(
+                    mirror::spawn(host, mrx, out, self.cfg.clone(), self.stats.clone())
+                        .map_err(|e| GatewayError::dds("a thread", e))?,
+                );
+                self.domains[di].mirror = Some(mtx);
+            }
+            (TypeMode::PerItem, _) => {
+                if let Some(p) = planned(Role::Publish) {
+                    let pub_topics = mapping::item_topics_under(&d, Role::Publish, &p.topic);
+                    self.topics += pub_topics.len();
+                    let out = Outbound::Items(ItemWriters::create(dds, &pub_topics, &d.publish.layout, &p.writer_qos)?);
                     let topics = pub_topics.iter().map(|t| t.topic.clone()).collect();
-                    let activation = route_out(&mut routes, di, topics, true);
-                    watched.push(Box::new(Watched::new(d.name.clone(), Role::Publish, out, activation, None)));
+                    let activation = route_out(&mut self.routes, di, topics, true);
+                    let w = Watched::new(d.name.clone(), Role::Publish, out, activation, None);
+                    watched.push(Box::new(w.with_max_rate(p.max_rate)));
+                }
+                if let Some(p) = planned(Role::Subscribe) {
+                    let sub_topics = mapping::item_topics_under(&d, Role::Subscribe, &p.topic);
+                    self.topics += sub_topics.len();
                     for t in &sub_topics {
                         let Some(leaf) = d.subscribe.layout.leaf(&t.path) else { continue };
                         let decode = per_item::decoder(leaf);
-                        inbound(dds, &mut routes, &tx, &stats, di, &t.topic, &t.dds_type, decode, &rq)?;
+                        self.inbound(di, &t.topic, &t.dds_type, decode, &p.reader_qos)?;
                     }
-                    let out = Outbound::Items(ItemWriters::create(dds, &sub_topics, &d.subscribe.layout, &wq)?);
+                    let out = Outbound::Items(ItemWriters::create(
+                        &*self.dds,
+                        &sub_topics,
+                        &d.subscribe.layout,
+                        &p.writer_qos,
+                    )?);
                     let topics = sub_topics.iter().map(|t| t.topic.clone()).collect();
-                    let activation = route_out(&mut routes, di, topics, false);
-                    watched.push(Box::new(Watched::new(
-                        d.name.clone(),
-                        Role::Subscribe,
-                        out,
-                        activation,
-                        Some(own_commits),
-                    )));
+                    let activation = route_out(&mut self.routes, di, topics, true);
+                    let w = Watched::new(d.name.clone(), Role::Subscribe, out, activation, Some(own_commits));
+                    watched.push(Box::new(w.with_max_rate(p.max_rate)));
                 }
             }
-            domains.push(state);
         }
-        if let Some(di) = opts.clock_domain()? {
-            let d = &opts.model.domains[di];
-            let writer = dds.writer(clock::TOPIC, clock::TYPE, &clock::qos())?;
-            let activation = route_out(&mut routes, di, vec![clock::TOPIC.to_string()], false);
-            watched.push(Box::new(ClockPump::new(d.name.clone(), writer, activation, opts.clock_rate)));
-            topics += 1;
-            info!(domain = %d.name, "/clock: the simulated time of {}", d.name);
+        if self.clock_domain == Some(di) {
+            let topic = config::dds_topic(&config::ros_namespace(&self.opts.ros_namespace)?, "clock");
+            let writer = self.dds.writer(&topic, clock::TYPE, &clock::qos())?;
+            let activation = route_out(&mut self.routes, di, vec![topic.clone()], false);
+            watched.push(Box::new(ClockPump::new(d.name.clone(), writer, activation, self.opts.clock_rate)));
+            self.topics += 1;
+            info!(domain = %d.name, "/{}: the simulated time of {}", topic.trim_start_matches("rt/"), d.name);
         }
-        if !watched.is_empty() {
-            threads.push(
-                to_dds::spawn_poller(watched, cfg.clone(), stats.clone())
-                    .map_err(|e| GatewayError::dds("a thread", e))?,
-            );
+        let any = !watched.is_empty();
+        for w in watched {
+            // The poller only ends with the gateway.
+            let _ = self.poller.send(w);
         }
-        dds.announce()?;
-        Ok(Manager {
-            dds: engine,
-            cfg,
-            stats,
-            routes,
-            domains,
-            writers: HashMap::new(),
-            threads,
-            events,
-            connected_tx,
-            connected,
-            topics,
-            bad_log: LogLimit::new(Duration::from_secs(5)),
-        })
+        if any {
+            self.poller_thread.unpark();
+        }
+        self.domains[di].bridged = true;
+        Ok(())
     }
 
-    /// Connections standing for remote readers, over all domains.
-    fn remote_readers(&self) -> usize {
-        self.domains.iter().map(|d| d.readers.len()).sum()
+    /// A DDS -> shared-memory route over `topic` (DDS type `dds_type`, samples read by
+    /// `decode`): its reader, whose sink decodes (and, in asynchronous domains, commits) its
+    /// samples on the engine's receive path, and the route entry the sink reports under.
+    fn inbound(&mut self, domain: usize, topic: &str, dds_type: &str, decode: Decode, rq: &Qos) -> Result<(), GatewayError> {
+        let direct = Direct::default();
+        self.routes.push(Route::In { domain, topic: topic.to_string(), direct: direct.clone() });
+        let to = (self.routes.len() - 1, self.events_tx.clone(), direct);
+        let sink = from_dds::sink(decode.clone(), to, self.stats.clone(), self.dds.own_prefix());
+        self.dds.reader(topic, dds_type, rq, decode, sink)
+    }
+
+    /// DDS writers and readers, over all domains.
+    fn dds_readers(&self) -> usize {
+        self.domains.iter().map(|d| d.dds_readers).sum()
     }
 
     fn line(&self) -> String {
+        let bridged = self.domains.iter().filter(|d| d.bridged).count();
         format!(
-            "{} domains, {} topics, DDS domain {} ({}), remote writers {}, remote readers {} | {}",
+            "{bridged} of {} domains bridged, {} topics, DDS domain {} ({}), DDS writers {}, DDS readers {} | {}",
             self.domains.len(),
             self.topics,
             self.dds.domain_id(),
             self.dds.kind(),
             self.writers.len(),
-            self.remote_readers(),
+            self.dds_readers(),
             self.stats
         )
     }
 
-    async fn serve(
-        &mut self,
-        opts: &GatewayOptions,
-        shutdown: Arc<AtomicBool>,
-        status_every: Duration,
-        on_status: &mut dyn FnMut(&str),
-    ) {
-        let mut discovery = tokio::time::interval(opts.discovery_every);
+    async fn serve(&mut self, shutdown: Arc<AtomicBool>, status_every: Duration, on_status: &mut dyn FnMut(&str)) {
+        let mut discovery = tokio::time::interval(self.opts.discovery_every);
         discovery.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Skip);
         let mut status = tokio::time::interval_at(tokio::time::Instant::now() + status_every, status_every);
         let mut check = tokio::time::interval(Duration::from_millis(50));
         loop {
             tokio::select! {
                 Some(ev) = self.events.recv() => self.on_event(ev),
-                Some((di, gid, r)) = self.connected.recv() => self.on_connected(di, gid, r),
                 _ = discovery.tick() => self.rediscover(),
                 _ = status.tick() => on_status(&self.line()),
                 _ = check.tick() => if shutdown.load(Ordering::Acquire) { break },
@@ -342,7 +432,7 @@ impl Manager {
             Ok(writer) => {
                 info!(domain = %d.name, "DDS writer {} joined", gid.short());
                 direct.insert(gid, writer.clone());
-                self.writers.insert(key, WriterEntry { writer, created: Instant::now() });
+                self.writers.insert(key, WriterEntry { writer, created: Instant::now(), listed: false });
                 true
             }
             Err(e) => {
@@ -360,31 +450,30 @@ impl Manager {
         }
     }
 
-    fn on_connected(&mut self, di: usize, gid: Guid, r: Result<Participant, ShmError>) {
-        let Some(d) = self.domains.get_mut(di) else { return };
-        match (d.readers.get_mut(&gid), r) {
-            (Some(slot @ None), Ok(p)) => *slot = Some(p),
-            // Not wanted any more, or failed: dropped now; retried at the next discovery.
-            (Some(None), Err(_)) => {
-                d.readers.remove(&gid);
-            }
-            _ => {}
-        }
-    }
-
-    /// Compares discovery with the routes: (de)activates writers, gives new remote writers
-    /// and PUBLISH readers connections, releases those that left.
+    /// Bridges the domains whose framework has appeared, then compares discovery with the
+    /// routes: (de)activates writers, gives new remote writers connections, releases those
+    /// that left, and counts each domain's DDS readers.
     fn rediscover(&mut self) {
+        for di in 0..self.domains.len() {
+            // Looked at every time: it keeps the presence connection across framework restarts.
+            let hosted = self.hosted(di);
+            if hosted && !self.domains[di].bridged {
+                match self.bridge(di, None).and_then(|()| self.dds.announce()) {
+                    Ok(()) => info!(domain = %self.domains[di].name, "hosted in namespace '{}': bridged", self.cfg.namespace),
+                    Err(e) => warn!(domain = %self.domains[di].name, "cannot bridge the domain: {e}"),
+                }
+            }
+        }
         let remote = self.dds.remote();
-        let mut wanted_readers: Vec<BTreeSet<Guid>> = vec![BTreeSet::new(); self.domains.len()];
+        let mut readers = vec![0usize; self.domains.len()];
         let mut matched_writers: BTreeSet<(usize, Guid)> = BTreeSet::new();
         for (ri, route) in self.routes.iter().enumerate() {
             match route {
-                Route::Out { domain, topics, activation, counts_readers } => {
-                    let readers = remote.readers_on(topics);
-                    activation.set_readers(&readers);
-                    if *counts_readers {
-                        wanted_readers[*domain].extend(readers);
+                Route::Out { domain, topics, activation, set } => {
+                    let on = remote.readers_on(topics);
+                    activation.set_readers(&on);
+                    if *set {
+                        readers[*domain] += on.len();
                     }
                 }
                 Route::In { domain, topic, .. } => {
@@ -403,7 +492,10 @@ impl Manager {
         let grace = Duration::from_secs(2);
         let routes = &self.routes;
         self.writers.retain(|key, w| {
-            let keep = matched_writers.contains(key) || w.created.elapsed() < grace;
+            let listed = matched_writers.contains(key);
+            w.listed |= listed;
+            // Known from a sample only: discovery may not list it yet.
+            let keep = listed || (!w.listed && w.created.elapsed() < grace);
             if keep {
                 w.writer.tick();
             } else {
@@ -414,24 +506,14 @@ impl Manager {
             }
             keep
         });
-        // Remote readers of the PUBLISH set: a connection each.
-        for (di, wanted) in wanted_readers.into_iter().enumerate() {
-            let d = &mut self.domains[di];
-            d.readers.retain(|g, _| wanted.contains(g));
-            for gid in wanted {
-                if d.readers.contains_key(&gid) {
-                    continue;
-                }
-                d.readers.insert(gid, None);
-                let opts = self.cfg.connect_options(format!("dds-reader {}", gid.short()), Duration::from_millis(100));
-                let (name, tx) = (d.name.clone(), self.connected_tx.clone());
-                tokio::task::spawn_blocking(move || {
-                    let _ = tx.send((di, gid, Participant::connect(&name, opts)));
-                });
+        for (d, n) in self.domains.iter_mut().zip(readers) {
+            d.dds_readers = n;
+            if let Some(p) = &d.presence {
+                p.set_dds_readers(n as u64);
             }
         }
         self.stats.remote_writers.store(self.writers.len() as u64, Ordering::Relaxed);
-        self.stats.remote_readers.store(self.remote_readers() as u64, Ordering::Relaxed);
+        self.stats.remote_readers.store(self.dds_readers() as u64, Ordering::Relaxed);
     }
 
     fn stop(&mut self) {
@@ -443,59 +525,32 @@ impl Manager {
             }
         }
         for d in &mut self.domains {
-            d.readers.clear();
             d.mirror = None;
+            d.presence = None;
         }
         for r in &self.routes {
             if let Route::Out { activation, .. } = r {
                 activation.wake();
             }
         }
+        self.poller_thread.unpark();
         for t in self.threads.drain(..) {
             let _ = t.join();
         }
     }
 }
 
-/// A DDS -> shared-memory route over `topic` (DDS type `dds_type`, samples read by
-/// `decode`): its reader, whose sink decodes (and, in asynchronous domains, commits) its
-/// samples on the engine's receive path, and the route entry the sink reports under.
-#[allow(clippy::too_many_arguments)]
-fn inbound(
-    dds: &dyn Engine,
-    routes: &mut Vec<Route>,
-    tx: &mpsc::UnboundedSender<Event>,
-    stats: &Arc<Stats>,
-    domain: usize,
-    topic: &str,
-    dds_type: &str,
-    decode: Decode,
-    rq: &Qos,
-) -> Result<(), GatewayError> {
-    let direct = Direct::default();
-    routes.push(Route::In { domain, topic: topic.to_string(), direct: direct.clone() });
-    let to = (routes.len() - 1, tx.clone(), direct);
-    let sink = from_dds::sink(decode.clone(), to, stats.clone(), dds.own_prefix());
-    dds.reader(topic, dds_type, rq, decode, sink)
-}
-
-/// The typed shared-memory -> DDS writer of one set.
-fn set_writer(
-    dds: &dyn Engine,
-    d: &Domain,
-    role: Role,
-    names: &mapping::SetNames,
-    q: &Qos,
-) -> Result<Outbound, GatewayError> {
-    let codec = Arc::new(SetCodec::new(&d.set(role).layout));
-    let writer = dds.writer(&names.topic, &names.dds_type, q)?;
+/// The typed shared-memory -> DDS writer of a planned set.
+fn set_writer(dds: &dyn Engine, d: &Domain, p: &PlannedSet) -> Result<Outbound, GatewayError> {
+    let codec = Arc::new(SetCodec::new(&d.set(p.role).layout));
+    let writer = dds.writer(&p.topic, &p.dds_type, &p.writer_qos)?;
     Ok(Outbound::Set(Box::new(SetWriter::new(codec, writer))))
 }
 
 /// A shared-memory -> DDS route over `topics`: registered in `routes`, and its activation
 /// (on while the topics have remote readers) returned for the thread that serves it.
-fn route_out(routes: &mut Vec<Route>, domain: usize, topics: Vec<String>, counts_readers: bool) -> Arc<Activation> {
+fn route_out(routes: &mut Vec<Route>, domain: usize, topics: Vec<String>, set: bool) -> Arc<Activation> {
     let activation = Arc::new(Activation::default());
-    routes.push(Route::Out { domain, topics, activation: activation.clone(), counts_readers });
+    routes.push(Route::Out { domain, topics, activation: activation.clone(), set });
     activation
 }

@@ -20,6 +20,11 @@ pub struct Stats {
     pub own_samples: AtomicU64,
     /// Shared-memory or DDS write failures.
     pub errors: AtomicU64,
+    /// Steps of a synchronous PUBLISH set that the framework published faster than DDS
+    /// could be sent them (a DDS reader never holds a domain back).
+    pub skipped: AtomicU64,
+    /// Synchronous DDS writers released after owing a step's answer, silent, for the lease.
+    pub lapsed: AtomicU64,
     /// Matched remote DDS writers and readers.
     pub remote_writers: AtomicU64,
     pub remote_readers: AtomicU64,
@@ -41,15 +46,19 @@ impl Stats {
             ("late", g(&self.late)),
             ("own_samples", g(&self.own_samples)),
             ("errors", g(&self.errors)),
+            ("skipped", g(&self.skipped)),
+            ("lapsed", g(&self.lapsed)),
             ("remote_writers", g(&self.remote_writers)),
             ("remote_readers", g(&self.remote_readers)),
         ]
     }
 }
 
+/// The sample counters (the status line gives the endpoint counts in words before them).
 impl fmt::Display for Stats {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        let s = self.snapshot();
+        let mut s = self.snapshot();
+        s.retain(|(k, _)| !k.starts_with("remote_"));
         let parts: Vec<String> = s.iter().map(|(k, v)| format!("{k}={v}")).collect();
         f.write_str(&parts.join(" "))
     }

@@ -439,7 +439,7 @@ function onEvent(ev) {
     } else if (!prev) mon.last[d.domain] = [ev.t, d.steps];
     const rate = mon.rates[d.domain] === undefined ? "…" : mon.rates[d.domain].toFixed(0);
     const rows = d.connections.map((c) => el("tr", { "data-pid": String(c.pid) },
-      el("td", {}, String(c.pid)), el("td", {}, c.name), el("td", {}, c.writer ? "writer" : (c.sync_reader ? "sync reader" : "reader")),
+      el("td", {}, String(c.pid)), el("td", {}, c.name), el("td", {}, c.observer ? "observer (" + c.dds_readers + " DDS readers)" : (c.writer ? "writer" : (c.sync_reader ? "sync reader" : "reader")) + (c.remote ? " via DDS" : "")),
       el("td", {}, ((ev.t * 1e9 - c.since_ns) / 1e9).toFixed(1) + " s" + (c.alive ? "" : " (dead, being removed)")),
       el("td", {}, d.owner_pid === c.pid ? "owner" : "")));
     box.append(el("div", { class: "live-domain" + (d.framework_alive ? "" : " stopped"), "data-domain": d.domain },
@@ -447,7 +447,7 @@ function onEvent(ev) {
       (d.flags.synchronous ? "sync" : "async") + (d.flags.multiple_publish_allowed ? "" : ", exclusive") + (d.flags.states ? ", states" : ""),
       el("div", {}, "framework pid " + d.framework_pid + (d.framework_alive ? "" : " (stopped)") + "  step " + d.step +
         "  " + rate + " steps/s  overruns " + d.overruns + "  late last " + fmtNs(d.last_late_ns) + " max " + fmtNs(d.max_late_ns) +
-        "  connections " + d.connection_count + (d.owner_pid ? "  owner pid " + d.owner_pid : "")),
+        "  participants " + d.connection_count + "  DDS writers " + d.dds_writers + "  DDS readers " + d.dds_readers + (d.owner_pid ? "  owner pid " + d.owner_pid : "")),
       el("table", { class: "connections" }, el("tr", {}, el("th", {}, "pid"), el("th", {}, "name"), el("th", {}, "role"),
         el("th", {}, "since"), el("th", {}, "")), ...rows)));
   }

@@ -113,6 +113,8 @@ pub struct DomainHost {
     step: u64,
     subscribe: Vec<u8>,
     last_sweep: Instant,
+    /// The connections the last timed-out step waited for (see `timed_out_on`).
+    waited_for: Vec<String>,
     seed_waited: bool,
 }
 
@@ -122,7 +124,7 @@ impl DomainHost {
         if opts.hold {
             seg.header().hold.store(1, Ordering::Release);
         }
-        DomainHost { seg, opts, step: 0, subscribe, last_sweep: Instant::now(), seed_waited: false }
+        DomainHost { seg, opts, step: 0, subscribe, last_sweep: Instant::now(), seed_waited: false, waited_for: Vec::new() }
     }
 
     pub fn info(&self) -> &DomainInfo {
@@ -222,11 +224,13 @@ impl DomainHost {
                 self.wait_acks(move |seg| !(0..seg.scan_len()).any(|i| seg.conn_ctl(i).is_some_and(|c| c.owes(k))))?;
             removed += r;
             if waited == Waited::TimedOut {
+                self.waited_for.clear();
                 for i in 0..self.seg.scan_len() {
                     if let (Some(ctl), Some(slot)) = (self.seg.conn_ctl(i), self.seg.conn(i)) {
                         if ctl.owes(k) {
                             slot.missed.fetch_add(1, Ordering::Relaxed);
                             timed_out += 1;
+                            self.waited_for.push(self.seg.describe_conn(i));
                         }
                     }
                 }
@@ -234,6 +238,12 @@ impl DomainHost {
             }
         }
         Ok(StepReport { step: k, timed_out, removed })
+    }
+
+    /// The connections the last step that timed out waited for, as `'NAME' (pid N)`
+    /// (`, a DDS writer` for one standing for DDS), so that a host can say who held it up.
+    pub fn timed_out_on(&self) -> &[String] {
+        &self.waited_for
     }
 
     /// Reads the latest SUBSCRIBE set without stepping (asynchronous domains, or between steps).

@@ -16,6 +16,8 @@ pub const CONN_WRITER: u32 = 1;
 pub const CONN_SYNC_READER: u32 = 2;
 /// Connection flag: the connection stands for a DDS-side participant (via the gateway).
 pub const CONN_REMOTE: u32 = 4;
+/// Connection flag: a passive observer (never waited for, not a participant).
+pub const CONN_OBSERVER: u32 = 8;
 
 /// The step counters of one domain.
 #[derive(Debug, Clone, Copy)]

@@ -25,4 +25,4 @@ pub use framework::{DomainHost, Framework, FrameworkOptions, StepReport};
 #[cfg(not(tutti_loom))]
 pub use participant::{ConnectOptions, Participant};
 #[cfg(not(tutti_loom))]
-pub use segment::{list_domains, ConnectionInfo, DomainStatus, WaitMode};
+pub use segment::{list_domains, ConnKind, ConnectionInfo, DomainStatus, WaitMode};

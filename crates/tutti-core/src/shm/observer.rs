@@ -7,7 +7,7 @@
 
 use std::time::{Duration, Instant};
 
-use super::segment::Segment;
+use super::segment::{ConnKind, Segment};
 use super::ShmError;
 
 /// How often a missing domain is looked for.
@@ -20,6 +20,9 @@ const ALIVE_CHECK: Duration = Duration::from_millis(50);
 pub struct Observer {
     pub domain: String,
     seg: Option<Segment>,
+    /// The observer connection held while the segment is open, if asked for
+    /// ([`Observer::with_presence`]): its name and slot.
+    presence: Option<(String, Option<usize>)>,
     next_open: Instant,
     next_alive_check: Instant,
 }
@@ -43,12 +46,38 @@ pub enum Look {
 
 impl Observer {
     pub fn new(domain: String) -> Self {
-        Observer { domain, seg: None, next_open: Instant::now(), next_alive_check: Instant::now() }
+        Observer { domain, seg: None, presence: None, next_open: Instant::now(), next_alive_check: Instant::now() }
+    }
+
+    /// An observer that also holds an observer connection named `name` while the framework
+    /// runs: listed by `tutti status` (with the DDS reader count set by
+    /// [`set_dds_readers`](Self::set_dds_readers)), never waited for, not a participant.
+    pub fn with_presence(domain: String, name: &str) -> Self {
+        let mut o = Observer::new(domain);
+        o.presence = Some((name.to_string(), None));
+        o
+    }
+
+    /// Shows `n` DDS readers in the presence connection.
+    pub fn set_dds_readers(&self, n: u64) {
+        if let (Some(seg), Some((_, Some(slot)))) = (&self.seg, &self.presence) {
+            seg.set_peers(*slot, n);
+        }
     }
 
     /// Lets the segment go (it is opened again at the next look).
     pub fn close(&mut self) {
+        self.leave();
         self.seg = None;
+    }
+
+    /// Releases the presence connection (the segment stays open).
+    fn leave(&mut self) {
+        if let (Some(seg), Some((_, slot))) = (&self.seg, &mut self.presence) {
+            if let Some(i) = slot.take() {
+                seg.release_slot(i, super::os::current_process().pid);
+            }
+        }
     }
 
     /// Looks at the domain of namespace `namespace`.
@@ -58,6 +87,10 @@ impl Observer {
             if now >= self.next_alive_check {
                 self.next_alive_check = now + ALIVE_CHECK;
                 if !seg.framework_alive() {
+                    // The framework is gone, and its segment with the presence connection.
+                    if let Some((_, slot)) = &mut self.presence {
+                        *slot = None;
+                    }
                     self.seg = None;
                     return Look::Stopped;
                 }
@@ -71,6 +104,11 @@ impl Observer {
             self.next_open = now + REOPEN;
             match Segment::open(namespace, &self.domain) {
                 Ok(s) if s.framework_alive() => {
+                    if let Some((name, slot)) = &mut self.presence {
+                        // A full connection table leaves the observer without its presence;
+                        // it still observes.
+                        *slot = s.claim_slot(super::os::current_process(), name, ConnKind::Observer).ok();
+                    }
                     self.seg = Some(s);
                     fresh = true;
                 }
@@ -88,5 +126,11 @@ impl Observer {
     /// The segment, while a framework is there.
     pub fn segment(&self) -> Option<&Segment> {
         self.seg.as_ref()
+    }
+}
+
+impl Drop for Observer {
+    fn drop(&mut self) {
+        self.leave();
     }
 }

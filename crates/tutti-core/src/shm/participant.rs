@@ -6,6 +6,7 @@ use std::time::{Duration, Instant};
 use super::bucket::{copy_words, store_bytes, store_range, with_bytes_mut};
 use super::handshake::{CONN_SYNC_READER, CONN_WRITER};
 use super::segment::{
+    ConnKind,
     self, namespace_from_env, DomainInfo, Segment, WaitMode, Waited, Waiter, MAX_READ_TRIES, STATE_RUNNING,
 };
 use super::{os, ShmError};
@@ -92,7 +93,8 @@ impl Participant {
             std::thread::sleep(Duration::from_millis(5));
         };
         let me = os::current_process();
-        let slot = seg.claim_slot(me, &opts.name, opts.remote)?;
+        let kind = if opts.remote { ConnKind::Remote } else { ConnKind::Participant };
+        let slot = seg.claim_slot(me, &opts.name, kind)?;
         let id = seg.conn_id(slot);
         let (pub_size, sub_size) = (seg.info.publish.size as usize, seg.info.subscribe.size as usize);
         let mut p = Participant {
@@ -375,6 +377,15 @@ impl Participant {
     /// Mutable access to the snapshot buffer (the RTAPI hands out pointers into it).
     pub fn snapshot_mut(&mut self) -> &mut [u8] {
         &mut self.snapshot
+    }
+
+    /// The step the framework is waiting for this connection to answer, if it is: a
+    /// synchronous writer that has not committed for the latest step. Lets the gateway
+    /// notice a DDS writer that went silent while the domain waits for it.
+    pub fn owed_step(&self) -> Option<u64> {
+        let seg = &self.seg;
+        let k = seg.header().pub_step.load(Ordering::Acquire);
+        seg.conn_ctl(self.slot).filter(|c| c.owes(k)).map(|_| k)
     }
 
     /// Whether [`Participant::publish_lock`] would return at once, without waiting for a

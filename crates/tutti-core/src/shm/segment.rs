@@ -28,7 +28,7 @@ use memmap2::MmapRaw;
 use serde::Serialize;
 
 use super::bucket::{load_bytes, Bucket, SLOTS};
-use super::handshake::{ConnCtl, StepCtl, CONN_REMOTE, CONN_SYNC_READER, CONN_WRITER};
+use super::handshake::{ConnCtl, StepCtl, CONN_OBSERVER, CONN_REMOTE, CONN_SYNC_READER, CONN_WRITER};
 use super::os::{self, ProcessId};
 use super::ShmError;
 use crate::ddf::layout::{layout_hash, MAX_SET_BYTES};
@@ -37,8 +37,9 @@ use crate::sync::{AtomicU32, AtomicU64, Ordering};
 
 /// `TUTTISHM`, little-endian.
 pub const MAGIC: u64 = u64::from_le_bytes(*b"TUTTISHM");
-/// Segment format version (2: header fields grouped by writer on separate cache lines).
-pub const VERSION: u32 = 2;
+/// Segment format version (2: header fields grouped by writer on separate cache lines; 3:
+/// DDS writers and observers counted apart from participants, 192-byte connection slots).
+pub const VERSION: u32 = 3;
 /// Bytes reserved for the header.
 pub const HEADER_BYTES: usize = 1024;
 /// Connection slots per domain.
@@ -47,7 +48,7 @@ pub const DEFAULT_CONNECTIONS: u32 = 64;
 /// faster than one copy, without pause, or a damaged segment, exhausts them).
 pub const MAX_READ_TRIES: u32 = 1 << 20;
 const MAX_CONNECTIONS: u32 = 4096;
-const CONN_BYTES: usize = 128;
+const CONN_BYTES: usize = 192;
 const DIR_ENTRY_BYTES: usize = 16;
 const ALIGN: usize = 64;
 
@@ -146,6 +147,8 @@ pub struct Header {
     pub hold: AtomicU32,
     pub conn_count: AtomicU32,
     pub go_waiters: AtomicU32,
+    /// Observer connections (see [`ConnKind::Observer`]).
+    pub observer_count: AtomicU32,
     pub sets: [SetHeader; 2],
     /// Written by the framework on every step.
     pub _framework: LineBreak,
@@ -165,7 +168,8 @@ pub struct Header {
     pub ack_seq: AtomicU32,
     pub step_waiters: AtomicU32,
     pub seeded: AtomicU32,
-    pub _pad: AtomicU32,
+    /// Connections standing for DDS writers (through the gateway); not in `conn_count`.
+    pub remote_count: AtomicU32,
     /// Exclusive SUBSCRIBE owner (connection id), 0 when none.
     pub owner_conn: AtomicU64,
     /// Connection id committing to SUBSCRIBE right now, 0 when none.
@@ -190,6 +194,10 @@ pub struct ConnSlot {
     pub commits: AtomicU64,
     pub missed: AtomicU64,
     pub name: [AtomicU64; 6],
+    /// An observer's DDS readers (the gateway's count of the readers of this domain's
+    /// topics, every set's readers once).
+    pub peers: AtomicU64,
+    pub _reserved: [AtomicU64; 7],
 }
 
 const _: () = assert!(size_of::<Header>() <= HEADER_BYTES);
@@ -608,9 +616,50 @@ impl Segment {
         ShmError::Corrupt { domain: self.info.name.clone(), detail: format!("{role} set never settles") }
     }
 
-    /// Connections now in the domain.
+    /// Participants now in the domain: the connections of components, not those standing
+    /// for DDS writers ([`dds_writer_count`](Self::dds_writer_count)) nor observers.
     pub fn connection_count(&self) -> u32 {
         self.header().conn_count.load(Ordering::Acquire)
+    }
+
+    /// Connections standing for DDS writers, through the gateway.
+    pub fn dds_writer_count(&self) -> u32 {
+        self.header().remote_count.load(Ordering::Acquire)
+    }
+
+    /// DDS readers of the domain's topics, as the live gateways attached to it count them.
+    pub fn dds_reader_count(&self) -> u64 {
+        (0..self.scan_len())
+            .filter_map(|i| self.conn(i))
+            .filter(|c| {
+                c.active.load(Ordering::Acquire) != 0
+                    && c.ready.load(Ordering::Acquire) != 0
+                    && c.flags.load(Ordering::Acquire) & CONN_OBSERVER != 0
+            })
+            .map(|c| c.peers.load(Ordering::Relaxed))
+            .sum()
+    }
+
+    /// Sets the DDS reader count an observer's slot `i` shows.
+    pub fn set_peers(&self, i: usize, n: u64) {
+        if let Some(c) = self.conn(i) {
+            c.peers.store(n, Ordering::Relaxed);
+        }
+    }
+
+    /// Waits (blocking on the step word, at most `timeout`) until the framework has
+    /// published past step `after` or stopped; returns the latest step. Needs no connection:
+    /// an observer that follows every step this way is never waited for.
+    pub fn wait_step_after(&self, after: u64, timeout: Duration) -> u64 {
+        let h = self.header();
+        let w = Waiter { mode: WaitMode::Block, futex: &h.step_seq, waiters: &h.step_waiters, check_every: timeout };
+        let deadline = Instant::now() + timeout;
+        let _ = w.wait::<()>(
+            deadline,
+            || Ok(h.pub_step.load(Ordering::Acquire) > after || h.state.load(Ordering::Acquire) != STATE_RUNNING),
+            || Ok(()),
+        );
+        h.pub_step.load(Ordering::Acquire)
     }
 
     /// The process holding the SUBSCRIBE set exclusively (a domain without
@@ -653,8 +702,9 @@ impl Segment {
         u64::from(generation) << 32 | (i as u64 + 1)
     }
 
-    /// Claims a free connection slot for this process; returns its index.
-    pub fn claim_slot(&self, me: ProcessId, name: &str, remote: bool) -> Result<usize, ShmError> {
+    /// Claims a free connection slot for this process; returns its index. Only
+    /// [`ConnKind::Participant`] slots count in [`connection_count`](Self::connection_count).
+    pub fn claim_slot(&self, me: ProcessId, name: &str, kind: ConnKind) -> Result<usize, ShmError> {
         let h = self.header();
         for i in 0..self.capacity() {
             let Some(c) = self.conn(i) else { break };
@@ -664,12 +714,11 @@ impl Segment {
             c.start_time.store(me.start_time, Ordering::Relaxed);
             c.since_ns.store(os::now_ns(), Ordering::Relaxed);
             // In a synchronous domain a connection takes part in lock-step from the start.
-            let flags = if remote {
-                CONN_REMOTE
-            } else if self.info.flags.synchronous {
-                CONN_SYNC_READER
-            } else {
-                0
+            let flags = match kind {
+                ConnKind::Remote => CONN_REMOTE,
+                ConnKind::Observer => CONN_OBSERVER,
+                ConnKind::Participant if self.info.flags.synchronous => CONN_SYNC_READER,
+                ConnKind::Participant => 0,
             };
             c.flags.store(flags, Ordering::Relaxed);
             let step = h.pub_step.load(Ordering::Acquire);
@@ -679,6 +728,7 @@ impl Segment {
             c.reads.store(0, Ordering::Relaxed);
             c.commits.store(0, Ordering::Relaxed);
             c.missed.store(0, Ordering::Relaxed);
+            c.peers.store(0, Ordering::Relaxed);
             let mut bytes = [0u8; 48];
             let n = name.len().min(47);
             // Cut at a character boundary.
@@ -687,7 +737,7 @@ impl Segment {
             super::bucket::store_bytes(&c.name, &bytes);
             h.conn_hwm.fetch_max(i as u32 + 1, Ordering::AcqRel);
             c.ready.store(1, Ordering::Release);
-            h.conn_count.fetch_add(1, Ordering::AcqRel);
+            kind.counter(h).fetch_add(1, Ordering::AcqRel);
             h.ack_seq.fetch_add(1, Ordering::Release);
             return Ok(i);
         }
@@ -720,15 +770,31 @@ impl Segment {
             self.bucket(Role::Subscribe).recover();
             let _ = h.writer_lock.compare_exchange(id, 0, Ordering::AcqRel, Ordering::Relaxed);
         }
-        c.flags.store(0, Ordering::Relaxed);
+        let kind = ConnKind::of_flags(c.flags.swap(0, Ordering::AcqRel));
         c.generation.fetch_add(1, Ordering::AcqRel);
         c.active.store(0, Ordering::Release);
         if was_ready != 0 {
-            h.conn_count.fetch_sub(1, Ordering::AcqRel);
+            kind.counter(h).fetch_sub(1, Ordering::AcqRel);
         }
         h.ack_seq.fetch_add(1, Ordering::Release);
         wake(&h.ack_seq, &h.ack_waiters);
         true
+    }
+
+    /// Connection slot `i` as a person reads it: `'NAME' (pid N)`, with `, a DDS writer`
+    /// for one standing for DDS.
+    pub fn describe_conn(&self, i: usize) -> String {
+        let Some(c) = self.conn(i) else { return format!("slot {i}") };
+        let mut name = [0u8; 48];
+        load_bytes(&c.name, &mut name);
+        let end = name.iter().position(|&b| b == 0).unwrap_or(name.len());
+        let remote = c.flags.load(Ordering::Relaxed) & CONN_REMOTE != 0;
+        format!(
+            "'{}' (pid {}{})",
+            String::from_utf8_lossy(&name[..end]),
+            c.active.load(Ordering::Relaxed),
+            if remote { ", a DDS writer through the gateway" } else { "" }
+        )
     }
 
     /// Status of the domain and its connections, for `tutti status`.
@@ -752,6 +818,8 @@ impl Segment {
                 writer: flags & CONN_WRITER != 0,
                 sync_reader: flags & CONN_SYNC_READER != 0,
                 remote: flags & CONN_REMOTE != 0,
+                observer: flags & CONN_OBSERVER != 0,
+                dds_readers: c.peers.load(Ordering::Relaxed),
                 since_ns: c.since_ns.load(Ordering::Relaxed),
                 reads: c.reads.load(Ordering::Relaxed),
                 commits: c.commits.load(Ordering::Relaxed),
@@ -780,8 +848,45 @@ impl Segment {
             seeded: h.seeded.load(Ordering::Relaxed) != 0,
             waiting_to_go: h.hold.load(Ordering::Relaxed) != 0,
             connection_count: h.conn_count.load(Ordering::Relaxed),
+            dds_writers: h.remote_count.load(Ordering::Relaxed),
+            dds_readers: self.dds_reader_count(),
             owner_pid,
             connections,
+        }
+    }
+}
+
+/// What a connection slot stands for.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum ConnKind {
+    /// A component: counted as a participant.
+    Participant,
+    /// A DDS writer, through the gateway: takes part in lock-step once it writes, counted
+    /// apart.
+    Remote,
+    /// A passive observer (the gateway's presence in a domain it bridges): never waited for,
+    /// not a participant; carries its DDS reader count.
+    Observer,
+}
+
+impl ConnKind {
+    fn of_flags(flags: u32) -> ConnKind {
+        if flags & CONN_OBSERVER != 0 {
+            ConnKind::Observer
+        } else if flags & CONN_REMOTE != 0 {
+            ConnKind::Remote
+        } else {
+            ConnKind::Participant
+        }
+    }
+
+    /// The header counter of this kind (observers: none, a counter of their own that
+    /// nothing reads, so the arithmetic stays uniform).
+    fn counter(self, h: &Header) -> &AtomicU32 {
+        match self {
+            ConnKind::Participant => &h.conn_count,
+            ConnKind::Remote => &h.remote_count,
+            ConnKind::Observer => &h.observer_count,
         }
     }
 }
@@ -794,8 +899,13 @@ pub struct ConnectionInfo {
     pub name: String,
     pub writer: bool,
     pub sync_reader: bool,
-    /// Stands for a DDS-side participant bridged by the gateway.
+    /// Stands for a DDS-side writer bridged by the gateway.
     pub remote: bool,
+    /// A passive observer (a gateway bridging the domain): never waited for, not a
+    /// participant.
+    pub observer: bool,
+    /// An observer's count of the DDS readers of the domain's topics.
+    pub dds_readers: u64,
     pub since_ns: u64,
     pub reads: u64,
     pub commits: u64,
@@ -824,7 +934,12 @@ pub struct DomainStatus {
     pub rejected: u64,
     pub seeded: bool,
     pub waiting_to_go: bool,
+    /// Participants (components), not counting DDS writers or observers.
     pub connection_count: u32,
+    /// Connections standing for DDS writers, through the gateway.
+    pub dds_writers: u32,
+    /// DDS readers of the domain's topics, as the gateways bridging it count them.
+    pub dds_readers: u64,
     pub owner_pid: Option<u32>,
     pub connections: Vec<ConnectionInfo>,
 }

@@ -292,7 +292,10 @@ impl Lockstep {
 }
 
 /// The thread of a synchronous domain's remote writer: commits each sample it is handed
-/// (waiting for its step), connecting again whenever the connection is gone.
+/// (waiting for its step), connecting again whenever the connection is gone. A writer that
+/// owes the framework its answer to a step and sends nothing for `cfg.lease` (killed, or
+/// hung) has its connection released, so that the domain stops waiting for it; its next
+/// sample connects it again.
 fn run(ls: &LockstepState, rx: Receiver<Payload>, cfg: ShmConfig) {
     let connect = |out: &Delivery| {
         Participant::connect(&out.domain, cfg.connect_options(out.name.clone(), Duration::from_millis(100))).ok()
@@ -302,24 +305,46 @@ fn run(ls: &LockstepState, rx: Receiver<Payload>, cfg: ShmConfig) {
         let (out, p) = &mut *st;
         *p = connect(out);
     }
+    // The step found owed, and since when; whether the lease released the connection.
+    let mut owing: Option<(u64, Instant)> = None;
+    let mut lapsed = false;
+    let check = (cfg.lease / 4).clamp(Duration::from_millis(10), Duration::from_millis(100));
     loop {
         let connected = ls.state.lock().unwrap_or_else(PoisonError::into_inner).1.is_some();
-        let msg = if connected {
-            rx.recv().map_err(|_| RecvTimeoutError::Disconnected)
-        } else {
-            rx.recv_timeout(Duration::from_millis(500))
-        };
+        let msg = rx.recv_timeout(if connected { check } else { Duration::from_millis(500) });
         let mut st = ls.state.lock().unwrap_or_else(PoisonError::into_inner);
         let (out, p) = &mut *st;
         match msg {
             Ok(payload) => {
+                lapsed = false;
                 if p.is_none() {
                     *p = connect(out);
                 }
                 out.deliver(p, Sample::Owned(payload));
                 ls.pending.fetch_sub(1, Ordering::AcqRel);
             }
-            Err(RecvTimeoutError::Timeout) => *p = connect(out),
+            Err(RecvTimeoutError::Timeout) => match p.as_ref().map(Participant::owed_step) {
+                // Not connected: connect again, unless the lease let it go (then only a
+                // sample brings it back).
+                None if !lapsed => *p = connect(out),
+                None => {}
+                Some(None) => owing = None,
+                Some(Some(k)) => match owing {
+                    Some((s, since)) if s == k && since.elapsed() >= cfg.lease => {
+                        info!(
+                            domain = %out.domain,
+                            "{}: sent nothing for {:?} while step {k} waited for its answer: its lock-step share is released (its next sample joins it again)",
+                            out.name, cfg.lease
+                        );
+                        Stats::add(&out.stats.lapsed, 1);
+                        *p = None;
+                        lapsed = true;
+                        owing = None;
+                    }
+                    Some((s, _)) if s == k => {}
+                    _ => owing = Some((k, Instant::now())),
+                },
+            },
             Err(RecvTimeoutError::Disconnected) => break,
         }
     }

@@ -23,11 +23,12 @@ use super::ShmConfig;
 use crate::cdr::TypedSample;
 use crate::stats::{LogLimit, Stats};
 
-/// Starts the thread that hosts one mirrored domain.
+/// Starts the thread that hosts one mirrored domain (`out`: its SUBSCRIBE writer, None when
+/// the config file leaves that set out).
 pub fn spawn(
     mut host: DomainHost,
     rx: Receiver<TypedSample>,
-    mut out: Outbound,
+    mut out: Option<Outbound>,
     cfg: ShmConfig,
     stats: Arc<Stats>,
 ) -> std::io::Result<JoinHandle<()>> {
@@ -64,7 +65,7 @@ pub fn spawn(
                     Stats::add(&stats.from_dds, 1);
                     last_step = s.step;
                     sim_time = s.sim_time;
-                    if sync && host.seeded() {
+                    if let (true, true, Some(out)) = (sync, host.seeded(), out.as_mut()) {
                         last_sub = host.segment().generation(Role::Subscribe);
                         out.send(last_step, sim_time, host.subscribe(), &stats);
                     }
@@ -76,7 +77,7 @@ pub fn spawn(
                 let cur = host.segment().generation(Role::Subscribe);
                 if cur != last_sub && host.seeded() {
                     last_sub = cur;
-                    if let Ok(sub) = host.read_subscribe() {
+                    if let (Some(out), Ok(sub)) = (out.as_mut(), host.read_subscribe()) {
                         out.send(last_step, sim_time, sub, &stats);
                     }
                 }

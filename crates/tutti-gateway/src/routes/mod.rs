@@ -57,6 +57,9 @@ pub struct ShmConfig {
     pub timeout: Duration,
     pub wait: WaitMode,
     pub poll: Duration,
+    /// How long a synchronous DDS writer may owe the step's answer, silent, before its
+    /// lock-step share is released.
+    pub lease: Duration,
     pub stop: Arc<AtomicBool>,
 }
 

@@ -2,22 +2,26 @@
 //!
 //! Asynchronous sets (and the SUBSCRIBE set of every domain, whose shared-memory writers
 //! DDS readers want to see) are watched by one poller thread: a set whose generation moved
-//! is read (a consistent seqlock copy) and written to DDS. A synchronous PUBLISH set is read
-//! in lock-step by a pump thread through its own remote connection, so every step goes out
-//! once and in order, tagged with its step number. Routes work only while a remote reader is
-//! matched ([`Activation`]).
+//! is read (a consistent seqlock copy) and written to DDS, at most `max_rate` times a second
+//! where the config file says so. A synchronous PUBLISH set is followed by a pump thread
+//! that sleeps on the domain's step word and sends each step once, in order, tagged with its
+//! step number. Both are passive observers: they hold no connection, so a DDS reader never
+//! paces or stalls a domain and is not counted as a participant. A pump that the framework
+//! outruns (more than the bucket's slots between two of its wake-ups) sends the newest step
+//! and counts the ones it could not send (`skipped`). Routes work only while a remote reader
+//! is matched ([`Activation`]).
 
 use std::collections::BTreeSet;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::Arc;
+use std::sync::mpsc::Receiver;
 use std::thread::{self, JoinHandle, Thread};
-use std::time::Duration;
+use std::time::{Duration, Instant};
 
-use tracing::{debug, info, warn};
+use tracing::{info, warn};
 use tutti_core::ddf::Role;
 use tutti_core::shm::observer::{Look, Observer};
 use tutti_core::shm::segment::Segment;
-use tutti_core::shm::{Participant, ShmError};
 
 use super::per_item::ItemWriters;
 use super::ShmConfig;
@@ -190,6 +194,9 @@ pub struct Watched {
     /// Whether the last look wrote a sample, and the samples written but not yet flushed.
     hot: bool,
     unflushed: u32,
+    /// Shortest time between two samples (zero: no limit), and when the next may go.
+    min_interval: Duration,
+    next_allowed: Instant,
 }
 
 /// Samples of a set changing flat out that go out in one batch at most.
@@ -216,7 +223,16 @@ impl Watched {
             joined: 0,
             hot: false,
             unflushed: 0,
+            min_interval: Duration::ZERO,
+            next_allowed: Instant::now(),
         }
+    }
+
+    /// At most `rate` samples a second (None: every change): a set changing faster goes out
+    /// downsampled, always with its newest value.
+    pub fn with_max_rate(mut self, rate: Option<f64>) -> Self {
+        self.min_interval = rate.filter(|r| *r > 0.0).map_or(Duration::ZERO, |r| Duration::from_secs_f64(1.0 / r));
+        self
     }
 
     /// Looks at the set once; returns true when something was written.
@@ -244,6 +260,14 @@ impl Watched {
         let gen = seg.generation(self.role);
         if self.last_gen == Some(gen) {
             return false;
+        }
+        // Rate-limited: the change waits (and is read, newest, when the limit allows).
+        if !self.min_interval.is_zero() {
+            let now = Instant::now();
+            if now < self.next_allowed {
+                return false;
+            }
+            self.next_allowed = now + self.min_interval;
         }
         let first = self.last_gen.is_none();
         self.last_gen = Some(gen);
@@ -305,19 +329,22 @@ impl Polled for Watched {
     }
 }
 
-/// Starts the poller thread over `routes`.
+/// Starts the poller thread; it looks after every route it is sent on `added` (as domains
+/// come to be bridged), waking up for them when unparked.
 pub fn spawn_poller(
-    mut routes: Vec<Box<dyn Polled>>,
+    added: Receiver<Box<dyn Polled>>,
     cfg: ShmConfig,
     stats: Arc<Stats>,
 ) -> std::io::Result<JoinHandle<()>> {
     thread::Builder::new().name("tutti-gw-poll".into()).spawn(move || {
         let me = thread::current();
-        for r in &routes {
-            let _ = r.activation().thread.set(me.clone());
-        }
+        let mut routes: Vec<Box<dyn Polled>> = Vec::new();
         let mut idle_turns = 0u32;
         while !cfg.stop.load(Ordering::Acquire) {
+            while let Ok(r) = added.try_recv() {
+                let _ = r.activation().thread.set(me.clone());
+                routes.push(r);
+            }
             let mut busy = false;
             let mut any_active = false;
             for r in routes.iter_mut() {
@@ -343,64 +370,68 @@ pub fn spawn_poller(
     })
 }
 
-/// Starts the lock-step pump of a synchronous PUBLISH set.
+/// Starts the pump of a synchronous PUBLISH set: a passive observer that sleeps on the
+/// domain's step word and sends every step it sees, once and in order.
 pub fn spawn_sync_pump(
     domain: String,
     mut out: Outbound,
     activation: Arc<Activation>,
     cfg: ShmConfig,
     stats: Arc<Stats>,
-    name: String,
 ) -> std::io::Result<JoinHandle<()>> {
     thread::Builder::new()
         .name(format!("tutti-gw-sync-{}", domain.chars().take(10).collect::<String>()))
         .stack_size(256 << 10)
         .spawn(move || {
             let _ = activation.thread.set(thread::current());
-            let mut p: Option<Participant> = None;
-            let mut warn_limit = LogLimit::new(Duration::from_secs(5));
-            let mut seen_joined = 0;
+            let mut live = Observer::new(domain.clone());
+            let mut buf = Vec::new();
+            let mut last = 0u64;
+            let mut seen_joined = activation.joined();
+            let mut skip_log = LogLimit::new(Duration::from_secs(5));
             while !cfg.stop.load(Ordering::Acquire) {
                 if !activation.is_active() {
-                    p = None;
-                    thread::park();
+                    live.close();
+                    thread::park_timeout(Duration::from_millis(200));
                     continue;
                 }
-                let part = match &mut p {
-                    Some(part) => part,
-                    None => match Participant::connect(
-                        &domain,
-                        cfg.connect_options(name.clone(), Duration::from_millis(200)),
-                    ) {
-                        Ok(mut part) => {
-                            part.set_timeout(Duration::from_millis(200).min(cfg.timeout));
-                            p.insert(part)
-                        }
-                        Err(e) => {
-                            if warn_limit.allow().is_some() {
-                                debug!(domain = %domain, "waiting for the domain: {e}");
-                            }
-                            thread::sleep(Duration::from_millis(200));
-                            continue;
-                        }
-                    },
+                let Some((seg, fresh)) = look(&mut live, &cfg.namespace) else {
+                    thread::sleep(Duration::from_millis(50));
+                    continue;
                 };
+                let h = seg.header();
+                if fresh {
+                    buf = vec![0; seg.info.publish.size as usize];
+                    // From the next step on, as a lock-step reader joining now would.
+                    last = h.pub_step.load(Ordering::Acquire);
+                    out.reset();
+                }
                 let joined = activation.joined();
                 if joined != seen_joined {
                     seen_joined = joined;
                     out.reset();
                 }
-                match part.subscribe_lock() {
-                    Ok(step) => {
-                        let sim_time = part.sim_time();
-                        out.send(step, sim_time, part.snapshot(), &stats);
-                    }
-                    Err(ShmError::Timeout { .. }) => {}
-                    Err(e) => {
-                        info!(domain = %domain, "lock-step reader lost: {e}");
-                        p = None;
+                if seg.wait_step_after(last, Duration::from_millis(200)) <= last {
+                    continue;
+                }
+                // The PUBLISH generation counts the framework's steps.
+                let Some(step) = seg.bucket(Role::Publish).read(&mut buf, 1 << 16) else { continue };
+                if step <= last {
+                    continue;
+                }
+                let missed = step - last - 1;
+                if missed > 0 && last > 0 {
+                    Stats::add(&stats.skipped, missed);
+                    if let Some(held) = skip_log.allow() {
+                        warn!(
+                            domain = %domain,
+                            "{missed} step(s) before step {step} went by before DDS could be sent them ({held} more such gaps since the last report): the gateway never holds a domain back for its DDS readers"
+                        );
                     }
                 }
+                last = step;
+                let sim_time = f64::from_bits(h.sim_time_bits.load(Ordering::Acquire));
+                out.send(step, sim_time, &buf, &stats);
             }
         })
 }
