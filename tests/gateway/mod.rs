@@ -144,6 +144,12 @@ impl Proc {
     pub fn dump(&self) -> String {
         format!("--- {} ---\n{}", self.name, self.lines().join("\n"))
     }
+
+    /// SIGKILL: the process gets no chance to say goodbye; waits for its exit.
+    pub fn kill9(&mut self) {
+        let _ = self.child.lock().unwrap().kill();
+        self.wait(Duration::from_secs(10));
+    }
 }
 
 impl Drop for Proc {
@@ -353,8 +359,20 @@ impl Host {
         period: Duration,
         publish: impl Fn(u64) -> Vec<u8> + Send + 'static,
     ) -> Host {
+        Host::start_opts(ddf, ns, domain, period, Duration::from_millis(500), publish)
+    }
+
+    /// As [`Host::start_with`], with the frameworks' step timeout `timeout`.
+    pub fn start_opts(
+        ddf: &str,
+        ns: &str,
+        domain: &str,
+        period: Duration,
+        timeout: Duration,
+        publish: impl Fn(u64) -> Vec<u8> + Send + 'static,
+    ) -> Host {
         let model = tutti_core::ddf::load(root().join(ddf)).unwrap();
-        let opts = FrameworkOptions { namespace: ns.into(), timeout: Duration::from_millis(500), ..Default::default() };
+        let opts = FrameworkOptions { namespace: ns.into(), timeout, ..Default::default() };
         let mut fw = Framework::create(&model, &opts).expect("framework");
         let stop = Arc::new(AtomicBool::new(false));
         let seen = Arc::new(Mutex::new(Vec::new()));

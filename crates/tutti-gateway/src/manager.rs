@@ -238,8 +238,14 @@ impl Manager {
                     let activation = route_out(&mut self.routes, di, vec![p.topic.clone()], true);
                     if d.flags.synchronous {
                         self.threads.push(
-                            to_dds::spawn_sync_pump(d.name.clone(), out, activation, self.cfg.clone(), self.stats.clone())
-                                .map_err(|e| GatewayError::dds("a thread", e))?,
+                            to_dds::spawn_sync_pump(
+                                d.name.clone(),
+                                out,
+                                activation,
+                                self.cfg.clone(),
+                                self.stats.clone(),
+                            )
+                            .map_err(|e| GatewayError::dds("a thread", e))?,
                         );
                     } else {
                         let w = Watched::new(d.name.clone(), Role::Publish, out, activation, None);
@@ -271,8 +277,7 @@ impl Manager {
                     None => None,
                 };
                 let (mtx, mrx) = std_mpsc::channel();
-                let host =
-                    host.ok_or_else(|| GatewayError::Invalid(format!("domain '{}' was not created", d.name)))?;
+                let host = host.ok_or_else(|| GatewayError::Invalid(format!("domain '{}' was not created", d.name)))?;
                 self.threads.push(
                     mirror::spawn(host, mrx, out, self.cfg.clone(), self.stats.clone())
                         .map_err(|e| GatewayError::dds("a thread", e))?,
@@ -333,7 +338,14 @@ impl Manager {
     /// A DDS -> shared-memory route over `topic` (DDS type `dds_type`, samples read by
     /// `decode`): its reader, whose sink decodes (and, in asynchronous domains, commits) its
     /// samples on the engine's receive path, and the route entry the sink reports under.
-    fn inbound(&mut self, domain: usize, topic: &str, dds_type: &str, decode: Decode, rq: &Qos) -> Result<(), GatewayError> {
+    fn inbound(
+        &mut self,
+        domain: usize,
+        topic: &str,
+        dds_type: &str,
+        decode: Decode,
+        rq: &Qos,
+    ) -> Result<(), GatewayError> {
         let direct = Direct::default();
         self.routes.push(Route::In { domain, topic: topic.to_string(), direct: direct.clone() });
         let to = (self.routes.len() - 1, self.events_tx.clone(), direct);
@@ -459,7 +471,9 @@ impl Manager {
             let hosted = self.hosted(di);
             if hosted && !self.domains[di].bridged {
                 match self.bridge(di, None).and_then(|()| self.dds.announce()) {
-                    Ok(()) => info!(domain = %self.domains[di].name, "hosted in namespace '{}': bridged", self.cfg.namespace),
+                    Ok(()) => {
+                        info!(domain = %self.domains[di].name, "hosted in namespace '{}': bridged", self.cfg.namespace)
+                    }
                     Err(e) => warn!(domain = %self.domains[di].name, "cannot bridge the domain: {e}"),
                 }
             }

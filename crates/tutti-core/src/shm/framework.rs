@@ -124,7 +124,15 @@ impl DomainHost {
         if opts.hold {
             seg.header().hold.store(1, Ordering::Release);
         }
-        DomainHost { seg, opts, step: 0, subscribe, last_sweep: Instant::now(), seed_waited: false, waited_for: Vec::new() }
+        DomainHost {
+            seg,
+            opts,
+            step: 0,
+            subscribe,
+            last_sweep: Instant::now(),
+            seed_waited: false,
+            waited_for: Vec::new(),
+        }
     }
 
     pub fn info(&self) -> &DomainInfo {

@@ -6,8 +6,7 @@ use std::time::{Duration, Instant};
 use super::bucket::{copy_words, store_bytes, store_range, with_bytes_mut};
 use super::handshake::{CONN_SYNC_READER, CONN_WRITER};
 use super::segment::{
-    ConnKind,
-    self, namespace_from_env, DomainInfo, Segment, WaitMode, Waited, Waiter, MAX_READ_TRIES, STATE_RUNNING,
+    self, namespace_from_env, ConnKind, DomainInfo, Segment, WaitMode, Waited, Waiter, MAX_READ_TRIES, STATE_RUNNING,
 };
 use super::{os, ShmError};
 use crate::ddf::{Domain, Leaf, Role};

@@ -1,0 +1,233 @@
+//! The gateway as a citizen of a shared ROS 2 graph, against Cyclone DDS (Python) on both
+//! engines: a DDS reader is a passive observer (no participant, never paces a domain), two
+//! co-simulations with their own namespaces share a DDS domain without seeing each other, a
+//! gateway bridges only the domains a framework hosts, and a DDS writer that leaves a
+//! synchronous domain (cleanly, or killed) costs no step timeout. Each test has its own DDS
+//! domain and shared-memory namespaces.
+
+mod gateway;
+
+use std::process::Command;
+use std::thread;
+use std::time::{Duration, Instant};
+
+use gateway::*;
+use tutti_core::ddf::Role;
+use tutti_core::shm::segment::Segment;
+use tutti_core::shm::DomainStatus;
+
+const SECS: fn(u64) -> Duration = Duration::from_secs;
+const SYNC_PUB: &str = r#"[["step","uint64"],["sim_time","float64"],["x","float64"]]"#;
+const SYNC_SUB: &str = r#"[["step","uint64"],["sim_time","float64"],["y","float64"]]"#;
+const ASYNC_PUB: &str =
+    r#"[["step","uint64"],["sim_time","float64"],["x","float64"],["flag","bool"],["v","float64[3]"]]"#;
+const ASYNC_SUB: &str = r#"[["step","uint64"],["sim_time","float64"],["y","float64"],["n","int32"]]"#;
+
+fn status(ns: &str, domain: &str) -> DomainStatus {
+    Segment::open(ns, domain).unwrap_or_else(|e| panic!("{ns}/{domain}: {e}")).status()
+}
+
+/// An asynchronous PUBLISH set whose `x` is `x`.
+fn async_publish(x: f64) -> impl Fn(u64) -> Vec<u8> + Send + 'static {
+    move |_| {
+        let mut b = vec![0u8; 40];
+        b[0..8].copy_from_slice(&x.to_ne_bytes());
+        b
+    }
+}
+
+/// A Cyclone reader of `topic` that prints `count` samples.
+fn sub(py: &std::path::Path, dom: u16, topic: &str, ty: &str, fields: &str, count: u32) -> Proc {
+    let count = count.to_string();
+    let args = ["--topic", topic, "--type", ty, "--fields", fields, "--count", &count, "--timeout", "90"];
+    peer(py, &format!("sub {topic}"), dom, "sub", &args)
+}
+
+/// While a Cyclone reader takes every step of a synchronous domain's PUBLISH topic, the
+/// domain has no participant and no connection the framework waits for: the reader is
+/// listed as a DDS reader of the gateway's observer connection, in `tutti status` too.
+fn a_dds_reader_of_a_synchronous_domain_is_an_observer_not_a_participant(e: Eng) {
+    let Some(py) = python() else { return };
+    let (dom, ns) = (e.dom(120), e.ns("gwcit120"));
+    let ns = ns.as_str();
+    let host = Host::start(ns, "gw_sync", Duration::from_millis(5), |k| (k as f64).to_ne_bytes().to_vec());
+    let gw = e.gateway(DDF, dom, ns, &[]);
+    let mut reader = sub(&py, dom, "rt/gw_sync/publish", "gw_msgs::msg::dds_::GwSyncPublish_", SYNC_PUB, 400);
+    let end = Instant::now() + SECS(90);
+    let (mut looks, mut readers_seen, mut cli_checked) = (0u32, 0u64, false);
+    while json_lines(&reader, "step").len() < 400 {
+        assert!(Instant::now() < end, "the reader got too few samples\n{}\n{}", reader.dump(), gw.dump());
+        let s = status(ns, "gw_sync");
+        assert_eq!(s.connection_count, 0, "a DDS reader counted as a participant: {:?}", s.connections);
+        assert!(
+            s.connections.iter().all(|c| !c.sync_reader && !c.writer),
+            "a connection the framework waits for: {:?}",
+            s.connections
+        );
+        readers_seen = readers_seen.max(s.dds_readers);
+        looks += 1;
+        if s.dds_readers == 1 && !cli_checked {
+            // What a user sees: `tutti status --json` lists the DDS reader apart.
+            let out = Command::new(env!("CARGO_BIN_EXE_tutti"))
+                .args(["status", "--json"])
+                .env("TUTTI_NAMESPACE", ns)
+                .output()
+                .unwrap();
+            let v: serde_json::Value = serde_json::from_slice(&out.stdout).expect("status --json");
+            let d = v.as_array().unwrap().iter().find(|d| d["domain"] == "gw_sync").cloned().unwrap();
+            assert_eq!(d["connection_count"], 0, "{d}");
+            assert_eq!(d["dds_readers"], 1, "{d}");
+            cli_checked = true;
+        }
+        thread::sleep(Duration::from_millis(20));
+    }
+    assert_eq!(reader.wait(SECS(30)), Some(0), "{}", reader.dump());
+    assert!(looks > 0 && readers_seen == 1, "the observer never showed the DDS reader ({readers_seen})");
+    assert!(cli_checked, "tutti status never showed the DDS reader");
+    let steps: Vec<u64> = json_lines(&reader, "step").iter().map(|v| v["step"].as_u64().unwrap()).collect();
+    for (v, k) in json_lines(&reader, "step").iter().zip(&steps) {
+        assert_eq!(v["x"].as_f64(), Some(*k as f64), "step {k} carries another step's value: {v}");
+    }
+    assert!(steps.windows(2).all(|w| w[1] > w[0]), "steps out of order: {steps:?}");
+    assert_eq!(status(ns, "gw_sync").step_timeouts, 0);
+    drop(host);
+}
+
+/// Co-simulation A (no ROS namespace) and B (`--ros-namespace b`) run the same DDF on one
+/// DDS domain: each reader sees its own co-simulation's values, a DDS writer reaches only
+/// B, and a third gateway whose namespace hosts no framework bridges nothing and joins
+/// neither (A's domains see no DDS endpoint of it).
+fn two_co_simulations_with_their_own_namespaces_share_a_dds_domain(e: Eng) {
+    let Some(py) = python() else { return };
+    let dom = e.dom(121);
+    let (ns_a, ns_b, ns_c) = (e.ns("gwcit121a"), e.ns("gwcit121b"), e.ns("gwcit121c"));
+    let host_a = Host::start(&ns_a, "gw_async", Duration::from_millis(10), async_publish(1.0));
+    let host_b = Host::start(&ns_b, "gw_async", Duration::from_millis(10), async_publish(2.0));
+    let gw_a = e.gateway(DDF, dom, &ns_a, &[]);
+    let gw_b = e.gateway(DDF, dom, &ns_b, &["--ros-namespace", "b"]);
+    let gw_c = e.gateway(DDF, dom, &ns_c, &[]);
+    let up = gw_c.wait_line("tutti gateway: up", SECS(1)).unwrap();
+    assert!(up.contains("0 of 3 domains bridged"), "{up}");
+    assert!(
+        gw_c.wait_line("not bridged until a framework hosts them", SECS(10)).is_some_and(|l| l.contains(&ns_c)),
+        "{}",
+        gw_c.dump()
+    );
+
+    let ty = "gw_msgs::msg::dds_::GwAsyncPublish_";
+    let mut sub_a = sub(&py, dom, "rt/gw_async/publish", ty, ASYNC_PUB, 5);
+    let mut sub_b = sub(&py, dom, "rt/b/gw_async/publish", ty, ASYNC_PUB, 5);
+    assert_eq!(sub_a.wait(SECS(90)), Some(0), "{}\n{}", sub_a.dump(), gw_a.dump());
+    assert_eq!(sub_b.wait(SECS(90)), Some(0), "{}\n{}", sub_b.dump(), gw_b.dump());
+    assert!(json_lines(&sub_a, "x").iter().all(|v| v["x"] == 1.0), "{}", sub_a.dump());
+    assert!(json_lines(&sub_b, "x").iter().all(|v| v["x"] == 2.0), "{}", sub_b.dump());
+
+    let values = r#"[{"y": 9.5, "n": 3}, {"y": 9.5, "n": 3}, {"y": 9.5, "n": 3}]"#;
+    let args = ["--topic", "rt/b/gw_async/subscribe", "--type", "gw_msgs::msg::dds_::GwAsyncSubscribe_"];
+    let mut w = peer(&py, "pub b", dom, "pub", &[&args[..], &["--fields", ASYNC_SUB, "--values", values]].concat());
+    let y = leaf_offset("gw_async", Role::Subscribe, "y");
+    assert!(host_b.wait_for(SECS(60), |_, b| f64_at(b, y) == 9.5).is_some(), "{}\n{}", w.dump(), gw_b.dump());
+    assert_eq!(w.wait(SECS(60)), Some(0), "{}", w.dump());
+    assert!(host_a.seen.lock().unwrap().iter().all(|(_, b)| f64_at(b, y) != 9.5), "B's writer reached A");
+
+    // C created no endpoint: A's domains never had a DDS writer, and their only DDS
+    // readers were the test's.
+    let a = status(&ns_a, "gw_async");
+    assert_eq!((a.dds_writers, a.connection_count), (0, 0), "{:?}", a.connections);
+    assert!(gw_c.lines().iter().all(|l| !l.contains("joined")), "{}", gw_c.dump());
+    assert!(gw_a.lines().iter().all(|l| !l.contains("joined")), "{}", gw_a.dump());
+    drop((host_a, host_b));
+}
+
+/// A synchronous domain (step timeout 5 s) answered by a Cyclone writer through the
+/// gateway; returns the host, the gateway and the writer once it has answered 20 steps.
+fn answered_domain(
+    e: Eng,
+    py: &std::path::Path,
+    dom: u16,
+    ns: &str,
+    count: &str,
+    gw_args: &[&str],
+) -> (Host, Proc, Proc) {
+    let args = [
+        "--topic",
+        "rt/gw_sync/publish",
+        "--type",
+        "gw_msgs::msg::dds_::GwSyncPublish_",
+        "--fields",
+        SYNC_PUB,
+        "--reply-topic",
+        "rt/gw_sync/subscribe",
+        "--reply-type",
+        "gw_msgs::msg::dds_::GwSyncSubscribe_",
+        "--reply-fields",
+        SYNC_SUB,
+        "--count",
+        count,
+        "--timeout",
+        "90",
+    ];
+    let answer = peer(py, "answer", dom, "answer", &args);
+    let host = Host::start_opts(DDF, ns, "gw_sync", Duration::from_millis(5), SECS(5), |k| {
+        (k as f64 * 10.0).to_ne_bytes().to_vec()
+    });
+    let gw = e.gateway(DDF, dom, ns, gw_args);
+    let answered = |k: u64, b: &[u8]| f64_at(b, 0) == k as f64 * 10.0 + 1.0;
+    let first = host.wait_for(SECS(75), answered);
+    assert!(first.is_some(), "no step was answered\n{}\n{}", answer.dump(), gw.dump());
+    let end = Instant::now() + SECS(60);
+    while host.seen.lock().unwrap().iter().filter(|(k, b)| answered(*k, b)).count() < 20 && Instant::now() < end {
+        thread::sleep(Duration::from_millis(20));
+    }
+    (host, gw, answer)
+}
+
+/// Waits until the host has made `n` more steps (a watchdog, not a timing).
+fn steps_on(host: &Host, n: usize, why: &str) {
+    let start = host.seen.lock().unwrap().len();
+    let end = Instant::now() + SECS(90);
+    while host.seen.lock().unwrap().len() < start + n {
+        assert!(Instant::now() < end, "the domain stopped stepping {why}");
+        thread::sleep(Duration::from_millis(20));
+    }
+}
+
+/// A DDS writer that answers 40 steps and exits cleanly: its connection goes as discovery
+/// sees it leave (the lease is set far beyond the step timeout, so only that can help).
+fn a_dds_writer_that_exits_cleanly_costs_no_step_timeout(e: Eng) {
+    let Some(py) = python() else { return };
+    let (dom, ns) = (e.dom(122), e.ns("gwcit122"));
+    let (host, gw, mut answer) = answered_domain(e, &py, dom, &ns, "40", &["--lease", "60s"]);
+    assert_eq!(answer.wait(SECS(60)), Some(0), "{}", answer.dump());
+    steps_on(&host, 400, "after the DDS writer left");
+    let s = status(&ns, "gw_sync");
+    assert_eq!(s.step_timeouts, 0, "{}", gw.dump());
+    assert_eq!(s.dds_writers, 0, "{:?}", s.connections);
+    assert!(gw.wait_line("left: its connection is released", SECS(1)).is_some(), "{}", gw.dump());
+    drop(host);
+}
+
+/// A DDS writer killed while the domain runs: the step it owes waits at most the lease
+/// (1 s) before the gateway lets it go, well inside the 5 s step timeout.
+fn a_killed_dds_writer_costs_no_more_than_the_lease(e: Eng) {
+    let Some(py) = python() else { return };
+    let (dom, ns) = (e.dom(123), e.ns("gwcit123"));
+    let (host, gw, mut answer) = answered_domain(e, &py, dom, &ns, "1000000", &["--lease", "1s"]);
+    answer.kill9();
+    steps_on(&host, 400, "after the DDS writer was killed");
+    let s = status(&ns, "gw_sync");
+    assert_eq!(s.step_timeouts, 0, "{}", gw.dump());
+    assert!(
+        gw.wait_line("while step", SECS(1)).is_some_and(|l| l.contains("lock-step share is released")),
+        "{}",
+        gw.dump()
+    );
+    drop(host);
+}
+
+per_engine!(
+    a_dds_reader_of_a_synchronous_domain_is_an_observer_not_a_participant,
+    two_co_simulations_with_their_own_namespaces_share_a_dds_domain,
+    a_dds_writer_that_exits_cleanly_costs_no_step_timeout,
+    a_killed_dds_writer_costs_no_more_than_the_lease,
+);
