@@ -4,10 +4,13 @@ Cyclone DDS Python binding (pip install cyclonedds==11.0.1): no ROS 2 installati
 
 Each UAV's SUBSCRIBE set (what the UAV model writes: its state) is the DDS topic
 rt/multiuav_uavN/subscribe, type multiuav_msgs::msg::dds_::MultiuavUavNSubscribe_ (the
-struct `tutti idl ddf/multiuav.ddf` writes). Usage:
+struct `tutti idl ddf/multiuav.ddf` writes); with --publish it also reads each PUBLISH set
+(what the framework sends the UAV: autopilot, formation offset, commands), rt/multiuav_uavN/
+publish. Reading changes nothing in the co-simulation: a DDS reader is no participant.
+Usage:
 
     tutti host ddf/multiuav.ddf &  tutti gateway ddf/multiuav.ddf --interface 127.0.0.1 &
-    python3 launch-scripts/cyclone_uav_listener.py [--domain N] [--uavs 1,2] [--count K]
+    python3 launch-scripts/cyclone_uav_listener.py [--domain N] [--uavs 1,2] [--count K] [--publish]
 
 The DDS domain is --domain, else ROS_DOMAIN_ID, else 0. Unless CYCLONEDDS_URI is set, DDS
 runs on loopback only (127.0.0.1, no multicast); use --any-interface for a real network.
@@ -29,18 +32,23 @@ LOOPBACK = (
 )
 
 FIELDS = ["latitude", "longitude", "elevation", "airspeed", "heading", "time"]
+PUBLISH_FIELDS = ["autopilot", "x", "y", "z", "airspeed", "altitude", "time"]
 
 
-def state_type(n):
-    """multiuav_msgs/msg/MultiuavUavNSubscribe as an IdlStruct with its ROS 2 DDS type name."""
+def set_type(n, role, fields):
+    """multiuav_msgs/msg/MultiuavUavN<Role> as an IdlStruct with its ROS 2 DDS type name."""
     from cyclonedds.idl import IdlStruct
     from cyclonedds.idl.types import float64, uint64
 
     def body(ns):
-        ns["__annotations__"] = dict([("step", uint64), ("sim_time", float64)] + [(f, float64) for f in FIELDS])
-    name = f"MultiuavUav{n}Subscribe"
+        ns["__annotations__"] = dict([("step", uint64), ("sim_time", float64)] + [(f, float64) for f in fields])
+    name = f"MultiuavUav{n}{role}"
     cls = types.new_class(name, (IdlStruct,), {"typename": f"multiuav_msgs::msg::dds_::{name}_"}, body)
     return dataclass(cls)
+
+
+def state_type(n):
+    return set_type(n, "Subscribe", FIELDS)
 
 
 def main():
@@ -50,6 +58,7 @@ def main():
     p.add_argument("--count", type=int, default=0, help="stop after this many samples (0: never)")
     p.add_argument("--timeout", type=float, default=0, help="give up after this many seconds (0: never)")
     p.add_argument("--any-interface", action="store_true", help="do not restrict DDS to loopback")
+    p.add_argument("--publish", action="store_true", help="also read each UAV's PUBLISH set")
     a = p.parse_args()
     if not a.any_interface:
         os.environ.setdefault("CYCLONEDDS_URI", LOOPBACK)
@@ -66,16 +75,21 @@ def main():
               Policy.Durability.Volatile)
     readers = {}
     for n in (int(x) for x in ",".join(a.uavs).split(",") if x.strip()):
-        readers[n] = DataReader(dp, Topic(dp, f"rt/multiuav_uav{n}/subscribe", state_type(n)), qos=qos)
+        readers[(n, "subscribe")] = DataReader(dp, Topic(dp, f"rt/multiuav_uav{n}/subscribe", state_type(n)), qos=qos)
+        if a.publish:
+            t = Topic(dp, f"rt/multiuav_uav{n}/publish", set_type(n, "Publish", PUBLISH_FIELDS))
+            readers[(n, "publish")] = DataReader(dp, t, qos=qos)
     got, end = 0, (time.time() + a.timeout if a.timeout else None)
     try:
         while (not a.count or got < a.count) and (end is None or time.time() < end):
-            for n, rd in readers.items():
+            for (n, role), rd in readers.items():
                 for s in rd.take(N=64):
                     if not s.sample_info.valid_data:
                         continue
-                    print(json.dumps({"uav": n, "step": s.step, "sim_time": s.sim_time,
-                                      **{f: getattr(s, f) for f in FIELDS}}), flush=True)
+                    fields = FIELDS if role == "subscribe" else PUBLISH_FIELDS
+                    extra = {} if role == "subscribe" else {"set": "publish"}
+                    print(json.dumps({"uav": n, **extra, "step": s.step, "sim_time": s.sim_time,
+                                      **{f: getattr(s, f) for f in fields}}), flush=True)
                     got += 1
             time.sleep(0.005)
     except KeyboardInterrupt:

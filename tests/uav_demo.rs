@@ -3,7 +3,9 @@
 //! demo's own summary must pass, and the CSV files are read back here to check the paper's
 //! claims independently: the framework's altitude holds level while a UAV is disconnected
 //! and merges with the model's after it reconnects, the C components read exactly what the
-//! framework published, the connection counts follow the script. Needs gcc and python3
+//! framework published, the connection counts follow the script. A Cyclone DDS listener
+//! reads every UAV topic (PUBLISH and SUBSCRIBE) all along, as a ROS 2 user watching the
+//! demo would, and changes nothing: DDS readers are not participants. Needs gcc and python3
 //! (launch-scripts/test.sh installs them); skipped with a message when they are missing.
 
 mod common;
@@ -50,12 +52,15 @@ fn the_short_uav_demo_reproduces_figures_5_and_6() {
     let tmp = tempfile::tempdir().unwrap();
     let out = tmp.path().join("uav");
     let ns = format!("tdemo{}", std::process::id());
+    let dds_domain = (150 + std::process::id() % 60).to_string();
+    let listened = tmp.path().join("listener.jsonl");
+    let _listener = Listener::start(&dds_domain, &listened);
     let mut child = Command::new(env!("CARGO_BIN_EXE_tutti"))
         .args(["demo", "uav", "--scenario", "short", "--duration", "40", "--speed", "8"])
         .arg("--out")
         .arg(&out)
         // A DDS domain of its own, on loopback (the demo restricts the gateway to it).
-        .args(["--ros-domain-id", &(150 + std::process::id() % 60).to_string()])
+        .args(["--ros-domain-id", &dds_domain])
         .env("TUTTI_NAMESPACE", &ns)
         .env("TUTTI_PYTHON", &python)
         .current_dir(tmp.path())
@@ -81,6 +86,11 @@ fn the_short_uav_demo_reproduces_figures_5_and_6() {
     let stderr = String::from_utf8_lossy(&output.stderr).into_owned();
     assert!(status.success(), "tutti demo uav failed ({status}):\n{stderr}");
     assert!(stderr.contains("0 failed"), "{stderr}");
+    if let Some(l) = &_listener {
+        // The listener did read all along: both sets of every UAV reached it.
+        let text = std::fs::read_to_string(&listened).unwrap_or_default();
+        l.check(&text);
+    }
     assert!(out.join("figure5.png").metadata().unwrap().len() > 10_000, "{stderr}");
     assert!(out.join("figure6.png").metadata().unwrap().len() > 10_000, "{stderr}");
     for svg in ["figure5.svg", "figure6.svg"] {
@@ -196,4 +206,56 @@ fn the_short_uav_demo_reproduces_figures_5_and_6() {
     // Nothing left behind: no segment of the run's namespace.
     let left = tutti_core::shm::os::list_shm(&format!("tutti.{ns}.")).unwrap();
     assert!(left.is_empty(), "segments left behind: {left:?}");
+}
+
+/// The Cyclone DDS listener of every UAV topic (launch-scripts/cyclone_uav_listener.py
+/// --publish), its output in a file; killed when dropped. None (not started) when the venv
+/// with cyclonedds is missing, which fails the test under CI=true.
+struct Listener(std::process::Child);
+
+impl Listener {
+    fn start(dds_domain: &str, out: &Path) -> Option<Listener> {
+        let py = root().join(".venv/bin/python");
+        let ok = Command::new(&py).args(["-c", "import cyclonedds"]).status().is_ok_and(|s| s.success());
+        if !ok {
+            assert!(
+                std::env::var("CI").as_deref() != Ok("true"),
+                "CI=true: {} with cyclonedds is missing",
+                py.display()
+            );
+            eprintln!("no .venv with cyclonedds: the demo runs without a DDS listener");
+            return None;
+        }
+        let child = Command::new(py)
+            .arg(root().join("launch-scripts/cyclone_uav_listener.py"))
+            .args(["--domain", dds_domain, "--uavs", "1,2,3,4", "--publish", "--timeout", "200"])
+            .stdout(std::fs::File::create(out).unwrap())
+            .stderr(Stdio::null())
+            .stdin(Stdio::null())
+            .spawn()
+            .expect("starting the listener");
+        Some(Listener(child))
+    }
+
+    /// Every UAV's PUBLISH and SUBSCRIBE topics delivered samples to the listener.
+    fn check(&self, text: &str) {
+        let lines: Vec<serde_json::Value> = text.lines().filter_map(|l| serde_json::from_str(l).ok()).collect();
+        for uav in 1..=4 {
+            for publish in [false, true] {
+                let n = lines.iter().filter(|v| v["uav"] == uav && (v["set"] == "publish") == publish).count();
+                assert!(
+                    n > 0,
+                    "the listener got no sample of uav{uav}'s {} set",
+                    if publish { "PUBLISH" } else { "SUBSCRIBE" }
+                );
+            }
+        }
+    }
+}
+
+impl Drop for Listener {
+    fn drop(&mut self) {
+        let _ = self.0.kill();
+        let _ = self.0.wait();
+    }
 }
