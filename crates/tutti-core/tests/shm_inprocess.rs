@@ -282,3 +282,34 @@ fn a_panic_while_committing_in_place_leaves_the_set_and_the_writer_lock_as_they_
     assert_eq!(f64::from_ne_bytes(sub[0..8].try_into().unwrap()), 5.0);
     assert_eq!(i32::from_ne_bytes(sub[8..12].try_into().unwrap()), 9);
 }
+
+/// A step that times out says whom it waited for (the host prints it), and DDS writers and
+/// observers are counted apart from participants.
+#[test]
+fn a_timed_out_step_names_the_connection_it_waited_for_and_kinds_are_counted_apart() {
+    let opts = FrameworkOptions { timeout: Duration::from_millis(200), ..fopts("owed") };
+    let mut fw = Framework::create(&model(true, true, false), &opts).unwrap();
+    let host = &mut fw.domains[0];
+    let mut slow = Participant::connect("d", ConnectOptions { name: "slow-writer".into(), ..copts("owed") }).unwrap();
+    let remote = Participant::connect("d", ConnectOptions { name: "dds-writer ab".into(), remote: true, ..copts("owed") })
+        .unwrap();
+    let mut watcher = tutti_core::shm::observer::Observer::with_presence("d".into(), "tutti_gateway");
+    assert!(matches!(watcher.look(&ns("owed")), tutti_core::shm::observer::Look::Fresh));
+    watcher.set_dds_readers(3);
+    let s = host.status();
+    assert_eq!((s.connection_count, s.dds_writers, s.dds_readers), (1, 1, 3), "{:?}", s.connections);
+    assert!(s.connections.iter().any(|c| c.observer && c.name == "tutti_gateway" && c.dds_readers == 3));
+
+    // The writer answers step 1, then not step 2.
+    host.publish_step(&1.0f64.to_ne_bytes(), 0.0).unwrap();
+    slow.subscribe_lock().unwrap();
+    slow.publish_lock().unwrap();
+    slow.commit().unwrap();
+    assert_eq!(host.complete_step().unwrap().timed_out, 0);
+    let r = host.step(&2.0f64.to_ne_bytes(), 0.1).unwrap();
+    assert_eq!(r.timed_out, 1);
+    assert_eq!(host.timed_out_on(), [format!("'slow-writer' (pid {})", std::process::id())]);
+    drop((remote, watcher));
+    let s = host.status();
+    assert_eq!((s.connection_count, s.dds_writers, s.dds_readers), (1, 0, 0), "{:?}", s.connections);
+}
