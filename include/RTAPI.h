@@ -324,8 +324,9 @@ RTAPIReturn_t RTDefineFlagDelay(unsigned int microseconds);
 RTAPIReturn_t RTUseFlagWithTool(unsigned int microseconds);
 
 /**
- * The number of connections now in domain `domainName` (this process's included). Works
- * without being connected, from the domain's segment (in TUTTI_NAMESPACE).
+ * The number of participants now in domain `domainName` (this process's included; not the
+ * DDS writers and readers a gateway bridges). Works without being connected, from the
+ * domain's segment (in TUTTI_NAMESPACE).
  *
  * # Safety
  * `domainName` must be NULL or a NUL-terminated string; `count` NULL or writable.
