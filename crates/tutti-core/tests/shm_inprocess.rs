@@ -291,8 +291,9 @@ fn a_timed_out_step_names_the_connection_it_waited_for_and_kinds_are_counted_apa
     let mut fw = Framework::create(&model(true, true, false), &opts).unwrap();
     let host = &mut fw.domains[0];
     let mut slow = Participant::connect("d", ConnectOptions { name: "slow-writer".into(), ..copts("owed") }).unwrap();
-    let remote = Participant::connect("d", ConnectOptions { name: "dds-writer ab".into(), remote: true, ..copts("owed") })
-        .unwrap();
+    let remote =
+        Participant::connect("d", ConnectOptions { name: "dds-writer ab".into(), remote: true, ..copts("owed") })
+            .unwrap();
     let mut watcher = tutti_core::shm::observer::Observer::with_presence("d".into(), "tutti_gateway");
     assert!(matches!(watcher.look(&ns("owed")), tutti_core::shm::observer::Look::Fresh));
     watcher.set_dds_readers(3);

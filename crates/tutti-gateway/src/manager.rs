@@ -32,7 +32,7 @@ use crate::routes::from_dds::{self, Direct, RemoteWriter, Sample};
 use crate::routes::per_item::{self, ItemWriters};
 use crate::routes::to_dds::{self, Activation, Outbound, Polled, SetWriter, Watched};
 use crate::routes::{mirror, Event, Payload, ShmConfig};
-use crate::stats::{LogLimit, Stats};
+use crate::stats::{LogLimit, SetStats, Stats};
 use crate::{GatewayError, GatewayOptions, TypeMode};
 
 /// A route as the manager sees it.
@@ -40,10 +40,11 @@ use crate::{GatewayError, GatewayOptions, TypeMode};
 enum Route {
     /// DDS -> shared memory (or -> the mirror's framework); `direct`: the writers whose
     /// samples the reader task commits itself (asynchronous domains).
-    In { domain: usize, topic: String, direct: Direct },
-    /// Shared memory -> DDS; `set`: whether its topics are a set's (not `/clock`), whose
+    /// `set`: the planned set it belongs to.
+    In { domain: usize, set: usize, topic: String, direct: Direct },
+    /// Shared memory -> DDS; `set`: the planned set its topics are (None: `/clock`), whose
     /// readers the domain counts.
-    Out { domain: usize, topics: Vec<String>, activation: Arc<Activation>, set: bool },
+    Out { domain: usize, topics: Vec<String>, activation: Arc<Activation>, set: Option<usize> },
 }
 
 #[derive(Debug)]
@@ -105,6 +106,8 @@ pub fn run(
 struct Manager {
     opts: GatewayOptions,
     plan: Vec<PlannedSet>,
+    /// The counters of each planned set (same order).
+    set_stats: Vec<Arc<SetStats>>,
     clock_domain: Option<usize>,
     dds: Box<dyn Engine>,
     cfg: ShmConfig,
@@ -167,9 +170,11 @@ impl Manager {
                 dds_readers: 0,
             })
             .collect();
+        let set_stats = plan.iter().map(|_| Arc::new(SetStats::default())).collect();
         let mut m = Manager {
             opts,
             plan,
+            set_stats,
             clock_domain,
             dds,
             cfg,
@@ -224,54 +229,56 @@ impl Manager {
     /// Creates the routes of domain `di` (`host`: its framework, for a mirror).
     fn bridge(&mut self, di: usize, host: Option<tutti_core::shm::DomainHost>) -> Result<(), GatewayError> {
         let d = self.opts.model.domains[di].clone();
-        let sets: Vec<PlannedSet> = self.plan.iter().filter(|p| p.domain == di).cloned().collect();
-        let planned = |role: Role| sets.iter().find(|p| p.role == role);
+        let sets: Vec<(usize, PlannedSet)> =
+            self.plan.iter().enumerate().filter(|(_, p)| p.domain == di).map(|(i, p)| (i, p.clone())).collect();
+        let planned = |role: Role| sets.iter().find(|(_, p)| p.role == role).map(|(i, p)| (*i, p));
         let own_commits = self.domains[di].own_commits.clone();
         let dds: &dyn Engine = &*self.dds;
         let mut watched: Vec<Box<dyn Polled>> = Vec::new();
         match (self.opts.types, self.opts.mirror) {
             (TypeMode::Typed, false) => {
                 // PUBLISH: shared memory -> DDS.
-                if let Some(p) = planned(Role::Publish) {
+                if let Some((si, p)) = planned(Role::Publish) {
                     self.topics += 1;
                     let out = set_writer(dds, &d, p)?;
-                    let activation = route_out(&mut self.routes, di, vec![p.topic.clone()], true);
+                    let activation = route_out(&mut self.routes, di, vec![p.topic.clone()], Some(si));
+                    let counters = (self.stats.clone(), self.set_stats[si].clone());
                     if d.flags.synchronous {
                         self.threads.push(
-                            to_dds::spawn_sync_pump(
-                                d.name.clone(),
-                                out,
-                                activation,
-                                self.cfg.clone(),
-                                self.stats.clone(),
-                            )
-                            .map_err(|e| GatewayError::dds("a thread", e))?,
+                            to_dds::spawn_sync_pump(d.name.clone(), out, activation, self.cfg.clone(), counters)
+                                .map_err(|e| GatewayError::dds("a thread", e))?,
                         );
                     } else {
                         let w = Watched::new(d.name.clone(), Role::Publish, out, activation, None);
-                        watched.push(Box::new(w.with_max_rate(p.max_rate)));
+                        watched.push(Box::new(w.with_max_rate(p.max_rate).counted(counters.1)));
                     }
                 }
                 // SUBSCRIBE: DDS -> shared memory, and shared-memory writers -> DDS.
-                if let Some(p) = planned(Role::Subscribe) {
+                if let Some((si, p)) = planned(Role::Subscribe) {
                     self.topics += 1;
                     let decode = Decode::Set(Arc::new(SetCodec::new(&d.subscribe.layout)));
-                    self.inbound(di, &p.topic, &p.dds_type, decode, &p.reader_qos)?;
+                    self.inbound(di, si, &p.topic, &p.dds_type, decode, &p.reader_qos)?;
                     let out = set_writer(&*self.dds, &d, p)?;
-                    let activation = route_out(&mut self.routes, di, vec![p.topic.clone()], true);
+                    let activation = route_out(&mut self.routes, di, vec![p.topic.clone()], Some(si));
                     let w = Watched::new(d.name.clone(), Role::Subscribe, out, activation, Some(own_commits));
-                    watched.push(Box::new(w.with_max_rate(p.max_rate)));
+                    watched.push(Box::new(w.with_max_rate(p.max_rate).counted(self.set_stats[si].clone())));
                 }
             }
             (TypeMode::Typed, true) => {
-                if let Some(p) = planned(Role::Publish) {
+                // The counters of a set the config leaves out count what nobody reads.
+                let unused = || Arc::new(SetStats::default());
+                let mut set_in = unused();
+                if let Some((si, p)) = planned(Role::Publish) {
                     self.topics += 1;
                     let decode = Decode::Set(Arc::new(SetCodec::new(&d.publish.layout)));
-                    self.inbound(di, &p.topic, &p.dds_type, decode, &p.reader_qos)?;
+                    self.inbound(di, si, &p.topic, &p.dds_type, decode, &p.reader_qos)?;
+                    set_in = self.set_stats[si].clone();
                 }
+                let mut set_out = unused();
                 let out = match planned(Role::Subscribe) {
-                    Some(p) => {
+                    Some((si, p)) => {
                         self.topics += 1;
+                        set_out = self.set_stats[si].clone();
                         Some(set_writer(&*self.dds, &d, p)?)
                     }
                     None => None,
@@ -279,28 +286,28 @@ impl Manager {
                 let (mtx, mrx) = std_mpsc::channel();
                 let host = host.ok_or_else(|| GatewayError::Invalid(format!("domain '{}' was not created", d.name)))?;
                 self.threads.push(
-                    mirror::spawn(host, mrx, out, self.cfg.clone(), self.stats.clone())
+                    mirror::spawn(host, mrx, out, self.cfg.clone(), self.stats.clone(), (set_in, set_out))
                         .map_err(|e| GatewayError::dds("a thread", e))?,
                 );
                 self.domains[di].mirror = Some(mtx);
             }
             (TypeMode::PerItem, _) => {
-                if let Some(p) = planned(Role::Publish) {
+                if let Some((si, p)) = planned(Role::Publish) {
                     let pub_topics = mapping::item_topics_under(&d, Role::Publish, &p.topic);
                     self.topics += pub_topics.len();
                     let out = Outbound::Items(ItemWriters::create(dds, &pub_topics, &d.publish.layout, &p.writer_qos)?);
                     let topics = pub_topics.iter().map(|t| t.topic.clone()).collect();
-                    let activation = route_out(&mut self.routes, di, topics, true);
+                    let activation = route_out(&mut self.routes, di, topics, Some(si));
                     let w = Watched::new(d.name.clone(), Role::Publish, out, activation, None);
-                    watched.push(Box::new(w.with_max_rate(p.max_rate)));
+                    watched.push(Box::new(w.with_max_rate(p.max_rate).counted(self.set_stats[si].clone())));
                 }
-                if let Some(p) = planned(Role::Subscribe) {
+                if let Some((si, p)) = planned(Role::Subscribe) {
                     let sub_topics = mapping::item_topics_under(&d, Role::Subscribe, &p.topic);
                     self.topics += sub_topics.len();
                     for t in &sub_topics {
                         let Some(leaf) = d.subscribe.layout.leaf(&t.path) else { continue };
                         let decode = per_item::decoder(leaf);
-                        self.inbound(di, &t.topic, &t.dds_type, decode, &p.reader_qos)?;
+                        self.inbound(di, si, &t.topic, &t.dds_type, decode, &p.reader_qos)?;
                     }
                     let out = Outbound::Items(ItemWriters::create(
                         &*self.dds,
@@ -309,16 +316,16 @@ impl Manager {
                         &p.writer_qos,
                     )?);
                     let topics = sub_topics.iter().map(|t| t.topic.clone()).collect();
-                    let activation = route_out(&mut self.routes, di, topics, true);
+                    let activation = route_out(&mut self.routes, di, topics, Some(si));
                     let w = Watched::new(d.name.clone(), Role::Subscribe, out, activation, Some(own_commits));
-                    watched.push(Box::new(w.with_max_rate(p.max_rate)));
+                    watched.push(Box::new(w.with_max_rate(p.max_rate).counted(self.set_stats[si].clone())));
                 }
             }
         }
         if self.clock_domain == Some(di) {
             let topic = config::dds_topic(&config::ros_namespace(&self.opts.ros_namespace)?, "clock");
             let writer = self.dds.writer(&topic, clock::TYPE, &clock::qos())?;
-            let activation = route_out(&mut self.routes, di, vec![topic.clone()], false);
+            let activation = route_out(&mut self.routes, di, vec![topic.clone()], None);
             watched.push(Box::new(ClockPump::new(d.name.clone(), writer, activation, self.opts.clock_rate)));
             self.topics += 1;
             info!(domain = %d.name, "/{}: the simulated time of {}", topic.trim_start_matches("rt/"), d.name);
@@ -341,13 +348,14 @@ impl Manager {
     fn inbound(
         &mut self,
         domain: usize,
+        set: usize,
         topic: &str,
         dds_type: &str,
         decode: Decode,
         rq: &Qos,
     ) -> Result<(), GatewayError> {
         let direct = Direct::default();
-        self.routes.push(Route::In { domain, topic: topic.to_string(), direct: direct.clone() });
+        self.routes.push(Route::In { domain, set, topic: topic.to_string(), direct: direct.clone() });
         let to = (self.routes.len() - 1, self.events_tx.clone(), direct);
         let sink = from_dds::sink(decode.clone(), to, self.stats.clone(), self.dds.own_prefix());
         self.dds.reader(topic, dds_type, rq, decode, sink)
@@ -414,11 +422,11 @@ impl Manager {
                 }
             }
             Event::Bad { route, error } => {
-                Stats::add(&self.stats.bad_samples, 1);
-                let topic = match self.routes.get(route) {
-                    Some(Route::In { topic, .. }) => topic.as_str(),
-                    _ => "?",
+                let (topic, set) = match self.routes.get(route) {
+                    Some(Route::In { topic, set, .. }) => (topic.as_str(), self.set_stats.get(*set).map(|s| &**s)),
+                    _ => ("?", None),
                 };
+                SetStats::add(set, |s| &s.bad_input, &self.stats.bad_samples, 1);
                 if let Some(held) = self.bad_log.allow() {
                     warn!(topic, "sample dropped ({held} more since the last report): {error}");
                 }
@@ -429,7 +437,7 @@ impl Manager {
     /// Gives remote writer `key.1` of inbound route `key.0` its connection (committed by
     /// the route's reader task where the domain allows); false if it cannot be started.
     fn add_writer(&mut self, key: (usize, Guid)) -> bool {
-        let Some(Route::In { domain, direct, .. }) = self.routes.get(key.0) else { return false };
+        let Some(Route::In { domain, set, direct, .. }) = self.routes.get(key.0) else { return false };
         let d = &self.domains[*domain];
         let gid = key.1;
         let spawned = RemoteWriter::spawn(
@@ -437,7 +445,7 @@ impl Manager {
             gid,
             d.synchronous,
             self.cfg.clone(),
-            self.stats.clone(),
+            (self.stats.clone(), self.set_stats[*set].clone()),
             d.own_commits.clone(),
         );
         match spawned {
@@ -481,21 +489,27 @@ impl Manager {
         let remote = self.dds.remote();
         let mut readers = vec![0usize; self.domains.len()];
         let mut matched_writers: BTreeSet<(usize, Guid)> = BTreeSet::new();
+        let mut set_writers: Vec<BTreeSet<Guid>> = vec![BTreeSet::new(); self.plan.len()];
         for (ri, route) in self.routes.iter().enumerate() {
             match route {
                 Route::Out { domain, topics, activation, set } => {
                     let on = remote.readers_on(topics);
                     activation.set_readers(&on);
-                    if *set {
+                    if let Some(si) = set {
                         readers[*domain] += on.len();
+                        self.set_stats[*si].readers.store(on.len() as u64, Ordering::Relaxed);
                     }
                 }
-                Route::In { domain, topic, .. } => {
+                Route::In { domain, set, topic, .. } => {
+                    set_writers[*set].extend(remote.writers_on(topic));
                     if self.domains[*domain].mirror.is_none() {
                         matched_writers.extend(remote.writers_on(topic).map(|g| (ri, g)));
                     }
                 }
             }
+        }
+        for (s, w) in self.set_stats.iter().zip(&set_writers) {
+            s.writers.store(w.len() as u64, Ordering::Relaxed);
         }
         // Remote writers: a connection each, from the moment they match.
         for &key in &matched_writers {
@@ -563,7 +577,7 @@ fn set_writer(dds: &dyn Engine, d: &Domain, p: &PlannedSet) -> Result<Outbound, 
 
 /// A shared-memory -> DDS route over `topics`: registered in `routes`, and its activation
 /// (on while the topics have remote readers) returned for the thread that serves it.
-fn route_out(routes: &mut Vec<Route>, domain: usize, topics: Vec<String>, set: bool) -> Arc<Activation> {
+fn route_out(routes: &mut Vec<Route>, domain: usize, topics: Vec<String>, set: Option<usize>) -> Arc<Activation> {
     let activation = Arc::new(Activation::default());
     routes.push(Route::Out { domain, topics, activation: activation.clone(), set });
     activation

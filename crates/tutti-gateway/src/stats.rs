@@ -64,6 +64,34 @@ impl fmt::Display for Stats {
     }
 }
 
+/// The counters of one bridged set (its topic, or its per-item topics), for the stats
+/// endpoint; the totals stay in [`Stats`].
+#[derive(Debug, Default)]
+pub struct SetStats {
+    /// Samples written to DDS.
+    pub samples_out: AtomicU64,
+    /// DDS samples committed to shared memory (or published by a mirror).
+    pub samples_in: AtomicU64,
+    /// Samples not delivered: DDS samples refused by the role rules, late or failing, and
+    /// synchronous steps the pump could not send.
+    pub dropped: AtomicU64,
+    /// DDS samples that could not be decoded.
+    pub bad_input: AtomicU64,
+    /// Matched remote readers and writers of the set's topics (each once).
+    pub readers: AtomicU64,
+    pub writers: AtomicU64,
+}
+
+impl SetStats {
+    /// Counts `n` in `counter` of the set (if any) and `total` of the gateway.
+    pub fn add(set: Option<&SetStats>, counter: fn(&SetStats) -> &AtomicU64, total: &AtomicU64, n: u64) {
+        if let Some(s) = set {
+            counter(s).fetch_add(n, Ordering::Relaxed);
+        }
+        total.fetch_add(n, Ordering::Relaxed);
+    }
+}
+
 /// Lets a repeated warning through once per interval (a misbehaving peer must not flood
 /// the log); counts what it held back.
 #[derive(Debug)]

@@ -31,7 +31,7 @@ use tutti_core::shm::{Participant, ShmError};
 use super::{per_item, Event, Inbound, Payload, ShmConfig};
 use crate::cdr::SetCodec;
 use crate::engine::{Data, Decode, Guid, Sink, PREFIX_LEN};
-use crate::stats::{LogLimit, Stats};
+use crate::stats::{LogLimit, SetStats, Stats};
 
 /// The remote writers of one route whose samples the reader task commits itself
 /// (asynchronous domains); the manager adds and removes them as discovery changes.
@@ -121,15 +121,17 @@ struct Delivery {
     domain: String,
     name: String,
     stats: Arc<Stats>,
+    /// The counters of the set this writer writes.
+    set: Arc<SetStats>,
     own_commits: Arc<AtomicU64>,
     refused_log: LogLimit,
     error_log: LogLimit,
 }
 
 impl Delivery {
-    fn new(domain: String, name: String, stats: Arc<Stats>, own_commits: Arc<AtomicU64>) -> Self {
+    fn new(domain: String, name: String, stats: Arc<Stats>, set: Arc<SetStats>, own_commits: Arc<AtomicU64>) -> Self {
         let limit = || LogLimit::new(Duration::from_secs(5));
-        Delivery { domain, name, stats, own_commits, refused_log: limit(), error_log: limit() }
+        Delivery { domain, name, stats, set, own_commits, refused_log: limit(), error_log: limit() }
     }
 
     /// Commits `payload` through `p` (None: the domain is not running, and the sample is
@@ -137,18 +139,20 @@ impl Delivery {
     /// to connect again.
     fn deliver(&mut self, p: &mut Option<Participant>, sample: Sample<'_>) {
         let (domain, name, stats) = (&self.domain, &self.name, &self.stats);
+        let set = Some(&*self.set);
+        let dropped = |total: &AtomicU64| SetStats::add(set, |s| &s.dropped, total, 1);
         let Some(part) = p.as_mut() else {
-            Stats::add(&stats.errors, 1);
+            dropped(&stats.errors);
             if self.error_log.allow().is_some() {
                 warn!(domain = %domain, "{name}: sample dropped: the domain is not running");
             }
             return;
         };
         match commit(part, sample, &self.own_commits) {
-            Ok(Committed::Yes) => Stats::add(&stats.from_dds, 1),
-            Ok(Committed::Late) => Stats::add(&stats.late, 1),
+            Ok(Committed::Yes) => SetStats::add(set, |s| &s.samples_in, &stats.from_dds, 1),
+            Ok(Committed::Late) => dropped(&stats.late),
             Err(e @ ShmError::NotOwner { .. }) => {
-                Stats::add(&stats.refused, 1);
+                dropped(&stats.refused);
                 if let Some(held) = self.refused_log.allow() {
                     warn!(domain = %domain, "{name}: sample refused ({held} more since the last report): {e}");
                 }
@@ -159,12 +163,12 @@ impl Delivery {
                 }
             }
             Err(e @ (ShmError::ConnectionLost { .. } | ShmError::FrameworkStopped { .. })) => {
-                Stats::add(&stats.errors, 1);
+                dropped(&stats.errors);
                 info!(domain = %domain, "{name}: {e}; reconnecting");
                 *p = None;
             }
             Err(e) => {
-                Stats::add(&stats.errors, 1);
+                dropped(&stats.errors);
                 if let Some(held) = self.error_log.allow() {
                     debug!(domain = %domain, "{name}: sample dropped ({held} more): {e}");
                 }
@@ -211,11 +215,11 @@ impl RemoteWriter {
         writer: Guid,
         synchronous: bool,
         cfg: ShmConfig,
-        stats: Arc<Stats>,
+        (stats, set): (Arc<Stats>, Arc<SetStats>),
         own_commits: Arc<AtomicU64>,
     ) -> std::io::Result<Self> {
         let name = format!("dds-writer {}", writer.short());
-        let out = Delivery::new(domain, name, stats, own_commits);
+        let out = Delivery::new(domain, name, stats, set, own_commits);
         if !synchronous {
             let mut inline = Inline { out, cfg, p: None, next_try: Instant::now() };
             inline.connect();

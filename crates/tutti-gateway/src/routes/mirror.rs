@@ -21,7 +21,7 @@ use tutti_core::shm::DomainHost;
 use super::to_dds::Outbound;
 use super::ShmConfig;
 use crate::cdr::TypedSample;
-use crate::stats::{LogLimit, Stats};
+use crate::stats::{LogLimit, SetStats, Stats};
 
 /// Starts the thread that hosts one mirrored domain (`out`: its SUBSCRIBE writer, None when
 /// the config file leaves that set out).
@@ -31,6 +31,7 @@ pub fn spawn(
     mut out: Option<Outbound>,
     cfg: ShmConfig,
     stats: Arc<Stats>,
+    (set_in, set_out): (Arc<SetStats>, Arc<SetStats>),
 ) -> std::io::Result<JoinHandle<()>> {
     let name = host.info().name.clone();
     thread::Builder::new().name("tutti-gw-mirror".into()).stack_size(512 << 10).spawn(move || {
@@ -45,7 +46,7 @@ pub fn spawn(
             match rx.recv_timeout(idle) {
                 Ok(s) => {
                     if s.data.len() != host.info().publish.size as usize {
-                        Stats::add(&stats.bad_samples, 1);
+                        SetStats::add(Some(&set_in), |s| &s.bad_input, &stats.bad_samples, 1);
                         continue;
                     }
                     let r = host.publish_step(&s.data, s.sim_time).and_then(|_| {
@@ -56,18 +57,19 @@ pub fn spawn(
                         }
                     });
                     if let Err(e) = r {
-                        Stats::add(&stats.errors, 1);
+                        SetStats::add(Some(&set_in), |s| &s.dropped, &stats.errors, 1);
                         if log.allow().is_some() {
                             warn!(domain = %name, "mirror step failed: {e}");
                         }
                         continue;
                     }
-                    Stats::add(&stats.from_dds, 1);
+                    SetStats::add(Some(&set_in), |s| &s.samples_in, &stats.from_dds, 1);
                     last_step = s.step;
                     sim_time = s.sim_time;
                     if let (true, true, Some(out)) = (sync, host.seeded(), out.as_mut()) {
                         last_sub = host.segment().generation(Role::Subscribe);
-                        out.send(last_step, sim_time, host.subscribe(), &stats);
+                        let n = out.send(last_step, sim_time, host.subscribe(), &stats);
+                        Stats::add(&set_out.samples_out, n);
                     }
                 }
                 Err(RecvTimeoutError::Timeout) => {}
@@ -78,7 +80,8 @@ pub fn spawn(
                 if cur != last_sub && host.seeded() {
                     last_sub = cur;
                     if let (Some(out), Ok(sub)) = (out.as_mut(), host.read_subscribe()) {
-                        out.send(last_step, sim_time, sub, &stats);
+                        let n = out.send(last_step, sim_time, sub, &stats);
+                        Stats::add(&set_out.samples_out, n);
                     }
                 }
             }

@@ -27,7 +27,7 @@ use super::per_item::ItemWriters;
 use super::ShmConfig;
 use crate::cdr::SetCodec;
 use crate::engine::{Guid, Writer};
-use crate::stats::{LogLimit, Stats};
+use crate::stats::{LogLimit, SetStats, Stats};
 
 /// The typed writer of one set.
 pub struct SetWriter {
@@ -197,6 +197,8 @@ pub struct Watched {
     /// Shortest time between two samples (zero: no limit), and when the next may go.
     min_interval: Duration,
     next_allowed: Instant,
+    /// The set's own counters (the stats endpoint).
+    set: Option<Arc<SetStats>>,
 }
 
 /// Samples of a set changing flat out that go out in one batch at most.
@@ -225,7 +227,14 @@ impl Watched {
             unflushed: 0,
             min_interval: Duration::ZERO,
             next_allowed: Instant::now(),
+            set: None,
         }
+    }
+
+    /// Counts what it sends in `set` too.
+    pub fn counted(mut self, set: Arc<SetStats>) -> Self {
+        self.set = Some(set);
+        self
     }
 
     /// At most `rate` samples a second (None: every change): a set changing faster goes out
@@ -293,7 +302,11 @@ impl Watched {
         }
         let step = h.pub_step.load(Ordering::Acquire);
         let sim_time = f64::from_bits(h.sim_time_bits.load(Ordering::Relaxed));
-        self.out.write(step, sim_time, &self.buf, stats) > 0
+        let n = self.out.write(step, sim_time, &self.buf, stats);
+        if let Some(set) = &self.set {
+            Stats::add(&set.samples_out, n);
+        }
+        n > 0
     }
 }
 
@@ -377,7 +390,7 @@ pub fn spawn_sync_pump(
     mut out: Outbound,
     activation: Arc<Activation>,
     cfg: ShmConfig,
-    stats: Arc<Stats>,
+    (stats, set): (Arc<Stats>, Arc<SetStats>),
 ) -> std::io::Result<JoinHandle<()>> {
     thread::Builder::new()
         .name(format!("tutti-gw-sync-{}", domain.chars().take(10).collect::<String>()))
@@ -421,7 +434,7 @@ pub fn spawn_sync_pump(
                 }
                 let missed = step - last - 1;
                 if missed > 0 && last > 0 {
-                    Stats::add(&stats.skipped, missed);
+                    SetStats::add(Some(&set), |s| &s.dropped, &stats.skipped, missed);
                     if let Some(held) = skip_log.allow() {
                         warn!(
                             domain = %domain,
@@ -431,7 +444,8 @@ pub fn spawn_sync_pump(
                 }
                 last = step;
                 let sim_time = f64::from_bits(h.sim_time_bits.load(Ordering::Acquire));
-                out.send(step, sim_time, &buf, &stats);
+                let n = out.send(step, sim_time, &buf, &stats);
+                Stats::add(&set.samples_out, n);
             }
         })
 }
