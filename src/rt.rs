@@ -183,6 +183,8 @@ pub struct Ticker {
     start: Instant,
     period: Duration,
     k: u64,
+    /// Late steps run back to back instead of being skipped.
+    catch_up: bool,
     pub overruns: u64,
     pub max_late: Duration,
 }
@@ -200,11 +202,19 @@ pub struct Tick {
 
 impl Ticker {
     pub fn new(period: Duration) -> Self {
-        Ticker { start: Instant::now(), period, k: 0, overruns: 0, max_late: Duration::ZERO }
+        Ticker { start: Instant::now(), period, k: 0, catch_up: false, overruns: 0, max_late: Duration::ZERO }
+    }
+
+    /// A ticker that never skips a deadline: after an overrun the late steps follow each other
+    /// at once until the loop is on time again, so that tick `k` is always the `k`-th step
+    /// (simulated time stays at one period per step, whatever the machine's load).
+    pub fn catching_up(period: Duration) -> Self {
+        Ticker { catch_up: true, ..Ticker::new(period) }
     }
 
     /// Waits for the next deadline. When the loop is a period or more behind, the overrun is
-    /// counted and the missed deadlines are skipped (no burst of catch-up steps).
+    /// counted and the missed deadlines are skipped (no burst of catch-up steps), unless the
+    /// ticker catches up ([`Ticker::catching_up`]).
     pub fn wait(&mut self) -> Tick {
         let mut deadline = self.start + self.period.mul_f64(self.k as f64);
         let now = Instant::now();
@@ -212,9 +222,11 @@ impl Ticker {
         if now >= deadline + self.period {
             overrun = true;
             self.overruns += 1;
-            let behind = (now - deadline).as_nanos() / self.period.as_nanos().max(1);
-            self.k += behind as u64;
-            deadline = self.start + self.period.mul_f64(self.k as f64);
+            if !self.catch_up {
+                let behind = (now - deadline).as_nanos() / self.period.as_nanos().max(1);
+                self.k += behind as u64;
+                deadline = self.start + self.period.mul_f64(self.k as f64);
+            }
         }
         // Sleep most of the way, then spin the last stretch for a precise release.
         loop {
@@ -251,6 +263,17 @@ mod tests {
         assert!(tick.overrun);
         assert!(tick.k > 2);
         assert_eq!(t.overruns, 1);
+    }
+
+    #[test]
+    fn a_catching_up_ticker_never_skips_a_tick() {
+        let mut t = Ticker::catching_up(Duration::from_millis(2));
+        assert_eq!(t.wait().k, 0);
+        std::thread::sleep(Duration::from_millis(10));
+        let tick = t.wait();
+        assert!(tick.overrun);
+        assert_eq!(tick.k, 1, "the late tick is the next one, not a later one");
+        assert_eq!(t.wait().k, 2);
     }
 
     #[test]

@@ -75,7 +75,8 @@ fn an_installed_rtapi_builds_c_programs_with_pkg_config_and_cmake_and_a_pip_inst
     let (Some(()), Some(()), Some(())) = (tool("pkg-config"), tool("cmake"), tool("gcc")) else { return };
     let dir = tempfile::tempdir().unwrap();
     let prefix = dir.path().join("prefix");
-    let build_dir: PathBuf = Path::new(env!("CARGO_BIN_EXE_tutti")).parent().unwrap().to_path_buf();
+    // Built here when the test runs before the workspace was built (cargo test alone).
+    let build_dir: PathBuf = common::ensure_rtapi();
     let mut install = Command::new("bash");
     install
         .arg(root().join("launch-scripts/install.sh"))

@@ -33,6 +33,11 @@ pub struct Args {
     /// there are several: FILE's stem + '-DOMAIN.csv'). Repeatable.
     #[arg(long, value_name = "FILE")]
     record: Vec<PathBuf>,
+    /// When the loop falls behind, run the late steps back to back instead of skipping them:
+    /// simulated time stays at one step per period (it then lags the wall clock), so a run's
+    /// results do not depend on the machine's load.
+    #[arg(long)]
+    catch_up: bool,
     /// Longest wait for the participants of a synchronous step, and for a seed.
     #[arg(long, default_value = "1s", value_parser = parse_duration)]
     timeout: Duration,
@@ -160,7 +165,7 @@ pub fn run(args: Args) -> CliResult {
     if args.hold.is_none() {
         fw.domains.iter().for_each(|d| d.set_hold(false));
     }
-    let mut ticker = Ticker::new(args.step);
+    let mut ticker = if args.catch_up { Ticker::catching_up(args.step) } else { Ticker::new(args.step) };
     let run_start = Instant::now();
     let mut last_report = Instant::now();
     let mut held = args.hold.is_some();

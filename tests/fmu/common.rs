@@ -110,7 +110,21 @@ pub fn host(
     let mut cmd = Command::new(env!("CARGO_BIN_EXE_tutti"));
     cmd.args(["host"])
         .arg(ddf)
-        .args(["--step", "10ms", "--duration", duration, "--timeout", "2s", "--set", set, "-q", "--record"])
+        // --catch-up: every step is one period of simulated time even when the machine is
+        // loaded (a skipped period would make one doStep longer than fmpy's).
+        .args([
+            "--step",
+            "10ms",
+            "--catch-up",
+            "--duration",
+            duration,
+            "--timeout",
+            "2s",
+            "--set",
+            set,
+            "-q",
+            "--record",
+        ])
         .arg(csv)
         .env("TUTTI_NAMESPACE", ns);
     thread::spawn(move || run_with_timeout(cmd, Duration::from_secs(120)))
