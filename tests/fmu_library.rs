@@ -37,7 +37,9 @@ fn one_program_runs_two_fmus_in_two_domains_through_the_library() {
     let mut host = Command::new(env!("CARGO_BIN_EXE_tutti"));
     host.arg("host")
         .arg(&ddf)
-        .args(["--step", "10ms", "--duration", "3s", "--timeout", "2s", "-q"])
+        // --catch-up: each step is 10 ms of simulated time even on a loaded machine, so 40
+        // steps integrate over exactly 0.4 s.
+        .args(["--step", "10ms", "--catch-up", "--duration", "3s", "--timeout", "2s", "-q"])
         .args(["--set", "int_a/u=1", "--set", "int_b/u=-2", "--record"])
         .arg(&csv)
         .env("TUTTI_NAMESPACE", &ns);
