@@ -44,9 +44,7 @@ impl Drop for HostGuard {
         }
         let _ = self.0.kill();
         let _ = self.0.wait();
-        for d in ["multiuav_uav1", "multiuav_uav2", "multiuav_uav3", "multiuav_uav4"] {
-            let _ = std::fs::remove_file(format!("/dev/shm/tutti.{}.{d}", self.1));
-        }
+        drop(common::RemoveSegments(self.1.clone()));
     }
 }
 

@@ -14,21 +14,6 @@ use tutti_core::shm::{ConnectOptions, Participant};
 
 const LIMIT: Duration = Duration::from_secs(120);
 
-/// Removes the segments of namespace `.0` when dropped: a framework killed by a watchdog
-/// leaves them behind.
-struct Segments(String);
-
-impl Drop for Segments {
-    fn drop(&mut self) {
-        let prefix = format!("tutti.{}.", self.0);
-        for e in std::fs::read_dir("/dev/shm").into_iter().flatten().flatten() {
-            if e.file_name().to_string_lossy().starts_with(&prefix) {
-                let _ = std::fs::remove_file(e.path());
-            }
-        }
-    }
-}
-
 fn root() -> &'static Path {
     Path::new(env!("CARGO_MANIFEST_DIR"))
 }
@@ -66,7 +51,7 @@ fn beside_component(
 fn a_replay_against_the_same_c_component_shows_no_difference_and_a_changed_answer_is_found() {
     let dir = tempfile::tempdir().unwrap();
     let ns = format!("replay{}", std::process::id());
-    let _segments = Segments(ns.clone());
+    let _segments = common::RemoveSegments(ns.clone());
     let answer = compile_answer(dir.path());
     let run = dir.path().join("run.mcap");
 
@@ -133,7 +118,7 @@ fn a_replay_against_the_same_c_component_shows_no_difference_and_a_changed_answe
 fn a_replay_republishes_every_recorded_step_with_its_simulated_time() {
     let dir = tempfile::tempdir().unwrap();
     let ns = format!("replaypub{}", std::process::id());
-    let _segments = Segments(ns.clone());
+    let _segments = common::RemoveSegments(ns.clone());
     let ddf = root().join("ddf/multiuav.ddf");
     let mut model = tutti_core::ddf::load(&ddf).unwrap();
     model.domains.retain(|d| d.name == "multiuav_uav2");
@@ -208,7 +193,7 @@ fn a_replay_republishes_every_recorded_step_with_its_simulated_time() {
 fn replay_refuses_what_is_not_a_recording_or_not_recorded() {
     let dir = tempfile::tempdir().unwrap();
     let ns = format!("replaybad{}", std::process::id());
-    let _segments = Segments(ns.clone());
+    let _segments = common::RemoveSegments(ns.clone());
     let junk = dir.path().join("junk.mcap");
     std::fs::write(&junk, b"not an mcap file").unwrap();
     let mut c = tutti(&ns, &["replay"]);

@@ -401,18 +401,6 @@ fn compile_ramp(dir: &Path) -> PathBuf {
     )
 }
 
-fn shm_left(namespace: &str) -> Vec<String> {
-    let prefix = format!("tutti.{namespace}.");
-    std::fs::read_dir("/dev/shm")
-        .map(|d| {
-            d.flatten()
-                .map(|e| e.file_name().to_string_lossy().into_owned())
-                .filter(|n| n.starts_with(&prefix))
-                .collect()
-        })
-        .unwrap_or_default()
-}
-
 /// (b) ddf/multiuav.ddf opened, its host started from the page, a C component connected:
 /// its connection appears in the table and the item it writes changes in the plot; killed
 /// with SIGKILL, its connection goes.
@@ -470,8 +458,8 @@ async fn monitor_follows_a_host_started_from_the_page_and_a_c_component() {
         w.click("#stop-host").await;
         w.message_contains("stopped tutti host").await;
         let deadline = Instant::now() + WAIT;
-        while !shm_left(&w.namespace).is_empty() {
-            assert!(Instant::now() < deadline, "segments left: {:?}", shm_left(&w.namespace));
+        while !common::segments_of(&w.namespace).is_empty() {
+            assert!(Instant::now() < deadline, "segments left: {:?}", common::segments_of(&w.namespace));
             tokio::time::sleep(Duration::from_millis(100)).await;
         }
         w.close().await;
