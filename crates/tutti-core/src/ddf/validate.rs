@@ -42,38 +42,38 @@ pub fn name_problem(name: &str) -> Option<String> {
 }
 
 /// Validates a parsed tree; `source` is only recorded in the model.
-pub fn validate(root: &RawElement, source: &str) -> Result<Model, Vec<Diagnostic>> {
+pub fn validate(root: RawElement, source: &str) -> Result<Model, Vec<Diagnostic>> {
     let mut d = Diags::default();
-    if root.name != "orchestra" {
-        d.at(root.pos, format!("the root element is <{}>; a DDF's root element is <orchestra>", root.name));
+    if root.name() != "orchestra" {
+        d.at(root.pos(), format!("the root element is <{}>; a DDF's root element is <orchestra>", root.name()));
         return Err(d.0);
     }
     no_attrs(root, &mut d);
     no_text(root, &mut d);
     let mut domains = Vec::new();
     let mut seen: HashMap<String, Pos> = HashMap::new();
-    for child in &root.children {
-        if child.name != "domain" {
-            d.at(child.pos, format!("unknown element <{}> in <orchestra>; expected <domain>", child.name));
+    for child in root.children() {
+        if child.name() != "domain" {
+            d.at(child.pos(), format!("unknown element <{}> in <orchestra>; expected <domain>", child.name()));
             continue;
         }
         if let Some(domain) = domain(child, &mut d) {
             if let Some(first) = seen.get(&domain.name) {
                 d.at(
-                    child.pos,
+                    child.pos(),
                     format!(
                         "duplicate domain name '{}' (first defined at line {}, column {})",
                         domain.name, first.line, first.col
                     ),
                 );
             } else {
-                seen.insert(domain.name.clone(), child.pos);
+                seen.insert(domain.name.clone(), child.pos());
                 domains.push(domain);
             }
         }
     }
-    if root.children.is_empty() {
-        d.at(root.pos, "<orchestra> contains no <domain>: the file describes no data");
+    if !root.has_children() {
+        d.at(root.pos(), "<orchestra> contains no <domain>: the file describes no data");
     }
     if d.0.is_empty() {
         Ok(Model { source: source.to_string(), domains })
@@ -83,28 +83,28 @@ pub fn validate(root: &RawElement, source: &str) -> Result<Model, Vec<Diagnostic
     }
 }
 
-fn no_attrs(el: &RawElement, d: &mut Diags) {
+fn no_attrs(el: RawElement, d: &mut Diags) {
     only_attrs(el, &[], d);
 }
 
-fn only_attrs(el: &RawElement, allowed: &[&str], d: &mut Diags) {
-    for a in &el.attrs {
+fn only_attrs(el: RawElement, allowed: &[&str], d: &mut Diags) {
+    for a in el.attrs() {
         if !allowed.contains(&&*a.name) {
-            d.at(el.pos, format!("unknown attribute '{}' on <{}>", a.name, el.name));
+            d.at(el.pos(), format!("unknown attribute '{}' on <{}>", a.name, el.name()));
         }
     }
 }
 
-fn no_text(el: &RawElement, d: &mut Diags) {
+fn no_text(el: RawElement, d: &mut Diags) {
     if !el.text().is_empty() {
-        d.at(el.text_pos.unwrap_or(el.pos), format!("unexpected text '{}' in <{}>", shorten(el.text()), el.name));
+        d.at(el.text_pos().unwrap_or(el.pos()), format!("unexpected text '{}' in <{}>", shorten(el.text()), el.name()));
     }
 }
 
-fn leaf_element(el: &RawElement, d: &mut Diags) {
+fn leaf_element(el: RawElement, d: &mut Diags) {
     no_attrs(el, d);
-    for c in &el.children {
-        d.at(c.pos, format!("unexpected element <{}> inside <{}>", c.name, el.name));
+    for c in el.children() {
+        d.at(c.pos(), format!("unexpected element <{}> inside <{}>", c.name(), el.name()));
     }
 }
 
@@ -113,15 +113,15 @@ fn shorten(s: &str) -> String {
 }
 
 /// The `name` attribute, checked; reports and returns `None` when missing or invalid.
-fn name_attr(el: &RawElement, what: &str, d: &mut Diags) -> Option<String> {
+fn name_attr(el: RawElement, what: &str, d: &mut Diags) -> Option<String> {
     match el.attr("name") {
         None => {
-            d.at(el.pos, format!("<{}> has no name attribute", el.name));
+            d.at(el.pos(), format!("<{}> has no name attribute", el.name()));
             None
         }
         Some(name) => match name_problem(name) {
             Some(problem) => {
-                d.at(el.pos, format!("{what} name '{}' {problem}", shorten(name)));
+                d.at(el.pos(), format!("{what} name '{}' {problem}", shorten(name)));
                 None
             }
             None => Some(name.to_string()),
@@ -129,19 +129,22 @@ fn name_attr(el: &RawElement, what: &str, d: &mut Diags) -> Option<String> {
     }
 }
 
-fn yes_no(el: &RawElement, d: &mut Diags) -> Option<bool> {
+fn yes_no(el: RawElement, d: &mut Diags) -> Option<bool> {
     leaf_element(el, d);
     match el.text().to_ascii_lowercase().as_str() {
         "yes" => Some(true),
         "no" => Some(false),
         other => {
-            d.at(el.text_pos.unwrap_or(el.pos), format!("<{}> must be yes or no, found '{}'", el.name, shorten(other)));
+            d.at(
+                el.text_pos().unwrap_or(el.pos()),
+                format!("<{}> must be yes or no, found '{}'", el.name(), shorten(other)),
+            );
             None
         }
     }
 }
 
-fn domain(el: &RawElement, d: &mut Diags) -> Option<Domain> {
+fn domain(el: RawElement, d: &mut Diags) -> Option<Domain> {
     only_attrs(el, &["name"], d);
     no_text(el, d);
     let name = name_attr(el, "domain", d);
@@ -151,12 +154,12 @@ fn domain(el: &RawElement, d: &mut Diags) -> Option<Domain> {
     let mut connection = None;
     let mut connection_seen = false;
     let mut sets: [Option<(Set, Pos)>; 2] = [None, None];
-    for child in &el.children {
-        match &*child.name {
+    for child in el.children() {
+        match child.name() {
             flag @ ("synchronous" | "multiplePublishAllowed" | "states") => {
                 if let Some(first) = flag_seen.get(flag) {
                     d.at(
-                        child.pos,
+                        child.pos(),
                         format!(
                             "domain '{label}' has a second <{flag}> (the first is at line {}, column {})",
                             first.line, first.col
@@ -164,7 +167,7 @@ fn domain(el: &RawElement, d: &mut Diags) -> Option<Domain> {
                     );
                     continue;
                 }
-                flag_seen.insert(flag, child.pos);
+                flag_seen.insert(flag, child.pos());
                 if let Some(v) = yes_no(child, d) {
                     match flag {
                         "synchronous" => flags.synchronous = v,
@@ -175,7 +178,7 @@ fn domain(el: &RawElement, d: &mut Diags) -> Option<Domain> {
             }
             "connection" => {
                 if connection_seen {
-                    d.at(child.pos, format!("domain '{label}' has a second <connection>"));
+                    d.at(child.pos(), format!("domain '{label}' has a second <connection>"));
                 }
                 connection_seen = true;
                 connection = connection_element(child, &label, d).or(connection);
@@ -186,19 +189,19 @@ fn domain(el: &RawElement, d: &mut Diags) -> Option<Domain> {
                 let slot = &mut sets[role as usize];
                 if let Some((_, first)) = slot {
                     d.at(
-                        child.pos,
+                        child.pos(),
                         format!(
                             "domain '{label}' has a second {role} set (the first is at line {}, column {}); a domain has at most one set of each role",
                             first.line, first.col
                         ),
                     );
                 } else if let Some(set) = set {
-                    *slot = Some((set, child.pos));
+                    *slot = Some((set, child.pos()));
                 }
             }
             other => {
                 d.at(
-                    child.pos,
+                    child.pos(),
                     format!(
                         "unknown element <{other}> in domain '{label}'; expected <synchronous>, <multiplePublishAllowed>, <states>, <connection>, <set> or <block>"
                     ),
@@ -213,7 +216,7 @@ fn domain(el: &RawElement, d: &mut Diags) -> Option<Domain> {
     let publish = publish.map(|(s, _)| s).unwrap_or_else(|| empty(Role::Publish));
     let subscribe = subscribe.map(|(s, _)| s).unwrap_or_else(|| empty(Role::Subscribe));
     let layout_hash = layout::layout_hash(&name, flags, &publish.layout, &subscribe.layout);
-    Some(Domain { name, flags, connection, publish, subscribe, layout_hash, pos: el.pos })
+    Some(Domain { name, flags, connection, publish, subscribe, layout_hash, pos: el.pos() })
 }
 
 /// The attributes of a `local` connection, and the integer range of those that are numbers.
@@ -246,7 +249,7 @@ fn integer_in(value: &str, (lo, hi): (i64, i64)) -> Result<i64, String> {
 /// `<connection type="local" extcomm=".." addrframework=".." portframework=".." .../>`,
 /// `<connection type="remote"><card>NAME</card><pciindex>N</pciindex></connection>`,
 /// `<connection type="dolphin"><nodeIdFramework>N</nodeIdFramework><segmentId>N</segmentId></connection>`.
-fn connection_element(el: &RawElement, domain: &str, d: &mut Diags) -> Option<Connection> {
+fn connection_element(el: RawElement, domain: &str, d: &mut Diags) -> Option<Connection> {
     no_text(el, d);
     let kind = match el.attr("type").map(str::to_ascii_lowercase).as_deref() {
         None | Some("local") => ConnectionKind::Local,
@@ -254,23 +257,23 @@ fn connection_element(el: &RawElement, domain: &str, d: &mut Diags) -> Option<Co
         Some("dolphin") => ConnectionKind::Dolphin,
         Some(_) => {
             let t = el.attr("type").unwrap_or_default();
-            d.at(el.pos, format!("<connection> type must be local, remote or dolphin, found '{}'", shorten(t)));
+            d.at(el.pos(), format!("<connection> type must be local, remote or dolphin, found '{}'", shorten(t)));
             return None;
         }
     };
     let before = d.0.len();
     let attributes: Vec<(String, String)> =
-        el.attrs.iter().map(|a| (a.name.to_string(), a.value.to_string())).collect();
+        el.attrs().iter().map(|a| (a.name.to_string(), a.value.to_string())).collect();
     let mut settings = Vec::new();
     match kind {
         ConnectionKind::Local => {
-            for a in &el.attrs {
+            for a in el.attrs() {
                 if a.name == "type" {
                     continue;
                 }
                 match LOCAL_ATTRIBUTES.iter().find(|(n, _)| *n == a.name) {
                     None => d.at(
-                        el.pos,
+                        el.pos(),
                         format!(
                             "unknown attribute '{}' on a local <connection> of domain '{domain}'; expected {}",
                             shorten(&a.name),
@@ -279,16 +282,16 @@ fn connection_element(el: &RawElement, domain: &str, d: &mut Diags) -> Option<Co
                     ),
                     Some((_, Some(range))) if !(a.value.trim().is_empty()) => {
                         if let Err(e) = integer_in(&a.value, *range) {
-                            d.at(el.pos, format!("<connection> {}='{}': {e}", a.name, shorten(&a.value)));
+                            d.at(el.pos(), format!("<connection> {}='{}': {e}", a.name, shorten(&a.value)));
                         }
                     }
                     Some(_) => {}
                 }
             }
-            for c in &el.children {
+            for c in el.children() {
                 d.at(
-                    c.pos,
-                    format!("unexpected element <{}> inside a local <connection> (it takes attributes)", c.name),
+                    c.pos(),
+                    format!("unexpected element <{}> inside a local <connection> (it takes attributes)", c.name()),
                 );
             }
         }
@@ -296,13 +299,13 @@ fn connection_element(el: &RawElement, domain: &str, d: &mut Diags) -> Option<Co
             only_attrs(el, &["type"], d);
             let expected = if kind == ConnectionKind::Remote { REMOTE_SETTINGS } else { DOLPHIN_SETTINGS };
             let names = || expected.iter().map(|(n, _)| format!("<{n}>")).collect::<Vec<_>>().join(" and ");
-            for c in &el.children {
-                let Some((_, range)) = expected.iter().find(|(n, _)| *n == c.name) else {
+            for c in el.children() {
+                let Some((_, range)) = expected.iter().find(|(n, _)| *n == c.name()) else {
                     d.at(
-                        c.pos,
+                        c.pos(),
                         format!(
                             "unexpected element <{}> inside a {} <connection>; expected {}",
-                            c.name,
+                            c.name(),
                             kind.as_str(),
                             names()
                         ),
@@ -310,21 +313,21 @@ fn connection_element(el: &RawElement, domain: &str, d: &mut Diags) -> Option<Co
                     continue;
                 };
                 leaf_element(c, d);
-                if settings.iter().any(|(n, _): &(String, String)| *n == c.name) {
-                    d.at(c.pos, format!("a second <{}> in the <connection> of domain '{domain}'", c.name));
+                if settings.iter().any(|(n, _): &(String, String)| *n == c.name()) {
+                    d.at(c.pos(), format!("a second <{}> in the <connection> of domain '{domain}'", c.name()));
                     continue;
                 }
                 let text = c.text().trim().to_string();
                 if let Some(range) = range {
                     if let Err(e) = integer_in(&text, *range) {
-                        d.at(c.text_pos.unwrap_or(c.pos), format!("<{}> '{}': {e}", c.name, shorten(&text)));
+                        d.at(c.text_pos().unwrap_or(c.pos()), format!("<{}> '{}': {e}", c.name(), shorten(&text)));
                     }
                 }
-                settings.push((c.name.to_string(), text));
+                settings.push((c.name().to_string(), text));
             }
             for (n, _) in expected {
                 if !settings.iter().any(|(s, _)| s == n) {
-                    d.at(el.pos, format!("the {} <connection> of domain '{domain}' has no <{n}>", kind.as_str()));
+                    d.at(el.pos(), format!("the {} <connection> of domain '{domain}' has no <{n}>", kind.as_str()));
                 }
             }
         }
@@ -332,10 +335,10 @@ fn connection_element(el: &RawElement, domain: &str, d: &mut Diags) -> Option<Co
     (d.0.len() == before).then_some(Connection { kind, attributes, settings })
 }
 
-fn set_role(el: &RawElement, d: &mut Diags) -> Option<Role> {
+fn set_role(el: RawElement, d: &mut Diags) -> Option<Role> {
     only_attrs(el, &["name"], d);
     let Some(name) = el.attr("name") else {
-        d.at(el.pos, format!("<{}> has no name attribute", el.name));
+        d.at(el.pos(), format!("<{}> has no name attribute", el.name()));
         return None;
     };
     // Paper dialect: "DOMAIN/Publish"; product dialect: "PUBLISH". Either way the last
@@ -345,18 +348,18 @@ fn set_role(el: &RawElement, d: &mut Diags) -> Option<Role> {
         "publish" => Some(Role::Publish),
         "subscribe" => Some(Role::Subscribe),
         _ => {
-            let expected = if el.name == "block" {
+            let expected = if el.name() == "block" {
                 "a block name must end in /Publish or /Subscribe"
             } else {
                 "a set is named PUBLISH or SUBSCRIBE"
             };
-            d.at(el.pos, format!("<{}> name '{}' names no role: {expected}", el.name, shorten(name)));
+            d.at(el.pos(), format!("<{}> name '{}' names no role: {expected}", el.name(), shorten(name)));
             None
         }
     }
 }
 
-fn set(el: &RawElement, role: Role, domain: &str, d: &mut Diags) -> Option<Set> {
+fn set(el: RawElement, role: Role, domain: &str, d: &mut Diags) -> Option<Set> {
     no_text(el, d);
     let before = d.0.len();
     let mut items = Vec::new();
@@ -365,10 +368,10 @@ fn set(el: &RawElement, role: Role, domain: &str, d: &mut Diags) -> Option<Set> 
         return None;
     }
     match layout::compute(&items) {
-        Ok(layout) => Some(Set { role, items, layout, pos: Some(el.pos) }),
+        Ok(layout) => Some(Set { role, items, layout, pos: Some(el.pos()) }),
         Err(bytes) => {
             d.at(
-                el.pos,
+                el.pos(),
                 format!(
                     "set {role} of domain '{domain}' would take {bytes} bytes; the limit is {} MiB",
                     MAX_SET_BYTES >> 20
@@ -381,7 +384,7 @@ fn set(el: &RawElement, role: Role, domain: &str, d: &mut Diags) -> Option<Set> 
 
 #[allow(clippy::too_many_arguments)]
 fn item_list(
-    parent: &RawElement,
+    parent: RawElement,
     role: Role,
     domain: &str,
     prefix: &str,
@@ -390,21 +393,21 @@ fn item_list(
     d: &mut Diags,
 ) {
     let mut seen: HashMap<String, Pos> = HashMap::new();
-    for child in &parent.children {
-        if child.name != "item" {
+    for child in parent.children() {
+        if child.name() != "item" {
             // Inside a bus item, its other children (<type>, <length>, <default> and unknown
             // elements) are checked and reported by `item`.
-            if parent.name == "item" {
+            if parent.name() == "item" {
                 continue;
             }
-            d.at(child.pos, format!("unknown element <{}> in <{}>; expected <item>", child.name, parent.name));
+            d.at(child.pos(), format!("unknown element <{}> in <{}>; expected <item>", child.name(), parent.name()));
             continue;
         }
         let Some(item) = item(child, role, domain, prefix, depth, d) else { continue };
         let path = join_path(prefix, &item.name);
         if let Some(first) = seen.get(&item.name) {
             d.at(
-                child.pos,
+                child.pos(),
                 format!(
                     "item path '{path}' appears twice in set {role} of domain '{domain}' (first at line {}, column {})",
                     first.line, first.col
@@ -412,12 +415,12 @@ fn item_list(
             );
             continue;
         }
-        seen.insert(item.name.clone(), child.pos);
+        seen.insert(item.name.clone(), child.pos());
         out.push(item);
     }
 }
 
-fn item(el: &RawElement, role: Role, domain: &str, prefix: &str, depth: usize, d: &mut Diags) -> Option<Item> {
+fn item(el: RawElement, role: Role, domain: &str, prefix: &str, depth: usize, d: &mut Diags) -> Option<Item> {
     only_attrs(el, &["name"], d);
     no_text(el, d);
     let name = name_attr(el, "item", d);
@@ -429,34 +432,34 @@ fn item(el: &RawElement, role: Role, domain: &str, prefix: &str, depth: usize, d
     let mut ty_el = None;
     let mut length_el = None;
     let mut default_el = None;
-    for child in &el.children {
-        let slot = match &*child.name {
+    for child in el.children() {
+        let slot = match child.name() {
             "type" => &mut ty_el,
             "length" => &mut length_el,
             "default" => &mut default_el,
             "item" => continue,
             other => {
                 d.at(
-                    child.pos,
+                    child.pos(),
                     format!("unknown element <{other}> in item '{label}'; expected <type>, <length>, <default> or nested <item>"),
                 );
                 continue;
             }
         };
         if slot.is_some() {
-            d.at(child.pos, format!("item '{label}' has a second <{}>", child.name));
+            d.at(child.pos(), format!("item '{label}' has a second <{}>", child.name()));
             continue;
         }
         leaf_element(child, d);
         *slot = Some(child);
     }
     let Some(ty_el) = ty_el else {
-        d.at(el.pos, format!("item '{label}' has no <type>"));
+        d.at(el.pos(), format!("item '{label}' has no <type>"));
         return None;
     };
     let Some(ty) = TypeName::parse(ty_el.text()) else {
         d.at(
-            ty_el.text_pos.unwrap_or(ty_el.pos),
+            ty_el.text_pos().unwrap_or(ty_el.pos()),
             format!(
                 "item '{label}' has unknown type '{}'; expected boolean, int8…int64, unsigned int8…unsigned int64, float32, float64 or bus",
                 shorten(ty_el.text())
@@ -470,7 +473,7 @@ fn item(el: &RawElement, role: Role, domain: &str, prefix: &str, depth: usize, d
             Ok(n) if (1..=u64::from(MAX_LENGTH)).contains(&n) => Some(n as u16),
             _ => {
                 d.at(
-                    l.text_pos.unwrap_or(l.pos),
+                    l.text_pos().unwrap_or(l.pos()),
                     format!(
                         "item '{label}' has length '{}'; a length is a whole number from 1 to {MAX_LENGTH}",
                         shorten(l.text())
@@ -480,34 +483,34 @@ fn item(el: &RawElement, role: Role, domain: &str, prefix: &str, depth: usize, d
             }
         },
     };
-    let nested: Vec<&RawElement> = el.children.iter().filter(|c| c.name == "item").collect();
+    let nested: Vec<RawElement> = el.children().filter(|c| c.name() == "item").collect();
     match ty {
         TypeName::Bus => {
             if let Some(def) = default_el {
-                d.at(def.pos, format!("bus item '{label}' cannot have a <default>; give defaults to its members"));
+                d.at(def.pos(), format!("bus item '{label}' cannot have a <default>; give defaults to its members"));
             }
             if length.is_some_and(|l| l != 1) {
                 d.at(
-                    length_el.map_or(el.pos, |l| l.pos),
+                    length_el.map_or(el.pos(), |l| l.pos()),
                     format!("bus item '{label}' must have length 1; arrays of buses are not supported"),
                 );
             }
             if nested.is_empty() {
-                d.at(el.pos, format!("bus item '{label}' has no nested <item>"));
+                d.at(el.pos(), format!("bus item '{label}' has no nested <item>"));
                 return None;
             }
             if depth + 1 > MAX_BUS_DEPTH {
-                d.at(el.pos, format!("bus item '{label}' is nested deeper than {MAX_BUS_DEPTH} levels"));
+                d.at(el.pos(), format!("bus item '{label}' is nested deeper than {MAX_BUS_DEPTH} levels"));
                 return None;
             }
             let mut items = Vec::new();
             item_list(el, role, domain, &label, depth + 1, &mut items, d);
-            Some(Item { name: name?, kind: ItemKind::Bus { items }, pos: el.pos })
+            Some(Item { name: name?, kind: ItemKind::Bus { items }, pos: el.pos() })
         }
         TypeName::Scalar(ty) => {
             for n in nested {
                 d.at(
-                    n.pos,
+                    n.pos(),
                     format!("item '{label}' has type {} and cannot contain items; only a bus can", ty.canonical()),
                 );
             }
@@ -522,7 +525,7 @@ fn item(el: &RawElement, role: Role, domain: &str, prefix: &str, depth: usize, d
                             format!("a value of type {}", ty.canonical())
                         };
                         d.at(
-                            def.text_pos.unwrap_or(def.pos),
+                            def.text_pos().unwrap_or(def.pos()),
                             format!(
                                 "default '{}' of item '{label}' does not fit its type: expected {expected}",
                                 shorten(def.text())
@@ -535,7 +538,7 @@ fn item(el: &RawElement, role: Role, domain: &str, prefix: &str, depth: usize, d
             if default_el.is_some() && default.is_none() {
                 return None;
             }
-            Some(Item { name: name?, kind: ItemKind::Scalar { ty, length: length?, default }, pos: el.pos })
+            Some(Item { name: name?, kind: ItemKind::Scalar { ty, length: length?, default }, pos: el.pos() })
         }
     }
 }
