@@ -1,6 +1,7 @@
 //! Step two of reading a DDF: raw elements to the validated [`Model`], checking every rule
 //! of SPEC section 1 and collecting every violation with its position.
 
+use std::borrow::Cow;
 use std::collections::HashMap;
 
 use super::layout::{self, SetLayout, MAX_SET_BYTES};
@@ -113,7 +114,7 @@ fn shorten(s: &str) -> String {
 }
 
 /// The `name` attribute, checked; reports and returns `None` when missing or invalid.
-fn name_attr(el: RawElement, what: &str, d: &mut Diags) -> Option<String> {
+fn name_attr<'a>(el: RawElement<'a>, what: &str, d: &mut Diags) -> Option<&'a str> {
     match el.attr("name") {
         None => {
             d.at(el.pos(), format!("<{}> has no name attribute", el.name()));
@@ -124,23 +125,25 @@ fn name_attr(el: RawElement, what: &str, d: &mut Diags) -> Option<String> {
                 d.at(el.pos(), format!("{what} name '{}' {problem}", shorten(name)));
                 None
             }
-            None => Some(name.to_string()),
+            None => Some(name),
         },
     }
 }
 
 fn yes_no(el: RawElement, d: &mut Diags) -> Option<bool> {
     leaf_element(el, d);
-    match el.text().to_ascii_lowercase().as_str() {
-        "yes" => Some(true),
-        "no" => Some(false),
-        other => {
-            d.at(
-                el.text_pos().unwrap_or(el.pos()),
-                format!("<{}> must be yes or no, found '{}'", el.name(), shorten(other)),
-            );
-            None
-        }
+    let text = el.text();
+    // Compared in place: lower-casing a copy of every flag cost an allocation each.
+    if text.eq_ignore_ascii_case("yes") {
+        Some(true)
+    } else if text.eq_ignore_ascii_case("no") {
+        Some(false)
+    } else {
+        d.at(
+            el.text_pos().unwrap_or(el.pos()),
+            format!("<{}> must be yes or no, found '{}'", el.name(), shorten(&text.to_ascii_lowercase())),
+        );
+        None
     }
 }
 
@@ -148,16 +151,22 @@ fn domain(el: RawElement, d: &mut Diags) -> Option<Domain> {
     only_attrs(el, &["name"], d);
     no_text(el, d);
     let name = name_attr(el, "domain", d);
-    let label = name.clone().unwrap_or_else(|| "?".into());
+    let label = name.unwrap_or("?");
     let mut flags = Flags { synchronous: false, multiple_publish_allowed: true, states: false };
-    let mut flag_seen: HashMap<&str, Pos> = HashMap::new();
+    // Where each of synchronous, multiplePublishAllowed and states was first given.
+    let mut flag_seen: [Option<Pos>; 3] = [None; 3];
     let mut connection = None;
     let mut connection_seen = false;
     let mut sets: [Option<(Set, Pos)>; 2] = [None, None];
     for child in el.children() {
         match child.name() {
             flag @ ("synchronous" | "multiplePublishAllowed" | "states") => {
-                if let Some(first) = flag_seen.get(flag) {
+                let which = match flag {
+                    "synchronous" => 0,
+                    "multiplePublishAllowed" => 1,
+                    _ => 2,
+                };
+                if let Some(first) = flag_seen[which] {
                     d.at(
                         child.pos(),
                         format!(
@@ -167,11 +176,11 @@ fn domain(el: RawElement, d: &mut Diags) -> Option<Domain> {
                     );
                     continue;
                 }
-                flag_seen.insert(flag, child.pos());
+                flag_seen[which] = Some(child.pos());
                 if let Some(v) = yes_no(child, d) {
-                    match flag {
-                        "synchronous" => flags.synchronous = v,
-                        "multiplePublishAllowed" => flags.multiple_publish_allowed = v,
+                    match which {
+                        0 => flags.synchronous = v,
+                        1 => flags.multiple_publish_allowed = v,
                         _ => flags.states = v,
                     }
                 }
@@ -181,11 +190,11 @@ fn domain(el: RawElement, d: &mut Diags) -> Option<Domain> {
                     d.at(child.pos(), format!("domain '{label}' has a second <connection>"));
                 }
                 connection_seen = true;
-                connection = connection_element(child, &label, d).or(connection);
+                connection = connection_element(child, label, d).or(connection);
             }
             "block" | "set" => {
                 let Some(role) = set_role(child, d) else { continue };
-                let set = set(child, role, &label, d);
+                let set = set(child, role, label, d);
                 let slot = &mut sets[role as usize];
                 if let Some((_, first)) = slot {
                     d.at(
@@ -209,7 +218,7 @@ fn domain(el: RawElement, d: &mut Diags) -> Option<Domain> {
             }
         }
     }
-    let name = name?;
+    let name = name?.to_string();
     let [publish, subscribe] = sets;
     let empty =
         |role| Set { role, items: Vec::new(), layout: SetLayout { size: 0, align: 1, leaves: Vec::new() }, pos: None };
@@ -344,18 +353,18 @@ fn set_role(el: RawElement, d: &mut Diags) -> Option<Role> {
     // Paper dialect: "DOMAIN/Publish"; product dialect: "PUBLISH". Either way the last
     // path segment names the role.
     let last = name.rsplit('/').next().unwrap_or(name);
-    match last.to_ascii_lowercase().as_str() {
-        "publish" => Some(Role::Publish),
-        "subscribe" => Some(Role::Subscribe),
-        _ => {
-            let expected = if el.name() == "block" {
-                "a block name must end in /Publish or /Subscribe"
-            } else {
-                "a set is named PUBLISH or SUBSCRIBE"
-            };
-            d.at(el.pos(), format!("<{}> name '{}' names no role: {expected}", el.name(), shorten(name)));
-            None
-        }
+    if last.eq_ignore_ascii_case("publish") {
+        Some(Role::Publish)
+    } else if last.eq_ignore_ascii_case("subscribe") {
+        Some(Role::Subscribe)
+    } else {
+        let expected = if el.name() == "block" {
+            "a block name must end in /Publish or /Subscribe"
+        } else {
+            "a set is named PUBLISH or SUBSCRIBE"
+        };
+        d.at(el.pos(), format!("<{}> name '{}' names no role: {expected}", el.name(), shorten(name)));
+        None
     }
 }
 
@@ -384,7 +393,7 @@ fn set(el: RawElement, role: Role, domain: &str, d: &mut Diags) -> Option<Set> {
 
 #[allow(clippy::too_many_arguments)]
 fn item_list(
-    parent: RawElement,
+    parent: RawElement<'_>,
     role: Role,
     domain: &str,
     prefix: &str,
@@ -392,7 +401,8 @@ fn item_list(
     out: &mut Vec<Item>,
     d: &mut Diags,
 ) {
-    let mut seen: HashMap<String, Pos> = HashMap::new();
+    // Names as written, borrowed from the source: copying each one cost an allocation.
+    let mut seen: HashMap<&str, Pos> = HashMap::new();
     for child in parent.children() {
         if child.name() != "item" {
             // Inside a bus item, its other children (<type>, <length>, <default> and unknown
@@ -403,9 +413,9 @@ fn item_list(
             d.at(child.pos(), format!("unknown element <{}> in <{}>; expected <item>", child.name(), parent.name()));
             continue;
         }
-        let Some(item) = item(child, role, domain, prefix, depth, d) else { continue };
-        let path = join_path(prefix, &item.name);
-        if let Some(first) = seen.get(&item.name) {
+        let Some((name, item)) = item(child, role, domain, prefix, depth, d) else { continue };
+        if let Some(first) = seen.get(name) {
+            let path = join_path(prefix, name);
             d.at(
                 child.pos(),
                 format!(
@@ -415,19 +425,28 @@ fn item_list(
             );
             continue;
         }
-        seen.insert(item.name.clone(), child.pos());
+        seen.insert(name, child.pos());
         out.push(item);
     }
 }
 
-fn item(el: RawElement, role: Role, domain: &str, prefix: &str, depth: usize, d: &mut Diags) -> Option<Item> {
+/// A valid item, with its name as written in the source.
+fn item<'a>(
+    el: RawElement<'a>,
+    role: Role,
+    domain: &str,
+    prefix: &str,
+    depth: usize,
+    d: &mut Diags,
+) -> Option<(&'a str, Item)> {
     only_attrs(el, &["name"], d);
     no_text(el, d);
     let name = name_attr(el, "item", d);
-    let label = match &name {
-        Some(n) if prefix.is_empty() => n.clone(),
-        Some(n) => format!("{prefix}/{n}"),
-        None => format!("{prefix}/?"),
+    // The path for messages and nested items; at the top of a set (most items) the name.
+    let label: Cow<str> = match name {
+        Some(n) if prefix.is_empty() => Cow::Borrowed(n),
+        Some(n) => Cow::Owned(format!("{prefix}/{n}")),
+        None => Cow::Owned(format!("{prefix}/?")),
     };
     let mut ty_el = None;
     let mut length_el = None;
@@ -483,7 +502,7 @@ fn item(el: RawElement, role: Role, domain: &str, prefix: &str, depth: usize, d:
             }
         },
     };
-    let nested: Vec<RawElement> = el.children().filter(|c| c.name() == "item").collect();
+    let mut nested = el.children().filter(|c| c.name() == "item").peekable();
     match ty {
         TypeName::Bus => {
             if let Some(def) = default_el {
@@ -495,7 +514,7 @@ fn item(el: RawElement, role: Role, domain: &str, prefix: &str, depth: usize, d:
                     format!("bus item '{label}' must have length 1; arrays of buses are not supported"),
                 );
             }
-            if nested.is_empty() {
+            if nested.peek().is_none() {
                 d.at(el.pos(), format!("bus item '{label}' has no nested <item>"));
                 return None;
             }
@@ -505,7 +524,8 @@ fn item(el: RawElement, role: Role, domain: &str, prefix: &str, depth: usize, d:
             }
             let mut items = Vec::new();
             item_list(el, role, domain, &label, depth + 1, &mut items, d);
-            Some(Item { name: name?, kind: ItemKind::Bus { items }, pos: el.pos() })
+            let name = name?;
+            Some((name, Item { name: name.to_string(), kind: ItemKind::Bus { items }, pos: el.pos() }))
         }
         TypeName::Scalar(ty) => {
             for n in nested {
@@ -538,7 +558,9 @@ fn item(el: RawElement, role: Role, domain: &str, prefix: &str, depth: usize, d:
             if default_el.is_some() && default.is_none() {
                 return None;
             }
-            Some(Item { name: name?, kind: ItemKind::Scalar { ty, length: length?, default }, pos: el.pos() })
+            let name = name?;
+            let kind = ItemKind::Scalar { ty, length: length?, default };
+            Some((name, Item { name: name.to_string(), kind, pos: el.pos() }))
         }
     }
 }
