@@ -7,7 +7,8 @@
 //! ```
 //!
 //! Meant for comparing two builds run alternately on the same machine; the published
-//! figures come from `tutti bench ddf`.
+//! figures come from `tutti bench ddf`. Besides the wall-clock times that `tutti bench`
+//! reports, it prints the median CPU time of the thread, steadier when the machine is busy.
 
 use std::hint::black_box;
 use std::time::{Duration, Instant};
@@ -37,23 +38,37 @@ fn events(text: &str) -> bool {
     }
 }
 
-/// Sorted durations of `n` runs of `f` after one untimed run.
-fn time(n: usize, mut f: impl FnMut() -> bool) -> Vec<Duration> {
+/// Wall-clock and thread CPU durations of `n` runs of `f` after one untimed run, each sorted.
+fn time(n: usize, mut f: impl FnMut() -> bool) -> (Vec<Duration>, Vec<Duration>) {
     f();
-    let mut samples: Vec<Duration> = (0..n.max(1))
+    let (mut wall, mut cpu): (Vec<_>, Vec<_>) = (0..n.max(1))
         .map(|_| {
-            let start = Instant::now();
+            let (start, start_cpu) = (Instant::now(), cpu_now());
             f();
-            start.elapsed()
+            (start.elapsed(), cpu_now().saturating_sub(start_cpu))
         })
-        .collect();
-    samples.sort_unstable();
-    samples
+        .unzip();
+    wall.sort_unstable();
+    cpu.sort_unstable();
+    (wall, cpu)
 }
 
-fn report(name: &str, s: Vec<Duration>) {
+/// CPU time of this thread: unlike wall-clock time, it does not count the time other
+/// processes had the CPU, so it compares builds better on a busy machine.
+fn cpu_now() -> Duration {
+    let t = rustix::time::clock_gettime(rustix::time::ClockId::ThreadCPUTime);
+    Duration::new(t.tv_sec as u64, t.tv_nsec as u32)
+}
+
+fn report(name: &str, (wall, cpu): (Vec<Duration>, Vec<Duration>)) {
     // Nearest rank, as `tutti bench` computes it.
-    let rank = |q: f64| s[((q * s.len() as f64).ceil() as usize).clamp(1, s.len()) - 1];
+    let rank = |s: &[Duration], q: f64| s[((q * s.len() as f64).ceil() as usize).clamp(1, s.len()) - 1];
     let ms = |d: Duration| d.as_secs_f64() * 1e3;
-    println!("{name:<12} min {:>8.3}  p50 {:>8.3}  p99 {:>8.3} ms", ms(s[0]), ms(rank(0.5)), ms(rank(0.99)));
+    println!(
+        "{name:<12} min {:>8.3}  p50 {:>8.3}  p99 {:>8.3} ms   cpu p50 {:>8.3} ms",
+        ms(wall[0]),
+        ms(rank(&wall, 0.5)),
+        ms(rank(&wall, 0.99)),
+        ms(rank(&cpu, 0.5))
+    );
 }
