@@ -28,6 +28,7 @@ pub const MAX_XML_DEPTH: usize = 40;
 /// reason. Read it through [`Document::root`].
 #[derive(Debug, Clone)]
 pub struct Document<'a> {
+    src: &'a str,
     elements: Vec<Node<'a>>,
     attrs: Vec<RawAttr<'a>>,
 }
@@ -36,12 +37,15 @@ pub struct Document<'a> {
 #[derive(Debug, Clone)]
 struct Node<'a> {
     name: Cow<'a, str>,
-    /// The `<` of the start tag.
+    /// The `<` of the start tag, as a byte offset and as a line and column.
+    offset: usize,
     pos: Pos,
     /// Concatenated character data directly inside this element.
     text: Cow<'a, str>,
-    /// Position of the first non-whitespace character data, if any.
-    text_pos: Option<Pos>,
+    /// Byte offset of the first non-whitespace character data, if any. Only a diagnostic
+    /// needs its line and column, so they are computed on demand (see
+    /// [`RawElement::text_pos`]): doing it for every text cost as much as for every element.
+    text_offset: Option<usize>,
     /// This element's attributes are `attrs[attrs.0..attrs.1]`.
     attrs: (usize, usize),
     /// One past the index of the last descendant: the first child, if any, is the next
@@ -112,7 +116,12 @@ impl<'a> RawElement<'a> {
 
     /// Position of the first non-whitespace character data, if any.
     pub fn text_pos(&self) -> Option<Pos> {
-        self.node().text_pos
+        let node = self.node();
+        // Counted from the element's own position: the text is inside the element, so this
+        // scans at most the element, whatever order positions are asked for in.
+        let start = Cursor { offset: node.offset, line: node.pos.line, col: node.pos.col - 1 };
+        let to = node.text_offset?.clamp(node.offset, self.doc.src.len());
+        Some(start.advance(&self.doc.src.as_bytes()[node.offset..to]).pos())
     }
 }
 
@@ -172,6 +181,29 @@ struct Cursor {
 
 const START: Cursor = Cursor { offset: 0, line: 1, col: 0 };
 
+impl Cursor {
+    /// The cursor moved forward over `bytes`, which start at its offset. One pass: most
+    /// steps are a few dozen bytes, between one start tag and the next.
+    fn advance(mut self, bytes: &[u8]) -> Cursor {
+        for &b in bytes {
+            if b == b'\n' {
+                self.line += 1;
+                self.col = 0;
+            } else {
+                // Characters are counted as bytes that do not continue a UTF-8 sequence,
+                // which also works for an offset inside a character.
+                self.col += u32::from(b & 0xC0 != 0x80);
+            }
+        }
+        self.offset += bytes.len();
+        self
+    }
+
+    fn pos(self) -> Pos {
+        Pos { line: self.line, col: self.col + 1 }
+    }
+}
+
 impl<'a> LineIndex<'a> {
     pub fn new(src: &'a str) -> Self {
         LineIndex { src, cursor: Cell::new(START) }
@@ -183,20 +215,9 @@ impl<'a> LineIndex<'a> {
         if offset < c.offset {
             c = START;
         }
-        let chunk = &self.src.as_bytes()[c.offset..offset];
-        // Characters are counted as bytes that do not continue a UTF-8 sequence, which also
-        // works for an offset inside a character.
-        let chars = |b: &[u8]| b.iter().filter(|&&x| x & 0xC0 != 0x80).count() as u32;
-        match chunk.iter().rposition(|&x| x == b'\n') {
-            Some(last) => {
-                c.line += chunk.iter().filter(|&&x| x == b'\n').count() as u32;
-                c.col = chars(&chunk[last + 1..]);
-            }
-            None => c.col += chars(chunk),
-        }
-        c.offset = offset;
+        c = c.advance(&self.src.as_bytes()[c.offset..offset]);
         self.cursor.set(c);
-        Pos { line: c.line, col: c.col + 1 }
+        c.pos()
     }
 }
 
@@ -223,7 +244,19 @@ pub fn parse(src: &str) -> Result<Document<'_>, SyntaxError> {
         config.check_end_names = true;
         config.expand_empty_elements = false;
     }
-    let mut doc = Document { elements: Vec::new(), attrs: Vec::new() };
+    // Sized up front: growing the vectors copied them several times. Every element starts
+    // with a `<` and every attribute has an `=`, so their counts bound the vectors (loosely:
+    // end tags count too), and capacity never written to costs only address space. A text
+    // full of `<` that is no document must still get its syntax error, hence `try_`.
+    // (Counted in byte-sized lanes, 255 bytes at a time, which the compiler vectorises; a
+    // plain count of matching bytes was not, and cost more than the copies it saved.)
+    let count = |needle: u8| -> usize {
+        let lane = |c: &[u8]| c.iter().fold(0u8, |n, &b| n + u8::from(b == needle));
+        src.as_bytes().chunks(255).map(|c| usize::from(lane(c))).sum()
+    };
+    let mut doc = Document { src, elements: Vec::new(), attrs: Vec::new() };
+    let _ = doc.elements.try_reserve_exact(count(b'<'));
+    let _ = doc.attrs.try_reserve_exact(count(b'='));
     // Indices of the open elements, innermost last.
     let mut open: Vec<usize> = Vec::new();
     loop {
@@ -258,9 +291,10 @@ pub fn parse(src: &str) -> Result<Document<'_>, SyntaxError> {
                 let at = doc.elements.len();
                 doc.elements.push(Node {
                     name: borrow(src, start.name().as_ref()),
+                    offset: before,
                     pos: here,
                     text: Cow::Borrowed(""),
-                    text_pos: None,
+                    text_offset: None,
                     attrs: (first_attr, doc.attrs.len()),
                     // An empty element ends here; an open one when its end tag comes.
                     end: at + 1,
@@ -372,10 +406,10 @@ fn add_text<'a>(
             if parent.text.is_empty() && content.trim().is_empty() {
                 return Ok(());
             }
-            if parent.text_pos.is_none() {
+            if parent.text_offset.is_none() {
                 if let Some(skip) = content.find(|c: char| !c.is_whitespace()) {
-                    // Position of the first non-blank character (exact for unescaped text).
-                    parent.text_pos = Some(index.pos(offset + skip));
+                    // The first non-blank character (exact for unescaped text).
+                    parent.text_offset = Some(offset + skip);
                 }
             }
             if parent.text.is_empty() {
@@ -432,6 +466,16 @@ mod tests {
         assert_eq!(b.text(), "hi<");
         assert_eq!(b.text_pos(), Some(Pos { line: 2, col: 20 }));
         assert_eq!(children[1].pos(), Pos { line: 3, col: 3 });
+    }
+
+    #[test]
+    fn text_positions_are_found_after_children_and_lines() {
+        let doc = parse("<a>\r\n  <b>x</b>\n\n é\ty </a>").unwrap();
+        let a = doc.root();
+        assert_eq!(a.text(), "é\ty");
+        assert_eq!(a.text_pos(), Some(Pos { line: 4, col: 2 }));
+        assert_eq!(a.children().next().unwrap().text_pos(), Some(Pos { line: 2, col: 6 }));
+        assert_eq!(parse("<a/>").unwrap().root().text_pos(), None);
     }
 
     #[test]
