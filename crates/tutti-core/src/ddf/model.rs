@@ -191,7 +191,9 @@ pub fn join_path(prefix: &str, name: &str) -> String {
     if prefix.is_empty() {
         name.to_string()
     } else {
-        format!("{prefix}/{name}")
+        // Not `format!`, whose machinery cost more than the copy (this runs for every
+        // member of every bus).
+        [prefix, name].join("/")
     }
 }
 
@@ -248,10 +250,14 @@ impl TypeName {
     /// Parses a type name: canonical names, `uintN`, and the C aliases. Case-insensitive,
     /// inner whitespace folded (`unsigned  int8`).
     pub fn parse(text: &str) -> Option<TypeName> {
-        // Folded into a buffer on the stack: every item of a DDF has a type, and building
-        // the folded name as a String cost three allocations each. A name longer than the
-        // buffer is longer than any known name.
-        let mut buf = [0u8; 16];
+        // Most DDFs write the names as listed; only the others need folding.
+        Self::canonical(text).or_else(|| Self::canonical(Self::fold(text, &mut [0; 16])?))
+    }
+
+    /// `text` with its words joined by one space and lower-cased, in `buf`; `None` when
+    /// that does not fit, which means longer than any type name. (A buffer on the stack:
+    /// building the folded name as a String cost three allocations per item.)
+    fn fold<'b>(text: &str, buf: &'b mut [u8; 16]) -> Option<&'b str> {
         let mut len = 0;
         for (i, word) in text.split_whitespace().enumerate() {
             let sep: &[u8] = if i == 0 { b"" } else { b" " };
@@ -260,8 +266,13 @@ impl TypeName {
                 len += 1;
             }
         }
+        std::str::from_utf8(&buf[..len]).ok()
+    }
+
+    /// The type a folded name names.
+    fn canonical(folded: &str) -> Option<TypeName> {
         use ScalarType::*;
-        Some(TypeName::Scalar(match std::str::from_utf8(&buf[..len]).ok()? {
+        Some(TypeName::Scalar(match folded {
             "bus" => return Some(TypeName::Bus),
             "boolean" | "bool" => Boolean,
             "int8" | "char" => Int8,

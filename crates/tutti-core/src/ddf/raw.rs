@@ -402,8 +402,10 @@ fn add_text<'a>(
         Some(&at) => {
             let parent = &mut doc.elements[at];
             // Blanks before any content are trimmed anyway; skipping them saves an allocation
-            // for every element that holds only child elements.
-            if parent.text.is_empty() && content.trim().is_empty() {
+            // for every element that holds only child elements. (Most are indentation: ASCII
+            // blanks, recognised without decoding characters.)
+            let blank = |s: &str| s.bytes().all(|b| matches!(b, b' ' | b'\n' | b'\t' | b'\r')) || s.trim().is_empty();
+            if parent.text.is_empty() && blank(&content) {
                 return Ok(());
             }
             if parent.text_offset.is_none() {

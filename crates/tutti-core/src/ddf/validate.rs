@@ -2,6 +2,7 @@
 //! of SPEC section 1 and collecting every violation with its position.
 
 use std::borrow::Cow;
+use std::collections::hash_map::Entry;
 use std::collections::HashMap;
 
 use super::layout::{self, SetLayout, MAX_SET_BYTES};
@@ -25,9 +26,49 @@ impl Diags {
     }
 }
 
+/// The names given so far in one list of items (a set or a bus) and where each was first
+/// given. Most lists are short, and comparing a name with a dozen others costs less than
+/// hashing it (hashing every name was an eighth of the validation); past [`Seen::FEW`]
+/// names they go into a hash map, so a set of thousands of items is still linear.
+#[derive(Debug, Default)]
+struct Seen<'a> {
+    few: Vec<(&'a str, Pos)>,
+    many: HashMap<&'a str, Pos>,
+}
+
+impl<'a> Seen<'a> {
+    const FEW: usize = 32;
+
+    /// Where `name` was first given, or `None` (and `name` is recorded at `pos`).
+    fn first(&mut self, name: &'a str, pos: Pos) -> Option<Pos> {
+        if self.many.is_empty() {
+            if let Some(&(_, first)) = self.few.iter().find(|(n, _)| *n == name) {
+                return Some(first);
+            }
+            if self.few.len() < Self::FEW {
+                self.few.push((name, pos));
+                return None;
+            }
+            self.many.extend(self.few.drain(..));
+        }
+        match self.many.entry(name) {
+            Entry::Occupied(first) => Some(*first.get()),
+            Entry::Vacant(slot) => {
+                slot.insert(pos);
+                None
+            }
+        }
+    }
+}
+
 /// Checks a name (domain or item): 1–63 characters, no whitespace, `,`, `#`, or `/` (the
 /// path separator). Returns the problem, if any.
 pub fn name_problem(name: &str) -> Option<String> {
+    // The usual name, short printable ASCII, passes without decoding its characters.
+    let plain = |b: u8| b.is_ascii_graphic() && !matches!(b, b',' | b'#' | b'/');
+    if (1..=MAX_NAME_LEN).contains(&name.len()) && name.bytes().all(plain) {
+        return None;
+    }
     let n = name.chars().count();
     if n == 0 {
         return Some("is empty".into());
@@ -371,7 +412,9 @@ fn set_role(el: RawElement, d: &mut Diags) -> Option<Role> {
 fn set(el: RawElement, role: Role, domain: &str, d: &mut Diags) -> Option<Set> {
     no_text(el, d);
     let before = d.0.len();
-    let mut items = Vec::new();
+    // Room for every child (all of them are items in a valid set): growing the vector
+    // item by item copied it several times.
+    let mut items = Vec::with_capacity(el.children().count());
     item_list(el, role, domain, "", 0, &mut items, d);
     if d.0.len() != before {
         return None;
@@ -402,7 +445,7 @@ fn item_list(
     d: &mut Diags,
 ) {
     // Names as written, borrowed from the source: copying each one cost an allocation.
-    let mut seen: HashMap<&str, Pos> = HashMap::new();
+    let mut seen = Seen::default();
     for child in parent.children() {
         if child.name() != "item" {
             // Inside a bus item, its other children (<type>, <length>, <default> and unknown
@@ -414,7 +457,7 @@ fn item_list(
             continue;
         }
         let Some((name, item)) = item(child, role, domain, prefix, depth, d) else { continue };
-        if let Some(first) = seen.get(name) {
+        if let Some(first) = seen.first(name, child.pos()) {
             let path = join_path(prefix, name);
             d.at(
                 child.pos(),
@@ -425,7 +468,6 @@ fn item_list(
             );
             continue;
         }
-        seen.insert(name, child.pos());
         out.push(item);
     }
 }
@@ -445,7 +487,7 @@ fn item<'a>(
     // The path for messages and nested items; at the top of a set (most items) the name.
     let label: Cow<str> = match name {
         Some(n) if prefix.is_empty() => Cow::Borrowed(n),
-        Some(n) => Cow::Owned(format!("{prefix}/{n}")),
+        Some(n) => Cow::Owned(join_path(prefix, n)),
         None => Cow::Owned(format!("{prefix}/?")),
     };
     let mut ty_el = None;
@@ -522,7 +564,7 @@ fn item<'a>(
                 d.at(el.pos(), format!("bus item '{label}' is nested deeper than {MAX_BUS_DEPTH} levels"));
                 return None;
             }
-            let mut items = Vec::new();
+            let mut items = Vec::with_capacity(el.children().count());
             item_list(el, role, domain, &label, depth + 1, &mut items, d);
             let name = name?;
             Some((name, Item { name: name.to_string(), kind: ItemKind::Bus { items }, pos: el.pos() }))
@@ -562,5 +604,37 @@ fn item<'a>(
             let kind = ItemKind::Scalar { ty, length: length?, default };
             Some((name, Item { name: name.to_string(), kind, pos: el.pos() }))
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn seen_finds_the_first_position_before_and_after_hashing() {
+        let names: Vec<String> = (0..3 * Seen::FEW).map(|i| format!("n{i}")).collect();
+        let at = |i: usize| Pos { line: i as u32 + 1, col: 1 };
+        let mut seen = Seen::default();
+        for (i, name) in names.iter().enumerate() {
+            assert_eq!(seen.first(name, at(i)), None);
+            // A name seen just before, and the very first one, whichever way they are kept.
+            assert_eq!(seen.first(name, at(1000)), Some(at(i)));
+            assert_eq!(seen.first(&names[0], at(1000)), Some(at(0)));
+        }
+    }
+
+    #[test]
+    fn name_problems_are_the_same_for_ascii_and_other_names() {
+        assert_eq!(name_problem("cosim_0001"), None);
+        assert_eq!(name_problem("é"), None);
+        assert_eq!(name_problem(&"x".repeat(MAX_NAME_LEN)), None);
+        assert_eq!(name_problem(&"é".repeat(MAX_NAME_LEN)), None);
+        assert_eq!(name_problem(""), Some("is empty".into()));
+        assert!(name_problem(&"x".repeat(MAX_NAME_LEN + 1)).unwrap().starts_with("is 64 characters long"));
+        assert!(name_problem("a,b").unwrap().starts_with("contains ','"));
+        assert!(name_problem("a b").unwrap().starts_with("contains ' '"));
+        assert!(name_problem("a\u{7f}").unwrap().starts_with("contains '\\u{7f}'"));
+        assert!(name_problem("a\u{a0}b").unwrap().starts_with("contains '\\u{a0}'"));
     }
 }
