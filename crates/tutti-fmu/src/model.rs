@@ -243,17 +243,18 @@ impl ModelDescription {
         if text.trim().is_empty() {
             return Err(ModelError { line: 1, col: 1, message: "the file is empty".into() });
         }
-        let root = raw::parse(text).map_err(|e| err(e.pos, e.message))?;
-        if root.name != "fmiModelDescription" {
-            return Err(err(root.pos, format!("the root element is <{}>, not <fmiModelDescription>", root.name)));
+        let doc = raw::parse(text).map_err(|e| err(e.pos, e.message))?;
+        let root = doc.root();
+        if root.name() != "fmiModelDescription" {
+            return Err(err(root.pos(), format!("the root element is <{}>, not <fmiModelDescription>", root.name())));
         }
-        let version_text = required(&root, "fmiVersion")?.to_string();
+        let version_text = required(root, "fmiVersion")?.to_string();
         let fmi_version = if version_text.starts_with("2.") {
             FmiVersion::Fmi2
         } else if version_text.starts_with("3.") {
             FmiVersion::Fmi3
         } else {
-            return Err(err(root.pos, format!("fmiVersion=\"{version_text}\": only FMI 2.0 and 3.0 are supported")));
+            return Err(err(root.pos(), format!("fmiVersion=\"{version_text}\": only FMI 2.0 and 3.0 are supported")));
         };
         let token_attr = match fmi_version {
             FmiVersion::Fmi2 => "guid",
@@ -262,8 +263,8 @@ impl ModelDescription {
         let mut md = ModelDescription {
             fmi_version,
             fmi_version_text: version_text,
-            model_name: required(&root, "modelName")?.to_string(),
-            token: required(&root, token_attr)?.to_string(),
+            model_name: required(root, "modelName")?.to_string(),
+            token: required(root, token_attr)?.to_string(),
             description: root.attr("description").map(str::to_string),
             generation_tool: root.attr("generationTool").map(str::to_string),
             co_simulation: None,
@@ -272,14 +273,14 @@ impl ModelDescription {
             variables: Vec::new(),
         };
         let mut saw_variables = false;
-        for child in &root.children {
-            match child.name.as_ref() {
+        for child in root.children() {
+            match child.name() {
                 "CoSimulation" => md.co_simulation = Some(co_simulation(child)?),
                 "ModelExchange" => md.model_exchange = true,
                 "DefaultExperiment" => md.default_experiment = Some(default_experiment(child)?),
                 "ModelVariables" => {
                     saw_variables = true;
-                    for v in &child.children {
+                    for v in child.children() {
                         md.variables.push(variable(v, fmi_version)?);
                     }
                 }
@@ -287,7 +288,7 @@ impl ModelDescription {
             }
         }
         if !saw_variables {
-            return Err(err(root.pos, "no <ModelVariables> element"));
+            return Err(err(root.pos(), "no <ModelVariables> element"));
         }
         let mut seen = std::collections::HashSet::new();
         for v in &md.variables {
@@ -308,27 +309,27 @@ impl ModelDescription {
     }
 }
 
-fn required<'a>(e: &'a RawElement<'_>, attr: &str) -> Result<&'a str, ModelError> {
-    e.attr(attr).ok_or_else(|| err(e.pos, format!("<{}> has no {attr} attribute", e.name)))
+fn required<'a>(e: RawElement<'a>, attr: &str) -> Result<&'a str, ModelError> {
+    e.attr(attr).ok_or_else(|| err(e.pos(), format!("<{}> has no {attr} attribute", e.name())))
 }
 
-fn flag(e: &RawElement<'_>, attr: &str) -> Result<bool, ModelError> {
+fn flag(e: RawElement<'_>, attr: &str) -> Result<bool, ModelError> {
     match e.attr(attr) {
         None | Some("false") => Ok(false),
         Some("true") => Ok(true),
-        Some(other) => Err(err(e.pos, format!("<{}> {attr}=\"{other}\": expected true or false", e.name))),
+        Some(other) => Err(err(e.pos(), format!("<{}> {attr}=\"{other}\": expected true or false", e.name()))),
     }
 }
 
-fn number(e: &RawElement<'_>, attr: &str) -> Result<Option<f64>, ModelError> {
+fn number(e: RawElement<'_>, attr: &str) -> Result<Option<f64>, ModelError> {
     e.attr(attr)
         .map(|t| {
-            t.trim().parse::<f64>().map_err(|_| err(e.pos, format!("<{}> {attr}=\"{t}\" is not a number", e.name)))
+            t.trim().parse::<f64>().map_err(|_| err(e.pos(), format!("<{}> {attr}=\"{t}\" is not a number", e.name())))
         })
         .transpose()
 }
 
-fn co_simulation(e: &RawElement<'_>) -> Result<CoSimulation, ModelError> {
+fn co_simulation(e: RawElement<'_>) -> Result<CoSimulation, ModelError> {
     Ok(CoSimulation {
         model_identifier: required(e, "modelIdentifier")?.to_string(),
         can_handle_variable_communication_step_size: flag(e, "canHandleVariableCommunicationStepSize")?,
@@ -336,7 +337,7 @@ fn co_simulation(e: &RawElement<'_>) -> Result<CoSimulation, ModelError> {
         needs_execution_tool: flag(e, "needsExecutionTool")?,
         can_be_instantiated_only_once_per_process: flag(e, "canBeInstantiatedOnlyOncePerProcess")?,
         attributes: e
-            .attrs
+            .attrs()
             .iter()
             .filter(|a| a.name != "modelIdentifier")
             .map(|a| (a.name.to_string(), a.value.to_string()))
@@ -344,7 +345,7 @@ fn co_simulation(e: &RawElement<'_>) -> Result<CoSimulation, ModelError> {
     })
 }
 
-fn default_experiment(e: &RawElement<'_>) -> Result<DefaultExperiment, ModelError> {
+fn default_experiment(e: RawElement<'_>) -> Result<DefaultExperiment, ModelError> {
     Ok(DefaultExperiment {
         start_time: number(e, "startTime")?,
         stop_time: number(e, "stopTime")?,
@@ -353,24 +354,23 @@ fn default_experiment(e: &RawElement<'_>) -> Result<DefaultExperiment, ModelErro
     })
 }
 
-fn variable(e: &RawElement<'_>, version: FmiVersion) -> Result<Variable, ModelError> {
+fn variable(e: RawElement<'_>, version: FmiVersion) -> Result<Variable, ModelError> {
     // FMI 2.0: <ScalarVariable ...><Real start=".."/></ScalarVariable>; FMI 3.0: <Float64 ...>.
-    let (ty, typed): (VarType, &RawElement<'_>) = match version {
+    let (ty, typed): (VarType, RawElement<'_>) = match version {
         FmiVersion::Fmi2 => {
-            if e.name != "ScalarVariable" {
-                return Err(err(e.pos, format!("<{}> in <ModelVariables>: expected <ScalarVariable>", e.name)));
+            if e.name() != "ScalarVariable" {
+                return Err(err(e.pos(), format!("<{}> in <ModelVariables>: expected <ScalarVariable>", e.name())));
             }
             let name = e.attr("name").unwrap_or("?");
             let t = e
-                .children
-                .iter()
-                .find_map(|c| VarType::parse(&c.name, version).map(|ty| (ty, c)))
-                .ok_or_else(|| err(e.pos, format!("variable '{name}' has no type element (Real, Integer, ...)")))?;
+                .children()
+                .find_map(|c| VarType::parse(c.name(), version).map(|ty| (ty, c)))
+                .ok_or_else(|| err(e.pos(), format!("variable '{name}' has no type element (Real, Integer, ...)")))?;
             (t.0, t.1)
         }
         FmiVersion::Fmi3 => {
-            let ty = VarType::parse(&e.name, version).ok_or_else(|| {
-                err(e.pos, format!("<{}> in <ModelVariables> is not an FMI 3.0 variable type", e.name))
+            let ty = VarType::parse(e.name(), version).ok_or_else(|| {
+                err(e.pos(), format!("<{}> in <ModelVariables> is not an FMI 3.0 variable type", e.name()))
             })?;
             (ty, e)
         }
@@ -378,12 +378,12 @@ fn variable(e: &RawElement<'_>, version: FmiVersion) -> Result<Variable, ModelEr
     let name = required(e, "name")?.to_string();
     let vr_text = required(e, "valueReference")?;
     let value_reference = vr_text.trim().parse::<u32>().map_err(|_| {
-        err(e.pos, format!("variable '{name}': valueReference=\"{vr_text}\" is not an unsigned 32-bit number"))
+        err(e.pos(), format!("variable '{name}': valueReference=\"{vr_text}\" is not an unsigned 32-bit number"))
     })?;
     let causality = match e.attr("causality") {
         None => Causality::Local,
         Some(c) => {
-            Causality::parse(c).ok_or_else(|| err(e.pos, format!("variable '{name}': unknown causality \"{c}\"")))?
+            Causality::parse(c).ok_or_else(|| err(e.pos(), format!("variable '{name}': unknown causality \"{c}\"")))?
         }
     };
     let default_variability = match ty {
@@ -392,7 +392,7 @@ fn variable(e: &RawElement<'_>, version: FmiVersion) -> Result<Variable, ModelEr
     };
     let variability = e.attr("variability").unwrap_or(default_variability).to_string();
     if !["constant", "fixed", "tunable", "discrete", "continuous"].contains(&variability.as_str()) {
-        return Err(err(e.pos, format!("variable '{name}': unknown variability \"{variability}\"")));
+        return Err(err(e.pos(), format!("variable '{name}': unknown variability \"{variability}\"")));
     }
     Ok(Variable {
         name,
@@ -403,8 +403,8 @@ fn variable(e: &RawElement<'_>, version: FmiVersion) -> Result<Variable, ModelEr
         start: typed.attr("start").map(str::to_string),
         unit: typed.attr("unit").map(str::to_string),
         description: e.attr("description").map(str::to_string),
-        is_array: version == FmiVersion::Fmi3 && e.children.iter().any(|c| c.name == "Dimension"),
-        line: e.pos.line,
+        is_array: version == FmiVersion::Fmi3 && e.children().any(|c| c.name() == "Dimension"),
+        line: e.pos().line,
     })
 }
 

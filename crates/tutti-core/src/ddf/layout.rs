@@ -43,7 +43,8 @@ impl SetLayout {
 
 /// Computes the layout of `items`; `Err(bytes)` when it would exceed [`MAX_SET_BYTES`].
 pub fn compute(items: &[Item]) -> Result<SetLayout, u64> {
-    let mut leaves = Vec::new();
+    // Counted first: growing the vector leaf by leaf copied it several times.
+    let mut leaves = Vec::with_capacity(leaf_count(items));
     let (size, align) = layout_struct(items, "", 0, &mut leaves)?;
     Ok(SetLayout { size: size as u32, align: align as u32, leaves })
 }
@@ -89,6 +90,16 @@ fn layout_struct(items: &[Item], prefix: &str, base: u64, leaves: &mut Vec<Leaf>
         return Err(base + size);
     }
     Ok((size, align))
+}
+
+fn leaf_count(items: &[Item]) -> usize {
+    items
+        .iter()
+        .map(|i| match &i.kind {
+            ItemKind::Scalar { .. } => 1,
+            ItemKind::Bus { items } => leaf_count(items),
+        })
+        .sum()
 }
 
 fn bus_align(items: &[Item]) -> u64 {

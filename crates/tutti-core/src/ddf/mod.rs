@@ -130,5 +130,6 @@ pub fn parse_bytes(bytes: &[u8], source: &str) -> Result<Model, DdfError> {
 pub fn parse_str(text: &str, source: &str) -> Result<Model, DdfError> {
     let text = text.strip_prefix('\u{feff}').unwrap_or(text);
     let root = raw::parse(text).map_err(|e| invalid(source, e.pos, e.message))?;
-    validate::validate(&root, source).map_err(|diagnostics| DdfError::Invalid { path: source.to_string(), diagnostics })
+    validate::validate(root.root(), source)
+        .map_err(|diagnostics| DdfError::Invalid { path: source.to_string(), diagnostics })
 }

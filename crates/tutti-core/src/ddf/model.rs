@@ -191,7 +191,9 @@ pub fn join_path(prefix: &str, name: &str) -> String {
     if prefix.is_empty() {
         name.to_string()
     } else {
-        format!("{prefix}/{name}")
+        // Not `format!`, whose machinery cost more than the copy (this runs for every
+        // member of every bus).
+        [prefix, name].join("/")
     }
 }
 
@@ -248,9 +250,29 @@ impl TypeName {
     /// Parses a type name: canonical names, `uintN`, and the C aliases. Case-insensitive,
     /// inner whitespace folded (`unsigned  int8`).
     pub fn parse(text: &str) -> Option<TypeName> {
-        let folded = text.split_whitespace().collect::<Vec<_>>().join(" ").to_ascii_lowercase();
+        // Most DDFs write the names as listed; only the others need folding.
+        Self::canonical(text).or_else(|| Self::canonical(Self::fold(text, &mut [0; 16])?))
+    }
+
+    /// `text` with its words joined by one space and lower-cased, in `buf`; `None` when
+    /// that does not fit, which means longer than any type name. (A buffer on the stack:
+    /// building the folded name as a String cost three allocations per item.)
+    fn fold<'b>(text: &str, buf: &'b mut [u8; 16]) -> Option<&'b str> {
+        let mut len = 0;
+        for (i, word) in text.split_whitespace().enumerate() {
+            let sep: &[u8] = if i == 0 { b"" } else { b" " };
+            for &b in sep.iter().chain(word.as_bytes()) {
+                *buf.get_mut(len)? = b.to_ascii_lowercase();
+                len += 1;
+            }
+        }
+        std::str::from_utf8(&buf[..len]).ok()
+    }
+
+    /// The type a folded name names.
+    fn canonical(folded: &str) -> Option<TypeName> {
         use ScalarType::*;
-        Some(TypeName::Scalar(match folded.as_str() {
+        Some(TypeName::Scalar(match folded {
             "bus" => return Some(TypeName::Bus),
             "boolean" | "bool" => Boolean,
             "int8" | "char" => Int8,
@@ -321,11 +343,10 @@ impl ScalarType {
         use ScalarType::*;
         let t = text.trim();
         match self {
-            Boolean => match t.to_ascii_lowercase().as_str() {
-                "yes" | "1" => Some(Value::Bool(true)),
-                "no" | "0" => Some(Value::Bool(false)),
-                _ => None,
-            },
+            // Compared in place rather than lower-cased into a copy: one allocation per default.
+            Boolean if t.eq_ignore_ascii_case("yes") || t == "1" => Some(Value::Bool(true)),
+            Boolean if t.eq_ignore_ascii_case("no") || t == "0" => Some(Value::Bool(false)),
+            Boolean => None,
             Int8 => t.parse::<i8>().ok().map(|v| Value::Int(v.into())),
             Int16 => t.parse::<i16>().ok().map(|v| Value::Int(v.into())),
             Int32 => t.parse::<i32>().ok().map(|v| Value::Int(v.into())),
@@ -458,5 +479,31 @@ impl Leaf {
     /// The bytes of this leaf within a set buffer.
     pub fn range(&self) -> std::ops::Range<usize> {
         self.offset as usize..(self.offset + self.size) as usize
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn type_names_fold_case_and_inner_whitespace() {
+        assert_eq!(TypeName::parse(" Unsigned \t INT8\n"), Some(TypeName::Scalar(ScalarType::UInt8)));
+        assert_eq!(TypeName::parse("double"), Some(TypeName::Scalar(ScalarType::Float64)));
+        assert_eq!(TypeName::parse("BUS"), Some(TypeName::Bus));
+        assert_eq!(TypeName::parse("unsigned int64"), Some(TypeName::Scalar(ScalarType::UInt64)));
+        for unknown in ["", "  ", "unsignedint8", "unsigned int8 x", "unsigned  int128", "ınt8", "float64float64"] {
+            assert_eq!(TypeName::parse(unknown), None, "{unknown:?}");
+        }
+    }
+
+    #[test]
+    fn boolean_defaults_ignore_ascii_case() {
+        let parse = |t| ScalarType::Boolean.parse_value(t);
+        assert_eq!(parse(" YeS "), Some(Value::Bool(true)));
+        assert_eq!(parse("1"), Some(Value::Bool(true)));
+        assert_eq!(parse("No"), Some(Value::Bool(false)));
+        assert_eq!(parse("0"), Some(Value::Bool(false)));
+        assert_eq!(parse("true"), None);
     }
 }

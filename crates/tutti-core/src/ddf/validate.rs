@@ -1,6 +1,8 @@
 //! Step two of reading a DDF: raw elements to the validated [`Model`], checking every rule
 //! of SPEC section 1 and collecting every violation with its position.
 
+use std::borrow::Cow;
+use std::collections::hash_map::Entry;
 use std::collections::HashMap;
 
 use super::layout::{self, SetLayout, MAX_SET_BYTES};
@@ -24,9 +26,49 @@ impl Diags {
     }
 }
 
+/// The names given so far in one list of items (a set or a bus) and where each was first
+/// given. Most lists are short, and comparing a name with a dozen others costs less than
+/// hashing it (hashing every name was an eighth of the validation); past [`Seen::FEW`]
+/// names they go into a hash map, so a set of thousands of items is still linear.
+#[derive(Debug, Default)]
+struct Seen<'a> {
+    few: Vec<(&'a str, Pos)>,
+    many: HashMap<&'a str, Pos>,
+}
+
+impl<'a> Seen<'a> {
+    const FEW: usize = 32;
+
+    /// Where `name` was first given, or `None` (and `name` is recorded at `pos`).
+    fn first(&mut self, name: &'a str, pos: Pos) -> Option<Pos> {
+        if self.many.is_empty() {
+            if let Some(&(_, first)) = self.few.iter().find(|(n, _)| *n == name) {
+                return Some(first);
+            }
+            if self.few.len() < Self::FEW {
+                self.few.push((name, pos));
+                return None;
+            }
+            self.many.extend(self.few.drain(..));
+        }
+        match self.many.entry(name) {
+            Entry::Occupied(first) => Some(*first.get()),
+            Entry::Vacant(slot) => {
+                slot.insert(pos);
+                None
+            }
+        }
+    }
+}
+
 /// Checks a name (domain or item): 1–63 characters, no whitespace, `,`, `#`, or `/` (the
 /// path separator). Returns the problem, if any.
 pub fn name_problem(name: &str) -> Option<String> {
+    // The usual name, short printable ASCII, passes without decoding its characters.
+    let plain = |b: u8| b.is_ascii_graphic() && !matches!(b, b',' | b'#' | b'/');
+    if (1..=MAX_NAME_LEN).contains(&name.len()) && name.bytes().all(plain) {
+        return None;
+    }
     let n = name.chars().count();
     if n == 0 {
         return Some("is empty".into());
@@ -42,38 +84,38 @@ pub fn name_problem(name: &str) -> Option<String> {
 }
 
 /// Validates a parsed tree; `source` is only recorded in the model.
-pub fn validate(root: &RawElement, source: &str) -> Result<Model, Vec<Diagnostic>> {
+pub fn validate(root: RawElement, source: &str) -> Result<Model, Vec<Diagnostic>> {
     let mut d = Diags::default();
-    if root.name != "orchestra" {
-        d.at(root.pos, format!("the root element is <{}>; a DDF's root element is <orchestra>", root.name));
+    if root.name() != "orchestra" {
+        d.at(root.pos(), format!("the root element is <{}>; a DDF's root element is <orchestra>", root.name()));
         return Err(d.0);
     }
     no_attrs(root, &mut d);
     no_text(root, &mut d);
     let mut domains = Vec::new();
     let mut seen: HashMap<String, Pos> = HashMap::new();
-    for child in &root.children {
-        if child.name != "domain" {
-            d.at(child.pos, format!("unknown element <{}> in <orchestra>; expected <domain>", child.name));
+    for child in root.children() {
+        if child.name() != "domain" {
+            d.at(child.pos(), format!("unknown element <{}> in <orchestra>; expected <domain>", child.name()));
             continue;
         }
         if let Some(domain) = domain(child, &mut d) {
             if let Some(first) = seen.get(&domain.name) {
                 d.at(
-                    child.pos,
+                    child.pos(),
                     format!(
                         "duplicate domain name '{}' (first defined at line {}, column {})",
                         domain.name, first.line, first.col
                     ),
                 );
             } else {
-                seen.insert(domain.name.clone(), child.pos);
+                seen.insert(domain.name.clone(), child.pos());
                 domains.push(domain);
             }
         }
     }
-    if root.children.is_empty() {
-        d.at(root.pos, "<orchestra> contains no <domain>: the file describes no data");
+    if !root.has_children() {
+        d.at(root.pos(), "<orchestra> contains no <domain>: the file describes no data");
     }
     if d.0.is_empty() {
         Ok(Model { source: source.to_string(), domains })
@@ -83,28 +125,28 @@ pub fn validate(root: &RawElement, source: &str) -> Result<Model, Vec<Diagnostic
     }
 }
 
-fn no_attrs(el: &RawElement, d: &mut Diags) {
+fn no_attrs(el: RawElement, d: &mut Diags) {
     only_attrs(el, &[], d);
 }
 
-fn only_attrs(el: &RawElement, allowed: &[&str], d: &mut Diags) {
-    for a in &el.attrs {
+fn only_attrs(el: RawElement, allowed: &[&str], d: &mut Diags) {
+    for a in el.attrs() {
         if !allowed.contains(&&*a.name) {
-            d.at(el.pos, format!("unknown attribute '{}' on <{}>", a.name, el.name));
+            d.at(el.pos(), format!("unknown attribute '{}' on <{}>", a.name, el.name()));
         }
     }
 }
 
-fn no_text(el: &RawElement, d: &mut Diags) {
+fn no_text(el: RawElement, d: &mut Diags) {
     if !el.text().is_empty() {
-        d.at(el.text_pos.unwrap_or(el.pos), format!("unexpected text '{}' in <{}>", shorten(el.text()), el.name));
+        d.at(el.text_pos().unwrap_or(el.pos()), format!("unexpected text '{}' in <{}>", shorten(el.text()), el.name()));
     }
 }
 
-fn leaf_element(el: &RawElement, d: &mut Diags) {
+fn leaf_element(el: RawElement, d: &mut Diags) {
     no_attrs(el, d);
-    for c in &el.children {
-        d.at(c.pos, format!("unexpected element <{}> inside <{}>", c.name, el.name));
+    for c in el.children() {
+        d.at(c.pos(), format!("unexpected element <{}> inside <{}>", c.name(), el.name()));
     }
 }
 
@@ -113,50 +155,61 @@ fn shorten(s: &str) -> String {
 }
 
 /// The `name` attribute, checked; reports and returns `None` when missing or invalid.
-fn name_attr(el: &RawElement, what: &str, d: &mut Diags) -> Option<String> {
+fn name_attr<'a>(el: RawElement<'a>, what: &str, d: &mut Diags) -> Option<&'a str> {
     match el.attr("name") {
         None => {
-            d.at(el.pos, format!("<{}> has no name attribute", el.name));
+            d.at(el.pos(), format!("<{}> has no name attribute", el.name()));
             None
         }
         Some(name) => match name_problem(name) {
             Some(problem) => {
-                d.at(el.pos, format!("{what} name '{}' {problem}", shorten(name)));
+                d.at(el.pos(), format!("{what} name '{}' {problem}", shorten(name)));
                 None
             }
-            None => Some(name.to_string()),
+            None => Some(name),
         },
     }
 }
 
-fn yes_no(el: &RawElement, d: &mut Diags) -> Option<bool> {
+fn yes_no(el: RawElement, d: &mut Diags) -> Option<bool> {
     leaf_element(el, d);
-    match el.text().to_ascii_lowercase().as_str() {
-        "yes" => Some(true),
-        "no" => Some(false),
-        other => {
-            d.at(el.text_pos.unwrap_or(el.pos), format!("<{}> must be yes or no, found '{}'", el.name, shorten(other)));
-            None
-        }
+    let text = el.text();
+    // Compared in place: lower-casing a copy of every flag cost an allocation each.
+    if text.eq_ignore_ascii_case("yes") {
+        Some(true)
+    } else if text.eq_ignore_ascii_case("no") {
+        Some(false)
+    } else {
+        d.at(
+            el.text_pos().unwrap_or(el.pos()),
+            format!("<{}> must be yes or no, found '{}'", el.name(), shorten(&text.to_ascii_lowercase())),
+        );
+        None
     }
 }
 
-fn domain(el: &RawElement, d: &mut Diags) -> Option<Domain> {
+fn domain(el: RawElement, d: &mut Diags) -> Option<Domain> {
     only_attrs(el, &["name"], d);
     no_text(el, d);
     let name = name_attr(el, "domain", d);
-    let label = name.clone().unwrap_or_else(|| "?".into());
+    let label = name.unwrap_or("?");
     let mut flags = Flags { synchronous: false, multiple_publish_allowed: true, states: false };
-    let mut flag_seen: HashMap<&str, Pos> = HashMap::new();
+    // Where each of synchronous, multiplePublishAllowed and states was first given.
+    let mut flag_seen: [Option<Pos>; 3] = [None; 3];
     let mut connection = None;
     let mut connection_seen = false;
     let mut sets: [Option<(Set, Pos)>; 2] = [None, None];
-    for child in &el.children {
-        match &*child.name {
+    for child in el.children() {
+        match child.name() {
             flag @ ("synchronous" | "multiplePublishAllowed" | "states") => {
-                if let Some(first) = flag_seen.get(flag) {
+                let which = match flag {
+                    "synchronous" => 0,
+                    "multiplePublishAllowed" => 1,
+                    _ => 2,
+                };
+                if let Some(first) = flag_seen[which] {
                     d.at(
-                        child.pos,
+                        child.pos(),
                         format!(
                             "domain '{label}' has a second <{flag}> (the first is at line {}, column {})",
                             first.line, first.col
@@ -164,41 +217,41 @@ fn domain(el: &RawElement, d: &mut Diags) -> Option<Domain> {
                     );
                     continue;
                 }
-                flag_seen.insert(flag, child.pos);
+                flag_seen[which] = Some(child.pos());
                 if let Some(v) = yes_no(child, d) {
-                    match flag {
-                        "synchronous" => flags.synchronous = v,
-                        "multiplePublishAllowed" => flags.multiple_publish_allowed = v,
+                    match which {
+                        0 => flags.synchronous = v,
+                        1 => flags.multiple_publish_allowed = v,
                         _ => flags.states = v,
                     }
                 }
             }
             "connection" => {
                 if connection_seen {
-                    d.at(child.pos, format!("domain '{label}' has a second <connection>"));
+                    d.at(child.pos(), format!("domain '{label}' has a second <connection>"));
                 }
                 connection_seen = true;
-                connection = connection_element(child, &label, d).or(connection);
+                connection = connection_element(child, label, d).or(connection);
             }
             "block" | "set" => {
                 let Some(role) = set_role(child, d) else { continue };
-                let set = set(child, role, &label, d);
+                let set = set(child, role, label, d);
                 let slot = &mut sets[role as usize];
                 if let Some((_, first)) = slot {
                     d.at(
-                        child.pos,
+                        child.pos(),
                         format!(
                             "domain '{label}' has a second {role} set (the first is at line {}, column {}); a domain has at most one set of each role",
                             first.line, first.col
                         ),
                     );
                 } else if let Some(set) = set {
-                    *slot = Some((set, child.pos));
+                    *slot = Some((set, child.pos()));
                 }
             }
             other => {
                 d.at(
-                    child.pos,
+                    child.pos(),
                     format!(
                         "unknown element <{other}> in domain '{label}'; expected <synchronous>, <multiplePublishAllowed>, <states>, <connection>, <set> or <block>"
                     ),
@@ -206,14 +259,14 @@ fn domain(el: &RawElement, d: &mut Diags) -> Option<Domain> {
             }
         }
     }
-    let name = name?;
+    let name = name?.to_string();
     let [publish, subscribe] = sets;
     let empty =
         |role| Set { role, items: Vec::new(), layout: SetLayout { size: 0, align: 1, leaves: Vec::new() }, pos: None };
     let publish = publish.map(|(s, _)| s).unwrap_or_else(|| empty(Role::Publish));
     let subscribe = subscribe.map(|(s, _)| s).unwrap_or_else(|| empty(Role::Subscribe));
     let layout_hash = layout::layout_hash(&name, flags, &publish.layout, &subscribe.layout);
-    Some(Domain { name, flags, connection, publish, subscribe, layout_hash, pos: el.pos })
+    Some(Domain { name, flags, connection, publish, subscribe, layout_hash, pos: el.pos() })
 }
 
 /// The attributes of a `local` connection, and the integer range of those that are numbers.
@@ -246,7 +299,7 @@ fn integer_in(value: &str, (lo, hi): (i64, i64)) -> Result<i64, String> {
 /// `<connection type="local" extcomm=".." addrframework=".." portframework=".." .../>`,
 /// `<connection type="remote"><card>NAME</card><pciindex>N</pciindex></connection>`,
 /// `<connection type="dolphin"><nodeIdFramework>N</nodeIdFramework><segmentId>N</segmentId></connection>`.
-fn connection_element(el: &RawElement, domain: &str, d: &mut Diags) -> Option<Connection> {
+fn connection_element(el: RawElement, domain: &str, d: &mut Diags) -> Option<Connection> {
     no_text(el, d);
     let kind = match el.attr("type").map(str::to_ascii_lowercase).as_deref() {
         None | Some("local") => ConnectionKind::Local,
@@ -254,23 +307,23 @@ fn connection_element(el: &RawElement, domain: &str, d: &mut Diags) -> Option<Co
         Some("dolphin") => ConnectionKind::Dolphin,
         Some(_) => {
             let t = el.attr("type").unwrap_or_default();
-            d.at(el.pos, format!("<connection> type must be local, remote or dolphin, found '{}'", shorten(t)));
+            d.at(el.pos(), format!("<connection> type must be local, remote or dolphin, found '{}'", shorten(t)));
             return None;
         }
     };
     let before = d.0.len();
     let attributes: Vec<(String, String)> =
-        el.attrs.iter().map(|a| (a.name.to_string(), a.value.to_string())).collect();
+        el.attrs().iter().map(|a| (a.name.to_string(), a.value.to_string())).collect();
     let mut settings = Vec::new();
     match kind {
         ConnectionKind::Local => {
-            for a in &el.attrs {
+            for a in el.attrs() {
                 if a.name == "type" {
                     continue;
                 }
                 match LOCAL_ATTRIBUTES.iter().find(|(n, _)| *n == a.name) {
                     None => d.at(
-                        el.pos,
+                        el.pos(),
                         format!(
                             "unknown attribute '{}' on a local <connection> of domain '{domain}'; expected {}",
                             shorten(&a.name),
@@ -279,16 +332,16 @@ fn connection_element(el: &RawElement, domain: &str, d: &mut Diags) -> Option<Co
                     ),
                     Some((_, Some(range))) if !(a.value.trim().is_empty()) => {
                         if let Err(e) = integer_in(&a.value, *range) {
-                            d.at(el.pos, format!("<connection> {}='{}': {e}", a.name, shorten(&a.value)));
+                            d.at(el.pos(), format!("<connection> {}='{}': {e}", a.name, shorten(&a.value)));
                         }
                     }
                     Some(_) => {}
                 }
             }
-            for c in &el.children {
+            for c in el.children() {
                 d.at(
-                    c.pos,
-                    format!("unexpected element <{}> inside a local <connection> (it takes attributes)", c.name),
+                    c.pos(),
+                    format!("unexpected element <{}> inside a local <connection> (it takes attributes)", c.name()),
                 );
             }
         }
@@ -296,13 +349,13 @@ fn connection_element(el: &RawElement, domain: &str, d: &mut Diags) -> Option<Co
             only_attrs(el, &["type"], d);
             let expected = if kind == ConnectionKind::Remote { REMOTE_SETTINGS } else { DOLPHIN_SETTINGS };
             let names = || expected.iter().map(|(n, _)| format!("<{n}>")).collect::<Vec<_>>().join(" and ");
-            for c in &el.children {
-                let Some((_, range)) = expected.iter().find(|(n, _)| *n == c.name) else {
+            for c in el.children() {
+                let Some((_, range)) = expected.iter().find(|(n, _)| *n == c.name()) else {
                     d.at(
-                        c.pos,
+                        c.pos(),
                         format!(
                             "unexpected element <{}> inside a {} <connection>; expected {}",
-                            c.name,
+                            c.name(),
                             kind.as_str(),
                             names()
                         ),
@@ -310,21 +363,21 @@ fn connection_element(el: &RawElement, domain: &str, d: &mut Diags) -> Option<Co
                     continue;
                 };
                 leaf_element(c, d);
-                if settings.iter().any(|(n, _): &(String, String)| *n == c.name) {
-                    d.at(c.pos, format!("a second <{}> in the <connection> of domain '{domain}'", c.name));
+                if settings.iter().any(|(n, _): &(String, String)| *n == c.name()) {
+                    d.at(c.pos(), format!("a second <{}> in the <connection> of domain '{domain}'", c.name()));
                     continue;
                 }
                 let text = c.text().trim().to_string();
                 if let Some(range) = range {
                     if let Err(e) = integer_in(&text, *range) {
-                        d.at(c.text_pos.unwrap_or(c.pos), format!("<{}> '{}': {e}", c.name, shorten(&text)));
+                        d.at(c.text_pos().unwrap_or(c.pos()), format!("<{}> '{}': {e}", c.name(), shorten(&text)));
                     }
                 }
-                settings.push((c.name.to_string(), text));
+                settings.push((c.name().to_string(), text));
             }
             for (n, _) in expected {
                 if !settings.iter().any(|(s, _)| s == n) {
-                    d.at(el.pos, format!("the {} <connection> of domain '{domain}' has no <{n}>", kind.as_str()));
+                    d.at(el.pos(), format!("the {} <connection> of domain '{domain}' has no <{n}>", kind.as_str()));
                 }
             }
         }
@@ -332,43 +385,45 @@ fn connection_element(el: &RawElement, domain: &str, d: &mut Diags) -> Option<Co
     (d.0.len() == before).then_some(Connection { kind, attributes, settings })
 }
 
-fn set_role(el: &RawElement, d: &mut Diags) -> Option<Role> {
+fn set_role(el: RawElement, d: &mut Diags) -> Option<Role> {
     only_attrs(el, &["name"], d);
     let Some(name) = el.attr("name") else {
-        d.at(el.pos, format!("<{}> has no name attribute", el.name));
+        d.at(el.pos(), format!("<{}> has no name attribute", el.name()));
         return None;
     };
     // Paper dialect: "DOMAIN/Publish"; product dialect: "PUBLISH". Either way the last
     // path segment names the role.
     let last = name.rsplit('/').next().unwrap_or(name);
-    match last.to_ascii_lowercase().as_str() {
-        "publish" => Some(Role::Publish),
-        "subscribe" => Some(Role::Subscribe),
-        _ => {
-            let expected = if el.name == "block" {
-                "a block name must end in /Publish or /Subscribe"
-            } else {
-                "a set is named PUBLISH or SUBSCRIBE"
-            };
-            d.at(el.pos, format!("<{}> name '{}' names no role: {expected}", el.name, shorten(name)));
-            None
-        }
+    if last.eq_ignore_ascii_case("publish") {
+        Some(Role::Publish)
+    } else if last.eq_ignore_ascii_case("subscribe") {
+        Some(Role::Subscribe)
+    } else {
+        let expected = if el.name() == "block" {
+            "a block name must end in /Publish or /Subscribe"
+        } else {
+            "a set is named PUBLISH or SUBSCRIBE"
+        };
+        d.at(el.pos(), format!("<{}> name '{}' names no role: {expected}", el.name(), shorten(name)));
+        None
     }
 }
 
-fn set(el: &RawElement, role: Role, domain: &str, d: &mut Diags) -> Option<Set> {
+fn set(el: RawElement, role: Role, domain: &str, d: &mut Diags) -> Option<Set> {
     no_text(el, d);
     let before = d.0.len();
-    let mut items = Vec::new();
+    // Room for every child (all of them are items in a valid set): growing the vector
+    // item by item copied it several times.
+    let mut items = Vec::with_capacity(el.children().count());
     item_list(el, role, domain, "", 0, &mut items, d);
     if d.0.len() != before {
         return None;
     }
     match layout::compute(&items) {
-        Ok(layout) => Some(Set { role, items, layout, pos: Some(el.pos) }),
+        Ok(layout) => Some(Set { role, items, layout, pos: Some(el.pos()) }),
         Err(bytes) => {
             d.at(
-                el.pos,
+                el.pos(),
                 format!(
                     "set {role} of domain '{domain}' would take {bytes} bytes; the limit is {} MiB",
                     MAX_SET_BYTES >> 20
@@ -381,7 +436,7 @@ fn set(el: &RawElement, role: Role, domain: &str, d: &mut Diags) -> Option<Set> 
 
 #[allow(clippy::too_many_arguments)]
 fn item_list(
-    parent: &RawElement,
+    parent: RawElement<'_>,
     role: Role,
     domain: &str,
     prefix: &str,
@@ -389,22 +444,23 @@ fn item_list(
     out: &mut Vec<Item>,
     d: &mut Diags,
 ) {
-    let mut seen: HashMap<String, Pos> = HashMap::new();
-    for child in &parent.children {
-        if child.name != "item" {
+    // Names as written, borrowed from the source: copying each one cost an allocation.
+    let mut seen = Seen::default();
+    for child in parent.children() {
+        if child.name() != "item" {
             // Inside a bus item, its other children (<type>, <length>, <default> and unknown
             // elements) are checked and reported by `item`.
-            if parent.name == "item" {
+            if parent.name() == "item" {
                 continue;
             }
-            d.at(child.pos, format!("unknown element <{}> in <{}>; expected <item>", child.name, parent.name));
+            d.at(child.pos(), format!("unknown element <{}> in <{}>; expected <item>", child.name(), parent.name()));
             continue;
         }
-        let Some(item) = item(child, role, domain, prefix, depth, d) else { continue };
-        let path = join_path(prefix, &item.name);
-        if let Some(first) = seen.get(&item.name) {
+        let Some((name, item)) = item(child, role, domain, prefix, depth, d) else { continue };
+        if let Some(first) = seen.first(name, child.pos()) {
+            let path = join_path(prefix, name);
             d.at(
-                child.pos,
+                child.pos(),
                 format!(
                     "item path '{path}' appears twice in set {role} of domain '{domain}' (first at line {}, column {})",
                     first.line, first.col
@@ -412,51 +468,59 @@ fn item_list(
             );
             continue;
         }
-        seen.insert(item.name.clone(), child.pos);
         out.push(item);
     }
 }
 
-fn item(el: &RawElement, role: Role, domain: &str, prefix: &str, depth: usize, d: &mut Diags) -> Option<Item> {
+/// A valid item, with its name as written in the source.
+fn item<'a>(
+    el: RawElement<'a>,
+    role: Role,
+    domain: &str,
+    prefix: &str,
+    depth: usize,
+    d: &mut Diags,
+) -> Option<(&'a str, Item)> {
     only_attrs(el, &["name"], d);
     no_text(el, d);
     let name = name_attr(el, "item", d);
-    let label = match &name {
-        Some(n) if prefix.is_empty() => n.clone(),
-        Some(n) => format!("{prefix}/{n}"),
-        None => format!("{prefix}/?"),
+    // The path for messages and nested items; at the top of a set (most items) the name.
+    let label: Cow<str> = match name {
+        Some(n) if prefix.is_empty() => Cow::Borrowed(n),
+        Some(n) => Cow::Owned(join_path(prefix, n)),
+        None => Cow::Owned(format!("{prefix}/?")),
     };
     let mut ty_el = None;
     let mut length_el = None;
     let mut default_el = None;
-    for child in &el.children {
-        let slot = match &*child.name {
+    for child in el.children() {
+        let slot = match child.name() {
             "type" => &mut ty_el,
             "length" => &mut length_el,
             "default" => &mut default_el,
             "item" => continue,
             other => {
                 d.at(
-                    child.pos,
+                    child.pos(),
                     format!("unknown element <{other}> in item '{label}'; expected <type>, <length>, <default> or nested <item>"),
                 );
                 continue;
             }
         };
         if slot.is_some() {
-            d.at(child.pos, format!("item '{label}' has a second <{}>", child.name));
+            d.at(child.pos(), format!("item '{label}' has a second <{}>", child.name()));
             continue;
         }
         leaf_element(child, d);
         *slot = Some(child);
     }
     let Some(ty_el) = ty_el else {
-        d.at(el.pos, format!("item '{label}' has no <type>"));
+        d.at(el.pos(), format!("item '{label}' has no <type>"));
         return None;
     };
     let Some(ty) = TypeName::parse(ty_el.text()) else {
         d.at(
-            ty_el.text_pos.unwrap_or(ty_el.pos),
+            ty_el.text_pos().unwrap_or(ty_el.pos()),
             format!(
                 "item '{label}' has unknown type '{}'; expected boolean, int8…int64, unsigned int8…unsigned int64, float32, float64 or bus",
                 shorten(ty_el.text())
@@ -470,7 +534,7 @@ fn item(el: &RawElement, role: Role, domain: &str, prefix: &str, depth: usize, d
             Ok(n) if (1..=u64::from(MAX_LENGTH)).contains(&n) => Some(n as u16),
             _ => {
                 d.at(
-                    l.text_pos.unwrap_or(l.pos),
+                    l.text_pos().unwrap_or(l.pos()),
                     format!(
                         "item '{label}' has length '{}'; a length is a whole number from 1 to {MAX_LENGTH}",
                         shorten(l.text())
@@ -480,34 +544,35 @@ fn item(el: &RawElement, role: Role, domain: &str, prefix: &str, depth: usize, d
             }
         },
     };
-    let nested: Vec<&RawElement> = el.children.iter().filter(|c| c.name == "item").collect();
+    let mut nested = el.children().filter(|c| c.name() == "item").peekable();
     match ty {
         TypeName::Bus => {
             if let Some(def) = default_el {
-                d.at(def.pos, format!("bus item '{label}' cannot have a <default>; give defaults to its members"));
+                d.at(def.pos(), format!("bus item '{label}' cannot have a <default>; give defaults to its members"));
             }
             if length.is_some_and(|l| l != 1) {
                 d.at(
-                    length_el.map_or(el.pos, |l| l.pos),
+                    length_el.map_or(el.pos(), |l| l.pos()),
                     format!("bus item '{label}' must have length 1; arrays of buses are not supported"),
                 );
             }
-            if nested.is_empty() {
-                d.at(el.pos, format!("bus item '{label}' has no nested <item>"));
+            if nested.peek().is_none() {
+                d.at(el.pos(), format!("bus item '{label}' has no nested <item>"));
                 return None;
             }
             if depth + 1 > MAX_BUS_DEPTH {
-                d.at(el.pos, format!("bus item '{label}' is nested deeper than {MAX_BUS_DEPTH} levels"));
+                d.at(el.pos(), format!("bus item '{label}' is nested deeper than {MAX_BUS_DEPTH} levels"));
                 return None;
             }
-            let mut items = Vec::new();
+            let mut items = Vec::with_capacity(el.children().count());
             item_list(el, role, domain, &label, depth + 1, &mut items, d);
-            Some(Item { name: name?, kind: ItemKind::Bus { items }, pos: el.pos })
+            let name = name?;
+            Some((name, Item { name: name.to_string(), kind: ItemKind::Bus { items }, pos: el.pos() }))
         }
         TypeName::Scalar(ty) => {
             for n in nested {
                 d.at(
-                    n.pos,
+                    n.pos(),
                     format!("item '{label}' has type {} and cannot contain items; only a bus can", ty.canonical()),
                 );
             }
@@ -522,7 +587,7 @@ fn item(el: &RawElement, role: Role, domain: &str, prefix: &str, depth: usize, d
                             format!("a value of type {}", ty.canonical())
                         };
                         d.at(
-                            def.text_pos.unwrap_or(def.pos),
+                            def.text_pos().unwrap_or(def.pos()),
                             format!(
                                 "default '{}' of item '{label}' does not fit its type: expected {expected}",
                                 shorten(def.text())
@@ -535,7 +600,41 @@ fn item(el: &RawElement, role: Role, domain: &str, prefix: &str, depth: usize, d
             if default_el.is_some() && default.is_none() {
                 return None;
             }
-            Some(Item { name: name?, kind: ItemKind::Scalar { ty, length: length?, default }, pos: el.pos })
+            let name = name?;
+            let kind = ItemKind::Scalar { ty, length: length?, default };
+            Some((name, Item { name: name.to_string(), kind, pos: el.pos() }))
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn seen_finds_the_first_position_before_and_after_hashing() {
+        let names: Vec<String> = (0..3 * Seen::FEW).map(|i| format!("n{i}")).collect();
+        let at = |i: usize| Pos { line: i as u32 + 1, col: 1 };
+        let mut seen = Seen::default();
+        for (i, name) in names.iter().enumerate() {
+            assert_eq!(seen.first(name, at(i)), None);
+            // A name seen just before, and the very first one, whichever way they are kept.
+            assert_eq!(seen.first(name, at(1000)), Some(at(i)));
+            assert_eq!(seen.first(&names[0], at(1000)), Some(at(0)));
+        }
+    }
+
+    #[test]
+    fn name_problems_are_the_same_for_ascii_and_other_names() {
+        assert_eq!(name_problem("cosim_0001"), None);
+        assert_eq!(name_problem("é"), None);
+        assert_eq!(name_problem(&"x".repeat(MAX_NAME_LEN)), None);
+        assert_eq!(name_problem(&"é".repeat(MAX_NAME_LEN)), None);
+        assert_eq!(name_problem(""), Some("is empty".into()));
+        assert!(name_problem(&"x".repeat(MAX_NAME_LEN + 1)).unwrap().starts_with("is 64 characters long"));
+        assert!(name_problem("a,b").unwrap().starts_with("contains ','"));
+        assert!(name_problem("a b").unwrap().starts_with("contains ' '"));
+        assert!(name_problem("a\u{7f}").unwrap().starts_with("contains '\\u{7f}'"));
+        assert!(name_problem("a\u{a0}b").unwrap().starts_with("contains '\\u{a0}'"));
     }
 }
