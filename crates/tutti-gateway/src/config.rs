@@ -491,9 +491,13 @@ pub fn parse(text: &str, source: &str) -> Result<ConfigFile, GatewayError> {
         Err(json5::Error::Message { msg, location }) => {
             // A syntax error's message is pest's drawing of the line; its last line says
             // what was expected, the position is ours.
-            let msg = match msg.lines().rev().find_map(|l| l.trim().strip_prefix("= ")) {
-                Some(expected) => format!("syntax error: {expected}"),
-                None => msg,
+            let msg = match (msg.lines().rev().find_map(|l| l.trim().strip_prefix("= ")), &location) {
+                (Some(expected), Some(l)) => {
+                    let line = text.lines().nth(l.line.saturating_sub(1)).unwrap_or_default();
+                    format!("syntax error ({expected}) here:\n  {line}\n  {:>col$}", "^", col = l.column)
+                }
+                (Some(expected), None) => format!("syntax error: {expected}"),
+                (None, _) => msg,
             };
             Err(GatewayError::Invalid(match location {
                 Some(l) => format!("{source}:{}:{}: {msg}", l.line, l.column),
@@ -1049,5 +1053,18 @@ mod tests {
                 && !p.left_out.is_empty()
                 && p.sets.iter().any(|s| s.ros2_topic != format!("/{}", s.key))
         );
+    }
+
+    /// Every key is documented in docs/gateway.md.
+    #[test]
+    fn every_key_is_documented() {
+        let doc = std::fs::read_to_string(repo("docs/gateway.md")).unwrap();
+        for k in KEYS {
+            assert!(doc.contains(&format!("`{k}`")), "docs/gateway.md does not mention `{k}`");
+        }
+        for k in KEYS {
+            let e = err(parse("{ nope: 1 }", "f"));
+            assert!(e.contains(&format!("`{k}`")), "KEYS lists `{k}`, the parser does not: {e}");
+        }
     }
 }
