@@ -190,7 +190,8 @@ pub fn resolve(opts: &GatewayOptions) -> Result<Plan, GatewayError> {
     // DDS topic -> the set that has it, to refuse two sets (or /clock) on one topic.
     let mut taken: BTreeMap<String, String> = BTreeMap::new();
     if opts.clock_domain()?.is_some() {
-        taken.insert(crate::routes::clock::TOPIC.to_string(), "the gateway's /clock (see --clock)".into());
+        // `/clock` is under the ROS namespace too (`rt/NS/clock`), as the manager names it.
+        taken.insert(dds_topic(&ns, "clock"), "the gateway's /clock (see --clock)".into());
     }
     for (di, d) in opts.model.domains.iter().enumerate() {
         for role in Role::ALL {

@@ -17,6 +17,7 @@ use axum::routing::get;
 use serde::Serialize;
 
 use crate::config::PlannedSet;
+use crate::stats::SetStats;
 use crate::{GatewayError, Stats};
 
 /// What `GET /stats` returns (and `GET /metrics` renders).
@@ -78,12 +79,12 @@ pub struct TopicReport {
     pub set: String,
     pub domain: String,
     pub direction: Direction,
-    /// Samples the gateway took in for this topic (from shared memory going out, from DDS
-    /// coming in).
+    /// DDS samples committed to shared memory (or published by a mirror): DDS to tutti.
     pub samples_in: u64,
-    /// Samples it passed on (written to DDS, committed to shared memory).
+    /// Samples written to DDS: tutti to DDS.
     pub samples_out: u64,
-    /// Samples taken in and not passed on (rate limit, role rules, late, own echoes).
+    /// Samples not delivered: DDS samples refused by the role rules, late or failing,
+    /// synchronous steps the pump could not send, samples held back by `max_rate`.
     pub dropped: u64,
     /// DDS samples that could not be decoded.
     pub bad_input: u64,
@@ -107,6 +108,20 @@ impl TopicReport {
     }
 }
 
+impl TopicReport {
+    /// The report with the counters of `s` (read now).
+    pub fn with_counts(mut self, s: &SetStats) -> TopicReport {
+        let g = |c: &std::sync::atomic::AtomicU64| c.load(std::sync::atomic::Ordering::Relaxed);
+        self.samples_in = g(&s.samples_in);
+        self.samples_out = g(&s.samples_out);
+        self.dropped = g(&s.dropped);
+        self.bad_input = g(&s.bad_input);
+        self.matched_readers = g(&s.readers);
+        self.matched_writers = g(&s.writers);
+        self
+    }
+}
+
 impl GatewayReport {
     /// [`Stats::snapshot`] as the `totals` map.
     pub fn totals(stats: &Stats) -> BTreeMap<String, u64> {
@@ -121,19 +136,14 @@ const TOPIC_METRICS: &[TopicMetric] = &[
     (
         "tutti_gateway_samples_in_total",
         "counter",
-        "Samples the gateway took in for a topic (from shared memory going out, from DDS coming in).",
+        "DDS samples of a topic committed to shared memory (or published by a mirror).",
         |t| t.samples_in,
     ),
-    (
-        "tutti_gateway_samples_out_total",
-        "counter",
-        "Samples the gateway passed on for a topic (written to DDS, committed to shared memory).",
-        |t| t.samples_out,
-    ),
+    ("tutti_gateway_samples_out_total", "counter", "Samples of a topic written to DDS.", |t| t.samples_out),
     (
         "tutti_gateway_dropped_total",
         "counter",
-        "Samples taken in and not passed on (rate limit, role rules, late, own echoes).",
+        "Samples of a topic not delivered (role rules, late, failed, steps not sent, max_rate).",
         |t| t.dropped,
     ),
     ("tutti_gateway_bad_input_total", "counter", "DDS samples that could not be decoded.", |t| t.bad_input),
@@ -162,6 +172,8 @@ fn total_help(name: &str) -> (&'static str, &'static str) {
         "late" => ("counter", "DDS samples answering a step the framework had already left."),
         "own_samples" => ("counter", "DDS samples that came back from this gateway itself (dropped)."),
         "errors" => ("counter", "Shared-memory or DDS write failures."),
+        "skipped" => ("counter", "Synchronous steps the pump could not send to DDS before the framework moved on."),
+        "lapsed" => ("counter", "Synchronous DDS writers released after owing a step's answer, silent, for the lease."),
         "remote_writers" => ("gauge", "Matched remote DDS writers."),
         "remote_readers" => ("gauge", "Matched remote DDS readers."),
         _ => ("counter", "A gateway counter (see the status line)."),
@@ -326,7 +338,7 @@ mod tests {
     fn prometheus_text_has_help_type_and_escaped_labels() {
         let t = prometheus(&report());
         for line in [
-            "# HELP tutti_gateway_samples_in_total Samples the gateway took in",
+            "# HELP tutti_gateway_samples_in_total DDS samples of a topic committed",
             "# TYPE tutti_gateway_samples_in_total counter\n",
             "# TYPE tutti_gateway_matched_readers gauge\n",
             "tutti_gateway_samples_in_total{topic=\"rt/sim1/uav1/publish\",ros2_topic=\"/sim1/uav1/publish\",set=\"uav1/publish\",direction=\"out\"} 10\n",
@@ -411,6 +423,16 @@ mod tests {
         assert_eq!(odd[2].as_f64(), Some(4.0));
         assert_eq!(v["tutti_gateway_samples_in"][1][0][2].as_f64(), Some(10.0));
         assert_eq!(v["tutti_gateway_info"][1][0][1]["node"], "/sim1/tutti_gateway");
+    }
+
+    #[test]
+    fn topic_reports_take_a_sets_counters() {
+        let s = SetStats::default();
+        Stats::add(&s.samples_out, 5);
+        Stats::add(&s.readers, 2);
+        Stats::add(&s.bad_input, 1);
+        let t = TopicReport::default().with_counts(&s);
+        assert_eq!((t.samples_out, t.matched_readers, t.bad_input, t.samples_in), (5, 2, 1, 0));
     }
 
     fn agent() -> ureq::Agent {
