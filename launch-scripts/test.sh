@@ -37,6 +37,11 @@ if ! .venv/bin/python -c 'import pythonfmu, fmpy' 2>/dev/null; then
         lxml==6.1.3 msgpack==1.2.4 nbformat==5.11.1 numpy==2.4.6
     .venv/bin/pip install -q --disable-pip-version-check --no-deps fmpy==0.3.32
 fi
+# The Prometheus project's own parser, which reads the gateway's /metrics text in its tests.
+if ! .venv/bin/python -c 'import prometheus_client' 2>/dev/null; then
+    step "installing prometheus-client into .venv"
+    .venv/bin/pip install -q --disable-pip-version-check prometheus-client==0.26.0
+fi
 export PATH="$PWD/.venv/bin:$PATH"
 
 segments_before=$(ls /dev/shm 2>/dev/null | grep '^tutti\.' || true)

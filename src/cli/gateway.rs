@@ -1,7 +1,7 @@
 //! `tutti gateway DDF`: bridge every domain of a DDF to DDS / ROS 2 (SPEC section 5).
 
-use std::net::IpAddr;
-use std::path::PathBuf;
+use std::net::{IpAddr, SocketAddr};
+use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 use std::time::Duration;
@@ -9,50 +9,65 @@ use std::time::Duration;
 use super::show::ProfileArg;
 use anyhow::Context;
 use clap::ValueEnum;
+use tutti_core::ddf::Model;
 use tutti_core::shm::WaitMode;
-use tutti_gateway::{ClockSource, EngineKind, GatewayError, GatewayOptions, TypeMode};
+use tutti_gateway::config::{self, ConfigFile, DiscoveryRange};
+use tutti_gateway::{EngineKind, GatewayError, GatewayOptions, TypeMode};
 
-use super::host::{parse_duration, parse_wait};
 use super::{load_ddf, CliResult, Failure};
 
 /// Bridge every domain of a DDF to DDS / ROS 2: each set is a topic (rt/DOMAIN/publish,
 /// rt/DOMAIN/subscribe) bridged both ways, with the QoS the DDF's flags call for; the
 /// gateway is one ROS 2 node. With --mirror it hosts local copies of the domains fed from
-/// DDS, so components on another machine connect through shared memory.
+/// DDS, so components on another machine connect through shared memory. Every option can
+/// also come from a --config file (flags given here win over it).
 #[derive(Debug, clap::Args)]
 #[command(
-    after_help = "Examples:\n  tutti gateway ddf/multiuav.ddf\n  ROS_DOMAIN_ID=7 tutti gateway ddf/multiuav.ddf --ros2-types per-item\n  tutti gateway ddf/product-sample.ddf --qos-profile dds --strength 10\n  TUTTI_NAMESPACE=site2 tutti gateway ddf/multiuav.ddf --mirror --interface 192.0.2.2\n  tutti gateway ddf/multiuav.ddf --mirror --peer 192.0.2.1   # discovery without multicast\n  tutti gateway ddf/multiuav.ddf --dds rustdds\n  tutti gateway ddf/multiuav.ddf --clock multiuav_uav1 --clock-rate 100   # /clock for use_sim_time\n\nEnvironment:\n  ROS_DOMAIN_ID            DDS domain when --ros-domain-id is absent (default 0)\n  TUTTI_DDS                default for --dds\n  CYCLONEDDS_URI           Cyclone DDS configuration (cyclone engine)\n  TUTTI_NAMESPACE          namespace of the shared-memory segments\n  TUTTI_GATEWAY_INTERFACE  default for --interface (comma-separated addresses)\n  RUST_LOG                 log filter (default: info, DDS internals off)\n\nStop with Ctrl-C. Exit status: 0 stopped cleanly, 2 invalid input, 1 runtime failure."
+    after_help = "Examples:\n  tutti gateway ddf/multiuav.ddf\n  ROS_DOMAIN_ID=7 tutti gateway ddf/multiuav.ddf --ros2-types per-item\n  tutti gateway ddf/product-sample.ddf --qos-profile dds --strength 10\n  TUTTI_NAMESPACE=site2 tutti gateway ddf/multiuav.ddf --mirror --interface 192.0.2.2\n  tutti gateway ddf/multiuav.ddf --mirror --peer 192.0.2.1   # discovery without multicast\n  tutti gateway ddf/multiuav.ddf --dds rustdds\n  tutti gateway ddf/multiuav.ddf --clock multiuav_uav1 --clock-rate 100   # /clock for use_sim_time\n  tutti gateway ddf/multiuav.ddf --config examples/gateway.json5   # tutti show --config shows its topics\n  tutti gateway ddf/multiuav.ddf --ros-namespace sim1 --http 127.0.0.1:9100   # /sim1/...; curl .../metrics\n\nEnvironment (a flag, then the --config file, win over these):\n  ROS_DOMAIN_ID            DDS domain (default 0)\n  ROS_LOCALHOST_ONLY=1     DDS on loopback only (as ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST)\n  ROS_AUTOMATIC_DISCOVERY_RANGE  SUBNET or SYSTEM_DEFAULT: as configured; LOCALHOST: loopback only;\n                           OFF: refused unless --peer is given\n  TUTTI_DDS                default for --dds\n  CYCLONEDDS_URI           Cyclone DDS configuration (cyclone engine)\n  TUTTI_NAMESPACE          namespace of the shared-memory segments\n  TUTTI_GATEWAY_INTERFACE  default for --interface (comma-separated addresses)\n  RUST_LOG                 log filter (default: info, DDS internals off)\n\nStop with Ctrl-C. Exit status: 0 stopped cleanly, 2 invalid input, 1 runtime failure."
 )]
 pub struct Args {
     /// The DDF whose domains to bridge.
     #[arg(value_name = "DDF")]
     file: PathBuf,
+    /// Read options from this JSON5 file: its keys are these flags with '_' for '-', plus
+    /// allow, deny and topics (which sets, per-topic QoS, rate and name); see
+    /// examples/gateway.json5.
+    #[arg(long, value_name = "FILE")]
+    config: Option<PathBuf>,
     /// DDS domain id, 0-232 (default: ROS_DOMAIN_ID, else 0).
     #[arg(long, value_name = "N", value_parser = clap::value_parser!(u16).range(0..=232))]
     ros_domain_id: Option<u16>,
-    /// Type mapping: one struct per set (tutti idl's types) or one stock-typed topic per item.
-    #[arg(long, value_enum, default_value_t = Types::Typed)]
-    ros2_types: Types,
-    /// QoS profile: ros2 (every endpoint SHARED, so rclpy matches) or dds (EXCLUSIVE
-    /// ownership on the wire where multiplePublishAllowed=no).
-    #[arg(long, value_enum, default_value_t = ProfileArg::Ros2)]
-    qos_profile: ProfileArg,
-    /// OWNERSHIP_STRENGTH of the gateway's writers in the dds profile.
-    #[arg(long, default_value_t = 0)]
-    strength: i32,
+    /// Type mapping: one struct per set (tutti idl's types; the default) or one stock-typed
+    /// topic per item.
+    #[arg(long, value_enum)]
+    ros2_types: Option<Types>,
+    /// QoS profile: ros2 (the default: every endpoint SHARED, so rclpy matches) or dds
+    /// (EXCLUSIVE ownership on the wire where multiplePublishAllowed=no).
+    #[arg(long, value_enum)]
+    qos_profile: Option<ProfileArg>,
+    /// OWNERSHIP_STRENGTH of the gateway's writers in the dds profile (default 0).
+    #[arg(long, value_name = "N")]
+    strength: Option<i32>,
     /// Host local copies of the domains, fed from DDS (the other side of a co-simulation
     /// that spans machines).
     #[arg(long)]
     mirror: bool,
-    /// ROS 2 node name.
-    #[arg(long, default_value = "tutti_gateway")]
-    node_name: String,
+    /// ROS 2 node name (default tutti_gateway).
+    #[arg(long, value_name = "NAME")]
+    node_name: Option<String>,
+    /// ROS namespace of every topic and of the node: /NS/DOMAIN/publish, node /NS/NAME.
+    #[arg(long, value_name = "NS", value_parser = parse_namespace)]
+    ros_namespace: Option<String>,
+    /// Bridge every domain of the DDF from the start, not only those a framework hosts in
+    /// TUTTI_NAMESPACE.
+    #[arg(long)]
+    all_domains: bool,
     /// Address of a network interface DDS may use (repeatable; default: all interfaces).
     #[arg(long = "interface", value_name = "ADDR")]
     interfaces: Vec<IpAddr>,
     /// DDS engine: cyclone (Cyclone DDS, the default) or rustdds (pure Rust).
-    #[arg(long = "dds", env = "TUTTI_DDS", default_value = "cyclone", value_name = "ENGINE")]
-    engine: EngineKind,
+    #[arg(long = "dds", value_name = "ENGINE")]
+    engine: Option<EngineKind>,
     /// Unicast discovery peer (address or host name; repeatable), for networks without
     /// multicast, e.g. the other machine of a --mirror pair (cyclone engine).
     #[arg(long = "peer", value_name = "ADDR")]
@@ -62,37 +77,35 @@ pub struct Args {
     #[arg(long, value_name = "DOMAIN")]
     clock: Option<String>,
     /// At most this many /clock samples a second (default: one per step).
-    #[arg(long, value_name = "HZ", value_parser = parse_rate)]
+    #[arg(long, value_name = "HZ", value_parser = config::parse_rate)]
     clock_rate: Option<f64>,
-    /// Longest shared-memory wait; with --mirror, the framework's step timeout.
-    #[arg(long, default_value = "1s", value_parser = parse_duration)]
-    timeout: Duration,
-    /// How shared-memory waits wait: block, spin, or poll:DURATION.
-    #[arg(long, default_value = "block", value_parser = parse_wait)]
-    wait: WaitMode,
-    /// How often an idle asynchronous set is checked for changes (0: keep polling).
-    #[arg(long, default_value = "500us", value_parser = parse_duration)]
-    poll: Duration,
-    /// Period of the status line on stderr.
-    #[arg(long, default_value = "5s", value_parser = parse_duration)]
-    status_every: Duration,
+    /// Longest shared-memory wait; with --mirror, the framework's step timeout (default 1s).
+    #[arg(long, value_name = "DURATION", value_parser = config::parse_duration)]
+    timeout: Option<Duration>,
+    /// How shared-memory waits wait: block (the default), spin, or poll:DURATION.
+    #[arg(long, value_name = "MODE", value_parser = config::parse_wait)]
+    wait: Option<WaitMode>,
+    /// How often an idle asynchronous set is checked for changes (default 500us; 0: keep
+    /// polling).
+    #[arg(long, value_name = "DURATION", value_parser = config::parse_duration)]
+    poll: Option<Duration>,
+    /// How long a DDS writer of a synchronous domain may owe a step's answer, silent, before
+    /// its lock-step share is released (default 1s).
+    #[arg(long, value_name = "DURATION", value_parser = config::parse_duration)]
+    lease: Option<Duration>,
+    /// Serve the counters over HTTP: JSON at /stats, Prometheus text at /metrics (port 0:
+    /// any free port, logged).
+    #[arg(long, value_name = "ADDR")]
+    http: Option<SocketAddr>,
+    /// Period of the status line on stderr (default 5s).
+    #[arg(long, value_name = "DURATION", value_parser = config::parse_duration)]
+    status_every: Option<Duration>,
     /// Stop after this long (default: run until Ctrl-C).
-    #[arg(long, value_parser = parse_duration)]
+    #[arg(long, value_name = "DURATION", value_parser = config::parse_duration)]
     duration: Option<Duration>,
     /// Print no status lines.
     #[arg(short, long)]
     quiet: bool,
-    /// ROS namespace of every topic and of the node (rt/NS/DOMAIN/publish, /NS/NODE).
-    #[arg(long, value_name = "NS", default_value = "")]
-    ros_namespace: String,
-    /// Bridge every domain of the DDF from the start, not only those a framework hosts in
-    /// TUTTI_NAMESPACE.
-    #[arg(long)]
-    all_domains: bool,
-    /// How long a DDS writer of a synchronous domain may owe a step's answer, silent, before
-    /// its lock-step share is released.
-    #[arg(long, default_value = "1s", value_parser = parse_duration)]
-    lease: Duration,
 }
 
 #[derive(Debug, Clone, Copy, ValueEnum)]
@@ -101,19 +114,93 @@ enum Types {
     PerItem,
 }
 
-/// A positive rate in Hz.
-fn parse_rate(s: &str) -> Result<f64, String> {
-    match s.trim().trim_end_matches("Hz").trim_end_matches("hz").parse::<f64>() {
-        Ok(r) if r > 0.0 && r.is_finite() => Ok(r),
-        _ => Err(format!("'{s}' is not a rate in Hz (e.g. 100)")),
+fn parse_namespace(s: &str) -> Result<String, String> {
+    config::ros_namespace(s).map_err(|e| e.to_string())
+}
+
+impl Args {
+    /// The flags given, as config keys (those not given are None, so the file's show through).
+    fn flags(&self) -> ConfigFile {
+        ConfigFile {
+            source: None,
+            ros_domain_id: self.ros_domain_id,
+            ros2_types: self.ros2_types.map(|t| match t {
+                Types::Typed => TypeMode::Typed,
+                Types::PerItem => TypeMode::PerItem,
+            }),
+            qos_profile: self.qos_profile.map(Into::into),
+            strength: self.strength,
+            mirror: self.mirror.then_some(true),
+            node_name: self.node_name.clone(),
+            interface: (!self.interfaces.is_empty()).then(|| self.interfaces.clone()),
+            dds: self.engine,
+            peer: (!self.peers.is_empty()).then(|| self.peers.clone()),
+            clock: self.clock.clone(),
+            clock_rate: self.clock_rate,
+            timeout: self.timeout,
+            wait: self.wait,
+            poll: self.poll,
+            status_every: self.status_every,
+            duration: self.duration,
+            quiet: self.quiet.then_some(true),
+            ros_namespace: self.ros_namespace.clone(),
+            hosted_only: self.all_domains.then_some(false),
+            lease: self.lease,
+            http: self.http,
+            allow: None,
+            deny: None,
+            topics: None,
+        }
     }
 }
 
-/// The DDS domain: the flag, else ROS_DOMAIN_ID, else 0.
-fn domain_id(flag: Option<u16>) -> Result<u16, Failure> {
-    if let Some(id) = flag {
-        return Ok(id);
+/// `flags` laid over the config file's keys, if there is one.
+pub(super) fn layered(flags: ConfigFile, config: Option<&Path>) -> Result<ConfigFile, Failure> {
+    match config {
+        None => Ok(flags),
+        Some(path) => Ok(flags.over(config::load(path).map_err(Failure::invalid)?)),
     }
+}
+
+/// The options of the gateway for `model`: its defaults, then the environment where
+/// `keys` (flags over file) say nothing, then `keys`.
+pub(super) fn options(ddf: &Path, model: Model, keys: &ConfigFile) -> Result<GatewayOptions, Failure> {
+    let mut opts = GatewayOptions::new(ddf, model);
+    if keys.ros_domain_id.is_none() {
+        opts.ros_domain_id = domain_id_from_env()?;
+    }
+    if keys.dds.is_none() {
+        opts.engine = engine_from_env()?;
+    }
+    let range = config::discovery_range(
+        std::env::var("ROS_LOCALHOST_ONLY").ok().as_deref(),
+        std::env::var("ROS_AUTOMATIC_DISCOVERY_RANGE").ok().as_deref(),
+    )
+    .map_err(Failure::invalid)?;
+    if keys.interface.is_none() {
+        opts.interfaces = interfaces_from_env(range)?;
+    }
+    keys.apply(&mut opts).map_err(Failure::invalid)?;
+    if range == DiscoveryRange::Off {
+        // Cyclone has no switch for "peers only" that we could set without overriding
+        // CYCLONEDDS_URI; with peers given, they are used beside what Cyclone is configured for.
+        if opts.peers.is_empty() {
+            return Err(Failure::invalid(anyhow::anyhow!(
+                "ROS_AUTOMATIC_DISCOVERY_RANGE=OFF: no automatic discovery, so the gateway would find nobody; \
+                 give the peers with --peer ADDR (or the config file's `peer`), or unset the variable"
+            )));
+        }
+        tracing::warn!(
+            "ROS_AUTOMATIC_DISCOVERY_RANGE=OFF: discovering the peers {:?}; multicast discovery stays as \
+             CYCLONEDDS_URI configures it",
+            opts.peers
+        );
+    }
+    Ok(opts)
+}
+
+/// ROS_DOMAIN_ID, else 0.
+fn domain_id_from_env() -> Result<u16, Failure> {
     match std::env::var("ROS_DOMAIN_ID") {
         Ok(s) if !s.trim().is_empty() => s
             .trim()
@@ -125,10 +212,19 @@ fn domain_id(flag: Option<u16>) -> Result<u16, Failure> {
     }
 }
 
-fn interfaces(flag: Vec<IpAddr>) -> Result<Vec<IpAddr>, Failure> {
-    if !flag.is_empty() {
-        return Ok(flag);
+/// TUTTI_DDS, else cyclone; an unknown engine is refused naming the variable.
+pub(super) fn engine_from_env() -> Result<EngineKind, Failure> {
+    match std::env::var("TUTTI_DDS") {
+        Ok(s) if !s.trim().is_empty() => {
+            s.parse().map_err(|e: String| Failure::invalid(anyhow::anyhow!("TUTTI_DDS='{s}': {e}")))
+        }
+        _ => Ok(EngineKind::default()),
     }
+}
+
+/// TUTTI_GATEWAY_INTERFACE, else loopback when ROS 2's discovery range says this machine
+/// only, else every interface.
+fn interfaces_from_env(range: DiscoveryRange) -> Result<Vec<IpAddr>, Failure> {
     match std::env::var("TUTTI_GATEWAY_INTERFACE") {
         Ok(s) if !s.trim().is_empty() => s
             .split(',')
@@ -138,6 +234,7 @@ fn interfaces(flag: Vec<IpAddr>) -> Result<Vec<IpAddr>, Failure> {
                     .map_err(|e| Failure::invalid(anyhow::anyhow!("TUTTI_GATEWAY_INTERFACE: '{a}': {e}")))
             })
             .collect(),
+        _ if range == DiscoveryRange::Localhost => Ok(vec![IpAddr::from([127, 0, 0, 1])]),
         _ => Ok(Vec::new()),
     }
 }
@@ -153,53 +250,34 @@ pub fn run(args: Args) -> CliResult {
         .with_ansi(std::io::IsTerminal::is_terminal(&std::io::stderr()))
         .with_target(false)
         .try_init();
+    let keys = layered(args.flags(), args.config.as_deref())?;
     let model = load_ddf(&args.file)?;
-    let mut opts = GatewayOptions::new(&args.file, model);
-    opts.ros_domain_id = domain_id(args.ros_domain_id)?;
-    opts.types = match args.ros2_types {
-        Types::Typed => TypeMode::Typed,
-        Types::PerItem => TypeMode::PerItem,
-    };
-    opts.profile = args.qos_profile.into();
-    opts.strength = args.strength;
-    opts.mirror = args.mirror;
-    opts.node_name = args.node_name;
-    opts.interfaces = interfaces(args.interfaces)?;
-    opts.engine = args.engine;
-    opts.peers = args.peers;
-    opts.clock = match args.clock.as_deref() {
-        None => ClockSource::FirstSynchronous,
-        Some("none") => ClockSource::Off,
-        Some(d) => ClockSource::Domain(d.to_string()),
-    };
-    opts.clock_rate = args.clock_rate;
-    opts.timeout = args.timeout;
-    opts.wait = args.wait;
-    opts.poll = args.poll;
-    opts.ros_namespace = args.ros_namespace;
-    opts.hosted_only = !args.all_domains;
-    opts.lease = args.lease;
+    let opts = options(&args.file, model, &keys)?;
+    // The rules are checked against the DDF before anything starts (tutti show --config
+    // shows the same plan).
+    config::resolve(&opts).map_err(Failure::invalid)?;
 
     let stop = Arc::new(AtomicBool::new(false));
     {
         let stop = stop.clone();
         ctrlc::set_handler(move || stop.store(true, Ordering::SeqCst)).context("installing the signal handler")?;
     }
-    if let Some(d) = args.duration {
+    if let Some(d) = keys.duration {
         let stop = stop.clone();
         std::thread::spawn(move || {
             std::thread::sleep(d);
             stop.store(true, Ordering::SeqCst);
         });
     }
-    let quiet = args.quiet;
+    let quiet = keys.quiet.unwrap_or(false);
     let shown = args.file.display().to_string();
     let mut on_status = |line: &str| {
         if !quiet {
             eprintln!("tutti gateway: {line}");
         }
     };
-    match tutti_gateway::run(opts, stop, args.status_every, &mut on_status) {
+    let status_every = keys.status_every.unwrap_or(Duration::from_secs(5));
+    match tutti_gateway::run(opts, stop, status_every, &mut on_status) {
         Ok(stats) => {
             if !quiet {
                 eprintln!("tutti gateway: stopped | {stats}");

@@ -1,21 +1,25 @@
 //! `tutti show DDF [--json]`: domains, flags, sets, items with their layout, DDS topics and
-//! QoS. The JSON schema is documented in `docs/ddf.md`.
+//! QoS. The JSON schema is documented in `docs/ddf.md`. With `--config FILE`: the gateway's
+//! plan under that config file instead (which sets it bridges, their names, QoS and rate
+//! limits, and why a set is left out; schema in `docs/gateway.md`).
 
 use std::fmt::Write as _;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
-use tutti_core::mapping::{self, Profile, Qos};
+use serde::Serialize;
+use tutti_core::ddf::{Model, Role};
+use tutti_core::mapping::{self, ItemTopic, Profile, Qos};
 use tutti_core::show::{show, ShowJson};
+use tutti_gateway::config::{self, ConfigFile, Plan};
+use tutti_gateway::{EngineKind, GatewayOptions, TypeMode};
 
-use tutti_gateway::EngineKind;
-
-use super::{load_ddf, CliResult};
+use super::{gateway, load_ddf, CliResult, Failure};
 
 /// Show what a DDF describes: domains, flags, sets, items (paths, types, lengths, offsets,
 /// defaults), DDS topics and QoS.
 #[derive(Debug, clap::Args)]
 #[command(
-    after_help = "Examples:\n  tutti show ddf/multiuav.ddf\n  tutti show ddf/product-sample.ddf --json | python3 -m json.tool"
+    after_help = "Examples:\n  tutti show ddf/multiuav.ddf\n  tutti show ddf/product-sample.ddf --json | python3 -m json.tool\n  tutti show ddf/multiuav.ddf --config examples/gateway.json5   # the gateway's topics under a config file"
 )]
 pub struct Args {
     /// The DDF to show.
@@ -24,12 +28,17 @@ pub struct Args {
     /// Print JSON (schema in docs/ddf.md) instead of text.
     #[arg(long)]
     json: bool,
-    /// QoS profile to show (as `tutti gateway --qos-profile`).
-    #[arg(long, value_enum, default_value_t = ProfileArg::Ros2)]
-    qos_profile: ProfileArg,
-    /// DDS engine to show (as `tutti gateway --dds`).
-    #[arg(long = "dds", env = "TUTTI_DDS", default_value = "cyclone", value_name = "ENGINE")]
-    engine: EngineKind,
+    /// QoS profile to show (as `tutti gateway --qos-profile`; default ros2).
+    #[arg(long, value_enum)]
+    qos_profile: Option<ProfileArg>,
+    /// DDS engine to show (as `tutti gateway --dds`; default: TUTTI_DDS, else cyclone).
+    #[arg(long = "dds", value_name = "ENGINE")]
+    engine: Option<EngineKind>,
+    /// Show the gateway's topics under this config file (as `tutti gateway --config`): which
+    /// sets are bridged, their DDS and ROS 2 names, QoS and rate limits, and why a set is
+    /// left out.
+    #[arg(long, value_name = "FILE")]
+    config: Option<PathBuf>,
 }
 
 #[derive(Debug, Clone, Copy, clap::ValueEnum)]
@@ -49,8 +58,15 @@ impl From<ProfileArg> for Profile {
 
 pub fn run(args: Args) -> CliResult {
     let model = load_ddf(&args.file)?;
-    let profile = Profile::from(args.qos_profile);
-    let view = show(&model, &args.file, profile, args.engine.name());
+    if let Some(cfg) = &args.config {
+        return show_plan(&args, model, cfg);
+    }
+    let profile = args.qos_profile.map_or(Profile::Ros2, Profile::from);
+    let engine = match args.engine {
+        Some(e) => e,
+        None => gateway::engine_from_env()?,
+    };
+    let view = show(&model, &args.file, profile, engine.name());
     if args.json {
         println!("{}", serde_json::to_string_pretty(&view).map_err(anyhow::Error::from)?);
     } else {
@@ -149,6 +165,155 @@ fn text(v: &ShowJson<'_>) -> String {
             let _ = writeln!(s, "    DDS topic {}  type {}", set.dds.topic, set.dds.dds_type);
             let _ = writeln!(s, "    gateway writer QoS: {}", qos_text(&set.writer_qos));
             let _ = writeln!(s, "    gateway reader QoS: {}", qos_text(&set.reader_qos));
+        }
+    }
+    s
+}
+
+/// `tutti show --config --json` (schema `tutti-gateway-plan/1`, in docs/gateway.md).
+#[derive(Debug, Serialize)]
+struct PlanJson<'a> {
+    schema: &'static str,
+    source: &'a str,
+    config: String,
+    package: String,
+    qos_profile: Profile,
+    dds_engine: &'static str,
+    ros2_types: &'static str,
+    /// Canonical, without slashes around it; empty for none.
+    ros_namespace: &'a str,
+    /// The node's full name (`/NS/NAME`).
+    node: String,
+    /// Whether a domain is bridged only while a framework hosts it.
+    hosted_only: bool,
+    sets: Vec<PlanSetJson<'a>>,
+    left_out: Vec<LeftOutJson<'a>>,
+}
+
+#[derive(Debug, Serialize)]
+struct PlanSetJson<'a> {
+    key: &'a str,
+    domain: &'a str,
+    role: Role,
+    topic: &'a str,
+    ros2_topic: &'a str,
+    dds_type: &'a str,
+    writer_qos: Qos,
+    reader_qos: Qos,
+    /// Hz; null: every sample.
+    max_rate: Option<f64>,
+    /// With `ros2_types` per-item: the topics that replace `topic`; else empty.
+    per_item_topics: Vec<ItemTopic>,
+}
+
+#[derive(Debug, Serialize)]
+struct LeftOutJson<'a> {
+    key: &'a str,
+    domain: &'a str,
+    role: Role,
+    reason: &'a str,
+}
+
+/// The gateway's plan for the DDF under the config file `cfg`, the show flags given over it.
+fn show_plan(args: &Args, model: Model, cfg: &Path) -> CliResult {
+    let flags = ConfigFile { qos_profile: args.qos_profile.map(Into::into), dds: args.engine, ..Default::default() };
+    let keys = gateway::layered(flags, Some(cfg))?;
+    let mut opts = GatewayOptions::new(&args.file, model);
+    if keys.dds.is_none() {
+        opts.engine = gateway::engine_from_env()?;
+    }
+    keys.apply(&mut opts).map_err(Failure::invalid)?;
+    let plan = config::resolve(&opts).map_err(Failure::invalid)?;
+    let view = plan_json(&opts, &plan, cfg);
+    if args.json {
+        println!("{}", serde_json::to_string_pretty(&view).map_err(anyhow::Error::from)?);
+    } else {
+        print!("{}", plan_text(&view));
+    }
+    Ok(())
+}
+
+fn plan_json<'a>(opts: &'a GatewayOptions, plan: &'a Plan, cfg: &Path) -> PlanJson<'a> {
+    let per_item = opts.types == TypeMode::PerItem;
+    let domain = |i: usize| opts.model.domains[i].name.as_str();
+    PlanJson {
+        schema: "tutti-gateway-plan/1",
+        source: &opts.model.source,
+        config: cfg.display().to_string(),
+        package: mapping::package_name(&opts.ddf_path),
+        qos_profile: opts.profile,
+        dds_engine: opts.engine.name(),
+        ros2_types: if per_item { "per-item" } else { "typed" },
+        ros_namespace: &opts.ros_namespace,
+        node: match opts.ros_namespace.as_str() {
+            "" => format!("/{}", opts.node_name),
+            ns => format!("/{ns}/{}", opts.node_name),
+        },
+        hosted_only: opts.hosted_only,
+        sets: plan
+            .sets
+            .iter()
+            .map(|s| PlanSetJson {
+                key: &s.key,
+                domain: domain(s.domain),
+                role: s.role,
+                topic: &s.topic,
+                ros2_topic: &s.ros2_topic,
+                dds_type: &s.dds_type,
+                writer_qos: s.writer_qos,
+                reader_qos: s.reader_qos,
+                max_rate: s.max_rate,
+                per_item_topics: if per_item { config::item_topics(opts, s) } else { Vec::new() },
+            })
+            .collect(),
+        left_out: plan
+            .left_out
+            .iter()
+            .map(|l| LeftOutJson { key: &l.key, domain: domain(l.domain), role: l.role, reason: &l.reason })
+            .collect(),
+    }
+}
+
+fn plan_text(v: &PlanJson<'_>) -> String {
+    let mut s = String::new();
+    let ns = if v.ros_namespace.is_empty() { "none".to_string() } else { format!("/{}", v.ros_namespace) };
+    let _ = writeln!(
+        s,
+        "{} under {}: {} of {} sets bridged, ROS namespace {ns}, node {}, ROS 2 package {}, types {}, QoS profile {}, DDS engine {}",
+        v.source,
+        v.config,
+        v.sets.len(),
+        v.sets.len() + v.left_out.len(),
+        v.node,
+        v.package,
+        v.ros2_types,
+        v.qos_profile.name(),
+        v.dds_engine
+    );
+    let _ = writeln!(
+        s,
+        "{}",
+        if v.hosted_only {
+            "a domain is bridged while a framework hosts it"
+        } else {
+            "every domain is bridged from the start (all domains)"
+        }
+    );
+    for set in &v.sets {
+        let _ = writeln!(s, "\n{}  ->  {}", set.key, set.ros2_topic);
+        let _ = writeln!(s, "    DDS topic {}  type {}", set.topic, set.dds_type);
+        for t in &set.per_item_topics {
+            let _ = writeln!(s, "      item {:<28} {}  {}", t.path, t.topic, t.dds_type);
+        }
+        let _ = writeln!(s, "    gateway writer QoS: {}", qos_text(&set.writer_qos));
+        let _ = writeln!(s, "    gateway reader QoS: {}", qos_text(&set.reader_qos));
+        let rate = set.max_rate.map_or("every sample".to_string(), |r| format!("at most {r} samples/s"));
+        let _ = writeln!(s, "    to DDS: {rate}");
+    }
+    if !v.left_out.is_empty() {
+        let _ = writeln!(s, "\nleft out:");
+        for l in &v.left_out {
+            let _ = writeln!(s, "  {:<32} {}", l.key, l.reason);
         }
     }
     s

@@ -1,12 +1,30 @@
 //! What the gateway bridges and under which names: the ROS namespace, and the config file's
 //! rules (which sets, per-topic QoS overrides, rate limits, remapping), resolved once into a
 //! [`plan`] that the manager and `tutti show --config` both use.
+//!
+//! The config file (`tutti gateway --config gateway.json5`) is parsed, then validated, in two
+//! steps: [`load`] reads it into a [`ConfigFile`] (JSON5, unknown keys refused, every value
+//! checked where it stands, so errors carry the file, line and column), [`ConfigFile::apply`]
+//! puts it into [`GatewayOptions`], and [`resolve`] checks the `topics` against the DDF's
+//! flags (a QoS that would break lock-step or the seed of late joiners is refused, naming the
+//! key and the flag). Its keys are the CLI's long flags with `_` for `-`; the CLI builds a
+//! [`ConfigFile`] from the flags it was given and lays it [`over`](ConfigFile::over) the
+//! file's, so flags win over the file and the file over the defaults.
 
 use std::collections::BTreeMap;
+use std::fmt;
+use std::net::{IpAddr, SocketAddr};
+use std::path::Path;
+use std::time::Duration;
 
+use serde::de::{self, DeserializeSeed, Deserializer, SeqAccess, Visitor};
+use serde::{Deserialize, Serialize};
 use tutti_core::ddf::Role;
-use tutti_core::mapping::{self, Durability, Endpoint, History, Qos, Reliability};
+use tutti_core::mapping::{self, Durability, Endpoint, History, ItemTopic, Profile, Qos, Reliability};
+use tutti_core::shm::WaitMode;
 
+use crate::engine::EngineKind;
+use crate::options::{ClockSource, TypeMode};
 use crate::{GatewayError, GatewayOptions};
 
 /// Which sets are bridged and how (the config file's `allow`, `deny` and `topics`); the
@@ -20,6 +38,8 @@ pub struct TopicRules {
     pub deny: Vec<regex::Regex>,
     /// Per set key: QoS overrides, rate limit, new name.
     pub topics: BTreeMap<String, TopicSettings>,
+    /// The config file the rules come from, for messages (empty: none).
+    pub source: String,
 }
 
 /// The settings of one set's topic(s).
@@ -42,7 +62,7 @@ pub struct QosOverride {
 }
 
 /// One bridged set as the gateway serves it.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct PlannedSet {
     /// Index of the domain in the model.
     pub domain: usize,
@@ -61,21 +81,67 @@ pub struct PlannedSet {
     pub max_rate: Option<f64>,
 }
 
+/// A set the rules leave out, and why.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct LeftOut {
+    /// Index of the domain in the model.
+    pub domain: usize,
+    pub role: Role,
+    pub key: String,
+    /// Which rule left it out (`matches deny pattern 'x'`, `matches no allow pattern`).
+    pub reason: String,
+}
+
+/// Every set of the DDF: those bridged, in DDF order, and those left out.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Plan {
+    pub sets: Vec<PlannedSet>,
+    pub left_out: Vec<LeftOut>,
+}
+
 /// A ROS namespace as given (`sim1`, `/sim1/`, `a/b`) in canonical form without slashes
 /// around it (`sim1`, `a/b`; empty for none); an invalid one is an error naming it.
 pub fn ros_namespace(ns: &str) -> Result<String, GatewayError> {
     let t = ns.trim().trim_matches('/');
     for tok in t.split('/').filter(|_| !t.is_empty()) {
-        let ok = !tok.is_empty()
-            && !tok.starts_with(|c: char| c.is_ascii_digit())
-            && tok.chars().all(|c| c.is_ascii_alphanumeric() || c == '_');
-        if !ok {
+        if !ros_token(tok) {
             return Err(GatewayError::Invalid(format!(
                 "ROS namespace '{ns}': each part must be letters, digits and '_' and not start with a digit (e.g. sim1 or site_a/sim1)"
             )));
         }
     }
     Ok(t.to_string())
+}
+
+/// One token of a ROS name: `[A-Za-z_][A-Za-z0-9_]*`.
+fn ros_token(tok: &str) -> bool {
+    !tok.is_empty()
+        && !tok.starts_with(|c: char| c.is_ascii_digit())
+        && tok.chars().all(|c| c.is_ascii_alphanumeric() || c == '_')
+}
+
+/// A topic name for `remap`: relative (`uav1/cmd`) or absolute (`/fleet/uav1/cmd`), tokens of
+/// letters, digits and `_` not starting with a digit, as rcl validates topic names; ROS's `~`
+/// and `{}` substitutions are refused (the gateway's node name is no help in a topic name).
+pub fn ros_topic_name(name: &str) -> Result<String, String> {
+    let body = name.strip_prefix('/').unwrap_or(name);
+    let why = if body.is_empty() {
+        Some("it is empty")
+    } else if name.contains('~') || name.contains('{') || name.contains('}') {
+        Some("ROS substitutions (~, {}) are not supported")
+    } else if body.ends_with('/') {
+        Some("it ends with '/'")
+    } else if body.contains("//") {
+        Some("it contains '//'")
+    } else if !body.split('/').all(ros_token) {
+        Some("each part must be letters, digits and '_' and not start with a digit")
+    } else {
+        None
+    };
+    match why {
+        None => Ok(name.to_string()),
+        Some(why) => Err(format!("'{name}' is not a ROS topic name: {why} (e.g. uav1/cmd, or /fleet/uav1/cmd)")),
+    }
 }
 
 /// The ROS node namespace of a canonical ROS namespace (`/` for none).
@@ -95,26 +161,911 @@ pub fn dds_topic(ns: &str, name: &str) -> String {
 /// The sets of `opts.model` that the gateway bridges, with their names and QoS after the
 /// ROS namespace, remapping and overrides.
 pub fn plan(opts: &GatewayOptions) -> Result<Vec<PlannedSet>, GatewayError> {
+    Ok(resolve(opts)?.sets)
+}
+
+/// Every set of `opts.model`: bridged (as [`plan`] returns them) or left out by `allow` /
+/// `deny`, with the reason. Refuses `topics` that name no set, QoS overrides the domain's
+/// flags forbid, a rate limit on a synchronous set and two topics of one name.
+pub fn resolve(opts: &GatewayOptions) -> Result<Plan, GatewayError> {
+    let rules = &opts.rules;
+    let at = |key: &str| {
+        if rules.source.is_empty() {
+            key.to_string()
+        } else {
+            format!("{}: {key}", rules.source)
+        }
+    };
     let pkg = mapping::package_name(&opts.ddf_path);
     let ns = ros_namespace(&opts.ros_namespace)?;
-    let mut out = Vec::new();
+    let keys: Vec<String> = opts.model.domains.iter().flat_map(|d| Role::ALL.map(|r| set_key(&d.name, r))).collect();
+    if let Some(k) = rules.topics.keys().find(|k| !keys.contains(k)) {
+        return Err(GatewayError::Invalid(format!(
+            "{}: the DDF has no set '{k}' (sets: {})",
+            at(&format!("topics.\"{k}\"")),
+            keys.join(", ")
+        )));
+    }
+    let mut plan = Plan { sets: Vec::new(), left_out: Vec::new() };
+    // DDS topic -> the set that has it, to refuse two sets (or /clock) on one topic.
+    let mut taken: BTreeMap<String, String> = BTreeMap::new();
+    if opts.clock_domain()?.is_some() {
+        // `/clock` is under the ROS namespace too (`rt/NS/clock`), as the manager names it.
+        taken.insert(dds_topic(&ns, "clock"), "the gateway's /clock (see --clock)".into());
+    }
     for (di, d) in opts.model.domains.iter().enumerate() {
-        for role in [Role::Publish, Role::Subscribe] {
+        for role in Role::ALL {
+            let key = set_key(&d.name, role);
+            if let Some(reason) = rules.left_out(&key) {
+                plan.left_out.push(LeftOut { domain: di, role, key, reason });
+                continue;
+            }
             let names = mapping::set_names(&pkg, &d.name, role);
-            let key = format!("{}/{}", d.name, role.lower());
-            let rel = names.ros2_topic.trim_start_matches('/').to_string();
-            out.push(PlannedSet {
+            let settings = rules.topics.get(&key).cloned().unwrap_or_default();
+            let topic_key = format!("topics.\"{key}\"");
+            let (topic, ros2_topic) = match settings.remap.as_deref() {
+                Some(abs) if abs.starts_with('/') => (format!("rt{abs}"), abs.to_string()),
+                name => {
+                    let rel = name.unwrap_or_else(|| names.ros2_topic.trim_start_matches('/'));
+                    let topic = dds_topic(&ns, rel);
+                    let ros2 = format!("/{}", topic.trim_start_matches("rt/"));
+                    (topic, ros2)
+                }
+            };
+            if let Some(other) = taken.insert(topic.clone(), format!("set '{key}'")) {
+                // Blame the remap that made the clash: this set's, else the other set's.
+                let other_key = other.strip_prefix("set '").and_then(|o| o.strip_suffix('\''));
+                let blamed = match other_key {
+                    Some(o) if settings.remap.is_none() && rules.topics.get(o).is_some_and(|t| t.remap.is_some()) => {
+                        (o.to_string(), format!("set '{key}'"))
+                    }
+                    _ => (key.clone(), other),
+                };
+                return Err(GatewayError::Invalid(format!(
+                    "{}: '{ros2_topic}' is also the topic of {}; two sets cannot share a topic",
+                    at(&format!("topics.\"{}\".remap", blamed.0)),
+                    blamed.1
+                )));
+            }
+            let refuse = |what: &str, term: &str, flag: &str, why: &str| {
+                GatewayError::Invalid(format!(
+                    "{}: {term} is refused: domain '{}' has {flag} ({why})",
+                    at(&format!("{topic_key}.{what}")),
+                    d.name
+                ))
+            };
+            let q = settings.qos;
+            if d.flags.synchronous {
+                const LOCKSTEP: &str = "lock-step needs every step: RELIABLE, KEEP_ALL";
+                if q.reliability == Some(Reliability::BestEffort) {
+                    return Err(refuse("qos.reliability", "best_effort", "synchronous=yes", LOCKSTEP));
+                }
+                if let Some(History::KeepLast(_)) = q.history {
+                    return Err(refuse("qos.history", "keep_last", "synchronous=yes", LOCKSTEP));
+                }
+                if settings.max_rate.is_some() {
+                    return Err(refuse(
+                        "max_rate",
+                        "a rate limit",
+                        "synchronous=yes",
+                        "every step must reach DDS; only asynchronous sets are downsampled",
+                    ));
+                }
+            }
+            if d.flags.states && q.durability == Some(Durability::Volatile) {
+                return Err(refuse(
+                    "qos.durability",
+                    "volatile",
+                    "states=yes",
+                    "the seed must reach late joiners: TRANSIENT_LOCAL",
+                ));
+            }
+            let qos = |endpoint| q.apply(mapping::qos(d.flags, opts.profile, endpoint, opts.strength));
+            plan.sets.push(PlannedSet {
                 domain: di,
                 role,
                 key,
-                topic: dds_topic(&ns, &rel),
-                ros2_topic: format!("/{}", dds_topic(&ns, &rel).trim_start_matches("rt/")),
+                topic,
+                ros2_topic,
                 dds_type: names.dds_type,
-                writer_qos: mapping::qos(d.flags, opts.profile, Endpoint::Writer, opts.strength),
-                reader_qos: mapping::qos(d.flags, opts.profile, Endpoint::Reader, opts.strength),
-                max_rate: None,
+                writer_qos: qos(Endpoint::Writer),
+                reader_qos: qos(Endpoint::Reader),
+                max_rate: settings.max_rate,
             });
         }
     }
-    Ok(out)
+    Ok(plan)
+}
+
+/// The per-item topics (`--ros2-types per-item`) of a planned set, under its DDS topic.
+pub fn item_topics(opts: &GatewayOptions, set: &PlannedSet) -> Vec<ItemTopic> {
+    mapping::item_topics_under(&opts.model.domains[set.domain], set.role, &set.topic)
+}
+
+/// `DOMAIN/publish` or `DOMAIN/subscribe`.
+pub fn set_key(domain: &str, role: Role) -> String {
+    format!("{domain}/{}", role.lower())
+}
+
+impl QosOverride {
+    /// `base` with the overridden terms replaced. A transient-local writer keeps as many
+    /// samples for late joiners as an overridden KEEP_LAST depth says (the durability service
+    /// replays the history).
+    pub fn apply(&self, base: Qos) -> Qos {
+        let mut q = base;
+        q.reliability = self.reliability.unwrap_or(q.reliability);
+        q.history = self.history.unwrap_or(q.history);
+        q.durability = self.durability.unwrap_or(q.durability);
+        if let (Durability::TransientLocal { .. }, Some(History::KeepLast(n))) = (q.durability, self.history) {
+            q.durability = Durability::TransientLocal { depth: n };
+        }
+        q
+    }
+}
+
+impl TopicRules {
+    /// The rules of a config file (`allow`, `deny`, `topics`); none without those keys.
+    pub fn from_config(cfg: &ConfigFile) -> Result<TopicRules, GatewayError> {
+        let source = cfg.source.clone().unwrap_or_default();
+        let at = |key: &str| if source.is_empty() { key.to_string() } else { format!("{source}: {key}") };
+        let compile = |key: &str, pats: &Option<Vec<String>>| -> Result<Vec<regex::Regex>, GatewayError> {
+            pats.iter()
+                .flatten()
+                .map(|p| anchored(p).map_err(|e| GatewayError::Invalid(format!("{}: {e}", at(key)))))
+                .collect()
+        };
+        let mut topics = BTreeMap::new();
+        for (key, t) in cfg.topics.iter().flatten() {
+            let q = &t.qos;
+            let history = match (q.history, q.depth) {
+                (Some(HistoryKey::KeepLast), depth) => Some(History::KeepLast(depth.unwrap_or(1))),
+                (Some(HistoryKey::KeepAll), None) => Some(History::KeepAll),
+                (None, None) => None,
+                (_, Some(_)) => {
+                    return Err(GatewayError::Invalid(format!(
+                        "{}: depth needs history \"keep_last\" (it is how many samples KEEP_LAST keeps)",
+                        at(&format!("topics.\"{key}\".qos.depth"))
+                    )))
+                }
+            };
+            let qos = QosOverride {
+                reliability: q.reliability.map(|r| match r {
+                    ReliabilityKey::Reliable => Reliability::Reliable,
+                    ReliabilityKey::BestEffort => Reliability::BestEffort,
+                }),
+                history,
+                durability: q.durability.map(|d| match d {
+                    DurabilityKey::Volatile => Durability::Volatile,
+                    DurabilityKey::TransientLocal => Durability::TransientLocal { depth: 1 },
+                }),
+            };
+            topics.insert(key.clone(), TopicSettings { qos, max_rate: t.max_rate, remap: t.remap.clone() });
+        }
+        Ok(TopicRules { allow: compile("allow", &cfg.allow)?, deny: compile("deny", &cfg.deny)?, topics, source })
+    }
+
+    /// Why the set `key` is not bridged, if it is not.
+    fn left_out(&self, key: &str) -> Option<String> {
+        let shown = |r: &regex::Regex| unanchored(r.as_str()).to_string();
+        if let Some(d) = self.deny.iter().find(|r| r.is_match(key)) {
+            return Some(format!("matches deny pattern '{}'", shown(d)));
+        }
+        if !self.allow.is_empty() && !self.allow.iter().any(|r| r.is_match(key)) {
+            let pats: Vec<String> = self.allow.iter().map(|r| format!("'{}'", shown(r))).collect();
+            return Some(format!("matches no allow pattern ({})", pats.join(", ")));
+        }
+        None
+    }
+}
+
+/// A pattern of `allow` / `deny`, which must match the whole set key (`uav1/.*`, not `uav`).
+/// A bad pattern is an error naming it.
+pub fn anchored(pattern: &str) -> Result<regex::Regex, String> {
+    // Compiled alone first, so that the error shows the pattern as written.
+    regex::Regex::new(pattern).map_err(|e| format!("bad pattern '{pattern}': {e}"))?;
+    regex::Regex::new(&format!("^(?:{pattern})$")).map_err(|e| format!("bad pattern '{pattern}': {e}"))
+}
+
+fn unanchored(s: &str) -> &str {
+    s.strip_prefix("^(?:").and_then(|s| s.strip_suffix(")$")).unwrap_or(s)
+}
+
+// ---------------------------------------------------------------------------------------
+// The config file.
+
+/// The config file (`--config gateway.json5`): every key optional, keys = the CLI's long
+/// flags with `_` for `-` (`interface` and `peer` are lists), plus `allow`, `deny` and
+/// `topics`. Also what the CLI makes of its own flags, to lay over the file's.
+#[derive(Debug, Clone, Default, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ConfigFile {
+    /// The file it was read from, for messages (None: the command line).
+    #[serde(skip)]
+    pub source: Option<String>,
+    #[serde(default, deserialize_with = "de_domain_id")]
+    pub ros_domain_id: Option<u16>,
+    #[serde(default, deserialize_with = "de_types")]
+    pub ros2_types: Option<TypeMode>,
+    #[serde(default, deserialize_with = "de_profile")]
+    pub qos_profile: Option<Profile>,
+    pub strength: Option<i32>,
+    pub mirror: Option<bool>,
+    pub node_name: Option<String>,
+    pub interface: Option<Vec<IpAddr>>,
+    #[serde(default, deserialize_with = "de_engine")]
+    pub dds: Option<EngineKind>,
+    pub peer: Option<Vec<String>>,
+    /// A domain, or `none`.
+    pub clock: Option<String>,
+    #[serde(default, deserialize_with = "de_rate")]
+    pub clock_rate: Option<f64>,
+    #[serde(default, deserialize_with = "de_duration")]
+    pub timeout: Option<Duration>,
+    #[serde(default, deserialize_with = "de_wait")]
+    pub wait: Option<WaitMode>,
+    #[serde(default, deserialize_with = "de_duration")]
+    pub poll: Option<Duration>,
+    #[serde(default, deserialize_with = "de_duration")]
+    pub status_every: Option<Duration>,
+    #[serde(default, deserialize_with = "de_duration")]
+    pub duration: Option<Duration>,
+    pub quiet: Option<bool>,
+    /// Canonical (`a/b`).
+    #[serde(default, deserialize_with = "de_namespace")]
+    pub ros_namespace: Option<String>,
+    /// Bridge a domain only while a framework hosts it (default true; `--all-domains` is false).
+    pub hosted_only: Option<bool>,
+    #[serde(default, deserialize_with = "de_duration")]
+    pub lease: Option<Duration>,
+    pub http: Option<SocketAddr>,
+    /// Regexes over set keys (`DOMAIN/publish`), checked when read.
+    #[serde(default, deserialize_with = "de_patterns")]
+    pub allow: Option<Vec<String>>,
+    #[serde(default, deserialize_with = "de_patterns")]
+    pub deny: Option<Vec<String>>,
+    /// Per set key (`DOMAIN/publish`, `DOMAIN/subscribe`).
+    pub topics: Option<BTreeMap<String, TopicEntry>>,
+}
+
+/// One entry of `topics`.
+#[derive(Debug, Clone, Default, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct TopicEntry {
+    #[serde(default)]
+    pub qos: QosEntry,
+    /// Hz, positive.
+    #[serde(default, deserialize_with = "de_rate")]
+    pub max_rate: Option<f64>,
+    /// A ROS topic name, relative to the ROS namespace or absolute (`/…`).
+    #[serde(default, deserialize_with = "de_remap")]
+    pub remap: Option<String>,
+}
+
+/// `topics.KEY.qos`.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct QosEntry {
+    pub reliability: Option<ReliabilityKey>,
+    pub history: Option<HistoryKey>,
+    /// KEEP_LAST's depth, 1 or more (with `history: "keep_last"` only).
+    #[serde(default, deserialize_with = "de_depth")]
+    pub depth: Option<u32>,
+    pub durability: Option<DurabilityKey>,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum ReliabilityKey {
+    Reliable,
+    BestEffort,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum HistoryKey {
+    KeepAll,
+    KeepLast,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum DurabilityKey {
+    Volatile,
+    TransientLocal,
+}
+
+/// Reads a config file; errors name the file, and the line, column and key where they can.
+pub fn load(path: &Path) -> Result<ConfigFile, GatewayError> {
+    let shown = path.display().to_string();
+    let text = std::fs::read_to_string(path)
+        .map_err(|e| GatewayError::Invalid(format!("{shown}: cannot read the gateway config: {e}")))?;
+    parse(&text, &shown)
+}
+
+/// A config file's text, read from `source` (named in errors).
+pub fn parse(text: &str, source: &str) -> Result<ConfigFile, GatewayError> {
+    match json5::from_str::<ConfigFile>(text) {
+        Ok(mut c) => {
+            c.source = Some(source.to_string());
+            Ok(c)
+        }
+        Err(json5::Error::Message { msg, location }) => {
+            // A syntax error's message is pest's drawing of the line; its last line says
+            // what was expected, the position is ours.
+            let msg = match (msg.lines().rev().find_map(|l| l.trim().strip_prefix("= ")), &location) {
+                (Some(expected), Some(l)) => {
+                    let line = text.lines().nth(l.line.saturating_sub(1)).unwrap_or_default();
+                    format!("syntax error ({expected}) here:\n  {line}\n  {:>col$}", "^", col = l.column)
+                }
+                (Some(expected), None) => format!("syntax error: {expected}"),
+                (None, _) => msg,
+            };
+            Err(GatewayError::Invalid(match location {
+                Some(l) => format!("{source}:{}:{}: {msg}", l.line, l.column),
+                None => format!("{source}: {msg}"),
+            }))
+        }
+    }
+}
+
+impl ConfigFile {
+    /// `self`'s keys, and `lower`'s where `self` has none (flags over the file).
+    pub fn over(self, lower: ConfigFile) -> ConfigFile {
+        ConfigFile {
+            source: self.source.or(lower.source),
+            ros_domain_id: self.ros_domain_id.or(lower.ros_domain_id),
+            ros2_types: self.ros2_types.or(lower.ros2_types),
+            qos_profile: self.qos_profile.or(lower.qos_profile),
+            strength: self.strength.or(lower.strength),
+            mirror: self.mirror.or(lower.mirror),
+            node_name: self.node_name.or(lower.node_name),
+            interface: self.interface.or(lower.interface),
+            dds: self.dds.or(lower.dds),
+            peer: self.peer.or(lower.peer),
+            clock: self.clock.or(lower.clock),
+            clock_rate: self.clock_rate.or(lower.clock_rate),
+            timeout: self.timeout.or(lower.timeout),
+            wait: self.wait.or(lower.wait),
+            poll: self.poll.or(lower.poll),
+            status_every: self.status_every.or(lower.status_every),
+            duration: self.duration.or(lower.duration),
+            quiet: self.quiet.or(lower.quiet),
+            ros_namespace: self.ros_namespace.or(lower.ros_namespace),
+            hosted_only: self.hosted_only.or(lower.hosted_only),
+            lease: self.lease.or(lower.lease),
+            http: self.http.or(lower.http),
+            allow: self.allow.or(lower.allow),
+            deny: self.deny.or(lower.deny),
+            topics: self.topics.or(lower.topics),
+        }
+    }
+
+    /// Sets the options these keys give; the others keep their value (a default, or what
+    /// the environment said). `status_every`, `duration` and `quiet` are the CLI's.
+    pub fn apply(&self, opts: &mut GatewayOptions) -> Result<(), GatewayError> {
+        fn set<T: Clone>(dst: &mut T, v: &Option<T>) {
+            if let Some(v) = v {
+                *dst = v.clone();
+            }
+        }
+        set(&mut opts.ros_domain_id, &self.ros_domain_id);
+        set(&mut opts.types, &self.ros2_types);
+        set(&mut opts.profile, &self.qos_profile);
+        set(&mut opts.strength, &self.strength);
+        set(&mut opts.mirror, &self.mirror);
+        set(&mut opts.node_name, &self.node_name);
+        set(&mut opts.interfaces, &self.interface);
+        set(&mut opts.engine, &self.dds);
+        set(&mut opts.peers, &self.peer);
+        if let Some(c) = &self.clock {
+            opts.clock = match c.as_str() {
+                "none" => ClockSource::Off,
+                d => ClockSource::Domain(d.to_string()),
+            };
+        }
+        if self.clock_rate.is_some() {
+            opts.clock_rate = self.clock_rate;
+        }
+        set(&mut opts.timeout, &self.timeout);
+        set(&mut opts.wait, &self.wait);
+        set(&mut opts.poll, &self.poll);
+        set(&mut opts.ros_namespace, &self.ros_namespace);
+        set(&mut opts.hosted_only, &self.hosted_only);
+        set(&mut opts.lease, &self.lease);
+        if self.http.is_some() {
+            opts.http = self.http;
+        }
+        opts.rules = TopicRules::from_config(self)?;
+        Ok(())
+    }
+}
+
+// ---------------------------------------------------------------------------------------
+// Environment.
+
+/// What ROS 2's discovery variables ask for (`ROS_LOCALHOST_ONLY`,
+/// `ROS_AUTOMATIC_DISCOVERY_RANGE`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum DiscoveryRange {
+    /// `SUBNET`, `SYSTEM_DEFAULT` or unset: as configured.
+    #[default]
+    Default,
+    /// This machine only: the gateway uses the loopback interface.
+    Localhost,
+    /// No automatic discovery: only the peers given.
+    Off,
+}
+
+/// The discovery range of ROS 2's variables, given their values. `ROS_LOCALHOST_ONLY=1`
+/// wins, as in ROS 2 Jazzy (which still honours it, deprecated); an unknown range is an
+/// error naming the variable.
+pub fn discovery_range(localhost_only: Option<&str>, range: Option<&str>) -> Result<DiscoveryRange, GatewayError> {
+    if localhost_only.is_some_and(|v| v.trim() == "1") {
+        return Ok(DiscoveryRange::Localhost);
+    }
+    match range.map(|r| r.trim().to_ascii_uppercase()).as_deref() {
+        None | Some("" | "SUBNET" | "SYSTEM_DEFAULT") => Ok(DiscoveryRange::Default),
+        Some("LOCALHOST") => Ok(DiscoveryRange::Localhost),
+        Some("OFF") => Ok(DiscoveryRange::Off),
+        Some(_) => Err(GatewayError::Invalid(format!(
+            "ROS_AUTOMATIC_DISCOVERY_RANGE='{}': expected SUBNET, LOCALHOST, OFF or SYSTEM_DEFAULT",
+            range.unwrap_or_default()
+        ))),
+    }
+}
+
+// ---------------------------------------------------------------------------------------
+// Value parsers, shared by the CLI's flags and the file's keys.
+
+/// A duration as the CLI takes it: a number and a unit (`10ms`, `500us`, `2s`, `1min`).
+pub fn parse_duration(s: &str) -> Result<Duration, String> {
+    humantime::parse_duration(s.trim())
+        .map_err(|_| format!("'{s}' is not a duration: a number and a unit, like 10ms, 500us, 2s or 1min"))
+}
+
+/// `block`, `spin` or `poll:DURATION`.
+pub fn parse_wait(s: &str) -> Result<WaitMode, String> {
+    match s {
+        "block" => Ok(WaitMode::Block),
+        "spin" => Ok(WaitMode::Spin),
+        _ => match s.strip_prefix("poll:") {
+            Some(d) => parse_duration(d).map(WaitMode::Poll),
+            None => Err(format!("'{s}': use block, spin or poll:DURATION (e.g. poll:50us)")),
+        },
+    }
+}
+
+/// A positive rate in Hz (`100`, `100Hz`).
+pub fn parse_rate(s: &str) -> Result<f64, String> {
+    match s.trim().trim_end_matches("Hz").trim_end_matches("hz").parse::<f64>() {
+        Ok(r) if r > 0.0 && r.is_finite() => Ok(r),
+        _ => Err(format!("'{s}' is not a rate in Hz (e.g. 100)")),
+    }
+}
+
+fn parse_types(s: &str) -> Result<TypeMode, String> {
+    match s {
+        "typed" => Ok(TypeMode::Typed),
+        "per-item" | "per_item" => Ok(TypeMode::PerItem),
+        _ => Err(format!("'{s}': use typed or per-item")),
+    }
+}
+
+fn parse_profile(s: &str) -> Result<Profile, String> {
+    match s {
+        "ros2" => Ok(Profile::Ros2),
+        "dds" => Ok(Profile::Dds),
+        _ => Err(format!("'{s}': use ros2 or dds")),
+    }
+}
+
+fn parse_namespace(s: &str) -> Result<String, String> {
+    ros_namespace(s).map_err(|e| e.to_string())
+}
+
+fn parse_pattern(s: &str) -> Result<String, String> {
+    anchored(s).map(|_| s.to_string())
+}
+
+/// Parses a string where it stands, so that json5 gives its error the value's position.
+struct Parsed<T> {
+    expecting: &'static str,
+    parse: fn(&str) -> Result<T, String>,
+}
+
+impl<'de, T> Visitor<'de> for Parsed<T> {
+    type Value = T;
+    fn expecting(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self.expecting)
+    }
+    fn visit_str<E: de::Error>(self, v: &str) -> Result<T, E> {
+        (self.parse)(v).map_err(E::custom)
+    }
+}
+
+impl<'de, T> DeserializeSeed<'de> for Parsed<T> {
+    type Value = T;
+    fn deserialize<D: Deserializer<'de>>(self, d: D) -> Result<T, D::Error> {
+        d.deserialize_any(self)
+    }
+}
+
+/// A number checked where it stands (json5 reads integers as i64, others as f64).
+struct Number {
+    expecting: &'static str,
+    ok: fn(f64) -> bool,
+}
+
+impl Visitor<'_> for Number {
+    type Value = f64;
+    fn expecting(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self.expecting)
+    }
+    fn visit_f64<E: de::Error>(self, v: f64) -> Result<f64, E> {
+        if v.is_finite() && (self.ok)(v) {
+            Ok(v)
+        } else {
+            Err(E::custom(format!("{v} is not {}", self.expecting)))
+        }
+    }
+    fn visit_i64<E: de::Error>(self, v: i64) -> Result<f64, E> {
+        self.visit_f64(v as f64)
+    }
+    fn visit_u64<E: de::Error>(self, v: u64) -> Result<f64, E> {
+        self.visit_f64(v as f64)
+    }
+}
+
+macro_rules! parsed {
+    ($($name:ident -> $ty:ty = $parse:path, $what:literal;)*) => {$(
+        fn $name<'de, D: Deserializer<'de>>(d: D) -> Result<Option<$ty>, D::Error> {
+            d.deserialize_any(Parsed { expecting: $what, parse: $parse }).map(Some)
+        }
+    )*};
+}
+
+parsed! {
+    de_duration -> Duration = parse_duration, "a duration like \"10ms\", \"2s\" or \"1min\"";
+    de_wait -> WaitMode = parse_wait, "\"block\", \"spin\" or \"poll:DURATION\"";
+    de_types -> TypeMode = parse_types, "\"typed\" or \"per-item\"";
+    de_profile -> Profile = parse_profile, "\"ros2\" or \"dds\"";
+    de_engine -> EngineKind = std::str::FromStr::from_str, "\"cyclone\" or \"rustdds\"";
+    de_namespace -> String = parse_namespace, "a ROS namespace like \"sim1\"";
+    de_remap -> String = ros_topic_name, "a ROS topic name like \"uav1/cmd\" or \"/fleet/uav1/cmd\"";
+}
+
+fn de_rate<'de, D: Deserializer<'de>>(d: D) -> Result<Option<f64>, D::Error> {
+    d.deserialize_any(Number { expecting: "a rate in Hz above 0", ok: |v| v > 0.0 }).map(Some)
+}
+
+fn de_depth<'de, D: Deserializer<'de>>(d: D) -> Result<Option<u32>, D::Error> {
+    let ok = |v: f64| v.fract() == 0.0 && (1.0..=f64::from(u32::MAX)).contains(&v);
+    d.deserialize_any(Number { expecting: "a depth of 1 or more", ok }).map(|v| Some(v as u32))
+}
+
+fn de_domain_id<'de, D: Deserializer<'de>>(d: D) -> Result<Option<u16>, D::Error> {
+    let ok = |v: f64| v.fract() == 0.0 && (0.0..=232.0).contains(&v);
+    d.deserialize_any(Number { expecting: "a DDS domain id (0-232)", ok }).map(|v| Some(v as u16))
+}
+
+fn de_patterns<'de, D: Deserializer<'de>>(d: D) -> Result<Option<Vec<String>>, D::Error> {
+    struct Patterns;
+    impl<'de> Visitor<'de> for Patterns {
+        type Value = Vec<String>;
+        fn expecting(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+            f.write_str("a list of regular expressions over set keys, like [\"uav1/.*\"]")
+        }
+        fn visit_seq<A: SeqAccess<'de>>(self, mut seq: A) -> Result<Vec<String>, A::Error> {
+            let mut out = Vec::new();
+            while let Some(p) =
+                seq.next_element_seed(Parsed { expecting: "a regular expression", parse: parse_pattern })?
+            {
+                out.push(p);
+            }
+            Ok(out)
+        }
+    }
+    d.deserialize_any(Patterns).map(Some)
+}
+
+/// The keys of the config file, for the docs' test that each is documented.
+pub const KEYS: &[&str] = &[
+    "ros_domain_id",
+    "ros2_types",
+    "qos_profile",
+    "strength",
+    "mirror",
+    "node_name",
+    "interface",
+    "dds",
+    "peer",
+    "clock",
+    "clock_rate",
+    "timeout",
+    "wait",
+    "poll",
+    "status_every",
+    "duration",
+    "quiet",
+    "ros_namespace",
+    "hosted_only",
+    "lease",
+    "http",
+    "allow",
+    "deny",
+    "topics",
+];
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn repo(path: &str) -> std::path::PathBuf {
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("../..").join(path)
+    }
+
+    /// Options for `ddf` (in the repo's `ddf/`) with the config text `cfg` applied.
+    fn opts(ddf: &str, cfg: &str) -> Result<GatewayOptions, GatewayError> {
+        let path = repo(&format!("ddf/{ddf}"));
+        let model = tutti_core::ddf::load(&path).unwrap();
+        let mut o = GatewayOptions::new(&path, model);
+        parse(cfg, "gw.json5")?.apply(&mut o)?;
+        Ok(o)
+    }
+
+    fn err(r: Result<impl fmt::Debug, GatewayError>) -> String {
+        r.expect_err("refused").to_string()
+    }
+
+    fn resolved(ddf: &str, cfg: &str) -> Result<Plan, GatewayError> {
+        resolve(&opts(ddf, cfg)?)
+    }
+
+    #[test]
+    fn every_key_is_read() {
+        let c = parse(
+            r#"{ ros_domain_id: 7, ros2_types: "per-item", qos_profile: "dds", strength: 3, mirror: true,
+                 node_name: "gw", interface: ["127.0.0.1"], dds: "rustdds", peer: ["h1"], clock: "none",
+                 clock_rate: 50, timeout: "2s", wait: "poll:50us", poll: "1ms", status_every: "10s",
+                 duration: "1min", quiet: true, ros_namespace: "/sim1/", hosted_only: false, lease: "3s",
+                 http: "127.0.0.1:9100", allow: ["a/.*"], deny: ["b"], topics: {} }"#,
+            "f",
+        )
+        .unwrap();
+        assert_eq!(c.ros_domain_id, Some(7));
+        assert_eq!(c.ros2_types, Some(TypeMode::PerItem));
+        assert_eq!(c.dds, Some(EngineKind::Rustdds));
+        assert_eq!(c.wait, Some(WaitMode::Poll(Duration::from_micros(50))));
+        assert_eq!(c.ros_namespace.as_deref(), Some("sim1"));
+        assert_eq!(c.lease, Some(Duration::from_secs(3)));
+        assert_eq!(c.http, Some("127.0.0.1:9100".parse().unwrap()));
+        let mut o = opts("product-sample.ddf", "{}").unwrap();
+        c.apply(&mut o).unwrap();
+        assert_eq!((o.ros_domain_id, o.strength, o.mirror, o.hosted_only), (7, 3, true, false));
+        assert_eq!((o.profile, o.engine, o.clock.clone()), (Profile::Dds, EngineKind::Rustdds, ClockSource::Off));
+        assert_eq!((o.timeout, o.clock_rate, o.ros_namespace.as_str()), (Duration::from_secs(2), Some(50.0), "sim1"));
+        assert_eq!(o.rules.allow.len() + o.rules.deny.len(), 2);
+        assert_eq!(o.rules.source, "f");
+    }
+
+    #[test]
+    fn unknown_keys_are_refused_with_the_key_its_place_and_the_accepted_keys() {
+        let e = err(parse("{\n  timeout: \"1s\",\n  tiemout: \"2s\" }", "gw.json5"));
+        assert!(e.starts_with("gw.json5:3:3: unknown field `tiemout`"), "{e}");
+        assert!(e.contains("`timeout`") && e.contains("`ros_namespace`") && e.contains("`topics`"), "{e}");
+        let e = err(parse(r#"{ topics: { "a/publish": { qos: { reliablity: "reliable" } } } }"#, "gw.json5"));
+        assert!(e.contains("unknown field `reliablity`") && e.contains("`durability`"), "{e}");
+        let e = err(parse(r#"{ topics: { "a/publish": { rate: 5 } } }"#, "gw.json5"));
+        assert!(e.contains("unknown field `rate`") && e.contains("`max_rate`"), "{e}");
+    }
+
+    #[test]
+    fn bad_values_and_syntax_are_refused_where_they_stand() {
+        let e = err(parse("{\n  timeout: \"soon\" }", "gw.json5"));
+        assert!(e.starts_with("gw.json5:2:12:") && e.contains("'soon' is not a duration"), "{e}");
+        let e = err(parse("{ timeout: \"1s\" ", "gw.json5"));
+        assert!(e.starts_with("gw.json5:1:") && e.contains("syntax error"), "{e}");
+        let e = err(parse("{ allow: [\"ok\", \"uav(\"] }", "gw.json5"));
+        assert!(e.starts_with("gw.json5:1:17:") && e.contains("bad pattern 'uav('"), "{e}");
+        let e = err(parse("{ ros_domain_id: 300 }", "gw.json5"));
+        assert!(e.contains("300 is not a DDS domain id (0-232)"), "{e}");
+        let e = err(parse("{ topics: { \"a/publish\": { max_rate: 0 } } }", "gw.json5"));
+        assert!(e.contains("0 is not a rate in Hz above 0"), "{e}");
+        let e = err(parse("{ topics: { \"a/publish\": { qos: { reliability: \"sometimes\" } } } }", "gw.json5"));
+        assert!(e.contains("unknown variant `sometimes`") && e.contains("`best_effort`"), "{e}");
+        let e = err(parse("{ topics: { \"a/publish\": { remap: \"2fast\" } } }", "gw.json5"));
+        assert!(e.contains("'2fast' is not a ROS topic name"), "{e}");
+        let e = err(parse("{ ros_namespace: \"a b\" }", "gw.json5"));
+        assert!(e.contains("ROS namespace 'a b'"), "{e}");
+        assert!(err(load(Path::new("/nonexistent/gw.json5"))).starts_with("/nonexistent/gw.json5: cannot read"));
+    }
+
+    #[test]
+    fn ros_topic_names_are_checked() {
+        for ok in ["a", "a/b", "/a/b_2", "_x/y"] {
+            assert_eq!(ros_topic_name(ok).as_deref(), Ok(ok));
+        }
+        for bad in ["", "/", "a/", "a//b", "a/2b", "~/a", "{node}/a", "a-b", "a b"] {
+            assert!(ros_topic_name(bad).is_err(), "{bad}");
+        }
+    }
+
+    #[test]
+    fn without_rules_every_set_is_bridged_as_the_table_says() {
+        let p = resolved("product-sample.ddf", "{}").unwrap();
+        assert!(p.left_out.is_empty());
+        let keys: Vec<&str> = p.sets.iter().map(|s| s.key.as_str()).collect();
+        assert_eq!(
+            keys,
+            ["grid_feeder/publish", "grid_feeder/subscribe", "grid_clock/publish", "grid_clock/subscribe"]
+        );
+        let s = &p.sets[0];
+        assert_eq!((s.topic.as_str(), s.ros2_topic.as_str()), ("rt/grid_feeder/publish", "/grid_feeder/publish"));
+        let o = opts("product-sample.ddf", "{}").unwrap();
+        let d = &o.model.domains[0];
+        assert_eq!(s.writer_qos, mapping::qos(d.flags, Profile::Ros2, Endpoint::Writer, 0));
+        assert_eq!(s.reader_qos, mapping::qos(d.flags, Profile::Ros2, Endpoint::Reader, 0));
+    }
+
+    #[test]
+    fn allow_and_deny_select_sets_and_say_why_one_is_left_out() {
+        let p = resolved(
+            "product-sample.ddf",
+            r#"{ allow: ["grid_feeder/.*", "grid_clock/publish"], deny: [".*/subscribe"] }"#,
+        )
+        .unwrap();
+        let keys: Vec<&str> = p.sets.iter().map(|s| s.key.as_str()).collect();
+        assert_eq!(keys, ["grid_feeder/publish", "grid_clock/publish"]);
+        let out: Vec<(&str, &str)> = p.left_out.iter().map(|l| (l.key.as_str(), l.reason.as_str())).collect();
+        assert_eq!(
+            out,
+            [
+                ("grid_feeder/subscribe", "matches deny pattern '.*/subscribe'"),
+                ("grid_clock/subscribe", "matches deny pattern '.*/subscribe'"),
+            ]
+        );
+        // Patterns match the whole key: `grid` alone matches nothing.
+        let p = resolved("product-sample.ddf", r#"{ allow: ["grid"] }"#).unwrap();
+        assert!(p.sets.is_empty());
+        assert_eq!(p.left_out[0].reason, "matches no allow pattern ('grid')");
+    }
+
+    #[test]
+    fn namespace_and_remapping_name_the_topics() {
+        let cfg = r#"{ ros_namespace: "sim1", topics: {
+            "grid_feeder/publish": { remap: "feeder/cmd" },
+            "grid_clock/publish": { remap: "/plant/clock_out" } } }"#;
+        let p = resolved("product-sample.ddf", cfg).unwrap();
+        let names: Vec<(&str, &str)> = p.sets.iter().map(|s| (s.topic.as_str(), s.ros2_topic.as_str())).collect();
+        assert_eq!(
+            names,
+            [
+                ("rt/sim1/feeder/cmd", "/sim1/feeder/cmd"),
+                ("rt/sim1/grid_feeder/subscribe", "/sim1/grid_feeder/subscribe"),
+                ("rt/plant/clock_out", "/plant/clock_out"),
+                ("rt/sim1/grid_clock/subscribe", "/sim1/grid_clock/subscribe"),
+            ]
+        );
+        let o = opts("product-sample.ddf", cfg).unwrap();
+        assert_eq!(o.engine_config().node_namespace, "/sim1");
+        let items = item_topics(&o, &p.sets[0]);
+        assert!(items.iter().all(|t| t.topic.starts_with("rt/sim1/feeder/cmd/")), "{items:?}");
+    }
+
+    #[test]
+    fn overrides_apply_to_writer_and_reader_and_rates_are_copied() {
+        let cfg = r#"{ topics: { "grid_feeder/subscribe": {
+            qos: { reliability: "reliable", history: "keep_last", depth: 5 }, max_rate: 20 },
+            "grid_clock/publish": { qos: { durability: "transient_local", history: "keep_all" } } } }"#;
+        let p = resolved("product-sample.ddf", cfg).unwrap();
+        let s = &p.sets[1];
+        assert_eq!(s.max_rate, Some(20.0));
+        for q in [s.writer_qos, s.reader_qos] {
+            assert_eq!((q.reliability, q.history), (Reliability::Reliable, History::KeepLast(5)));
+        }
+        // states=yes: the writer's transient-local depth follows the overridden history.
+        assert_eq!(s.writer_qos.durability, Durability::TransientLocal { depth: 5 });
+        assert_eq!(s.reader_qos.durability, Durability::Volatile);
+        let c = &p.sets[2];
+        for q in [c.writer_qos, c.reader_qos] {
+            assert_eq!((q.history, q.durability), (History::KeepAll, Durability::TransientLocal { depth: 1 }));
+        }
+        assert_eq!(p.sets[0].max_rate, None);
+    }
+
+    #[test]
+    fn what_the_flags_forbid_is_refused_naming_the_key_and_the_flag() {
+        let t = |key: &str, entry: &str| format!(r#"{{ topics: {{ "{key}": {entry} }} }}"#);
+        let cases = [
+            (t("grid_clock/publish", r#"{ qos: { reliability: "best_effort" } }"#), "topics.\"grid_clock/publish\".qos.reliability: best_effort is refused: domain 'grid_clock' has synchronous=yes"),
+            (t("grid_clock/subscribe", r#"{ qos: { history: "keep_last" } }"#), "topics.\"grid_clock/subscribe\".qos.history: keep_last is refused: domain 'grid_clock' has synchronous=yes"),
+            (t("grid_clock/publish", r#"{ max_rate: 10 }"#), "topics.\"grid_clock/publish\".max_rate: a rate limit is refused: domain 'grid_clock' has synchronous=yes"),
+            (t("grid_feeder/publish", r#"{ qos: { durability: "volatile" } }"#), "topics.\"grid_feeder/publish\".qos.durability: volatile is refused: domain 'grid_feeder' has states=yes"),
+            (t("grid_feeder/publish", r#"{ qos: { depth: 3 } }"#), "topics.\"grid_feeder/publish\".qos.depth: depth needs history \"keep_last\""),
+            (t("grid_feeder/publish", r#"{ qos: { history: "keep_all", depth: 3 } }"#), "topics.\"grid_feeder/publish\".qos.depth: depth needs history \"keep_last\""),
+            (t("grid_feeder/publish", r#"{ qos: { history: "keep_last", depth: 0 } }"#), "0 is not a depth of 1 or more"),
+            (t("grid_feeder/publsh", "{}"), "topics.\"grid_feeder/publsh\": the DDF has no set 'grid_feeder/publsh' (sets: grid_feeder/publish, grid_feeder/subscribe, grid_clock/publish, grid_clock/subscribe)"),
+        ];
+        for (cfg, want) in cases {
+            let e = err(resolved("product-sample.ddf", &cfg));
+            assert!(e.starts_with("gw.json5") && e.contains(want), "{cfg}\n{e}");
+        }
+        // Lock-step's own terms, and best-effort or keep-last on an asynchronous set, are fine.
+        let fine = t("grid_clock/publish", r#"{ qos: { reliability: "reliable", history: "keep_all" } }"#);
+        resolved("product-sample.ddf", &fine).unwrap();
+        resolved("product-sample.ddf", &t("grid_feeder/publish", r#"{ qos: { reliability: "best_effort" } }"#))
+            .unwrap();
+    }
+
+    #[test]
+    fn two_sets_on_one_topic_are_refused_naming_the_remap() {
+        let both = r#"{ topics: { "grid_clock/publish": { remap: "/x" }, "grid_feeder/publish": { remap: "/x" } } }"#;
+        let e = err(resolved("product-sample.ddf", both));
+        assert!(
+            e.contains("topics.\"grid_clock/publish\".remap: '/x' is also the topic of set 'grid_feeder/publish'"),
+            "{e}"
+        );
+        // A remap onto another set's own name blames the remap, whichever comes first.
+        let onto = r#"{ topics: { "grid_feeder/publish": { remap: "grid_clock/publish" } } }"#;
+        let e = err(resolved("product-sample.ddf", onto));
+        assert!(e.contains("topics.\"grid_feeder/publish\".remap: '/grid_clock/publish' is also the topic of set 'grid_clock/publish'"), "{e}");
+        let clock = r#"{ topics: { "grid_feeder/publish": { remap: "/clock" } } }"#;
+        assert!(err(resolved("product-sample.ddf", clock)).contains("the gateway's /clock"));
+        resolved("product-sample.ddf", &clock.replace("{ topics", "{ clock: \"none\", topics")).unwrap();
+    }
+
+    #[test]
+    fn flags_win_over_the_file_and_the_file_over_defaults() {
+        let file = parse(r#"{ ros_domain_id: 7, strength: 3, timeout: "2s", allow: ["x"] }"#, "gw.json5").unwrap();
+        let flags = ConfigFile { ros_domain_id: Some(9), poll: Some(Duration::from_millis(1)), ..Default::default() };
+        let m = flags.over(file);
+        assert_eq!((m.ros_domain_id, m.strength, m.timeout), (Some(9), Some(3), Some(Duration::from_secs(2))));
+        assert_eq!(
+            (m.poll, m.allow.as_deref(), m.source.as_deref()),
+            (Some(Duration::from_millis(1)), Some(&["x".to_string()][..]), Some("gw.json5"))
+        );
+        let mut o = opts("product-sample.ddf", "{}").unwrap();
+        let before = o.wait;
+        m.apply(&mut o).unwrap();
+        assert_eq!((o.ros_domain_id, o.wait), (9, before), "a key nobody gave keeps its default");
+    }
+
+    #[test]
+    fn ros_discovery_variables() {
+        use DiscoveryRange::*;
+        assert_eq!(discovery_range(None, None).unwrap(), Default);
+        assert_eq!(discovery_range(Some("1"), Some("SUBNET")).unwrap(), Localhost);
+        assert_eq!(discovery_range(Some("0"), Some("LOCALHOST")).unwrap(), Localhost);
+        assert_eq!(discovery_range(None, Some("OFF")).unwrap(), Off);
+        assert_eq!(discovery_range(None, Some("SYSTEM_DEFAULT")).unwrap(), Default);
+        assert!(err(discovery_range(None, Some("LAN"))).contains("ROS_AUTOMATIC_DISCOVERY_RANGE='LAN'"));
+    }
+
+    /// `examples/gateway.json5` stays valid for the DDF it is written for.
+    #[test]
+    fn the_example_config_loads_and_resolves() {
+        let path = repo("ddf/multiuav.ddf");
+        let mut o = GatewayOptions::new(&path, tutti_core::ddf::load(&path).unwrap());
+        let cfg = load(&repo("examples/gateway.json5")).unwrap();
+        cfg.apply(&mut o).unwrap();
+        let p = resolve(&o).unwrap();
+        assert!(
+            !p.sets.is_empty()
+                && !p.left_out.is_empty()
+                && p.sets.iter().any(|s| s.ros2_topic != format!("/{}", s.key))
+        );
+    }
+
+    /// Every key is documented in docs/gateway.md.
+    #[test]
+    fn every_key_is_documented() {
+        let doc = std::fs::read_to_string(repo("docs/gateway.md")).unwrap();
+        for k in KEYS {
+            assert!(doc.contains(&format!("`{k}`")), "docs/gateway.md does not mention `{k}`");
+        }
+        for k in KEYS {
+            let e = err(parse("{ nope: 1 }", "f"));
+            assert!(e.contains(&format!("`{k}`")), "KEYS lists `{k}`, the parser does not: {e}");
+        }
+    }
 }

@@ -18,6 +18,7 @@ pub mod config;
 pub mod echo;
 pub mod engine;
 mod error;
+pub mod http;
 pub mod manager;
 mod options;
 pub mod qos;
