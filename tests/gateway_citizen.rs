@@ -225,7 +225,88 @@ fn a_killed_dds_writer_costs_no_more_than_the_lease(e: Eng) {
     drop(host);
 }
 
+/// `GET path` from the gateway's stats endpoint: the body.
+fn http_get(addr: &str, path: &str) -> String {
+    use std::io::{Read, Write};
+    let mut c = std::net::TcpStream::connect(addr).unwrap_or_else(|e| panic!("{addr}: {e}"));
+    c.set_read_timeout(Some(SECS(20))).unwrap();
+    write!(c, "GET {path} HTTP/1.0\r\nHost: {addr}\r\n\r\n").unwrap();
+    let mut text = String::new();
+    c.read_to_string(&mut text).unwrap();
+    let (head, body) = text.split_once("\r\n\r\n").unwrap_or_else(|| panic!("{text}"));
+    assert!(head.starts_with("HTTP/1.") && head.contains(" 200 "), "{head}");
+    body.to_string()
+}
+
+/// A config file changes what a Cyclone peer sees: a denied domain has no topics, a
+/// remapped set is read under its new name only, its QoS override is on the wire and its
+/// rate limit thins an asynchronous set changing every 5 ms; the stats endpoint counts per
+/// topic what went out, in JSON and in the Prometheus text format.
+fn a_config_file_changes_what_a_dds_peer_sees_and_the_stats_endpoint_counts_it(e: Eng) {
+    let Some(py) = python() else { return };
+    let (dom, ns) = (e.dom(124), e.ns("gwcit124"));
+    let ns = ns.as_str();
+    let dir = tempfile::tempdir().unwrap();
+    let cfg = dir.path().join("gateway.json5");
+    std::fs::write(
+        &cfg,
+        r#"{
+          // gw_states stays off DDS; gw_async's PUBLISH set is renamed, best-effort, 4 a second.
+          deny: ["gw_states/.*"],
+          topics: { "gw_async/publish": { remap: "renamed/state", max_rate: 4, qos: { reliability: "best_effort" } } },
+          http: "127.0.0.1:0",
+        }"#,
+    )
+    .unwrap();
+    let host = Host::start(ns, "gw_async", Duration::from_millis(5), |k| {
+        let mut b = vec![0u8; 40];
+        b[0..8].copy_from_slice(&(k as f64).to_ne_bytes());
+        b
+    });
+    let gw = e.gateway(DDF, dom, ns, &["--config", cfg.to_str().unwrap()]);
+    let stats_line = gw.wait_line("stats on http://", SECS(30)).unwrap_or_else(|| panic!("{}", gw.dump()));
+    let addr = stats_line.split("http://").nth(1).and_then(|r| r.split('/').next()).unwrap().to_string();
+
+    let ty = "gw_msgs::msg::dds_::GwAsyncPublish_";
+    // Readers of the new and the old name, for 4 s each (they stop at their timeout).
+    let args = |topic: &'static str| {
+        ["--topic", topic, "--type", ty, "--fields", ASYNC_PUB, "--count", "100000", "--timeout", "4"]
+    };
+    // Best effort: a reliable reader does not match the overridden (best-effort) writer.
+    let mut renamed =
+        peer(&py, "sub renamed", dom, "sub", &[&args("rt/renamed/state")[..], &["--best-effort"]].concat());
+    let mut old = peer(&py, "sub old name", dom, "sub", &args("rt/gw_async/publish"));
+    let mut wire = peer(&py, "qos renamed", dom, "qos", &["--topic", "rt/renamed/state", "--timeout", "45"]);
+    assert_eq!(wire.wait(SECS(60)), Some(0), "{}\n{}", wire.dump(), gw.dump());
+    assert_eq!(json_lines(&wire, "reliability")[0]["reliability"], "BestEffort");
+    renamed.wait(SECS(60));
+    old.wait(SECS(60));
+    let got = json_lines(&renamed, "x");
+    // At most 4 a second in any 4 s window (one more at its edge), where the set changed
+    // about 200 times a second: the rate limit, not the machine, sets the count.
+    assert!(!got.is_empty() && got.len() <= 17, "{} samples in 4 s\n{}", got.len(), renamed.dump());
+    assert!(json_lines(&old, "x").is_empty(), "the old name still carries samples: {}", old.dump());
+    let mut denied = peer(&py, "qos denied", dom, "qos", &["--topic", "rt/gw_states/publish", "--timeout", "3"]);
+    assert_eq!(denied.wait(SECS(30)), Some(3), "a denied set has a DDS writer: {}", denied.dump());
+
+    let stats: serde_json::Value = serde_json::from_str(&http_get(&addr, "/stats")).unwrap();
+    let topic = stats["topics"].as_array().unwrap().iter().find(|t| t["topic"] == "rt/renamed/state").cloned();
+    let topic = topic.unwrap_or_else(|| panic!("{stats}"));
+    assert_eq!(topic["set"], "gw_async/publish", "{topic}");
+    assert!(topic["samples_out"].as_u64().unwrap() >= got.len() as u64, "{topic}");
+    assert!(stats["topics"].as_array().unwrap().iter().all(|t| !t["set"].as_str().unwrap().starts_with("gw_states")));
+    let metrics = http_get(&addr, "/metrics");
+    assert!(
+        metrics
+            .lines()
+            .any(|l| l.starts_with("tutti_gateway_samples_out_total{") && l.contains("topic=\"rt/renamed/state\"")),
+        "{metrics}"
+    );
+    drop(host);
+}
+
 per_engine!(
+    a_config_file_changes_what_a_dds_peer_sees_and_the_stats_endpoint_counts_it,
     a_dds_reader_of_a_synchronous_domain_is_an_observer_not_a_participant,
     two_co_simulations_with_their_own_namespaces_share_a_dds_domain,
     a_dds_writer_that_exits_cleanly_costs_no_step_timeout,

@@ -33,7 +33,7 @@ use crate::routes::per_item::{self, ItemWriters};
 use crate::routes::to_dds::{self, Activation, Outbound, Polled, SetWriter, Watched};
 use crate::routes::{mirror, Event, Payload, ShmConfig};
 use crate::stats::{LogLimit, SetStats, Stats};
-use crate::{GatewayError, GatewayOptions, TypeMode};
+use crate::{http, GatewayError, GatewayOptions, TypeMode};
 
 /// A route as the manager sees it.
 #[derive(Debug)]
@@ -95,10 +95,22 @@ pub fn run(
         stop: Arc::new(AtomicBool::new(false)),
     };
     let mut m = Manager::build(opts, plan, cfg, stats.clone())?;
+    let http = match m.opts.http {
+        Some(addr) => {
+            let (thread, bound, stop) = http::serve(addr, m.report_fn())?;
+            info!("stats on http://{bound}/metrics (Prometheus) and http://{bound}/stats (JSON)");
+            Some((thread, stop))
+        }
+        None => None,
+    };
     on_status(&format!("up: {}", m.line()));
     m.warn_unhosted();
     rt.block_on(m.serve(shutdown, status_every, on_status));
     m.stop();
+    if let Some((thread, stop)) = http {
+        stop.stop();
+        let _ = thread.join();
+    }
     drop(rt);
     Ok(stats)
 }
@@ -199,6 +211,43 @@ impl Manager {
         }
         m.dds.announce()?;
         Ok(m)
+    }
+
+    /// What the stats endpoint serves: the totals and each planned set's counters, read from
+    /// the same atomics the routes count in (no call into the manager).
+    fn report_fn(&self) -> http::ReportFn {
+        let ns = config::ros_namespace(&self.opts.ros_namespace).unwrap_or_default();
+        let gateway = http::GatewayReport {
+            engine: self.dds.kind().name().to_string(),
+            dds_domain: self.dds.domain_id(),
+            node: format!("{}/{}", config::node_namespace(&ns).trim_end_matches('/'), self.opts.node_name),
+            ros_namespace: ns,
+            ..Default::default()
+        };
+        let mirror = self.opts.mirror;
+        let topics: Vec<(http::TopicReport, Arc<SetStats>)> = self
+            .plan
+            .iter()
+            .zip(&self.set_stats)
+            .map(|(p, s)| {
+                let direction = match (p.role, mirror) {
+                    (Role::Publish, false) => http::Direction::Out,
+                    (Role::Publish, true) => http::Direction::In,
+                    (Role::Subscribe, false) => http::Direction::Both,
+                    (Role::Subscribe, true) => http::Direction::Out,
+                };
+                (http::TopicReport::new(p, &self.domains[p.domain].name, direction), s.clone())
+            })
+            .collect();
+        let (stats, start) = (self.stats.clone(), Instant::now());
+        Arc::new(move || http::Report {
+            gateway: http::GatewayReport {
+                uptime_s: start.elapsed().as_secs_f64(),
+                totals: http::GatewayReport::totals(&stats),
+                ..gateway.clone()
+            },
+            topics: topics.iter().map(|(t, s)| t.clone().with_counts(s)).collect(),
+        })
     }
 
     /// Whether a framework hosts domain `di` now (looked at through its presence).
