@@ -62,21 +62,8 @@ pub struct Args {
     quiet: bool,
 }
 
-pub fn parse_duration(s: &str) -> Result<Duration, String> {
-    humantime::parse_duration(s.trim())
-        .map_err(|_| format!("'{s}' is not a duration: a number and a unit, like 10ms, 500us, 2s or 1min"))
-}
-
-pub fn parse_wait(s: &str) -> Result<WaitMode, String> {
-    match s {
-        "block" => Ok(WaitMode::Block),
-        "spin" => Ok(WaitMode::Spin),
-        _ => match s.strip_prefix("poll:") {
-            Some(d) => parse_duration(d).map(WaitMode::Poll),
-            None => Err(format!("'{s}': use block, spin or poll:DURATION (e.g. poll:50us)")),
-        },
-    }
-}
+// One parser for durations and wait modes across the CLI and the gateway's config file.
+pub use tutti_gateway::config::{parse_duration, parse_wait};
 
 /// Applies `--set DOMAIN/ITEM=VALUE` to the PUBLISH buffers.
 fn apply_sets(sets: &[String], domains: &[Domain], buffers: &mut [Vec<u8>]) -> Result<(), Failure> {
