@@ -225,6 +225,34 @@ fn a_killed_dds_writer_costs_no_more_than_the_lease(e: Eng) {
     drop(host);
 }
 
+/// With `--every-step`, a reader of a synchronous PUBLISH set gets every step: the gateway
+/// reads it in lock-step through an observer connection (still not a participant), so the
+/// framework, stepping every millisecond with nobody else to wait for, cannot outrun it as
+/// it can outrun the passive pump on a loaded machine. (Flat out, rustdds' reliable writer
+/// itself drops samples: docs/gateway.md, "Known limits".)
+fn with_every_step_a_dds_reader_gets_every_step(e: Eng) {
+    let Some(py) = python() else { return };
+    let (dom, ns) = (e.dom(125), e.ns("gwcit125"));
+    let ns = ns.as_str();
+    let host = Host::start(ns, "gw_sync", Duration::from_millis(1), |k| (k as f64).to_ne_bytes().to_vec());
+    let gw = e.gateway(DDF, dom, ns, &["--every-step"]);
+    let mut reader = sub(&py, dom, "rt/gw_sync/publish", "gw_msgs::msg::dds_::GwSyncPublish_", SYNC_PUB, 500);
+    let end = Instant::now() + SECS(90);
+    let mut observed = false;
+    while json_lines(&reader, "step").len() < 500 {
+        assert!(Instant::now() < end, "too few samples\n{}\n{}", reader.dump(), gw.dump());
+        let s = status(ns, "gw_sync");
+        assert_eq!(s.connection_count, 0, "{:?}", s.connections);
+        observed |= s.connections.iter().any(|c| c.observer && c.sync_reader);
+        thread::sleep(Duration::from_millis(20));
+    }
+    assert_eq!(reader.wait(SECS(30)), Some(0), "{}", reader.dump());
+    assert!(observed, "no lock-step observer connection was seen");
+    let steps: Vec<u64> = json_lines(&reader, "step").iter().map(|v| v["step"].as_u64().unwrap()).collect();
+    assert!(steps.windows(2).all(|w| w[1] == w[0] + 1), "a step is missing: {steps:?}");
+    drop(host);
+}
+
 /// `GET path` from the gateway's stats endpoint: the body.
 fn http_get(addr: &str, path: &str) -> String {
     use std::io::{Read, Write};
@@ -306,6 +334,7 @@ fn a_config_file_changes_what_a_dds_peer_sees_and_the_stats_endpoint_counts_it(e
 }
 
 per_engine!(
+    with_every_step_a_dds_reader_gets_every_step,
     a_config_file_changes_what_a_dds_peer_sees_and_the_stats_endpoint_counts_it,
     a_dds_reader_of_a_synchronous_domain_is_an_observer_not_a_participant,
     two_co_simulations_with_their_own_namespaces_share_a_dds_domain,

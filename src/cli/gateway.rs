@@ -62,6 +62,11 @@ pub struct Args {
     /// TUTTI_NAMESPACE.
     #[arg(long)]
     all_domains: bool,
+    /// DDS readers of a synchronous PUBLISH set get every step: the gateway reads it in
+    /// lock-step, so the framework waits for its copy of each step (default: DDS readers
+    /// never hold a domain back, and a step the framework outruns them on is skipped).
+    #[arg(long)]
+    every_step: bool,
     /// Address of a network interface DDS may use (repeatable; default: all interfaces).
     #[arg(long = "interface", value_name = "ADDR")]
     interfaces: Vec<IpAddr>,
@@ -146,6 +151,7 @@ impl Args {
             ros_namespace: self.ros_namespace.clone(),
             hosted_only: self.all_domains.then_some(false),
             lease: self.lease,
+            every_step: self.every_step.then_some(true),
             http: self.http,
             allow: None,
             deny: None,

@@ -417,6 +417,8 @@ pub struct ConfigFile {
     pub hosted_only: Option<bool>,
     #[serde(default, deserialize_with = "de_duration")]
     pub lease: Option<Duration>,
+    /// DDS readers of synchronous PUBLISH sets get every step (`--every-step`).
+    pub every_step: Option<bool>,
     pub http: Option<SocketAddr>,
     /// Regexes over set keys (`DOMAIN/publish`), checked when read.
     #[serde(default, deserialize_with = "de_patterns")]
@@ -533,6 +535,7 @@ impl ConfigFile {
             ros_namespace: self.ros_namespace.or(lower.ros_namespace),
             hosted_only: self.hosted_only.or(lower.hosted_only),
             lease: self.lease.or(lower.lease),
+            every_step: self.every_step.or(lower.every_step),
             http: self.http.or(lower.http),
             allow: self.allow.or(lower.allow),
             deny: self.deny.or(lower.deny),
@@ -572,6 +575,7 @@ impl ConfigFile {
         set(&mut opts.ros_namespace, &self.ros_namespace);
         set(&mut opts.hosted_only, &self.hosted_only);
         set(&mut opts.lease, &self.lease);
+        set(&mut opts.every_step, &self.every_step);
         if self.http.is_some() {
             opts.http = self.http;
         }
@@ -790,6 +794,7 @@ pub const KEYS: &[&str] = &[
     "ros_namespace",
     "hosted_only",
     "lease",
+    "every_step",
     "http",
     "allow",
     "deny",

@@ -293,10 +293,14 @@ impl Manager {
                     let activation = route_out(&mut self.routes, di, vec![p.topic.clone()], Some(si));
                     let counters = (self.stats.clone(), self.set_stats[si].clone());
                     if d.flags.synchronous {
-                        self.threads.push(
-                            to_dds::spawn_sync_pump(d.name.clone(), out, activation, self.cfg.clone(), counters)
-                                .map_err(|e| GatewayError::dds("a thread", e))?,
-                        );
+                        let (name, cfg) = (d.name.clone(), self.cfg.clone());
+                        let pump = if self.opts.every_step {
+                            let reader = format!("{} every-step reader", self.opts.node_name);
+                            to_dds::spawn_lockstep_pump(name, out, activation, cfg, counters, reader)
+                        } else {
+                            to_dds::spawn_sync_pump(name, out, activation, cfg, counters)
+                        };
+                        self.threads.push(pump.map_err(|e| GatewayError::dds("a thread", e))?);
                     } else {
                         let w = Watched::new(d.name.clone(), Role::Publish, out, activation, None);
                         watched.push(Box::new(w.with_max_rate(p.max_rate).counted(counters.1)));

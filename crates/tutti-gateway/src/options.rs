@@ -68,6 +68,10 @@ pub struct GatewayOptions {
     /// the gateway releases its lock-step share (a killed writer; it joins again with its
     /// next sample).
     pub lease: Duration,
+    /// DDS readers of a synchronous PUBLISH set get every step: the gateway reads the set in
+    /// lock-step through an observer connection that the framework waits for (a copy and a
+    /// DDS write a step), instead of following it passively.
+    pub every_step: bool,
     /// Serve the counters over HTTP (JSON at `/stats`, Prometheus text at `/metrics`).
     pub http: Option<SocketAddr>,
     /// Which sets are bridged, and per-topic QoS, rate and name (the config file's
@@ -110,6 +114,7 @@ impl GatewayOptions {
             ros_namespace: String::new(),
             hosted_only: true,
             lease: Duration::from_secs(1),
+            every_step: false,
             http: None,
             rules: TopicRules::default(),
         }

@@ -418,7 +418,13 @@ impl Bench<'_> {
     fn gateway(&self, e: EngineKind, slot: &Slot, synchronous: bool, cpus: Cpus) -> anyhow::Result<Kid> {
         let ddf = self.ddf(synchronous).to_string_lossy();
         let wait = if cpus.wait(synchronous) == WaitMode::Spin { "spin" } else { "block" };
-        let args = ["gateway", &ddf, "--interface", "127.0.0.1", "--poll", "0", "--wait", wait, "-q"];
+        let mut args = vec!["gateway", &ddf, "--interface", "127.0.0.1", "--poll", "0", "--wait", wait, "-q"];
+        // The synchronous runs measure every step through DDS: the gateway reads in lock-step
+        // (by default a DDS reader never holds the framework back, and a framework stepping
+        // flat out with no one to wait for would outrun it).
+        if synchronous {
+            args.push("--every-step");
+        }
         start("the gateway", self.tutti(e, slot, &args), cpus.gw)
     }
 

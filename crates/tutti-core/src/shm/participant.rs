@@ -29,6 +29,9 @@ pub struct ConnectOptions {
     pub skip_wait_to_go: bool,
     /// This connection stands for a DDS-side participant (set by the gateway).
     pub remote: bool,
+    /// An observer connection: not counted as a participant (the gateway's lock-step reader
+    /// with `--every-step`, which the framework still waits for once it reads).
+    pub observer: bool,
 }
 
 impl Default for ConnectOptions {
@@ -42,6 +45,7 @@ impl Default for ConnectOptions {
             wait: WaitMode::Block,
             skip_wait_to_go: false,
             remote: false,
+            observer: false,
         }
     }
 }
@@ -92,7 +96,11 @@ impl Participant {
             std::thread::sleep(Duration::from_millis(5));
         };
         let me = os::current_process();
-        let kind = if opts.remote { ConnKind::Remote } else { ConnKind::Participant };
+        let kind = match (opts.observer, opts.remote) {
+            (true, _) => ConnKind::Observer,
+            (false, true) => ConnKind::Remote,
+            (false, false) => ConnKind::Participant,
+        };
         let slot = seg.claim_slot(me, &opts.name, kind)?;
         let id = seg.conn_id(slot);
         let (pub_size, sub_size) = (seg.info.publish.size as usize, seg.info.subscribe.size as usize);

@@ -74,6 +74,7 @@ impl ShmConfig {
             wait: self.wait,
             skip_wait_to_go: true,
             remote: true,
+            observer: false,
         }
     }
 }

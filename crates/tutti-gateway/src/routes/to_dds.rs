@@ -22,6 +22,7 @@ use tracing::{info, warn};
 use tutti_core::ddf::Role;
 use tutti_core::shm::observer::{Look, Observer};
 use tutti_core::shm::segment::Segment;
+use tutti_core::shm::{Participant, ShmError};
 
 use super::per_item::ItemWriters;
 use super::ShmConfig;
@@ -446,6 +447,67 @@ pub fn spawn_sync_pump(
                 let sim_time = f64::from_bits(h.sim_time_bits.load(Ordering::Acquire));
                 let n = out.send(step, sim_time, &buf, &stats);
                 Stats::add(&set.samples_out, n);
+            }
+        })
+}
+
+/// Starts the pump of a synchronous PUBLISH set for `--every-step`: a lock-step reader
+/// (an observer connection, not a participant, that the framework waits for), so that every
+/// step reaches DDS, at the cost of a copy and a DDS write in each step.
+pub fn spawn_lockstep_pump(
+    domain: String,
+    mut out: Outbound,
+    activation: Arc<Activation>,
+    cfg: ShmConfig,
+    (stats, set): (Arc<Stats>, Arc<SetStats>),
+    name: String,
+) -> std::io::Result<JoinHandle<()>> {
+    thread::Builder::new()
+        .name(format!("tutti-gw-step-{}", domain.chars().take(10).collect::<String>()))
+        .stack_size(256 << 10)
+        .spawn(move || {
+            let _ = activation.thread.set(thread::current());
+            let mut p: Option<Participant> = None;
+            let mut seen_joined = 0;
+            while !cfg.stop.load(Ordering::Acquire) {
+                if !activation.is_active() {
+                    p = None;
+                    thread::park_timeout(Duration::from_millis(200));
+                    continue;
+                }
+                let part = match &mut p {
+                    Some(part) => part,
+                    None => {
+                        let mut opts = cfg.connect_options(name.clone(), Duration::from_millis(200));
+                        (opts.remote, opts.observer) = (false, true);
+                        match Participant::connect(&domain, opts) {
+                            Ok(mut part) => {
+                                part.set_timeout(Duration::from_millis(200).min(cfg.timeout));
+                                p.insert(part)
+                            }
+                            Err(_) => {
+                                thread::sleep(Duration::from_millis(200));
+                                continue;
+                            }
+                        }
+                    }
+                };
+                let joined = activation.joined();
+                if joined != seen_joined {
+                    seen_joined = joined;
+                    out.reset();
+                }
+                match part.subscribe_lock() {
+                    Ok(step) => {
+                        let n = out.send(step, part.sim_time(), part.snapshot(), &stats);
+                        Stats::add(&set.samples_out, n);
+                    }
+                    Err(ShmError::Timeout { .. }) => {}
+                    Err(e) => {
+                        info!(domain = %domain, "lock-step reader lost: {e}");
+                        p = None;
+                    }
+                }
             }
         })
 }
