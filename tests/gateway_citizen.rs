@@ -266,7 +266,7 @@ fn http_get(addr: &str, path: &str) -> String {
     body.to_string()
 }
 
-/// A config file changes what a Cyclone peer sees: a denied domain has no topics, a
+/// A config file changes what a Cyclone peer sees: sets not allowed or denied have no topics, a
 /// remapped set is read under its new name only, its QoS override is on the wire and its
 /// rate limit thins an asynchronous set changing every 5 ms; the stats endpoint counts per
 /// topic what went out, in JSON and in the Prometheus text format.
@@ -279,8 +279,10 @@ fn a_config_file_changes_what_a_dds_peer_sees_and_the_stats_endpoint_counts_it(e
     std::fs::write(
         &cfg,
         r#"{
-          // gw_states stays off DDS; gw_async's PUBLISH set is renamed, best-effort, 4 a second.
-          deny: ["gw_states/.*"],
+          // gw_states stays off DDS (not allowed), and so does gw_sync's SUBSCRIBE set (denied);
+          // gw_async's PUBLISH set is renamed, best-effort, 4 a second.
+          allow: ["gw_async/.*", "gw_sync/.*"],
+          deny: ["gw_sync/subscribe"],
           topics: { "gw_async/publish": { remap: "renamed/state", max_rate: 4, qos: { reliability: "best_effort" } } },
           http: "127.0.0.1:0",
         }"#,
@@ -314,8 +316,12 @@ fn a_config_file_changes_what_a_dds_peer_sees_and_the_stats_endpoint_counts_it(e
     // about 200 times a second: the rate limit, not the machine, sets the count.
     assert!(!got.is_empty() && got.len() <= 17, "{} samples in 4 s\n{}", got.len(), renamed.dump());
     assert!(json_lines(&old, "x").is_empty(), "the old name still carries samples: {}", old.dump());
-    let mut denied = peer(&py, "qos denied", dom, "qos", &["--topic", "rt/gw_states/publish", "--timeout", "3"]);
-    assert_eq!(denied.wait(SECS(30)), Some(3), "a denied set has a DDS writer: {}", denied.dump());
+    for topic in ["rt/gw_states/publish", "rt/gw_sync/subscribe"] {
+        let mut left_out = peer(&py, "qos left out", dom, "qos", &["--topic", topic, "--timeout", "3"]);
+        assert_eq!(left_out.wait(SECS(30)), Some(3), "a set left out has a DDS writer: {}", left_out.dump());
+    }
+    let mut kept = peer(&py, "qos kept", dom, "qos", &["--topic", "rt/gw_sync/publish", "--timeout", "45"]);
+    assert_eq!(kept.wait(SECS(60)), Some(0), "an allowed set has no DDS writer: {}", kept.dump());
 
     let stats: serde_json::Value = serde_json::from_str(&http_get(&addr, "/stats")).unwrap();
     let topic = stats["topics"].as_array().unwrap().iter().find(|t| t["topic"] == "rt/renamed/state").cloned();
