@@ -1,15 +1,28 @@
 //! Every `tutti` command shown in a shell block of README.md and docs/*.md names a real
 //! subcommand with flags that exist: each is run with `--help` appended (which clap answers
-//! only when everything before it parses). Synopsis lines (with `[...]` or `|`) and lines that
-//! pipe or substitute are left out.
+//! only when everything before it parses). Every `python3 launch-scripts/…` command has its
+//! arguments parsed by the script's own argparse parser and stops there (see [`PARSE_ONLY`]),
+//! except the ROS 2 nodes' (`ros2_*.py`: they need rclpy). Synopsis lines (with `[...]` or `|`) and lines
+//! that pipe or substitute are left out.
 
 mod common;
 
 use std::path::Path;
 use std::process::Command;
 
-/// The argument lists of the `tutti` commands in the shell blocks of `text`, with their line.
-fn commands(text: &str) -> Vec<(usize, String, Vec<String>)> {
+/// Runs a Python script (`python3 -c PARSE_ONLY SCRIPT ARGS…`) until its argparse parser has
+/// parsed ARGS: a bad or unknown argument exits 2 with argparse's message, else it exits 0
+/// without running the script any further.
+const PARSE_ONLY: &str = "import argparse, runpy, sys\n\
+parse = argparse.ArgumentParser.parse_args\n\
+def parse_only(self, args=None, namespace=None):\n    parse(self, args, namespace)\n    sys.exit(0)\n\
+argparse.ArgumentParser.parse_args = parse_only\n\
+sys.argv = sys.argv[1:]\n\
+runpy.run_path(sys.argv[0], run_name='__main__')\n";
+
+/// The `tutti` and `python3 launch-scripts/…` commands in the shell blocks of `text`, with
+/// their line: (line, as shown, program, arguments).
+fn commands(text: &str) -> Vec<(usize, String, &'static str, Vec<String>)> {
     let mut out = Vec::new();
     let mut shell = false;
     // Lines continued with a trailing backslash, joined (and numbered by their first line).
@@ -48,11 +61,13 @@ fn commands(text: &str) -> Vec<(usize, String, Vec<String>)> {
             continue;
         }
         let mut words = cmd.split_whitespace().skip_while(|w| w.contains('=') && !w.starts_with('-') || *w == "sudo");
-        if words.next() != Some("tutti") {
-            continue;
-        }
+        let program = match words.next() {
+            Some("tutti") => env!("CARGO_BIN_EXE_tutti"),
+            Some("python3") if cmd.contains("launch-scripts/") && !cmd.contains("ros2_") => "python3",
+            _ => continue,
+        };
         let args: Vec<String> = words.map(|w| w.trim_matches(|c| c == '\'' || c == '"').to_string()).collect();
-        out.push((i + 1, cmd.to_string(), args));
+        out.push((i + 1, cmd.to_string(), program, args));
     }
     out
 }
@@ -73,9 +88,13 @@ fn every_documented_command_parses() {
     let mut bad = Vec::new();
     for file in &files {
         let text = std::fs::read_to_string(file).unwrap();
-        for (line, shown, args) in commands(&text) {
-            let mut c = Command::new(env!("CARGO_BIN_EXE_tutti"));
-            c.args(&args).arg("--help").current_dir(root);
+        for (line, shown, program, args) in commands(&text) {
+            let mut c = Command::new(program);
+            if program == "python3" {
+                c.arg("-c").arg(PARSE_ONLY).args(&args).current_dir(root);
+            } else {
+                c.args(&args).arg("--help").current_dir(root);
+            }
             let (status, _, err) = common::run_with_timeout(c, std::time::Duration::from_secs(60));
             checked += 1;
             if !status.success() {
