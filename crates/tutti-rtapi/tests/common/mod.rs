@@ -122,7 +122,9 @@ impl Drop for Host {
     }
 }
 
-/// A child process killed when dropped (a failing test leaves nothing running).
+/// A child process stopped when dropped, so a failing test leaves nothing running. It gets
+/// SIGINT first, so a `tutti host` removes its segments, and then SIGKILL if it is still
+/// there after 3 s.
 pub struct ChildGuard(pub Option<Child>);
 
 impl ChildGuard {
@@ -157,6 +159,13 @@ impl ChildGuard {
 impl Drop for ChildGuard {
     fn drop(&mut self) {
         if let Some(mut c) = self.0.take() {
+            if let Ok(None) = c.try_wait() {
+                let _ = Command::new("kill").args(["-INT", &c.id().to_string()]).status();
+                let end = Instant::now() + Duration::from_secs(3);
+                while Instant::now() < end && matches!(c.try_wait(), Ok(None)) {
+                    std::thread::sleep(Duration::from_millis(10));
+                }
+            }
             let _ = c.kill();
             let _ = c.wait();
         }
