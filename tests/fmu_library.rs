@@ -38,8 +38,10 @@ fn one_program_runs_two_fmus_in_two_domains_through_the_library() {
     host.arg("host")
         .arg(&ddf)
         // --catch-up: each step is 10 ms of simulated time even on a loaded machine, so 40
-        // steps integrate over exactly 0.4 s.
-        .args(["--step", "10ms", "--catch-up", "--duration", "3s", "--timeout", "2s", "-q"])
+        // steps integrate over exactly 0.4 s. --hold: the FMUs connect once the host has
+        // published its inputs; an asynchronous FMU that connected first would integrate the
+        // defaults (u = 0) in its first step.
+        .args(["--step", "10ms", "--catch-up", "--hold", "300ms", "--duration", "3s", "--timeout", "2s", "-q"])
         .args(["--set", "int_a/u=1", "--set", "int_b/u=-2", "--record"])
         .arg(&csv)
         .env("TUTTI_NAMESPACE", &ns);

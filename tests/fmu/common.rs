@@ -111,20 +111,11 @@ pub fn host(
     cmd.args(["host"])
         .arg(ddf)
         // --catch-up: every step is one period of simulated time even when the machine is
-        // loaded (a skipped period would make one doStep longer than fmpy's).
-        .args([
-            "--step",
-            "10ms",
-            "--catch-up",
-            "--duration",
-            duration,
-            "--timeout",
-            "2s",
-            "--set",
-            set,
-            "-q",
-            "--record",
-        ])
+        // loaded (a skipped period would make one doStep longer than fmpy's). --hold: the FMU
+        // connects once the host has published its inputs (an asynchronous FMU connected
+        // before that would step once on the defaults).
+        .args(["--step", "10ms", "--catch-up", "--hold", "300ms", "--duration", duration])
+        .args(["--timeout", "2s", "--set", set, "-q", "--record"])
         .arg(csv)
         .env("TUTTI_NAMESPACE", ns);
     thread::spawn(move || run_with_timeout(cmd, Duration::from_secs(120)))

@@ -314,3 +314,29 @@ fn a_timed_out_step_names_the_connection_it_waited_for_and_kinds_are_counted_apa
     let s = host.status();
     assert_eq!((s.connection_count, s.dds_writers, s.dds_readers), (1, 0, 0), "{:?}", s.connections);
 }
+
+/// A participant held in wait-to-go is not waited for by the steps the framework makes
+/// meanwhile (it could not answer them), and takes part in lock-step from its release on.
+#[test]
+fn a_participant_held_in_wait_to_go_is_not_waited_for_until_released() {
+    let opts = FrameworkOptions { timeout: Duration::from_millis(300), ..fopts("held") };
+    let mut fw = Framework::create(&model(true, true, false), &opts).unwrap();
+    let host = &mut fw.domains[0];
+    host.set_hold(true);
+    let connecting =
+        std::thread::spawn(|| Participant::connect("d", ConnectOptions { name: "held".into(), ..copts("held") }));
+    while host.status().connections.is_empty() {
+        std::thread::sleep(Duration::from_millis(1));
+    }
+    for k in 1..=3 {
+        let r = host.step(&(k as f64).to_ne_bytes(), 0.0).unwrap();
+        assert_eq!(r.timed_out, 0, "step {k} waited for a participant it holds");
+    }
+    host.set_hold(false);
+    let mut p = connecting.join().unwrap().unwrap();
+    // From the release on, the framework waits for it: it reads step 4, then step 5 waits.
+    host.publish_step(&4.0f64.to_ne_bytes(), 0.0).unwrap();
+    assert_eq!(p.subscribe_lock().unwrap(), 4);
+    assert_eq!(host.complete_step().unwrap().timed_out, 0);
+    assert_eq!(host.step(&5.0f64.to_ne_bytes(), 0.0).unwrap().timed_out, 1, "it takes part once released");
+}

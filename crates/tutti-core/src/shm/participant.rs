@@ -131,7 +131,22 @@ impl Participant {
         if !p.opts.skip_wait_to_go {
             p.wait_ready_to_go_until(deadline)?;
         }
+        p.join_lock_step();
         Ok(p)
+    }
+
+    /// A connection claimed while the framework held wait-to-go (its first step deferred, see
+    /// `Segment::claim_slot`) takes part in lock-step from the framework's next step on.
+    fn join_lock_step(&mut self) {
+        let Some(c) = self.seg.conn(self.slot) else { return };
+        if c.first_step.load(Ordering::Acquire) != u64::MAX {
+            return;
+        }
+        let k = self.seg.header().pub_step.load(Ordering::Acquire);
+        c.last_read.store(k, Ordering::Relaxed);
+        c.last_commit.store(k, Ordering::Relaxed);
+        (self.last_read, self.last_commit) = (k, k);
+        c.first_step.store(k + 1, Ordering::Release);
     }
 
     /// Connects and checks that `domain` (from a DDF) describes the running domain: the same

@@ -722,7 +722,11 @@ impl Segment {
             };
             c.flags.store(flags, Ordering::Relaxed);
             let step = h.pub_step.load(Ordering::Acquire);
-            c.first_step.store(step + 1, Ordering::Relaxed);
+            // A participant that connects while the framework holds wait-to-go takes part in
+            // lock-step only once released ([`Participant::connect`] sets its first step
+            // then): the framework must not wait for a connection it is holding itself.
+            let held = kind == ConnKind::Participant && h.hold.load(Ordering::Acquire) != 0;
+            c.first_step.store(if held { u64::MAX } else { step + 1 }, Ordering::Relaxed);
             c.last_read.store(step, Ordering::Relaxed);
             c.last_commit.store(step, Ordering::Relaxed);
             c.reads.store(0, Ordering::Relaxed);
