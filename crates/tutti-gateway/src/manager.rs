@@ -414,7 +414,7 @@ impl Manager {
         self.dds.reader(topic, dds_type, rq, decode, sink)
     }
 
-    /// DDS writers and readers, over all domains.
+    /// DDS readers, over all domains (each set's once).
     fn dds_readers(&self) -> usize {
         self.domains.iter().map(|d| d.dds_readers).sum()
     }

@@ -70,7 +70,7 @@ impl ClockPump {
     /// The clock of `domain`, written by `writer` while `activation` is on, at most `rate`
     /// times a second (None: every step).
     pub fn new(domain: String, writer: Box<dyn Writer>, activation: Arc<Activation>, rate: Option<f64>) -> Self {
-        let min_interval = rate.filter(|r| *r > 0.0).map_or(Duration::ZERO, |r| Duration::from_secs_f64(1.0 / r));
+        let min_interval = super::to_dds::min_interval(rate);
         ClockPump {
             live: Observer::new(domain),
             writer,

@@ -109,6 +109,12 @@ impl Outbound {
     }
 }
 
+/// The shortest time between two samples at most `rate` a second (zero: no limit); shared
+/// by the rate-limited sets and `/clock`.
+pub fn min_interval(rate: Option<f64>) -> Duration {
+    rate.filter(|r| *r > 0.0).map_or(Duration::ZERO, |r| Duration::from_secs_f64(1.0 / r))
+}
+
 /// Whether a route has a remote reader to work for; wakes the thread that serves it.
 #[derive(Debug, Default)]
 pub struct Activation {
@@ -241,7 +247,7 @@ impl Watched {
     /// At most `rate` samples a second (None: every change): a set changing faster goes out
     /// downsampled, always with its newest value.
     pub fn with_max_rate(mut self, rate: Option<f64>) -> Self {
-        self.min_interval = rate.filter(|r| *r > 0.0).map_or(Duration::ZERO, |r| Duration::from_secs_f64(1.0 / r));
+        self.min_interval = min_interval(rate);
         self
     }
 
