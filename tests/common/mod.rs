@@ -49,7 +49,12 @@ pub fn run_with_timeout(mut cmd: Command, limit: Duration) -> (ExitStatus, Strin
         if start.elapsed() > limit {
             let _ = child.kill();
             let _ = child.wait();
-            panic!("{shown} did not finish within {limit:?}; killed");
+            // What it printed up to then says where it hung.
+            let tail = |s: String| {
+                s.lines().rev().take(20).collect::<Vec<_>>().into_iter().rev().collect::<Vec<_>>().join("\n")
+            };
+            let (out, err) = (tail(out.join().unwrap_or_default()), tail(err.join().unwrap_or_default()));
+            panic!("{shown} did not finish within {limit:?}; killed\n--- stdout (end) ---\n{out}\n--- stderr (end) ---\n{err}");
         }
         std::thread::sleep(Duration::from_millis(5));
     };
