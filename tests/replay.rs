@@ -44,7 +44,13 @@ fn beside_component(
         .args(["multiuav_uav2", "Z", "Elevation", "100", "2", &deviate.to_string()])
         .env("TUTTI_NAMESPACE", ns);
     let component = common::run_with_timeout(c, LIMIT);
-    (fw.join().expect("framework thread"), component)
+    match fw.join() {
+        Ok(framework) => (framework, component),
+        // The framework's watchdog fired: what the component said tells why it waited.
+        Err(_) => {
+            panic!("the framework failed (above); the component: {:?}\n{}{}", component.0, component.1, component.2)
+        }
+    }
 }
 
 #[test]

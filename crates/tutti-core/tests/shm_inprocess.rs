@@ -340,3 +340,40 @@ fn a_participant_held_in_wait_to_go_is_not_waited_for_until_released() {
     assert_eq!(host.complete_step().unwrap().timed_out, 0);
     assert_eq!(host.step(&5.0f64.to_ne_bytes(), 0.0).unwrap().timed_out, 1, "it takes part once released");
 }
+
+/// A framework creates its segment, then sizes it: a participant that opens it in between
+/// finds it empty. That is a domain being created (wait for it), not a corrupt one: a
+/// component started beside its framework once failed there under load.
+#[test]
+fn a_segment_created_but_not_yet_sized_is_waited_for_not_refused() {
+    let tag = "creating";
+    let path = segment_path(&ns(tag), "d");
+    struct Remove(std::path::PathBuf);
+    impl Drop for Remove {
+        fn drop(&mut self) {
+            let _ = std::fs::remove_file(&self.0);
+        }
+    }
+    let _remove = Remove(path.clone());
+    std::fs::File::create(&path).unwrap();
+    let err = tutti_core::shm::segment::Segment::open(&ns(tag), "d").unwrap_err();
+    assert!(matches!(err, ShmError::NotReady { .. }), "{err}");
+    let quick = ConnectOptions { connect_timeout: Duration::from_millis(100), ..copts(tag) };
+    let err = Participant::connect("d", quick).unwrap_err();
+    assert!(matches!(err, ShmError::NotReady { .. }), "{err}");
+    // A participant already waiting connects once the framework has finished, and then
+    // waits for its go: the segment is published holding it.
+    let patient = ConnectOptions { connect_timeout: Duration::from_secs(60), ..copts(tag) };
+    let waiting = std::thread::spawn(move || Participant::connect("d", patient));
+    let fw = Framework::create(&model(true, false, false), &FrameworkOptions { hold: true, ..fopts(tag) }).unwrap();
+    let watchdog = std::time::Instant::now() + Duration::from_secs(60);
+    while fw.domains[0].connection_count() == 0 {
+        assert!(std::time::Instant::now() < watchdog, "the waiting participant never connected");
+        std::thread::sleep(Duration::from_millis(5));
+    }
+    assert!(!waiting.is_finished(), "a participant passed a hold set from the start");
+    fw.domains[0].set_hold(false);
+    let p = waiting.join().unwrap().unwrap();
+    assert_eq!(fw.domains[0].connection_count(), 1);
+    p.disconnect();
+}

@@ -55,7 +55,7 @@ impl Framework {
     pub fn create(model: &Model, opts: &FrameworkOptions) -> Result<Framework, ShmError> {
         let mut domains = Vec::with_capacity(model.domains.len());
         for d in &model.domains {
-            let seg = Segment::create(&opts.namespace, d, opts.connections, opts.mode)?;
+            let seg = Segment::create(&opts.namespace, d, opts.connections, opts.mode, opts.hold)?;
             domains.push(DomainHost::new(seg, opts.clone()));
         }
         Ok(Framework { domains })
@@ -121,9 +121,6 @@ pub struct DomainHost {
 impl DomainHost {
     fn new(seg: Segment, opts: FrameworkOptions) -> Self {
         let subscribe = seg.info.subscribe.default_bytes();
-        if opts.hold {
-            seg.header().hold.store(1, Ordering::Release);
-        }
         DomainHost {
             seg,
             opts,

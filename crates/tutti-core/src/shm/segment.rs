@@ -275,7 +275,9 @@ unsafe impl Sync for Segment {}
 impl Segment {
     /// Creates the segment of `domain` in namespace `ns`, reclaiming a stale one left by a
     /// dead framework; a live one is refused with its owner's pid.
-    pub fn create(ns: &str, domain: &Domain, conn_capacity: u32, mode: u32) -> Result<Segment, ShmError> {
+    /// With `hold`, the segment is published already holding wait-to-go, so that no
+    /// participant can slip past a hold its framework is about to set.
+    pub fn create(ns: &str, domain: &Domain, conn_capacity: u32, mode: u32, hold: bool) -> Result<Segment, ShmError> {
         check_namespace(ns)?;
         let shm_name = segment_name(ns, &domain.name);
         let info = DomainInfo::from_domain(domain);
@@ -288,7 +290,7 @@ impl Segment {
             }
             Err(e) => return Err(ShmError::io(format!("creating {}/{shm_name}", os::SHM_DIR), e)),
         };
-        match Self::init(file, &shm_name, info, conn_capacity.clamp(1, MAX_CONNECTIONS)) {
+        match Self::init(file, &shm_name, info, conn_capacity.clamp(1, MAX_CONNECTIONS), hold) {
             Ok(seg) => Ok(seg),
             Err(e) => {
                 let _ = os::shm_unlink(&shm_name);
@@ -297,7 +299,7 @@ impl Segment {
         }
     }
 
-    fn init(file: File, shm_name: &str, info: DomainInfo, cap: u32) -> Result<Segment, ShmError> {
+    fn init(file: File, shm_name: &str, info: DomainInfo, cap: u32, hold: bool) -> Result<Segment, ShmError> {
         let leaves: Vec<(Role, &Leaf)> = info.leaves().collect();
         let mut strings = Vec::new();
         strings.extend_from_slice(info.name.as_bytes());
@@ -364,7 +366,7 @@ impl Segment {
                 super::bucket::store_bytes(slot, &defaults);
             }
         }
-        h.hold.store(0, Ordering::Relaxed);
+        h.hold.store(u32::from(hold), Ordering::Relaxed);
         h.state.store(STATE_RUNNING, Ordering::Relaxed);
         // Publish the header last: a participant trusts nothing before it sees the magic.
         h.magic.store(MAGIC, Ordering::Release);
@@ -388,6 +390,10 @@ impl Segment {
     fn open_file(file: File, shm_name: &str, domain: &str) -> Result<Segment, ShmError> {
         let corrupt = |detail: String| ShmError::Corrupt { domain: domain.to_string(), detail };
         let len = file.metadata().map_err(|e| ShmError::io(format!("inspecting {shm_name}"), e))?.len() as usize;
+        // Created but not sized yet: its framework is between `shm_open` and `ftruncate`.
+        if len == 0 {
+            return Err(ShmError::NotReady { domain: domain.to_string() });
+        }
         if len < HEADER_BYTES {
             return Err(corrupt(format!("segment is {len} bytes, smaller than a header")));
         }
