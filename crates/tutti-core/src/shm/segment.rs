@@ -633,19 +633,6 @@ impl Segment {
         self.header().remote_count.load(Ordering::Acquire)
     }
 
-    /// DDS readers of the domain's topics, as the live gateways attached to it count them.
-    pub fn dds_reader_count(&self) -> u64 {
-        (0..self.scan_len())
-            .filter_map(|i| self.conn(i))
-            .filter(|c| {
-                c.active.load(Ordering::Acquire) != 0
-                    && c.ready.load(Ordering::Acquire) != 0
-                    && c.flags.load(Ordering::Acquire) & CONN_OBSERVER != 0
-            })
-            .map(|c| c.peers.load(Ordering::Relaxed))
-            .sum()
-    }
-
     /// Sets the DDS reader count an observer's slot `i` shows.
     pub fn set_peers(&self, i: usize, n: u64) {
         if let Some(c) = self.conn(i) {
@@ -795,13 +782,10 @@ impl Segment {
     /// for one standing for DDS.
     pub fn describe_conn(&self, i: usize) -> String {
         let Some(c) = self.conn(i) else { return format!("slot {i}") };
-        let mut name = [0u8; 48];
-        load_bytes(&c.name, &mut name);
-        let end = name.iter().position(|&b| b == 0).unwrap_or(name.len());
         let remote = c.flags.load(Ordering::Relaxed) & CONN_REMOTE != 0;
         format!(
             "'{}' (pid {}{})",
-            String::from_utf8_lossy(&name[..end]),
+            conn_name(c),
             c.active.load(Ordering::Relaxed),
             if remote { ", a DDS writer through the gateway" } else { "" }
         )
@@ -817,14 +801,11 @@ impl Segment {
             if pid == 0 || c.ready.load(Ordering::Acquire) == 0 {
                 continue;
             }
-            let mut name = [0u8; 48];
-            load_bytes(&c.name, &mut name);
-            let end = name.iter().position(|&b| b == 0).unwrap_or(name.len());
             let flags = c.flags.load(Ordering::Relaxed);
             connections.push(ConnectionInfo {
                 slot: i as u32,
                 pid,
-                name: String::from_utf8_lossy(&name[..end]).into_owned(),
+                name: conn_name(c),
                 writer: flags & CONN_WRITER != 0,
                 sync_reader: flags & CONN_SYNC_READER != 0,
                 remote: flags & CONN_REMOTE != 0,
@@ -859,11 +840,20 @@ impl Segment {
             waiting_to_go: h.hold.load(Ordering::Relaxed) != 0,
             connection_count: h.conn_count.load(Ordering::Relaxed),
             dds_writers: h.remote_count.load(Ordering::Relaxed),
-            dds_readers: self.dds_reader_count(),
+            // DDS readers of the domain's topics, as the live gateways attached to it count them.
+            dds_readers: connections.iter().filter(|c| c.observer).map(|c| c.dds_readers).sum(),
             owner_pid,
             connections,
         }
     }
+}
+
+/// The name a connection slot holds (written by `claim_slot`, NUL-padded).
+fn conn_name(c: &ConnSlot) -> String {
+    let mut name = [0u8; 48];
+    load_bytes(&c.name, &mut name);
+    let end = name.iter().position(|&b| b == 0).unwrap_or(name.len());
+    String::from_utf8_lossy(&name[..end]).into_owned()
 }
 
 /// What a connection slot stands for.
