@@ -121,7 +121,7 @@ impl<'a> RawElement<'a> {
         // scans at most the element, whatever order positions are asked for in.
         let start = Cursor { offset: node.offset, line: node.pos.line, col: node.pos.col - 1 };
         let to = node.text_offset?.clamp(node.offset, self.doc.src.len());
-        Some(start.advance(&self.doc.src.as_bytes()[node.offset..to]).pos())
+        Some(LineIndex::starting_at(self.doc.src, start).pos(to))
     }
 }
 
@@ -184,20 +184,6 @@ struct Cursor {
 const START: Cursor = Cursor { offset: 0, line: 1, col: 0 };
 
 impl Cursor {
-    /// The cursor moved forward over `bytes`, which start at its offset.
-    fn advance(mut self, bytes: &[u8]) -> Cursor {
-        for &b in bytes {
-            if b == b'\n' {
-                self.line += 1;
-                self.col = 0;
-            } else {
-                self.col += u32::from(continues_no_character(b));
-            }
-        }
-        self.offset += bytes.len();
-        self
-    }
-
     fn pos(self) -> Pos {
         Pos { line: self.line, col: self.col + 1 }
     }
@@ -217,8 +203,14 @@ fn characters(bytes: &[u8]) -> u32 {
 
 impl<'a> LineIndex<'a> {
     pub fn new(src: &'a str) -> Self {
-        let index = LineIndex { src, cursor: Cell::new(START), next_newline: Cell::new(0) };
-        index.next_newline.set(index.newline_from(0));
+        Self::starting_at(src, START)
+    }
+
+    /// An index whose cursor is already at `cursor` (on a character boundary), for offsets
+    /// from there on.
+    fn starting_at(src: &'a str, cursor: Cursor) -> Self {
+        let index = LineIndex { src, cursor: Cell::new(cursor), next_newline: Cell::new(0) };
+        index.next_newline.set(index.newline_from(cursor.offset));
         index
     }
 
@@ -243,8 +235,8 @@ impl<'a> LineIndex<'a> {
         c.pos()
     }
 
-    /// The first newline at or after `from`, which is 0 or just after a newline (so on a
-    /// character boundary).
+    /// The first newline at or after `from`, which is on a character boundary (0, just after
+    /// a newline, or an element's `<`).
     fn newline_from(&self, from: usize) -> usize {
         self.src[from..].find('\n').map_or(self.src.len(), |at| from + at)
     }
