@@ -6,7 +6,7 @@ mod common;
 
 use tutti_core::ddf::Model;
 use tutti_core::shm::segment::segment_path;
-use tutti_core::shm::{ConnectOptions, Framework, FrameworkOptions, Participant, ShmError, WaitMode};
+use tutti_core::shm::{ConnKind, ConnectOptions, Framework, FrameworkOptions, Participant, ShmError, WaitMode};
 
 fn model(sync: bool, mpa: bool, states: bool) -> Model {
     common::domain(
@@ -291,9 +291,11 @@ fn a_timed_out_step_names_the_connection_it_waited_for_and_kinds_are_counted_apa
     let mut fw = Framework::create(&model(true, true, false), &opts).unwrap();
     let host = &mut fw.domains[0];
     let mut slow = Participant::connect("d", ConnectOptions { name: "slow-writer".into(), ..copts("owed") }).unwrap();
-    let remote =
-        Participant::connect("d", ConnectOptions { name: "dds-writer ab".into(), remote: true, ..copts("owed") })
-            .unwrap();
+    let remote = Participant::connect(
+        "d",
+        ConnectOptions { name: "dds-writer ab".into(), kind: ConnKind::Remote, ..copts("owed") },
+    )
+    .unwrap();
     let mut watcher = tutti_core::shm::observer::Observer::with_presence("d".into(), "tutti_gateway");
     assert!(matches!(watcher.look(&ns("owed")), tutti_core::shm::observer::Look::Fresh));
     watcher.set_dds_readers(3);
@@ -348,14 +350,9 @@ fn a_participant_held_in_wait_to_go_is_not_waited_for_until_released() {
 fn a_segment_created_but_not_yet_sized_is_waited_for_not_refused() {
     let tag = "creating";
     let path = segment_path(&ns(tag), "d");
-    struct Remove(std::path::PathBuf);
-    impl Drop for Remove {
-        fn drop(&mut self) {
-            let _ = std::fs::remove_file(&self.0);
-        }
-    }
-    let _remove = Remove(path.clone());
     std::fs::File::create(&path).unwrap();
+    // Removed when the test ends, also when it fails (the framework replaces it first).
+    let _remove = tempfile::TempPath::try_from_path(&path).unwrap();
     let err = tutti_core::shm::segment::Segment::open(&ns(tag), "d").unwrap_err();
     assert!(matches!(err, ShmError::NotReady { .. }), "{err}");
     let quick = ConnectOptions { connect_timeout: Duration::from_millis(100), ..copts(tag) };

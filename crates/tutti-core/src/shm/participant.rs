@@ -27,11 +27,10 @@ pub struct ConnectOptions {
     pub wait: WaitMode,
     /// Do not wait for the framework's wait-to-go signal in `connect`.
     pub skip_wait_to_go: bool,
-    /// This connection stands for a DDS-side participant (set by the gateway).
-    pub remote: bool,
-    /// An observer connection: not counted as a participant (the gateway's lock-step reader
+    /// What the connection stands for: a component (the default), a DDS writer (set by the
+    /// gateway) or an observer, not counted as a participant (the gateway's lock-step reader
     /// with `--every-step`, which the framework still waits for once it reads).
-    pub observer: bool,
+    pub kind: ConnKind,
 }
 
 impl Default for ConnectOptions {
@@ -44,8 +43,7 @@ impl Default for ConnectOptions {
             timeout: Duration::from_secs(5),
             wait: WaitMode::Block,
             skip_wait_to_go: false,
-            remote: false,
-            observer: false,
+            kind: ConnKind::Participant,
         }
     }
 }
@@ -96,12 +94,7 @@ impl Participant {
             std::thread::sleep(Duration::from_millis(5));
         };
         let me = os::current_process();
-        let kind = match (opts.observer, opts.remote) {
-            (true, _) => ConnKind::Observer,
-            (false, true) => ConnKind::Remote,
-            (false, false) => ConnKind::Participant,
-        };
-        let slot = seg.claim_slot(me, &opts.name, kind)?;
+        let slot = seg.claim_slot(me, &opts.name, opts.kind)?;
         let id = seg.conn_id(slot);
         let (pub_size, sub_size) = (seg.info.publish.size as usize, seg.info.subscribe.size as usize);
         let mut p = Participant {

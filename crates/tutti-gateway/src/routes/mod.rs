@@ -12,7 +12,7 @@ use std::sync::Arc;
 use std::time::Duration;
 
 use crate::engine::Guid;
-use tutti_core::shm::{ConnectOptions, WaitMode};
+use tutti_core::shm::{ConnKind, ConnectOptions, WaitMode};
 
 use crate::cdr::TypedSample;
 
@@ -73,8 +73,7 @@ impl ShmConfig {
             timeout: self.timeout,
             wait: self.wait,
             skip_wait_to_go: true,
-            remote: true,
-            observer: false,
+            kind: ConnKind::Remote,
         }
     }
 }

@@ -22,7 +22,7 @@ use tracing::{info, warn};
 use tutti_core::ddf::Role;
 use tutti_core::shm::observer::{Look, Observer};
 use tutti_core::shm::segment::Segment;
-use tutti_core::shm::{Participant, ShmError};
+use tutti_core::shm::{ConnKind, Participant, ShmError};
 
 use super::per_item::ItemWriters;
 use super::ShmConfig;
@@ -485,7 +485,7 @@ pub fn spawn_lockstep_pump(
                     Some(part) => part,
                     None => {
                         let mut opts = cfg.connect_options(name.clone(), Duration::from_millis(200));
-                        (opts.remote, opts.observer) = (false, true);
+                        opts.kind = ConnKind::Observer;
                         match Participant::connect(&domain, opts) {
                             Ok(mut part) => {
                                 part.set_timeout(Duration::from_millis(200).min(cfg.timeout));
