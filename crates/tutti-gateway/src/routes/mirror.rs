@@ -68,8 +68,7 @@ pub fn spawn(
                     sim_time = s.sim_time;
                     if let (true, true, Some(out)) = (sync, host.seeded(), out.as_mut()) {
                         last_sub = host.segment().generation(Role::Subscribe);
-                        let n = out.send(last_step, sim_time, host.subscribe(), &stats);
-                        Stats::add(&set_out.samples_out, n);
+                        out.send(last_step, sim_time, host.subscribe(), &stats, Some(&set_out));
                     }
                 }
                 Err(RecvTimeoutError::Timeout) => {}
@@ -80,8 +79,7 @@ pub fn spawn(
                 if cur != last_sub && host.seeded() {
                     last_sub = cur;
                     if let (Some(out), Ok(sub)) = (out.as_mut(), host.read_subscribe()) {
-                        let n = out.send(last_step, sim_time, sub, &stats);
-                        Stats::add(&set_out.samples_out, n);
+                        out.send(last_step, sim_time, sub, &stats, Some(&set_out));
                     }
                 }
             }

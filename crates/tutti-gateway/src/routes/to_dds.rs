@@ -69,8 +69,8 @@ pub enum Outbound {
 
 impl Outbound {
     /// Writes the set `shm` and sends it at once; returns the samples written.
-    pub fn send(&mut self, step: u64, sim_time: f64, shm: &[u8], stats: &Stats) -> u64 {
-        let n = self.write(step, sim_time, shm, stats);
+    pub fn send(&mut self, step: u64, sim_time: f64, shm: &[u8], stats: &Stats, set: Option<&SetStats>) -> u64 {
+        let n = self.write(step, sim_time, shm, stats, set);
         self.flush();
         n
     }
@@ -84,8 +84,8 @@ impl Outbound {
     }
 
     /// Writes the set `shm`, leaving it in the writers' batches where the engine batches;
-    /// returns the samples written.
-    pub fn write(&mut self, step: u64, sim_time: f64, shm: &[u8], stats: &Stats) -> u64 {
+    /// returns the samples written, counted in the gateway's totals and in `set`'s counters.
+    pub fn write(&mut self, step: u64, sim_time: f64, shm: &[u8], stats: &Stats, set: Option<&SetStats>) -> u64 {
         let (sent, failed) = match self {
             Outbound::Set(w) => {
                 if w.send(step, sim_time, shm) {
@@ -96,7 +96,7 @@ impl Outbound {
             }
             Outbound::Items(w) => w.send(shm),
         };
-        Stats::add(&stats.to_dds, sent);
+        SetStats::add(set, |s| &s.samples_out, &stats.to_dds, sent);
         Stats::add(&stats.errors, failed);
         sent
     }
@@ -309,11 +309,7 @@ impl Watched {
         }
         let step = h.pub_step.load(Ordering::Acquire);
         let sim_time = f64::from_bits(h.sim_time_bits.load(Ordering::Relaxed));
-        let n = self.out.write(step, sim_time, &self.buf, stats);
-        if let Some(set) = &self.set {
-            Stats::add(&set.samples_out, n);
-        }
-        n > 0
+        self.out.write(step, sim_time, &self.buf, stats, self.set.as_deref()) > 0
     }
 }
 
@@ -451,8 +447,7 @@ pub fn spawn_sync_pump(
                 }
                 last = step;
                 let sim_time = f64::from_bits(h.sim_time_bits.load(Ordering::Acquire));
-                let n = out.send(step, sim_time, &buf, &stats);
-                Stats::add(&set.samples_out, n);
+                out.send(step, sim_time, &buf, &stats, Some(&set));
             }
         })
 }
@@ -505,8 +500,7 @@ pub fn spawn_lockstep_pump(
                 }
                 match part.subscribe_lock() {
                     Ok(step) => {
-                        let n = out.send(step, part.sim_time(), part.snapshot(), &stats);
-                        Stats::add(&set.samples_out, n);
+                        out.send(step, part.sim_time(), part.snapshot(), &stats, Some(&set));
                     }
                     Err(ShmError::Timeout { .. }) => {}
                     Err(e) => {
