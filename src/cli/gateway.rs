@@ -56,7 +56,7 @@ pub struct Args {
     #[arg(long, value_name = "NAME")]
     node_name: Option<String>,
     /// ROS namespace of every topic and of the node: /NS/DOMAIN/publish, node /NS/NAME.
-    #[arg(long, value_name = "NS", value_parser = parse_namespace)]
+    #[arg(long, value_name = "NS", value_parser = config::parse_namespace)]
     ros_namespace: Option<String>,
     /// Bridge every domain of the DDF from the start, not only those a framework hosts in
     /// TUTTI_NAMESPACE.
@@ -117,10 +117,6 @@ pub struct Args {
 enum Types {
     Typed,
     PerItem,
-}
-
-fn parse_namespace(s: &str) -> Result<String, String> {
-    config::ros_namespace(s).map_err(|e| e.to_string())
 }
 
 impl Args {

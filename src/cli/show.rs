@@ -245,10 +245,7 @@ fn plan_json<'a>(opts: &'a GatewayOptions, plan: &'a Plan, cfg: &Path) -> PlanJs
         dds_engine: opts.engine.name(),
         ros2_types: if per_item { "per-item" } else { "typed" },
         ros_namespace: &opts.ros_namespace,
-        node: match opts.ros_namespace.as_str() {
-            "" => format!("/{}", opts.node_name),
-            ns => format!("/{ns}/{}", opts.node_name),
-        },
+        node: config::node_full_name(&opts.ros_namespace, &opts.node_name),
         hosted_only: opts.hosted_only,
         sets: plan
             .sets

@@ -149,6 +149,15 @@ pub fn node_namespace(ns: &str) -> String {
     format!("/{ns}")
 }
 
+/// The node's full name under a canonical ROS namespace: `/NS/NODE`, or `/NODE`.
+pub fn node_full_name(ns: &str, node: &str) -> String {
+    if ns.is_empty() {
+        format!("/{node}")
+    } else {
+        format!("/{ns}/{node}")
+    }
+}
+
 /// `rt/NS/NAME` (`rt/NAME` without a namespace) for the relative ROS name `name`.
 pub fn dds_topic(ns: &str, name: &str) -> String {
     if ns.is_empty() {
@@ -169,13 +178,7 @@ pub fn plan(opts: &GatewayOptions) -> Result<Vec<PlannedSet>, GatewayError> {
 /// flags forbid, a rate limit on a synchronous set and two topics of one name.
 pub fn resolve(opts: &GatewayOptions) -> Result<Plan, GatewayError> {
     let rules = &opts.rules;
-    let at = |key: &str| {
-        if rules.source.is_empty() {
-            key.to_string()
-        } else {
-            format!("{}: {key}", rules.source)
-        }
-    };
+    let at = |key: &str| in_source(&rules.source, key);
     let pkg = mapping::package_name(&opts.ddf_path);
     let ns = ros_namespace(&opts.ros_namespace)?;
     let keys: Vec<String> = opts.model.domains.iter().flat_map(|d| Role::ALL.map(|r| set_key(&d.name, r))).collect();
@@ -277,6 +280,15 @@ pub fn resolve(opts: &GatewayOptions) -> Result<Plan, GatewayError> {
     Ok(plan)
 }
 
+/// Where a message points: `FILE: KEY`, or `KEY` for rules from no file.
+fn in_source(source: &str, key: &str) -> String {
+    if source.is_empty() {
+        key.to_string()
+    } else {
+        format!("{source}: {key}")
+    }
+}
+
 /// The per-item topics (`--ros2-types per-item`) of a planned set, under its DDS topic.
 pub fn item_topics(opts: &GatewayOptions, set: &PlannedSet) -> Vec<ItemTopic> {
     mapping::item_topics_under(&opts.model.domains[set.domain], set.role, &set.topic)
@@ -307,7 +319,7 @@ impl TopicRules {
     /// The rules of a config file (`allow`, `deny`, `topics`); none without those keys.
     pub fn from_config(cfg: &ConfigFile) -> Result<TopicRules, GatewayError> {
         let source = cfg.source.clone().unwrap_or_default();
-        let at = |key: &str| if source.is_empty() { key.to_string() } else { format!("{source}: {key}") };
+        let at = |key: &str| in_source(&source, key);
         let compile = |key: &str, pats: &Option<Vec<String>>| -> Result<Vec<regex::Regex>, GatewayError> {
             pats.iter()
                 .flatten()
@@ -663,7 +675,8 @@ fn parse_profile(s: &str) -> Result<Profile, String> {
     }
 }
 
-fn parse_namespace(s: &str) -> Result<String, String> {
+/// A ROS namespace in canonical form (see [`ros_namespace`]).
+pub fn parse_namespace(s: &str) -> Result<String, String> {
     ros_namespace(s).map_err(|e| e.to_string())
 }
 

@@ -106,9 +106,7 @@ impl TopicReport {
             ..TopicReport::default()
         }
     }
-}
 
-impl TopicReport {
     /// The report with the counters of `s` (read now).
     pub fn with_counts(mut self, s: &SetStats) -> TopicReport {
         let g = |c: &std::sync::atomic::AtomicU64| c.load(std::sync::atomic::Ordering::Relaxed);

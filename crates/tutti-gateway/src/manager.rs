@@ -20,7 +20,7 @@ use std::time::{Duration, Instant};
 use tokio::sync::mpsc;
 use tracing::{info, warn};
 use tutti_core::ddf::{Domain, Role};
-use tutti_core::mapping::{self, Qos};
+use tutti_core::mapping::Qos;
 use tutti_core::shm::observer::{Look, Observer};
 use tutti_core::shm::{Framework, FrameworkOptions};
 
@@ -75,7 +75,7 @@ struct WriterEntry {
 /// Serves `opts` until `shutdown` is set; `on_status` is called every `status_every` with
 /// a one-line summary (and once when the gateway is up).
 pub fn run(
-    opts: GatewayOptions,
+    mut opts: GatewayOptions,
     shutdown: Arc<AtomicBool>,
     status_every: Duration,
     on_status: &mut dyn FnMut(&str),
@@ -83,6 +83,8 @@ pub fn run(
     if opts.mirror && opts.types == TypeMode::PerItem {
         return Err(GatewayError::Invalid("--mirror needs --ros2-types typed: per-item samples carry no step".into()));
     }
+    // Canonical from here on (`sim1`, `a/b`, or empty), as the routes and the report use it.
+    opts.ros_namespace = config::ros_namespace(&opts.ros_namespace)?;
     let plan = config::plan(&opts)?;
     let rt = tokio::runtime::Builder::new_current_thread().enable_all().build().map_err(GatewayError::Runtime)?;
     let stats = Arc::new(Stats::default());
@@ -216,11 +218,11 @@ impl Manager {
     /// What the stats endpoint serves: the totals and each planned set's counters, read from
     /// the same atomics the routes count in (no call into the manager).
     fn report_fn(&self) -> http::ReportFn {
-        let ns = config::ros_namespace(&self.opts.ros_namespace).unwrap_or_default();
+        let ns = self.opts.ros_namespace.clone();
         let gateway = http::GatewayReport {
             engine: self.dds.kind().name().to_string(),
             dds_domain: self.dds.domain_id(),
-            node: format!("{}/{}", config::node_namespace(&ns).trim_end_matches('/'), self.opts.node_name),
+            node: config::node_full_name(&ns, &self.opts.node_name),
             ros_namespace: ns,
             ..Default::default()
         };
@@ -302,8 +304,7 @@ impl Manager {
                         };
                         self.threads.push(pump.map_err(|e| GatewayError::dds("a thread", e))?);
                     } else {
-                        let w = Watched::new(d.name.clone(), Role::Publish, out, activation, None);
-                        watched.push(Box::new(w.with_max_rate(p.max_rate).counted(counters.1)));
+                        watched.push(self.watched(&d.name, si, out, activation, None));
                     }
                 }
                 // SUBSCRIBE: DDS -> shared memory, and shared-memory writers -> DDS.
@@ -313,8 +314,7 @@ impl Manager {
                     self.inbound(di, si, &p.topic, &p.dds_type, decode, &p.reader_qos)?;
                     let out = set_writer(&*self.dds, &d, p)?;
                     let activation = route_out(&mut self.routes, di, vec![p.topic.clone()], Some(si));
-                    let w = Watched::new(d.name.clone(), Role::Subscribe, out, activation, Some(own_commits));
-                    watched.push(Box::new(w.with_max_rate(p.max_rate).counted(self.set_stats[si].clone())));
+                    watched.push(self.watched(&d.name, si, out, activation, Some(own_commits)));
                 }
             }
             (TypeMode::Typed, true) => {
@@ -346,16 +346,15 @@ impl Manager {
             }
             (TypeMode::PerItem, _) => {
                 if let Some((si, p)) = planned(Role::Publish) {
-                    let pub_topics = mapping::item_topics_under(&d, Role::Publish, &p.topic);
+                    let pub_topics = config::item_topics(&self.opts, p);
                     self.topics += pub_topics.len();
                     let out = Outbound::Items(ItemWriters::create(dds, &pub_topics, &d.publish.layout, &p.writer_qos)?);
                     let topics = pub_topics.iter().map(|t| t.topic.clone()).collect();
                     let activation = route_out(&mut self.routes, di, topics, Some(si));
-                    let w = Watched::new(d.name.clone(), Role::Publish, out, activation, None);
-                    watched.push(Box::new(w.with_max_rate(p.max_rate).counted(self.set_stats[si].clone())));
+                    watched.push(self.watched(&d.name, si, out, activation, None));
                 }
                 if let Some((si, p)) = planned(Role::Subscribe) {
-                    let sub_topics = mapping::item_topics_under(&d, Role::Subscribe, &p.topic);
+                    let sub_topics = config::item_topics(&self.opts, p);
                     self.topics += sub_topics.len();
                     for t in &sub_topics {
                         let Some(leaf) = d.subscribe.layout.leaf(&t.path) else { continue };
@@ -370,13 +369,12 @@ impl Manager {
                     )?);
                     let topics = sub_topics.iter().map(|t| t.topic.clone()).collect();
                     let activation = route_out(&mut self.routes, di, topics, Some(si));
-                    let w = Watched::new(d.name.clone(), Role::Subscribe, out, activation, Some(own_commits));
-                    watched.push(Box::new(w.with_max_rate(p.max_rate).counted(self.set_stats[si].clone())));
+                    watched.push(self.watched(&d.name, si, out, activation, Some(own_commits)));
                 }
             }
         }
         if self.clock_domain == Some(di) {
-            let topic = config::dds_topic(&config::ros_namespace(&self.opts.ros_namespace)?, "clock");
+            let topic = config::dds_topic(&self.opts.ros_namespace, "clock");
             let writer = self.dds.writer(&topic, clock::TYPE, &clock::qos())?;
             let activation = route_out(&mut self.routes, di, vec![topic.clone()], None);
             watched.push(Box::new(ClockPump::new(d.name.clone(), writer, activation, self.opts.clock_rate)));
@@ -393,6 +391,22 @@ impl Manager {
         }
         self.domains[di].bridged = true;
         Ok(())
+    }
+
+    /// A shared-memory -> DDS route of planned set `si` that the poller serves: `out` carries
+    /// the set's changes (`own_commits`: the gateway's own commits, not sent back to DDS), at
+    /// most at the set's `max_rate`, counted in the set's counters.
+    fn watched(
+        &self,
+        domain: &str,
+        si: usize,
+        out: Outbound,
+        activation: Arc<Activation>,
+        own_commits: Option<Arc<AtomicU64>>,
+    ) -> Box<dyn Polled> {
+        let p = &self.plan[si];
+        let w = Watched::new(domain.to_string(), p.role, out, activation, own_commits);
+        Box::new(w.with_max_rate(p.max_rate).counted(self.set_stats[si].clone()))
     }
 
     /// A DDS -> shared-memory route over `topic` (DDS type `dds_type`, samples read by
