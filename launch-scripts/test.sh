@@ -60,7 +60,7 @@ RUSTFLAGS="--cfg tutti_loom" CARGO_TARGET_DIR=target/loom cargo test -p tutti-co
 
 step "test suite"
 cargo build --workspace --locked --quiet
-cargo test --workspace --locked
+cargo test --workspace --locked --no-fail-fast
 
 # The tests must leave no shared-memory segment behind.
 leftover=$(comm -13 <(echo "$segments_before" | sort) <(ls /dev/shm 2>/dev/null | grep '^tutti\.' | sort) || true)

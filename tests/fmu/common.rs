@@ -198,9 +198,17 @@ pub fn compare(rows: &BTreeMap<u64, (f64, Vec<f64>)>, reference: &BTreeMap<u64, 
 }
 
 /// The FMI 3.0 headers of the `fmi-sys` crate (found with `cargo metadata`).
+///
+/// `--filter-platform` with the host's triple keeps cargo to the packages this machine's
+/// build has downloaded: without it, `--offline` needs every package of Cargo.lock, those
+/// of other platforms too, which a Linux build never fetches.
 pub fn fmi3_headers() -> PathBuf {
+    let rustc = std::env::var_os("RUSTC").unwrap_or_else(|| "rustc".into());
+    let version = Command::new(rustc).arg("-vV").output().expect("rustc -vV");
+    let version = String::from_utf8_lossy(&version.stdout);
+    let host = version.lines().find_map(|l| l.strip_prefix("host: ")).expect("rustc -vV names the host triple");
     let out = Command::new(env!("CARGO"))
-        .args(["metadata", "--format-version", "1", "--offline"])
+        .args(["metadata", "--format-version", "1", "--offline", "--filter-platform", host.trim()])
         .current_dir(repo())
         .output()
         .expect("cargo metadata");
