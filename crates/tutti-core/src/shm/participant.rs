@@ -193,8 +193,20 @@ impl Participant {
         self.last_read
     }
 
+    /// The simulated time (seconds) of the framework's latest step.
     pub fn sim_time(&self) -> f64 {
-        f64::from_bits(self.seg.header().sim_time_bits.load(Ordering::Relaxed))
+        self.seg.sim_time()
+    }
+
+    /// The step the framework published last (0 before its first): unlike
+    /// [`last_step`](Self::last_step), not necessarily one this connection has read.
+    pub fn step(&self) -> u64 {
+        self.seg.step()
+    }
+
+    /// The framework's step period, when it steps at a fixed rate (see [`Segment::period`]).
+    pub fn period(&self) -> Option<Duration> {
+        self.seg.period()
     }
 
     /// Whether the connection is still in place (the framework removes connections it
@@ -419,8 +431,11 @@ impl Participant {
 
     /// Starts a SUBSCRIBE write: declares this connection a writer, claims exclusive
     /// ownership where the domain allows one writer, and in a synchronous domain waits for
-    /// the step this commit answers (the seed needs no step).
-    pub fn publish_lock(&mut self) -> Result<(), ShmError> {
+    /// the step this commit answers (the seed needs no step). Returns the step locked: in a
+    /// synchronous domain the step the next commit answers (for a connection that reads and
+    /// has answered what it read, its last answer: the commit answers no new step), in an
+    /// asynchronous one the framework's latest step.
+    pub fn publish_lock(&mut self) -> Result<u64, ShmError> {
         self.check()?;
         self.claim_writer()?;
         let seg = &self.seg;
@@ -429,7 +444,7 @@ impl Participant {
             if self.has_read && self.last_read > self.last_commit {
                 // Answer the step this connection read and has not answered yet.
                 self.locked_step = self.last_read;
-                return Ok(());
+                return Ok(self.locked_step);
             }
             if self.has_read {
                 // A connection that reads has answered the step it read (or given up its
@@ -437,7 +452,7 @@ impl Participant {
                 // and answers no step. Waiting for the next step here would count it as read
                 // for the reader, which would then skip it.
                 self.locked_step = self.last_commit;
-                return Ok(());
+                return Ok(self.locked_step);
             }
             let last = self.last_commit;
             let states = seg.info.flags.states;
@@ -461,8 +476,9 @@ impl Participant {
                 }
                 segment::wake(&h.ack_seq, &h.ack_waiters);
             }
+            return Ok(k);
         }
-        Ok(())
+        Ok(seg.step())
     }
 
     fn claim_writer(&self) -> Result<(), ShmError> {

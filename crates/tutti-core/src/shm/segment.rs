@@ -667,6 +667,38 @@ impl Segment {
         self.header().sets[role as usize].current.load(Ordering::Acquire)
     }
 
+    /// The step the framework published last (0 before its first).
+    pub fn step(&self) -> u64 {
+        self.header().pub_step.load(Ordering::Acquire)
+    }
+
+    /// The simulated time (seconds) of the step the framework published last.
+    pub fn sim_time(&self) -> f64 {
+        f64::from_bits(self.header().sim_time_bits.load(Ordering::Acquire))
+    }
+
+    /// The framework's step period, when it steps at a fixed rate (`None` when it has not
+    /// said: it steps as fast as it can, or is driven from outside).
+    pub fn period(&self) -> Option<Duration> {
+        match self.header().period_ns.load(Ordering::Relaxed) {
+            0 => None,
+            ns => Some(Duration::from_nanos(ns)),
+        }
+    }
+
+    /// Whether the SUBSCRIBE set has been committed at least once (its values are no longer
+    /// only the DDF's defaults).
+    pub fn seeded(&self) -> bool {
+        self.header().seeded.load(Ordering::Acquire) != 0
+    }
+
+    /// A consistent copy of the whole set `role` if one is had within `tries` attempts (a
+    /// writer committing without pause can exhaust them); returns its generation. For a
+    /// poller that would rather look again later than wait for a busy set to settle.
+    pub fn try_read_set(&self, role: Role, out: &mut [u8], tries: u32) -> Option<u64> {
+        self.bucket(role).read(out, tries)
+    }
+
     pub fn framework_id(&self) -> ProcessId {
         let h = self.header();
         ProcessId { pid: h.owner_pid.load(Ordering::Relaxed), start_time: h.owner_start.load(Ordering::Relaxed) }
