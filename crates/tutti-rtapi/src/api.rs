@@ -344,7 +344,7 @@ pub unsafe extern "C" fn RTGetConnectionStatusPtr(connKey: c_uint, status: *mut 
     guard("RTGetConnectionStatusPtr", || {
         crate::ffi::non_null(status.cast_const(), "status")?;
         let mut st = state();
-        let word = st.participant(connKey)?.state_word().as_ptr();
+        let word = st.participant(connKey)?.state_word_ptr();
         // SAFETY: `status` is writable as the caller promises (NULL refused above).
         unsafe { write_out(status, "status", word) }
     })

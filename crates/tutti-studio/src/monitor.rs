@@ -125,7 +125,7 @@ impl Follow {
                 }
                 continue;
             };
-            let step = seg.header().pub_step.load(std::sync::atomic::Ordering::Acquire);
+            let step = seg.step();
             for w in self.wanted.iter().filter(|w| &w.domain == name) {
                 let v = match read_leaf(seg, w.role, &w.path, &mut self.buf) {
                     Ok(v) => json!({ "step": step, "v": v }),

@@ -10,7 +10,7 @@ use super::segment::{
 };
 use super::{os, ShmError};
 use crate::ddf::{Domain, Leaf, Role};
-use crate::sync::{AtomicU32, AtomicU64, Ordering};
+use crate::sync::{AtomicU64, Ordering};
 
 /// How a participant connects and waits.
 #[derive(Debug, Clone)]
@@ -178,9 +178,11 @@ impl Participant {
         self.opts.timeout = timeout;
     }
 
-    /// The framework's state word (1 running, 2 stopped): a live status for the RTAPI.
-    pub fn state_word(&self) -> &AtomicU32 {
-        &self.seg.header().state
+    /// A pointer to the framework's state word (0 while it initialises, 1 running, 2
+    /// stopped): the live status the RTAPI hands to C. Valid while this participant lives;
+    /// another process writes it, so read it as `volatile`.
+    pub fn state_word_ptr(&self) -> *mut u32 {
+        self.seg.header().state.as_ptr()
     }
 
     /// Connections now in the domain (this one included).
