@@ -64,6 +64,9 @@ pub struct Participant {
     shadow: Vec<u8>,
     /// Leaves staged explicitly (committed even when unchanged).
     marked: Vec<bool>,
+    /// The byte ranges a commit writes, (offset, length): kept between commits so that a
+    /// commit allocates nothing.
+    changed: Vec<(usize, usize)>,
     last_read: u64,
     last_commit: u64,
     locked_step: u64,
@@ -102,6 +105,7 @@ impl Participant {
             staging: vec![0; sub_size],
             shadow: vec![0; sub_size],
             marked: vec![false; seg.info.subscribe.leaves.len()],
+            changed: Vec::with_capacity(seg.info.subscribe.leaves.len()),
             last_read: 0,
             last_commit: 0,
             locked_step: 0,
@@ -535,7 +539,21 @@ impl Participant {
 
     /// Stages one item of the SUBSCRIBE set (committed even if unchanged).
     pub fn stage(&mut self, path: &str, bytes: &[u8]) -> Result<(), ShmError> {
-        let (idx, range) = self.leaf(Role::Subscribe, path).map(|(i, l)| (i, l.range()))?;
+        let (index, _) = self.leaf(Role::Subscribe, path)?;
+        self.stage_at(index, bytes)
+    }
+
+    /// Stages the SUBSCRIBE item with index `index` in its set (as [`leaf`](Self::leaf) and
+    /// [`item_index`](Self::item_index) give it): [`stage`](Self::stage) without looking the
+    /// path up, for a caller that resolved the item once.
+    pub fn stage_at(&mut self, index: usize, bytes: &[u8]) -> Result<(), ShmError> {
+        let Some(range) = self.seg.info.subscribe.leaves.get(index).map(Leaf::range) else {
+            return Err(ShmError::UnknownItem {
+                domain: self.seg.info.name.clone(),
+                role: Role::Subscribe,
+                item: format!("#{index}"),
+            });
+        };
         if bytes.len() != range.len() {
             return Err(ShmError::SizeMismatch {
                 domain: self.seg.info.name.clone(),
@@ -546,8 +564,13 @@ impl Participant {
         }
         self.refresh_staging()?;
         self.staging[range].copy_from_slice(bytes);
-        self.marked[idx] = true;
+        self.marked[index] = true;
         Ok(())
+    }
+
+    /// The bytes of PUBLISH item `index` (its index in the set) in the last snapshot.
+    pub fn snapshot_item(&self, index: usize) -> Option<&[u8]> {
+        self.seg.info.publish.leaves.get(index).map(|l| &self.snapshot[l.range()])
     }
 
     /// After [`commit_all_with`](Self::commit_all_with): staging and the record of the last
@@ -561,6 +584,12 @@ impl Participant {
             self.stale_staging = false;
         }
         Ok(())
+    }
+
+    /// The index of item `path` in set `role`: resolve an item once, then stage it with
+    /// [`stage_at`](Self::stage_at) or read it with [`snapshot_item`](Self::snapshot_item).
+    pub fn item_index(&self, role: Role, path: &str) -> Result<usize, ShmError> {
+        self.leaf(role, path).map(|(i, _)| i)
     }
 
     /// The leaf `path` of set `role`, with its index in that set.
@@ -582,17 +611,34 @@ impl Participant {
         self.check()?;
         self.claim_writer()?;
         self.refresh_staging()?;
-        let seg = &self.seg;
-        let changed: Vec<(usize, usize)> = seg
-            .info
-            .subscribe
-            .leaves
-            .iter()
-            .enumerate()
-            .filter(|(i, l)| self.marked[*i] || self.staging[l.range()] != self.shadow[l.range()])
-            .map(|(_, l)| (l.offset as usize, l.size as usize))
-            .collect();
+        // The scratch list is taken out for the commit and put back, whatever the outcome.
+        let mut changed = std::mem::take(&mut self.changed);
+        changed.clear();
+        changed.extend(
+            self.seg
+                .info
+                .subscribe
+                .leaves
+                .iter()
+                .enumerate()
+                .filter(|(i, l)| self.marked[*i] || self.staging[l.range()] != self.shadow[l.range()])
+                .map(|(_, l)| (l.offset as usize, l.size as usize)),
+        );
+        let written = self.write_changed(&changed);
+        if written.is_ok() {
+            for &(off, len) in &changed {
+                self.shadow[off..off + len].copy_from_slice(&self.staging[off..off + len]);
+            }
+        }
+        self.changed = changed;
+        written
+    }
+
+    /// The write of [`commit`](Self::commit): the byte ranges `changed` of staging replace
+    /// those of the SUBSCRIBE set, the rest is carried over.
+    fn write_changed(&mut self, changed: &[(usize, usize)]) -> Result<(), ShmError> {
         let lock = self.lock_writers()?;
+        let seg = &self.seg;
         let staging = &self.staging;
         let whole = changed.len() == seg.info.subscribe.leaves.len();
         seg.bucket(Role::Subscribe).write_with(|prev, next| {
@@ -602,16 +648,13 @@ impl Participant {
                 return;
             }
             copy_words(next, prev);
-            for &(off, len) in &changed {
+            for &(off, len) in changed {
                 store_range(next, off, &staging[off..off + len]);
             }
         });
         drop(lock);
         Self::committed(seg, self.slot, self.locked_step);
         self.reset_after_commit();
-        for &(off, len) in &changed {
-            self.shadow[off..off + len].copy_from_slice(&self.staging[off..off + len]);
-        }
         Ok(())
     }
 
