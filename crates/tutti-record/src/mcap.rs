@@ -121,9 +121,8 @@ pub fn ros2msg_schema(defs: &Definitions, package: &str, ty: &str) -> Result<Str
         if seen.contains(&dep) {
             continue;
         }
-        let text = defs
-            .get(&dep)
-            .ok_or_else(|| SchemaError::MissingDependency { ty: ty.to_string(), dep: dep.clone() })?;
+        let text =
+            defs.get(&dep).ok_or_else(|| SchemaError::MissingDependency { ty: ty.to_string(), dep: dep.clone() })?;
         if !out.ends_with('\n') {
             out.push('\n');
         }

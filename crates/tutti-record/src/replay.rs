@@ -170,14 +170,10 @@ pub enum EmbeddedDdfError {
 
 /// The DDF attachment: its model and file name.
 fn embedded_ddf(bytes: &[u8], summary: &::mcap::Summary) -> Result<(Model, String), EmbeddedDdfError> {
-    let index = summary
-        .attachment_indexes
-        .iter()
-        .find(|a| a.media_type == DDF_MEDIA_TYPE)
-        .ok_or(EmbeddedDdfError::Missing)?;
+    let index =
+        summary.attachment_indexes.iter().find(|a| a.media_type == DDF_MEDIA_TYPE).ok_or(EmbeddedDdfError::Missing)?;
     let attachment = ::mcap::read::attachment(bytes, index).map_err(EmbeddedDdfError::Attachment)?;
-    let model =
-        tutti_core::ddf::parse_bytes(&attachment.data, &format!("{} (inside the recording)", attachment.name))?;
+    let model = tutti_core::ddf::parse_bytes(&attachment.data, &format!("{} (inside the recording)", attachment.name))?;
     Ok((model, attachment.name))
 }
 

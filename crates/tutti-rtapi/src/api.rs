@@ -139,13 +139,7 @@ fn exchange_item<B>(
     if !locked && p.info().flags.synchronous {
         return Err(Failure::new(
             RTAPI_ERROR_OUT_OF_ORDER,
-            format!(
-                "domain '{}' is synchronous: call {} between {} and {}",
-                p.info().name,
-                d.call,
-                d.lock,
-                d.unlock
-            ),
+            format!("domain '{}' is synchronous: call {} between {} and {}", p.info().name, d.call, d.lock, d.unlock),
         ));
     }
     st.exchange(d.side, |c| op(&mut c.participant, locked, index, buf))

@@ -169,7 +169,8 @@ fn an_asynchronous_exchange_allocates_nothing() {
     let ns = namespace("alloc-async");
     std::env::set_var("TUTTI_NAMESPACE", &ns);
     let model = model("alloc_async", false);
-    let mut fw = Framework::create(&model, &FrameworkOptions { namespace: ns, ..Default::default() }).expect("framework");
+    let mut fw =
+        Framework::create(&model, &FrameworkOptions { namespace: ns, ..Default::default() }).expect("framework");
     let host = fw.domain("alloc_async").expect("domain");
     let mut publish = vec![0u8; host.info().publish.size as usize];
     publish[..8].copy_from_slice(&7.5f64.to_ne_bytes());

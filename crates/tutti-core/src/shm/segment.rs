@@ -276,7 +276,13 @@ impl Segment {
     /// dead framework; a live one is refused with its owner's pid.
     /// With `hold`, the segment is published already holding wait-to-go, so that no
     /// participant can slip past a hold its framework is about to set.
-    pub(crate) fn create(ns: &str, domain: &Domain, conn_capacity: u32, mode: u32, hold: bool) -> Result<Segment, ShmError> {
+    pub(crate) fn create(
+        ns: &str,
+        domain: &Domain,
+        conn_capacity: u32,
+        mode: u32,
+        hold: bool,
+    ) -> Result<Segment, ShmError> {
         check_namespace(ns)?;
         let shm_name = segment_name(ns, &domain.name);
         let info = DomainInfo::from_domain(domain);
