@@ -124,7 +124,9 @@ fn wait_modes_all_work() {
             for _ in 0..50 {
                 let step = p.subscribe_lock().unwrap();
                 let x = f64::from_ne_bytes(p.snapshot()[0..8].try_into().unwrap());
-                // The framework waits for this step's answer: its time is still the step's.
+                // The framework waits for this step's answer (from the second step on: at the
+                // first it does not know yet that this connection writes), so its time is
+                // still the step's.
                 let sim_time = p.sim_time();
                 let locked = p.publish_lock().unwrap();
                 p.stage("a", &(x * 10.0).to_ne_bytes()).unwrap();
@@ -152,7 +154,9 @@ fn wait_modes_all_work() {
             assert_eq!(step, i as u64 + 1, "{mode:?}");
             assert_eq!(x, step as f64, "{mode:?}");
             assert_eq!(locked, step, "{mode:?}");
-            assert_eq!(sim_time, step as f64 * 0.5, "{mode:?}");
+            if step > 1 {
+                assert_eq!(sim_time, step as f64 * 0.5, "{mode:?}");
+            }
         }
     }
 }
