@@ -139,7 +139,7 @@ impl Participant {
         if c.first_step.load(Ordering::Acquire) != u64::MAX {
             return;
         }
-        let k = self.seg.header().pub_step.load(Ordering::Acquire);
+        let k = self.seg.step();
         c.last_read.store(k, Ordering::Relaxed);
         c.last_commit.store(k, Ordering::Relaxed);
         (self.last_read, self.last_commit) = (k, k);
@@ -417,7 +417,7 @@ impl Participant {
     /// notice a DDS writer that went silent while the domain waits for it.
     pub fn owed_step(&self) -> Option<u64> {
         let seg = &self.seg;
-        let k = seg.header().pub_step.load(Ordering::Acquire);
+        let k = seg.step();
         seg.conn_ctl(self.slot).filter(|c| c.owes(k)).map(|_| k)
     }
 
