@@ -155,10 +155,21 @@ impl ConcatArray for [[u8; 8]; 4] {
     }
 }
 
-fn connect(domain: &str) {
+/// The connection of the current key, closed when dropped (also when a test fails, so that
+/// the next test can connect).
+struct Connected;
+
+impl Drop for Connected {
+    fn drop(&mut self) {
+        RTDisconnect();
+    }
+}
+
+fn connect(domain: &str) -> Connected {
     let d = CString::new(domain).expect("no NUL");
     // SAFETY: a valid C string.
     ok(unsafe { RTConnect(d.as_ptr(), 5) });
+    Connected
 }
 
 const ROUNDS: u32 = 200;
@@ -175,7 +186,7 @@ fn an_asynchronous_exchange_allocates_nothing() {
     let mut publish = vec![0u8; host.info().publish.size as usize];
     publish[..8].copy_from_slice(&7.5f64.to_ne_bytes());
     host.step(&publish, 0.0).expect("step");
-    connect("alloc_async");
+    let connected = connect("alloc_async");
     let round = Round::new();
     // Warm-up: the first commit and read fill the connection's buffers.
     for i in 0..3 {
@@ -189,7 +200,7 @@ fn an_asynchronous_exchange_allocates_nothing() {
     assert_eq!(n, 0, "{ROUNDS} rounds of the exchange allocated {n} times");
     let sub = fw.domain("alloc_async").expect("domain").read_subscribe().expect("SUBSCRIBE").to_vec();
     assert_eq!(&sub[..8], &f64::from(ROUNDS - 1).to_ne_bytes(), "the last commit arrived");
-    ok(RTDisconnect());
+    drop(connected);
 }
 
 #[test]
@@ -200,7 +211,7 @@ fn a_synchronous_exchange_allocates_nothing() {
     let model = model("alloc_sync", true);
     let opts = FrameworkOptions { namespace: ns, timeout: Duration::from_secs(20), ..Default::default() };
     let host = Host::start(&model, opts, Duration::from_micros(200));
-    connect("alloc_sync");
+    let connected = connect("alloc_sync");
     let round = Round::new();
     let mut last = 0.0;
     for i in 0..3 {
@@ -215,6 +226,6 @@ fn a_synchronous_exchange_allocates_nothing() {
         }
     });
     assert_eq!(n, 0, "{ROUNDS} rounds of the exchange allocated {n} times");
-    ok(RTDisconnect());
+    drop(connected);
     drop(host);
 }
