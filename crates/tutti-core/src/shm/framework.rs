@@ -152,7 +152,7 @@ impl DomainHost {
 
     /// Whether an external writer has published at least once.
     pub fn seeded(&self) -> bool {
-        self.seg.header().seeded.load(Ordering::Acquire) != 0
+        self.seg.seeded()
     }
 
     pub fn connection_count(&self) -> u32 {
@@ -191,7 +191,7 @@ impl DomainHost {
         let mut removed = self.maybe_sweep();
         if sync && states && !self.seed_waited {
             self.seed_waited = true;
-            let (waited, r) = self.wait_acks(|seg| seg.header().seeded.load(Ordering::Acquire) != 0)?;
+            let (waited, r) = self.wait_acks(Segment::seeded)?;
             removed += r;
             if waited == Waited::TimedOut {
                 self.seg.header().timeouts.fetch_add(1, Ordering::Relaxed);
@@ -314,6 +314,14 @@ impl DomainHost {
     pub fn sweep(&mut self) -> usize {
         self.last_sweep = Instant::now();
         sweep(&self.seg)
+    }
+
+    /// Removes connection slot `slot` as the framework removes a connection it judges dead,
+    /// whether or not its process lives: the participant's next call fails with
+    /// [`ShmError::ConnectionLost`]. Returns whether a connection was removed.
+    pub fn remove_connection(&self, slot: usize) -> bool {
+        let pid = self.seg.conn(slot).map_or(0, |c| c.active.load(Ordering::Acquire));
+        self.seg.release_slot(slot, pid)
     }
 
     /// Holds (`true`) or releases (`false`) the wait-to-go signal.
