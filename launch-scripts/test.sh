@@ -2,6 +2,10 @@
 # The whole test suite, from a fresh Debian machine with the Rust toolchain, Python 3 and apt:
 # installs what the tests need (Debian packages, a local Python venv), then runs the lints,
 # the docs build, every test of the workspace and the loom model checks.
+#
+# The tests install nothing themselves: everything they need is installed here. A test that
+# misses a tool, a Python module or root (network namespaces) is skipped with a message, and
+# fails under CI=true (tutti-test-support's require_tool).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 

@@ -2,7 +2,7 @@
 //! no difference, and a component whose answer changes is caught at its first differing step
 //! and item; a replay republishes every recorded PUBLISH set with its simulated time.
 
-mod common;
+use tutti_test_support as common;
 
 use std::path::{Path, PathBuf};
 use std::process::{Command, ExitStatus};
@@ -19,7 +19,7 @@ fn root() -> &'static Path {
 }
 
 fn tutti(ns: &str, args: &[&str]) -> Command {
-    let mut c = Command::new(env!("CARGO_BIN_EXE_tutti"));
+    let mut c = common::tutti_command();
     c.args(args).current_dir(root()).env("TUTTI_NAMESPACE", ns);
     c
 }

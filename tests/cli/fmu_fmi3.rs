@@ -3,11 +3,9 @@
 //! reads its typed variables, and, run as a participant of a synchronous domain, its recorded
 //! trajectory equals fmpy's standalone one within 1e-9 relative at every step.
 
-mod common;
-#[path = "fmu/common.rs"]
-mod fmu_common;
+use tutti_test_support as common;
+use tutti_test_support::fmu as fmu_common;
 
-use std::process::Command;
 use std::time::Duration;
 
 use fmu_common::{build_integrator, close, python};
@@ -51,7 +49,7 @@ fn an_fmi3_fmu_in_a_synchronous_domain_matches_fmpy_at_every_step() {
     assert_eq!(code, 0, "{err}");
     let csv = dir.path().join("run.csv");
     let host = fmu_common::host(&ns, &ddf, &csv, "2s", "integrator/u=2");
-    let mut cmd = Command::new(env!("CARGO_BIN_EXE_tutti"));
+    let mut cmd = common::tutti_command();
     cmd.args(["fmu", "run"])
         .arg(&fmu)
         .arg("--ddf")
@@ -89,7 +87,7 @@ fn bad_parameters_are_refused_before_connecting() {
         ("y=1", "the variable is output, not a parameter or input"),
         ("k", "expected NAME=VALUE"),
     ] {
-        let mut cmd = Command::new(env!("CARGO_BIN_EXE_tutti"));
+        let mut cmd = common::tutti_command();
         cmd.args(["fmu", "run"])
             .arg(&fmu)
             .arg("--ddf")

@@ -9,13 +9,12 @@
 //! * a doStep that fails ends the component with the FMU's log and exit 1, and the framework
 //!   steps on.
 
-mod common;
-#[path = "fmu/common.rs"]
-mod fmu_common;
+use tutti_test_support as common;
+use tutti_test_support::fmu as fmu_common;
 
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
-use std::process::{Command, ExitStatus};
+use std::process::ExitStatus;
 use std::thread;
 use std::time::Duration;
 
@@ -47,7 +46,7 @@ fn setup(py: &Path, dir: &Path, synchronous: bool) -> (PathBuf, PathBuf) {
 /// The FMU is unpacked under the test's temp dir (TMPDIR), which goes even if the run crashes.
 fn fmu_run(ns: &str, py: &Path, fmu: &Path, ddf: &Path, args: &[&str]) -> (ExitStatus, String, String) {
     let tmp = fmu.parent().expect("the FMU is in the test's temp dir");
-    let mut cmd = Command::new(env!("CARGO_BIN_EXE_tutti"));
+    let mut cmd = common::tutti_command();
     cmd.args(["fmu", "run"])
         .arg(fmu)
         .arg("--ddf")
