@@ -207,7 +207,7 @@ int main(int argc, char **argv)
 fn exchange(synchronous: bool) {
     let Some(py) = python() else { return };
     let dir = tempfile::tempdir().unwrap();
-    let ns = format!("fmuc{}{}", if synchronous { "s" } else { "a" }, std::process::id());
+    let ns = tutti_test_support::namespace(if synchronous { "fmucs" } else { "fmuca" });
     let fmu = build_lag(&py, dir.path());
     let ddf = dir.path().join("fmu_c.ddf");
     std::fs::write(&ddf, ddf_text(synchronous)).unwrap();
@@ -258,7 +258,7 @@ fn an_fmu_and_a_c_component_exchange_data_both_ways_in_an_asynchronous_domain() 
 fn kill_9_of_tutti_fmu_run_leaves_the_framework_stepping_and_a_new_run_reconnects() {
     let Some(py) = python() else { return };
     let dir = tempfile::tempdir().unwrap();
-    let ns = format!("fmukill{}", std::process::id());
+    let ns = tutti_test_support::namespace("fmukill");
     let fmu = build_lag(&py, dir.path());
     let ddf = dir.path().join("fmu_c.ddf");
     std::fs::write(&ddf, ddf_text(true)).unwrap();
@@ -288,7 +288,7 @@ fn kill_9_of_tutti_fmu_run_leaves_the_framework_stepping_and_a_new_run_reconnect
 fn ctrl_c_ends_tutti_fmu_run_cleanly_and_the_framework_steps_on() {
     let Some(py) = python() else { return };
     let dir = tempfile::tempdir().unwrap();
-    let ns = format!("fmuint{}", std::process::id());
+    let ns = tutti_test_support::namespace("fmuint");
     let fmu = build_lag(&py, dir.path());
     let ddf = dir.path().join("fmu_c.ddf");
     std::fs::write(&ddf, ddf_text(true)).unwrap();
@@ -320,7 +320,7 @@ fn ctrl_c_ends_tutti_fmu_run_cleanly_and_the_framework_steps_on() {
 fn a_framework_faster_than_real_time_sets_the_step_by_its_simulated_time() {
     let Some(py) = python() else { return };
     let dir = tempfile::tempdir().unwrap();
-    let ns = format!("fmufast{}", std::process::id());
+    let ns = tutti_test_support::namespace("fmufast");
     let fmu = build_lag(&py, dir.path());
     let ddf = dir.path().join("fmu_c.ddf");
     std::fs::write(&ddf, ddf_text(true)).unwrap();

@@ -42,7 +42,7 @@ fn an_fmi3_fmu_built_from_c_is_inspected_with_its_types() {
 fn an_fmi3_fmu_in_a_synchronous_domain_matches_fmpy_at_every_step() {
     let Some(py) = python() else { return };
     let dir = tempfile::tempdir().unwrap();
-    let ns = format!("fmu3sync{}", std::process::id());
+    let ns = tutti_test_support::namespace("fmu3sync");
     let fmu = build_integrator(dir.path());
     let ddf = dir.path().join("integrator.ddf");
     let (code, _, err) = tutti(&["fmu".as_ref(), "ddf".as_ref(), fmu.as_os_str(), "--out".as_ref(), ddf.as_os_str()]);
@@ -93,7 +93,7 @@ fn bad_parameters_are_refused_before_connecting() {
             .arg("--ddf")
             .arg(&ddf)
             .args(["--domain", "integrator", "--connect-timeout", "100ms", "--param", param])
-            .env("TUTTI_NAMESPACE", format!("fmu3param{}", std::process::id()))
+            .env("TUTTI_NAMESPACE", tutti_test_support::namespace("fmu3param"))
             .env("TMPDIR", dir.path());
         let (status, _, err) = common::run_with_timeout(cmd, Duration::from_secs(60));
         assert_eq!(status.code(), Some(2), "--param {param}: {err}");

@@ -38,7 +38,7 @@ fn tutti() -> Command {
 
 #[test]
 fn host_creates_every_segment_of_the_large_ddf_and_removes_them_on_ctrl_c() {
-    let ns = format!("hc{}-large", std::process::id());
+    let ns = tutti_test_support::namespace("hc-large-");
     let mut host = tutti();
     host.args(["host", "ddf/large-1000.ddf", "--step", "20ms", "--timeout", "100ms", "--quiet"])
         .env("TUTTI_NAMESPACE", &ns);
@@ -61,7 +61,7 @@ fn host_creates_every_segment_of_the_large_ddf_and_removes_them_on_ctrl_c() {
 
 #[test]
 fn host_records_both_sets_and_status_shows_connections() {
-    let ns = format!("hc{}-rec", std::process::id());
+    let ns = tutti_test_support::namespace("hc-rec-");
     let dir = tempfile::tempdir().unwrap();
     let csv = dir.path().join("run.csv");
     let mut host = tutti();

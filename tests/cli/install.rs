@@ -73,7 +73,7 @@ fn an_installed_rtapi_builds_c_programs_with_pkg_config_and_cmake_and_a_pip_inst
         assert!(prefix.join(f).exists(), "{f} not installed");
     }
 
-    let ns = format!("install{}", std::process::id());
+    let ns = tutti_test_support::namespace("install");
     let mut host = common::tutti_command();
     host.args(["host", "ddf/multiuav.ddf", "--step", "2ms", "-q", "--set", "multiuav_uav2/Z=1.5"])
         .env("TUTTI_NAMESPACE", &ns);
@@ -130,8 +130,16 @@ fn an_installed_rtapi_builds_c_programs_with_pkg_config_and_cmake_and_a_pip_inst
     }
 
     // pip install of the Python module into a fresh venv (from a copy: a build writes beside
-    // its sources), run outside the checkout: it finds the library through pkg-config.
+    // its sources), run outside the checkout: it finds the library through pkg-config. Offline:
+    // its build backend (setuptools) comes from the wheels launch-scripts/test.sh downloads.
     let Some(()) = tool("python3", "python3-venv") else { return };
+    let wheels = root().join("target/wheels");
+    let has_setuptools = std::fs::read_dir(&wheels)
+        .map_err(|e| e.to_string())
+        .map(|d| d.flatten().any(|e| e.file_name().to_string_lossy().starts_with("setuptools-")))
+        .and_then(|found| if found { Ok(()) } else { Err("no setuptools wheel".into()) });
+    let what = format!("the setuptools wheel in {}", wheels.display());
+    let Some(()) = common::require(&what, has_setuptools) else { return };
     let pysrc = dir.path().join("python-src");
     std::fs::create_dir_all(&pysrc).unwrap();
     for f in ["pyproject.toml", "README.md", "tutti_rtapi.py"] {
@@ -142,7 +150,10 @@ fn an_installed_rtapi_builds_c_programs_with_pkg_config_and_cmake_and_a_pip_inst
     mk.arg("-m").arg("venv").arg(&venv);
     run(mk, "python3 -m venv");
     let mut pip = Command::new(venv.join("bin/pip"));
-    pip.args(["install", "-q", "--disable-pip-version-check"]).arg(&pysrc).current_dir(dir.path());
+    pip.args(["install", "-q", "--disable-pip-version-check", "--no-index", "--find-links"])
+        .arg(&wheels)
+        .arg(&pysrc)
+        .current_dir(dir.path());
     run(pip, "pip install ./python");
     let script = "import tutti_rtapi as rt\nwith rt.connect('multiuav_uav2', timeout=30) as c:\n    for _ in range(5):\n        with c.reading():\n            z = c.subscribe('Z')\n        with c.writing():\n            c.publish('Elevation', 2 * z)\nprint('z', z, rt._find_library())\n";
     let mut py = Command::new(venv.join("bin/python"));

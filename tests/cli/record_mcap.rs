@@ -22,7 +22,7 @@ fn python() -> Option<PathBuf> {
 fn an_mcap_recording_reads_back_with_ros_tools_and_equals_the_csv_of_the_same_run() {
     let Some(py) = python() else { return };
     let dir = tempfile::tempdir().unwrap();
-    let ns = format!("recmcap{}", std::process::id());
+    let ns = tutti_test_support::namespace("recmcap");
     let (csv, mcap) = (dir.path().join("run.csv"), dir.path().join("run.mcap"));
     let mut host = common::tutti_command();
     host.args(["host", "ddf/product-sample.ddf", "--step", "5ms", "--duration", "1500ms", "--timeout", "200ms", "-q"])
@@ -86,7 +86,7 @@ fn an_mcap_recording_reads_back_with_ros_tools_and_equals_the_csv_of_the_same_ru
 fn tutti_record_follows_a_live_run_without_taking_part() {
     let Some(py) = python() else { return };
     let dir = tempfile::tempdir().unwrap();
-    let ns = format!("recpassive{}", std::process::id());
+    let ns = tutti_test_support::namespace("recpassive");
     let (csv, mcap) = (dir.path().join("host.csv"), dir.path().join("observed.mcap"));
     let tutti = |args: &[&str]| {
         let mut c = common::tutti_command();

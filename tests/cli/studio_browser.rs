@@ -73,7 +73,7 @@ impl World {
         for (name, text) in extra {
             std::fs::write(root.join(name), text).expect("write file");
         }
-        let namespace = format!("studio{}-{test}", std::process::id());
+        let namespace = tutti_test_support::namespace(&format!("studio-{test}-"));
         let mut cmd = common::tutti_command();
         cmd.args(["studio", "--listen", "127.0.0.1:0", "--root"])
             .arg(&root)
