@@ -6,8 +6,8 @@ use std::sync::OnceLock;
 use std::time::Duration;
 
 /// The folder of this build's librtapi.so and librtapi.a: `deps/`, where `cargo test` builds
-/// them (`cargo build` copies them up to target/<profile>, where an older copy may be), else
-/// target/<profile>. Built when missing (a test run before the workspace was built).
+/// them (`cargo build` copies them up to `target/<profile>`, where an older copy may be), else
+/// `target/<profile>`. Built when missing (a test run before the workspace was built).
 pub fn rtapi_lib_dir() -> PathBuf {
     static DIR: OnceLock<PathBuf> = OnceLock::new();
     DIR.get_or_init(|| {

@@ -50,5 +50,5 @@ pub fn cargo() -> std::ffi::OsString {
 pub fn profile_dir() -> PathBuf {
     let exe = std::env::current_exe().expect("the test's executable");
     // target/<profile>/deps/<test>-<hash>
-    exe.parent().and_then(Path::parent).expect("target/<profile>").to_path_buf()
+    exe.parent().and_then(Path::parent).expect("`target/<profile>`").to_path_buf()
 }
