@@ -2,6 +2,10 @@
 # The whole test suite, from a fresh Debian machine with the Rust toolchain, Python 3 and apt:
 # installs what the tests need (Debian packages, a local Python venv), then runs the lints,
 # the docs build, every test of the workspace and the loom model checks.
+#
+# The tests install nothing themselves: everything they need is installed here. A test that
+# misses a tool, a Python module or root (network namespaces) is skipped with a message, and
+# fails under CI=true (tutti-test-support's require_tool).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
@@ -10,10 +14,11 @@ step() { printf '\n== %s\n' "$*"; }
 
 # --- Debian packages: DDS peers and tools for the interop tests, what the Cyclone engine's
 # build needs (cmake, libclang for bindgen), C toolchain, valgrind, iproute2 for the
-# network-namespace tests, the font the UAV demo draws its figures with, headless Chromium
-# and its WebDriver for the studio's browser tests.
+# network-namespace tests, procps for `kill` (the tests stop their children with SIGINT), the
+# font the UAV demo draws its figures with, headless Chromium and its WebDriver for the
+# studio's browser tests.
 ensure_debian_packages cyclonedds-tools cyclonedds-dev fastddsgen libfastrtps-dev fastdds-tools valgrind gcc g++ make \
-    cmake libclang-dev iproute2 python3-venv fonts-dejavu-core pkgconf chromium chromium-driver
+    cmake libclang-dev iproute2 procps python3-venv fonts-dejavu-core pkgconf chromium chromium-driver
 
 # --- Python: a local venv with the Cyclone DDS binding (the stand-in for rclpy nodes) and the
 # MCAP readers.
@@ -41,6 +46,11 @@ fi
 if ! .venv/bin/python -c 'import prometheus_client' 2>/dev/null; then
     step "installing prometheus-client into .venv"
     .venv/bin/pip install -q --disable-pip-version-check prometheus-client==0.26.0
+fi
+# The build backend of the Python binding, for the install test's offline `pip install ./python`.
+if ! ls target/wheels/setuptools-80.9.0-*.whl >/dev/null 2>&1; then
+    step "downloading the setuptools wheel into target/wheels"
+    .venv/bin/pip download -q --disable-pip-version-check --only-binary=:all: -d target/wheels setuptools==80.9.0
 fi
 export PATH="$PWD/.venv/bin:$PATH"
 

@@ -1,4 +1,4 @@
-"""Reference trajectory of an FMU simulated standalone by fmpy, for tests/fmu_run.rs.
+"""Reference trajectory of an FMU simulated standalone by fmpy, for tests/cli/fmu_run.rs.
 
 usage: reference.py FMU START STEPS H INPUT_NAME INPUT_VALUE PARAMS_JSON OUTPUTS_CSV
 Prints one CSV row per communication step after the start: the step number (1..STEPS) and

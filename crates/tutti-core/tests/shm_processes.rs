@@ -7,14 +7,13 @@
 
 mod common;
 
-use std::io::{BufRead, BufReader};
-use std::process::{Child, Command, Stdio};
-use std::sync::mpsc::Receiver;
+use std::process::Command;
 use std::time::{Duration, Instant};
 
 use tutti_core::ddf::Model;
 use tutti_core::shm::segment::segment_path;
 use tutti_core::shm::{ConnectOptions, Framework, FrameworkOptions, Participant, ShmError, WaitMode};
+use tutti_test_support::{Proc, Spawn};
 
 const WORDS: usize = 128; // 1 KiB PUBLISH set: 127 copies of a value and a checksum
 
@@ -55,7 +54,7 @@ fn check(bytes: &[u8]) -> Option<u64> {
 }
 
 fn ns(tag: &str) -> String {
-    format!("tp{}-{tag}", std::process::id())
+    tutti_test_support::namespace(&format!("tp-{tag}-"))
 }
 
 fn fopts(tag: &str, timeout: Duration) -> FrameworkOptions {
@@ -72,53 +71,43 @@ fn copts(namespace: &str) -> ConnectOptions {
     }
 }
 
-/// A child process, killed when dropped.
-struct Guard(Child);
-
-impl Drop for Guard {
-    fn drop(&mut self) {
-        let _ = self.0.kill();
-        let _ = self.0.wait();
-    }
+/// A child process (this test binary in a role), killed when dropped.
+struct Guard {
+    proc: Proc,
+    /// How many of its output lines were looked at for results.
+    read: usize,
 }
 
 impl Guard {
     fn spawn(role: &str, namespace: &str) -> Guard {
-        let child = Command::new(std::env::current_exe().unwrap())
-            .args(["--exact", "child_main", "--nocapture", "--test-threads=1"])
+        let mut cmd = Command::new(std::env::current_exe().unwrap());
+        cmd.args(["--exact", "child_main", "--nocapture", "--test-threads=1"])
             .env("TUTTI_TEST_CHILD", role)
             .env("TUTTI_NAMESPACE", namespace)
-            .stdout(Stdio::piped())
-            .stderr(Stdio::inherit())
-            .spawn()
-            .unwrap();
-        Guard(child)
+            .current_dir(env!("CARGO_MANIFEST_DIR"));
+        // stderr stays the test's; no clean stop on drop (the roles run until killed).
+        let opts =
+            Spawn { watchdog: Duration::from_secs(600), stderr: false, grace: Duration::ZERO, ..Spawn::default() };
+        Guard { proc: Proc::spawn_with(role, cmd, opts), read: 0 }
     }
 
-    /// Waits for the child's `RESULT …` line (with a deadline) and returns it.
+    /// Waits for the child's next `RESULT …` line (with a deadline) and returns it.
     fn result(&mut self, deadline: Duration) -> String {
-        self.results().recv_timeout(deadline).expect("child gave no result in time")
+        self.next_result(deadline).expect("child gave no result in time")
     }
 
-    /// The child's `RESULT …` lines, as they come (read by a thread of their own).
-    fn results(&mut self) -> Receiver<String> {
-        let out = self.0.stdout.take().unwrap();
-        let (tx, rx) = std::sync::mpsc::channel();
-        std::thread::spawn(move || {
-            for line in BufReader::new(out).lines().map_while(Result::ok) {
-                if let Some((_, r)) = line.split_once("RESULT ") {
-                    if tx.send(r.to_string()).is_err() {
-                        return;
-                    }
-                }
-            }
-        });
-        rx
+    /// The child's next `RESULT …` line if it has printed one (zero `wait`: at once).
+    fn next_result(&mut self, wait: Duration) -> Option<String> {
+        let line = self.proc.next_line(&mut self.read, "RESULT ", wait)?;
+        line.split_once("RESULT ").map(|(_, r)| r.to_string())
+    }
+
+    fn id(&self) -> u32 {
+        self.proc.id()
     }
 
     fn kill9(&mut self) {
-        let _ = self.0.kill();
-        let _ = self.0.wait();
+        self.proc.kill9();
     }
 }
 
@@ -257,14 +246,13 @@ fn a_million_snapshots_under_a_concurrent_writer_are_never_torn() {
     let mut fw = Framework::create(&model(false, true, false), &fopts("torn", Duration::from_secs(5))).unwrap();
     let mut child = Guard::spawn("snapshots:1000000", &ns("torn"));
     let host = &mut fw.domains[0];
-    let rx = child.results();
     let deadline = Instant::now() + Duration::from_secs(120);
     let mut v = 0u64;
     let result = loop {
         v += 1;
         host.step(&payload(v), 0.0).unwrap();
         if v % 64 == 0 {
-            if let Ok(r) = rx.try_recv() {
+            if let Some(r) = child.next_result(Duration::ZERO) {
                 break r;
             }
             assert!(Instant::now() < deadline, "reader did not finish");
@@ -359,7 +347,7 @@ fn second_writer_on_exclusive_domain_gets_the_error_and_death_releases_ownership
     let mut me =
         Participant::connect("d", ConnectOptions { timeout: Duration::from_secs(5), ..copts(&ns("excl")) }).unwrap();
     match me.publish_lock() {
-        Err(ShmError::NotOwner { owner_pid, .. }) => assert_eq!(owner_pid, child.0.id()),
+        Err(ShmError::NotOwner { owner_pid, .. }) => assert_eq!(owner_pid, child.id()),
         other => panic!("expected NotOwner, got {other:?}"),
     }
     child.kill9();
@@ -407,7 +395,7 @@ fn killing_a_participant_at_random_points_never_stalls_the_framework() {
         }
         // Kill at a random moment while the framework steps as fast as the child answers.
         let delay = Duration::from_micros(xorshift(&mut rng) % 20_000);
-        let pid = child.0.id();
+        let pid = child.id();
         let killer = std::thread::spawn(move || {
             std::thread::sleep(delay);
             let _ = Command::new("kill").args(["-9", &pid.to_string()]).status();
@@ -454,7 +442,7 @@ fn a_stale_segment_of_a_dead_framework_is_reclaimed() {
     assert_eq!(child.result(Duration::from_secs(30)), "created");
     // While it lives, the domain is refused with its pid.
     match Framework::create(&model(false, true, false), &fopts("stale", Duration::from_secs(1))) {
-        Err(ShmError::DomainBusy { pid, .. }) => assert_eq!(pid, child.0.id()),
+        Err(ShmError::DomainBusy { pid, .. }) => assert_eq!(pid, child.id()),
         other => panic!("expected DomainBusy, got {other:?}"),
     }
     child.kill9();

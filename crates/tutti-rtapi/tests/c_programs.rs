@@ -72,10 +72,8 @@ fn product_pattern_client_exchanges_every_step_with_a_live_framework() {
 
 #[test]
 fn product_pattern_client_is_clean_under_valgrind() {
-    if Command::new("valgrind").arg("--version").output().is_err() {
-        eprintln!("valgrind not installed: skipped");
-        return;
-    }
+    // Skipped without valgrind, except under CI=true, where that is a failure.
+    let Some(_) = tutti_test_support::require_tool("valgrind", "valgrind") else { return };
     let dir = tempfile::tempdir().expect("temp dir");
     let program = compile(&root().join("examples/c/uav_reader.c"), dir.path());
     run_uav_reader("valgrind", &program, &["valgrind", "--error-exitcode=99", "--leak-check=no", "-q"], 20);
@@ -171,8 +169,7 @@ fn header_compiles_as_c_and_inside_extern_c_in_cpp() {
 /// recording what it read: the C component's answers reach the framework.
 #[test]
 fn c_example_runs_against_a_live_tutti_host() {
-    let tutti = profile_dir().join("tutti");
-    assert!(tutti.exists(), "{} missing: build the workspace first (cargo build --workspace)", tutti.display());
+    let tutti = tutti();
     let ns = namespace("livehost");
     let dir = tempfile::tempdir().expect("temp dir");
     let program = compile(&root().join("examples/c/uav_reader.c"), dir.path());
@@ -182,7 +179,7 @@ fn c_example_runs_against_a_live_tutti_host() {
         .env("TUTTI_NAMESPACE", &ns)
         .args(["host", "ddf/multiuav.ddf", "--step", "2ms", "--quiet", "--set", "multiuav_uav2/Z=3.25", "--record"])
         .arg(&csv);
-    let host = spawn(&mut host);
+    let mut host = spawn(host);
     // The C program gives the framework 5 s to appear; a loaded machine can take longer to
     // start the host, so the program starts once the domain is there (60 s watchdog).
     let deadline = std::time::Instant::now() + Duration::from_secs(60);
@@ -204,9 +201,8 @@ fn c_example_runs_against_a_live_tutti_host() {
     let values = printed_values(&stdout);
     assert_eq!(values, vec![3.25; 50], "{stdout}");
     // Stop the host (SIGINT: it flushes the recording and removes its segments).
-    let pid = host.0.as_ref().expect("host").id();
-    let _ = Command::new("kill").args(["-INT", &pid.to_string()]).status();
-    let _ = host.wait_output(LIMIT);
+    host.signal("INT");
+    host.wait_status(LIMIT).expect("tutti host did not stop on SIGINT");
     let rec = std::fs::read_to_string(dir.path().join("rec-multiuav_uav2.csv")).expect("recording");
     let header: Vec<&str> = rec.lines().next().expect("header").split(',').collect();
     let col = header.iter().position(|c| *c == "subscribe.Elevation").expect("Elevation column");
@@ -254,8 +250,7 @@ fn a_two_thread_client_keeps_lock_step_with_and_without_its_own_mutex() {
 /// The host's recording shows each answer (y = 2 x).
 #[test]
 fn a_client_making_villasnodes_calls_runs_in_every_connection_form() {
-    let tutti = profile_dir().join("tutti");
-    assert!(tutti.exists(), "{} missing: build the workspace first (cargo build --workspace)", tutti.display());
+    let tutti = tutti();
     let dir = tempfile::tempdir().expect("temp dir");
     let strict = ["-Wconversion"];
     let program = compile_with(&root().join("crates/tutti-rtapi/tests/c/villas_calls.cpp"), dir.path(), &strict);
@@ -273,7 +268,7 @@ fn a_client_making_villasnodes_calls_runs_in_every_connection_form() {
         host.args(["--set", set]);
     }
     host.arg("--record").arg(&csv);
-    let host = spawn(&mut host);
+    let mut host = spawn(host);
     for (domain, x, remote) in [("local_link", 1.25, false), ("remote_link", 2.5, true), ("dolphin_link", 3.75, false)]
     {
         let mut cmd = Command::new(&program);
@@ -286,9 +281,8 @@ fn a_client_making_villasnodes_calls_runs_in_every_connection_form() {
         assert!(out.status.success(), "{domain}: {stdout}{}", String::from_utf8_lossy(&out.stderr));
         assert_eq!(stdout.lines().filter(|l| *l == format!("x={x} status=1")).count(), 20, "{domain}: {stdout}");
     }
-    let pid = host.0.as_ref().expect("host").id();
-    let _ = Command::new("kill").args(["-INT", &pid.to_string()]).status();
-    let _ = host.wait_output(LIMIT);
+    host.signal("INT");
+    host.wait_status(LIMIT).expect("tutti host did not stop on SIGINT");
     for (domain, y) in [("local_link", "2.5"), ("remote_link", "5"), ("dolphin_link", "7.5")] {
         let rec = std::fs::read_to_string(dir.path().join(format!("rec-{domain}.csv"))).expect("recording");
         let header: Vec<&str> = rec.lines().next().expect("header").split(',').collect();

@@ -10,10 +10,7 @@ use common::*;
 
 #[test]
 fn python_module_tests_pass() {
-    if Command::new("python3").arg("--version").output().is_err() {
-        eprintln!("python3 not installed: skipped");
-        return;
-    }
+    let Some(_) = tutti_test_support::require_tool("python3", "python3") else { return };
     let lib = lib_dir();
     let host = profile_dir().join("examples/rtapi_test_host");
     assert!(

@@ -1,41 +1,36 @@
-//! Test support: a framework stepping in a thread, child processes with a watchdog, C
-//! compilation against the built library, and cleanup that runs even when a test fails.
+//! Test support: a framework stepping in a thread, C compilation against the built library,
+//! and cleanup that runs even when a test fails; child processes with a watchdog are the
+//! workspace's `tutti-test-support`.
 #![allow(dead_code)]
 
-use std::io::Read;
 use std::path::{Path, PathBuf};
-use std::process::{Child, Command, Output, Stdio};
-use std::sync::atomic::{AtomicBool, Ordering};
+use std::process::{Command, Output};
+use std::sync::atomic::Ordering;
 use std::sync::{Arc, Mutex};
-use std::thread::JoinHandle;
-use std::time::{Duration, Instant};
+use std::time::Duration;
 
 use tutti_core::ddf::{self, Model, Role, ScalarType};
 use tutti_core::shm::{Framework, FrameworkOptions};
+use tutti_test_support::{Proc, Worker};
 
 /// The workspace root.
 pub fn root() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("../..").canonicalize().expect("workspace root")
+    tutti_test_support::repo_root().canonicalize().expect("workspace root")
 }
 
 /// target/<profile> of this build.
 pub fn profile_dir() -> PathBuf {
-    let exe = std::env::current_exe().expect("test exe");
-    exe.parent().and_then(Path::parent).expect("target/<profile>").to_path_buf()
+    tutti_test_support::profile_dir()
 }
 
-/// The directory holding librtapi.so / librtapi.a of this build: `deps/`, where `cargo test`
-/// builds them (it copies them up to target/<profile> only on `cargo build`), else
-/// target/<profile>.
+/// The directory holding librtapi.so / librtapi.a of this build.
 pub fn lib_dir() -> PathBuf {
-    let profile = profile_dir();
-    let dir = [profile.join("deps"), profile.clone()].into_iter().find(|d| d.join("librtapi.so").exists());
-    dir.unwrap_or_else(|| panic!("librtapi.so missing under {}: run `cargo build -p tutti-rtapi`", profile.display()))
+    tutti_test_support::rtapi_lib_dir()
 }
 
 /// A namespace unique to this process and test.
 pub fn namespace(test: &str) -> String {
-    format!("rt{}-{test}", std::process::id())
+    tutti_test_support::namespace(&format!("rt-{test}-"))
 }
 
 pub fn load(path: &str) -> Model {
@@ -53,18 +48,16 @@ pub struct Seen {
 /// A framework for every domain of a model, stepped in a thread: every float64 PUBLISH
 /// element of step k holds k. Stops (and removes its segments) when dropped.
 pub struct Host {
-    stop: Arc<AtomicBool>,
-    thread: Option<JoinHandle<()>>,
+    _stepping: Worker,
     pub seen: Arc<Mutex<Vec<Seen>>>,
 }
 
 impl Host {
     pub fn start(model: &Model, opts: FrameworkOptions, period: Duration) -> Host {
         let mut fw = Framework::create(model, &opts).expect("creating the framework");
-        let stop = Arc::new(AtomicBool::new(false));
         let seen = Arc::new(Mutex::new(Vec::new()));
-        let (stop2, seen2) = (stop.clone(), seen.clone());
-        let thread = std::thread::spawn(move || {
+        let seen2 = seen.clone();
+        let stepping = Worker::spawn(move |stop2| {
             let mut k = 0u64;
             while !stop2.load(Ordering::Acquire) {
                 k += 1;
@@ -90,7 +83,7 @@ impl Host {
                 std::thread::sleep(period);
             }
         });
-        Host { stop, thread: Some(thread), seen }
+        Host { _stepping: stepping, seen }
     }
 
     pub fn seen(&self) -> Vec<Seen> {
@@ -113,74 +106,21 @@ impl Host {
     }
 }
 
-impl Drop for Host {
-    fn drop(&mut self) {
-        self.stop.store(true, Ordering::Release);
-        if let Some(t) = self.thread.take() {
-            let _ = t.join();
-        }
-    }
+/// Spawns `cmd` with its output collected and a watchdog; it is stopped when dropped
+/// (SIGINT first, so a `tutti host` removes its segments, then SIGKILL after 3 s), so a
+/// failing test leaves nothing running.
+pub fn spawn(cmd: Command) -> Proc {
+    Proc::spawn("child", cmd, Duration::from_secs(600))
 }
 
-/// A child process stopped when dropped, so a failing test leaves nothing running. It gets
-/// SIGINT first, so a `tutti host` removes its segments, and then SIGKILL if it is still
-/// there after 3 s.
-pub struct ChildGuard(pub Option<Child>);
-
-impl ChildGuard {
-    /// Waits for the child at most `limit`; kills it and fails the test on a timeout.
-    pub fn wait_output(mut self, limit: Duration) -> Output {
-        let mut child = self.0.take().expect("child");
-        let deadline = Instant::now() + limit;
-        loop {
-            match child.try_wait().expect("waiting for the child") {
-                Some(status) => {
-                    let mut stdout = Vec::new();
-                    let mut stderr = Vec::new();
-                    if let Some(mut s) = child.stdout.take() {
-                        let _ = s.read_to_end(&mut stdout);
-                    }
-                    if let Some(mut s) = child.stderr.take() {
-                        let _ = s.read_to_end(&mut stderr);
-                    }
-                    return Output { status, stdout, stderr };
-                }
-                None if Instant::now() >= deadline => {
-                    let _ = child.kill();
-                    let _ = child.wait();
-                    panic!("child process did not finish within {limit:?}: killed");
-                }
-                None => std::thread::sleep(Duration::from_millis(10)),
-            }
-        }
-    }
-}
-
-impl Drop for ChildGuard {
-    fn drop(&mut self) {
-        if let Some(mut c) = self.0.take() {
-            if let Ok(None) = c.try_wait() {
-                let _ = Command::new("kill").args(["-INT", &c.id().to_string()]).status();
-                let end = Instant::now() + Duration::from_secs(3);
-                while Instant::now() < end && matches!(c.try_wait(), Ok(None)) {
-                    std::thread::sleep(Duration::from_millis(10));
-                }
-            }
-            let _ = c.kill();
-            let _ = c.wait();
-        }
-    }
-}
-
-/// Spawns `cmd` with piped output. The pipes are drained only at the end, so children must
-/// print little (a pipe holds 64 KiB).
-pub fn spawn(cmd: &mut Command) -> ChildGuard {
-    ChildGuard(Some(cmd.stdout(Stdio::piped()).stderr(Stdio::piped()).spawn().expect("spawning a child")))
-}
-
-/// Runs `cmd` to completion under a watchdog.
+/// Runs `cmd` to completion under a watchdog; a timeout kills it and fails the test.
 pub fn run(cmd: &mut Command, limit: Duration) -> Output {
-    spawn(cmd).wait_output(limit)
+    tutti_test_support::run_output(cmd, limit)
+}
+
+/// The `tutti` binary of this build.
+pub fn tutti() -> PathBuf {
+    tutti_test_support::tutti_exe()
 }
 
 /// Compiles `source` (C, or C++ if it ends in .cpp) against include/RTAPI.h and librtapi.so

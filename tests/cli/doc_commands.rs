@@ -5,7 +5,7 @@
 //! except the ROS 2 nodes' (`ros2_*.py`: they need rclpy). Synopsis lines (with `[...]` or `|`) and lines
 //! that pipe or substitute are left out.
 
-mod common;
+use tutti_test_support as common;
 
 use std::path::Path;
 use std::process::Command;

@@ -2,18 +2,14 @@
 //! Integrator built from tests/fmu/c) in two domains, one thread each, through the
 //! `tutti_fmu` library, while `tutti host` steps both domains.
 
-mod common;
-#[path = "fmu/common.rs"]
-mod fmu_common;
-
-use std::process::Command;
 use std::sync::atomic::AtomicBool;
 use std::thread;
 use std::time::Duration;
 
-use fmu_common::build_integrator;
 use tutti_core::shm::ConnectOptions;
 use tutti_fmu::{Fmu, FmuParticipant, Mapping, RunOptions};
+use tutti_test_support::fmu::{self as fmu_common, build_integrator};
+use tutti_test_support::{namespace, run_with_timeout, tutti_command};
 
 const DDF: &str = r#"<orchestra>
   <domain name="int_a"><synchronous>yes</synchronous><multiplePublishAllowed>no</multiplePublishAllowed><states>no</states>
@@ -29,12 +25,12 @@ const DDF: &str = r#"<orchestra>
 #[test]
 fn one_program_runs_two_fmus_in_two_domains_through_the_library() {
     let dir = tempfile::tempdir().unwrap();
-    let ns = format!("fmulib{}", std::process::id());
+    let ns = namespace("fmulib");
     let fmu_path = build_integrator(dir.path());
     let ddf = dir.path().join("two.ddf");
     std::fs::write(&ddf, DDF).unwrap();
     let csv = dir.path().join("run.csv");
-    let mut host = Command::new(env!("CARGO_BIN_EXE_tutti"));
+    let mut host = tutti_command();
     host.arg("host")
         .arg(&ddf)
         // --catch-up: each step is 10 ms of simulated time even on a loaded machine, so 40
@@ -45,7 +41,7 @@ fn one_program_runs_two_fmus_in_two_domains_through_the_library() {
         .args(["--set", "int_a/u=1", "--set", "int_b/u=-2", "--record"])
         .arg(&csv)
         .env("TUTTI_NAMESPACE", &ns);
-    let host = thread::spawn(move || common::run_with_timeout(host, Duration::from_secs(120)));
+    let host = thread::spawn(move || run_with_timeout(host, Duration::from_secs(120)));
     let model = tutti_core::ddf::load(&ddf).unwrap();
     let runs: Vec<_> = [("int_a", vec![]), ("int_b", vec![("y".to_string(), "integral".to_string())])]
         .into_iter()

@@ -4,48 +4,28 @@
 //! product (`RTAPI.h` and a library named `OpalOrchestra`), and the Python module installed
 //! with pip into a fresh venv.
 
-mod common;
+use tutti_test_support as common;
 
 use std::path::{Path, PathBuf};
-use std::process::{Child, Command, Stdio};
+use std::process::Command;
 use std::time::Duration;
 
 const LIMIT: Duration = Duration::from_secs(300);
 
 fn root() -> &'static Path {
-    Path::new(env!("CARGO_MANIFEST_DIR"))
+    common::repo_root()
 }
 
-/// A tool the test needs: present, or (outside CI) None and the test is skipped.
-fn tool(name: &str) -> Option<()> {
-    let ok = Command::new(name).arg("--version").stdout(Stdio::null()).stderr(Stdio::null()).status().is_ok();
-    if ok {
-        return Some(());
-    }
-    assert!(
-        std::env::var("CI").map_or(true, |v| v != "true"),
-        "CI=true: {name} is missing (launch-scripts/test.sh installs it)"
-    );
-    eprintln!("{name} missing: test skipped");
-    None
+/// A tool the test needs: present, or None and the test is skipped (a failure under CI=true).
+fn tool(name: &str, package: &str) -> Option<()> {
+    common::require_tool(name, package).map(|_| ())
 }
 
-/// `tutti host` in its own namespace, stopped (SIGINT: it removes its segments) when dropped.
-struct HostGuard(Child, String);
-
-impl Drop for HostGuard {
-    fn drop(&mut self) {
-        let _ = Command::new("kill").args(["-INT", &self.0.id().to_string()]).status();
-        for _ in 0..500 {
-            if self.0.try_wait().ok().flatten().is_some() {
-                break;
-            }
-            std::thread::sleep(Duration::from_millis(10));
-        }
-        let _ = self.0.kill();
-        let _ = self.0.wait();
-        drop(common::RemoveSegments(self.1.clone()));
-    }
+/// `tutti host` in its own namespace, stopped (SIGINT: it removes its segments) when dropped,
+/// and what it may have left removed after it.
+struct HostGuard {
+    _host: common::Proc,
+    _segments: common::RemoveSegments,
 }
 
 fn run(cmd: Command, what: &str) -> String {
@@ -70,11 +50,14 @@ fn reads_from_the_host(exe: &Path, ns: &str, what: &str) {
 
 #[test]
 fn an_installed_rtapi_builds_c_programs_with_pkg_config_and_cmake_and_a_pip_installed_python_module() {
-    let (Some(()), Some(()), Some(())) = (tool("pkg-config"), tool("cmake"), tool("gcc")) else { return };
+    let (Some(()), Some(()), Some(())) = (tool("pkg-config", "pkgconf"), tool("cmake", "cmake"), tool("gcc", "gcc"))
+    else {
+        return;
+    };
     let dir = tempfile::tempdir().unwrap();
     let prefix = dir.path().join("prefix");
     // Built here when the test runs before the workspace was built (cargo test alone).
-    let build_dir: PathBuf = common::ensure_rtapi();
+    let build_dir: PathBuf = common::rtapi_lib_dir();
     let mut install = Command::new("bash");
     install
         .arg(root().join("launch-scripts/install.sh"))
@@ -90,16 +73,16 @@ fn an_installed_rtapi_builds_c_programs_with_pkg_config_and_cmake_and_a_pip_inst
         assert!(prefix.join(f).exists(), "{f} not installed");
     }
 
-    let ns = format!("install{}", std::process::id());
-    let host = Command::new(env!("CARGO_BIN_EXE_tutti"))
-        .args(["host", "ddf/multiuav.ddf", "--step", "2ms", "-q", "--set", "multiuav_uav2/Z=1.5"])
-        .current_dir(root())
-        .env("TUTTI_NAMESPACE", &ns)
-        .stdout(Stdio::null())
-        .stderr(Stdio::null())
-        .spawn()
-        .expect("tutti host");
-    let _host = HostGuard(host, ns.clone());
+    let ns = tutti_test_support::namespace("install");
+    let mut host = common::tutti_command();
+    host.args(["host", "ddf/multiuav.ddf", "--step", "2ms", "-q", "--set", "multiuav_uav2/Z=1.5"])
+        .env("TUTTI_NAMESPACE", &ns);
+    let opts =
+        common::Spawn { watchdog: Duration::from_secs(1800), grace: Duration::from_secs(5), ..Default::default() };
+    let _host = HostGuard {
+        _host: common::Proc::spawn_with("tutti host", host, opts),
+        _segments: common::RemoveSegments(ns.clone()),
+    };
     let pc_path = prefix.join("lib/pkgconfig");
     let reader = root().join("examples/c/uav_reader.c");
 
@@ -147,8 +130,16 @@ fn an_installed_rtapi_builds_c_programs_with_pkg_config_and_cmake_and_a_pip_inst
     }
 
     // pip install of the Python module into a fresh venv (from a copy: a build writes beside
-    // its sources), run outside the checkout: it finds the library through pkg-config.
-    let Some(()) = tool("python3") else { return };
+    // its sources), run outside the checkout: it finds the library through pkg-config. Offline:
+    // its build backend (setuptools) comes from the wheels launch-scripts/test.sh downloads.
+    let Some(()) = tool("python3", "python3-venv") else { return };
+    let wheels = root().join("target/wheels");
+    let has_setuptools = std::fs::read_dir(&wheels)
+        .map_err(|e| e.to_string())
+        .map(|d| d.flatten().any(|e| e.file_name().to_string_lossy().starts_with("setuptools-")))
+        .and_then(|found| if found { Ok(()) } else { Err("no setuptools wheel".into()) });
+    let what = format!("the setuptools wheel in {}", wheels.display());
+    let Some(()) = common::require(&what, has_setuptools) else { return };
     let pysrc = dir.path().join("python-src");
     std::fs::create_dir_all(&pysrc).unwrap();
     for f in ["pyproject.toml", "README.md", "tutti_rtapi.py"] {
@@ -159,7 +150,10 @@ fn an_installed_rtapi_builds_c_programs_with_pkg_config_and_cmake_and_a_pip_inst
     mk.arg("-m").arg("venv").arg(&venv);
     run(mk, "python3 -m venv");
     let mut pip = Command::new(venv.join("bin/pip"));
-    pip.args(["install", "-q", "--disable-pip-version-check"]).arg(&pysrc).current_dir(dir.path());
+    pip.args(["install", "-q", "--disable-pip-version-check", "--no-index", "--find-links"])
+        .arg(&wheels)
+        .arg(&pysrc)
+        .current_dir(dir.path());
     run(pip, "pip install ./python");
     let script = "import tutti_rtapi as rt\nwith rt.connect('multiuav_uav2', timeout=30) as c:\n    for _ in range(5):\n        with c.reading():\n            z = c.subscribe('Z')\n        with c.writing():\n            c.publish('Elevation', 2 * z)\nprint('z', z, rt._find_library())\n";
     let mut py = Command::new(venv.join("bin/python"));

@@ -2,7 +2,7 @@
 //! they describe, both dialects read into the same model, the limits themselves are
 //! accepted, and the committed 1,000-domain file is what the generator produces.
 
-mod common;
+use tutti_test_support as common;
 
 use std::path::{Path, PathBuf};
 
@@ -229,7 +229,7 @@ fn committed_large_ddf_is_the_generator_output() {
     assert!(
         committed == generated,
         "ddf/large-1000.ddf differs from synth::large_ddf(1000, 20); regenerate it with \
-         TUTTI_REGENERATE=1 cargo test --test ddf_valid committed_large_ddf"
+         TUTTI_REGENERATE=1 cargo test --test cli ddf_valid::committed_large_ddf"
     );
     let model = ddf::load(&path).expect("large-1000.ddf is valid");
     assert_eq!(model.domains.len(), 1000);
@@ -242,7 +242,7 @@ fn committed_large_ddf_is_the_generator_output() {
 #[test]
 fn show_names_the_dds_engine_and_refuses_an_unknown_one() {
     let engine = |args: &[&str]| -> String {
-        let mut cmd = std::process::Command::new(env!("CARGO_BIN_EXE_tutti"));
+        let mut cmd = common::tutti_command();
         cmd.args(["show", "--json", "ddf/multiuav.ddf"]).args(args).current_dir(env!("CARGO_MANIFEST_DIR"));
         cmd.env_remove("TUTTI_DDS");
         let (status, out, err) = common::run_with_timeout(cmd, std::time::Duration::from_secs(60));
@@ -262,7 +262,7 @@ fn show_names_the_dds_engine_and_refuses_an_unknown_one() {
 
 #[test]
 fn the_rustdds_engine_refuses_unicast_peers_with_status_2() {
-    let mut cmd = std::process::Command::new(env!("CARGO_BIN_EXE_tutti"));
+    let mut cmd = common::tutti_command();
     cmd.args(["gateway", "tests/gateway/gw.ddf", "--dds", "rustdds", "--peer", "127.0.0.1", "--duration", "5s"])
         .args(["--ros-domain-id", "199", "--interface", "127.0.0.1"])
         .current_dir(env!("CARGO_MANIFEST_DIR"))
@@ -300,7 +300,7 @@ fn the_three_connection_forms_are_accepted_and_shown() {
 #[test]
 fn bench_ddf_runs_outside_the_checkout() {
     let dir = tempfile::tempdir().unwrap();
-    let out = std::process::Command::new(env!("CARGO_BIN_EXE_tutti"))
+    let out = common::tutti_command()
         .args(["bench", "ddf", "--iterations", "1"])
         .current_dir(dir.path())
         .env("TMPDIR", dir.path())

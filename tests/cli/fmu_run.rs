@@ -9,13 +9,12 @@
 //! * a doStep that fails ends the component with the FMU's log and exit 1, and the framework
 //!   steps on.
 
-mod common;
-#[path = "fmu/common.rs"]
-mod fmu_common;
+use tutti_test_support as common;
+use tutti_test_support::fmu as fmu_common;
 
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
-use std::process::{Command, ExitStatus};
+use std::process::ExitStatus;
 use std::thread;
 use std::time::Duration;
 
@@ -47,7 +46,7 @@ fn setup(py: &Path, dir: &Path, synchronous: bool) -> (PathBuf, PathBuf) {
 /// The FMU is unpacked under the test's temp dir (TMPDIR), which goes even if the run crashes.
 fn fmu_run(ns: &str, py: &Path, fmu: &Path, ddf: &Path, args: &[&str]) -> (ExitStatus, String, String) {
     let tmp = fmu.parent().expect("the FMU is in the test's temp dir");
-    let mut cmd = Command::new(env!("CARGO_BIN_EXE_tutti"));
+    let mut cmd = common::tutti_command();
     cmd.args(["fmu", "run"])
         .arg(fmu)
         .arg("--ddf")
@@ -81,7 +80,7 @@ fn compare(rows: &BTreeMap<u64, (f64, Vec<f64>)>, reference: &BTreeMap<u64, Vec<
 fn a_pythonfmu_fmu_in_a_synchronous_domain_matches_fmpy_at_every_step() {
     let Some(py) = python() else { return };
     let dir = tempfile::tempdir().unwrap();
-    let ns = format!("fmusync{}", std::process::id());
+    let ns = tutti_test_support::namespace("fmusync");
     let (fmu, ddf) = setup(&py, dir.path(), true);
     let csv = dir.path().join("run.csv");
     let host = host(&ns, &ddf, &csv, "3s");
@@ -113,7 +112,7 @@ fn a_pythonfmu_fmu_in_a_synchronous_domain_matches_fmpy_at_every_step() {
 fn a_pythonfmu_fmu_steps_on_its_own_clock_in_an_asynchronous_domain() {
     let Some(py) = python() else { return };
     let dir = tempfile::tempdir().unwrap();
-    let ns = format!("fmuasync{}", std::process::id());
+    let ns = tutti_test_support::namespace("fmuasync");
     let (fmu, ddf) = setup(&py, dir.path(), false);
     let csv = dir.path().join("run.csv");
     let host = host(&ns, &ddf, &csv, "4s");
@@ -134,7 +133,7 @@ fn a_pythonfmu_fmu_steps_on_its_own_clock_in_an_asynchronous_domain() {
 fn a_failing_do_step_ends_the_component_with_the_fmu_log_and_the_framework_steps_on() {
     let Some(py) = python() else { return };
     let dir = tempfile::tempdir().unwrap();
-    let ns = format!("fmufail{}", std::process::id());
+    let ns = tutti_test_support::namespace("fmufail");
     let (fmu, ddf) = setup(&py, dir.path(), true);
     let csv = dir.path().join("run.csv");
     let host = host(&ns, &ddf, &csv, "3s");
@@ -157,7 +156,7 @@ fn a_failing_do_step_ends_the_component_with_the_fmu_log_and_the_framework_steps
 fn a_python_exception_in_do_step_is_reported_with_the_fmu_log_not_a_crash() {
     let Some(py) = python() else { return };
     let dir = tempfile::tempdir().unwrap();
-    let ns = format!("fmuraise{}", std::process::id());
+    let ns = tutti_test_support::namespace("fmuraise");
     let (fmu, ddf) = setup(&py, dir.path(), true);
     let csv = dir.path().join("run.csv");
     let host = host(&ns, &ddf, &csv, "2s");

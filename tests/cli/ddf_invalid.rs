@@ -6,7 +6,7 @@
 //! line on stderr with that exact position and a message containing the substring, and
 //! there must be no other `error:` lines: the validator reports every problem in one run.
 
-mod common;
+use tutti_test_support as common;
 
 use std::fs;
 use std::path::{Path, PathBuf};

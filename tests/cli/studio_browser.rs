@@ -6,17 +6,16 @@
 //! that is a failure. With `TUTTI_SCREENSHOTS=1` they write their screenshots to
 //! `docs/img/`.
 
-mod common;
+use tutti_test_support as common;
 
-use std::io::{BufRead, BufReader};
 use std::net::TcpListener;
 use std::path::{Path, PathBuf};
-use std::process::{Child, Command, Stdio};
-use std::sync::mpsc;
+use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
 
 use fantoccini::{Client, ClientBuilder, Locator};
 use serde_json::{json, Value};
+use tutti_test_support::{Proc, Spawn};
 
 /// Longest wait for anything the page should show.
 const WAIT: Duration = Duration::from_secs(30);
@@ -24,40 +23,24 @@ const WAIT: Duration = Duration::from_secs(30);
 const TEST_LIMIT: Duration = Duration::from_secs(240);
 
 fn repo() -> &'static Path {
-    Path::new(env!("CARGO_MANIFEST_DIR"))
-}
-
-fn which(name: &str) -> Option<PathBuf> {
-    std::env::var_os("PATH")?.to_str()?.split(':').map(|d| Path::new(d).join(name)).find(|p| p.is_file())
+    common::repo_root()
 }
 
 fn free_port() -> u16 {
     TcpListener::bind("127.0.0.1:0").and_then(|l| l.local_addr()).map(|a| a.port()).expect("a free port")
 }
 
-/// A child process in its own process group, killed with its whole group when dropped.
-struct Proc {
-    name: &'static str,
-    child: Child,
-}
-
-impl Proc {
-    fn spawn(name: &'static str, mut cmd: Command) -> Proc {
-        use std::os::unix::process::CommandExt;
-        cmd.process_group(0);
-        let child = cmd.spawn().unwrap_or_else(|e| panic!("cannot start {name}: {e}"));
-        Proc { name, child }
-    }
-}
-
-impl Drop for Proc {
-    fn drop(&mut self) {
-        let group = format!("-{}", self.child.id());
-        let _ = Command::new("kill").args(["-KILL", "--", &group]).stderr(Stdio::null()).status();
-        let _ = self.child.kill();
-        let _ = self.child.wait();
-        let _ = self.name;
-    }
+/// A child process in its own process group, killed with its whole group when dropped
+/// (chromedriver starts the browser, which starts processes of its own).
+fn spawn(name: &str, cmd: Command, output: bool) -> Proc {
+    let opts = Spawn {
+        watchdog: TEST_LIMIT + WAIT,
+        stdout: output,
+        stderr: output,
+        process_group: true,
+        grace: Duration::ZERO,
+    };
+    Proc::spawn_with(name, cmd, opts)
 }
 
 /// One test's world: a root folder, a studio, a chromedriver and a browser session.
@@ -72,16 +55,9 @@ struct World {
     _dir: tempfile::TempDir,
 }
 
-/// Chromium and chromedriver, or None (skip) outside CI.
+/// Chromium and chromedriver, or None (skipped; a failure under CI=true).
 fn browser() -> Option<(PathBuf, PathBuf)> {
-    let found = which("chromium").zip(which("chromedriver"));
-    if found.is_none() {
-        if std::env::var("CI").as_deref() == Ok("true") {
-            panic!("chromium and chromedriver are required under CI=true (apt-get install chromium chromium-driver)");
-        }
-        eprintln!("skipped: chromium or chromedriver not installed (apt-get install chromium chromium-driver)");
-    }
-    found
+    Some((common::require_tool("chromium", "chromium")?, common::require_tool("chromedriver", "chromium-driver")?))
 }
 
 impl World {
@@ -97,22 +73,19 @@ impl World {
         for (name, text) in extra {
             std::fs::write(root.join(name), text).expect("write file");
         }
-        let namespace = format!("studio{}-{test}", std::process::id());
-        let mut cmd = Command::new(env!("CARGO_BIN_EXE_tutti"));
+        let namespace = tutti_test_support::namespace(&format!("studio-{test}-"));
+        let mut cmd = common::tutti_command();
         cmd.args(["studio", "--listen", "127.0.0.1:0", "--root"])
             .arg(&root)
             .args(files.iter().chain(extra.iter().map(|(n, _)| n)).take(1))
-            .env("TUTTI_NAMESPACE", &namespace)
-            .stdin(Stdio::null())
-            .stdout(Stdio::null())
-            .stderr(Stdio::piped());
-        let mut studio = Proc::spawn("tutti studio", cmd);
-        let url = listening_url(&mut studio.child);
+            .env("TUTTI_NAMESPACE", &namespace);
+        let studio = spawn("tutti studio", cmd, true);
+        let url = listening_url(&studio);
 
         let port = free_port();
         let mut cmd = Command::new(chromedriver);
-        cmd.arg(format!("--port={port}")).stdin(Stdio::null()).stdout(Stdio::null()).stderr(Stdio::null());
-        let driver = Proc::spawn("chromedriver", cmd);
+        cmd.arg(format!("--port={port}")).stdout(Stdio::null()).stderr(Stdio::null());
+        let driver = spawn("chromedriver", cmd, false);
         let profile = tempfile::tempdir().expect("profile dir");
         let caps = json!({
             "browserName": "chrome",
@@ -237,20 +210,12 @@ impl World {
     }
 }
 
-/// Reads the studio's stderr until it says where it listens.
-fn listening_url(child: &mut Child) -> String {
-    let stderr = child.stderr.take().expect("stderr");
-    let (tx, rx) = mpsc::channel();
-    std::thread::spawn(move || {
-        for line in BufReader::new(stderr).lines().map_while(Result::ok) {
-            if let Some(url) = line.strip_prefix("tutti studio: listening on ") {
-                let _ = tx.send(url.to_string());
-            } else {
-                eprintln!("studio: {line}");
-            }
-        }
-    });
-    rx.recv_timeout(WAIT).expect("the studio did not say where it listens")
+/// Waits until the studio says where it listens.
+fn listening_url(studio: &Proc) -> String {
+    let prefix = "stderr: tutti studio: listening on ";
+    let line = studio.wait_line(prefix, WAIT);
+    let line = line.unwrap_or_else(|| panic!("the studio did not say where it listens\n{}", studio.dump()));
+    line[prefix.len()..].to_string()
 }
 
 async fn with_limit(f: impl std::future::Future<Output = ()>) {
@@ -436,10 +401,9 @@ async fn monitor_follows_a_host_started_from_the_page_and_a_c_component() {
         let mut cmd = Command::new(&ramp);
         cmd.args(["multiuav_uav1", "Elevation"])
             .env("TUTTI_NAMESPACE", &w.namespace)
-            .stdin(Stdio::null())
             .stdout(Stdio::null());
-        let component = Proc::spawn("ramp", cmd);
-        let pid = component.child.id();
+        let component = spawn("ramp", cmd, false);
+        let pid = component.id();
         w.until("the component's connection", &format!("document.querySelector(\"#domains tr[data-pid='{pid}']\")")).await;
         let value = format!("+document.querySelector(\"[data-series='{key}']\").dataset.value");
         let first = w.until("the plotted value moving", &format!("{value} > 1 ? {value} : 0")).await;

@@ -3,7 +3,7 @@
 //! the mirror side reads the PUBLISH set and writes the SUBSCRIBE set of the framework on
 //! the home side, asynchronously and in lock-step.
 
-mod gateway;
+use crate::gateway;
 
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
@@ -51,16 +51,10 @@ fn the_mirror_discovers_across_network_namespaces_by_unicast_peers() {
     });
 }
 
-/// The pair of namespaces of a test, or None (skipped with the reason) where this machine
-/// does not let a test create them.
+/// The pair of namespaces of a test, or None (skipped with the reason; a failure under
+/// CI=true) where this machine does not let a test create them.
 fn netns(tag: &str) -> Option<NetnsPair> {
-    match NetnsPair::create(tag) {
-        Ok(n) => Some(n),
-        Err(why) => {
-            eprintln!("network namespaces cannot be created here ({why}): test skipped");
-            None
-        }
-    }
+    tutti_test_support::require("network namespaces (root, and `ip` of iproute2)", NetnsPair::create(tag))
 }
 
 /// A framework on the home side publishes x = 4.5; a component on the mirror side reads it

@@ -5,9 +5,8 @@
 //! synchronous domain (cleanly, or killed) costs no step timeout. Each test has its own DDS
 //! domain and shared-memory namespaces.
 
-mod gateway;
+use crate::gateway;
 
-use std::process::Command;
 use std::thread;
 use std::time::{Duration, Instant};
 
@@ -68,7 +67,7 @@ fn a_dds_reader_of_a_synchronous_domain_is_an_observer_not_a_participant(e: Eng)
         looks += 1;
         if s.dds_readers == 1 && !cli_checked {
             // What a user sees: `tutti status --json` lists the DDS reader apart.
-            let out = Command::new(env!("CARGO_BIN_EXE_tutti"))
+            let out = tutti_test_support::tutti_command()
                 .args(["status", "--json"])
                 .env("TUTTI_NAMESPACE", ns)
                 .output()

@@ -3,11 +3,9 @@
 //! reads its typed variables, and, run as a participant of a synchronous domain, its recorded
 //! trajectory equals fmpy's standalone one within 1e-9 relative at every step.
 
-mod common;
-#[path = "fmu/common.rs"]
-mod fmu_common;
+use tutti_test_support as common;
+use tutti_test_support::fmu as fmu_common;
 
-use std::process::Command;
 use std::time::Duration;
 
 use fmu_common::{build_integrator, close, python};
@@ -44,14 +42,14 @@ fn an_fmi3_fmu_built_from_c_is_inspected_with_its_types() {
 fn an_fmi3_fmu_in_a_synchronous_domain_matches_fmpy_at_every_step() {
     let Some(py) = python() else { return };
     let dir = tempfile::tempdir().unwrap();
-    let ns = format!("fmu3sync{}", std::process::id());
+    let ns = tutti_test_support::namespace("fmu3sync");
     let fmu = build_integrator(dir.path());
     let ddf = dir.path().join("integrator.ddf");
     let (code, _, err) = tutti(&["fmu".as_ref(), "ddf".as_ref(), fmu.as_os_str(), "--out".as_ref(), ddf.as_os_str()]);
     assert_eq!(code, 0, "{err}");
     let csv = dir.path().join("run.csv");
     let host = fmu_common::host(&ns, &ddf, &csv, "2s", "integrator/u=2");
-    let mut cmd = Command::new(env!("CARGO_BIN_EXE_tutti"));
+    let mut cmd = common::tutti_command();
     cmd.args(["fmu", "run"])
         .arg(&fmu)
         .arg("--ddf")
@@ -89,13 +87,13 @@ fn bad_parameters_are_refused_before_connecting() {
         ("y=1", "the variable is output, not a parameter or input"),
         ("k", "expected NAME=VALUE"),
     ] {
-        let mut cmd = Command::new(env!("CARGO_BIN_EXE_tutti"));
+        let mut cmd = common::tutti_command();
         cmd.args(["fmu", "run"])
             .arg(&fmu)
             .arg("--ddf")
             .arg(&ddf)
             .args(["--domain", "integrator", "--connect-timeout", "100ms", "--param", param])
-            .env("TUTTI_NAMESPACE", format!("fmu3param{}", std::process::id()))
+            .env("TUTTI_NAMESPACE", tutti_test_support::namespace("fmu3param"))
             .env("TMPDIR", dir.path());
         let (status, _, err) = common::run_with_timeout(cmd, Duration::from_secs(60));
         assert_eq!(status.code(), Some(2), "--param {param}: {err}");

@@ -8,13 +8,12 @@
 //! an Orchestra framework does: each step it publishes the C component's command as the
 //! FMU's input `u` and the FMU's output `y` as the C component's input `lag_y`.
 
-mod common;
-#[path = "fmu/common.rs"]
-mod fmu_common;
+use tutti_test_support as common;
+use tutti_test_support::fmu as fmu_common;
 
 use std::path::Path;
-use std::process::{Child, Command, Stdio};
-use std::sync::atomic::{AtomicBool, Ordering};
+use std::process::Command;
+use std::sync::atomic::Ordering;
 use std::sync::{Arc, Mutex};
 use std::thread;
 use std::time::{Duration, Instant};
@@ -22,6 +21,7 @@ use std::time::{Duration, Instant};
 use fmu_common::{build_lag, libpython, python};
 use tutti_core::ddf::{Model, Role};
 use tutti_core::shm::{Framework, FrameworkOptions};
+use tutti_test_support::{Proc, Spawn, Worker};
 
 const PERIOD: Duration = Duration::from_millis(10);
 
@@ -62,18 +62,17 @@ fn ddf_text(synchronous: bool) -> String {
 /// A framework stepping every PERIOD of wall time and `sim_step` of simulated time, in a
 /// thread, routing c_cmd -> u and y -> lag_y.
 struct Host {
-    stop: Arc<AtomicBool>,
     steps: Arc<Mutex<Vec<Step>>>,
-    thread: Option<thread::JoinHandle<()>>,
+    _stepping: Worker,
 }
 
 impl Host {
     fn start(model: &Model, ns: &str, sim_step: f64) -> Host {
         let opts = FrameworkOptions { namespace: ns.into(), timeout: Duration::from_secs(2), ..Default::default() };
         let mut fw = Framework::create(model, &opts).expect("framework");
-        let (stop, steps) = (Arc::new(AtomicBool::new(false)), Arc::new(Mutex::new(Vec::new())));
-        let (stop2, steps2) = (stop.clone(), steps.clone());
-        let thread = thread::spawn(move || {
+        let steps = Arc::new(Mutex::new(Vec::new()));
+        let steps2 = steps.clone();
+        let stepping = Worker::spawn(move |stop2| {
             let host = &mut fw.domains[0];
             let info = host.info().clone();
             let leaf =
@@ -118,7 +117,7 @@ impl Host {
                 }
             }
         });
-        Host { stop, steps, thread: Some(thread) }
+        Host { steps, _stepping: stepping }
     }
 
     fn steps(&self) -> Vec<Step> {
@@ -135,46 +134,21 @@ impl Host {
     }
 }
 
-impl Drop for Host {
-    fn drop(&mut self) {
-        self.stop.store(true, Ordering::Release);
-        if let Some(t) = self.thread.take() {
-            let _ = t.join();
-        }
-    }
-}
-
-/// A child process killed (if still running) when dropped, even when the test fails.
-struct Guard(Child);
-
-impl Drop for Guard {
-    fn drop(&mut self) {
-        let _ = self.0.kill();
-        let _ = self.0.wait();
-    }
-}
+/// `tutti fmu run`, killed (if still running) when dropped, even when the test fails.
+struct Guard(Proc);
 
 impl Guard {
     /// Waits for the child to exit (at most `limit`), returning its stderr.
     fn wait(mut self, limit: Duration) -> (std::process::ExitStatus, String) {
-        let deadline = Instant::now() + limit;
-        loop {
-            if let Some(status) = self.0.try_wait().unwrap() {
-                let mut err = String::new();
-                if let Some(mut e) = self.0.stderr.take() {
-                    use std::io::Read as _;
-                    let _ = e.read_to_string(&mut err);
-                }
-                return (status, err);
-            }
-            assert!(Instant::now() < deadline, "{:?} did not finish within {limit:?}", self.0);
-            thread::sleep(Duration::from_millis(10));
-        }
+        let status = self.0.wait_status(limit);
+        let status = status.unwrap_or_else(|| panic!("{} did not finish within {limit:?}", self.0.name));
+        (status, self.0.stderr())
     }
 }
 
 fn spawn_fmu(ns: &str, py: &Path, fmu: &Path, ddf: &Path, extra: &[&str]) -> Guard {
-    let child = Command::new(env!("CARGO_BIN_EXE_tutti"))
+    let mut child = common::tutti_command();
+    child
         .args(["fmu", "run"])
         .arg(fmu)
         .arg("--ddf")
@@ -184,13 +158,9 @@ fn spawn_fmu(ns: &str, py: &Path, fmu: &Path, ddf: &Path, extra: &[&str]) -> Gua
         .args(["--param", "tau=0.25"])
         .args(extra)
         .env("TUTTI_NAMESPACE", ns)
-        .env("TMPDIR", fmu.parent().unwrap())
-        .stdin(Stdio::null())
-        .stdout(Stdio::null())
-        .stderr(Stdio::piped())
-        .spawn()
-        .expect("tutti fmu run");
-    Guard(child)
+        .env("TMPDIR", fmu.parent().unwrap());
+    let opts = Spawn { watchdog: Duration::from_secs(600), grace: Duration::ZERO, ..Spawn::default() };
+    Guard(Proc::spawn_with("tutti fmu run", child, opts))
 }
 
 const C_COMPONENT: &str = r#"
@@ -237,7 +207,7 @@ int main(int argc, char **argv)
 fn exchange(synchronous: bool) {
     let Some(py) = python() else { return };
     let dir = tempfile::tempdir().unwrap();
-    let ns = format!("fmuc{}{}", if synchronous { "s" } else { "a" }, std::process::id());
+    let ns = tutti_test_support::namespace(if synchronous { "fmucs" } else { "fmuca" });
     let fmu = build_lag(&py, dir.path());
     let ddf = dir.path().join("fmu_c.ddf");
     std::fs::write(&ddf, ddf_text(synchronous)).unwrap();
@@ -288,7 +258,7 @@ fn an_fmu_and_a_c_component_exchange_data_both_ways_in_an_asynchronous_domain() 
 fn kill_9_of_tutti_fmu_run_leaves_the_framework_stepping_and_a_new_run_reconnects() {
     let Some(py) = python() else { return };
     let dir = tempfile::tempdir().unwrap();
-    let ns = format!("fmukill{}", std::process::id());
+    let ns = tutti_test_support::namespace("fmukill");
     let fmu = build_lag(&py, dir.path());
     let ddf = dir.path().join("fmu_c.ddf");
     std::fs::write(&ddf, ddf_text(true)).unwrap();
@@ -297,8 +267,7 @@ fn kill_9_of_tutti_fmu_run_leaves_the_framework_stepping_and_a_new_run_reconnect
     let mut first = spawn_fmu(&ns, &py, &fmu, &ddf, &[]);
     host.wait_for("the FMU to step", |s| s.last().is_some_and(|l| l.connections == 1 && l.count > 30));
     // SIGKILL, wherever it is in its step.
-    first.0.kill().unwrap();
-    let _ = first.0.wait();
+    first.0.kill9();
     let at_kill = host.steps().len();
     host.wait_for("the connection to be removed", |s| s.last().is_some_and(|l| l.connections == 0));
     // The framework steps on without it.
@@ -319,7 +288,7 @@ fn kill_9_of_tutti_fmu_run_leaves_the_framework_stepping_and_a_new_run_reconnect
 fn ctrl_c_ends_tutti_fmu_run_cleanly_and_the_framework_steps_on() {
     let Some(py) = python() else { return };
     let dir = tempfile::tempdir().unwrap();
-    let ns = format!("fmuint{}", std::process::id());
+    let ns = tutti_test_support::namespace("fmuint");
     let fmu = build_lag(&py, dir.path());
     let ddf = dir.path().join("fmu_c.ddf");
     std::fs::write(&ddf, ddf_text(true)).unwrap();
@@ -351,7 +320,7 @@ fn ctrl_c_ends_tutti_fmu_run_cleanly_and_the_framework_steps_on() {
 fn a_framework_faster_than_real_time_sets_the_step_by_its_simulated_time() {
     let Some(py) = python() else { return };
     let dir = tempfile::tempdir().unwrap();
-    let ns = format!("fmufast{}", std::process::id());
+    let ns = tutti_test_support::namespace("fmufast");
     let fmu = build_lag(&py, dir.path());
     let ddf = dir.path().join("fmu_c.ddf");
     std::fs::write(&ddf, ddf_text(true)).unwrap();

@@ -2,9 +2,9 @@
 //! read with the ROS ecosystem's own Python libraries (`mcap`, `mcap-ros2-support`), every
 //! schema parses, and every step's messages equal that step's CSV row, element by element.
 
-mod common;
+use tutti_test_support as common;
 
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 use std::process::Command;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
@@ -13,26 +13,18 @@ use std::time::{Duration, Instant};
 
 use tutti_core::shm::{ConnectOptions, Participant};
 
-/// The venv's Python with the MCAP libraries, or None (skipped) outside CI when missing.
+/// The venv's Python with the MCAP libraries, or None (skipped; a failure under CI=true).
 fn python() -> Option<PathBuf> {
-    let py = Path::new(env!("CARGO_MANIFEST_DIR")).join(".venv/bin/python");
-    let ok = Command::new(&py).args(["-c", "import mcap, mcap_ros2"]).status().is_ok_and(|s| s.success());
-    if ok {
-        return Some(py);
-    }
-    let hint = "run `.venv/bin/pip install mcap mcap-ros2-support` (launch-scripts/test.sh does)";
-    assert!(std::env::var("CI").map_or(true, |v| v != "true"), "CI=true: {hint}");
-    eprintln!("the MCAP Python libraries are missing: test skipped ({hint})");
-    None
+    common::python(&["mcap", "mcap_ros2"])
 }
 
 #[test]
 fn an_mcap_recording_reads_back_with_ros_tools_and_equals_the_csv_of_the_same_run() {
     let Some(py) = python() else { return };
     let dir = tempfile::tempdir().unwrap();
-    let ns = format!("recmcap{}", std::process::id());
+    let ns = tutti_test_support::namespace("recmcap");
     let (csv, mcap) = (dir.path().join("run.csv"), dir.path().join("run.mcap"));
-    let mut host = Command::new(env!("CARGO_BIN_EXE_tutti"));
+    let mut host = common::tutti_command();
     host.args(["host", "ddf/product-sample.ddf", "--step", "5ms", "--duration", "1500ms", "--timeout", "200ms", "-q"])
         .arg("--record")
         .arg(&csv)
@@ -94,10 +86,10 @@ fn an_mcap_recording_reads_back_with_ros_tools_and_equals_the_csv_of_the_same_ru
 fn tutti_record_follows_a_live_run_without_taking_part() {
     let Some(py) = python() else { return };
     let dir = tempfile::tempdir().unwrap();
-    let ns = format!("recpassive{}", std::process::id());
+    let ns = tutti_test_support::namespace("recpassive");
     let (csv, mcap) = (dir.path().join("host.csv"), dir.path().join("observed.mcap"));
     let tutti = |args: &[&str]| {
-        let mut c = Command::new(env!("CARGO_BIN_EXE_tutti"));
+        let mut c = common::tutti_command();
         c.args(args).current_dir(env!("CARGO_MANIFEST_DIR")).env("TUTTI_NAMESPACE", &ns);
         c
     };

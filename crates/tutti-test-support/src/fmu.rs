@@ -1,6 +1,5 @@
 //! Support for the FMU tests: FMUs built from the sources in tests/fmu/ into a test's temp
 //! dir, the venv's Python with pythonfmu and fmpy, and small FMU archives made here.
-#![allow(dead_code)]
 
 use std::collections::BTreeMap;
 use std::io::Write as _;
@@ -9,28 +8,12 @@ use std::process::{Command, ExitStatus};
 use std::thread;
 use std::time::Duration;
 
-use super::common::run_with_timeout;
+use crate::{repo_root as repo, run_with_timeout};
 
-pub fn repo() -> &'static Path {
-    Path::new(env!("CARGO_MANIFEST_DIR"))
-}
-
-/// Whether a missing tool must fail the test (CI) rather than skip it.
-fn required() -> bool {
-    std::env::var("CI").is_ok_and(|v| v == "true")
-}
-
-/// The venv's Python with pythonfmu and fmpy, or None (skipped) outside CI when missing.
+/// The venv's Python with pythonfmu and fmpy ([`crate::python`]: skipped when missing, a
+/// failure under CI=true).
 pub fn python() -> Option<PathBuf> {
-    let py = repo().join(".venv/bin/python");
-    let ok = Command::new(&py).args(["-c", "import pythonfmu, fmpy"]).status().is_ok_and(|s| s.success());
-    if ok {
-        return Some(py);
-    }
-    let hint = "run `.venv/bin/pip install pythonfmu fmpy` (launch-scripts/test.sh does)";
-    assert!(!required(), "CI=true: {hint}");
-    eprintln!("pythonfmu or fmpy is missing: test skipped ({hint})");
-    None
+    crate::python(&["pythonfmu", "fmpy"])
 }
 
 /// The shared libpython of `py`, which a PythonFMU model needs its host to load.
@@ -107,7 +90,7 @@ pub fn host(
     duration: &str,
     set: &str,
 ) -> thread::JoinHandle<(ExitStatus, String, String)> {
-    let mut cmd = Command::new(env!("CARGO_BIN_EXE_tutti"));
+    let mut cmd = crate::tutti_command();
     cmd.args(["host"])
         .arg(ddf)
         // --catch-up: every step is one period of simulated time even when the machine is
@@ -207,7 +190,7 @@ pub fn fmi3_headers() -> PathBuf {
     let version = Command::new(rustc).arg("-vV").output().expect("rustc -vV");
     let version = String::from_utf8_lossy(&version.stdout);
     let host = version.lines().find_map(|l| l.strip_prefix("host: ")).expect("rustc -vV names the host triple");
-    let out = Command::new(env!("CARGO"))
+    let out = Command::new(crate::cargo())
         .args(["metadata", "--format-version", "1", "--offline", "--filter-platform", host.trim()])
         .current_dir(repo())
         .output()

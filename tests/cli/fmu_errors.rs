@@ -4,9 +4,8 @@
 //! fit (type, direction, unknown names). None of them needs a running framework: every check
 //! comes before connecting.
 
-mod common;
-#[path = "fmu/common.rs"]
-mod fmu_common;
+use tutti_test_support as common;
+use tutti_test_support::fmu as fmu_common;
 
 use std::path::Path;
 

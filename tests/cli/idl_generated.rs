@@ -3,7 +3,6 @@
 
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
-use std::process::Command;
 
 /// The shipped DDFs whose interface is committed, by file stem.
 const SHIPPED: &[&str] = &["multiuav", "paper-figure2", "product-sample"];
@@ -34,7 +33,7 @@ fn committed_idl_matches_the_generator() {
     for stem in SHIPPED {
         let ddf = root.join("ddf").join(format!("{stem}.ddf"));
         let tmp = tempfile::tempdir().expect("temporary directory");
-        let out = Command::new(env!("CARGO_BIN_EXE_tutti"))
+        let out = tutti_test_support::tutti_command()
             .arg("idl")
             .arg(&ddf)
             .arg("--out")

@@ -2,7 +2,7 @@
 //! per-item samples both ways, the QoS on the wire, the ROS 2 node, bad input, and a DDS
 //! writer in lock-step. Each test has its own DDS domain and namespace.
 
-mod gateway;
+use crate::gateway;
 
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;

@@ -2,24 +2,24 @@
 //! appears, status lists domains and connections, the recording is written, and Ctrl-C
 //! removes every segment.
 
-use std::path::Path;
-use std::process::{Child, Command, Stdio};
+use std::process::Command;
 use std::time::{Duration, Instant};
 
 use tutti_core::shm::os;
+use tutti_test_support::{tutti_command, Proc, RemoveSegments, Spawn};
 
-const TUTTI: &str = env!("CARGO_BIN_EXE_tutti");
+/// `tutti host` in namespace `ns`, with what a failed test may have left of it removed when
+/// dropped (after the host).
+struct Guard {
+    host: Proc,
+    _segments: RemoveSegments,
+}
 
-struct Guard(Child, String);
-
-impl Drop for Guard {
-    fn drop(&mut self) {
-        let _ = self.0.kill();
-        let _ = self.0.wait();
-        // Remove what a failed test may have left.
-        for name in os::list_shm(&format!("tutti.{}.", self.1)).unwrap_or_default() {
-            let _ = std::fs::remove_file(Path::new(os::SHM_DIR).join(name));
-        }
+impl Guard {
+    fn spawn(cmd: Command, ns: &str) -> Guard {
+        // No clean stop on drop: the test has failed, and the segments go anyway.
+        let opts = Spawn { grace: Duration::ZERO, ..Spawn::default() };
+        Guard { host: Proc::spawn_with("tutti host", cmd, opts), _segments: RemoveSegments(ns.to_string()) }
     }
 }
 
@@ -28,38 +28,27 @@ fn segments(ns: &str) -> usize {
 }
 
 fn interrupt_and_wait(g: &mut Guard) -> std::process::ExitStatus {
-    let _ = Command::new("kill").args(["-INT", &g.0.id().to_string()]).status();
-    let deadline = Instant::now() + Duration::from_secs(30);
-    loop {
-        if let Some(s) = g.0.try_wait().unwrap() {
-            return s;
-        }
-        assert!(Instant::now() < deadline, "host did not stop on SIGINT");
-        std::thread::sleep(Duration::from_millis(20));
-    }
+    g.host.signal("INT");
+    g.host.wait_status(Duration::from_secs(30)).expect("host did not stop on SIGINT")
 }
 
-fn root() -> &'static Path {
-    Path::new(env!("CARGO_MANIFEST_DIR"))
+fn tutti() -> Command {
+    tutti_command()
 }
 
 #[test]
 fn host_creates_every_segment_of_the_large_ddf_and_removes_them_on_ctrl_c() {
-    let ns = format!("hc{}-large", std::process::id());
-    let child = Command::new(TUTTI)
-        .args(["host", "ddf/large-1000.ddf", "--step", "20ms", "--timeout", "100ms", "--quiet"])
-        .current_dir(root())
-        .env("TUTTI_NAMESPACE", &ns)
-        .stdout(Stdio::null())
-        .spawn()
-        .unwrap();
-    let mut g = Guard(child, ns.clone());
+    let ns = tutti_test_support::namespace("hc-large-");
+    let mut host = tutti();
+    host.args(["host", "ddf/large-1000.ddf", "--step", "20ms", "--timeout", "100ms", "--quiet"])
+        .env("TUTTI_NAMESPACE", &ns);
+    let mut g = Guard::spawn(host, &ns);
     let deadline = Instant::now() + Duration::from_secs(60);
     while segments(&ns) < 1000 {
         assert!(Instant::now() < deadline, "only {} of 1000 segments appeared", segments(&ns));
         std::thread::sleep(Duration::from_millis(20));
     }
-    let out = Command::new(TUTTI).args(["status", "--json"]).env("TUTTI_NAMESPACE", &ns).output().unwrap();
+    let out = tutti().args(["status", "--json"]).env("TUTTI_NAMESPACE", &ns).output().unwrap();
     assert!(out.status.success());
     let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
     let domains = v.as_array().unwrap();
@@ -72,18 +61,14 @@ fn host_creates_every_segment_of_the_large_ddf_and_removes_them_on_ctrl_c() {
 
 #[test]
 fn host_records_both_sets_and_status_shows_connections() {
-    let ns = format!("hc{}-rec", std::process::id());
+    let ns = tutti_test_support::namespace("hc-rec-");
     let dir = tempfile::tempdir().unwrap();
     let csv = dir.path().join("run.csv");
-    let child = Command::new(TUTTI)
-        .args(["host", "ddf/product-sample.ddf", "--step", "5ms", "--set", "grid_clock/tick=7", "--record"])
+    let mut host = tutti();
+    host.args(["host", "ddf/product-sample.ddf", "--step", "5ms", "--set", "grid_clock/tick=7", "--record"])
         .arg(&csv)
-        .current_dir(root())
-        .env("TUTTI_NAMESPACE", &ns)
-        .stderr(Stdio::null())
-        .spawn()
-        .unwrap();
-    let mut g = Guard(child, ns.clone());
+        .env("TUTTI_NAMESPACE", &ns);
+    let mut g = Guard::spawn(host, &ns);
     let deadline = Instant::now() + Duration::from_secs(60);
     while segments(&ns) < 2 {
         assert!(Instant::now() < deadline, "segments never appeared");
@@ -95,7 +80,7 @@ fn host_records_both_sets_and_status_shows_connections() {
     p.publish_lock().unwrap();
     p.stage("setpoint_kw", &9.5f64.to_ne_bytes()).unwrap();
     p.commit().unwrap();
-    let out = Command::new(TUTTI).args(["status"]).env("TUTTI_NAMESPACE", &ns).output().unwrap();
+    let out = tutti().args(["status"]).env("TUTTI_NAMESPACE", &ns).output().unwrap();
     let text = String::from_utf8_lossy(&out.stdout);
     assert!(text.contains("grid_feeder [async,states]"), "{text}");
     assert!(text.contains("probe") && text.contains("writer"), "{text}");
@@ -129,8 +114,7 @@ fn host_refuses_bad_arguments_with_status_2() {
         vec!["host", "ddf/multiuav.ddf", "--set", "multiuav_uav1/Nope=1"],
         vec!["host", "tests/ddf-invalid/does-not-exist.ddf"],
     ] {
-        let out =
-            Command::new(TUTTI).args(&args).current_dir(root()).env("TUTTI_NAMESPACE", "hc-bad").output().unwrap();
+        let out = tutti().args(&args).env("TUTTI_NAMESPACE", "hc-bad").output().unwrap();
         assert_eq!(out.status.code(), Some(2), "{args:?}: {}", String::from_utf8_lossy(&out.stderr));
         assert!(!out.stderr.is_empty());
     }
@@ -140,8 +124,7 @@ fn host_refuses_bad_arguments_with_status_2() {
 #[test]
 fn first_errors_are_said_once_and_plainly() {
     let run = |args: &[&str]| {
-        let out =
-            Command::new(TUTTI).args(args).current_dir(root()).env("TUTTI_NAMESPACE", "hc-words").output().unwrap();
+        let out = tutti().args(args).env("TUTTI_NAMESPACE", "hc-words").output().unwrap();
         (out.status.code(), String::from_utf8_lossy(&out.stderr).into_owned())
     };
     for cmd in ["host", "show", "gateway", "check"] {

@@ -2,10 +2,9 @@
 //! JSON) prints the plan, and both `show` and `gateway` refuse a bad file, or a bad ROS 2
 //! environment, before anything starts (exit status 2, the file, key and flag named).
 
-mod common;
+use tutti_test_support as common;
 
 use std::path::Path;
-use std::process::Command;
 
 use serde_json::Value;
 
@@ -15,7 +14,7 @@ const EXAMPLE: &str = "examples/gateway.json5";
 
 /// `tutti ARGS` with extra environment variables, and none of those that change the plan.
 fn tutti_env(args: &[&str], env: &[(&str, &str)]) -> (i32, String, String) {
-    let mut cmd = Command::new(env!("CARGO_BIN_EXE_tutti"));
+    let mut cmd = common::tutti_command();
     cmd.args(args).current_dir(env!("CARGO_MANIFEST_DIR"));
     for v in
         ["TUTTI_DDS", "ROS_DOMAIN_ID", "ROS_LOCALHOST_ONLY", "ROS_AUTOMATIC_DISCOVERY_RANGE", "TUTTI_GATEWAY_INTERFACE"]

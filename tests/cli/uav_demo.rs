@@ -8,7 +8,7 @@
 //! demo would, and changes nothing: DDS readers are not participants. Needs gcc and python3
 //! (launch-scripts/test.sh installs them); skipped with a message when they are missing.
 
-mod common;
+use tutti_test_support as common;
 
 use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
@@ -18,8 +18,9 @@ fn root() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR"))
 }
 
-fn have(program: &str) -> bool {
-    Command::new(program).arg("--version").stdout(Stdio::null()).stderr(Stdio::null()).status().is_ok()
+/// `program` (on PATH), or None (skipped; a failure under CI=true).
+fn have(program: &str, package: &str) -> Option<PathBuf> {
+    common::require_tool(program, package)
 }
 
 /// A CSV of numbers: header and rows.
@@ -44,15 +45,12 @@ fn col(t: &(Vec<String>, Vec<Vec<f64>>), name: &str) -> Vec<f64> {
 fn the_short_uav_demo_reproduces_figures_5_and_6() {
     let python = std::env::var("TUTTI_PYTHON").unwrap_or_else(|_| "python3".into());
     let cc = std::env::var("CC").unwrap_or_else(|_| "gcc".into());
-    if !have(&python) || !have(&cc) {
-        eprintln!("skipped: the UAV demo needs {python} and {cc}");
-        return;
-    }
-    common::ensure_rtapi();
+    let (Some(_), Some(_)) = (have(&python, "python3"), have(&cc, "gcc")) else { return };
+    common::rtapi_lib_dir();
     let tmp = tempfile::tempdir().unwrap();
     let out = tmp.path().join("uav");
     let ns = format!("tdemo{}", std::process::id());
-    let dds_domain = (150 + std::process::id() % 60).to_string();
+    let dds_domain = common::dds_domain_in(180..=198).to_string();
     let listened = tmp.path().join("listener.jsonl");
     let _listener = Listener::start(&dds_domain, &listened);
     let mut child = Command::new(env!("CARGO_BIN_EXE_tutti"))
@@ -199,7 +197,7 @@ fn the_short_uav_demo_reproduces_figures_5_and_6() {
         assert_eq!(v["schemas"], 8, "{v}");
         assert_eq!(v["messages"].as_u64(), Some(8 * sim.len() as u64), "both sets of 4 domains at every step: {v}");
     } else {
-        assert!(std::env::var("CI").map_or(true, |v| v != "true"), "CI=true: the MCAP Python libraries are missing");
+        assert!(!common::ci(), "CI=true: the MCAP Python libraries are missing");
         eprintln!("the MCAP Python libraries are missing: run.mcap not checked");
     }
 
@@ -211,30 +209,32 @@ fn the_short_uav_demo_reproduces_figures_5_and_6() {
 /// The Cyclone DDS listener of every UAV topic (launch-scripts/cyclone_uav_listener.py
 /// --publish), its output in a file; killed when dropped. None (not started) when the venv
 /// with cyclonedds is missing, which fails the test under CI=true.
-struct Listener(std::process::Child);
+struct Listener {
+    _proc: common::Proc,
+}
 
 impl Listener {
     fn start(dds_domain: &str, out: &Path) -> Option<Listener> {
         let py = root().join(".venv/bin/python");
         let ok = Command::new(&py).args(["-c", "import cyclonedds"]).status().is_ok_and(|s| s.success());
         if !ok {
-            assert!(
-                std::env::var("CI").as_deref() != Ok("true"),
-                "CI=true: {} with cyclonedds is missing",
-                py.display()
-            );
+            assert!(!common::ci(), "CI=true: {} with cyclonedds is missing", py.display());
             eprintln!("no .venv with cyclonedds: the demo runs without a DDS listener");
             return None;
         }
-        let child = Command::new(py)
-            .arg(root().join("launch-scripts/cyclone_uav_listener.py"))
+        let mut cmd = Command::new(py);
+        cmd.arg(root().join("launch-scripts/cyclone_uav_listener.py"))
             .args(["--domain", dds_domain, "--uavs", "1,2,3,4", "--publish", "--timeout", "200"])
             .stdout(std::fs::File::create(out).unwrap())
-            .stderr(Stdio::null())
-            .stdin(Stdio::null())
-            .spawn()
-            .expect("starting the listener");
-        Some(Listener(child))
+            .stderr(Stdio::null());
+        let opts = common::Spawn {
+            watchdog: Duration::from_secs(600),
+            stdout: false,
+            stderr: false,
+            grace: Duration::ZERO,
+            ..Default::default()
+        };
+        Some(Listener { _proc: common::Proc::spawn_with("the DDS listener", cmd, opts) })
     }
 
     /// Every UAV's PUBLISH and SUBSCRIBE topics delivered samples to the listener.
@@ -250,12 +250,5 @@ impl Listener {
                 );
             }
         }
-    }
-}
-
-impl Drop for Listener {
-    fn drop(&mut self) {
-        let _ = self.0.kill();
-        let _ = self.0.wait();
     }
 }

@@ -2,7 +2,7 @@
 //! no difference, and a component whose answer changes is caught at its first differing step
 //! and item; a replay republishes every recorded PUBLISH set with its simulated time.
 
-mod common;
+use tutti_test_support as common;
 
 use std::path::{Path, PathBuf};
 use std::process::{Command, ExitStatus};
@@ -19,7 +19,7 @@ fn root() -> &'static Path {
 }
 
 fn tutti(ns: &str, args: &[&str]) -> Command {
-    let mut c = Command::new(env!("CARGO_BIN_EXE_tutti"));
+    let mut c = common::tutti_command();
     c.args(args).current_dir(root()).env("TUTTI_NAMESPACE", ns);
     c
 }
@@ -56,7 +56,7 @@ fn beside_component(
 #[test]
 fn a_replay_against_the_same_c_component_shows_no_difference_and_a_changed_answer_is_found() {
     let dir = tempfile::tempdir().unwrap();
-    let ns = format!("replay{}", std::process::id());
+    let ns = tutti_test_support::namespace("replay");
     let _segments = common::RemoveSegments(ns.clone());
     let answer = compile_answer(dir.path());
     let run = dir.path().join("run.mcap");
@@ -123,7 +123,7 @@ fn a_replay_against_the_same_c_component_shows_no_difference_and_a_changed_answe
 #[test]
 fn a_replay_republishes_every_recorded_step_with_its_simulated_time() {
     let dir = tempfile::tempdir().unwrap();
-    let ns = format!("replaypub{}", std::process::id());
+    let ns = tutti_test_support::namespace("replaypub");
     let _segments = common::RemoveSegments(ns.clone());
     let ddf = root().join("ddf/multiuav.ddf");
     let mut model = tutti_core::ddf::load(&ddf).unwrap();
@@ -198,7 +198,7 @@ fn a_replay_republishes_every_recorded_step_with_its_simulated_time() {
 #[test]
 fn replay_refuses_what_is_not_a_recording_or_not_recorded() {
     let dir = tempfile::tempdir().unwrap();
-    let ns = format!("replaybad{}", std::process::id());
+    let ns = tutti_test_support::namespace("replaybad");
     let _segments = common::RemoveSegments(ns.clone());
     let junk = dir.path().join("junk.mcap");
     std::fs::write(&junk, b"not an mcap file").unwrap();

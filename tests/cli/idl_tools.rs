@@ -5,9 +5,10 @@
 //! `libfastrtps-dev`), the generated C and C++ is compiled too; without them that step is
 //! skipped with a note.
 //!
-//! A missing tool is a failure, not a skip: set `TUTTI_SKIP_IDL_TOOLS=1` to skip these tests.
+//! A missing tool or header skips the test (or the compile step) with a message, and fails
+//! it under `CI=true` (launch-scripts/test.sh installs them all).
 
-mod common;
+use tutti_test_support as common;
 
 use std::ffi::OsStr;
 use std::path::{Path, PathBuf};
@@ -54,28 +55,25 @@ const ALL_TYPES_DDF: &str = r#"<?xml version="1.0"?>
 </orchestra>
 "#;
 
-fn skipped() -> bool {
-    if std::env::var_os("TUTTI_SKIP_IDL_TOOLS").is_some_and(|v| v == "1") {
-        eprintln!("TUTTI_SKIP_IDL_TOOLS=1: not running the IDL code generators");
-        return true;
-    }
-    false
-}
-
 /// The executable `name` on PATH, or `None`.
 fn which(name: &str) -> Option<PathBuf> {
-    let path = std::env::var_os("PATH")?;
-    std::env::split_paths(&path).map(|dir| dir.join(name)).find(|p| p.is_file())
+    tutti_test_support::which(name)
 }
 
-/// The executable `name` on PATH; fails the test, saying what to install, when it is missing.
-fn require(name: &str, package: &str) -> PathBuf {
-    which(name).unwrap_or_else(|| {
-        panic!(
-            "`{name}` is not on PATH: install the Debian package `{package}` (apt-get install {package}), \
-             or set TUTTI_SKIP_IDL_TOOLS=1 to skip the IDL tool tests"
-        )
-    })
+/// The executable `name` on PATH; when it is missing the test is skipped, or fails under
+/// CI=true, saying what to install.
+fn require(name: &str, package: &str) -> Option<PathBuf> {
+    tutti_test_support::require_tool(name, package)
+}
+
+/// A step that needs `tool` (a compiler with the DDS headers): `None`, when it is missing,
+/// skips the step with a note, except under CI=true, where it fails the test.
+fn optional_step(tool: Option<PathBuf>, note: &str) -> Option<PathBuf> {
+    if tool.is_none() {
+        assert!(!tutti_test_support::ci(), "CI=true: {note}");
+        eprintln!("note: {note}");
+    }
+    tool
 }
 
 /// Runs `cmd` in `dir` with a timeout; fails the test, with the tool's output, when it does
@@ -143,7 +141,7 @@ fn cases() -> Vec<Case> {
                 }
                 None => path,
             };
-            let mut cmd = Command::new(env!("CARGO_BIN_EXE_tutti"));
+            let mut cmd = common::tutti_command();
             cmd.arg("idl").arg(&path).arg("--out").arg(dir.path().join("out"));
             run(cmd, dir.path());
             Case { name, dir }
@@ -158,14 +156,11 @@ fn has_header(header: &str) -> bool {
 
 #[test]
 fn idlc_accepts_every_generated_idl() {
-    if skipped() {
-        return;
-    }
-    let idlc = require("idlc", "cyclonedds-tools");
-    let compile = which("gcc").filter(|_| has_header("dds/dds.h"));
-    if compile.is_none() {
-        eprintln!("note: gcc or the Cyclone DDS headers (Debian package cyclonedds-dev) missing: not compiling the generated C");
-    }
+    let Some(idlc) = require("idlc", "cyclonedds-tools") else { return };
+    let compile = optional_step(
+        which("gcc").filter(|_| has_header("dds/dds.h")),
+        "gcc or the Cyclone DDS headers (Debian package cyclonedds-dev) missing: not compiling the generated C",
+    );
     for case in cases() {
         let out = case.out();
         let c_dir = case.dir.path().join("c");
@@ -204,15 +199,11 @@ fn idlc_accepts_every_generated_idl() {
 
 #[test]
 fn fastddsgen_accepts_every_generated_idl() {
-    if skipped() {
-        return;
-    }
-    let fastddsgen = require("fastddsgen", "fastddsgen");
-    let compile =
-        which("g++").filter(|_| has_header("fastcdr/Cdr.h") && has_header("fastdds/dds/topic/TopicDataType.hpp"));
-    if compile.is_none() {
-        eprintln!("note: g++ or the Fast DDS headers (Debian package libfastrtps-dev) missing: not compiling the generated C++");
-    }
+    let Some(fastddsgen) = require("fastddsgen", "fastddsgen") else { return };
+    let compile = optional_step(
+        which("g++").filter(|_| has_header("fastcdr/Cdr.h") && has_header("fastdds/dds/topic/TopicDataType.hpp")),
+        "g++ or the Fast DDS headers (Debian package libfastrtps-dev) missing: not compiling the generated C++",
+    );
     for case in cases() {
         let out = case.out();
         let cxx_dir = case.dir.path().join("cxx");

@@ -1,14 +1,15 @@
-//! Helpers of the gateway tests: the Python venv with Cyclone DDS, child processes with a
-//! watchdog (killed on drop), a gateway process, an in-process framework.
+//! Helpers of the gateway tests: the Python venv with Cyclone DDS, a gateway process, network
+//! namespaces, the Cyclone peer, an in-process framework.
 #![allow(dead_code)]
 
-use std::io::{BufRead, BufReader};
 use std::path::{Path, PathBuf};
-use std::process::{Child, Command, Stdio};
-use std::sync::atomic::{AtomicBool, Ordering};
+use std::process::Command;
+use std::sync::atomic::Ordering;
 use std::sync::{Arc, Mutex};
-use std::thread::{self, JoinHandle};
+use std::thread;
 use std::time::{Duration, Instant};
+
+use tutti_test_support::Worker;
 
 use tutti_core::ddf::{Model, Role};
 use tutti_core::shm::{ConnectOptions, Framework, FrameworkOptions, Participant};
@@ -17,161 +18,20 @@ pub const DDF: &str = "tests/gateway/gw.ddf";
 pub const PEER: &str = "tests/gateway/dds_peer.py";
 
 pub fn root() -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+    tutti_test_support::repo_root().to_path_buf()
 }
 
-/// The venv's python with cyclonedds, created at the repo root if missing; None (skip)
-/// when TUTTI_SKIP_DDS=1.
+/// The venv's Python with cyclonedds (`tutti_test_support::python`: the test is skipped when
+/// it is missing, and fails under CI=true).
 pub fn python() -> Option<PathBuf> {
-    if std::env::var("TUTTI_SKIP_DDS").is_ok_and(|v| v == "1") {
-        eprintln!("TUTTI_SKIP_DDS=1: DDS interop test skipped");
-        return None;
-    }
-    static LOCK: Mutex<()> = Mutex::new(());
-    let _g = LOCK.lock().unwrap_or_else(|e| e.into_inner());
-    let venv = root().join(".venv");
-    let py = venv.join("bin/python");
-    let ok = |py: &Path| Command::new(py).args(["-c", "import cyclonedds"]).status().is_ok_and(|s| s.success());
-    if !ok(&py) {
-        // Built aside and renamed, so that concurrent test binaries never see half a venv.
-        let tmp = root().join(format!(".venv.tmp-{}", std::process::id()));
-        let _ = std::fs::remove_dir_all(&tmp);
-        let made = Command::new("python3").arg("-m").arg("venv").arg(&tmp).status().is_ok_and(|s| s.success())
-            && Command::new(tmp.join("bin/pip"))
-                .args(["install", "-q", "cyclonedds==11.0.1"])
-                .status()
-                .is_ok_and(|s| s.success());
-        if made && !ok(&py) {
-            let _ = std::fs::rename(&tmp, &venv);
-        }
-        let _ = std::fs::remove_dir_all(&tmp);
-    }
-    assert!(
-        ok(&py),
-        "{} with cyclonedds is missing: run `python3 -m venv .venv && .venv/bin/pip install -q cyclonedds==11.0.1`, or set TUTTI_SKIP_DDS=1",
-        py.display()
-    );
-    Some(py)
+    tutti_test_support::python(&["cyclonedds"])
 }
 
-/// A child process killed (with its output kept) when dropped or when its watchdog fires.
-pub struct Proc {
-    child: Arc<Mutex<Child>>,
-    pub name: String,
-    lines: Arc<Mutex<Vec<String>>>,
-    done: Arc<AtomicBool>,
-    readers: Vec<JoinHandle<()>>,
-}
-
-impl Proc {
-    pub fn spawn(name: &str, mut cmd: Command, watchdog: Duration) -> Proc {
-        cmd.stdout(Stdio::piped()).stderr(Stdio::piped()).stdin(Stdio::null()).current_dir(root());
-        let mut child = cmd.spawn().unwrap_or_else(|e| panic!("starting {name}: {e}"));
-        let lines = Arc::new(Mutex::new(Vec::new()));
-        let mut readers = Vec::new();
-        let out = child.stdout.take().map(|s| Box::new(s) as Box<dyn std::io::Read + Send>);
-        let err = child.stderr.take().map(|s| Box::new(s) as Box<dyn std::io::Read + Send>);
-        for (tag, s) in [("", out), ("stderr: ", err)] {
-            let Some(s) = s else { continue };
-            let lines = lines.clone();
-            readers.push(thread::spawn(move || {
-                for l in BufReader::new(s).lines().map_while(Result::ok) {
-                    lines.lock().unwrap().push(format!("{tag}{l}"));
-                }
-            }));
-        }
-        let child = Arc::new(Mutex::new(child));
-        let done = Arc::new(AtomicBool::new(false));
-        {
-            let (child, done, name) = (child.clone(), done.clone(), name.to_string());
-            thread::spawn(move || {
-                let end = Instant::now() + watchdog;
-                while Instant::now() < end {
-                    if done.load(Ordering::Acquire) {
-                        return;
-                    }
-                    thread::sleep(Duration::from_millis(50));
-                }
-                eprintln!("watchdog: killing {name}");
-                let _ = child.lock().unwrap().kill();
-            });
-        }
-        Proc { child, name: name.to_string(), lines, done, readers }
-    }
-
-    /// Lines printed so far (stderr lines prefixed `stderr: `).
-    pub fn lines(&self) -> Vec<String> {
-        self.lines.lock().unwrap().clone()
-    }
-
-    /// Waits until a line contains `pat`; returns it.
-    pub fn wait_line(&self, pat: &str, timeout: Duration) -> Option<String> {
-        let end = Instant::now() + timeout;
-        while Instant::now() < end {
-            if let Some(l) = self.lines().into_iter().find(|l| l.contains(pat)) {
-                return Some(l);
-            }
-            thread::sleep(Duration::from_millis(20));
-        }
-        None
-    }
-
-    /// Waits for the exit (at most `timeout`, then kills); returns the status code.
-    pub fn wait(&mut self, timeout: Duration) -> Option<i32> {
-        let end = Instant::now() + timeout;
-        loop {
-            if let Ok(Some(s)) = self.child.lock().unwrap().try_wait() {
-                self.done.store(true, Ordering::Release);
-                for r in self.readers.drain(..) {
-                    let _ = r.join();
-                }
-                return s.code();
-            }
-            if Instant::now() >= end {
-                let _ = self.child.lock().unwrap().kill();
-            }
-            thread::sleep(Duration::from_millis(20));
-        }
-    }
-
-    /// Sends SIGINT (a clean stop) and waits.
-    pub fn interrupt(&mut self, timeout: Duration) -> Option<i32> {
-        let pid = self.child.lock().unwrap().id();
-        let _ = Command::new("kill").args(["-INT", &pid.to_string()]).status();
-        self.wait(timeout)
-    }
-
-    pub fn dump(&self) -> String {
-        format!("--- {} ---\n{}", self.name, self.lines().join("\n"))
-    }
-
-    /// SIGKILL: the process gets no chance to say goodbye; waits for its exit.
-    pub fn kill9(&mut self) {
-        let _ = self.child.lock().unwrap().kill();
-        self.wait(Duration::from_secs(10));
-    }
-}
-
-impl Drop for Proc {
-    fn drop(&mut self) {
-        self.done.store(true, Ordering::Release);
-        let mut c = self.child.lock().unwrap();
-        if let Ok(None) = c.try_wait() {
-            // A clean stop first (a mirror removes its segments), then the hard way.
-            let _ = Command::new("kill").args(["-INT", &c.id().to_string()]).status();
-            let end = Instant::now() + Duration::from_secs(3);
-            while Instant::now() < end && matches!(c.try_wait(), Ok(None)) {
-                thread::sleep(Duration::from_millis(20));
-            }
-            let _ = c.kill();
-            let _ = c.wait();
-        }
-    }
-}
+pub use tutti_test_support::Proc;
 
 /// `tutti gateway DDF` on loopback in DDS domain `domain_id`, namespace `ns`.
 pub fn gateway(ddf: &str, domain_id: u16, ns: &str, extra: &[&str]) -> Proc {
-    start_gateway(Command::new(env!("CARGO_BIN_EXE_tutti")), ddf, domain_id, ns, "127.0.0.1", extra)
+    start_gateway(tutti_test_support::tutti_command(), ddf, domain_id, ns, "127.0.0.1", extra)
 }
 
 /// `tutti gateway DDF` run by `cmd` (the binary itself, or `ip netns exec NS` before it)
@@ -238,7 +98,7 @@ impl NetnsPair {
         env: &[(&str, &str)],
     ) -> Proc {
         let mut cmd = Command::new("ip");
-        cmd.args(["netns", "exec", &self.names[i], env!("CARGO_BIN_EXE_tutti")]);
+        cmd.args(["netns", "exec", &self.names[i]]).arg(tutti_test_support::tutti_exe());
         cmd.envs(env.iter().copied());
         let args: Vec<&str> = ["--dds", e.name].into_iter().chain(extra.iter().copied()).collect();
         start_gateway(cmd, ddf, domain_id, ns, Self::ADDRS[i], &args)
@@ -291,11 +151,11 @@ macro_rules! per_engine {
         mod $name {
             #[test]
             fn cyclone() {
-                super::$name(super::gateway::Eng::CYCLONE)
+                super::$name($crate::gateway::Eng::CYCLONE)
             }
             #[test]
             fn rustdds() {
-                super::$name(super::gateway::Eng::RUSTDDS)
+                super::$name($crate::gateway::Eng::RUSTDDS)
             }
         }
     )*};
@@ -341,9 +201,8 @@ pub fn assert_lock_step(seen: &[(u64, Vec<u8>)], first: u64, answered: impl Fn(u
 /// `publish(step)` gives each step's PUBLISH set of domain `domain`; every step's SUBSCRIBE
 /// set is kept as (step, bytes).
 pub struct Host {
-    stop: Arc<AtomicBool>,
     pub seen: Seen,
-    thread: Option<JoinHandle<()>>,
+    _stepping: Worker,
 }
 
 impl Host {
@@ -374,10 +233,9 @@ impl Host {
         let model = tutti_core::ddf::load(root().join(ddf)).unwrap();
         let opts = FrameworkOptions { namespace: ns.into(), timeout, ..Default::default() };
         let mut fw = Framework::create(&model, &opts).expect("framework");
-        let stop = Arc::new(AtomicBool::new(false));
         let seen = Arc::new(Mutex::new(Vec::new()));
-        let (s, v, domain) = (stop.clone(), seen.clone(), domain.to_string());
-        let thread = thread::spawn(move || {
+        let (v, domain) = (seen.clone(), domain.to_string());
+        let stepping = Worker::spawn(move |s| {
             let mut k = 0u64;
             while !s.load(Ordering::Acquire) {
                 k += 1;
@@ -393,7 +251,7 @@ impl Host {
                 thread::sleep(period);
             }
         });
-        Host { stop, seen, thread: Some(thread) }
+        Host { seen, _stepping: stepping }
     }
 
     /// Waits until some step's SUBSCRIBE set satisfies `f`; returns that step.
@@ -406,15 +264,6 @@ impl Host {
             thread::sleep(Duration::from_millis(20));
         }
         None
-    }
-}
-
-impl Drop for Host {
-    fn drop(&mut self) {
-        self.stop.store(true, Ordering::Release);
-        if let Some(t) = self.thread.take() {
-            let _ = t.join();
-        }
     }
 }
 

@@ -1,0 +1,54 @@
+//! What the tests of the workspace share, in one place.
+//!
+//! * [`Proc`]: a child process with a watchdog, its output collected line by line, stopped
+//!   (SIGINT, then SIGKILL) when dropped, so a failing test leaves nothing running.
+//! * [`run_with_timeout`]: a command run to its end under a watchdog.
+//! * [`tutti`], [`tutti_command`], [`tutti_exe`]: how a test runs the `tutti` binary.
+//! * [`namespace`], [`dds_domain_in`]: a shared-memory namespace and a DDS domain of a test's
+//!   own, so that tests run in parallel.
+//! * [`python`]: the repository's `.venv` Python with the modules a test needs.
+//! * [`require`], [`require_tool`]: the one policy for what a test needs from the machine:
+//!   when it is missing the test is skipped with a message, and under `CI=true` it fails.
+//! * [`Worker`]: a thread that loops until it is dropped (an in-process framework).
+//! * [`RemoveSegments`], [`segments_of`]: the shared-memory segments of a namespace.
+//! * [`compile_c`], [`rtapi_lib_dir`]: C programs built against this build's librtapi.
+//! * `fmu` (feature `fmu`): FMUs built for the FMU tests.
+//!
+//! Nothing here asserts a duration: every limit is a watchdog that fails a test which hangs.
+
+mod c;
+#[cfg(feature = "fmu")]
+pub mod fmu;
+mod names;
+mod policy;
+mod proc;
+mod run;
+mod segments;
+mod worker;
+
+pub use c::{compile_c, rtapi_lib_dir};
+pub use names::{dds_domain_in, namespace};
+pub use policy::{ci, python, require, require_tool, which};
+pub use proc::{Proc, Spawn};
+pub use run::{run_output, run_with_timeout, tutti, tutti_command, tutti_exe, TIMEOUT};
+pub use segments::{segments_of, RemoveSegments};
+pub use worker::Worker;
+
+use std::path::{Path, PathBuf};
+
+/// The workspace root (where `ddf/`, `tests/` and `.venv` are).
+pub fn repo_root() -> &'static Path {
+    Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/../.."))
+}
+
+/// The cargo that runs the tests (`CARGO`), else the one that built them, else `cargo`.
+pub fn cargo() -> std::ffi::OsString {
+    std::env::var_os("CARGO").or_else(|| option_env!("CARGO").map(Into::into)).unwrap_or_else(|| "cargo".into())
+}
+
+/// `target/<profile>` of the running test: the folder of the binaries this build made.
+pub fn profile_dir() -> PathBuf {
+    let exe = std::env::current_exe().expect("the test's executable");
+    // target/<profile>/deps/<test>-<hash>
+    exe.parent().and_then(Path::parent).expect("`target/<profile>`").to_path_buf()
+}
