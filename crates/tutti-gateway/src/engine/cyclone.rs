@@ -7,9 +7,8 @@
 //!
 //! * Writers batch (`dds_qset_writer_batching`, per writer, rather than the process-wide
 //!   `dds_write_set_batch`): a write stays in the writer's packing buffer until
-//!   [`Writer::flush`] (`dds_write_flush`) or until the buffer fills. Measured across two
-//!   processes: write + flush round trip p50 23.7-24.1 us batched vs 23.6-24.0 us unbatched (same),
-//!   and a write NOT followed by a flush had not arrived after 3 s. Every writer of the gateway
+//!   [`Writer::flush`] (`dds_write_flush`) or until the buffer fills (an unflushed write may
+//!   never leave; docs/benchmarks.md has the cost of batching). Every writer of the gateway
 //!   flushes when nothing more is waiting (and on drop). Readers in the same process get a sample
 //!   at once either way. A writer deletes its DDS writer when dropped and keeps the participant
 //!   alive until then.
@@ -82,8 +81,8 @@ fn retcode(ret: dds_return_t) -> String {
     unsafe { CStr::from_ptr(s) }.to_string_lossy().into_owned()
 }
 
-fn c_string(what: &str, s: &str) -> Result<CString, GatewayError> {
-    CString::new(s).map_err(|_| GatewayError::Invalid(format!("{what} '{}' contains a NUL byte", s.escape_debug())))
+fn c_string(what: &'static str, s: &str) -> Result<CString, GatewayError> {
+    CString::new(s).map_err(|_| GatewayError::NulByte { what, value: s.escape_debug().to_string() })
 }
 
 /// Escapes a value for an XML attribute in double quotes.

@@ -3,8 +3,9 @@
 //! Routes, the CDR codec, the QoS table, exclusivity, echo suppression, stats and the mirror
 //! are written once above this layer; an [`Engine`] only moves pre-encoded CDR bytes
 //! between topics and the gateway, and tells who is on the other side. Two engines
-//! implement it: [`cyclone`] (Cyclone DDS through `cyclors`, the default) and [`rustdds`]
-//! (the pure-Rust stack, ros2-client over rustdds).
+//! implement it: [`cyclone`] (Cyclone DDS through `cyclors`, the default, always built) and
+//! `rustdds` (the pure-Rust stack, ros2-client over rustdds; cargo feature `rustdds`, on by
+//! default). [`EngineKind::built`] lists those of this build.
 
 use std::collections::{BTreeSet, HashMap};
 use std::fmt;
@@ -14,11 +15,11 @@ use std::sync::Arc;
 use tutti_core::ddf::Leaf;
 use tutti_core::mapping::Qos;
 
-use crate::cdr::SetCodec;
-use crate::routes::Payload;
+use crate::cdr::{CdrError, Payload, SetCodec};
 use crate::GatewayError;
 
 pub mod cyclone;
+#[cfg(feature = "rustdds")]
 pub mod rustdds;
 
 /// Bytes of a GUID prefix (the participant part of an endpoint GUID).
@@ -66,23 +67,38 @@ impl EngineKind {
         }
     }
 
-    /// Both engines, for tests and benchmarks that run against each.
+    /// Both engines, built or not.
     pub const ALL: [EngineKind; 2] = [EngineKind::Cyclone, EngineKind::Rustdds];
 
-    /// The engine `TUTTI_DDS` names, if it is set to a known name (the CLI refuses an
-    /// unknown one; library users get the default).
-    pub fn from_env() -> Option<EngineKind> {
-        std::env::var("TUTTI_DDS").ok().filter(|v| !v.trim().is_empty()).and_then(|v| v.parse().ok())
+    /// The engines this build contains, for tests and benchmarks that run against each.
+    pub fn built() -> &'static [EngineKind] {
+        if cfg!(feature = "rustdds") {
+            &EngineKind::ALL
+        } else {
+            &[EngineKind::Cyclone]
+        }
+    }
+
+    /// Whether this build contains the engine.
+    pub fn is_built(self) -> bool {
+        EngineKind::built().contains(&self)
     }
 }
 
+/// A name that is not one of the engines.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[error("unknown DDS engine '{name}' (expected cyclone or rustdds)")]
+pub struct UnknownEngine {
+    pub name: String,
+}
+
 impl std::str::FromStr for EngineKind {
-    type Err = String;
-    fn from_str(s: &str) -> Result<Self, String> {
+    type Err = UnknownEngine;
+    fn from_str(s: &str) -> Result<Self, UnknownEngine> {
         match s.trim().to_ascii_lowercase().as_str() {
             "cyclone" | "cyclonedds" => Ok(EngineKind::Cyclone),
             "rustdds" => Ok(EngineKind::Rustdds),
-            other => Err(format!("unknown DDS engine '{other}' (expected cyclone or rustdds)")),
+            other => Err(UnknownEngine { name: other.to_string() }),
         }
     }
 }
@@ -123,7 +139,7 @@ pub enum Data<'a> {
     /// The serialized sample, encapsulation header included (decoded above the engine).
     Raw(&'a [u8]),
     /// Already decoded by the engine (rustdds decodes through serde as it reads).
-    Decoded(Result<Payload, String>),
+    Decoded(Result<Payload, CdrError>),
 }
 
 /// Where a reader's samples go: called on the engine's receive path with the writer's GUID.
@@ -176,10 +192,13 @@ pub trait Engine: Send + Sync {
     fn announce(&self) -> Result<(), GatewayError>;
 }
 
-/// Opens a participant of engine `kind`.
+/// Opens a participant of engine `kind`; an engine this build does not contain is refused.
 pub fn open(kind: EngineKind, cfg: &EngineConfig) -> Result<Box<dyn Engine>, GatewayError> {
     match kind {
         EngineKind::Cyclone => Ok(Box::new(cyclone::Cyclone::open(cfg)?)),
+        #[cfg(feature = "rustdds")]
         EngineKind::Rustdds => Ok(Box::new(rustdds::Rustdds::open(cfg)?)),
+        #[cfg(not(feature = "rustdds"))]
+        EngineKind::Rustdds => Err(GatewayError::EngineNotBuilt { engine: kind.name() }),
     }
 }

@@ -25,9 +25,8 @@ use tutti_core::ddf::{Leaf, Value};
 use tutti_core::mapping::Qos;
 
 use super::{Data, Decode, Engine, EngineConfig, EngineKind, Guid, Remote, Sink, Writer, PREFIX_LEN};
-use crate::cdr::{Bool, Float64, Float64MultiArray, PreEncoded, SetSeed};
-use crate::routes::per_item::{self, Stock};
-use crate::routes::Payload;
+use crate::cdr::stock::{self, Stock};
+use crate::cdr::{Bool, CdrError, Float64, Float64MultiArray, Payload, PreEncoded, SetSeed};
 use crate::{qos, GatewayError};
 
 /// The participant, the node and the topics created so far.
@@ -58,13 +57,11 @@ impl Rustdds {
     /// announces the node `cfg.node_name`.
     pub fn open(cfg: &EngineConfig) -> Result<Rustdds, GatewayError> {
         if !cfg.peers.is_empty() {
-            return Err(GatewayError::Invalid(
-                "the rustdds engine cannot be given unicast peers (--peer); use --dds cyclone".into(),
-            ));
+            return Err(GatewayError::PeersUnsupported);
         }
         let ns = if cfg.node_namespace.is_empty() { "/" } else { cfg.node_namespace.as_str() };
         let node_name = NodeName::new(ns, &cfg.node_name)
-            .map_err(|e| GatewayError::Invalid(format!("invalid ROS 2 node name '{}': {e:?}", cfg.node_name)))?;
+            .map_err(|e| GatewayError::NodeName { name: cfg.node_name.clone(), detail: format!("{e:?}") })?;
         let mut b = DomainParticipantBuilder::new(cfg.domain_id);
         if !cfg.interfaces.is_empty() {
             b = b.with_only_networks(cfg.interfaces.clone());
@@ -158,14 +155,14 @@ impl Drop for Rustdds {
 /// The task of one reader: every sample (or error) to the sink, decoded by `to_payload`.
 async fn pump<M, E: std::fmt::Debug>(
     stream: impl Stream<Item = Result<(M, MessageInfo), E>>,
-    mut to_payload: impl FnMut(M) -> Result<Payload, String>,
+    mut to_payload: impl FnMut(M) -> Result<Payload, CdrError>,
     sink: Sink,
 ) {
     futures::pin_mut!(stream);
     while let Some(r) = stream.next().await {
         match r {
             Ok((m, info)) => sink(guid(&info.publisher_gid()), Data::Decoded(to_payload(m))),
-            Err(e) => sink(Guid::default(), Data::Decoded(Err(format!("{e:?}")))),
+            Err(e) => sink(Guid::default(), Data::Decoded(Err(CdrError::Engine(format!("{e:?}"))))),
         }
     }
 }
@@ -248,23 +245,23 @@ impl Engine for Rustdds {
 
 /// A stock message turned into the bytes of its leaf.
 pub(crate) trait IntoLeaf {
-    fn into_leaf(self, leaf: &Leaf) -> Result<Vec<u8>, String>;
+    fn into_leaf(self, leaf: &Leaf) -> Result<Vec<u8>, CdrError>;
 }
 
 impl IntoLeaf for Float64 {
-    fn into_leaf(self, leaf: &Leaf) -> Result<Vec<u8>, String> {
-        Ok(per_item::leaf_bytes(leaf.ty, std::iter::once(Value::Float(self.data)), 1))
+    fn into_leaf(self, leaf: &Leaf) -> Result<Vec<u8>, CdrError> {
+        Ok(stock::leaf_bytes(leaf.ty, std::iter::once(Value::Float(self.data)), 1))
     }
 }
 
 impl IntoLeaf for Bool {
-    fn into_leaf(self, leaf: &Leaf) -> Result<Vec<u8>, String> {
-        Ok(per_item::leaf_bytes(leaf.ty, std::iter::once(Value::Bool(self.data)), 1))
+    fn into_leaf(self, leaf: &Leaf) -> Result<Vec<u8>, CdrError> {
+        Ok(stock::leaf_bytes(leaf.ty, std::iter::once(Value::Bool(self.data)), 1))
     }
 }
 
 impl IntoLeaf for Float64MultiArray {
-    fn into_leaf(self, leaf: &Leaf) -> Result<Vec<u8>, String> {
-        per_item::array_leaf(leaf, self.data)
+    fn into_leaf(self, leaf: &Leaf) -> Result<Vec<u8>, CdrError> {
+        stock::array_leaf(leaf, self.data)
     }
 }

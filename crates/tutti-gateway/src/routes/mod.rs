@@ -5,31 +5,31 @@
 //! * [`from_dds`]: a DDS reader -> shared memory, through one remote connection per
 //!   matched DDS writer (so role rules, exclusivity and seeding are the core's);
 //! * [`per_item`]: the same two directions with one stock-typed topic per item;
-//! * [`mirror`]: local segments whose framework is fed from DDS (`--mirror`).
+//! * [`mirror`]: local segments whose framework is fed from DDS (`--mirror`), each sample
+//!   handed by the reader's sink straight to the mirror's thread;
+//! * [`clock`]: one domain's simulated time on `/clock`.
+//!
+//! Each kind has its constructor here ([`to_dds::typed`], [`per_item::outgoing`],
+//! [`from_dds::reader`], [`mirror::spawn`], [`clock::route`]); the manager calls them as
+//! domains come to be bridged and keeps what they return for discovery.
 
 use std::sync::atomic::AtomicBool;
 use std::sync::Arc;
+use std::thread::JoinHandle;
 use std::time::Duration;
 
-use crate::engine::Guid;
 use tutti_core::shm::{ConnKind, ConnectOptions, WaitMode};
 
-use crate::cdr::TypedSample;
+use crate::cdr::{CdrError, Payload};
+use crate::engine::Guid;
+use crate::stats::{SetStats, Stats};
+use to_dds::{Activation, Polled};
 
 pub mod clock;
 pub mod from_dds;
 pub mod mirror;
 pub mod per_item;
 pub mod to_dds;
-
-/// What a DDS sample carries into shared memory.
-#[derive(Debug, Clone, PartialEq)]
-pub enum Payload {
-    /// A whole set (typed mode).
-    Set(TypedSample),
-    /// One item (per-item mode): its path and its bytes in shared-memory layout.
-    Item { path: Arc<str>, bytes: Vec<u8> },
-}
 
 /// A DDS sample from a remote writer, for route `route`.
 #[derive(Debug)]
@@ -39,15 +39,13 @@ pub struct Inbound {
     pub payload: Payload,
 }
 
-/// What reader tasks tell the manager.
+/// What readers' sinks tell the manager.
 #[derive(Debug)]
 pub enum Event {
+    /// A sample of a writer that has no connection yet.
     Sample(Inbound),
     /// A sample that could not be decoded.
-    Bad {
-        route: usize,
-        error: String,
-    },
+    Bad { route: usize, error: CdrError },
 }
 
 /// How routes connect to shared memory.
@@ -76,4 +74,29 @@ impl ShmConfig {
             kind: ConnKind::Remote,
         }
     }
+}
+
+/// Where a route counts what it moves: the gateway's totals and its set's own counters.
+#[derive(Debug, Clone)]
+pub struct Counters {
+    pub total: Arc<Stats>,
+    pub set: Arc<SetStats>,
+}
+
+/// A shared-memory -> DDS route as its constructor hands it to the manager: its topics
+/// (whose remote readers switch it on), its activation, and what serves it.
+#[derive(Debug)]
+pub struct Outgoing {
+    pub topics: Vec<String>,
+    pub activation: Arc<Activation>,
+    pub served_by: ServedBy,
+}
+
+/// What serves an outgoing route.
+#[derive(Debug)]
+pub enum ServedBy {
+    /// The poller thread, which looks at every watched set in turn.
+    Poller(Box<dyn Polled>),
+    /// A thread of its own (a synchronous PUBLISH set's pump).
+    Thread(JoinHandle<()>),
 }
