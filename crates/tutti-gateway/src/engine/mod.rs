@@ -13,9 +13,9 @@ use std::net::IpAddr;
 use std::sync::Arc;
 
 use tutti_core::ddf::Leaf;
-use tutti_core::mapping::Qos;
+use tutti_core::mapping::{Ownership, Qos, Reliability};
 
-use crate::cdr::{CdrError, Payload, SetCodec};
+use crate::cdr::{stock, CdrError, Payload, SetCodec};
 use crate::GatewayError;
 
 pub mod cyclone;
@@ -142,6 +142,22 @@ pub enum Data<'a> {
     Decoded(Result<Payload, CdrError>),
 }
 
+impl Data<'_> {
+    /// The sample as a [`Payload`]: as the engine decoded it, or decoded here from its
+    /// serialized form by `decode`.
+    pub fn into_payload(self, decode: &Decode) -> Result<Payload, CdrError> {
+        match self {
+            Data::Decoded(r) => r,
+            Data::Raw(raw) => match decode {
+                Decode::Set(codec) => codec.decode(raw).map(Payload::Set),
+                Decode::Item(leaf, path) => {
+                    stock::decode(leaf, raw).map(|bytes| Payload::Item { path: path.clone(), bytes })
+                }
+            },
+        }
+    }
+}
+
 /// Where a reader's samples go: called on the engine's receive path with the writer's GUID.
 /// It must not block for long: on Cyclone it runs on the receive thread.
 pub type Sink = Arc<dyn Fn(Guid, Data<'_>) + Send + Sync>;
@@ -151,15 +167,31 @@ pub trait Writer: Send {
     /// Writes one sample whose CDR body (little-endian, no encapsulation header) is `body`;
     /// false when DDS refused it.
     fn write(&mut self, body: &[u8]) -> bool;
+    /// Writes one serialized sample as it is, encapsulation header first (plain CDR in
+    /// either byte order); false when DDS refused it, or when the engine writes only
+    /// little-endian samples (rustdds).
+    fn write_serialized(&mut self, raw: &[u8]) -> bool;
     /// Sends what batching held back (a no-op where writes are not batched).
     fn flush(&mut self) {}
 }
 
-/// Remote (not our participant's) endpoints per topic name.
+/// Remote (not our participant's) endpoints per topic name, and the QoS each announced.
 #[derive(Debug, Default, Clone, PartialEq, Eq)]
 pub struct Remote {
     pub writers: HashMap<String, BTreeSet<Guid>>,
     pub readers: HashMap<String, BTreeSet<Guid>>,
+    pub qos: HashMap<Guid, EndpointQos>,
+}
+
+/// The QoS a remote endpoint announced in discovery: the terms that decide matching and
+/// delivery (history is not announced).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct EndpointQos {
+    pub reliability: Reliability,
+    /// TRANSIENT_LOCAL (else VOLATILE).
+    pub transient_local: bool,
+    /// SHARED, or EXCLUSIVE with the strength announced (a reader's is 0).
+    pub ownership: Ownership,
 }
 
 impl Remote {
@@ -177,6 +209,10 @@ impl Remote {
 /// A DDS participant, as the gateway uses it.
 pub trait Engine: Send + Sync {
     fn kind(&self) -> EngineKind;
+    /// Whether the engine's EXCLUSIVE readers deliver only the strongest live writer's
+    /// samples (Cyclone); rustdds' readers deliver every writer's, and only the core's
+    /// first-writer rule applies above it.
+    fn arbitrates_ownership(&self) -> bool;
     /// The DDS domain id it joined.
     fn domain_id(&self) -> u16;
     /// The GUID prefix of its participant: endpoints with it are our own.

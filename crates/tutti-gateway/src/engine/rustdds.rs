@@ -16,17 +16,18 @@ use std::collections::HashMap;
 use std::sync::{Arc, Mutex, PoisonError};
 
 use futures::{Stream, StreamExt};
+use ros2_client::dds::rustdds::{policy, QosPolicies};
 use ros2_client::dds::rustdds::{DomainParticipant, DomainParticipantBuilder, RTPSEntity, Topic, TopicKind};
 use ros2_client::dds::{Publisher, Subscription};
 use ros2_client::{Context, Gid, MessageInfo, Node, NodeName, NodeOptions};
 use serde::de::DeserializeOwned;
 use serde::Serialize;
 use tutti_core::ddf::{Leaf, Value};
-use tutti_core::mapping::Qos;
+use tutti_core::mapping::{Ownership, Qos, Reliability};
 
-use super::{Data, Decode, Engine, EngineConfig, EngineKind, Guid, Remote, Sink, Writer, PREFIX_LEN};
+use super::{Data, Decode, EndpointQos, Engine, EngineConfig, EngineKind, Guid, Remote, Sink, Writer, PREFIX_LEN};
 use crate::cdr::stock::{self, Stock};
-use crate::cdr::{Bool, CdrError, Float64, Float64MultiArray, Payload, PreEncoded, SetSeed};
+use crate::cdr::{split_header, Bool, CdrError, Float64, Float64MultiArray, Payload, PreEncoded, SetSeed};
 use crate::{qos, GatewayError};
 
 /// The participant, the node and the topics created so far.
@@ -172,6 +173,15 @@ async fn pump<M, E: std::fmt::Debug>(
 struct RustddsWriter(Publisher<PreEncoded>);
 
 impl Writer for RustddsWriter {
+    /// rustdds writes its own little-endian encapsulation header: a big-endian sample is
+    /// refused.
+    fn write_serialized(&mut self, raw: &[u8]) -> bool {
+        match split_header(raw) {
+            Ok((true, body)) => self.write(body),
+            _ => false,
+        }
+    }
+
     fn write(&mut self, body: &[u8]) -> bool {
         match self.0.publish(PreEncoded(body.to_vec())) {
             Ok(()) => true,
@@ -186,6 +196,10 @@ impl Writer for RustddsWriter {
 impl Engine for Rustdds {
     fn kind(&self) -> EngineKind {
         EngineKind::Rustdds
+    }
+
+    fn arbitrates_ownership(&self) -> bool {
+        false
     }
 
     fn domain_id(&self) -> u16 {
@@ -226,12 +240,14 @@ impl Engine for Rustdds {
             let g = guid(&Gid::from(w.writer_proxy.remote_writer_guid));
             if g.prefix() != own {
                 r.writers.entry(w.publication_topic_data.topic_name.clone()).or_default().insert(g);
+                r.qos.insert(g, endpoint_qos(&w.publication_topic_data.qos(), true));
             }
         }
         for rd in self.participant.discovered_readers() {
             let g = guid(&Gid::from(rd.reader_proxy.remote_reader_guid));
             if g.prefix() != own {
                 r.readers.entry(rd.subscription_topic_data.topic_name().clone()).or_default().insert(g);
+                r.qos.insert(g, endpoint_qos(&rd.subscription_topic_data.qos(), false));
             }
         }
         r
@@ -241,6 +257,26 @@ impl Engine for Rustdds {
     fn announce(&self) -> Result<(), GatewayError> {
         Ok(())
     }
+}
+
+/// The terms of a discovered endpoint's QoS; those it did not announce have their DDS
+/// defaults (RELIABLE for a writer, BEST_EFFORT for a reader, VOLATILE, SHARED).
+fn endpoint_qos(q: &QosPolicies, writer: bool) -> EndpointQos {
+    let reliability = match q.reliability() {
+        Some(policy::Reliability::Reliable { .. }) => Reliability::Reliable,
+        Some(policy::Reliability::BestEffort) => Reliability::BestEffort,
+        None if writer => Reliability::Reliable,
+        None => Reliability::BestEffort,
+    };
+    let transient_local = matches!(
+        q.durability(),
+        Some(policy::Durability::TransientLocal | policy::Durability::Transient | policy::Durability::Persistent)
+    );
+    let ownership = match q.ownership() {
+        Some(policy::Ownership::Exclusive { strength }) => Ownership::Exclusive { strength },
+        _ => Ownership::Shared,
+    };
+    EndpointQos { reliability, transient_local, ownership }
 }
 
 /// A stock message turned into the bytes of its leaf.

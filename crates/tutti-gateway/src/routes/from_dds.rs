@@ -32,7 +32,7 @@ use tutti_core::mapping::Qos;
 use tutti_core::shm::{Participant, ShmError};
 
 use super::{Counters, Event, Inbound, ShmConfig};
-use crate::cdr::{stock, CdrError, Payload, SetCodec, TypedSample};
+use crate::cdr::{CdrError, Payload, SetCodec, TypedSample};
 use crate::engine::{Data, Decode, Engine, Guid, Sink, PREFIX_LEN};
 use crate::stats::{LogLimit, SetStats, Stats};
 use crate::GatewayError;
@@ -105,9 +105,7 @@ pub fn sink(decode: Decode, to: Destination, stats: Arc<Stats>, own: [u8; PREFIX
             Data::Raw(raw) => match &decode {
                 // Checked here, decoded straight into shared memory by the commit.
                 Decode::Set(codec) => codec.check(raw).map(|(le, body)| Sample::Encoded { codec, le, body }),
-                Decode::Item(leaf, path) => {
-                    stock::decode(leaf, raw).map(|bytes| Sample::Owned(Payload::Item { path: path.clone(), bytes }))
-                }
+                Decode::Item(..) => Data::Raw(raw).into_payload(&decode).map(Sample::Owned),
             },
         };
         let ev = match (sample, &target) {
