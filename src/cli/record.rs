@@ -111,8 +111,7 @@ pub fn run(args: Args) -> CliResult {
                 }
             }
             let Some(seg) = f.obs.segment() else { continue };
-            let h = seg.header();
-            let step = h.pub_step.load(Ordering::Acquire);
+            let step = seg.step();
             if step == 0 || f.pending.is_some_and(|(k, _)| k == step) {
                 continue;
             }
@@ -134,9 +133,9 @@ pub fn run(args: Args) -> CliResult {
                     f.missed += step.saturating_sub(k + 1);
                 }
             }
-            let sim = f64::from_bits(h.sim_time_bits.load(Ordering::Acquire));
+            let sim = seg.sim_time();
             // Still step `step` after the copy: else it is caught at the next look.
-            if seg.read_set(Role::Publish, &mut f.publish).is_ok() && h.pub_step.load(Ordering::Acquire) == step {
+            if seg.read_set(Role::Publish, &mut f.publish).is_ok() && seg.step() == step {
                 f.pending = Some((step, sim));
             }
         }
