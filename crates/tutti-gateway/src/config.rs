@@ -23,72 +23,8 @@ use tutti_core::ddf::{Model, Role};
 use tutti_core::mapping::{self, Durability, Endpoint, History, ItemTopic, Profile, Qos, Reliability};
 use tutti_core::shm::WaitMode;
 
-use crate::engine::{EngineConfig, EngineKind, UnknownEngine};
-
-/// Why the gateway's configuration (its flags, config file or environment) cannot be
-/// served. Each names where the value came from: the file with its line and column or key,
-/// the flag, or the variable.
-#[derive(Debug, thiserror::Error)]
-#[non_exhaustive]
-pub enum ConfigError {
-    /// The config file cannot be read.
-    #[error("{file}: cannot read the gateway config: {error}")]
-    Read { file: String, error: std::io::Error },
-    /// JSON5 syntax, an unknown key or a bad value, where it stands in the file.
-    #[error("{file}{}: {message}", position.map(|(l, c)| format!(":{l}:{c}")).unwrap_or_default())]
-    File { file: String, position: Option<(usize, usize)>, message: String },
-    /// A `topics` key that names no set of the DDF.
-    #[error("{at}: the DDF has no set '{set}' (sets: {sets})")]
-    NoSuchSet { at: String, set: String, sets: String },
-    /// Two sets (or a set and `/clock`) on one topic.
-    #[error("{at}: '{topic}' is also the topic of {other}; two sets cannot share a topic")]
-    TopicTaken { at: String, topic: String, other: String },
-    /// A QoS or rate the domain's flags forbid.
-    #[error("{at}: {term} is refused: domain '{domain}' has {flag} ({why})")]
-    Refused { at: String, term: &'static str, domain: String, flag: &'static str, why: &'static str },
-    /// `depth` without `history: "keep_last"`.
-    #[error("{at}: depth needs history \"keep_last\" (it is how many samples KEEP_LAST keeps)")]
-    DepthWithoutKeepLast { at: String },
-    /// A bad `allow` / `deny` pattern, at its key.
-    #[error("{at}: {error}")]
-    PatternAt { at: String, error: Box<ConfigError> },
-    /// A regular expression that does not compile.
-    #[error("bad pattern '{pattern}': {error}")]
-    Pattern { pattern: String, error: regex::Error },
-    /// An invalid ROS namespace.
-    #[error("ROS namespace '{given}': each part must be letters, digits and '_' and not start with a digit (e.g. sim1 or site_a/sim1)")]
-    Namespace { given: String },
-    /// An invalid ROS topic name (`remap`).
-    #[error("'{name}' is not a ROS topic name: {why} (e.g. uav1/cmd, or /fleet/uav1/cmd)")]
-    TopicName { name: String, why: &'static str },
-    /// Not a positive rate.
-    #[error("'{value}' is not a rate in Hz (e.g. 100)")]
-    Rate { value: String },
-    /// Not a type mapping.
-    #[error("'{value}': use typed or per-item")]
-    Types { value: String },
-    /// Not a QoS profile.
-    #[error("'{value}': use ros2 or dds")]
-    Profile { value: String },
-    /// `--clock` names no domain of the DDF.
-    #[error("--clock {name}: the DDF has no domain '{name}' (domains: {domains})")]
-    NoSuchClockDomain { name: String, domains: String },
-    /// An unknown `ROS_AUTOMATIC_DISCOVERY_RANGE`.
-    #[error("ROS_AUTOMATIC_DISCOVERY_RANGE='{value}': expected SUBNET, LOCALHOST, OFF or SYSTEM_DEFAULT")]
-    DiscoveryRange { value: String },
-    /// `ROS_AUTOMATIC_DISCOVERY_RANGE=OFF` and no peers.
-    #[error("ROS_AUTOMATIC_DISCOVERY_RANGE=OFF: no automatic discovery, so the gateway would find nobody; give the peers with --peer ADDR (or the config file's `peer`), or unset the variable")]
-    DiscoveryOff,
-    /// A bad `ROS_DOMAIN_ID`.
-    #[error("ROS_DOMAIN_ID='{value}' is not a DDS domain id (0-232)")]
-    DomainIdVar { value: String },
-    /// A bad `TUTTI_DDS`.
-    #[error("TUTTI_DDS='{value}': {error}")]
-    EngineVar { value: String, error: UnknownEngine },
-    /// A bad address in `TUTTI_GATEWAY_INTERFACE`.
-    #[error("TUTTI_GATEWAY_INTERFACE: '{value}': {error}")]
-    InterfaceVar { value: String, error: std::net::AddrParseError },
-}
+use crate::engine::{EngineConfig, EngineKind};
+pub use crate::error::ConfigError;
 
 // ---------------------------------------------------------------------------------------
 // The options.

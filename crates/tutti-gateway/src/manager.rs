@@ -30,8 +30,8 @@ use crate::config::{self, PlannedSet};
 use crate::engine::{self, Decode, Engine, Guid};
 use crate::routes::from_dds::{self, Destination, Direct, RemoteWriter, Sample, Target};
 use crate::routes::mirror::{self, MirrorCounters};
-use crate::routes::to_dds::{self, Activation, Polled};
-use crate::routes::{clock, per_item, Counters, Event, Outgoing, ServedBy, ShmConfig};
+use crate::routes::to_dds::{self, Activation, Outgoing, Polled, ServedBy};
+use crate::routes::{clock, per_item, Counters, Event, ShmConfig};
 use crate::stats::{LogLimit, SetStats, Stats};
 use crate::{http, GatewayError, GatewayOptions, TypeMode};
 
@@ -344,7 +344,7 @@ impl Manager {
                 Some(self.domains[di].own_commits.clone())
             }
         };
-        let out = per_item::outgoing(&*self.dds, d, &p, &items, self.set_stats[si].clone(), own_commits)?;
+        let out = to_dds::items(&*self.dds, d, &p, &items, self.set_stats[si].clone(), own_commits)?;
         self.outgoing(di, Some(si), out);
         Ok(())
     }

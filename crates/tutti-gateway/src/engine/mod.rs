@@ -16,6 +16,7 @@ use tutti_core::ddf::Leaf;
 use tutti_core::mapping::{Ownership, Qos, Reliability};
 
 use crate::cdr::{stock, CdrError, Payload, SetCodec};
+pub use crate::error::UnknownEngine;
 use crate::GatewayError;
 
 pub mod cyclone;
@@ -83,13 +84,6 @@ impl EngineKind {
     pub fn is_built(self) -> bool {
         EngineKind::built().contains(&self)
     }
-}
-
-/// A name that is not one of the engines.
-#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
-#[error("unknown DDS engine '{name}' (expected cyclone or rustdds)")]
-pub struct UnknownEngine {
-    pub name: String,
 }
 
 impl std::str::FromStr for EngineKind {

@@ -16,8 +16,8 @@ use tutti_core::mapping::{Durability, History, Ownership, Qos, Reliability};
 
 use tutti_core::shm::observer::Observer;
 
-use super::to_dds::{look, Activation, Polled};
-use super::{Outgoing, ServedBy, ShmConfig};
+use super::to_dds::{look, Activation, Outgoing, Polled, ServedBy};
+use super::ShmConfig;
 use crate::config;
 use crate::engine::{Engine, Writer};
 use crate::stats::Stats;

@@ -9,13 +9,13 @@
 //!   handed by the reader's sink straight to the mirror's thread;
 //! * [`clock`]: one domain's simulated time on `/clock`.
 //!
-//! Each kind has its constructor here ([`to_dds::typed`], [`per_item::outgoing`],
+//! Each kind has its constructor here ([`to_dds::typed`], [`to_dds::items`],
 //! [`from_dds::reader`], [`mirror::spawn`], [`clock::route`]); the manager calls them as
-//! domains come to be bridged and keeps what they return for discovery.
+//! domains come to be bridged and keeps what they return for discovery. This module only
+//! holds what they share; it imports none of them.
 
 use std::sync::atomic::AtomicBool;
 use std::sync::Arc;
-use std::thread::JoinHandle;
 use std::time::Duration;
 
 use tutti_core::shm::{ConnKind, ConnectOptions, WaitMode};
@@ -23,7 +23,6 @@ use tutti_core::shm::{ConnKind, ConnectOptions, WaitMode};
 use crate::cdr::{CdrError, Payload};
 use crate::engine::Guid;
 use crate::stats::{SetStats, Stats};
-use to_dds::{Activation, Polled};
 
 pub mod clock;
 pub mod from_dds;
@@ -81,22 +80,4 @@ impl ShmConfig {
 pub struct Counters {
     pub total: Arc<Stats>,
     pub set: Arc<SetStats>,
-}
-
-/// A shared-memory -> DDS route as its constructor hands it to the manager: its topics
-/// (whose remote readers switch it on), its activation, and what serves it.
-#[derive(Debug)]
-pub struct Outgoing {
-    pub topics: Vec<String>,
-    pub activation: Arc<Activation>,
-    pub served_by: ServedBy,
-}
-
-/// What serves an outgoing route.
-#[derive(Debug)]
-pub enum ServedBy {
-    /// The poller thread, which looks at every watched set in turn.
-    Poller(Box<dyn Polled>),
-    /// A thread of its own (a synchronous PUBLISH set's pump).
-    Thread(JoinHandle<()>),
 }

@@ -3,37 +3,14 @@
 //! stock ROS 2 tools work without building anything. No step travels with the values: in
 //! this mode every set behaves as asynchronous on the DDS side.
 
-use std::sync::atomic::AtomicU64;
 use std::sync::Arc;
 
-use tutti_core::ddf::{Domain, Leaf, SetLayout, Value};
+use tutti_core::ddf::{Leaf, SetLayout, Value};
 use tutti_core::mapping::{ItemTopic, Qos};
 
-use super::to_dds::{self, Activation, Outbound};
-use super::{Outgoing, ServedBy};
 use crate::cdr::stock::{self, Stock};
-use crate::config::PlannedSet;
 use crate::engine::{Decode, Engine, Writer};
-use crate::stats::SetStats;
 use crate::GatewayError;
-
-/// The per-item route of planned set `p` of domain `d` (shared memory -> DDS): a writer for
-/// each of `items`, watched by the poller (`own_commits`: the gateway's own commits to a
-/// SUBSCRIBE set, not sent back to DDS), counted in `set`.
-pub fn outgoing(
-    dds: &dyn Engine,
-    d: &Domain,
-    p: &PlannedSet,
-    items: &[ItemTopic],
-    set: Arc<SetStats>,
-    own_commits: Option<Arc<AtomicU64>>,
-) -> Result<Outgoing, GatewayError> {
-    let out = Outbound::Items(ItemWriters::create(dds, items, &d.set(p.role).layout, &p.writer_qos)?);
-    let activation = Arc::new(Activation::default());
-    let poll = to_dds::watched(&d.name, p, out, activation.clone(), set, own_commits);
-    let topics = items.iter().map(|t| t.topic.clone()).collect();
-    Ok(Outgoing { topics, activation, served_by: ServedBy::Poller(poll) })
-}
 
 struct ItemWriter {
     leaf: Leaf,

@@ -20,17 +20,36 @@ use std::time::{Duration, Instant};
 
 use tracing::{info, warn};
 use tutti_core::ddf::{Domain, Role};
+use tutti_core::mapping::ItemTopic;
 use tutti_core::shm::observer::{Look, Observer};
 use tutti_core::shm::segment::Segment;
 use tutti_core::shm::{ConnKind, Participant, ShmError};
 
 use super::per_item::ItemWriters;
-use super::{Counters, Outgoing, ServedBy, ShmConfig};
+use super::{Counters, ShmConfig};
 use crate::cdr::SetCodec;
 use crate::config::PlannedSet;
 use crate::engine::{Engine, Guid, Writer};
 use crate::stats::{LogLimit, SetStats, Stats};
 use crate::GatewayError;
+
+/// A shared-memory -> DDS route as its constructor hands it to the manager: its topics
+/// (whose remote readers switch it on), its activation, and what serves it.
+#[derive(Debug)]
+pub struct Outgoing {
+    pub topics: Vec<String>,
+    pub activation: Arc<Activation>,
+    pub served_by: ServedBy,
+}
+
+/// What serves an outgoing route.
+#[derive(Debug)]
+pub enum ServedBy {
+    /// The poller thread, which looks at every watched set in turn.
+    Poller(Box<dyn Polled>),
+    /// A thread of its own (a synchronous PUBLISH set's pump).
+    Thread(JoinHandle<()>),
+}
 
 /// The typed route of planned set `p` of domain `d` (shared memory -> DDS): a synchronous
 /// PUBLISH set is followed by a pump thread (a lock-step reader named `every_step`, when
@@ -58,6 +77,24 @@ pub fn typed(
         ServedBy::Poller(watched(&d.name, p, out, activation.clone(), counters.set, own_commits))
     };
     Ok(Outgoing { topics: vec![p.topic.clone()], activation, served_by })
+}
+
+/// The per-item route of planned set `p` of domain `d` (shared memory -> DDS): a writer for
+/// each of `items`, watched by the poller (`own_commits`: the gateway's own commits to a
+/// SUBSCRIBE set, not sent back to DDS), counted in `set`.
+pub fn items(
+    dds: &dyn Engine,
+    d: &Domain,
+    p: &PlannedSet,
+    items: &[ItemTopic],
+    set: Arc<SetStats>,
+    own_commits: Option<Arc<AtomicU64>>,
+) -> Result<Outgoing, GatewayError> {
+    let out = Outbound::Items(ItemWriters::create(dds, items, &d.set(p.role).layout, &p.writer_qos)?);
+    let activation = Arc::new(Activation::default());
+    let poll = watched(&d.name, p, out, activation.clone(), set, own_commits);
+    let topics = items.iter().map(|t| t.topic.clone()).collect();
+    Ok(Outgoing { topics, activation, served_by: ServedBy::Poller(poll) })
 }
 
 /// The typed DDS writer of planned set `p` of domain `d`.
