@@ -19,7 +19,7 @@ use std::time::Duration;
 
 use serde::de::{self, DeserializeSeed, Deserializer, SeqAccess, Visitor};
 use serde::{Deserialize, Serialize};
-use tutti_core::ddf::{Model, Role};
+use tutti_core::ddf::{Domain, Model, Role};
 use tutti_core::mapping::{self, Durability, Endpoint, History, ItemTopic, Profile, Qos, Reliability};
 use tutti_core::shm::WaitMode;
 
@@ -359,53 +359,10 @@ pub fn resolve(opts: &GatewayOptions) -> Result<Plan, ConfigError> {
                 }
             };
             if let Some(other) = taken.insert(topic.clone(), format!("set '{key}'")) {
-                // Blame the remap that made the clash: this set's, else the other set's.
-                let other_key = other.strip_prefix("set '").and_then(|o| o.strip_suffix('\''));
-                let blamed = match other_key {
-                    Some(o) if settings.remap.is_none() && rules.topics.get(o).is_some_and(|t| t.remap.is_some()) => {
-                        (o.to_string(), format!("set '{key}'"))
-                    }
-                    _ => (key.clone(), other),
-                };
-                return Err(ConfigError::TopicTaken {
-                    at: at(&format!("topics.\"{}\".remap", blamed.0)),
-                    topic: ros2_topic,
-                    other: blamed.1,
-                });
+                return Err(topic_taken(rules, &key, &settings, other, ros2_topic));
             }
-            let refuse = |what: &str, term, flag, why| ConfigError::Refused {
-                at: at(&format!("{topic_key}.{what}")),
-                term,
-                domain: d.name.clone(),
-                flag,
-                why,
-            };
+            check_flags(d, &settings, |what| at(&format!("{topic_key}.{what}")))?;
             let q = settings.qos;
-            if d.flags.synchronous {
-                const LOCKSTEP: &str = "lock-step needs every step: RELIABLE, KEEP_ALL";
-                if q.reliability == Some(Reliability::BestEffort) {
-                    return Err(refuse("qos.reliability", "best_effort", "synchronous=yes", LOCKSTEP));
-                }
-                if let Some(History::KeepLast(_)) = q.history {
-                    return Err(refuse("qos.history", "keep_last", "synchronous=yes", LOCKSTEP));
-                }
-                if settings.max_rate.is_some() {
-                    return Err(refuse(
-                        "max_rate",
-                        "a rate limit",
-                        "synchronous=yes",
-                        "every step must reach DDS; only asynchronous sets are downsampled",
-                    ));
-                }
-            }
-            if d.flags.states && q.durability == Some(Durability::Volatile) {
-                return Err(refuse(
-                    "qos.durability",
-                    "volatile",
-                    "states=yes",
-                    "the seed must reach late joiners: TRANSIENT_LOCAL",
-                ));
-            }
             let qos = |endpoint| q.apply(mapping::qos(d.flags, opts.profile, endpoint, opts.strength));
             plan.sets.push(PlannedSet {
                 domain: di,
@@ -421,6 +378,56 @@ pub fn resolve(opts: &GatewayOptions) -> Result<Plan, ConfigError> {
         }
     }
     Ok(plan)
+}
+
+/// The error for set `key` whose topic `ros2_topic` set `other` has already: it blames the
+/// remap that made the clash, this set's, else the other set's.
+fn topic_taken(
+    rules: &TopicRules,
+    key: &str,
+    settings: &TopicSettings,
+    other: String,
+    ros2_topic: String,
+) -> ConfigError {
+    let other_key = other.strip_prefix("set '").and_then(|o| o.strip_suffix('\''));
+    let (blamed, other) = match other_key {
+        Some(o) if settings.remap.is_none() && rules.topics.get(o).is_some_and(|t| t.remap.is_some()) => {
+            (o.to_string(), format!("set '{key}'"))
+        }
+        _ => (key.to_string(), other),
+    };
+    ConfigError::TopicTaken {
+        at: in_source(&rules.source, &format!("topics.\"{blamed}\".remap")),
+        topic: ros2_topic,
+        other,
+    }
+}
+
+/// Refuses the settings of a set of domain `d` that its flags forbid: a QoS that would break
+/// lock-step or the seed of late joiners, a rate limit on a synchronous set (`at` names a
+/// settings key where it stands).
+fn check_flags(d: &Domain, settings: &TopicSettings, at: impl Fn(&str) -> String) -> Result<(), ConfigError> {
+    let refuse =
+        |what: &str, term, flag, why| ConfigError::Refused { at: at(what), term, domain: d.name.clone(), flag, why };
+    let q = settings.qos;
+    if d.flags.synchronous {
+        const LOCKSTEP: &str = "lock-step needs every step: RELIABLE, KEEP_ALL";
+        if q.reliability == Some(Reliability::BestEffort) {
+            return Err(refuse("qos.reliability", "best_effort", "synchronous=yes", LOCKSTEP));
+        }
+        if let Some(History::KeepLast(_)) = q.history {
+            return Err(refuse("qos.history", "keep_last", "synchronous=yes", LOCKSTEP));
+        }
+        if settings.max_rate.is_some() {
+            let why = "every step must reach DDS; only asynchronous sets are downsampled";
+            return Err(refuse("max_rate", "a rate limit", "synchronous=yes", why));
+        }
+    }
+    if d.flags.states && q.durability == Some(Durability::Volatile) {
+        let why = "the seed must reach late joiners: TRANSIENT_LOCAL";
+        return Err(refuse("qos.durability", "volatile", "states=yes", why));
+    }
+    Ok(())
 }
 
 /// Where a message points: `FILE: KEY`, or `KEY` for rules from no file.
