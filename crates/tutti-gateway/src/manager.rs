@@ -23,7 +23,7 @@ use tokio::sync::mpsc;
 use tracing::{info, warn};
 use tutti_core::ddf::{Domain, Role};
 use tutti_core::shm::observer::{Look, Observer};
-use tutti_core::shm::{Framework, FrameworkOptions};
+use tutti_core::shm::{DomainHost, Framework, FrameworkOptions};
 
 use crate::cdr::SetCodec;
 use crate::config::{self, PlannedSet};
@@ -158,17 +158,7 @@ impl Manager {
         let poll_thread =
             to_dds::spawn_poller(added, cfg.clone(), stats.clone()).map_err(|e| GatewayError::dds("a thread", e))?;
         let poller_thread = poll_thread.thread().clone();
-        let mut hosts: Vec<Option<_>> = if opts.mirror {
-            let fo = FrameworkOptions {
-                namespace: opts.namespace.clone(),
-                timeout: opts.timeout,
-                wait: opts.wait,
-                ..Default::default()
-            };
-            Framework::create(&opts.model, &fo)?.domains.into_iter().map(Some).collect()
-        } else {
-            Vec::new()
-        };
+        let mut hosts = mirror_hosts(&opts)?;
         let domains = opts
             .model
             .domains
@@ -277,7 +267,7 @@ impl Manager {
 
     /// Creates the routes of domain `di` (`host`: its framework, for a mirror), each with its
     /// kind's constructor, and `/clock` if it comes from this domain.
-    fn bridge(&mut self, di: usize, host: Option<tutti_core::shm::DomainHost>) -> Result<(), GatewayError> {
+    fn bridge(&mut self, di: usize, host: Option<DomainHost>) -> Result<(), GatewayError> {
         let d = self.opts.model.domains[di].clone();
         if self.opts.mirror {
             let host = host.ok_or_else(|| GatewayError::NotCreated { domain: d.name.clone() })?;
@@ -352,7 +342,7 @@ impl Manager {
     /// A mirrored domain: its framework's thread, fed by the PUBLISH reader's sink, sends
     /// the local SUBSCRIBE set. The counters of a set the config leaves out count what
     /// nobody reads.
-    fn mirror(&mut self, di: usize, d: &Domain, host: tutti_core::shm::DomainHost) -> Result<(), GatewayError> {
+    fn mirror(&mut self, di: usize, d: &Domain, host: DomainHost) -> Result<(), GatewayError> {
         let (publish, subscribe) = (self.planned(di, Role::Publish), self.planned(di, Role::Subscribe));
         let set = |si: Option<usize>| si.map_or_else(|| Arc::new(SetStats::default()), |si| self.set_stats[si].clone());
         let counters = MirrorCounters { total: self.stats.clone(), publish: set(publish), subscribe: set(subscribe) };
@@ -517,10 +507,8 @@ impl Manager {
         }
     }
 
-    /// Bridges the domains whose framework has appeared, then compares discovery with the
-    /// routes: (de)activates writers, gives new remote writers connections, releases those
-    /// that left, and counts each domain's DDS readers.
-    fn rediscover(&mut self) {
+    /// Bridges the domains whose framework has appeared since the last look.
+    fn bridge_hosted(&mut self) {
         for di in 0..self.domains.len() {
             // Looked at every time: it keeps the presence connection across framework restarts.
             let hosted = self.hosted(di);
@@ -533,6 +521,13 @@ impl Manager {
                 }
             }
         }
+    }
+
+    /// Bridges the domains whose framework has appeared, then compares discovery with the
+    /// routes: (de)activates writers, gives new remote writers connections, releases those
+    /// that left, and counts each domain's DDS readers.
+    fn rediscover(&mut self) {
+        self.bridge_hosted();
         let remote = self.dds.remote();
         let mut readers = vec![0usize; self.domains.len()];
         let mut matched_writers: BTreeSet<(usize, Guid)> = BTreeSet::new();
@@ -612,4 +607,18 @@ impl Manager {
             let _ = t.join();
         }
     }
+}
+
+/// A mirror's local frameworks, one per domain of the DDF (none when not a mirror).
+fn mirror_hosts(opts: &GatewayOptions) -> Result<Vec<Option<DomainHost>>, GatewayError> {
+    if !opts.mirror {
+        return Ok(Vec::new());
+    }
+    let fo = FrameworkOptions {
+        namespace: opts.namespace.clone(),
+        timeout: opts.timeout,
+        wait: opts.wait,
+        ..Default::default()
+    };
+    Ok(Framework::create(&opts.model, &fo)?.domains.into_iter().map(Some).collect())
 }
