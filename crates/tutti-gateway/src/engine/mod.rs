@@ -232,3 +232,21 @@ pub fn open(kind: EngineKind, cfg: &EngineConfig) -> Result<Box<dyn Engine>, Gat
         EngineKind::Rustdds => Err(GatewayError::EngineNotBuilt { engine: kind.name() }),
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_build_names_its_engines_and_refuses_the_others() {
+        assert!(EngineKind::Cyclone.is_built());
+        assert_eq!(EngineKind::Rustdds.is_built(), cfg!(feature = "rustdds"));
+        assert_eq!("CycloneDDS".parse::<EngineKind>(), Ok(EngineKind::Cyclone));
+        let e = "opendds".parse::<EngineKind>().unwrap_err();
+        assert_eq!(e.to_string(), "unknown DDS engine 'opendds' (expected cyclone or rustdds)");
+        if !EngineKind::Rustdds.is_built() {
+            let e = open(EngineKind::Rustdds, &EngineConfig::default()).map(|_| ()).unwrap_err();
+            assert!(e.is_invalid() && matches!(e, GatewayError::EngineNotBuilt { engine: "rustdds" }), "{e}");
+        }
+    }
+}
