@@ -2,8 +2,8 @@
 //! through the same scenarios, written once against the [`Engine`] trait: raw CDR in both
 //! byte orders (typed sets and per-item stock messages), the gateway's own samples known by
 //! their GUID prefix and dropped by the route's sink, discovery of remote endpoints with the
-//! QoS they announced, QoS matching and its refusal, exclusive ownership, and the node
-//! announcement on `ros_discovery_info`.
+//! QoS they announced, QoS matching and its refusal, exclusive ownership, the node
+//! announcement on `ros_discovery_info`, and samples that cannot be decoded reported as such.
 //!
 //! Everything runs in this process, on loopback, with no Python and no gateway binary. Each
 //! scenario has a DDS domain of its own (60-79 for cyclone, 80-99 for rustdds) so that all run
@@ -18,7 +18,7 @@ use std::time::{Duration, Instant};
 
 use tutti_core::ddf::{parse_str, Leaf, SetLayout};
 use tutti_core::mapping::{Durability, History, Ownership, Qos, Reliability};
-use tutti_gateway::cdr::{stock, CdrError, Payload, SetCodec, TypedSample};
+use tutti_gateway::cdr::{stock, CdrError, Payload, SetCodec, TypedSample, HEADER_LE};
 use tutti_gateway::engine::{self, Decode, EndpointQos, Engine, EngineConfig, EngineKind, Guid, Sink, Writer};
 use tutti_gateway::routes::from_dds::{self, Destination, Direct, Target};
 use tutti_gateway::routes::Event;
@@ -52,6 +52,7 @@ conformance! {
     3 => qos_matching_and_refusal,
     4 => exclusive_ownership_goes_by_strength,
     5 => the_node_is_announced_on_ros_discovery_info,
+    6 => a_sample_that_cannot_be_decoded_is_reported,
 }
 
 #[test]
@@ -336,6 +337,44 @@ fn exclusive_ownership_goes_by_strength(c: &Case) {
         });
     } else {
         assert!(weak_after > 0, "an engine that does not arbitrate delivers both writers: {after:?}");
+    }
+}
+
+/// A typed sample too short for its set, or in another representation than plain CDR, reaches
+/// the reader's sink as a decoding error, never as a sample; the good sample after it arrives.
+fn a_sample_that_cannot_be_decoded_is_reported(c: &Case) {
+    let (codec, layout) = set_codec();
+    let reader = c.open("reader");
+    let cyclone = c.peer_cyclone("bad_writer");
+    let q = qos(Reliability::Reliable, History::KeepAll, false, Ownership::Shared);
+    let topic = c.topic("bad");
+    let inbox = Inbox::new(Decode::Set(codec.clone()));
+    reader.reader(&topic, SET_TYPE, &q, Decode::Set(codec.clone()), inbox.sink()).unwrap();
+    let mut w = cyclone.writer(&topic, SET_TYPE, &q).unwrap();
+    let good = sample(&codec, &layout, 3);
+    let mut body = Vec::new();
+    codec.encode(good.step, good.sim_time, &good.data, &mut body);
+    let raw = [&HEADER_LE[..], &body].concat();
+    until("a good sample, once the writer is matched", || {
+        w.write_serialized(&raw);
+        w.flush();
+        inbox.len() > 0
+    });
+    let want = Payload::Set(good);
+    for bad in [&raw[..raw.len() / 2], &[&[0u8, 7, 0, 0][..], &body].concat()[..]] {
+        let before = inbox.len();
+        assert!(w.write_serialized(bad));
+        w.write_serialized(&raw);
+        w.flush();
+        // The error, then the good sample after it (an engine may still deliver a good sample
+        // of the wait above first).
+        until("the bad sample's error and the good sample after it", || {
+            let got = lock(&inbox.got);
+            let err = got[before..].iter().position(|(_, p)| p.is_err());
+            err.is_some_and(|i| got[before + i..].iter().any(|(_, p)| p.as_ref() == Ok(&want)))
+        });
+        let got = lock(&inbox.got);
+        assert!(got[before..].iter().all(|(_, p)| p.as_ref().map_or(true, |p| p == &want)), "only good samples decode");
     }
 }
 
