@@ -1,18 +1,17 @@
 //! `tutti gateway DDF`: bridge every domain of a DDF to DDS / ROS 2 (SPEC section 5).
 
 use std::net::{IpAddr, SocketAddr};
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 use std::time::Duration;
 
-use super::show::ProfileArg;
 use anyhow::Context;
 use clap::ValueEnum;
-use tutti_core::ddf::Model;
+use tutti_core::mapping::Profile;
 use tutti_core::shm::WaitMode;
-use tutti_gateway::config::{self, ConfigFile, DiscoveryRange};
-use tutti_gateway::{EngineKind, GatewayError, GatewayOptions, TypeMode};
+use tutti_gateway::config::{self, ConfigFile};
+use tutti_gateway::{EngineKind, GatewayOptions, TypeMode};
 
 use super::{load_ddf, CliResult, Failure};
 
@@ -119,6 +118,22 @@ enum Types {
     PerItem,
 }
 
+/// `--qos-profile` (here and in `tutti show`).
+#[derive(Debug, Clone, Copy, ValueEnum)]
+pub enum ProfileArg {
+    Ros2,
+    Dds,
+}
+
+impl From<ProfileArg> for Profile {
+    fn from(p: ProfileArg) -> Self {
+        match p {
+            ProfileArg::Ros2 => Profile::Ros2,
+            ProfileArg::Dds => Profile::Dds,
+        }
+    }
+}
+
 impl Args {
     /// The flags given, as config keys (those not given are None, so the file's show through).
     fn flags(&self) -> ConfigFile {
@@ -156,91 +171,6 @@ impl Args {
     }
 }
 
-/// `flags` laid over the config file's keys, if there is one.
-pub(super) fn layered(flags: ConfigFile, config: Option<&Path>) -> Result<ConfigFile, Failure> {
-    match config {
-        None => Ok(flags),
-        Some(path) => Ok(flags.over(config::load(path).map_err(Failure::invalid)?)),
-    }
-}
-
-/// The options of the gateway for `model`: its defaults, then the environment where
-/// `keys` (flags over file) say nothing, then `keys`.
-pub(super) fn options(ddf: &Path, model: Model, keys: &ConfigFile) -> Result<GatewayOptions, Failure> {
-    let mut opts = GatewayOptions::new(ddf, model);
-    if keys.ros_domain_id.is_none() {
-        opts.ros_domain_id = domain_id_from_env()?;
-    }
-    if keys.dds.is_none() {
-        opts.engine = engine_from_env()?;
-    }
-    let range = config::discovery_range(
-        std::env::var("ROS_LOCALHOST_ONLY").ok().as_deref(),
-        std::env::var("ROS_AUTOMATIC_DISCOVERY_RANGE").ok().as_deref(),
-    )
-    .map_err(Failure::invalid)?;
-    if keys.interface.is_none() {
-        opts.interfaces = interfaces_from_env(range)?;
-    }
-    keys.apply(&mut opts).map_err(Failure::invalid)?;
-    if range == DiscoveryRange::Off {
-        // Cyclone has no switch for "peers only" that we could set without overriding
-        // CYCLONEDDS_URI; with peers given, they are used beside what Cyclone is configured for.
-        if opts.peers.is_empty() {
-            return Err(Failure::invalid(anyhow::anyhow!(
-                "ROS_AUTOMATIC_DISCOVERY_RANGE=OFF: no automatic discovery, so the gateway would find nobody; \
-                 give the peers with --peer ADDR (or the config file's `peer`), or unset the variable"
-            )));
-        }
-        tracing::warn!(
-            "ROS_AUTOMATIC_DISCOVERY_RANGE=OFF: discovering the peers {:?}; multicast discovery stays as \
-             CYCLONEDDS_URI configures it",
-            opts.peers
-        );
-    }
-    Ok(opts)
-}
-
-/// ROS_DOMAIN_ID, else 0.
-fn domain_id_from_env() -> Result<u16, Failure> {
-    match std::env::var("ROS_DOMAIN_ID") {
-        Ok(s) if !s.trim().is_empty() => s
-            .trim()
-            .parse::<u16>()
-            .ok()
-            .filter(|&d| d <= 232)
-            .ok_or_else(|| Failure::invalid(anyhow::anyhow!("ROS_DOMAIN_ID='{s}' is not a DDS domain id (0-232)"))),
-        _ => Ok(0),
-    }
-}
-
-/// TUTTI_DDS, else cyclone; an unknown engine is refused naming the variable.
-pub(super) fn engine_from_env() -> Result<EngineKind, Failure> {
-    match std::env::var("TUTTI_DDS") {
-        Ok(s) if !s.trim().is_empty() => {
-            s.parse().map_err(|e: String| Failure::invalid(anyhow::anyhow!("TUTTI_DDS='{s}': {e}")))
-        }
-        _ => Ok(EngineKind::default()),
-    }
-}
-
-/// TUTTI_GATEWAY_INTERFACE, else loopback when ROS 2's discovery range says this machine
-/// only, else every interface.
-fn interfaces_from_env(range: DiscoveryRange) -> Result<Vec<IpAddr>, Failure> {
-    match std::env::var("TUTTI_GATEWAY_INTERFACE") {
-        Ok(s) if !s.trim().is_empty() => s
-            .split(',')
-            .map(|a| {
-                a.trim()
-                    .parse::<IpAddr>()
-                    .map_err(|e| Failure::invalid(anyhow::anyhow!("TUTTI_GATEWAY_INTERFACE: '{a}': {e}")))
-            })
-            .collect(),
-        _ if range == DiscoveryRange::Localhost => Ok(vec![IpAddr::from([127, 0, 0, 1])]),
-        _ => Ok(Vec::new()),
-    }
-}
-
 pub fn run(args: Args) -> CliResult {
     let _ = tracing_subscriber::fmt()
         .with_env_filter(
@@ -252,9 +182,9 @@ pub fn run(args: Args) -> CliResult {
         .with_ansi(std::io::IsTerminal::is_terminal(&std::io::stderr()))
         .with_target(false)
         .try_init();
-    let keys = layered(args.flags(), args.config.as_deref())?;
+    let keys = args.flags().layered(args.config.as_deref()).map_err(Failure::invalid)?;
     let model = load_ddf(&args.file)?;
-    let opts = options(&args.file, model, &keys)?;
+    let opts = GatewayOptions::configured(&args.file, model, &keys).map_err(Failure::invalid)?;
     // The rules are checked against the DDF before anything starts (tutti show --config
     // shows the same plan).
     config::resolve(&opts).map_err(Failure::invalid)?;
@@ -286,7 +216,7 @@ pub fn run(args: Args) -> CliResult {
             }
             Ok(())
         }
-        Err(e @ GatewayError::Invalid(_)) => Err(Failure::invalid(anyhow::anyhow!("{shown}: {e}"))),
+        Err(e) if e.is_invalid() => Err(Failure::invalid(anyhow::anyhow!("{shown}: {e}"))),
         Err(e) => Err(Failure::from(anyhow::Error::new(e).context(format!("gateway for {shown}")))),
     }
 }

@@ -13,7 +13,8 @@ use tutti_core::show::{show, ShowJson};
 use tutti_gateway::config::{self, ConfigFile, Plan};
 use tutti_gateway::{EngineKind, GatewayOptions, TypeMode};
 
-use super::{gateway, load_ddf, CliResult, Failure};
+use super::gateway::ProfileArg;
+use super::{load_ddf, CliResult, Failure};
 
 /// Show what a DDF describes: domains, flags, sets, items (paths, types, lengths, offsets,
 /// defaults), DDS topics and QoS.
@@ -41,21 +42,6 @@ pub struct Args {
     config: Option<PathBuf>,
 }
 
-#[derive(Debug, Clone, Copy, clap::ValueEnum)]
-pub enum ProfileArg {
-    Ros2,
-    Dds,
-}
-
-impl From<ProfileArg> for Profile {
-    fn from(p: ProfileArg) -> Self {
-        match p {
-            ProfileArg::Ros2 => Profile::Ros2,
-            ProfileArg::Dds => Profile::Dds,
-        }
-    }
-}
-
 pub fn run(args: Args) -> CliResult {
     let model = load_ddf(&args.file)?;
     if let Some(cfg) = &args.config {
@@ -64,7 +50,7 @@ pub fn run(args: Args) -> CliResult {
     let profile = args.qos_profile.map_or(Profile::Ros2, Profile::from);
     let engine = match args.engine {
         Some(e) => e,
-        None => gateway::engine_from_env()?,
+        None => config::env::engine().map_err(Failure::invalid)?,
     };
     let view = show(&model, &args.file, profile, engine.name());
     if args.json {
@@ -217,10 +203,10 @@ struct LeftOutJson<'a> {
 /// The gateway's plan for the DDF under the config file `cfg`, the show flags given over it.
 fn show_plan(args: &Args, model: Model, cfg: &Path) -> CliResult {
     let flags = ConfigFile { qos_profile: args.qos_profile.map(Into::into), dds: args.engine, ..Default::default() };
-    let keys = gateway::layered(flags, Some(cfg))?;
+    let keys = flags.layered(Some(cfg)).map_err(Failure::invalid)?;
     let mut opts = GatewayOptions::new(&args.file, model);
     if keys.dds.is_none() {
-        opts.engine = gateway::engine_from_env()?;
+        opts.engine = config::env::engine().map_err(Failure::invalid)?;
     }
     keys.apply(&mut opts).map_err(Failure::invalid)?;
     let plan = config::resolve(&opts).map_err(Failure::invalid)?;

@@ -11,6 +11,39 @@
 
 use crate::ddf::{ScalarType, SetLayout};
 
+/// Why a serialized sample cannot be read.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[non_exhaustive]
+pub enum CdrError {
+    /// Shorter than the 4-byte encapsulation header.
+    #[error("a sample of {len} bytes has no encapsulation header")]
+    NoHeader { len: usize },
+    /// Not plain CDR (XCDR1).
+    #[error("unsupported data representation {:02x}{:02x} (expected plain CDR)", .id[0], .id[1])]
+    Representation { id: [u8; 2] },
+    /// A typed body shorter than the set's struct.
+    #[error("a typed sample of {got} bytes, expected {expected}")]
+    ShortSample { got: usize, expected: usize },
+    /// A destination shorter than the set in shared memory.
+    #[error("a set of {got} bytes, expected {expected}")]
+    ShortSet { got: usize, expected: usize },
+    /// A body that ends before the element being read.
+    #[error("truncated sample ({len} bytes)")]
+    Truncated { len: usize },
+    /// A sequence longer than the body could hold.
+    #[error("a sequence of {count} doubles in {len} bytes")]
+    Sequence { count: usize, len: usize },
+    /// An array item whose sample has another number of elements.
+    #[error("{path} has {expected} elements, the sample {got}")]
+    ArrayLength { path: String, expected: usize, got: usize },
+    /// A sample of another kind than the reader expects.
+    #[error("{0}")]
+    Unexpected(&'static str),
+    /// The DDS implementation could not deserialize the sample (its own words).
+    #[error("{0}")]
+    Engine(String),
+}
+
 /// One leaf of a set in the CDR body.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct Field {
@@ -102,17 +135,17 @@ impl SetCodec {
     /// Reads a serialized sample (encapsulation header first) into a [`TypedSample`]:
     /// plain CDR (XCDR1) in either byte order; a short body or another representation is
     /// refused with a message.
-    pub fn decode(&self, raw: &[u8]) -> Result<TypedSample, String> {
+    pub fn decode(&self, raw: &[u8]) -> Result<TypedSample, CdrError> {
         let (le, body) = self.check(raw)?;
         Ok(self.decode_body(le, body))
     }
 
     /// Checks a serialized sample: (little-endian?, CDR body) when it is plain CDR and long
     /// enough for this set.
-    pub fn check<'a>(&self, raw: &'a [u8]) -> Result<(bool, &'a [u8]), String> {
+    pub fn check<'a>(&self, raw: &'a [u8]) -> Result<(bool, &'a [u8]), CdrError> {
         let (le, body) = split_header(raw)?;
         if body.len() < self.cdr_size {
-            return Err(format!("a typed sample of {} bytes, expected {}", body.len(), self.cdr_size));
+            return Err(CdrError::ShortSample { got: body.len(), expected: self.cdr_size });
         }
         Ok((le, body))
     }
@@ -132,12 +165,12 @@ impl SetCodec {
     }
 
     /// Writes the items of CDR body `body` into `shm` (the set in shared-memory layout).
-    pub fn decode_into(&self, le: bool, body: &[u8], shm: &mut [u8]) -> Result<(), String> {
+    pub fn decode_into(&self, le: bool, body: &[u8], shm: &mut [u8]) -> Result<(), CdrError> {
         if body.len() < self.cdr_size {
-            return Err(format!("a typed sample of {} bytes, expected {}", body.len(), self.cdr_size));
+            return Err(CdrError::ShortSample { got: body.len(), expected: self.cdr_size });
         }
         if shm.len() < self.shm_size {
-            return Err(format!("a set of {} bytes, expected {}", shm.len(), self.shm_size));
+            return Err(CdrError::ShortSet { got: shm.len(), expected: self.shm_size });
         }
         for f in &self.fields {
             let size = f.ty.size() as usize;
@@ -160,14 +193,14 @@ const CDR_LE: [u8; 2] = [0, 1];
 pub const HEADER_LE: [u8; 4] = [0, 1, 0, 0];
 
 /// Splits a serialized sample into (little-endian?, body).
-pub fn split_header(raw: &[u8]) -> Result<(bool, &[u8]), String> {
+pub fn split_header(raw: &[u8]) -> Result<(bool, &[u8]), CdrError> {
     let Some((id, body)) = raw.split_first_chunk::<4>() else {
-        return Err(format!("a sample of {} bytes has no encapsulation header", raw.len()));
+        return Err(CdrError::NoHeader { len: raw.len() });
     };
     match [id[0], id[1]] {
         CDR_LE => Ok((true, body)),
         CDR_BE => Ok((false, body)),
-        other => Err(format!("unsupported data representation {:02x}{:02x} (expected plain CDR)", other[0], other[1])),
+        id => Err(CdrError::Representation { id }),
     }
 }
 

@@ -1,8 +1,11 @@
 //! Plain CDR of the DDS types: the typed struct of a set ([`SetCodec`], in the core, shared
 //! with the recordings), its serde forms for the rustdds engine ([`PreEncoded`] writes an
 //! encoded body verbatim, [`SetSeed`] reads one through rustdds' CDR deserializer, either
-//! byte order), and the stock `std_msgs` types of per-item mode ([`stock`], raw CDR both
-//! ways, and their serde forms).
+//! byte order), the stock `std_msgs` types of per-item mode ([`stock`], raw CDR both ways,
+//! their serde forms, and the bytes of an item's leaf made from them), and [`Payload`],
+//! what a DDS sample carries into shared memory once decoded.
+//!
+//! This is the bottom of the gateway, with the engines: it imports nothing of the routes.
 
 use std::fmt;
 use std::sync::Arc;
@@ -10,8 +13,17 @@ use std::sync::Arc;
 use serde::de::{DeserializeSeed, SeqAccess, Visitor};
 use serde::ser::SerializeTuple;
 use serde::{Deserialize, Serialize};
-pub use tutti_core::cdr::{split_header, SetCodec, TypedSample, HEADER_LE};
+pub use tutti_core::cdr::{split_header, CdrError, SetCodec, TypedSample, HEADER_LE};
 use tutti_core::ddf::ScalarType;
+
+/// What a DDS sample carries into shared memory.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Payload {
+    /// A whole set (typed mode).
+    Set(TypedSample),
+    /// One item (per-item mode): its path and its bytes in shared-memory layout.
+    Item { path: Arc<str>, bytes: Vec<u8> },
+}
 
 /// A cursor over a CDR body that refuses to read past its end.
 struct Reader<'a> {
@@ -21,43 +33,65 @@ struct Reader<'a> {
 }
 
 impl<'a> Reader<'a> {
-    fn take(&mut self, n: usize, align: usize) -> Result<&'a [u8], String> {
+    fn take(&mut self, n: usize, align: usize) -> Result<&'a [u8], CdrError> {
         let at = self.pos.next_multiple_of(align);
-        let s = self.b.get(at..at + n).ok_or_else(|| format!("truncated sample ({} bytes)", self.b.len()))?;
+        let s = self.b.get(at..at + n).ok_or(CdrError::Truncated { len: self.b.len() })?;
         self.pos = at + n;
         Ok(s)
     }
 
-    fn u32(&mut self) -> Result<u32, String> {
+    fn u32(&mut self) -> Result<u32, CdrError> {
         let a: [u8; 4] = self.take(4, 4)?.try_into().unwrap_or_default();
         Ok(if self.le { u32::from_le_bytes(a) } else { u32::from_be_bytes(a) })
     }
 
-    fn f64(&mut self) -> Result<f64, String> {
+    fn f64(&mut self) -> Result<f64, CdrError> {
         let a: [u8; 8] = self.take(8, 8)?.try_into().unwrap_or_default();
         Ok(f64::from_bits(if self.le { u64::from_le_bytes(a) } else { u64::from_be_bytes(a) }))
     }
 }
 
-/// The stock messages of per-item mode, read from and written as raw CDR.
+/// The stock messages of per-item mode, read from and written as raw CDR, and the bytes of
+/// an item's leaf made from them.
 pub mod stock {
-    use super::{split_header, Reader};
+    use tutti_core::ddf::{Leaf, ScalarType, Value};
+    use tutti_core::mapping;
+
+    use super::{split_header, CdrError, Reader};
+
+    /// The stock type of a leaf.
+    #[derive(Debug, Clone, Copy, PartialEq, Eq)]
+    pub enum Stock {
+        Float64,
+        Bool,
+        Array,
+    }
+
+    impl Stock {
+        pub fn of(leaf: &Leaf) -> Stock {
+            match mapping::per_item_type(leaf.ty, leaf.length) {
+                "std_msgs::msg::dds_::Bool_" => Stock::Bool,
+                "std_msgs::msg::dds_::Float64_" => Stock::Float64,
+                _ => Stock::Array,
+            }
+        }
+    }
 
     /// `std_msgs/msg/Float64` from a serialized sample.
-    pub fn float64(raw: &[u8]) -> Result<f64, String> {
+    pub fn float64(raw: &[u8]) -> Result<f64, CdrError> {
         let (le, b) = split_header(raw)?;
         Reader { b, pos: 0, le }.f64()
     }
 
     /// `std_msgs/msg/Bool` from a serialized sample.
-    pub fn boolean(raw: &[u8]) -> Result<bool, String> {
+    pub fn boolean(raw: &[u8]) -> Result<bool, CdrError> {
         let (_, b) = split_header(raw)?;
-        b.first().map(|&v| v != 0).ok_or_else(|| "truncated sample (0 bytes)".to_string())
+        b.first().map(|&v| v != 0).ok_or(CdrError::Truncated { len: 0 })
     }
 
     /// The data of a `std_msgs/msg/Float64MultiArray` from a serialized sample (its layout
     /// is read past, not used).
-    pub fn float64_array(raw: &[u8]) -> Result<Vec<f64>, String> {
+    pub fn float64_array(raw: &[u8]) -> Result<Vec<f64>, CdrError> {
         let (le, b) = split_header(raw)?;
         let mut r = Reader { b, pos: 0, le };
         let dims = r.u32()?;
@@ -70,7 +104,7 @@ pub mod stock {
         r.u32()?;
         let n = r.u32()? as usize;
         if n > b.len() / 8 {
-            return Err(format!("a sequence of {n} doubles in {} bytes", b.len()));
+            return Err(CdrError::Sequence { count: n, len: b.len() });
         }
         (0..n).map(|_| r.f64()).collect()
     }
@@ -96,6 +130,34 @@ pub mod stock {
         out.extend_from_slice(&[0; 4]); // the doubles are aligned to 8
         for x in v {
             out.extend_from_slice(&x.to_le_bytes());
+        }
+    }
+
+    /// `n` values of type `ty`, in shared-memory layout.
+    pub fn leaf_bytes(ty: ScalarType, values: impl Iterator<Item = Value>, n: usize) -> Vec<u8> {
+        let size = ty.size() as usize;
+        let mut out = vec![0u8; size * n];
+        for (chunk, v) in out.chunks_exact_mut(size).zip(values) {
+            ty.encode(v, chunk);
+        }
+        out
+    }
+
+    /// The bytes of array `leaf` from the data of a `Float64MultiArray`.
+    pub fn array_leaf(leaf: &Leaf, data: Vec<f64>) -> Result<Vec<u8>, CdrError> {
+        let n = usize::from(leaf.length);
+        if data.len() != n {
+            return Err(CdrError::ArrayLength { path: leaf.path.clone(), expected: n, got: data.len() });
+        }
+        Ok(leaf_bytes(leaf.ty, data.into_iter().map(Value::Float), n))
+    }
+
+    /// The bytes of `leaf` from a serialized stock sample.
+    pub fn decode(leaf: &Leaf, raw: &[u8]) -> Result<Vec<u8>, CdrError> {
+        match Stock::of(leaf) {
+            Stock::Float64 => Ok(leaf_bytes(leaf.ty, std::iter::once(Value::Float(float64(raw)?)), 1)),
+            Stock::Bool => Ok(leaf_bytes(leaf.ty, std::iter::once(Value::Bool(boolean(raw)?)), 1)),
+            Stock::Array => array_leaf(leaf, float64_array(raw)?),
         }
     }
 }
@@ -200,7 +262,7 @@ pub struct Float64MultiArray {
     pub data: Vec<f64>,
 }
 
-#[cfg(test)]
+#[cfg(all(test, feature = "rustdds"))]
 mod tests {
     use super::*;
     use ros2_client::dds::rustdds::cdr_encoding::{from_bytes, to_vec};
@@ -326,7 +388,7 @@ mod tests {
         for n in [0, 3, 4, 20, raw.len() - 1] {
             assert!(c.decode(&raw[..n]).is_err(), "{n} bytes accepted");
         }
-        let err = c.decode(&[&[0u8, 7, 0, 0][..], &body].concat()).unwrap_err();
+        let err = c.decode(&[&[0u8, 7, 0, 0][..], &body].concat()).unwrap_err().to_string();
         assert!(err.contains("0007"), "{err}");
     }
 

@@ -1,5 +1,5 @@
-//! What the gateway bridges and under which names: the ROS namespace, and the config file's
-//! rules (which sets, per-topic QoS overrides, rate limits, remapping), resolved once into a
+//! What the gateway serves and how ([`GatewayOptions`]), and what it bridges under which
+//! names: the ROS namespace, and the config file's rules (which sets, per-topic QoS overrides, rate limits, remapping), resolved once into a
 //! [`plan`] that the manager and `tutti show --config` both use.
 //!
 //! The config file (`tutti gateway --config gateway.json5`) is parsed, then validated, in two
@@ -14,18 +14,163 @@
 use std::collections::BTreeMap;
 use std::fmt;
 use std::net::{IpAddr, SocketAddr};
-use std::path::Path;
+use std::path::{Path, PathBuf};
 use std::time::Duration;
 
 use serde::de::{self, DeserializeSeed, Deserializer, SeqAccess, Visitor};
 use serde::{Deserialize, Serialize};
-use tutti_core::ddf::Role;
+use tutti_core::ddf::{Domain, Model, Role};
 use tutti_core::mapping::{self, Durability, Endpoint, History, ItemTopic, Profile, Qos, Reliability};
 use tutti_core::shm::WaitMode;
 
-use crate::engine::EngineKind;
-use crate::options::{ClockSource, TypeMode};
-use crate::{GatewayError, GatewayOptions};
+use crate::engine::{EngineConfig, EngineKind};
+pub use crate::error::ConfigError;
+
+// ---------------------------------------------------------------------------------------
+// The options.
+
+/// The two type mappings of SPEC section 5.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum TypeMode {
+    /// One struct per set (`tutti idl`'s types), with `step` and `sim_time`.
+    #[default]
+    Typed,
+    /// One topic per item with stock `std_msgs` types.
+    PerItem,
+}
+
+/// Everything the gateway needs.
+#[derive(Debug, Clone)]
+pub struct GatewayOptions {
+    /// The DDF the model was read from (its stem names the ROS 2 package).
+    pub ddf_path: PathBuf,
+    pub model: Model,
+    /// DDS domain (ROS_DOMAIN_ID).
+    pub ros_domain_id: u16,
+    pub types: TypeMode,
+    pub profile: Profile,
+    /// OWNERSHIP_STRENGTH of the gateway's writers in the `dds` profile.
+    pub strength: i32,
+    /// Be the framework of local segments fed from DDS.
+    pub mirror: bool,
+    /// ROS 2 node name.
+    pub node_name: String,
+    /// Shared-memory namespace.
+    pub namespace: String,
+    /// Addresses DDS may use; empty: all interfaces.
+    pub interfaces: Vec<IpAddr>,
+    /// Longest shared-memory wait (a step, a commit's step, connecting); in mirror mode the
+    /// framework's step timeout.
+    pub timeout: Duration,
+    /// How shared-memory waits wait (spin for lowest latency, block for no CPU).
+    pub wait: WaitMode,
+    /// How often idle asynchronous sets are looked at for changes.
+    pub poll: Duration,
+    /// How often discovery data is compared with the routes' connections.
+    pub discovery_every: Duration,
+    /// The DDS engine.
+    pub engine: EngineKind,
+    /// Unicast discovery peers (Cyclone engine).
+    pub peers: Vec<String>,
+    /// Which domain's simulated time goes out on `/clock`.
+    pub clock: ClockSource,
+    /// At most this many `/clock` samples a second (None: one per step).
+    pub clock_rate: Option<f64>,
+    /// ROS namespace of every topic and of the node (empty: none): `rt/NS/DOMAIN/publish`,
+    /// node `/NS/NODE`.
+    pub ros_namespace: String,
+    /// Bridge a domain only while a framework hosts it in `namespace` (the default; a
+    /// mirror hosts its domains itself); false: every domain of the DDF from the start.
+    pub hosted_only: bool,
+    /// How long a DDS writer of a synchronous domain may owe its answer to a step before
+    /// the gateway releases its lock-step share (a killed writer; it joins again with its
+    /// next sample).
+    pub lease: Duration,
+    /// DDS readers of a synchronous PUBLISH set get every step: the gateway reads the set in
+    /// lock-step through an observer connection that the framework waits for (a copy and a
+    /// DDS write a step), instead of following it passively.
+    pub every_step: bool,
+    /// Serve the counters over HTTP (JSON at `/stats`, Prometheus text at `/metrics`).
+    pub http: Option<SocketAddr>,
+    /// Which sets are bridged, and per-topic QoS, rate and name (the config file's
+    /// `allow`, `deny` and `topics`).
+    pub rules: TopicRules,
+}
+
+/// The domain whose simulated time the gateway publishes on `/clock`.
+#[derive(Debug, Clone, PartialEq, Eq, Default)]
+pub enum ClockSource {
+    /// The first synchronous domain of the DDF (none if it has none).
+    #[default]
+    FirstSynchronous,
+    Domain(String),
+    Off,
+}
+
+impl GatewayOptions {
+    /// Defaults for `model` read from `ddf_path`.
+    pub fn new(ddf_path: impl Into<PathBuf>, model: Model) -> Self {
+        GatewayOptions {
+            ddf_path: ddf_path.into(),
+            model,
+            ros_domain_id: 0,
+            types: TypeMode::Typed,
+            profile: Profile::Ros2,
+            strength: 0,
+            mirror: false,
+            node_name: "tutti_gateway".into(),
+            namespace: tutti_core::shm::segment::namespace_from_env(),
+            interfaces: Vec::new(),
+            timeout: Duration::from_secs(1),
+            wait: WaitMode::Block,
+            poll: Duration::from_micros(500),
+            discovery_every: Duration::from_millis(200),
+            engine: EngineKind::default(),
+            peers: Vec::new(),
+            clock: ClockSource::default(),
+            clock_rate: None,
+            ros_namespace: String::new(),
+            hosted_only: true,
+            lease: Duration::from_secs(1),
+            every_step: false,
+            http: None,
+            rules: TopicRules::default(),
+        }
+    }
+
+    /// The index of the domain whose time goes out on `/clock`, if any; an unknown name is
+    /// an error. A mirror publishes no clock (the home gateway does).
+    pub fn clock_domain(&self) -> Result<Option<usize>, ConfigError> {
+        if self.mirror {
+            return Ok(None);
+        }
+        match &self.clock {
+            ClockSource::Off => Ok(None),
+            ClockSource::FirstSynchronous => Ok(self.model.domains.iter().position(|d| d.flags.synchronous)),
+            ClockSource::Domain(name) => match self.model.domains.iter().position(|d| &d.name == name) {
+                Some(i) => Ok(Some(i)),
+                None => Err(ConfigError::NoSuchClockDomain {
+                    name: name.clone(),
+                    domains: self.model.domains.iter().map(|d| d.name.as_str()).collect::<Vec<_>>().join(", "),
+                }),
+            },
+        }
+    }
+
+    /// How the engine's participant joins DDS.
+    pub fn engine_config(&self) -> EngineConfig {
+        EngineConfig {
+            domain_id: self.ros_domain_id,
+            interfaces: self.interfaces.clone(),
+            peers: self.peers.clone(),
+            node_name: self.node_name.clone(),
+            node_namespace: node_namespace(self.ros_namespace.trim().trim_matches('/')),
+        }
+    }
+}
+
+// ---------------------------------------------------------------------------------------
+// The rules and the plan.
 
 /// Which sets are bridged and how (the config file's `allow`, `deny` and `topics`); the
 /// default bridges every set as the DDF's flags say.
@@ -101,13 +246,11 @@ pub struct Plan {
 
 /// A ROS namespace as given (`sim1`, `/sim1/`, `a/b`) in canonical form without slashes
 /// around it (`sim1`, `a/b`; empty for none); an invalid one is an error naming it.
-pub fn ros_namespace(ns: &str) -> Result<String, GatewayError> {
+pub fn ros_namespace(ns: &str) -> Result<String, ConfigError> {
     let t = ns.trim().trim_matches('/');
     for tok in t.split('/').filter(|_| !t.is_empty()) {
         if !ros_token(tok) {
-            return Err(GatewayError::Invalid(format!(
-                "ROS namespace '{ns}': each part must be letters, digits and '_' and not start with a digit (e.g. sim1 or site_a/sim1)"
-            )));
+            return Err(ConfigError::Namespace { given: ns.to_string() });
         }
     }
     Ok(t.to_string())
@@ -123,7 +266,7 @@ fn ros_token(tok: &str) -> bool {
 /// A topic name for `remap`: relative (`uav1/cmd`) or absolute (`/fleet/uav1/cmd`), tokens of
 /// letters, digits and `_` not starting with a digit, as rcl validates topic names; ROS's `~`
 /// and `{}` substitutions are refused (the gateway's node name is no help in a topic name).
-pub fn ros_topic_name(name: &str) -> Result<String, String> {
+pub fn ros_topic_name(name: &str) -> Result<String, ConfigError> {
     let body = name.strip_prefix('/').unwrap_or(name);
     let why = if body.is_empty() {
         Some("it is empty")
@@ -140,7 +283,7 @@ pub fn ros_topic_name(name: &str) -> Result<String, String> {
     };
     match why {
         None => Ok(name.to_string()),
-        Some(why) => Err(format!("'{name}' is not a ROS topic name: {why} (e.g. uav1/cmd, or /fleet/uav1/cmd)")),
+        Some(why) => Err(ConfigError::TopicName { name: name.to_string(), why }),
     }
 }
 
@@ -169,25 +312,25 @@ pub fn dds_topic(ns: &str, name: &str) -> String {
 
 /// The sets of `opts.model` that the gateway bridges, with their names and QoS after the
 /// ROS namespace, remapping and overrides.
-pub fn plan(opts: &GatewayOptions) -> Result<Vec<PlannedSet>, GatewayError> {
+pub fn plan(opts: &GatewayOptions) -> Result<Vec<PlannedSet>, ConfigError> {
     Ok(resolve(opts)?.sets)
 }
 
 /// Every set of `opts.model`: bridged (as [`plan`] returns them) or left out by `allow` /
 /// `deny`, with the reason. Refuses `topics` that name no set, QoS overrides the domain's
 /// flags forbid, a rate limit on a synchronous set and two topics of one name.
-pub fn resolve(opts: &GatewayOptions) -> Result<Plan, GatewayError> {
+pub fn resolve(opts: &GatewayOptions) -> Result<Plan, ConfigError> {
     let rules = &opts.rules;
     let at = |key: &str| in_source(&rules.source, key);
     let pkg = mapping::package_name(&opts.ddf_path);
     let ns = ros_namespace(&opts.ros_namespace)?;
     let keys: Vec<String> = opts.model.domains.iter().flat_map(|d| Role::ALL.map(|r| set_key(&d.name, r))).collect();
     if let Some(k) = rules.topics.keys().find(|k| !keys.contains(k)) {
-        return Err(GatewayError::Invalid(format!(
-            "{}: the DDF has no set '{k}' (sets: {})",
-            at(&format!("topics.\"{k}\"")),
-            keys.join(", ")
-        )));
+        return Err(ConfigError::NoSuchSet {
+            at: at(&format!("topics.\"{k}\"")),
+            set: k.clone(),
+            sets: keys.join(", "),
+        });
     }
     let mut plan = Plan { sets: Vec::new(), left_out: Vec::new() };
     // DDS topic -> the set that has it, to refuse two sets (or /clock) on one topic.
@@ -216,53 +359,10 @@ pub fn resolve(opts: &GatewayOptions) -> Result<Plan, GatewayError> {
                 }
             };
             if let Some(other) = taken.insert(topic.clone(), format!("set '{key}'")) {
-                // Blame the remap that made the clash: this set's, else the other set's.
-                let other_key = other.strip_prefix("set '").and_then(|o| o.strip_suffix('\''));
-                let blamed = match other_key {
-                    Some(o) if settings.remap.is_none() && rules.topics.get(o).is_some_and(|t| t.remap.is_some()) => {
-                        (o.to_string(), format!("set '{key}'"))
-                    }
-                    _ => (key.clone(), other),
-                };
-                return Err(GatewayError::Invalid(format!(
-                    "{}: '{ros2_topic}' is also the topic of {}; two sets cannot share a topic",
-                    at(&format!("topics.\"{}\".remap", blamed.0)),
-                    blamed.1
-                )));
+                return Err(topic_taken(rules, &key, &settings, other, ros2_topic));
             }
-            let refuse = |what: &str, term: &str, flag: &str, why: &str| {
-                GatewayError::Invalid(format!(
-                    "{}: {term} is refused: domain '{}' has {flag} ({why})",
-                    at(&format!("{topic_key}.{what}")),
-                    d.name
-                ))
-            };
+            check_flags(d, &settings, |what| at(&format!("{topic_key}.{what}")))?;
             let q = settings.qos;
-            if d.flags.synchronous {
-                const LOCKSTEP: &str = "lock-step needs every step: RELIABLE, KEEP_ALL";
-                if q.reliability == Some(Reliability::BestEffort) {
-                    return Err(refuse("qos.reliability", "best_effort", "synchronous=yes", LOCKSTEP));
-                }
-                if let Some(History::KeepLast(_)) = q.history {
-                    return Err(refuse("qos.history", "keep_last", "synchronous=yes", LOCKSTEP));
-                }
-                if settings.max_rate.is_some() {
-                    return Err(refuse(
-                        "max_rate",
-                        "a rate limit",
-                        "synchronous=yes",
-                        "every step must reach DDS; only asynchronous sets are downsampled",
-                    ));
-                }
-            }
-            if d.flags.states && q.durability == Some(Durability::Volatile) {
-                return Err(refuse(
-                    "qos.durability",
-                    "volatile",
-                    "states=yes",
-                    "the seed must reach late joiners: TRANSIENT_LOCAL",
-                ));
-            }
             let qos = |endpoint| q.apply(mapping::qos(d.flags, opts.profile, endpoint, opts.strength));
             plan.sets.push(PlannedSet {
                 domain: di,
@@ -278,6 +378,56 @@ pub fn resolve(opts: &GatewayOptions) -> Result<Plan, GatewayError> {
         }
     }
     Ok(plan)
+}
+
+/// The error for set `key` whose topic `ros2_topic` set `other` has already: it blames the
+/// remap that made the clash, this set's, else the other set's.
+fn topic_taken(
+    rules: &TopicRules,
+    key: &str,
+    settings: &TopicSettings,
+    other: String,
+    ros2_topic: String,
+) -> ConfigError {
+    let other_key = other.strip_prefix("set '").and_then(|o| o.strip_suffix('\''));
+    let (blamed, other) = match other_key {
+        Some(o) if settings.remap.is_none() && rules.topics.get(o).is_some_and(|t| t.remap.is_some()) => {
+            (o.to_string(), format!("set '{key}'"))
+        }
+        _ => (key.to_string(), other),
+    };
+    ConfigError::TopicTaken {
+        at: in_source(&rules.source, &format!("topics.\"{blamed}\".remap")),
+        topic: ros2_topic,
+        other,
+    }
+}
+
+/// Refuses the settings of a set of domain `d` that its flags forbid: a QoS that would break
+/// lock-step or the seed of late joiners, a rate limit on a synchronous set (`at` names a
+/// settings key where it stands).
+fn check_flags(d: &Domain, settings: &TopicSettings, at: impl Fn(&str) -> String) -> Result<(), ConfigError> {
+    let refuse =
+        |what: &str, term, flag, why| ConfigError::Refused { at: at(what), term, domain: d.name.clone(), flag, why };
+    let q = settings.qos;
+    if d.flags.synchronous {
+        const LOCKSTEP: &str = "lock-step needs every step: RELIABLE, KEEP_ALL";
+        if q.reliability == Some(Reliability::BestEffort) {
+            return Err(refuse("qos.reliability", "best_effort", "synchronous=yes", LOCKSTEP));
+        }
+        if let Some(History::KeepLast(_)) = q.history {
+            return Err(refuse("qos.history", "keep_last", "synchronous=yes", LOCKSTEP));
+        }
+        if settings.max_rate.is_some() {
+            let why = "every step must reach DDS; only asynchronous sets are downsampled";
+            return Err(refuse("max_rate", "a rate limit", "synchronous=yes", why));
+        }
+    }
+    if d.flags.states && q.durability == Some(Durability::Volatile) {
+        let why = "the seed must reach late joiners: TRANSIENT_LOCAL";
+        return Err(refuse("qos.durability", "volatile", "states=yes", why));
+    }
+    Ok(())
 }
 
 /// Where a message points: `FILE: KEY`, or `KEY` for rules from no file.
@@ -317,13 +467,13 @@ impl QosOverride {
 
 impl TopicRules {
     /// The rules of a config file (`allow`, `deny`, `topics`); none without those keys.
-    pub fn from_config(cfg: &ConfigFile) -> Result<TopicRules, GatewayError> {
+    pub fn from_config(cfg: &ConfigFile) -> Result<TopicRules, ConfigError> {
         let source = cfg.source.clone().unwrap_or_default();
         let at = |key: &str| in_source(&source, key);
-        let compile = |key: &str, pats: &Option<Vec<String>>| -> Result<Vec<regex::Regex>, GatewayError> {
+        let compile = |key: &str, pats: &Option<Vec<String>>| -> Result<Vec<regex::Regex>, ConfigError> {
             pats.iter()
                 .flatten()
-                .map(|p| anchored(p).map_err(|e| GatewayError::Invalid(format!("{}: {e}", at(key)))))
+                .map(|p| anchored(p).map_err(|e| ConfigError::PatternAt { at: at(key), error: Box::new(e) }))
                 .collect()
         };
         let mut topics = BTreeMap::new();
@@ -334,10 +484,7 @@ impl TopicRules {
                 (Some(HistoryKey::KeepAll), None) => Some(History::KeepAll),
                 (None, None) => None,
                 (_, Some(_)) => {
-                    return Err(GatewayError::Invalid(format!(
-                        "{}: depth needs history \"keep_last\" (it is how many samples KEEP_LAST keeps)",
-                        at(&format!("topics.\"{key}\".qos.depth"))
-                    )))
+                    return Err(ConfigError::DepthWithoutKeepLast { at: at(&format!("topics.\"{key}\".qos.depth")) })
                 }
             };
             let qos = QosOverride {
@@ -372,10 +519,11 @@ impl TopicRules {
 
 /// A pattern of `allow` / `deny`, which must match the whole set key (`uav1/.*`, not `uav`).
 /// A bad pattern is an error naming it.
-pub fn anchored(pattern: &str) -> Result<regex::Regex, String> {
+pub fn anchored(pattern: &str) -> Result<regex::Regex, ConfigError> {
+    let bad = |error| ConfigError::Pattern { pattern: pattern.to_string(), error };
     // Compiled alone first, so that the error shows the pattern as written.
-    regex::Regex::new(pattern).map_err(|e| format!("bad pattern '{pattern}': {e}"))?;
-    regex::Regex::new(&format!("^(?:{pattern})$")).map_err(|e| format!("bad pattern '{pattern}': {e}"))
+    regex::Regex::new(pattern).map_err(bad)?;
+    regex::Regex::new(&format!("^(?:{pattern})$")).map_err(bad)
 }
 
 fn unanchored(s: &str) -> &str {
@@ -489,15 +637,14 @@ pub enum DurabilityKey {
 }
 
 /// Reads a config file; errors name the file, and the line, column and key where they can.
-pub fn load(path: &Path) -> Result<ConfigFile, GatewayError> {
+pub fn load(path: &Path) -> Result<ConfigFile, ConfigError> {
     let shown = path.display().to_string();
-    let text = std::fs::read_to_string(path)
-        .map_err(|e| GatewayError::Invalid(format!("{shown}: cannot read the gateway config: {e}")))?;
+    let text = std::fs::read_to_string(path).map_err(|error| ConfigError::Read { file: shown.clone(), error })?;
     parse(&text, &shown)
 }
 
 /// A config file's text, read from `source` (named in errors).
-pub fn parse(text: &str, source: &str) -> Result<ConfigFile, GatewayError> {
+pub fn parse(text: &str, source: &str) -> Result<ConfigFile, ConfigError> {
     match json5::from_str::<ConfigFile>(text) {
         Ok(mut c) => {
             c.source = Some(source.to_string());
@@ -514,15 +661,24 @@ pub fn parse(text: &str, source: &str) -> Result<ConfigFile, GatewayError> {
                 (Some(expected), None) => format!("syntax error: {expected}"),
                 (None, _) => msg,
             };
-            Err(GatewayError::Invalid(match location {
-                Some(l) => format!("{source}:{}:{}: {msg}", l.line, l.column),
-                None => format!("{source}: {msg}"),
-            }))
+            Err(ConfigError::File {
+                file: source.to_string(),
+                position: location.map(|l| (l.line, l.column)),
+                message: msg,
+            })
         }
     }
 }
 
 impl ConfigFile {
+    /// `self` (the flags) laid over the keys of the config file `config`, if there is one.
+    pub fn layered(self, config: Option<&Path>) -> Result<ConfigFile, ConfigError> {
+        match config {
+            None => Ok(self),
+            Some(path) => Ok(self.over(load(path)?)),
+        }
+    }
+
     /// `self`'s keys, and `lower`'s where `self` has none (flags over the file).
     pub fn over(self, lower: ConfigFile) -> ConfigFile {
         ConfigFile {
@@ -557,7 +713,7 @@ impl ConfigFile {
 
     /// Sets the options these keys give; the others keep their value (a default, or what
     /// the environment said). `status_every`, `duration` and `quiet` are the CLI's.
-    pub fn apply(&self, opts: &mut GatewayOptions) -> Result<(), GatewayError> {
+    pub fn apply(&self, opts: &mut GatewayOptions) -> Result<(), ConfigError> {
         fn set<T: Clone>(dst: &mut T, v: &Option<T>) {
             if let Some(v) = v {
                 *dst = v.clone();
@@ -597,7 +753,7 @@ impl ConfigFile {
 }
 
 // ---------------------------------------------------------------------------------------
-// Environment.
+// Environment: the one reader of each of the gateway's variables.
 
 /// What ROS 2's discovery variables ask for (`ROS_LOCALHOST_ONLY`,
 /// `ROS_AUTOMATIC_DISCOVERY_RANGE`).
@@ -615,7 +771,7 @@ pub enum DiscoveryRange {
 /// The discovery range of ROS 2's variables, given their values. `ROS_LOCALHOST_ONLY=1`
 /// wins, as in ROS 2 Jazzy (which still honours it, deprecated); an unknown range is an
 /// error naming the variable.
-pub fn discovery_range(localhost_only: Option<&str>, range: Option<&str>) -> Result<DiscoveryRange, GatewayError> {
+pub fn discovery_range(localhost_only: Option<&str>, range: Option<&str>) -> Result<DiscoveryRange, ConfigError> {
     if localhost_only.is_some_and(|v| v.trim() == "1") {
         return Ok(DiscoveryRange::Localhost);
     }
@@ -623,10 +779,96 @@ pub fn discovery_range(localhost_only: Option<&str>, range: Option<&str>) -> Res
         None | Some("" | "SUBNET" | "SYSTEM_DEFAULT") => Ok(DiscoveryRange::Default),
         Some("LOCALHOST") => Ok(DiscoveryRange::Localhost),
         Some("OFF") => Ok(DiscoveryRange::Off),
-        Some(_) => Err(GatewayError::Invalid(format!(
-            "ROS_AUTOMATIC_DISCOVERY_RANGE='{}': expected SUBNET, LOCALHOST, OFF or SYSTEM_DEFAULT",
-            range.unwrap_or_default()
-        ))),
+        Some(_) => Err(ConfigError::DiscoveryRange { value: range.unwrap_or_default().to_string() }),
+    }
+}
+
+/// The gateway's environment variables, each read here and nowhere else (the CLI and the
+/// library alike): the DDS domain, ROS 2's discovery range, the engine and the interfaces.
+/// A variable set to nothing counts as unset; a bad value is an error naming the variable.
+pub mod env {
+    use std::net::IpAddr;
+
+    use super::{discovery_range, ConfigError, DiscoveryRange};
+    use crate::engine::EngineKind;
+
+    /// The value of `name`, None when unset or blank.
+    fn var(name: &str) -> Option<String> {
+        std::env::var(name).ok().filter(|v| !v.trim().is_empty())
+    }
+
+    /// `ROS_DOMAIN_ID`, if set.
+    pub fn domain_id() -> Result<Option<u16>, ConfigError> {
+        let Some(s) = var("ROS_DOMAIN_ID") else { return Ok(None) };
+        match s.trim().parse::<u16>().ok().filter(|&d| d <= 232) {
+            Some(d) => Ok(Some(d)),
+            None => Err(ConfigError::DomainIdVar { value: s }),
+        }
+    }
+
+    /// `TUTTI_DDS`, else the default engine (cyclone).
+    pub fn engine() -> Result<EngineKind, ConfigError> {
+        match var("TUTTI_DDS") {
+            Some(s) => s.parse().map_err(|error| ConfigError::EngineVar { value: s, error }),
+            None => Ok(EngineKind::default()),
+        }
+    }
+
+    /// `ROS_LOCALHOST_ONLY` and `ROS_AUTOMATIC_DISCOVERY_RANGE`.
+    pub fn discovery() -> Result<DiscoveryRange, ConfigError> {
+        discovery_range(
+            std::env::var("ROS_LOCALHOST_ONLY").ok().as_deref(),
+            std::env::var("ROS_AUTOMATIC_DISCOVERY_RANGE").ok().as_deref(),
+        )
+    }
+
+    /// `TUTTI_GATEWAY_INTERFACE` (comma-separated addresses), if set.
+    pub fn interfaces() -> Result<Option<Vec<IpAddr>>, ConfigError> {
+        let Some(s) = var("TUTTI_GATEWAY_INTERFACE") else { return Ok(None) };
+        s.split(',')
+            .map(|a| {
+                a.trim().parse::<IpAddr>().map_err(|error| ConfigError::InterfaceVar { value: a.to_string(), error })
+            })
+            .collect::<Result<Vec<_>, _>>()
+            .map(Some)
+    }
+}
+
+impl GatewayOptions {
+    /// The options of the gateway for `model` read from `ddf`: the defaults, then the
+    /// environment where `keys` (flags laid over the config file) say nothing, then `keys`.
+    /// With ROS 2's discovery range OFF, peers must be given.
+    pub fn configured(ddf: &Path, model: Model, keys: &ConfigFile) -> Result<GatewayOptions, ConfigError> {
+        let mut opts = GatewayOptions::new(ddf, model);
+        if keys.ros_domain_id.is_none() {
+            opts.ros_domain_id = env::domain_id()?.unwrap_or(0);
+        }
+        if keys.dds.is_none() {
+            opts.engine = env::engine()?;
+        }
+        let range = env::discovery()?;
+        if keys.interface.is_none() {
+            opts.interfaces = match env::interfaces()? {
+                Some(i) => i,
+                // This machine only: loopback.
+                None if range == DiscoveryRange::Localhost => vec![IpAddr::from([127, 0, 0, 1])],
+                None => Vec::new(),
+            };
+        }
+        keys.apply(&mut opts)?;
+        if range == DiscoveryRange::Off {
+            // Cyclone has no switch for "peers only" that we could set without overriding
+            // CYCLONEDDS_URI; with peers given, they are used beside what Cyclone is configured for.
+            if opts.peers.is_empty() {
+                return Err(ConfigError::DiscoveryOff);
+            }
+            tracing::warn!(
+                "ROS_AUTOMATIC_DISCOVERY_RANGE=OFF: discovering the peers {:?}; multicast discovery stays as \
+                 CYCLONEDDS_URI configures it",
+                opts.peers
+            );
+        }
+        Ok(opts)
     }
 }
 
@@ -652,45 +894,46 @@ pub fn parse_wait(s: &str) -> Result<WaitMode, String> {
 }
 
 /// A positive rate in Hz (`100`, `100Hz`).
-pub fn parse_rate(s: &str) -> Result<f64, String> {
+pub fn parse_rate(s: &str) -> Result<f64, ConfigError> {
     match s.trim().trim_end_matches("Hz").trim_end_matches("hz").parse::<f64>() {
         Ok(r) if r > 0.0 && r.is_finite() => Ok(r),
-        _ => Err(format!("'{s}' is not a rate in Hz (e.g. 100)")),
+        _ => Err(ConfigError::Rate { value: s.to_string() }),
     }
 }
 
-fn parse_types(s: &str) -> Result<TypeMode, String> {
+fn parse_types(s: &str) -> Result<TypeMode, ConfigError> {
     match s {
         "typed" => Ok(TypeMode::Typed),
         "per-item" | "per_item" => Ok(TypeMode::PerItem),
-        _ => Err(format!("'{s}': use typed or per-item")),
+        _ => Err(ConfigError::Types { value: s.to_string() }),
     }
 }
 
-fn parse_profile(s: &str) -> Result<Profile, String> {
+/// A QoS profile: `ros2` or `dds`.
+pub fn parse_profile(s: &str) -> Result<Profile, ConfigError> {
     match s {
         "ros2" => Ok(Profile::Ros2),
         "dds" => Ok(Profile::Dds),
-        _ => Err(format!("'{s}': use ros2 or dds")),
+        _ => Err(ConfigError::Profile { value: s.to_string() }),
     }
 }
 
 /// A ROS namespace in canonical form (see [`ros_namespace`]).
-pub fn parse_namespace(s: &str) -> Result<String, String> {
-    ros_namespace(s).map_err(|e| e.to_string())
+pub fn parse_namespace(s: &str) -> Result<String, ConfigError> {
+    ros_namespace(s)
 }
 
-fn parse_pattern(s: &str) -> Result<String, String> {
+fn parse_pattern(s: &str) -> Result<String, ConfigError> {
     anchored(s).map(|_| s.to_string())
 }
 
 /// Parses a string where it stands, so that json5 gives its error the value's position.
-struct Parsed<T> {
+struct Parsed<T, P> {
     expecting: &'static str,
-    parse: fn(&str) -> Result<T, String>,
+    parse: fn(&str) -> Result<T, P>,
 }
 
-impl<'de, T> Visitor<'de> for Parsed<T> {
+impl<'de, T, P: fmt::Display> Visitor<'de> for Parsed<T, P> {
     type Value = T;
     fn expecting(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         f.write_str(self.expecting)
@@ -700,7 +943,7 @@ impl<'de, T> Visitor<'de> for Parsed<T> {
     }
 }
 
-impl<'de, T> DeserializeSeed<'de> for Parsed<T> {
+impl<'de, T, P: fmt::Display> DeserializeSeed<'de> for Parsed<T, P> {
     type Value = T;
     fn deserialize<D: Deserializer<'de>>(self, d: D) -> Result<T, D::Error> {
         d.deserialize_any(self)
@@ -823,7 +1066,7 @@ mod tests {
     }
 
     /// Options for `ddf` (in the repo's `ddf/`) with the config text `cfg` applied.
-    fn opts(ddf: &str, cfg: &str) -> Result<GatewayOptions, GatewayError> {
+    fn opts(ddf: &str, cfg: &str) -> Result<GatewayOptions, ConfigError> {
         let path = repo(&format!("ddf/{ddf}"));
         let model = tutti_core::ddf::load(&path).unwrap();
         let mut o = GatewayOptions::new(&path, model);
@@ -831,11 +1074,11 @@ mod tests {
         Ok(o)
     }
 
-    fn err(r: Result<impl fmt::Debug, GatewayError>) -> String {
+    fn err(r: Result<impl fmt::Debug, ConfigError>) -> String {
         r.expect_err("refused").to_string()
     }
 
-    fn resolved(ddf: &str, cfg: &str) -> Result<Plan, GatewayError> {
+    fn resolved(ddf: &str, cfg: &str) -> Result<Plan, ConfigError> {
         resolve(&opts(ddf, cfg)?)
     }
 
@@ -901,7 +1144,7 @@ mod tests {
     #[test]
     fn ros_topic_names_are_checked() {
         for ok in ["a", "a/b", "/a/b_2", "_x/y"] {
-            assert_eq!(ros_topic_name(ok).as_deref(), Ok(ok));
+            assert_eq!(ros_topic_name(ok).ok().as_deref(), Some(ok));
         }
         for bad in ["", "/", "a/", "a//b", "a/2b", "~/a", "{node}/a", "a-b", "a b"] {
             assert!(ros_topic_name(bad).is_err(), "{bad}");

@@ -30,8 +30,8 @@ fn typed_sink(
         let s = match data {
             Data::Raw(raw) => codec.decode(raw),
             Data::Decoded(r) => r.and_then(|p| match p {
-                crate::routes::Payload::Set(s) => Ok(s),
-                crate::routes::Payload::Item { .. } => Err("not a set".into()),
+                crate::cdr::Payload::Set(s) => Ok(s),
+                crate::cdr::Payload::Item { .. } => Err(crate::cdr::CdrError::Unexpected("not a set")),
             }),
         };
         if let Ok(s) = s {
@@ -43,10 +43,7 @@ fn typed_sink(
 /// Echoes domain `domain` of `opts.model` until `stop`; returns the samples echoed.
 pub fn run(opts: &GatewayOptions, domain: &Domain, stop: Arc<AtomicBool>) -> Result<u64, GatewayError> {
     if domain.publish.layout != domain.subscribe.layout {
-        return Err(GatewayError::Invalid(format!(
-            "domain '{}': the echo needs equal PUBLISH and SUBSCRIBE layouts",
-            domain.name
-        )));
+        return Err(GatewayError::EchoLayouts { domain: domain.name.clone() });
     }
     let ep = Endpoints::open(opts, domain, Role::Publish)?;
     let n = Arc::new(AtomicU64::new(0));
@@ -231,7 +228,7 @@ pub fn ping(
             break;
         }
         if Instant::now() > end {
-            return Err(GatewayError::Invalid("no echo (is the loopback interface up?)".into()));
+            return Err(GatewayError::NoEcho);
         }
     }
     let mut times = Vec::with_capacity(samples as usize);

@@ -253,10 +253,10 @@ pub type ReportFn = Arc<dyn Fn() -> Report + Send + Sync>;
 /// Serves `GET /stats` (JSON), `GET /metrics` (Prometheus text 0.0.4) and `GET /` (an
 /// index) on `addr` (port 0: any free port) from a thread of its own. Returns the thread, the
 /// address bound and the handle that stops it (dropping the handle stops it too). A bind
-/// failure is [`GatewayError::Invalid`] naming the address.
+/// failure is [`GatewayError::Listen`], naming the address.
 pub fn serve(addr: SocketAddr, report: ReportFn) -> Result<(JoinHandle<()>, SocketAddr, Shutdown), GatewayError> {
     let rt = tokio::runtime::Builder::new_current_thread().enable_all().build().map_err(GatewayError::Runtime)?;
-    let bind_err = |e: std::io::Error| GatewayError::Invalid(format!("--http {addr}: cannot listen there: {e}"));
+    let bind_err = |error| GatewayError::Listen { addr, error };
     let listener = rt.block_on(tokio::net::TcpListener::bind(addr)).map_err(bind_err)?;
     let bound = listener.local_addr().map_err(bind_err)?;
     let stats = report.clone();

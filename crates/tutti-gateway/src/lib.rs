@@ -3,13 +3,17 @@
 //! node. With `mirror`, the gateway is the framework of local segments fed from DDS, so that
 //! a co-simulation spans machines.
 //!
-//! Shape: [`engine`] is all the gateway needs from DDS, with two implementations (Cyclone
-//! DDS through `cyclors`, the default, and rustdds); [`routes`] has one module per route
-//! kind, written once above the engines; [`manager`] builds every route and runs one
-//! `select!` loop that compares discovery with the routes' connections and prints status,
-//! while samples go straight from each engine's receive path to shared memory (no waiting
-//! call runs on the async runtime). [`cdr`] encodes and decodes the types, [`qos`] turns the
-//! QoS table into rustdds QoS.
+//! Shape, bottom up: [`cdr`] encodes and decodes the types (and holds [`cdr::Payload`],
+//! what a sample carries into shared memory); [`engine`] is all the gateway needs from DDS,
+//! with two implementations (Cyclone DDS through `cyclors`, the default and always built,
+//! and rustdds behind the cargo feature `rustdds`, on by default), and imports nothing
+//! above it; [`config`] holds the options, the environment and the config file's plan;
+//! [`routes`] has one module per route kind, written once above the engines, each with
+//! its constructor; [`manager`] builds the routes as domains come to be bridged and runs
+//! one `select!` loop that compares discovery with the routes' connections and prints
+//! status, while samples go straight from each engine's receive path to shared memory or
+//! to a mirror's thread (no waiting call runs on the async runtime). `qos` turns the QoS
+//! table into rustdds QoS.
 
 #![deny(unsafe_op_in_unsafe_fn)]
 
@@ -20,13 +24,13 @@ pub mod engine;
 mod error;
 pub mod http;
 pub mod manager;
-mod options;
+#[cfg(feature = "rustdds")]
 pub mod qos;
 pub mod routes;
 pub mod stats;
 
+pub use config::{ClockSource, GatewayOptions, TypeMode};
 pub use engine::EngineKind;
 pub use error::GatewayError;
 pub use manager::run;
-pub use options::{ClockSource, GatewayOptions, TypeMode};
 pub use stats::Stats;

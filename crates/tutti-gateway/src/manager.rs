@@ -1,8 +1,10 @@
 //! The route manager: bridges each domain once a framework hosts it (or all of them from
-//! the start with `hosted_only` off, or as a mirror), then runs one `select!` loop that
-//! takes DDS samples from the reader tasks, compares discovery with the connections it
-//! holds, reports status and stops on request. Shared-memory work happens on the routes'
-//! own threads; this loop only hands samples over and never blocks.
+//! the start with `hosted_only` off, or as a mirror), building each route with its kind's
+//! constructor in [`crate::routes`], then runs one `select!` loop that compares discovery
+//! with the connections it holds, reports status and stops on request. Samples do not pass
+//! through it: readers' sinks commit them (or hand them to a mirror's thread) on the
+//! engine's receive path. The loop only hears of a DDS writer's sample while that writer has
+//! no connection yet (it then gives it one), and of samples that could not be decoded.
 //!
 //! DDS readers are passive: they get no shared-memory connection, so they never pace a
 //! domain and are not counted as participants; the gateway's presence in each domain it
@@ -20,28 +22,26 @@ use std::time::{Duration, Instant};
 use tokio::sync::mpsc;
 use tracing::{info, warn};
 use tutti_core::ddf::{Domain, Role};
-use tutti_core::mapping::Qos;
 use tutti_core::shm::observer::{Look, Observer};
-use tutti_core::shm::{Framework, FrameworkOptions};
+use tutti_core::shm::{DomainHost, Framework, FrameworkOptions};
 
-use crate::cdr::{SetCodec, TypedSample};
+use crate::cdr::SetCodec;
 use crate::config::{self, PlannedSet};
 use crate::engine::{self, Decode, Engine, Guid};
-use crate::routes::clock::{self, ClockPump};
-use crate::routes::from_dds::{self, Direct, RemoteWriter, Sample};
-use crate::routes::per_item::{self, ItemWriters};
-use crate::routes::to_dds::{self, Activation, Outbound, Polled, SetWriter, Watched};
-use crate::routes::{mirror, Event, Payload, ShmConfig};
+use crate::routes::from_dds::{self, Destination, Direct, RemoteWriter, Sample, Target};
+use crate::routes::mirror::{self, MirrorCounters};
+use crate::routes::to_dds::{self, Activation, Outgoing, Polled, ServedBy};
+use crate::routes::{clock, per_item, Counters, Event, ShmConfig};
 use crate::stats::{LogLimit, SetStats, Stats};
 use crate::{http, GatewayError, GatewayOptions, TypeMode};
 
 /// A route as the manager sees it.
 #[derive(Debug)]
 enum Route {
-    /// DDS -> shared memory (or -> the mirror's framework); `direct`: the writers whose
-    /// samples the reader task commits itself (asynchronous domains).
-    /// `set`: the planned set it belongs to.
-    In { domain: usize, set: usize, topic: String, direct: Direct },
+    /// DDS -> shared memory; `set`: the planned set it belongs to; `direct`: the remote
+    /// writers whose samples the reader's sink commits (None for a mirror, whose sink hands
+    /// every sample to the mirror's thread: its writers get no connections).
+    In { domain: usize, set: usize, topic: String, direct: Option<Direct> },
     /// Shared memory -> DDS; `set`: the planned set its topics are (None: `/clock`), whose
     /// readers the domain counts.
     Out { domain: usize, topics: Vec<String>, activation: Arc<Activation>, set: Option<usize> },
@@ -52,7 +52,6 @@ struct DomainState {
     name: String,
     synchronous: bool,
     own_commits: Arc<AtomicU64>,
-    mirror: Option<std_mpsc::Sender<TypedSample>>,
     /// Its routes exist.
     bridged: bool,
     /// The gateway's presence in the domain (None for a mirror, which hosts it): tells
@@ -81,7 +80,7 @@ pub fn run(
     on_status: &mut dyn FnMut(&str),
 ) -> Result<Arc<Stats>, GatewayError> {
     if opts.mirror && opts.types == TypeMode::PerItem {
-        return Err(GatewayError::Invalid("--mirror needs --ros2-types typed: per-item samples carry no step".into()));
+        return Err(GatewayError::MirrorNeedsTyped);
     }
     // Canonical from here on (`sim1`, `a/b`, or empty), as the routes and the report use it.
     opts.ros_namespace = config::ros_namespace(&opts.ros_namespace)?;
@@ -159,17 +158,7 @@ impl Manager {
         let poll_thread =
             to_dds::spawn_poller(added, cfg.clone(), stats.clone()).map_err(|e| GatewayError::dds("a thread", e))?;
         let poller_thread = poll_thread.thread().clone();
-        let mut hosts: Vec<Option<_>> = if opts.mirror {
-            let fo = FrameworkOptions {
-                namespace: opts.namespace.clone(),
-                timeout: opts.timeout,
-                wait: opts.wait,
-                ..Default::default()
-            };
-            Framework::create(&opts.model, &fo)?.domains.into_iter().map(Some).collect()
-        } else {
-            Vec::new()
-        };
+        let mut hosts = mirror_hosts(&opts)?;
         let domains = opts
             .model
             .domains
@@ -178,7 +167,6 @@ impl Manager {
                 name: d.name.clone(),
                 synchronous: d.flags.synchronous,
                 own_commits: Arc::new(AtomicU64::new(0)),
-                mirror: None,
                 bridged: false,
                 presence: (!opts.mirror).then(|| Observer::with_presence(d.name.clone(), &opts.node_name)),
                 dds_readers: 0,
@@ -277,141 +265,123 @@ impl Manager {
         }
     }
 
-    /// Creates the routes of domain `di` (`host`: its framework, for a mirror).
-    fn bridge(&mut self, di: usize, host: Option<tutti_core::shm::DomainHost>) -> Result<(), GatewayError> {
+    /// Creates the routes of domain `di` (`host`: its framework, for a mirror), each with its
+    /// kind's constructor, and `/clock` if it comes from this domain.
+    fn bridge(&mut self, di: usize, host: Option<DomainHost>) -> Result<(), GatewayError> {
         let d = self.opts.model.domains[di].clone();
-        let sets: Vec<(usize, PlannedSet)> =
-            self.plan.iter().enumerate().filter(|(_, p)| p.domain == di).map(|(i, p)| (i, p.clone())).collect();
-        let planned = |role: Role| sets.iter().find(|(_, p)| p.role == role).map(|(i, p)| (*i, p));
-        let own_commits = self.domains[di].own_commits.clone();
-        let dds: &dyn Engine = &*self.dds;
-        let mut watched: Vec<Box<dyn Polled>> = Vec::new();
-        match (self.opts.types, self.opts.mirror) {
-            (TypeMode::Typed, false) => {
-                // PUBLISH: shared memory -> DDS.
-                if let Some((si, p)) = planned(Role::Publish) {
-                    self.topics += 1;
-                    let out = set_writer(dds, &d, p)?;
-                    let activation = route_out(&mut self.routes, di, vec![p.topic.clone()], Some(si));
-                    let counters = (self.stats.clone(), self.set_stats[si].clone());
-                    if d.flags.synchronous {
-                        let (name, cfg) = (d.name.clone(), self.cfg.clone());
-                        let pump = if self.opts.every_step {
-                            let reader = format!("{} every-step reader", self.opts.node_name);
-                            to_dds::spawn_lockstep_pump(name, out, activation, cfg, counters, reader)
-                        } else {
-                            to_dds::spawn_sync_pump(name, out, activation, cfg, counters)
-                        };
-                        self.threads.push(pump.map_err(|e| GatewayError::dds("a thread", e))?);
-                    } else {
-                        watched.push(self.watched(&d.name, si, out, activation, None));
-                    }
-                }
-                // SUBSCRIBE: DDS -> shared memory, and shared-memory writers -> DDS.
-                if let Some((si, p)) = planned(Role::Subscribe) {
-                    self.topics += 1;
-                    let decode = Decode::Set(Arc::new(SetCodec::new(&d.subscribe.layout)));
-                    self.inbound(di, si, &p.topic, &p.dds_type, decode, &p.reader_qos)?;
-                    let out = set_writer(&*self.dds, &d, p)?;
-                    let activation = route_out(&mut self.routes, di, vec![p.topic.clone()], Some(si));
-                    watched.push(self.watched(&d.name, si, out, activation, Some(own_commits)));
-                }
-            }
-            (TypeMode::Typed, true) => {
-                // The counters of a set the config leaves out count what nobody reads.
-                let unused = || Arc::new(SetStats::default());
-                let mut set_in = unused();
-                if let Some((si, p)) = planned(Role::Publish) {
-                    self.topics += 1;
-                    let decode = Decode::Set(Arc::new(SetCodec::new(&d.publish.layout)));
-                    self.inbound(di, si, &p.topic, &p.dds_type, decode, &p.reader_qos)?;
-                    set_in = self.set_stats[si].clone();
-                }
-                let mut set_out = unused();
-                let out = match planned(Role::Subscribe) {
-                    Some((si, p)) => {
-                        self.topics += 1;
-                        set_out = self.set_stats[si].clone();
-                        Some(set_writer(&*self.dds, &d, p)?)
-                    }
-                    None => None,
-                };
-                let (mtx, mrx) = std_mpsc::channel();
-                let host = host.ok_or_else(|| GatewayError::Invalid(format!("domain '{}' was not created", d.name)))?;
-                self.threads.push(
-                    mirror::spawn(host, mrx, out, self.cfg.clone(), self.stats.clone(), (set_in, set_out))
-                        .map_err(|e| GatewayError::dds("a thread", e))?,
-                );
-                self.domains[di].mirror = Some(mtx);
-            }
-            (TypeMode::PerItem, _) => {
-                if let Some((si, p)) = planned(Role::Publish) {
-                    let pub_topics = config::item_topics(&self.opts, p);
-                    self.topics += pub_topics.len();
-                    let out = Outbound::Items(ItemWriters::create(dds, &pub_topics, &d.publish.layout, &p.writer_qos)?);
-                    let topics = pub_topics.iter().map(|t| t.topic.clone()).collect();
-                    let activation = route_out(&mut self.routes, di, topics, Some(si));
-                    watched.push(self.watched(&d.name, si, out, activation, None));
-                }
-                if let Some((si, p)) = planned(Role::Subscribe) {
-                    let sub_topics = config::item_topics(&self.opts, p);
-                    self.topics += sub_topics.len();
-                    for t in &sub_topics {
-                        let Some(leaf) = d.subscribe.layout.leaf(&t.path) else { continue };
-                        let decode = per_item::decoder(leaf);
-                        self.inbound(di, si, &t.topic, &t.dds_type, decode, &p.reader_qos)?;
-                    }
-                    let out = Outbound::Items(ItemWriters::create(
-                        &*self.dds,
-                        &sub_topics,
-                        &d.subscribe.layout,
-                        &p.writer_qos,
-                    )?);
-                    let topics = sub_topics.iter().map(|t| t.topic.clone()).collect();
-                    let activation = route_out(&mut self.routes, di, topics, Some(si));
-                    watched.push(self.watched(&d.name, si, out, activation, Some(own_commits)));
+        if self.opts.mirror {
+            let host = host.ok_or_else(|| GatewayError::NotCreated { domain: d.name.clone() })?;
+            self.mirror(di, &d, host)?;
+        } else {
+            let sets: Vec<usize> = (0..self.plan.len()).filter(|&si| self.plan[si].domain == di).collect();
+            for si in sets {
+                match self.opts.types {
+                    TypeMode::Typed => self.typed(di, &d, si)?,
+                    TypeMode::PerItem => self.per_item(di, &d, si)?,
                 }
             }
         }
         if self.clock_domain == Some(di) {
-            let topic = config::dds_topic(&self.opts.ros_namespace, "clock");
-            let writer = self.dds.writer(&topic, clock::TYPE, &clock::qos())?;
-            let activation = route_out(&mut self.routes, di, vec![topic.clone()], None);
-            watched.push(Box::new(ClockPump::new(d.name.clone(), writer, activation, self.opts.clock_rate)));
-            self.topics += 1;
-            info!(domain = %d.name, "/{}: the simulated time of {}", topic.trim_start_matches("rt/"), d.name);
+            let out = clock::route(&*self.dds, &d.name, &self.opts.ros_namespace, self.opts.clock_rate)?;
+            info!(domain = %d.name, "/{}: the simulated time of {}", out.topics[0].trim_start_matches("rt/"), d.name);
+            self.outgoing(di, None, out);
         }
-        let any = !watched.is_empty();
-        for w in watched {
-            // The poller only ends with the gateway.
-            let _ = self.poller.send(w);
-        }
-        if any {
-            self.poller_thread.unpark();
-        }
+        self.poller_thread.unpark();
         self.domains[di].bridged = true;
         Ok(())
     }
 
-    /// A shared-memory -> DDS route of planned set `si` that the poller serves: `out` carries
-    /// the set's changes (`own_commits`: the gateway's own commits, not sent back to DDS), at
-    /// most at the set's `max_rate`, counted in the set's counters.
-    fn watched(
-        &self,
-        domain: &str,
-        si: usize,
-        out: Outbound,
-        activation: Arc<Activation>,
-        own_commits: Option<Arc<AtomicU64>>,
-    ) -> Box<dyn Polled> {
-        let p = &self.plan[si];
-        let w = Watched::new(domain.to_string(), p.role, out, activation, own_commits);
-        Box::new(w.with_max_rate(p.max_rate).counted(self.set_stats[si].clone()))
+    /// The planned set of domain `di` in `role`, if the gateway bridges it.
+    fn planned(&self, di: usize, role: Role) -> Option<usize> {
+        self.plan.iter().position(|p| p.domain == di && p.role == role)
     }
 
-    /// A DDS -> shared-memory route over `topic` (DDS type `dds_type`, samples read by
-    /// `decode`): its reader, whose sink decodes (and, in asynchronous domains, commits) its
-    /// samples on the engine's receive path, and the route entry the sink reports under.
+    fn counters(&self, si: usize) -> Counters {
+        Counters { total: self.stats.clone(), set: self.set_stats[si].clone() }
+    }
+
+    /// Typed set `si`: a PUBLISH set goes to DDS; a SUBSCRIBE set comes from DDS, and its
+    /// shared-memory writers go to DDS too.
+    fn typed(&mut self, di: usize, d: &Domain, si: usize) -> Result<(), GatewayError> {
+        let p = self.plan[si].clone();
+        self.topics += 1;
+        let own_commits = match p.role {
+            Role::Publish => None,
+            Role::Subscribe => {
+                let decode = Decode::Set(Arc::new(SetCodec::new(&d.subscribe.layout)));
+                self.inbound(di, si, &p.topic, &p.dds_type, decode, None)?;
+                Some(self.domains[di].own_commits.clone())
+            }
+        };
+        let every_step = self.opts.every_step.then(|| format!("{} every-step reader", self.opts.node_name));
+        let out = to_dds::typed(&*self.dds, d, &p, &self.cfg, self.counters(si), own_commits, every_step)?;
+        self.outgoing(di, Some(si), out);
+        Ok(())
+    }
+
+    /// Per-item set `si`: a topic per item, as [`Manager::typed`] does for the whole set.
+    fn per_item(&mut self, di: usize, d: &Domain, si: usize) -> Result<(), GatewayError> {
+        let p = self.plan[si].clone();
+        let items = config::item_topics(&self.opts, &p);
+        self.topics += items.len();
+        let own_commits = match p.role {
+            Role::Publish => None,
+            Role::Subscribe => {
+                for t in &items {
+                    let Some(leaf) = d.subscribe.layout.leaf(&t.path) else { continue };
+                    self.inbound(di, si, &t.topic, &t.dds_type, per_item::decoder(leaf), None)?;
+                }
+                Some(self.domains[di].own_commits.clone())
+            }
+        };
+        let out = to_dds::items(&*self.dds, d, &p, &items, self.set_stats[si].clone(), own_commits)?;
+        self.outgoing(di, Some(si), out);
+        Ok(())
+    }
+
+    /// A mirrored domain: its framework's thread, fed by the PUBLISH reader's sink, sends
+    /// the local SUBSCRIBE set. The counters of a set the config leaves out count what
+    /// nobody reads.
+    fn mirror(&mut self, di: usize, d: &Domain, host: DomainHost) -> Result<(), GatewayError> {
+        let (publish, subscribe) = (self.planned(di, Role::Publish), self.planned(di, Role::Subscribe));
+        let set = |si: Option<usize>| si.map_or_else(|| Arc::new(SetStats::default()), |si| self.set_stats[si].clone());
+        let counters = MirrorCounters { total: self.stats.clone(), publish: set(publish), subscribe: set(subscribe) };
+        let out = match subscribe {
+            Some(si) => {
+                self.topics += 1;
+                Some(to_dds::set_writer(&*self.dds, d, &self.plan[si])?)
+            }
+            None => None,
+        };
+        let (tx, rx) = std_mpsc::channel();
+        let thread = mirror::spawn(host, rx, out, self.cfg.clone(), counters);
+        self.threads.push(thread.map_err(|e| GatewayError::dds("a thread", e))?);
+        if let Some(si) = publish {
+            self.topics += 1;
+            let p = self.plan[si].clone();
+            let decode = Decode::Set(Arc::new(SetCodec::new(&d.publish.layout)));
+            self.inbound(di, si, &p.topic, &p.dds_type, decode, Some(tx))?;
+        }
+        Ok(())
+    }
+
+    /// Registers a shared-memory -> DDS route of domain `di` (`set`: its planned set; None:
+    /// `/clock`) and hands it to what serves it.
+    fn outgoing(&mut self, di: usize, set: Option<usize>, out: Outgoing) {
+        let Outgoing { topics, activation, served_by } = out;
+        self.routes.push(Route::Out { domain: di, topics, activation, set });
+        match served_by {
+            // The poller only ends with the gateway.
+            ServedBy::Poller(p) => {
+                let _ = self.poller.send(p);
+            }
+            ServedBy::Thread(t) => self.threads.push(t),
+        }
+    }
+
+    /// A DDS -> shared-memory route of planned set `set` over `topic` (DDS type `dds_type`,
+    /// samples read by `decode`): its reader, whose sink decodes and commits the samples on
+    /// the engine's receive path (or, with `mirror`, hands them to the mirror's thread).
     fn inbound(
         &mut self,
         domain: usize,
@@ -419,13 +389,20 @@ impl Manager {
         topic: &str,
         dds_type: &str,
         decode: Decode,
-        rq: &Qos,
+        mirror: Option<std_mpsc::Sender<crate::cdr::TypedSample>>,
     ) -> Result<(), GatewayError> {
-        let direct = Direct::default();
-        self.routes.push(Route::In { domain, set, topic: topic.to_string(), direct: direct.clone() });
-        let to = (self.routes.len() - 1, self.events_tx.clone(), direct);
-        let sink = from_dds::sink(decode.clone(), to, self.stats.clone(), self.dds.own_prefix());
-        self.dds.reader(topic, dds_type, rq, decode, sink)
+        let (direct, target) = match mirror {
+            Some(tx) => (None, Target::Mirror(tx)),
+            None => {
+                let direct = Direct::default();
+                (Some(direct.clone()), Target::Writers(direct))
+            }
+        };
+        let route = self.routes.len();
+        self.routes.push(Route::In { domain, set, topic: topic.to_string(), direct });
+        let to = Destination { route, events: self.events_tx.clone(), target };
+        let rq = self.plan[set].reader_qos;
+        from_dds::reader(&*self.dds, topic, dds_type, &rq, decode, to, self.stats.clone())
     }
 
     /// DDS readers, over all domains (each set's once).
@@ -465,13 +442,6 @@ impl Manager {
     fn on_event(&mut self, ev: Event) {
         match ev {
             Event::Sample(inb) => {
-                let Some(Route::In { domain, .. }) = self.routes.get(inb.route) else { return };
-                if let Some(mtx) = &self.domains[*domain].mirror {
-                    if let Payload::Set(s) = inb.payload {
-                        let _ = mtx.send(s);
-                    }
-                    return;
-                }
                 let key = (inb.route, inb.writer);
                 // A writer whose connection thread has gone is started again, once.
                 for _ in 0..2 {
@@ -502,9 +472,9 @@ impl Manager {
     }
 
     /// Gives remote writer `key.1` of inbound route `key.0` its connection (committed by
-    /// the route's reader task where the domain allows); false if it cannot be started.
+    /// the route's sink where it needs no wait); false if it cannot be started.
     fn add_writer(&mut self, key: (usize, Guid)) -> bool {
-        let Some(Route::In { domain, set, direct, .. }) = self.routes.get(key.0) else { return false };
+        let Some(Route::In { domain, set, direct: Some(direct), .. }) = self.routes.get(key.0) else { return false };
         let d = &self.domains[*domain];
         let gid = key.1;
         let spawned = RemoteWriter::spawn(
@@ -512,7 +482,7 @@ impl Manager {
             gid,
             d.synchronous,
             self.cfg.clone(),
-            (self.stats.clone(), self.set_stats[*set].clone()),
+            Counters { total: self.stats.clone(), set: self.set_stats[*set].clone() },
             d.own_commits.clone(),
         );
         match spawned {
@@ -529,18 +499,16 @@ impl Manager {
         }
     }
 
-    /// The writers committed by inbound route `route`'s reader task.
+    /// The writers committed by inbound route `route`'s sink.
     fn direct(&self, route: usize) -> Option<&Direct> {
         match self.routes.get(route) {
-            Some(Route::In { direct, .. }) => Some(direct),
+            Some(Route::In { direct, .. }) => direct.as_ref(),
             _ => None,
         }
     }
 
-    /// Bridges the domains whose framework has appeared, then compares discovery with the
-    /// routes: (de)activates writers, gives new remote writers connections, releases those
-    /// that left, and counts each domain's DDS readers.
-    fn rediscover(&mut self) {
+    /// Bridges the domains whose framework has appeared since the last look.
+    fn bridge_hosted(&mut self) {
         for di in 0..self.domains.len() {
             // Looked at every time: it keeps the presence connection across framework restarts.
             let hosted = self.hosted(di);
@@ -553,6 +521,13 @@ impl Manager {
                 }
             }
         }
+    }
+
+    /// Bridges the domains whose framework has appeared, then compares discovery with the
+    /// routes: (de)activates writers, gives new remote writers connections, releases those
+    /// that left, and counts each domain's DDS readers.
+    fn rediscover(&mut self) {
+        self.bridge_hosted();
         let remote = self.dds.remote();
         let mut readers = vec![0usize; self.domains.len()];
         let mut matched_writers: BTreeSet<(usize, Guid)> = BTreeSet::new();
@@ -567,9 +542,9 @@ impl Manager {
                         self.set_stats[*si].readers.store(on.len() as u64, Ordering::Relaxed);
                     }
                 }
-                Route::In { domain, set, topic, .. } => {
+                Route::In { set, topic, direct, .. } => {
                     set_writers[*set].extend(remote.writers_on(topic));
-                    if self.domains[*domain].mirror.is_none() {
+                    if direct.is_some() {
                         matched_writers.extend(remote.writers_on(topic).map(|g| (ri, g)));
                     }
                 }
@@ -595,7 +570,7 @@ impl Manager {
                 w.writer.tick();
             } else {
                 info!("DDS writer {} left: its connection is released", key.1.short());
-                if let Some(Route::In { direct, .. }) = routes.get(key.0) {
+                if let Some(Route::In { direct: Some(direct), .. }) = routes.get(key.0) {
                     direct.remove(&key.1);
                 }
             }
@@ -615,12 +590,11 @@ impl Manager {
         self.cfg.stop.store(true, Ordering::Release);
         self.writers.clear();
         for r in &self.routes {
-            if let Route::In { direct, .. } = r {
+            if let Route::In { direct: Some(direct), .. } = r {
                 direct.clear();
             }
         }
         for d in &mut self.domains {
-            d.mirror = None;
             d.presence = None;
         }
         for r in &self.routes {
@@ -635,17 +609,16 @@ impl Manager {
     }
 }
 
-/// The typed shared-memory -> DDS writer of a planned set.
-fn set_writer(dds: &dyn Engine, d: &Domain, p: &PlannedSet) -> Result<Outbound, GatewayError> {
-    let codec = Arc::new(SetCodec::new(&d.set(p.role).layout));
-    let writer = dds.writer(&p.topic, &p.dds_type, &p.writer_qos)?;
-    Ok(Outbound::Set(Box::new(SetWriter::new(codec, writer))))
-}
-
-/// A shared-memory -> DDS route over `topics`: registered in `routes`, and its activation
-/// (on while the topics have remote readers) returned for the thread that serves it.
-fn route_out(routes: &mut Vec<Route>, domain: usize, topics: Vec<String>, set: Option<usize>) -> Arc<Activation> {
-    let activation = Arc::new(Activation::default());
-    routes.push(Route::Out { domain, topics, activation: activation.clone(), set });
-    activation
+/// A mirror's local frameworks, one per domain of the DDF (none when not a mirror).
+fn mirror_hosts(opts: &GatewayOptions) -> Result<Vec<Option<DomainHost>>, GatewayError> {
+    if !opts.mirror {
+        return Ok(Vec::new());
+    }
+    let fo = FrameworkOptions {
+        namespace: opts.namespace.clone(),
+        timeout: opts.timeout,
+        wait: opts.wait,
+        ..Default::default()
+    };
+    Ok(Framework::create(&opts.model, &fo)?.domains.into_iter().map(Some).collect())
 }

@@ -7,9 +7,8 @@
 //!
 //! * Writers batch (`dds_qset_writer_batching`, per writer, rather than the process-wide
 //!   `dds_write_set_batch`): a write stays in the writer's packing buffer until
-//!   [`Writer::flush`] (`dds_write_flush`) or until the buffer fills. Measured across two
-//!   processes: write + flush round trip p50 23.7-24.1 us batched vs 23.6-24.0 us unbatched (same),
-//!   and a write NOT followed by a flush had not arrived after 3 s. Every writer of the gateway
+//!   [`Writer::flush`] (`dds_write_flush`) or until the buffer fills (an unflushed write may
+//!   never leave; docs/benchmarks.md has the cost of batching). Every writer of the gateway
 //!   flushes when nothing more is waiting (and on drop). Readers in the same process get a sample
 //!   at once either way. A writer deletes its DDS writer when dropped and keeps the participant
 //!   alive until then.
@@ -47,7 +46,8 @@ use cyclors::{
     dds_get_matched_publication_data, dds_guid_t, dds_history_kind_DDS_HISTORY_KEEP_ALL,
     dds_history_kind_DDS_HISTORY_KEEP_LAST, dds_instance_handle_t, dds_instance_state_DDS_IST_ALIVE,
     dds_lset_data_available, dds_ownership_kind_DDS_OWNERSHIP_EXCLUSIVE, dds_ownership_kind_DDS_OWNERSHIP_SHARED,
-    dds_qos_t, dds_qset_durability, dds_qset_durability_service, dds_qset_history, dds_qset_ownership,
+    dds_qget_durability, dds_qget_ownership, dds_qget_ownership_strength, dds_qget_reliability, dds_qos_t,
+    dds_qset_durability, dds_qset_durability_service, dds_qset_history, dds_qset_ownership,
     dds_qset_ownership_strength, dds_qset_reliability, dds_qset_writer_batching,
     dds_reliability_kind_DDS_RELIABILITY_BEST_EFFORT, dds_reliability_kind_DDS_RELIABILITY_RELIABLE, dds_return_loan,
     dds_return_t, dds_sample_info_t, dds_strretcode, dds_take, dds_takecdr, dds_write_flush, dds_writecdr,
@@ -57,7 +57,7 @@ use cyclors::{
 };
 use tutti_core::mapping::{Durability, History, Ownership, Qos, Reliability};
 
-use super::{Data, Decode, Engine, EngineConfig, EngineKind, Guid, Remote, Sink, Writer, PREFIX_LEN};
+use super::{Data, Decode, EndpointQos, Engine, EngineConfig, EngineKind, Guid, Remote, Sink, Writer, PREFIX_LEN};
 use crate::cdr::HEADER_LE;
 use crate::GatewayError;
 
@@ -82,8 +82,8 @@ fn retcode(ret: dds_return_t) -> String {
     unsafe { CStr::from_ptr(s) }.to_string_lossy().into_owned()
 }
 
-fn c_string(what: &str, s: &str) -> Result<CString, GatewayError> {
-    CString::new(s).map_err(|_| GatewayError::Invalid(format!("{what} '{}' contains a NUL byte", s.escape_debug())))
+fn c_string(what: &'static str, s: &str) -> Result<CString, GatewayError> {
+    CString::new(s).map_err(|_| GatewayError::NulByte { what, value: s.escape_debug().to_string() })
 }
 
 /// Escapes a value for an XML attribute in double quotes.
@@ -400,20 +400,64 @@ impl Drop for Inner {
     }
 }
 
-/// An incremental map of built-in topic instances: instance handle -> (topic, endpoint GUID).
+/// A discovered endpoint: its topic, GUID and announced QoS.
+struct Discovered {
+    topic: String,
+    guid: Guid,
+    qos: EndpointQos,
+}
+
+/// An incremental map of built-in topic instances, by instance handle.
 struct Builtin {
     reader: dds_entity_t,
-    known: HashMap<dds_instance_handle_t, (String, Guid)>,
+    /// Writers (DCPSPublication) or readers (DCPSSubscription): for the QoS defaults.
+    writers: bool,
+    known: HashMap<dds_instance_handle_t, Discovered>,
+}
+
+/// The terms of a discovered endpoint's QoS (`q` may be null); those it lacks have their
+/// DDS defaults (RELIABLE for a writer, BEST_EFFORT for a reader, VOLATILE, SHARED).
+fn endpoint_qos(q: *const dds_qos_t, writer: bool) -> EndpointQos {
+    let mut qos = EndpointQos {
+        reliability: if writer { Reliability::Reliable } else { Reliability::BestEffort },
+        transient_local: false,
+        ownership: Ownership::Shared,
+    };
+    if q.is_null() {
+        return qos;
+    }
+    let (mut reliability, mut max_blocking, mut durability, mut ownership, mut strength) = (0, 0, 0, 0, 0);
+    // SAFETY: `q` is a live QoS object (from a loaned built-in sample); the getters only write
+    // the out-parameters, all valid, and return false when the policy is absent.
+    unsafe {
+        if dds_qget_reliability(q, &mut reliability, &mut max_blocking) {
+            qos.reliability = if reliability == dds_reliability_kind_DDS_RELIABILITY_RELIABLE {
+                Reliability::Reliable
+            } else {
+                Reliability::BestEffort
+            };
+        }
+        if dds_qget_durability(q, &mut durability) {
+            qos.transient_local = durability != dds_durability_kind_DDS_DURABILITY_VOLATILE;
+        }
+        if dds_qget_ownership(q, &mut ownership) && ownership == dds_ownership_kind_DDS_OWNERSHIP_EXCLUSIVE {
+            if !dds_qget_ownership_strength(q, &mut strength) {
+                strength = 0;
+            }
+            qos.ownership = Ownership::Exclusive { strength };
+        }
+    }
+    qos
 }
 
 impl Builtin {
-    fn new(participant: dds_entity_t, topic: dds_entity_t, what: &str) -> Result<Builtin, GatewayError> {
+    fn new(participant: dds_entity_t, topic: dds_entity_t, what: &str, writers: bool) -> Result<Builtin, GatewayError> {
         // SAFETY: a built-in topic pseudo-handle, default QoS, no listener.
         let reader = unsafe { dds_create_reader(participant, topic, ptr::null(), ptr::null()) };
         if reader < 0 {
             return Err(GatewayError::dds(format!("the {what} reader"), retcode(reader)));
         }
-        Ok(Builtin { reader, known: HashMap::new() })
+        Ok(Builtin { reader, writers, known: HashMap::new() })
     }
 
     /// Takes what changed: alive instances added, disposed / unregistered ones removed; our
@@ -449,7 +493,8 @@ impl Builtin {
                 }
                 // SAFETY: a NUL-terminated string inside the loaned sample.
                 let topic = unsafe { CStr::from_ptr(ep.topic_name) }.to_string_lossy().into_owned();
-                self.known.insert(info.instance_handle, (topic, Guid(ep.key.v)));
+                let qos = endpoint_qos(ep.qos, self.writers);
+                self.known.insert(info.instance_handle, Discovered { topic, guid: Guid(ep.key.v), qos });
             }
             // SAFETY: returns the loan obtained by dds_take above.
             let r = unsafe { dds_return_loan(self.reader, buf.as_mut_ptr(), n) };
@@ -553,8 +598,8 @@ impl Cyclone {
         });
         let guid = entity_guid(participant).map_err(|r| GatewayError::dds("the participant's GUID", retcode(r)))?;
         let discovery = Discovery {
-            publications: Builtin::new(participant, DDS_BUILTIN_TOPIC_DCPSPUBLICATION, "DCPSPublication")?,
-            subscriptions: Builtin::new(participant, DDS_BUILTIN_TOPIC_DCPSSUBSCRIPTION, "DCPSSubscription")?,
+            publications: Builtin::new(participant, DDS_BUILTIN_TOPIC_DCPSPUBLICATION, "DCPSPublication", true)?,
+            subscriptions: Builtin::new(participant, DDS_BUILTIN_TOPIC_DCPSSUBSCRIPTION, "DCPSSubscription", false)?,
         };
         tracing::debug!("cyclone: participant {guid:?} on domain {domain_id}");
         Ok(Cyclone {
@@ -599,6 +644,10 @@ impl Cyclone {
 impl Engine for Cyclone {
     fn kind(&self) -> EngineKind {
         EngineKind::Cyclone
+    }
+
+    fn arbitrates_ownership(&self) -> bool {
+        true
     }
 
     fn domain_id(&self) -> u16 {
@@ -661,11 +710,13 @@ impl Engine for Cyclone {
         d.publications.update(&own);
         d.subscriptions.update(&own);
         let mut remote = Remote::default();
-        for (topic, g) in d.publications.known.values() {
-            remote.writers.entry(topic.clone()).or_default().insert(*g);
+        for e in d.publications.known.values() {
+            remote.writers.entry(e.topic.clone()).or_default().insert(e.guid);
+            remote.qos.insert(e.guid, e.qos);
         }
-        for (topic, g) in d.subscriptions.known.values() {
-            remote.readers.entry(topic.clone()).or_default().insert(*g);
+        for e in d.subscriptions.known.values() {
+            remote.readers.entry(e.topic.clone()).or_default().insert(e.guid);
+            remote.qos.insert(e.guid, e.qos);
         }
         remote
     }
@@ -760,6 +811,11 @@ impl Writer for CycloneWriter {
     fn write(&mut self, body: &[u8]) -> bool {
         // SAFETY: `sertype` belongs to `writer`, which lives until we drop.
         unsafe { write_pieces(self.writer, self.sertype, &[&HEADER_LE, body]) }
+    }
+
+    fn write_serialized(&mut self, raw: &[u8]) -> bool {
+        // SAFETY: as above.
+        unsafe { write_pieces(self.writer, self.sertype, &[raw]) }
     }
 
     fn flush(&mut self) {

@@ -3,8 +3,9 @@
 //! Routes, the CDR codec, the QoS table, exclusivity, echo suppression, stats and the mirror
 //! are written once above this layer; an [`Engine`] only moves pre-encoded CDR bytes
 //! between topics and the gateway, and tells who is on the other side. Two engines
-//! implement it: [`cyclone`] (Cyclone DDS through `cyclors`, the default) and [`rustdds`]
-//! (the pure-Rust stack, ros2-client over rustdds).
+//! implement it: [`cyclone`] (Cyclone DDS through `cyclors`, the default, always built) and
+//! `rustdds` (the pure-Rust stack, ros2-client over rustdds; cargo feature `rustdds`, on by
+//! default). [`EngineKind::built`] lists those of this build.
 
 use std::collections::{BTreeSet, HashMap};
 use std::fmt;
@@ -12,13 +13,14 @@ use std::net::IpAddr;
 use std::sync::Arc;
 
 use tutti_core::ddf::Leaf;
-use tutti_core::mapping::Qos;
+use tutti_core::mapping::{Ownership, Qos, Reliability};
 
-use crate::cdr::SetCodec;
-use crate::routes::Payload;
+use crate::cdr::{stock, CdrError, Payload, SetCodec};
+pub use crate::error::UnknownEngine;
 use crate::GatewayError;
 
 pub mod cyclone;
+#[cfg(feature = "rustdds")]
 pub mod rustdds;
 
 /// Bytes of a GUID prefix (the participant part of an endpoint GUID).
@@ -66,23 +68,31 @@ impl EngineKind {
         }
     }
 
-    /// Both engines, for tests and benchmarks that run against each.
+    /// Both engines, built or not.
     pub const ALL: [EngineKind; 2] = [EngineKind::Cyclone, EngineKind::Rustdds];
 
-    /// The engine `TUTTI_DDS` names, if it is set to a known name (the CLI refuses an
-    /// unknown one; library users get the default).
-    pub fn from_env() -> Option<EngineKind> {
-        std::env::var("TUTTI_DDS").ok().filter(|v| !v.trim().is_empty()).and_then(|v| v.parse().ok())
+    /// The engines this build contains, for tests and benchmarks that run against each.
+    pub fn built() -> &'static [EngineKind] {
+        if cfg!(feature = "rustdds") {
+            &EngineKind::ALL
+        } else {
+            &[EngineKind::Cyclone]
+        }
+    }
+
+    /// Whether this build contains the engine.
+    pub fn is_built(self) -> bool {
+        EngineKind::built().contains(&self)
     }
 }
 
 impl std::str::FromStr for EngineKind {
-    type Err = String;
-    fn from_str(s: &str) -> Result<Self, String> {
+    type Err = UnknownEngine;
+    fn from_str(s: &str) -> Result<Self, UnknownEngine> {
         match s.trim().to_ascii_lowercase().as_str() {
             "cyclone" | "cyclonedds" => Ok(EngineKind::Cyclone),
             "rustdds" => Ok(EngineKind::Rustdds),
-            other => Err(format!("unknown DDS engine '{other}' (expected cyclone or rustdds)")),
+            other => Err(UnknownEngine { name: other.to_string() }),
         }
     }
 }
@@ -123,7 +133,23 @@ pub enum Data<'a> {
     /// The serialized sample, encapsulation header included (decoded above the engine).
     Raw(&'a [u8]),
     /// Already decoded by the engine (rustdds decodes through serde as it reads).
-    Decoded(Result<Payload, String>),
+    Decoded(Result<Payload, CdrError>),
+}
+
+impl Data<'_> {
+    /// The sample as a [`Payload`]: as the engine decoded it, or decoded here from its
+    /// serialized form by `decode`.
+    pub fn into_payload(self, decode: &Decode) -> Result<Payload, CdrError> {
+        match self {
+            Data::Decoded(r) => r,
+            Data::Raw(raw) => match decode {
+                Decode::Set(codec) => codec.decode(raw).map(Payload::Set),
+                Decode::Item(leaf, path) => {
+                    stock::decode(leaf, raw).map(|bytes| Payload::Item { path: path.clone(), bytes })
+                }
+            },
+        }
+    }
 }
 
 /// Where a reader's samples go: called on the engine's receive path with the writer's GUID.
@@ -135,15 +161,31 @@ pub trait Writer: Send {
     /// Writes one sample whose CDR body (little-endian, no encapsulation header) is `body`;
     /// false when DDS refused it.
     fn write(&mut self, body: &[u8]) -> bool;
+    /// Writes one serialized sample as it is, encapsulation header first (plain CDR in
+    /// either byte order); false when DDS refused it, or when the engine writes only
+    /// little-endian samples (rustdds).
+    fn write_serialized(&mut self, raw: &[u8]) -> bool;
     /// Sends what batching held back (a no-op where writes are not batched).
     fn flush(&mut self) {}
 }
 
-/// Remote (not our participant's) endpoints per topic name.
+/// Remote (not our participant's) endpoints per topic name, and the QoS each announced.
 #[derive(Debug, Default, Clone, PartialEq, Eq)]
 pub struct Remote {
     pub writers: HashMap<String, BTreeSet<Guid>>,
     pub readers: HashMap<String, BTreeSet<Guid>>,
+    pub qos: HashMap<Guid, EndpointQos>,
+}
+
+/// The QoS a remote endpoint announced in discovery: the terms that decide matching and
+/// delivery (history is not announced).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct EndpointQos {
+    pub reliability: Reliability,
+    /// TRANSIENT_LOCAL (else VOLATILE).
+    pub transient_local: bool,
+    /// SHARED, or EXCLUSIVE with the strength announced (a reader's is 0).
+    pub ownership: Ownership,
 }
 
 impl Remote {
@@ -161,6 +203,10 @@ impl Remote {
 /// A DDS participant, as the gateway uses it.
 pub trait Engine: Send + Sync {
     fn kind(&self) -> EngineKind;
+    /// Whether the engine's EXCLUSIVE readers deliver only the strongest live writer's
+    /// samples (Cyclone); rustdds' readers deliver every writer's, and only the core's
+    /// first-writer rule applies above it.
+    fn arbitrates_ownership(&self) -> bool;
     /// The DDS domain id it joined.
     fn domain_id(&self) -> u16;
     /// The GUID prefix of its participant: endpoints with it are our own.
@@ -176,10 +222,31 @@ pub trait Engine: Send + Sync {
     fn announce(&self) -> Result<(), GatewayError>;
 }
 
-/// Opens a participant of engine `kind`.
+/// Opens a participant of engine `kind`; an engine this build does not contain is refused.
 pub fn open(kind: EngineKind, cfg: &EngineConfig) -> Result<Box<dyn Engine>, GatewayError> {
     match kind {
         EngineKind::Cyclone => Ok(Box::new(cyclone::Cyclone::open(cfg)?)),
+        #[cfg(feature = "rustdds")]
         EngineKind::Rustdds => Ok(Box::new(rustdds::Rustdds::open(cfg)?)),
+        #[cfg(not(feature = "rustdds"))]
+        EngineKind::Rustdds => Err(GatewayError::EngineNotBuilt { engine: kind.name() }),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_build_names_its_engines_and_refuses_the_others() {
+        assert!(EngineKind::Cyclone.is_built());
+        assert_eq!(EngineKind::Rustdds.is_built(), cfg!(feature = "rustdds"));
+        assert_eq!("CycloneDDS".parse::<EngineKind>(), Ok(EngineKind::Cyclone));
+        let e = "opendds".parse::<EngineKind>().unwrap_err();
+        assert_eq!(e.to_string(), "unknown DDS engine 'opendds' (expected cyclone or rustdds)");
+        if !EngineKind::Rustdds.is_built() {
+            let e = open(EngineKind::Rustdds, &EngineConfig::default()).map(|_| ()).unwrap_err();
+            assert!(e.is_invalid() && matches!(e, GatewayError::EngineNotBuilt { engine: "rustdds" }), "{e}");
+        }
     }
 }

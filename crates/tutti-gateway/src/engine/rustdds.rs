@@ -16,18 +16,18 @@ use std::collections::HashMap;
 use std::sync::{Arc, Mutex, PoisonError};
 
 use futures::{Stream, StreamExt};
+use ros2_client::dds::rustdds::{policy, QosPolicies};
 use ros2_client::dds::rustdds::{DomainParticipant, DomainParticipantBuilder, RTPSEntity, Topic, TopicKind};
 use ros2_client::dds::{Publisher, Subscription};
 use ros2_client::{Context, Gid, MessageInfo, Node, NodeName, NodeOptions};
 use serde::de::DeserializeOwned;
 use serde::Serialize;
 use tutti_core::ddf::{Leaf, Value};
-use tutti_core::mapping::Qos;
+use tutti_core::mapping::{Ownership, Qos, Reliability};
 
-use super::{Data, Decode, Engine, EngineConfig, EngineKind, Guid, Remote, Sink, Writer, PREFIX_LEN};
-use crate::cdr::{Bool, Float64, Float64MultiArray, PreEncoded, SetSeed};
-use crate::routes::per_item::{self, Stock};
-use crate::routes::Payload;
+use super::{Data, Decode, EndpointQos, Engine, EngineConfig, EngineKind, Guid, Remote, Sink, Writer, PREFIX_LEN};
+use crate::cdr::stock::{self, Stock};
+use crate::cdr::{split_header, Bool, CdrError, Float64, Float64MultiArray, Payload, PreEncoded, SetSeed};
 use crate::{qos, GatewayError};
 
 /// The participant, the node and the topics created so far.
@@ -58,13 +58,11 @@ impl Rustdds {
     /// announces the node `cfg.node_name`.
     pub fn open(cfg: &EngineConfig) -> Result<Rustdds, GatewayError> {
         if !cfg.peers.is_empty() {
-            return Err(GatewayError::Invalid(
-                "the rustdds engine cannot be given unicast peers (--peer); use --dds cyclone".into(),
-            ));
+            return Err(GatewayError::PeersUnsupported);
         }
         let ns = if cfg.node_namespace.is_empty() { "/" } else { cfg.node_namespace.as_str() };
         let node_name = NodeName::new(ns, &cfg.node_name)
-            .map_err(|e| GatewayError::Invalid(format!("invalid ROS 2 node name '{}': {e:?}", cfg.node_name)))?;
+            .map_err(|e| GatewayError::NodeName { name: cfg.node_name.clone(), detail: format!("{e:?}") })?;
         let mut b = DomainParticipantBuilder::new(cfg.domain_id);
         if !cfg.interfaces.is_empty() {
             b = b.with_only_networks(cfg.interfaces.clone());
@@ -158,14 +156,14 @@ impl Drop for Rustdds {
 /// The task of one reader: every sample (or error) to the sink, decoded by `to_payload`.
 async fn pump<M, E: std::fmt::Debug>(
     stream: impl Stream<Item = Result<(M, MessageInfo), E>>,
-    mut to_payload: impl FnMut(M) -> Result<Payload, String>,
+    mut to_payload: impl FnMut(M) -> Result<Payload, CdrError>,
     sink: Sink,
 ) {
     futures::pin_mut!(stream);
     while let Some(r) = stream.next().await {
         match r {
             Ok((m, info)) => sink(guid(&info.publisher_gid()), Data::Decoded(to_payload(m))),
-            Err(e) => sink(Guid::default(), Data::Decoded(Err(format!("{e:?}")))),
+            Err(e) => sink(Guid::default(), Data::Decoded(Err(CdrError::Engine(format!("{e:?}"))))),
         }
     }
 }
@@ -175,6 +173,15 @@ async fn pump<M, E: std::fmt::Debug>(
 struct RustddsWriter(Publisher<PreEncoded>);
 
 impl Writer for RustddsWriter {
+    /// rustdds writes its own little-endian encapsulation header: a big-endian sample is
+    /// refused.
+    fn write_serialized(&mut self, raw: &[u8]) -> bool {
+        match split_header(raw) {
+            Ok((true, body)) => self.write(body),
+            _ => false,
+        }
+    }
+
     fn write(&mut self, body: &[u8]) -> bool {
         match self.0.publish(PreEncoded(body.to_vec())) {
             Ok(()) => true,
@@ -189,6 +196,10 @@ impl Writer for RustddsWriter {
 impl Engine for Rustdds {
     fn kind(&self) -> EngineKind {
         EngineKind::Rustdds
+    }
+
+    fn arbitrates_ownership(&self) -> bool {
+        false
     }
 
     fn domain_id(&self) -> u16 {
@@ -229,12 +240,14 @@ impl Engine for Rustdds {
             let g = guid(&Gid::from(w.writer_proxy.remote_writer_guid));
             if g.prefix() != own {
                 r.writers.entry(w.publication_topic_data.topic_name.clone()).or_default().insert(g);
+                r.qos.insert(g, endpoint_qos(&w.publication_topic_data.qos(), true));
             }
         }
         for rd in self.participant.discovered_readers() {
             let g = guid(&Gid::from(rd.reader_proxy.remote_reader_guid));
             if g.prefix() != own {
                 r.readers.entry(rd.subscription_topic_data.topic_name().clone()).or_default().insert(g);
+                r.qos.insert(g, endpoint_qos(&rd.subscription_topic_data.qos(), false));
             }
         }
         r
@@ -246,25 +259,45 @@ impl Engine for Rustdds {
     }
 }
 
+/// The terms of a discovered endpoint's QoS; those it did not announce have their DDS
+/// defaults (RELIABLE for a writer, BEST_EFFORT for a reader, VOLATILE, SHARED).
+fn endpoint_qos(q: &QosPolicies, writer: bool) -> EndpointQos {
+    let reliability = match q.reliability() {
+        Some(policy::Reliability::Reliable { .. }) => Reliability::Reliable,
+        Some(policy::Reliability::BestEffort) => Reliability::BestEffort,
+        None if writer => Reliability::Reliable,
+        None => Reliability::BestEffort,
+    };
+    let transient_local = matches!(
+        q.durability(),
+        Some(policy::Durability::TransientLocal | policy::Durability::Transient | policy::Durability::Persistent)
+    );
+    let ownership = match q.ownership() {
+        Some(policy::Ownership::Exclusive { strength }) => Ownership::Exclusive { strength },
+        _ => Ownership::Shared,
+    };
+    EndpointQos { reliability, transient_local, ownership }
+}
+
 /// A stock message turned into the bytes of its leaf.
 pub(crate) trait IntoLeaf {
-    fn into_leaf(self, leaf: &Leaf) -> Result<Vec<u8>, String>;
+    fn into_leaf(self, leaf: &Leaf) -> Result<Vec<u8>, CdrError>;
 }
 
 impl IntoLeaf for Float64 {
-    fn into_leaf(self, leaf: &Leaf) -> Result<Vec<u8>, String> {
-        Ok(per_item::leaf_bytes(leaf.ty, std::iter::once(Value::Float(self.data)), 1))
+    fn into_leaf(self, leaf: &Leaf) -> Result<Vec<u8>, CdrError> {
+        Ok(stock::leaf_bytes(leaf.ty, std::iter::once(Value::Float(self.data)), 1))
     }
 }
 
 impl IntoLeaf for Bool {
-    fn into_leaf(self, leaf: &Leaf) -> Result<Vec<u8>, String> {
-        Ok(per_item::leaf_bytes(leaf.ty, std::iter::once(Value::Bool(self.data)), 1))
+    fn into_leaf(self, leaf: &Leaf) -> Result<Vec<u8>, CdrError> {
+        Ok(stock::leaf_bytes(leaf.ty, std::iter::once(Value::Bool(self.data)), 1))
     }
 }
 
 impl IntoLeaf for Float64MultiArray {
-    fn into_leaf(self, leaf: &Leaf) -> Result<Vec<u8>, String> {
-        per_item::array_leaf(leaf, self.data)
+    fn into_leaf(self, leaf: &Leaf) -> Result<Vec<u8>, CdrError> {
+        stock::array_leaf(leaf, self.data)
     }
 }

@@ -16,10 +16,22 @@ use tutti_core::mapping::{Durability, History, Ownership, Qos, Reliability};
 
 use tutti_core::shm::observer::Observer;
 
-use super::to_dds::{look, Activation, Polled};
+use super::to_dds::{look, Activation, Outgoing, Polled, ServedBy};
 use super::ShmConfig;
-use crate::engine::Writer;
+use crate::config;
+use crate::engine::{Engine, Writer};
 use crate::stats::Stats;
+use crate::GatewayError;
+
+/// The `/clock` route of `domain` under the canonical ROS namespace `ns`: its writer,
+/// watched by the poller, at most `rate` samples a second (None: one per step).
+pub fn route(dds: &dyn Engine, domain: &str, ns: &str, rate: Option<f64>) -> Result<Outgoing, GatewayError> {
+    let topic = config::dds_topic(ns, "clock");
+    let writer = dds.writer(&topic, TYPE, &qos())?;
+    let activation = Arc::new(Activation::default());
+    let pump = ClockPump::new(domain.to_string(), writer, activation.clone(), rate);
+    Ok(Outgoing { topics: vec![topic], activation, served_by: ServedBy::Poller(Box::new(pump)) })
+}
 
 /// The DDS topic of ROS 2's `/clock`.
 pub const TOPIC: &str = "rt/clock";

@@ -2,7 +2,8 @@
 //!
 //! Each reader's sink ([`sink`], called on the engine's receive path: Cyclone's receive
 //! thread, or a task of the rustdds engine) decodes samples and drops the gateway's own.
-//! Each DDS writer that
+//! A mirror's sink hands each sample straight to the mirror's thread ([`Target::Mirror`]),
+//! which publishes it as the local framework's step. Otherwise each DDS writer that
 //! sends to the framework is a [`RemoteWriter`]: a shared-memory connection (marked remote)
 //! that commits its samples, so the core's rules apply unchanged — the first writer to
 //! publish owns an exclusive set until its connection goes, a synchronous domain waits for
@@ -14,8 +15,9 @@
 //! machines costs tens of µs per sample. In a synchronous domain a commit may wait for the
 //! step, which must not hold up the receive path: the sink commits in place when no wait is
 //! needed (the sample answers the step the framework is at, the usual case in lock-step),
-//! and otherwise hands the sample to the connection's own thread, which waits for the step
-//! (the manager only sees a writer's first sample, before it has a connection).
+//! and otherwise hands the sample to the connection's own thread, which waits for the step.
+//! The manager sees a sample only when its writer has no connection yet (its first sample,
+//! before discovery has listed it): it then gives the writer one.
 
 use std::collections::HashMap;
 use std::sync::atomic::{AtomicU64, AtomicUsize, Ordering};
@@ -26,15 +28,18 @@ use std::time::{Duration, Instant};
 
 use tokio::sync::mpsc::UnboundedSender;
 use tracing::{debug, info, warn};
+use tutti_core::mapping::Qos;
 use tutti_core::shm::{Participant, ShmError};
 
-use super::{per_item, Event, Inbound, Payload, ShmConfig};
-use crate::cdr::SetCodec;
-use crate::engine::{Data, Decode, Guid, Sink, PREFIX_LEN};
+use super::{Counters, Event, Inbound, ShmConfig};
+use crate::cdr::{CdrError, Payload, SetCodec, TypedSample};
+use crate::engine::{Data, Decode, Engine, Guid, Sink, PREFIX_LEN};
 use crate::stats::{LogLimit, SetStats, Stats};
+use crate::GatewayError;
 
-/// The remote writers of one route whose samples the reader task commits itself
-/// (asynchronous domains); the manager adds and removes them as discovery changes.
+/// The remote writers of one route whose samples the reader's sink commits itself (or, in
+/// a synchronous domain, hands to the writer's thread); the manager adds and removes them
+/// as discovery changes.
 #[derive(Debug, Clone, Default)]
 pub struct Direct(Arc<Mutex<HashMap<Guid, RemoteWriter>>>);
 
@@ -65,14 +70,31 @@ impl Direct {
     }
 }
 
-/// Where a reader's samples go: its route, the manager, the writers it commits itself.
-pub type Destination = (usize, UnboundedSender<Event>, Direct);
+/// Where a reader's samples go: its route (as the manager knows it), the manager's events,
+/// and what takes the samples.
+#[derive(Debug, Clone)]
+pub struct Destination {
+    pub route: usize,
+    pub events: UnboundedSender<Event>,
+    pub target: Target,
+}
+
+/// What takes a reader's samples.
+#[derive(Debug, Clone)]
+pub enum Target {
+    /// The remote writers' connections (a writer not among them yet goes to the manager).
+    Writers(Direct),
+    /// A mirror's thread, which publishes each sample as a step of its local framework.
+    Mirror(Sender<TypedSample>),
+}
 
 /// The sink of every reader: a sample from a writer that is not the gateway's own becomes a
 /// payload (decoded here when the engine hands over raw bytes), committed right away for
-/// the writers in `direct` (on the engine's receive path: no thread hop) or else handed to
-/// the manager; what cannot be decoded is reported.
-pub fn sink(decode: Decode, (route, tx, direct): Destination, stats: Arc<Stats>, own: [u8; PREFIX_LEN]) -> Sink {
+/// the writers in `to.target` (on the engine's receive path: no thread hop) or handed to
+/// the mirror's thread; a writer without a connection yet goes to the manager, and what
+/// cannot be decoded is reported to it.
+pub fn sink(decode: Decode, to: Destination, stats: Arc<Stats>, own: [u8; PREFIX_LEN]) -> Sink {
+    let Destination { route, events, target } = to;
     Arc::new(move |writer: Guid, data: Data<'_>| {
         if writer.prefix() == own {
             Stats::add(&stats.own_samples, 1);
@@ -83,20 +105,44 @@ pub fn sink(decode: Decode, (route, tx, direct): Destination, stats: Arc<Stats>,
             Data::Raw(raw) => match &decode {
                 // Checked here, decoded straight into shared memory by the commit.
                 Decode::Set(codec) => codec.check(raw).map(|(le, body)| Sample::Encoded { codec, le, body }),
-                Decode::Item(leaf, path) => {
-                    per_item::decode(leaf, raw).map(|bytes| Sample::Owned(Payload::Item { path: path.clone(), bytes }))
-                }
+                Decode::Item(..) => Data::Raw(raw).into_payload(&decode).map(Sample::Owned),
             },
         };
-        let ev = match sample {
-            Ok(sample) => {
+        let ev = match (sample, &target) {
+            (Ok(sample), Target::Writers(direct)) => {
                 let Some(payload) = direct.commit(&writer, sample) else { return };
                 Event::Sample(Inbound { route, writer, payload })
             }
-            Err(error) => Event::Bad { route, error },
+            (Ok(sample), Target::Mirror(tx)) => match sample.into_owned() {
+                Payload::Set(s) => {
+                    // A mirror whose thread has ended is stopping with the gateway.
+                    let _ = tx.send(s);
+                    return;
+                }
+                Payload::Item { .. } => {
+                    Event::Bad { route, error: CdrError::Unexpected("a per-item sample for a mirror") }
+                }
+            },
+            (Err(error), _) => Event::Bad { route, error },
         };
-        let _ = tx.send(ev);
+        let _ = events.send(ev);
     })
+}
+
+/// The reader of a DDS -> shared-memory route on `topic` (DDS type `dds_type`, reader QoS
+/// `rq`, samples read by `decode`): its sink decodes each sample on the engine's receive
+/// path and delivers it to `to` (see [`sink`]).
+pub fn reader(
+    dds: &dyn Engine,
+    topic: &str,
+    dds_type: &str,
+    rq: &Qos,
+    decode: Decode,
+    to: Destination,
+    stats: Arc<Stats>,
+) -> Result<(), GatewayError> {
+    let sink = sink(decode.clone(), to, stats, dds.own_prefix());
+    dds.reader(topic, dds_type, rq, decode, sink)
 }
 
 /// The shared-memory connection of one remote DDS writer.
@@ -120,26 +166,25 @@ enum Kind {
 struct Delivery {
     domain: String,
     name: String,
-    stats: Arc<Stats>,
-    /// The counters of the set this writer writes.
-    set: Arc<SetStats>,
+    /// The gateway's totals and the counters of the set this writer writes.
+    counters: Counters,
     own_commits: Arc<AtomicU64>,
     refused_log: LogLimit,
     error_log: LogLimit,
 }
 
 impl Delivery {
-    fn new(domain: String, name: String, stats: Arc<Stats>, set: Arc<SetStats>, own_commits: Arc<AtomicU64>) -> Self {
+    fn new(domain: String, name: String, counters: Counters, own_commits: Arc<AtomicU64>) -> Self {
         let limit = || LogLimit::new(Duration::from_secs(5));
-        Delivery { domain, name, stats, set, own_commits, refused_log: limit(), error_log: limit() }
+        Delivery { domain, name, counters, own_commits, refused_log: limit(), error_log: limit() }
     }
 
     /// Commits `payload` through `p` (None: the domain is not running, and the sample is
     /// dropped); a connection that cannot go on is dropped (`p` set to None) for the caller
     /// to connect again.
     fn deliver(&mut self, p: &mut Option<Participant>, sample: Sample<'_>) {
-        let (domain, name, stats) = (&self.domain, &self.name, &self.stats);
-        let set = Some(&*self.set);
+        let (domain, name, stats) = (&self.domain, &self.name, &*self.counters.total);
+        let set = Some(&*self.counters.set);
         let dropped = |total: &AtomicU64| SetStats::add(set, |s| &s.dropped, total, 1);
         let Some(part) = p.as_mut() else {
             dropped(&stats.errors);
@@ -177,7 +222,7 @@ impl Delivery {
     }
 }
 
-/// An asynchronous domain's remote writer, committed by the reader task.
+/// An asynchronous domain's remote writer, committed by the reader's sink.
 #[derive(Debug)]
 struct Inline {
     out: Delivery,
@@ -215,18 +260,19 @@ impl RemoteWriter {
         writer: Guid,
         synchronous: bool,
         cfg: ShmConfig,
-        (stats, set): (Arc<Stats>, Arc<SetStats>),
+        counters: Counters,
         own_commits: Arc<AtomicU64>,
     ) -> std::io::Result<Self> {
         let name = format!("dds-writer {}", writer.short());
-        let out = Delivery::new(domain, name, stats, set, own_commits);
+        let out = Delivery::new(domain, name, counters, own_commits);
         if !synchronous {
             let mut inline = Inline { out, cfg, p: None, next_try: Instant::now() };
             inline.connect();
             return Ok(RemoteWriter { kind: Kind::Inline(Arc::new(Mutex::new(inline))) });
         }
         let (tx, rx) = mpsc::channel();
-        let shared = Arc::new(LockstepState { pending: AtomicUsize::new(0), state: Mutex::new((out, None)) });
+        let state = Mutex::new(WriterState { out, part: None });
+        let shared = Arc::new(LockstepState { pending: AtomicUsize::new(0), state });
         let ls = Arc::new(Lockstep { tx, shared: shared.clone() });
         thread::Builder::new()
             .name("tutti-gw-writer".into())
@@ -272,7 +318,14 @@ struct LockstepState {
     /// Samples handed to the thread and not yet committed: while any are, later samples
     /// follow them there, so that they are committed in order.
     pending: AtomicUsize,
-    state: Mutex<(Delivery, Option<Participant>)>,
+    state: Mutex<WriterState>,
+}
+
+/// A synchronous remote writer's delivery and its connection (None: not connected).
+#[derive(Debug)]
+struct WriterState {
+    out: Delivery,
+    part: Option<Participant>,
 }
 
 impl Lockstep {
@@ -280,9 +333,9 @@ impl Lockstep {
         let sh = &self.shared;
         if sh.pending.load(Ordering::Acquire) == 0 {
             if let Ok(mut st) = sh.state.try_lock() {
-                let (out, p) = &mut *st;
-                if p.as_ref().is_some_and(Participant::publish_ready) && sh.pending.load(Ordering::Acquire) == 0 {
-                    out.deliver(p, sample);
+                let WriterState { out, part } = &mut *st;
+                if part.as_ref().is_some_and(Participant::publish_ready) && sh.pending.load(Ordering::Acquire) == 0 {
+                    out.deliver(part, sample);
                     return Ok(());
                 }
             }
@@ -306,18 +359,18 @@ fn run(ls: &LockstepState, rx: Receiver<Payload>, cfg: ShmConfig) {
     };
     {
         let mut st = ls.state.lock().unwrap_or_else(PoisonError::into_inner);
-        let (out, p) = &mut *st;
-        *p = connect(out);
+        let WriterState { out, part } = &mut *st;
+        *part = connect(out);
     }
     // The step found owed, and since when; whether the lease released the connection.
     let mut owing: Option<(u64, Instant)> = None;
     let mut lapsed = false;
     let check = (cfg.lease / 4).clamp(Duration::from_millis(10), Duration::from_millis(100));
     loop {
-        let connected = ls.state.lock().unwrap_or_else(PoisonError::into_inner).1.is_some();
+        let connected = ls.state.lock().unwrap_or_else(PoisonError::into_inner).part.is_some();
         let msg = rx.recv_timeout(if connected { check } else { Duration::from_millis(500) });
         let mut st = ls.state.lock().unwrap_or_else(PoisonError::into_inner);
-        let (out, p) = &mut *st;
+        let WriterState { out, part: p } = &mut *st;
         match msg {
             Ok(payload) => {
                 lapsed = false;
@@ -340,7 +393,7 @@ fn run(ls: &LockstepState, rx: Receiver<Payload>, cfg: ShmConfig) {
                             "{}: sent nothing for {:?} while step {k} waited for its answer: its lock-step share is released (its next sample joins it again)",
                             out.name, cfg.lease
                         );
-                        Stats::add(&out.stats.lapsed, 1);
+                        Stats::add(&out.counters.total.lapsed, 1);
                         *p = None;
                         lapsed = true;
                         owing = None;

@@ -5,31 +5,30 @@
 //! * [`from_dds`]: a DDS reader -> shared memory, through one remote connection per
 //!   matched DDS writer (so role rules, exclusivity and seeding are the core's);
 //! * [`per_item`]: the same two directions with one stock-typed topic per item;
-//! * [`mirror`]: local segments whose framework is fed from DDS (`--mirror`).
+//! * [`mirror`]: local segments whose framework is fed from DDS (`--mirror`), each sample
+//!   handed by the reader's sink straight to the mirror's thread;
+//! * [`clock`]: one domain's simulated time on `/clock`.
+//!
+//! Each kind has its constructor here ([`to_dds::typed`], [`to_dds::items`],
+//! [`from_dds::reader`], [`mirror::spawn`], [`clock::route`]); the manager calls them as
+//! domains come to be bridged and keeps what they return for discovery. This module only
+//! holds what they share; it imports none of them.
 
 use std::sync::atomic::AtomicBool;
 use std::sync::Arc;
 use std::time::Duration;
 
-use crate::engine::Guid;
 use tutti_core::shm::{ConnKind, ConnectOptions, WaitMode};
 
-use crate::cdr::TypedSample;
+use crate::cdr::{CdrError, Payload};
+use crate::engine::Guid;
+use crate::stats::{SetStats, Stats};
 
 pub mod clock;
 pub mod from_dds;
 pub mod mirror;
 pub mod per_item;
 pub mod to_dds;
-
-/// What a DDS sample carries into shared memory.
-#[derive(Debug, Clone, PartialEq)]
-pub enum Payload {
-    /// A whole set (typed mode).
-    Set(TypedSample),
-    /// One item (per-item mode): its path and its bytes in shared-memory layout.
-    Item { path: Arc<str>, bytes: Vec<u8> },
-}
 
 /// A DDS sample from a remote writer, for route `route`.
 #[derive(Debug)]
@@ -39,15 +38,13 @@ pub struct Inbound {
     pub payload: Payload,
 }
 
-/// What reader tasks tell the manager.
+/// What readers' sinks tell the manager.
 #[derive(Debug)]
 pub enum Event {
+    /// A sample of a writer that has no connection yet.
     Sample(Inbound),
     /// A sample that could not be decoded.
-    Bad {
-        route: usize,
-        error: String,
-    },
+    Bad { route: usize, error: CdrError },
 }
 
 /// How routes connect to shared memory.
@@ -76,4 +73,11 @@ impl ShmConfig {
             kind: ConnKind::Remote,
         }
     }
+}
+
+/// Where a route counts what it moves: the gateway's totals and its set's own counters.
+#[derive(Debug, Clone)]
+pub struct Counters {
+    pub total: Arc<Stats>,
+    pub set: Arc<SetStats>,
 }

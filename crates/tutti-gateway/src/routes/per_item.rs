@@ -5,30 +5,12 @@
 
 use std::sync::Arc;
 
-use tutti_core::ddf::{Leaf, ScalarType, SetLayout, Value};
-use tutti_core::mapping::{self, ItemTopic, Qos};
+use tutti_core::ddf::{Leaf, SetLayout, Value};
+use tutti_core::mapping::{ItemTopic, Qos};
 
-use crate::cdr::stock;
+use crate::cdr::stock::{self, Stock};
 use crate::engine::{Decode, Engine, Writer};
 use crate::GatewayError;
-
-/// The stock type of a leaf.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum Stock {
-    Float64,
-    Bool,
-    Array,
-}
-
-impl Stock {
-    pub fn of(leaf: &Leaf) -> Stock {
-        match mapping::per_item_type(leaf.ty, leaf.length) {
-            "std_msgs::msg::dds_::Bool_" => Stock::Bool,
-            "std_msgs::msg::dds_::Float64_" => Stock::Float64,
-            _ => Stock::Array,
-        }
-    }
-}
 
 struct ItemWriter {
     leaf: Leaf,
@@ -106,34 +88,6 @@ impl ItemWriters {
 
     pub fn reset(&mut self) {
         self.items.iter_mut().for_each(|w| w.last = None);
-    }
-}
-
-/// `n` values of type `ty`, in shared-memory layout.
-pub fn leaf_bytes(ty: ScalarType, values: impl Iterator<Item = Value>, n: usize) -> Vec<u8> {
-    let size = ty.size() as usize;
-    let mut out = vec![0u8; size * n];
-    for (chunk, v) in out.chunks_exact_mut(size).zip(values) {
-        ty.encode(v, chunk);
-    }
-    out
-}
-
-/// The bytes of array `leaf` from the data of a `Float64MultiArray`.
-pub fn array_leaf(leaf: &Leaf, data: Vec<f64>) -> Result<Vec<u8>, String> {
-    let n = usize::from(leaf.length);
-    if data.len() != n {
-        return Err(format!("{} has {n} elements, the sample {}", leaf.path, data.len()));
-    }
-    Ok(leaf_bytes(leaf.ty, data.into_iter().map(Value::Float), n))
-}
-
-/// The bytes of `leaf` from a serialized stock sample.
-pub fn decode(leaf: &Leaf, raw: &[u8]) -> Result<Vec<u8>, String> {
-    match Stock::of(leaf) {
-        Stock::Float64 => Ok(leaf_bytes(leaf.ty, std::iter::once(Value::Float(stock::float64(raw)?)), 1)),
-        Stock::Bool => Ok(leaf_bytes(leaf.ty, std::iter::once(Value::Bool(stock::boolean(raw)?)), 1)),
-        Stock::Array => array_leaf(leaf, stock::float64_array(raw)?),
     }
 }
 

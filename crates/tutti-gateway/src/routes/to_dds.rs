@@ -19,16 +19,105 @@ use std::thread::{self, JoinHandle, Thread};
 use std::time::{Duration, Instant};
 
 use tracing::{info, warn};
-use tutti_core::ddf::Role;
+use tutti_core::ddf::{Domain, Role};
+use tutti_core::mapping::ItemTopic;
 use tutti_core::shm::observer::{Look, Observer};
 use tutti_core::shm::segment::Segment;
 use tutti_core::shm::{ConnKind, Participant, ShmError};
 
 use super::per_item::ItemWriters;
-use super::ShmConfig;
+use super::{Counters, ShmConfig};
 use crate::cdr::SetCodec;
-use crate::engine::{Guid, Writer};
+use crate::config::PlannedSet;
+use crate::engine::{Engine, Guid, Writer};
 use crate::stats::{LogLimit, SetStats, Stats};
+use crate::GatewayError;
+
+/// A shared-memory -> DDS route as its constructor hands it to the manager: its topics
+/// (whose remote readers switch it on), its activation, and what serves it.
+#[derive(Debug)]
+pub struct Outgoing {
+    pub topics: Vec<String>,
+    pub activation: Arc<Activation>,
+    pub served_by: ServedBy,
+}
+
+/// What serves an outgoing route.
+#[derive(Debug)]
+pub enum ServedBy {
+    /// The poller thread, which looks at every watched set in turn.
+    Poller(Box<dyn Polled>),
+    /// A thread of its own (a synchronous PUBLISH set's pump).
+    Thread(JoinHandle<()>),
+}
+
+/// The typed route of planned set `p` of domain `d` (shared memory -> DDS): a synchronous
+/// PUBLISH set is followed by a pump thread (a lock-step reader named `every_step`, when
+/// given), every other set is watched by the poller (`own_commits`: the gateway's own
+/// commits to a SUBSCRIBE set, which are not sent back to DDS).
+pub fn typed(
+    dds: &dyn Engine,
+    d: &Domain,
+    p: &PlannedSet,
+    cfg: &ShmConfig,
+    counters: Counters,
+    own_commits: Option<Arc<AtomicU64>>,
+    every_step: Option<String>,
+) -> Result<Outgoing, GatewayError> {
+    let out = set_writer(dds, d, p)?;
+    let activation = Arc::new(Activation::default());
+    let served_by = if p.role == Role::Publish && d.flags.synchronous {
+        let (name, cfg, a) = (d.name.clone(), cfg.clone(), activation.clone());
+        let pump = match every_step {
+            Some(reader) => spawn_lockstep_pump(name, out, a, cfg, counters, reader),
+            None => spawn_sync_pump(name, out, a, cfg, counters),
+        };
+        ServedBy::Thread(pump.map_err(|e| GatewayError::dds("a thread", e))?)
+    } else {
+        ServedBy::Poller(watched(&d.name, p, out, activation.clone(), counters.set, own_commits))
+    };
+    Ok(Outgoing { topics: vec![p.topic.clone()], activation, served_by })
+}
+
+/// The per-item route of planned set `p` of domain `d` (shared memory -> DDS): a writer for
+/// each of `items`, watched by the poller (`own_commits`: the gateway's own commits to a
+/// SUBSCRIBE set, not sent back to DDS), counted in `set`.
+pub fn items(
+    dds: &dyn Engine,
+    d: &Domain,
+    p: &PlannedSet,
+    items: &[ItemTopic],
+    set: Arc<SetStats>,
+    own_commits: Option<Arc<AtomicU64>>,
+) -> Result<Outgoing, GatewayError> {
+    let out = Outbound::Items(ItemWriters::create(dds, items, &d.set(p.role).layout, &p.writer_qos)?);
+    let activation = Arc::new(Activation::default());
+    let poll = watched(&d.name, p, out, activation.clone(), set, own_commits);
+    let topics = items.iter().map(|t| t.topic.clone()).collect();
+    Ok(Outgoing { topics, activation, served_by: ServedBy::Poller(poll) })
+}
+
+/// The typed DDS writer of planned set `p` of domain `d`.
+pub fn set_writer(dds: &dyn Engine, d: &Domain, p: &PlannedSet) -> Result<Outbound, GatewayError> {
+    let codec = Arc::new(SetCodec::new(&d.set(p.role).layout));
+    let writer = dds.writer(&p.topic, &p.dds_type, &p.writer_qos)?;
+    Ok(Outbound::Set(Box::new(SetWriter::new(codec, writer))))
+}
+
+/// Planned set `p` of `domain` watched by the poller: `out` carries the set's changes
+/// (`own_commits`: the gateway's own commits, not sent back to DDS), at most at the set's
+/// `max_rate`, counted in `set`.
+pub fn watched(
+    domain: &str,
+    p: &PlannedSet,
+    out: Outbound,
+    activation: Arc<Activation>,
+    set: Arc<SetStats>,
+    own_commits: Option<Arc<AtomicU64>>,
+) -> Box<dyn Polled> {
+    let w = Watched::new(domain.to_string(), p.role, out, activation, own_commits);
+    Box::new(w.with_max_rate(p.max_rate).counted(set))
+}
 
 /// The typed writer of one set.
 pub struct SetWriter {
@@ -193,7 +282,7 @@ pub struct Watched {
     pub own_commits: Option<Arc<AtomicU64>>,
     live: Observer,
     last_gen: Option<u64>,
-    base: (u64, u64),
+    base: Baseline,
     last_local: u64,
     buf: Vec<u8>,
     /// `activation.joined()` as last acted on.
@@ -206,6 +295,15 @@ pub struct Watched {
     next_allowed: Instant,
     /// The set's own counters (the stats endpoint).
     set: Option<Arc<SetStats>>,
+}
+
+/// Where a watched SUBSCRIBE set's count of local commits starts: its generation and the
+/// gateway's own commits when it was first seen (commits since then, less the gateway's,
+/// are those of local writers).
+#[derive(Debug, Clone, Copy, Default)]
+struct Baseline {
+    generation: u64,
+    own: u64,
 }
 
 /// Samples of a set changing flat out that go out in one batch at most.
@@ -226,7 +324,7 @@ impl Watched {
             own_commits,
             live: Observer::new(domain),
             last_gen: None,
-            base: (0, 0),
+            base: Baseline::default(),
             last_local: 0,
             buf: Vec::new(),
             joined: 0,
@@ -290,13 +388,13 @@ impl Watched {
             // Commits the gateway made for DDS writers are not echoed back to DDS.
             let own = own.load(Ordering::Acquire);
             if first {
-                self.base = (gen, own);
+                self.base = Baseline { generation: gen, own };
                 self.last_local = 0;
                 if !seg.seeded() {
                     return false;
                 }
             } else {
-                let local = gen.wrapping_sub(self.base.0).saturating_sub(own.wrapping_sub(self.base.1));
+                let local = gen.wrapping_sub(self.base.generation).saturating_sub(own.wrapping_sub(self.base.own));
                 if local <= self.last_local {
                     return false;
                 }
@@ -390,7 +488,7 @@ pub fn spawn_sync_pump(
     mut out: Outbound,
     activation: Arc<Activation>,
     cfg: ShmConfig,
-    (stats, set): (Arc<Stats>, Arc<SetStats>),
+    Counters { total: stats, set }: Counters,
 ) -> std::io::Result<JoinHandle<()>> {
     thread::Builder::new()
         .name(format!("tutti-gw-sync-{}", domain.chars().take(10).collect::<String>()))
@@ -455,7 +553,7 @@ pub fn spawn_lockstep_pump(
     mut out: Outbound,
     activation: Arc<Activation>,
     cfg: ShmConfig,
-    (stats, set): (Arc<Stats>, Arc<SetStats>),
+    Counters { total: stats, set }: Counters,
     name: String,
 ) -> std::io::Result<JoinHandle<()>> {
     thread::Builder::new()

@@ -1,0 +1,704 @@
+//! The engine conformance suite: every engine this build has ([`EngineKind::built`]) goes
+//! through the same scenarios, written once against the [`Engine`] trait: raw CDR in both
+//! byte orders (typed sets and per-item stock messages), the gateway's own samples known by
+//! their GUID prefix and dropped by the route's sink, discovery of remote endpoints with the
+//! QoS they announced, QoS matching and its refusal, exclusive ownership, the node
+//! announcement on `ros_discovery_info`, and samples that cannot be decoded reported as such.
+//!
+//! Everything runs in this process, on loopback, with no Python and no gateway binary. Each
+//! scenario has a DDS domain of its own (60-79 for cyclone, 80-99 for rustdds) so that all run
+//! in parallel, and a watchdog; waits are for an event, bounded, and nothing asserts a duration.
+//! Where a scenario needs what only Cyclone can do (write a big-endian sample, read samples of a
+//! type without decoding them), the peer is a Cyclone participant: for the rustdds engine that
+//! makes the scenario an interop test between the two engines as well.
+
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::{Arc, Mutex, PoisonError};
+use std::time::{Duration, Instant};
+
+use tutti_core::ddf::{parse_str, Leaf, SetLayout};
+use tutti_core::mapping::{Durability, History, Ownership, Qos, Reliability};
+use tutti_gateway::cdr::{stock, CdrError, Payload, SetCodec, TypedSample, HEADER_LE};
+use tutti_gateway::engine::{self, Decode, EndpointQos, Engine, EngineConfig, EngineKind, Guid, Sink, Writer};
+use tutti_gateway::routes::from_dds::{self, Destination, Direct, Target};
+use tutti_gateway::routes::Event;
+use tutti_gateway::Stats;
+
+/// The longest wait for one expected event (discovery, a sample).
+const PATIENCE: Duration = Duration::from_secs(30);
+/// The longest a whole scenario may take before the test binary is stopped.
+const WATCHDOG: Duration = Duration::from_secs(150);
+
+/// One scenario on one engine: `NAME::cyclone`, `NAME::rustdds` (when built). The list of
+/// engines is checked against [`EngineKind::built`] by `every_engine_of_the_build_is_tested`.
+macro_rules! conformance {
+    ($($n:literal => $name:ident),* $(,)?) => {
+        mod cyclone {
+            $( #[test] fn $name() { super::run(super::EngineKind::Cyclone, $n, super::$name) } )*
+        }
+        #[cfg(feature = "rustdds")]
+        mod rustdds {
+            $( #[test] fn $name() { super::run(super::EngineKind::Rustdds, $n, super::$name) } )*
+        }
+        const TESTED: &[EngineKind] =
+            &[EngineKind::Cyclone, #[cfg(feature = "rustdds")] EngineKind::Rustdds];
+    };
+}
+
+conformance! {
+    0 => raw_cdr_round_trips_in_both_byte_orders,
+    1 => own_samples_are_known_by_their_prefix_and_dropped,
+    2 => discovery_lists_remote_endpoints_with_their_qos,
+    3 => qos_matching_and_refusal,
+    4 => exclusive_ownership_goes_by_strength,
+    5 => the_node_is_announced_on_ros_discovery_info,
+    6 => a_sample_that_cannot_be_decoded_is_reported,
+}
+
+#[test]
+fn every_engine_of_the_build_is_tested() {
+    assert_eq!(TESTED, EngineKind::built());
+}
+
+// ---------------------------------------------------------------------------------------
+// The scenarios.
+
+/// A typed set written by one participant reaches another's reader unchanged: little-endian
+/// from the engine's own writer, big-endian from a Cyclone writer; per-item stock messages
+/// likewise. The writer's GUID comes with each sample.
+fn raw_cdr_round_trips_in_both_byte_orders(c: &Case) {
+    let (codec, layout) = set_codec();
+    let reader = c.open("reader");
+    let writer = c.open("writer");
+    let cyclone = c.peer_cyclone("be_writer");
+    let q = qos(Reliability::Reliable, History::KeepAll, false, Ownership::Shared);
+
+    let topic = c.topic("set");
+    let inbox = Inbox::new(Decode::Set(codec.clone()));
+    reader.reader(&topic, SET_TYPE, &q, Decode::Set(codec.clone()), inbox.sink()).unwrap();
+    let mut le = writer.writer(&topic, SET_TYPE, &q).unwrap();
+    let a = sample(&codec, &layout, 1);
+    let mut body = Vec::new();
+    codec.encode(a.step, a.sim_time, &a.data, &mut body);
+    let from = inbox.until_payload("the little-endian sample", &mut *le, &Payload::Set(a.clone()), |w| w.write(&body));
+    assert_eq!(from.prefix(), writer.own_prefix(), "the sample comes with its writer's GUID");
+
+    let b = sample(&codec, &layout, 2);
+    codec.encode(b.step, b.sim_time, &b.data, &mut body);
+    let be = [&[0u8, 0, 0, 0][..], &big_endian(&codec, &body)].concat();
+    let mut bw = cyclone.writer(&topic, SET_TYPE, &q).unwrap();
+    inbox.until_payload("the big-endian sample", &mut *bw, &Payload::Set(b), |w| w.write_serialized(&be));
+
+    // Per item: a double as std_msgs/Float64, and a double array as Float64MultiArray.
+    for (path, value) in [("x", vec![2.5f64]), ("v", vec![1.0f64, -4.0, 0.125])] {
+        let leaf = Arc::new(layout.leaf(path).unwrap().clone());
+        let topic = c.topic(&format!("item_{path}"));
+        let ty = tutti_core::mapping::per_item_type(leaf.ty, leaf.length);
+        let decode = Decode::Item(leaf.clone(), Arc::from(path));
+        let inbox = Inbox::new(decode.clone());
+        reader.reader(&topic, ty, &q, decode, inbox.sink()).unwrap();
+        let want = Payload::Item { path: Arc::from(path), bytes: value.iter().flat_map(|v| v.to_ne_bytes()).collect() };
+        let mut body = Vec::new();
+        match stock::Stock::of(&leaf) {
+            stock::Stock::Float64 => stock::encode_float64(value[0], &mut body),
+            _ => stock::encode_float64_array(value.iter().copied(), &mut body),
+        }
+        let mut w = writer.writer(&topic, ty, &q).unwrap();
+        inbox.until_payload("a little-endian stock sample", &mut *w, &want, |w| w.write(&body));
+        let be = [&[0u8, 0, 0, 0][..], &stock_big_endian(&value, leaf.length > 1)].concat();
+        assert_eq!(stock::decode(&leaf, &be).map(|b| b.len()), Ok(8 * value.len()), "the test's own big-endian form");
+        let mut w = cyclone.writer(&topic, ty, &q).unwrap();
+        inbox.until_payload("a big-endian stock sample", &mut *w, &want, |w| w.write_serialized(&be));
+    }
+}
+
+/// A participant's own samples, if its engine hands them to its readers, come with its own
+/// GUID prefix, which the route's sink drops (and counts); another participant's reach the
+/// route. Discovery leaves the participant's own endpoints out.
+fn own_samples_are_known_by_their_prefix_and_dropped(c: &Case) {
+    let (codec, layout) = set_codec();
+    let gateway = c.open("gateway");
+    let other = c.open("other");
+    assert_ne!(gateway.own_prefix(), other.own_prefix());
+    let q = qos(Reliability::Reliable, History::KeepAll, false, Ownership::Shared);
+    let topic = c.topic("echo");
+
+    let (events_tx, mut events) = tokio::sync::mpsc::unbounded_channel();
+    let stats = Arc::new(Stats::default());
+    let to = Destination { route: 7, events: events_tx, target: Target::Writers(Direct::default()) };
+    let seen = Arc::new(Mutex::new(Vec::<Guid>::new()));
+    let route = from_dds::sink(Decode::Set(codec.clone()), to, stats.clone(), gateway.own_prefix());
+    let tap = seen.clone();
+    let sink: Sink = Arc::new(move |g, data| {
+        lock(&tap).push(g);
+        route(g, data)
+    });
+    gateway.reader(&topic, SET_TYPE, &q, Decode::Set(codec.clone()), sink).unwrap();
+    let mut own = gateway.writer(&topic, SET_TYPE, &q).unwrap();
+    let mut theirs = other.writer(&topic, SET_TYPE, &q).unwrap();
+
+    let (mine, their) = (sample(&codec, &layout, 10), sample(&codec, &layout, 20));
+    let (mut mine_body, mut their_body) = (Vec::new(), Vec::new());
+    codec.encode(mine.step, mine.sim_time, &mine.data, &mut mine_body);
+    codec.encode(their.step, their.sim_time, &their.data, &mut their_body);
+    // Cyclone hands a participant its own samples (with its prefix), rustdds does not: either
+    // way none may reach the route, and each one handed over is counted as dropped.
+    let mut routed = Vec::new();
+    until("ten samples of the other participant on the route", || {
+        own.write(&mine_body);
+        own.flush();
+        theirs.write(&their_body);
+        theirs.flush();
+        while let Ok(ev) = events.try_recv() {
+            routed.push(ev);
+        }
+        routed.len() >= 10
+    });
+    for ev in &routed {
+        match ev {
+            Event::Sample(s) => {
+                assert_eq!(s.route, 7);
+                assert_eq!(s.writer.prefix(), other.own_prefix(), "only the other participant's samples are routed");
+                assert_eq!(s.payload, Payload::Set(their.clone()));
+            }
+            other => panic!("unexpected {other:?}"),
+        }
+    }
+    let own_seen = lock(&seen).iter().filter(|g| g.prefix() == gateway.own_prefix()).count() as u64;
+    assert_eq!(stats.own_samples.load(Ordering::Relaxed), own_seen, "every own sample is counted as dropped");
+
+    let remote = until_some("the other participant's writer in discovery", || {
+        let r = gateway.remote();
+        let listed = r.writers_on(&topic).any(|g| g.prefix() == other.own_prefix());
+        listed.then_some(r)
+    });
+    assert!(remote.writers_on(&topic).all(|g| g.prefix() != gateway.own_prefix()), "our own writer is not remote");
+    assert!(remote.readers.values().flatten().all(|g| g.prefix() != gateway.own_prefix()));
+}
+
+/// A participant lists the other's writer and reader under their topics, each with the QoS
+/// it announced.
+fn discovery_lists_remote_endpoints_with_their_qos(c: &Case) {
+    let (codec, _) = set_codec();
+    let announcer = c.open("announcer");
+    let observer = c.open("observer");
+    let (wt, rt) = (c.topic("offered"), c.topic("requested"));
+    let offered = Qos {
+        reliability: Reliability::Reliable,
+        history: History::KeepLast(1),
+        durability: Durability::TransientLocal { depth: 1 },
+        ownership: Ownership::Exclusive { strength: 7 },
+    };
+    let requested = qos(Reliability::BestEffort, History::KeepLast(4), false, Ownership::Shared);
+    let _w = announcer.writer(&wt, SET_TYPE, &offered).unwrap();
+    announcer.reader(&rt, SET_TYPE, &requested, Decode::Set(codec), Arc::new(|_, _| {})).unwrap();
+
+    let mine = |g: &Guid| g.prefix() == announcer.own_prefix();
+    let remote = until_some("the writer and the reader in discovery", || {
+        let r = observer.remote();
+        let listed = r.writers_on(&wt).any(|g| mine(&g)) && r.readers_on(std::slice::from_ref(&rt)).iter().any(mine);
+        listed.then_some(r)
+    });
+    let w = remote.writers_on(&wt).find(|g| mine(g)).unwrap();
+    let r = *remote.readers_on(std::slice::from_ref(&rt)).iter().find(|g| mine(g)).unwrap();
+    assert_eq!(
+        remote.qos.get(&w),
+        Some(&EndpointQos {
+            reliability: Reliability::Reliable,
+            transient_local: true,
+            ownership: Ownership::Exclusive { strength: 7 }
+        })
+    );
+    assert_eq!(
+        remote.qos.get(&r),
+        Some(&EndpointQos {
+            reliability: Reliability::BestEffort,
+            transient_local: false,
+            ownership: Ownership::Shared
+        })
+    );
+    assert!(
+        remote.readers_on(std::slice::from_ref(&wt)).iter().all(|g| !mine(g)),
+        "no reader of ours on the writer's topic"
+    );
+}
+
+/// A best-effort volatile writer matches a best-effort volatile reader, and neither a reliable
+/// reader nor a transient-local one; a reliable transient-local writer matches all three.
+/// Refusal is seen against a reader that matched: both are in one participant, which learns
+/// of the writer once, and the refused readers get nothing while it gets every sample.
+fn qos_matching_and_refusal(c: &Case) {
+    let (codec, layout) = set_codec();
+    let writer = c.open("writer");
+    let reader = c.open("reader");
+    let requests = [
+        ("best effort", qos(Reliability::BestEffort, History::KeepAll, false, Ownership::Shared)),
+        ("reliable", qos(Reliability::Reliable, History::KeepAll, false, Ownership::Shared)),
+        ("transient local", qos(Reliability::BestEffort, History::KeepAll, true, Ownership::Shared)),
+    ];
+    for (what, offered, matched) in [
+        ("weakest", qos(Reliability::BestEffort, History::KeepLast(1), false, Ownership::Shared), [true, false, false]),
+        ("strongest", qos(Reliability::Reliable, History::KeepLast(1), true, Ownership::Shared), [true, true, true]),
+    ] {
+        let topic = c.topic(what);
+        let inboxes: Vec<Arc<Inbox>> = requests
+            .iter()
+            .map(|(_, rq)| {
+                let inbox = Inbox::new(Decode::Set(codec.clone()));
+                reader.reader(&topic, SET_TYPE, rq, Decode::Set(codec.clone()), inbox.sink()).unwrap();
+                inbox
+            })
+            .collect();
+        let mut w = writer.writer(&topic, SET_TYPE, &offered).unwrap();
+        let mut body = Vec::new();
+        let mut step = 0;
+        let mut write = |w: &mut Box<dyn Writer>| {
+            step += 1;
+            let s = sample(&codec, &layout, step);
+            codec.encode(s.step, s.sim_time, &s.data, &mut body);
+            w.write(&body);
+            w.flush();
+        };
+        until(&format!("the {what} writer's samples at every matching reader"), || {
+            write(&mut w);
+            inboxes.iter().zip(matched).all(|(i, m)| !m || i.len() >= 3)
+        });
+        // Ten more at the reader that matches first, once every match is settled: the other
+        // matched readers get theirs too, the refused ones none.
+        let before = inboxes[0].len();
+        until(&format!("ten more of the {what} writer's samples"), || {
+            write(&mut w);
+            inboxes[0].len() >= before + 10
+        });
+        for ((name, _), (inbox, m)) in requests.iter().zip(inboxes.iter().zip(matched)) {
+            assert_eq!(inbox.len() > 0, m, "a {name} reader of the {what} writer: matched {m} expected");
+        }
+    }
+}
+
+/// EXCLUSIVE ownership: on an engine that arbitrates it, a reader takes only the strongest
+/// live writer's samples, and the weaker one's again once the stronger has gone; on one that
+/// does not (rustdds), the reader takes both and the core's first-writer rule decides above.
+fn exclusive_ownership_goes_by_strength(c: &Case) {
+    let (codec, layout) = set_codec();
+    let reader = c.open("reader");
+    let weak_p = c.open("weak");
+    let strong_p = c.open("strong");
+    let topic = c.topic("owned");
+    let exclusive = |strength| qos(Reliability::Reliable, History::KeepAll, false, Ownership::Exclusive { strength });
+    let inbox = Inbox::new(Decode::Set(codec.clone()));
+    reader.reader(&topic, SET_TYPE, &exclusive(0), Decode::Set(codec.clone()), inbox.sink()).unwrap();
+    let mut weak = weak_p.writer(&topic, SET_TYPE, &exclusive(1)).unwrap();
+    let mut strong = strong_p.writer(&topic, SET_TYPE, &exclusive(5)).unwrap();
+    let mut body = Vec::new();
+    let mut send = |w: &mut Box<dyn Writer>, step: u64| {
+        let s = sample(&codec, &layout, step);
+        codec.encode(s.step, s.sim_time, &s.data, &mut body);
+        w.write(&body);
+        w.flush();
+    };
+    // Steps tell the writers apart: 1000s the weak one, 2000s the strong one.
+    let (mut ws, mut ss) = (1000, 2000);
+    until("a sample of each writer", || {
+        ws += 1;
+        ss += 1;
+        send(&mut weak, ws);
+        send(&mut strong, ss);
+        let steps = inbox.steps();
+        steps.iter().any(|s| *s < 2000) && steps.iter().any(|s| *s >= 2000)
+    });
+    until("both writers matched to the reader", || {
+        ws += 1;
+        ss += 1;
+        send(&mut weak, ws);
+        send(&mut strong, ss);
+        let steps = inbox.steps();
+        steps.iter().filter(|s| **s >= 2000).count() >= 5
+    });
+    let settled = inbox.len();
+    let last_strong = ss + 20;
+    for _ in 0..20 {
+        ws += 1;
+        ss += 1;
+        send(&mut weak, ws);
+        send(&mut strong, ss);
+    }
+    until("the strong writer's last sample", || inbox.steps().contains(&last_strong));
+    let after: Vec<u64> = inbox.steps()[settled..].to_vec();
+    let weak_after = after.iter().filter(|s| **s < 2000).count();
+    if reader.arbitrates_ownership() {
+        assert_eq!(weak_after, 0, "the weaker writer's samples while the stronger lives: {after:?}");
+        drop(strong);
+        drop(strong_p);
+        until("the weaker writer's samples once the stronger has gone", || {
+            ws += 1;
+            send(&mut weak, ws);
+            inbox.steps().contains(&ws)
+        });
+    } else {
+        assert!(weak_after > 0, "an engine that does not arbitrate delivers both writers: {after:?}");
+    }
+}
+
+/// A typed sample too short for its set, or in another representation than plain CDR, reaches
+/// the reader's sink as a decoding error, never as a sample; the good sample after it arrives.
+fn a_sample_that_cannot_be_decoded_is_reported(c: &Case) {
+    let (codec, layout) = set_codec();
+    let reader = c.open("reader");
+    let cyclone = c.peer_cyclone("bad_writer");
+    let q = qos(Reliability::Reliable, History::KeepAll, false, Ownership::Shared);
+    let topic = c.topic("bad");
+    let inbox = Inbox::new(Decode::Set(codec.clone()));
+    reader.reader(&topic, SET_TYPE, &q, Decode::Set(codec.clone()), inbox.sink()).unwrap();
+    let mut w = cyclone.writer(&topic, SET_TYPE, &q).unwrap();
+    let good = sample(&codec, &layout, 3);
+    let mut body = Vec::new();
+    codec.encode(good.step, good.sim_time, &good.data, &mut body);
+    let raw = [&HEADER_LE[..], &body].concat();
+    until("a good sample, once the writer is matched", || {
+        w.write_serialized(&raw);
+        w.flush();
+        inbox.len() > 0
+    });
+    let want = Payload::Set(good);
+    for bad in [&raw[..raw.len() / 2], &[&[0u8, 7, 0, 0][..], &body].concat()[..]] {
+        let before = inbox.len();
+        assert!(w.write_serialized(bad));
+        w.write_serialized(&raw);
+        w.flush();
+        // The error, then the good sample after it (an engine may still deliver a good sample
+        // of the wait above first).
+        until("the bad sample's error and the good sample after it", || {
+            let got = lock(&inbox.got);
+            let err = got[before..].iter().position(|(_, p)| p.is_err());
+            err.is_some_and(|i| got[before + i..].iter().any(|(_, p)| p.as_ref() == Ok(&want)))
+        });
+        let got = lock(&inbox.got);
+        assert!(got[before..].iter().all(|(_, p)| p.as_ref().map_or(true, |p| p == &want)), "only good samples decode");
+    }
+}
+
+/// `announce` publishes the node (namespace and name) with the GUIDs of its readers and
+/// writers on `ros_discovery_info`, as ROS 2's graph reads it.
+fn the_node_is_announced_on_ros_discovery_info(c: &Case) {
+    let (codec, _) = set_codec();
+    let node = c.open("announced_node");
+    let observer = c.peer_cyclone("graph");
+    let (wt, rt) = (c.topic("node_out"), c.topic("node_in"));
+    let q = qos(Reliability::Reliable, History::KeepLast(1), false, Ownership::Shared);
+    let _w = node.writer(&wt, SET_TYPE, &q).unwrap();
+    node.reader(&rt, SET_TYPE, &q, Decode::Set(codec.clone()), Arc::new(|_, _| {})).unwrap();
+    node.announce().unwrap();
+
+    let infos = Arc::new(Mutex::new(Vec::<Vec<u8>>::new()));
+    let into = infos.clone();
+    let latched = Qos {
+        reliability: Reliability::Reliable,
+        history: History::KeepLast(1),
+        durability: Durability::TransientLocal { depth: 1 },
+        ownership: Ownership::Shared,
+    };
+    let sink: Sink = Arc::new(move |_, data| {
+        if let engine::Data::Raw(raw) = data {
+            lock(&into).push(raw.to_vec());
+        }
+    });
+    observer.reader("ros_discovery_info", DISCOVERY_TYPE, &latched, Decode::Set(codec), sink).unwrap();
+
+    let mine = |g: &Guid| g.prefix() == node.own_prefix();
+    let (w, r) = until_some("the node's endpoints in discovery", || {
+        let rem = observer.remote();
+        let w = rem.writers_on(&wt).find(|g| mine(g))?;
+        let r = *rem.readers_on(std::slice::from_ref(&rt)).iter().find(|g| mine(g))?;
+        Some((w, r))
+    });
+    let want = format!("conf_{}_announced_node", c.number);
+    let info = until_some("the node on ros_discovery_info", || {
+        node.announce().unwrap();
+        lock(&infos).iter().filter_map(|raw| ParticipantInfo::parse(raw)).find(|i| {
+            i.participant.prefix() == node.own_prefix()
+                && i.nodes.iter().any(|n| n.name == want && n.writers.contains(&w) && n.readers.contains(&r))
+        })
+    });
+    let n = info.nodes.iter().find(|n| n.name == want).unwrap();
+    assert_eq!(n.namespace, "/conformance");
+}
+
+// ---------------------------------------------------------------------------------------
+// The test's own means.
+
+const SET_TYPE: &str = "conformance::msg::dds_::Set_";
+const DISCOVERY_TYPE: &str = "rmw_dds_common::msg::dds_::ParticipantEntitiesInfo_";
+
+/// One scenario on one engine.
+struct Case {
+    engine: EngineKind,
+    number: u16,
+    domain: u16,
+}
+
+impl Case {
+    /// A participant of the engine under test, on loopback.
+    fn open(&self, node: &str) -> Box<dyn Engine> {
+        self.open_kind(self.engine, node)
+    }
+
+    /// A Cyclone participant: a peer that can write any encapsulation and reads raw bytes.
+    fn peer_cyclone(&self, node: &str) -> Box<dyn Engine> {
+        self.open_kind(EngineKind::Cyclone, node)
+    }
+
+    fn open_kind(&self, kind: EngineKind, node: &str) -> Box<dyn Engine> {
+        let cfg = EngineConfig {
+            domain_id: self.domain,
+            interfaces: vec![[127, 0, 0, 1].into()],
+            peers: Vec::new(),
+            node_name: format!("conf_{}_{node}", self.number),
+            node_namespace: "/conformance".into(),
+        };
+        match engine::open(kind, &cfg) {
+            Ok(e) => e,
+            Err(e) => panic!("{kind} participant in DDS domain {}: {e}", self.domain),
+        }
+    }
+
+    /// A topic of this scenario.
+    fn topic(&self, what: &str) -> String {
+        format!("rt/conformance/s{}/{what}", self.number)
+    }
+}
+
+/// Runs scenario number `n` on `engine` under a watchdog that stops the test binary if the
+/// scenario hangs (a hang inside DDS cannot be interrupted from another thread).
+fn run(engine: EngineKind, n: u16, scenario: fn(&Case)) {
+    struct Done(Arc<AtomicBool>);
+    impl Drop for Done {
+        fn drop(&mut self) {
+            self.0.store(true, Ordering::Release);
+        }
+    }
+    let done = Arc::new(AtomicBool::new(false));
+    let flag = done.clone();
+    std::thread::spawn(move || {
+        let start = Instant::now();
+        while !flag.load(Ordering::Acquire) {
+            if start.elapsed() > WATCHDOG {
+                eprintln!("watchdog: the {engine} scenario {n} hangs; stopping the conformance suite");
+                std::process::abort();
+            }
+            std::thread::sleep(Duration::from_millis(100));
+        }
+    });
+    let _done = Done(done);
+    let base = match engine {
+        EngineKind::Cyclone => 60,
+        EngineKind::Rustdds => 80,
+    };
+    scenario(&Case { engine, number: n, domain: base + n });
+}
+
+fn lock<T>(m: &Mutex<T>) -> std::sync::MutexGuard<'_, T> {
+    m.lock().unwrap_or_else(PoisonError::into_inner)
+}
+
+/// Calls `f` every 20 ms until it is true; fails naming `what` after [`PATIENCE`].
+fn until(what: &str, mut f: impl FnMut() -> bool) {
+    until_some(what, || f().then_some(()))
+}
+
+fn until_some<T>(what: &str, mut f: impl FnMut() -> Option<T>) -> T {
+    let start = Instant::now();
+    loop {
+        if let Some(v) = f() {
+            return v;
+        }
+        assert!(start.elapsed() < PATIENCE, "gave up waiting for {what}");
+        std::thread::sleep(Duration::from_millis(20));
+    }
+}
+
+fn qos(reliability: Reliability, history: History, transient_local: bool, ownership: Ownership) -> Qos {
+    let durability = if transient_local { Durability::TransientLocal { depth: 1 } } else { Durability::Volatile };
+    Qos { reliability, history, durability, ownership }
+}
+
+/// The codec and layout of the scenarios' set: elements of every alignment, an array.
+fn set_codec() -> (Arc<SetCodec>, SetLayout) {
+    let items = r#"<item name="a"><type>boolean</type></item>
+        <item name="s"><type>int16</type></item>
+        <item name="x"><type>double</type></item>
+        <item name="v"><type>double</type><length>3</length></item>
+        <item name="f"><type>float32</type></item>"#;
+    let ddf = format!(
+        r#"<orchestra><domain name="d"><synchronous>no</synchronous><multiplePublishAllowed>no</multiplePublishAllowed>
+           <states>no</states><block name="d/Publish">{items}</block></domain></orchestra>"#
+    );
+    let model = parse_str(&ddf, "conformance.ddf").unwrap();
+    let layout = model.domains[0].publish.layout.clone();
+    (Arc::new(SetCodec::new(&layout)), layout)
+}
+
+/// A sample of the set for `step`, every leaf set from it.
+fn sample(codec: &SetCodec, layout: &SetLayout, step: u64) -> TypedSample {
+    let mut data = vec![0u8; codec.shm_size()];
+    let mut put = |path: &str, bytes: &[u8]| {
+        let leaf: &Leaf = layout.leaf(path).unwrap();
+        data[leaf.range()].copy_from_slice(bytes);
+    };
+    let k = step as f64;
+    put("a", &[u8::from(step % 2 == 1)]);
+    put("s", &(-(step as i16)).to_ne_bytes());
+    put("x", &(k * 0.5).to_ne_bytes());
+    put("v", &[k, -k, k / 8.0].iter().flat_map(|v| v.to_ne_bytes()).collect::<Vec<_>>());
+    put("f", &(k as f32 * 0.25).to_ne_bytes());
+    TypedSample { step, sim_time: k / 100.0, data }
+}
+
+/// The little-endian CDR body `le` of the set in big-endian: every element reversed in place.
+fn big_endian(codec: &SetCodec, le: &[u8]) -> Vec<u8> {
+    let mut be = le.to_vec();
+    be[0..8].reverse();
+    be[8..16].reverse();
+    for f in codec.fields() {
+        let size = f.ty.size() as usize;
+        be[f.cdr..f.cdr + size * f.count].chunks_exact_mut(size).for_each(<[u8]>::reverse);
+    }
+    be
+}
+
+/// A big-endian `Float64` (one value, `array` false) or `Float64MultiArray` body.
+fn stock_big_endian(values: &[f64], array: bool) -> Vec<u8> {
+    if !array {
+        return values[0].to_be_bytes().to_vec();
+    }
+    let mut out = Vec::new();
+    out.extend_from_slice(&0u32.to_be_bytes()); // no dimensions
+    out.extend_from_slice(&0u32.to_be_bytes()); // data_offset
+    out.extend_from_slice(&(values.len() as u32).to_be_bytes());
+    out.extend_from_slice(&[0; 4]); // the doubles are aligned to 8
+    for v in values {
+        out.extend_from_slice(&v.to_be_bytes());
+    }
+    out
+}
+
+/// What a reader received, decoded.
+struct Inbox {
+    decode: Decode,
+    got: Mutex<Vec<(Guid, Result<Payload, CdrError>)>>,
+}
+
+impl Inbox {
+    fn new(decode: Decode) -> Arc<Inbox> {
+        Arc::new(Inbox { decode, got: Mutex::new(Vec::new()) })
+    }
+
+    fn sink(self: &Arc<Self>) -> Sink {
+        let me = self.clone();
+        Arc::new(move |g, data| {
+            let p = data.into_payload(&me.decode);
+            lock(&me.got).push((g, p));
+        })
+    }
+
+    fn len(&self) -> usize {
+        lock(&self.got).len()
+    }
+
+    /// The steps of the typed samples received, in order.
+    fn steps(&self) -> Vec<u64> {
+        lock(&self.got)
+            .iter()
+            .filter_map(|(_, p)| match p {
+                Ok(Payload::Set(s)) => Some(s.step),
+                _ => None,
+            })
+            .collect()
+    }
+
+    /// Writes with `write` until `want` has arrived, decoded without error; the GUID of its
+    /// writer. A sample that fails to decode fails the test.
+    fn until_payload(
+        &self,
+        what: &str,
+        w: &mut dyn Writer,
+        want: &Payload,
+        mut write: impl FnMut(&mut dyn Writer) -> bool,
+    ) -> Guid {
+        until_some(what, || {
+            assert!(write(w), "{what}: the writer refused it");
+            w.flush();
+            let got = lock(&self.got);
+            if let Some((_, Err(e))) = got.iter().find(|(_, p)| p.is_err()) {
+                panic!("{what}: a sample failed to decode: {e}");
+            }
+            got.iter().find(|(_, p)| p.as_ref() == Ok(want)).map(|(g, _)| *g)
+        })
+    }
+}
+
+/// `rmw_dds_common::msg::ParticipantEntitiesInfo` as ROS 2 Iron and later write it (16-byte gids).
+struct ParticipantInfo {
+    participant: Guid,
+    nodes: Vec<NodeInfo>,
+}
+
+struct NodeInfo {
+    namespace: String,
+    name: String,
+    readers: Vec<Guid>,
+    writers: Vec<Guid>,
+}
+
+/// A cursor over a CDR body.
+struct Cursor<'a> {
+    b: &'a [u8],
+    pos: usize,
+    le: bool,
+}
+
+impl<'a> Cursor<'a> {
+    fn take(&mut self, n: usize, align: usize) -> Option<&'a [u8]> {
+        self.pos = self.pos.next_multiple_of(align);
+        let s = self.b.get(self.pos..self.pos + n)?;
+        self.pos += n;
+        Some(s)
+    }
+
+    fn u32(&mut self) -> Option<u32> {
+        let a: [u8; 4] = self.take(4, 4)?.try_into().ok()?;
+        Some(if self.le { u32::from_le_bytes(a) } else { u32::from_be_bytes(a) })
+    }
+
+    fn string(&mut self) -> Option<String> {
+        let len = self.u32()? as usize;
+        let s = self.take(len, 1)?;
+        Some(String::from_utf8_lossy(s.strip_suffix(&[0]).unwrap_or(s)).into_owned())
+    }
+
+    fn guid(&mut self) -> Option<Guid> {
+        Some(Guid(self.take(16, 1)?.try_into().ok()?))
+    }
+
+    fn guids(&mut self) -> Option<Vec<Guid>> {
+        let n = self.u32()?;
+        (0..n.min(4096)).map(|_| self.guid()).collect()
+    }
+}
+
+impl ParticipantInfo {
+    /// Reads a serialized sample (either byte order); None if it is not one.
+    fn parse(raw: &[u8]) -> Option<ParticipantInfo> {
+        let (le, b) = tutti_gateway::cdr::split_header(raw).ok()?;
+        let mut c = Cursor { b, pos: 0, le };
+        let participant = c.guid()?;
+        let n = c.u32()?;
+        let mut nodes = Vec::new();
+        for _ in 0..n.min(64) {
+            let (namespace, name) = (c.string()?, c.string()?);
+            let (readers, writers) = (c.guids()?, c.guids()?);
+            nodes.push(NodeInfo { namespace, name, readers, writers });
+        }
+        Some(ParticipantInfo { participant, nodes })
+    }
+}
