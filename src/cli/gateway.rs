@@ -1,4 +1,4 @@
-//! `tutti gateway DDF`: bridge every domain of a DDF to DDS / ROS 2 (SPEC section 5).
+//! `tutti gateway DDF`: bridge every domain of a DDF to DDS / ROS 2 (`docs/gateway.md`).
 
 use std::net::{IpAddr, SocketAddr};
 use std::path::PathBuf;

@@ -1,5 +1,5 @@
-//! `tutti idl DDF --out DIR`: writes the typed DDS / ROS 2 interface of a DDF (SPEC section
-//! 5): OMG IDL 4 for every set, and a ROS 2 interface package. The files themselves come from
+//! `tutti idl DDF --out DIR`: writes the typed DDS / ROS 2 interface of a DDF
+//! (`docs/gateway.md`): OMG IDL 4 for every set, and a ROS 2 interface package. The files themselves come from
 //! `tutti_core::idl`; this module only writes them.
 
 use std::path::PathBuf;

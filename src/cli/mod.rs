@@ -1,5 +1,5 @@
 //! Subcommands of `tutti`, one module each. Exit status: 0 success, 2 invalid input or
-//! usage, 1 runtime failure (SPEC section 4).
+//! usage, 1 runtime failure (`docs/cli.md`).
 
 use std::process::ExitCode;
 

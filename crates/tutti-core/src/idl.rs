@@ -1,4 +1,4 @@
-//! `tutti idl`: the typed DDS / ROS 2 interface of a DDF (SPEC section 5) as source text.
+//! `tutti idl`: the typed DDS / ROS 2 interface of a DDF (`docs/gateway.md`) as source text.
 //!
 //! For a DDF whose ROS 2 package is `PKG`, every set of every domain becomes one struct type
 //! `TYPE` (`mapping::set_names`), with the fields `uint64 step`, `double sim_time` and then

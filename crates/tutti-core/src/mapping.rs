@@ -1,4 +1,4 @@
-//! How a domain appears in DDS and ROS 2 (SPEC section 5): topic names, ROS 2-mangled type
+//! How a domain appears in DDS and ROS 2 (`docs/gateway.md`): topic names, ROS 2-mangled type
 //! names, field names and the QoS derived from the domain's flags. Plain data, no DDS crate:
 //! `tutti show`, `tutti idl` and the gateway all take their names and QoS from here, so they
 //! cannot disagree.
@@ -357,7 +357,7 @@ fn collect_item_topics(items: &[Item], topic_prefix: &str, path_prefix: &str, ou
     }
 }
 
-/// DDS QoS profile for the gateway (SPEC section 5).
+/// DDS QoS profile for the gateway (`docs/gateway.md`).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize)]
 #[serde(rename_all = "lowercase")]
 pub enum Profile {
@@ -426,7 +426,7 @@ pub enum Endpoint {
     Reader,
 }
 
-/// The QoS table of SPEC section 5: writers offer the strongest terms the flags allow,
+/// The QoS table of `docs/gateway.md` ("QoS"): writers offer the strongest terms the flags allow,
 /// readers ask the weakest, so rclpy's default, sensor-data and latched profiles all match.
 pub fn qos(flags: Flags, profile: Profile, endpoint: Endpoint, strength: i32) -> Qos {
     let (reliability, history) = match (flags.synchronous, endpoint) {

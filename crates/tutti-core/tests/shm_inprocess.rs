@@ -1,4 +1,4 @@
-//! Framework and participants in one process (threads): the semantics of SPEC section 2.
+//! Framework and participants in one process (threads): the semantics of `docs/domains.md`.
 
 use std::time::Duration;
 

@@ -13,7 +13,7 @@ use std::fmt::Write as _;
 
 use crate::model::{Causality, ModelDescription, Variable};
 
-/// The longest DDF name (SPEC section 1).
+/// The longest DDF name (`docs/ddf.md`).
 const MAX_NAME: usize = 63;
 
 /// What a variable that cannot be exchanged is, for the DDF's comments and messages.

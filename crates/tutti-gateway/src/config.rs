@@ -29,7 +29,7 @@ pub use crate::error::ConfigError;
 // ---------------------------------------------------------------------------------------
 // The options.
 
-/// The two type mappings of SPEC section 5.
+/// The two type mappings of `docs/gateway.md` ("Mapping").
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub enum TypeMode {
     /// One struct per set (`tutti idl`'s types), with `step` and `sim_time`.

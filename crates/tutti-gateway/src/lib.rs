@@ -1,4 +1,4 @@
-//! tutti's DDS / ROS 2 gateway (SPEC section 5): every set of every domain is a DDS topic
+//! tutti's DDS / ROS 2 gateway (`docs/gateway.md`): every set of every domain is a DDS topic
 //! bridged both ways, with the QoS the DDF's flags call for, and the gateway is one ROS 2
 //! node. With `mirror`, the gateway is the framework of local segments fed from DDS, so that
 //! a co-simulation spans machines.

@@ -1,4 +1,4 @@
-//! The one place where the QoS table of SPEC section 5 (`tutti_core::mapping::qos`) becomes
+//! The one place where the QoS table of `docs/gateway.md` (`tutti_core::mapping::qos`) becomes
 //! rustdds / ros2-client QoS.
 //!
 //! ros2-client creates node endpoints from a [`QosProfile`] (reliability, durability,

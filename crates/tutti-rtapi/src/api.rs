@@ -1,4 +1,4 @@
-//! The exported calls, with the product's names and C signatures (SPEC section 3). Each one
+//! The exported calls, with the product's names and C signatures (`docs/rtapi.md`). Each one
 //! checks its pointers, runs under a guard that catches panics, and returns an `RTAPI_*` code; the semantics are
 //! in docs/rtapi.md.
 

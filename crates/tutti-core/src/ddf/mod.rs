@@ -1,5 +1,5 @@
 //! The Data Description File: parse (`raw`), validate (`validate`) into the [`Model`], and
-//! lay out (`layout`). Both dialects of SPEC section 1 read into the same model.
+//! lay out (`layout`). Both dialects (`docs/ddf.md`) read into the same model.
 //!
 //! ```
 //! let model = tutti_core::ddf::parse_str(

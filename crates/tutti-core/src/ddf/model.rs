@@ -21,7 +21,7 @@ impl Model {
     }
 }
 
-/// The QoS flags of a domain (SPEC section 2).
+/// The QoS flags of a domain (`docs/domains.md`).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
 pub struct Flags {
     pub synchronous: bool,
@@ -212,7 +212,7 @@ pub enum ItemKind {
     },
 }
 
-/// The scalar types of SPEC section 1, canonical names.
+/// The scalar types of `docs/ddf.md` section 2, canonical names.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize)]
 pub enum ScalarType {
     #[serde(rename = "boolean")]

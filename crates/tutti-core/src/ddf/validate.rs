@@ -1,5 +1,5 @@
 //! Step two of reading a DDF: raw elements to the validated [`Model`], checking every rule
-//! of SPEC section 1 and collecting every violation with its position.
+//! of `docs/ddf.md` and collecting every violation with its position.
 
 use std::borrow::Cow;
 use std::collections::hash_map::Entry;
