@@ -13,7 +13,7 @@ pub fn ci() -> bool {
 
 /// `found`, or, when it is an error (saying why `what` is not there), `None` with a message
 /// that the test is skipped; under `CI=true` the test fails instead.
-pub fn require<T>(what: &str, found: Result<T, String>) -> Option<T> {
+pub fn require<T, E: std::fmt::Display>(what: &str, found: Result<T, E>) -> Option<T> {
     match found {
         Ok(v) => Some(v),
         Err(why) => {
