@@ -6,17 +6,15 @@
 //! that fails (a `doStep` returning Error or Fatal, the framework gone).
 
 use std::path::PathBuf;
-use std::sync::atomic::{AtomicBool, Ordering};
-use std::sync::Arc;
 use std::time::Duration;
 
 use anyhow::Context as _;
+use tutti_core::parse::parse_duration;
 use tutti_core::shm::ConnectOptions;
 use tutti_fmu::ddf::{domain_name, generate, item_names, unsupported_reason, DdfOptions};
 use tutti_fmu::mapping::parse_spec;
 use tutti_fmu::{Fmu, FmuParticipant, Mapping, RunOptions};
 
-use super::host::parse_duration;
 use super::{load_ddf, CliResult, Failure};
 
 /// FMI 2.0 / 3.0 co-simulation FMUs: inspect them, make a DDF for them, run them as participants.
@@ -266,11 +264,7 @@ fn run_fmu(a: RunArgs) -> CliResult {
         .unwrap_or(Duration::from_millis(10));
     let name = a.name.clone().unwrap_or_else(|| format!("fmu:{}", fmu.model.model_name));
     let instance = fmu.instantiate(&name, &a.preload).map_err(Failure::invalid)?;
-    let stop = Arc::new(AtomicBool::new(false));
-    {
-        let stop = stop.clone();
-        ctrlc::set_handler(move || stop.store(true, Ordering::SeqCst)).context("installing the signal handler")?;
-    }
+    let stop = super::stop_flag()?;
     let opts = RunOptions {
         connect: ConnectOptions { name, connect_timeout: a.connect_timeout, ..Default::default() },
         step,

@@ -79,6 +79,23 @@ pub fn ensure_rtapi() -> std::path::PathBuf {
     dir.to_path_buf()
 }
 
+/// The executable `bin` of the workspace member `package` (the benchmarks' `tutti-bench`,
+/// the demo's `tutti-demo`), next to the tutti executable: built when missing, as that one was
+/// (debug or release).
+pub fn ensure_bin(package: &str, bin: &str) -> std::path::PathBuf {
+    let exe = std::path::PathBuf::from(env!("CARGO_BIN_EXE_tutti"));
+    let path = exe.with_file_name(bin);
+    let cargo = std::env::var("CARGO").unwrap_or_else(|_| "cargo".into());
+    let mut cmd = Command::new(cargo);
+    cmd.args(["build", "-q", "-p", package]).current_dir(env!("CARGO_MANIFEST_DIR"));
+    if exe.parent().and_then(|d| d.file_name()).is_some_and(|n| n == "release") {
+        cmd.arg("--release");
+    }
+    assert!(cmd.status().expect("running cargo").success(), "building {bin}");
+    assert!(path.is_file(), "{} not built", path.display());
+    path
+}
+
 /// Compiles the C program `source` against include/RTAPI.h and this build's librtapi (run
 /// path set, so it runs from there) into `out`, with the compiler flags `flags`; fails the
 /// test with the compiler's output when it does not compile.

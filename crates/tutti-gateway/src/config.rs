@@ -21,6 +21,7 @@ use serde::de::{self, DeserializeSeed, Deserializer, SeqAccess, Visitor};
 use serde::{Deserialize, Serialize};
 use tutti_core::ddf::Role;
 use tutti_core::mapping::{self, Durability, Endpoint, History, ItemTopic, Profile, Qos, Reliability};
+use tutti_core::parse::{parse_duration, parse_wait};
 use tutti_core::shm::WaitMode;
 
 use crate::engine::EngineKind;
@@ -633,24 +634,6 @@ pub fn discovery_range(localhost_only: Option<&str>, range: Option<&str>) -> Res
 // ---------------------------------------------------------------------------------------
 // Value parsers, shared by the CLI's flags and the file's keys.
 
-/// A duration as the CLI takes it: a number and a unit (`10ms`, `500us`, `2s`, `1min`).
-pub fn parse_duration(s: &str) -> Result<Duration, String> {
-    humantime::parse_duration(s.trim())
-        .map_err(|_| format!("'{s}' is not a duration: a number and a unit, like 10ms, 500us, 2s or 1min"))
-}
-
-/// `block`, `spin` or `poll:DURATION`.
-pub fn parse_wait(s: &str) -> Result<WaitMode, String> {
-    match s {
-        "block" => Ok(WaitMode::Block),
-        "spin" => Ok(WaitMode::Spin),
-        _ => match s.strip_prefix("poll:") {
-            Some(d) => parse_duration(d).map(WaitMode::Poll),
-            None => Err(format!("'{s}': use block, spin or poll:DURATION (e.g. poll:50us)")),
-        },
-    }
-}
-
 /// A positive rate in Hz (`100`, `100Hz`).
 pub fn parse_rate(s: &str) -> Result<f64, String> {
     match s.trim().trim_end_matches("Hz").trim_end_matches("hz").parse::<f64>() {
@@ -685,12 +668,12 @@ fn parse_pattern(s: &str) -> Result<String, String> {
 }
 
 /// Parses a string where it stands, so that json5 gives its error the value's position.
-struct Parsed<T> {
+struct Parsed<T, E = String> {
     expecting: &'static str,
-    parse: fn(&str) -> Result<T, String>,
+    parse: fn(&str) -> Result<T, E>,
 }
 
-impl<'de, T> Visitor<'de> for Parsed<T> {
+impl<'de, T, P: fmt::Display> Visitor<'de> for Parsed<T, P> {
     type Value = T;
     fn expecting(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         f.write_str(self.expecting)
@@ -700,7 +683,7 @@ impl<'de, T> Visitor<'de> for Parsed<T> {
     }
 }
 
-impl<'de, T> DeserializeSeed<'de> for Parsed<T> {
+impl<'de, T, P: fmt::Display> DeserializeSeed<'de> for Parsed<T, P> {
     type Value = T;
     fn deserialize<D: Deserializer<'de>>(self, d: D) -> Result<T, D::Error> {
         d.deserialize_any(self)

@@ -13,8 +13,8 @@ use plotters::coord::Shift;
 use plotters::prelude::*;
 use plotters::style::FontStyle;
 
-use super::analysis::{observed_windows, RunData};
-use super::scenario::{Scenario, UAVS};
+use crate::analysis::{observed_windows, RunData};
+use crate::scenario::{Scenario, UAVS};
 
 /// Where the font is looked for, in order (after `TUTTI_FONT`).
 pub const FONT_CANDIDATES: &[&str] = &[

@@ -1,8 +1,8 @@
-//! `tutti demo uav`: the UAV formation co-simulation of the paper's section 7, end to end.
+//! `tutti-demo uav`: the UAV formation co-simulation of the paper's section 7, end to end.
 //!
 //! This process is the framework of `ddf/multiuav.ddf` (formation commands, the altitude it
 //! read and its clock in PUBLISH; UAV states read from SUBSCRIBE), stepped by the real-time
-//! loop of `rt`. It starts four UAV components (`tutti demo uav-node`), the monitoring script
+//! loop of `tutti-host`. It starts four UAV components (`tutti-demo uav-node`), the monitoring script
 //! (`launch-scripts/monitor.py`, Python over the RTAPI) that disconnects and reconnects UAV
 //! components on schedule and logs the connection counts, two C components
 //! (`examples/c/uav_altitude_log.c`) that connect to UAV2's domain on schedule, and the
@@ -14,26 +14,29 @@ use std::io::{BufWriter, Write};
 use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
 use std::sync::atomic::{AtomicBool, Ordering};
-use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 use anyhow::{bail, Context};
 use tutti_core::ddf::Role;
 use tutti_core::shm::{Framework, FrameworkOptions, WaitMode};
 
-use super::analysis::{run_checks, Check, RunData};
-use super::f64_at;
-use super::plot;
-use super::scenario::{Scenario, UAVS};
-use crate::cli::child::{spawn, Kid, SIGINT, SIGTERM};
-use crate::cli::host::parse_duration;
-use crate::cli::{CliResult, Failure, EXIT_FAILURE};
-use crate::rt::{self, Ticker};
+use tutti_core::parse::parse_duration;
+use tutti_host::{step_all, ChildProcess as Kid, StepDone, Ticker, SIGINT, SIGTERM};
+
+use crate::analysis::{run_checks, Check, RunData};
+use crate::f64_at;
+use crate::plot;
+use crate::scenario::{Scenario, FMU_TAU, UAVS};
+use crate::{CliResult, Failure, EXIT_FAILURE};
+
+fn spawn(name: &str, cmd: Command, cpu: Option<usize>) -> anyhow::Result<Kid> {
+    Ok(Kid::spawn(name, cmd, cpu)?)
+}
 
 /// The DDF of the demo, built in: the demo runs from any directory.
 const DDF_TEXT: &str = include_str!("../../../ddf/multiuav.ddf");
 /// The source tree (C component, monitoring script, Python module, header).
-const ROOT: &str = env!("CARGO_MANIFEST_DIR");
+const ROOT: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../..");
 /// The domain of the demo's FMU component (examples/fmu/altitude_filter, docs/fmu.md): the
 /// framework publishes UAV 1's elevation as it read it, the FMU answers with it filtered.
 const FMU_DOMAIN: &str = "uav1_altitude_filter";
@@ -55,12 +58,10 @@ const FMU_DDF_TEXT: &str = r#"<?xml version="1.0" encoding="UTF-8"?>
   </domain>
 </orchestra>
 "#;
-/// The FMU's time constant (s), given with `--param tau=`; the checks recompute the filter.
-pub const FMU_TAU: f64 = 2.0;
 
 #[derive(Debug, clap::Args)]
 #[command(
-    after_help = "Examples:\n  tutti demo uav\n  tutti demo uav --out /tmp/uav --speed 8 --scenario short\n  tutti demo uav-report --out out/uav      # re-check and re-draw a finished run\n\nEnvironment:\n  TUTTI_NAMESPACE   namespace of the segments (default: demo-PID)\n  TUTTI_PYTHON      Python 3 for the monitoring script (default: python3)\n  TUTTI_RTAPI_LIB   librtapi.so to use (default: next to this executable)\n  TUTTI_FONT        TrueType font for the figures (default: DejaVu Sans)\n  CC                C compiler for the C component and the FMU (default: gcc)"
+    after_help = "Examples:\n  tutti-demo uav\n  tutti-demo uav --out /tmp/uav --speed 8 --scenario short\n  tutti-demo uav-report --out out/uav      # re-check and re-draw a finished run\n\nEnvironment:\n  TUTTI_NAMESPACE   namespace of the segments (default: demo-PID)\n  TUTTI_PYTHON      Python 3 for the monitoring script (default: python3)\n  TUTTI_RTAPI_LIB   librtapi.so to use (default: next to this executable)\n  TUTTI_EXE         the tutti executable (default: next to this executable)\n  TUTTI_FONT        TrueType font for the figures (default: DejaVu Sans)\n  CC                C compiler for the C component and the FMU (default: gcc)"
 )]
 pub struct UavArgs {
     #[command(flatten)]
@@ -81,10 +82,10 @@ pub struct UavArgs {
     #[arg(long, value_name = "N")]
     ros_domain_id: Option<u32>,
     #[command(flatten)]
-    rt: crate::cli::RealtimeArgs,
+    rt: crate::RealtimeArgs,
 }
 
-/// `tutti demo uav-report`: the checks and figures of a finished run, again.
+/// `tutti-demo uav-report`: the checks and figures of a finished run, again.
 #[derive(Debug, clap::Args)]
 pub struct ReportArgs {
     #[command(flatten)]
@@ -124,7 +125,7 @@ pub fn parse_seconds(s: &str) -> Result<f64, String> {
     match s.trim().parse::<f64>() {
         Ok(v) if v > 0.0 && v.is_finite() => Ok(v),
         Ok(_) => Err(format!("'{s}' must be a positive number of seconds")),
-        Err(_) => parse_duration(s).map(|d| d.as_secs_f64()),
+        Err(_) => parse_duration(s).map(|d| d.as_secs_f64()).map_err(|e| e.to_string()),
     }
 }
 
@@ -213,11 +214,7 @@ pub fn run(args: UavArgs) -> CliResult {
     let dir = &args.run.out;
     std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
     let out = dir.canonicalize().unwrap_or(dir.clone());
-    let interrupted = Arc::new(AtomicBool::new(false));
-    {
-        let flag = interrupted.clone();
-        ctrlc::set_handler(move || flag.store(true, Ordering::SeqCst)).context("installing the signal handler")?;
-    }
+    let interrupted = tutti_host::stop_on_ctrl_c().context("installing the signal handler")?;
     let started = Instant::now();
     let ran = simulate(&args, &scenario, &out, &interrupted);
     if interrupted.load(Ordering::SeqCst) {
@@ -229,7 +226,7 @@ pub fn run(args: UavArgs) -> CliResult {
     report(&out, &scenario, args.run.step.as_secs_f64())
 }
 
-/// `tutti demo uav-report`.
+/// `tutti-demo uav-report`.
 pub fn run_report(args: ReportArgs) -> CliResult {
     report(&args.run.out, &args.run.scenario(), args.run.step.as_secs_f64())
 }
@@ -289,6 +286,7 @@ fn simulate(args: &UavArgs, scenario: &Scenario, out: &Path, interrupted: &Atomi
         tutti_core::ddf::parse_str(DDF_TEXT, &ddf_path.display().to_string()).map_err(|e| anyhow::anyhow!("{e}"))?;
     anyhow::ensure!(model.domains.len() == UAVS, "the demo's DDF has {} domains, not {UAVS}", model.domains.len());
     let exe = std::env::current_exe().context("locating this executable")?;
+    let tutti = crate::tutti_exe()?;
     // A private copy of librtapi: a rebuild during the run cannot pull it away.
     let found = find_rtapi()?;
     let lib = out.join("bin/librtapi.so");
@@ -371,14 +369,14 @@ fn simulate(args: &UavArgs, scenario: &Scenario, out: &Path, interrupted: &Atomi
     let mut uavs = Vec::new();
     for i in 1..=UAVS {
         let mut cmd = Command::new(&exe);
-        cmd.args(["demo", "uav-node", "--index", &i.to_string(), "--speed", &args.speed.to_string(), "--out"])
+        cmd.args(["uav-node", "--index", &i.to_string(), "--speed", &args.speed.to_string(), "--out"])
             .arg(out.join(format!("uav{i}.csv")));
         env(&mut cmd);
         uavs.push(spawn(&format!("UAV {i}"), cmd, None)?);
     }
     // The FMU component: `tutti fmu run`, as a user would start it.
     let mut fmu_kid = {
-        let mut cmd = Command::new(&exe);
+        let mut cmd = Command::new(&tutti);
         cmd.args(["fmu", "run"])
             .arg(&fmu_path)
             .arg("--ddf")
@@ -402,7 +400,7 @@ fn simulate(args: &UavArgs, scenario: &Scenario, out: &Path, interrupted: &Atomi
     eprintln!("demo: 4 UAV components and the FMU component (AltitudeFilter, tutti fmu run) connected");
     let mut gateway = None;
     if !args.no_gateway {
-        let mut cmd = Command::new(&exe);
+        let mut cmd = Command::new(&tutti);
         cmd.arg("gateway").arg(&ddf_path).args(["--interface", "127.0.0.1", "--status-every", "3600s"]);
         if let Some(id) = args.ros_domain_id {
             cmd.args(["--ros-domain-id", &id.to_string()]);
@@ -465,9 +463,7 @@ fn simulate(args: &UavArgs, scenario: &Scenario, out: &Path, interrupted: &Atomi
             Err(_) => bail!("the monitoring script ({python}) was not ready within 60 s"),
         }
     }
-    if let Some(req) = args.rt.request() {
-        rt::enter_realtime_verbose("demo", &req);
-    }
+    crate::enter_realtime(&args.rt, "demo");
     let mut ticker = Ticker::new(period);
     let wall0 = Instant::now();
     let mut monitor_in = Some(monitor_in);
@@ -500,7 +496,7 @@ fn simulate(args: &UavArgs, scenario: &Scenario, out: &Path, interrupted: &Atomi
                 buf[*o..*o + 8].copy_from_slice(&v.to_ne_bytes());
             }
         }
-        let reports = rt::step_all(&mut fw, &publish, sim, period, &tick)?;
+        let reports = step_all(&mut fw, &publish, sim, period, &tick)?;
         let mut row =
             format!("{},{sim:.6},{:.6}", reports.first().map_or(0, |r| r.step), wall0.elapsed().as_secs_f64());
         for (i, (host, it)) in fw.domains.iter().zip(&items).enumerate() {
@@ -514,7 +510,7 @@ fn simulate(args: &UavArgs, scenario: &Scenario, out: &Path, interrupted: &Atomi
         writeln!(csv, "{row}")?;
         // The FMU's step: UAV 1's elevation as just read in, its filter out.
         fmu_publish[0][fmu_elevation.clone()].copy_from_slice(&read_elevation[0].to_ne_bytes());
-        let fmu_reports = rt::step_all(&mut fw_fmu, &fmu_publish, sim, period, &tick)?;
+        let fmu_reports = step_all(&mut fw_fmu, &fmu_publish, sim, period, &tick)?;
         {
             let host = &fw_fmu.domains[0];
             let sub = host.subscribe();
@@ -529,7 +525,8 @@ fn simulate(args: &UavArgs, scenario: &Scenario, out: &Path, interrupted: &Atomi
                 host.connection_count()
             )?;
         }
-        rt::record_step(std::slice::from_mut(&mut recording), &fw, &reports, &publish, sim, wall0)?;
+        let done = StepDone { reports: &reports, publish: &publish, sim, run_start: wall0 };
+        tutti_record::record_step(recording.as_mut(), &fw, &done).context("writing the recording")?;
         // The C components, on schedule.
         while readers.len() < scenario.c_readers.len() && sim >= scenario.c_readers[readers.len()] {
             let j = readers.len() + 1;

@@ -1,4 +1,4 @@
-//! `tutti demo uav-node --index N`: one UAV external component of the demo. It connects to
+//! `tutti-demo uav-node --index N`: one UAV external component of the demo. It connects to
 //! domain `multiuav_uavN` with the Rust participant; each framework step it reads the
 //! formation commands and the step's simulated time (PUBLISH), flies the 6-DOF model up to
 //! that time, and writes Latitude, Longitude, Elevation, Airspeed, Heading and Time
@@ -23,11 +23,11 @@ use tutti_core::ddf::Role;
 use tutti_core::shm::segment::{namespace_from_env, Segment};
 use tutti_core::shm::{ConnectOptions, Participant, ShmError};
 
-use super::f64_at;
-use super::scenario::UAVS;
+use crate::f64_at;
+use crate::scenario::UAVS;
 use tutti_uav::{FormationCommand, Uav, DEFAULT_DT};
 
-use crate::cli::CliResult;
+use crate::CliResult;
 
 #[derive(Debug, clap::Args)]
 pub struct NodeArgs {
