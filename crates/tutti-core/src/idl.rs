@@ -85,7 +85,7 @@ pub fn generate(model: &Model, package: &str) -> Result<Vec<GeneratedFile>, IdlE
         .map(|n| n.to_string_lossy().into_owned())
         .unwrap_or_else(|| model.source.clone());
     let types = collect_types(model, package);
-    check_identifiers(&types).map_err(|message| IdlError { source_file: model.source.clone(), message })?;
+    check_identifiers(&types, &model.source)?;
 
     let pkg_dir = PathBuf::from(package);
     let mut files = Vec::new();
@@ -172,23 +172,24 @@ fn collect_struct<'a>(
 
 /// IDL identifiers collide regardless of case (OMG IDL 4.2, 7.2.3): refuse type names that
 /// differ only in case, and fields named like a type.
-fn check_identifiers(types: &[TypeDef<'_>]) -> Result<(), String> {
+fn check_identifiers(types: &[TypeDef<'_>], source_file: &str) -> Result<(), IdlError> {
+    let clash = |message: String| IdlError { source_file: source_file.to_string(), message };
     let mut seen: HashMap<String, &TypeDef<'_>> = HashMap::new();
     for ty in types {
         if let Some(first) = seen.insert(ty.name.to_ascii_lowercase(), ty) {
-            return Err(format!(
+            return Err(clash(format!(
                 "type name {} ({}) clashes with type name {} ({}): IDL names are case-insensitive; rename one of them in the DDF",
                 ty.name, ty.origin, first.name, first.origin
-            ));
+            )));
         }
     }
     for ty in types {
         for field in &ty.fields {
             if let Some(other) = seen.get(&field.name.to_ascii_lowercase()) {
-                return Err(format!(
+                return Err(clash(format!(
                     "field {} of {} ({}, item {}) is named like the type {} ({}): IDL names are case-insensitive; rename the item in the DDF",
                     field.name, ty.name, ty.origin, field.item.name, other.name, other.origin
-                ));
+                )));
             }
         }
     }

@@ -118,17 +118,42 @@ fn wait_modes_all_work() {
         let mut fw =
             Framework::create(&model(true, true, false), &FrameworkOptions { wait: mode, ..fopts(&tag) }).unwrap();
         let mut p = Participant::connect("d", ConnectOptions { wait: mode, ..copts(&tag) }).unwrap();
+        // The participant answers step k (x = k) with a = 10·x and b = k.
         let t = std::thread::spawn(move || {
+            let mut seen = Vec::new();
             for _ in 0..50 {
-                p.subscribe_lock().unwrap();
-                p.publish_lock().unwrap();
+                let step = p.subscribe_lock().unwrap();
+                let x = f64::from_ne_bytes(p.snapshot()[0..8].try_into().unwrap());
+                // The framework waits for this step's answer: its time is still the step's.
+                let sim_time = p.sim_time();
+                let locked = p.publish_lock().unwrap();
+                p.stage("a", &(x * 10.0).to_ne_bytes()).unwrap();
+                p.stage("b", &(step as i32).to_ne_bytes()).unwrap();
                 p.commit().unwrap();
+                seen.push((step, x, locked, sim_time));
             }
+            seen
         });
+        let host = &mut fw.domains[0];
         for k in 1..=50u64 {
-            fw.domains[0].step(&(k as f64).to_ne_bytes(), 0.0).unwrap();
+            let r = host.step(&(k as f64).to_ne_bytes(), k as f64 * 0.5).unwrap();
+            assert_eq!(r.timed_out, 0, "{mode:?}");
+            // The answer of this very step is visible once the step returns (after the
+            // first, which may start before the participant's first read).
+            if k > 1 {
+                let sub = host.subscribe();
+                assert_eq!(f64::from_ne_bytes(sub[0..8].try_into().unwrap()), k as f64 * 10.0, "{mode:?}");
+                assert_eq!(i32::from_ne_bytes(sub[8..12].try_into().unwrap()), k as i32, "{mode:?}");
+            }
         }
-        t.join().unwrap();
+        let seen = t.join().unwrap();
+        for (i, &(step, x, locked, sim_time)) in seen.iter().enumerate() {
+            // Every step read once, in order, with its own value; the commit answers it.
+            assert_eq!(step, i as u64 + 1, "{mode:?}");
+            assert_eq!(x, step as f64, "{mode:?}");
+            assert_eq!(locked, step, "{mode:?}");
+            assert_eq!(sim_time, step as f64 * 0.5, "{mode:?}");
+        }
     }
 }
 

@@ -473,7 +473,7 @@ fn a_framework_killed_outright_is_reported_to_its_participants() {
     child.kill9();
     let deadline = Instant::now() + Duration::from_secs(30);
     let err = loop {
-        match p.subscribe_lock().and_then(|_| p.publish_lock()).and_then(|()| p.commit()) {
+        match p.subscribe_lock().and_then(|_| p.publish_lock()).and_then(|_| p.commit()) {
             Err(e) => break e,
             Ok(()) => {
                 assert!(Instant::now() < deadline, "the dead framework was never noticed");

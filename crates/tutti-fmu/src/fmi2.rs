@@ -9,6 +9,7 @@ use std::ffi::{c_char, c_uint, c_void, CStr, CString};
 
 use fmi::fmi2::binding::{self, Fmi2Binding};
 
+use crate::fmu::CallStatus;
 use crate::log_capture;
 
 extern "C" {
@@ -62,21 +63,21 @@ pub unsafe extern "C" fn tutti_fmu_fmi2_log(
 }
 
 /// What an FMI 2.0 call returned, when it is not OK or Warning.
-pub fn status_name(status: binding::fmi2Status) -> &'static str {
+pub fn call_status(status: binding::fmi2Status) -> CallStatus {
     match status {
-        2 => "Discard",
-        3 => "Error",
-        4 => "Fatal",
-        5 => "Pending",
-        _ => "unknown",
+        2 => CallStatus::Discard,
+        3 => CallStatus::Error,
+        4 => CallStatus::Fatal,
+        5 => CallStatus::Pending,
+        _ => CallStatus::Unknown,
     }
 }
 
-fn check(status: binding::fmi2Status) -> Result<(), &'static str> {
+fn check(status: binding::fmi2Status) -> Result<(), CallStatus> {
     if status <= 1 {
         Ok(())
     } else {
-        Err(status_name(status))
+        Err(call_status(status))
     }
 }
 
@@ -99,9 +100,9 @@ impl std::fmt::Debug for Fmi2Cs {
 
 impl Fmi2Cs {
     /// The result of a call, remembering a Fatal status.
-    fn note(&mut self, status: binding::fmi2Status) -> Result<(), &'static str> {
+    fn note(&mut self, status: binding::fmi2Status) -> Result<(), CallStatus> {
         let r = check(status);
-        if r == Err("Fatal") {
+        if r == Err(CallStatus::Fatal) {
             self.fatal = true;
         }
         r
@@ -140,63 +141,63 @@ impl Fmi2Cs {
         })
     }
 
-    pub fn setup_experiment(&mut self, start: f64) -> Result<(), &'static str> {
+    pub fn setup_experiment(&mut self, start: f64) -> Result<(), CallStatus> {
         // SAFETY: a live component of this binding.
         self.note(unsafe { self.binding.fmi2SetupExperiment(self.component, 0, 0.0, start, 0, 0.0) })
     }
 
-    pub fn enter_initialization_mode(&mut self) -> Result<(), &'static str> {
+    pub fn enter_initialization_mode(&mut self) -> Result<(), CallStatus> {
         // SAFETY: a live component of this binding.
         self.note(unsafe { self.binding.fmi2EnterInitializationMode(self.component) })
     }
 
-    pub fn exit_initialization_mode(&mut self) -> Result<(), &'static str> {
+    pub fn exit_initialization_mode(&mut self) -> Result<(), CallStatus> {
         // SAFETY: a live component of this binding.
         self.note(unsafe { self.binding.fmi2ExitInitializationMode(self.component) })
     }
 
-    pub fn do_step(&mut self, t: f64, h: f64) -> Result<(), &'static str> {
+    pub fn do_step(&mut self, t: f64, h: f64) -> Result<(), CallStatus> {
         // SAFETY: a live component of this binding.
         self.note(unsafe { self.binding.fmi2DoStep(self.component, t, h, 1) })
     }
 
-    pub fn terminate(&mut self) -> Result<(), &'static str> {
+    pub fn terminate(&mut self) -> Result<(), CallStatus> {
         if self.fatal {
-            return Err("Fatal");
+            return Err(CallStatus::Fatal);
         }
         // SAFETY: a live component of this binding.
         self.note(unsafe { self.binding.fmi2Terminate(self.component) })
     }
 
-    pub fn get_real(&mut self, vr: u32) -> Result<f64, &'static str> {
+    pub fn get_real(&mut self, vr: u32) -> Result<f64, CallStatus> {
         let mut v = 0.0;
         // SAFETY: one value reference, one value, both valid for the call.
         self.note(unsafe { self.binding.fmi2GetReal(self.component, &vr, 1, &mut v) }).map(|()| v)
     }
 
-    pub fn get_integer(&mut self, vr: u32) -> Result<i32, &'static str> {
+    pub fn get_integer(&mut self, vr: u32) -> Result<i32, CallStatus> {
         let mut v = 0;
         // SAFETY: one value reference, one value, both valid for the call.
         self.note(unsafe { self.binding.fmi2GetInteger(self.component, &vr, 1, &mut v) }).map(|()| v)
     }
 
-    pub fn get_boolean(&mut self, vr: u32) -> Result<bool, &'static str> {
+    pub fn get_boolean(&mut self, vr: u32) -> Result<bool, CallStatus> {
         let mut v = 0;
         // SAFETY: one value reference, one value, both valid for the call.
         self.note(unsafe { self.binding.fmi2GetBoolean(self.component, &vr, 1, &mut v) }).map(|()| v != 0)
     }
 
-    pub fn set_real(&mut self, vr: u32, v: f64) -> Result<(), &'static str> {
+    pub fn set_real(&mut self, vr: u32, v: f64) -> Result<(), CallStatus> {
         // SAFETY: one value reference, one value, both valid for the call.
         self.note(unsafe { self.binding.fmi2SetReal(self.component, &vr, 1, &v) })
     }
 
-    pub fn set_integer(&mut self, vr: u32, v: i32) -> Result<(), &'static str> {
+    pub fn set_integer(&mut self, vr: u32, v: i32) -> Result<(), CallStatus> {
         // SAFETY: one value reference, one value, both valid for the call.
         self.note(unsafe { self.binding.fmi2SetInteger(self.component, &vr, 1, &v) })
     }
 
-    pub fn set_boolean(&mut self, vr: u32, v: bool) -> Result<(), &'static str> {
+    pub fn set_boolean(&mut self, vr: u32, v: bool) -> Result<(), CallStatus> {
         let v = i32::from(v);
         // SAFETY: one value reference, one value, both valid for the call.
         self.note(unsafe { self.binding.fmi2SetBoolean(self.component, &vr, 1, &v) })

@@ -6,6 +6,7 @@ use std::ffi::{c_char, c_uint, c_void, CString};
 
 use fmi::fmi3::binding::{self, Fmi3Binding};
 
+use crate::fmu::CallStatus;
 use crate::log_capture;
 
 /// Receives every message an FMI 3.0 FMU logs; the environment is the instance's name.
@@ -28,13 +29,13 @@ unsafe extern "C" fn log_message(env: *mut c_void, status: c_uint, category: *co
     log_capture::record(format!("[{level}] {name}{category}: {message}"));
 }
 
-fn check(status: binding::fmi3Status) -> Result<(), &'static str> {
+fn check(status: binding::fmi3Status) -> Result<(), CallStatus> {
     match status {
         0 | 1 => Ok(()),
-        2 => Err("Discard"),
-        3 => Err("Error"),
-        4 => Err("Fatal"),
-        _ => Err("unknown"),
+        2 => Err(CallStatus::Discard),
+        3 => Err(CallStatus::Error),
+        4 => Err(CallStatus::Fatal),
+        _ => Err(CallStatus::Unknown),
     }
 }
 
@@ -57,13 +58,13 @@ impl std::fmt::Debug for Fmi3Cs {
 
 macro_rules! get_set {
     ($get:ident, $set:ident, $fget:ident, $fset:ident, $t:ty, $zero:expr) => {
-        pub fn $get(&mut self, vr: u32) -> Result<$t, &'static str> {
+        pub fn $get(&mut self, vr: u32) -> Result<$t, CallStatus> {
             let mut v: $t = $zero;
             // SAFETY: one value reference and one value, both valid for the call.
             self.note(unsafe { self.binding.$fget(self.instance, &vr, 1, &mut v, 1) }).map(|()| v)
         }
 
-        pub fn $set(&mut self, vr: u32, v: $t) -> Result<(), &'static str> {
+        pub fn $set(&mut self, vr: u32, v: $t) -> Result<(), CallStatus> {
             // SAFETY: one value reference and one value, both valid for the call.
             self.note(unsafe { self.binding.$fset(self.instance, &vr, 1, &v, 1) })
         }
@@ -72,9 +73,9 @@ macro_rules! get_set {
 
 impl Fmi3Cs {
     /// The result of a call, remembering a Fatal status.
-    fn note(&mut self, status: binding::fmi3Status) -> Result<(), &'static str> {
+    fn note(&mut self, status: binding::fmi3Status) -> Result<(), CallStatus> {
         let r = check(status);
-        if r == Err("Fatal") {
+        if r == Err(CallStatus::Fatal) {
             self.fatal = true;
         }
         r
@@ -110,17 +111,17 @@ impl Fmi3Cs {
         })
     }
 
-    pub fn enter_initialization_mode(&mut self, start: f64) -> Result<(), &'static str> {
+    pub fn enter_initialization_mode(&mut self, start: f64) -> Result<(), CallStatus> {
         // SAFETY: a live instance of this binding.
         self.note(unsafe { self.binding.fmi3EnterInitializationMode(self.instance, false, 0.0, start, false, 0.0) })
     }
 
-    pub fn exit_initialization_mode(&mut self) -> Result<(), &'static str> {
+    pub fn exit_initialization_mode(&mut self) -> Result<(), CallStatus> {
         // SAFETY: a live instance of this binding.
         self.note(unsafe { self.binding.fmi3ExitInitializationMode(self.instance) })
     }
 
-    pub fn do_step(&mut self, t: f64, h: f64) -> Result<(), &'static str> {
+    pub fn do_step(&mut self, t: f64, h: f64) -> Result<(), CallStatus> {
         let (mut event, mut terminate, mut early, mut last) = (false, false, false, 0.0);
         // SAFETY: a live instance; the out-parameters are valid for the call.
         self.note(unsafe {
@@ -128,9 +129,9 @@ impl Fmi3Cs {
         })
     }
 
-    pub fn terminate(&mut self) -> Result<(), &'static str> {
+    pub fn terminate(&mut self) -> Result<(), CallStatus> {
         if self.fatal {
-            return Err("Fatal");
+            return Err(CallStatus::Fatal);
         }
         // SAFETY: a live instance of this binding.
         self.note(unsafe { self.binding.fmi3Terminate(self.instance) })

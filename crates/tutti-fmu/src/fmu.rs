@@ -40,13 +40,33 @@ pub enum LoadError {
     Instantiate { path: PathBuf, model: String, log: String },
 }
 
+/// What an FMI call returned when it is neither OK nor Warning, or why it was not made.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, thiserror::Error)]
+pub enum CallStatus {
+    #[error("Discard")]
+    Discard,
+    #[error("Error")]
+    Error,
+    /// After Fatal the FMU allows no further call.
+    #[error("Fatal")]
+    Fatal,
+    #[error("Pending")]
+    Pending,
+    /// A status number the standard does not define.
+    #[error("unknown")]
+    Unknown,
+    /// A variable of a type tutti does not exchange with this FMI version.
+    #[error("not exchanged")]
+    NotExchanged,
+}
+
 /// An FMU call that returned Error or Fatal (or failed otherwise) while running.
 #[derive(Debug, thiserror::Error)]
 #[error("FMU '{model}': {call} failed with status {status}{log}")]
 pub struct CallError {
     pub model: String,
     pub call: String,
-    pub status: String,
+    pub status: CallStatus,
     /// The FMU's log messages since the previous call, one per line, indented.
     pub log: String,
 }
@@ -293,8 +313,8 @@ pub struct Instance {
 }
 
 impl Instance {
-    fn fail(&self, call: impl Into<String>, status: impl std::fmt::Display) -> CallError {
-        CallError { model: self.model.clone(), call: call.into(), status: status.to_string(), log: log_text() }
+    fn fail(&self, call: impl Into<String>, status: CallStatus) -> CallError {
+        CallError { model: self.model.clone(), call: call.into(), status, log: log_text() }
     }
 
     /// `setupExperiment` (FMI 2.0) and `enterInitializationMode` at `start`.
@@ -317,8 +337,8 @@ impl Instance {
     /// `exitInitializationMode`.
     pub fn exit_initialization(&mut self) -> Result<(), CallError> {
         let r = match &mut self.inner {
-            Inner::V2 { inst, .. } => inst.exit_initialization_mode().map_err(String::from),
-            Inner::V3 { inst, .. } => inst.exit_initialization_mode().map_err(String::from),
+            Inner::V2 { inst, .. } => inst.exit_initialization_mode(),
+            Inner::V3 { inst, .. } => inst.exit_initialization_mode(),
         };
         r.map_err(|e| self.fail("exitInitializationMode", e))
     }
@@ -326,8 +346,8 @@ impl Instance {
     /// One `doStep` from `t` over `h`.
     pub fn do_step(&mut self, t: f64, h: f64) -> Result<(), CallError> {
         let r = match &mut self.inner {
-            Inner::V2 { inst, .. } => inst.do_step(t, h).map_err(String::from),
-            Inner::V3 { inst, .. } => inst.do_step(t, h).map_err(String::from),
+            Inner::V2 { inst, .. } => inst.do_step(t, h),
+            Inner::V3 { inst, .. } => inst.do_step(t, h),
         };
         r.map_err(|e| self.fail(format!("doStep(t={t}, h={h})"), e))
     }
@@ -342,20 +362,19 @@ impl Instance {
 
     /// Sets `var` to `value` (converted to the variable's type).
     pub fn set(&mut self, var: &Variable, value: Value) -> Result<(), CallError> {
-        let r: Result<(), String> = match &mut self.inner {
+        let r: Result<(), CallStatus> = match &mut self.inner {
             Inner::V2 { inst, .. } => {
                 let vr = var.value_reference;
-                let r = match var.ty {
+                match var.ty {
                     VarType::Float64 => inst.set_real(vr, value.as_f64()),
                     VarType::Int32 | VarType::Enumeration => inst.set_integer(vr, value.as_i64() as i32),
                     VarType::Boolean => inst.set_boolean(vr, value.as_f64() != 0.0),
-                    _ => Err("not exchanged"),
-                };
-                r.map_err(String::from)
+                    _ => Err(CallStatus::NotExchanged),
+                }
             }
             Inner::V3 { inst, .. } => {
                 let vr = var.value_reference;
-                let r = match var.ty {
+                match var.ty {
                     VarType::Float64 => inst.set_float64(vr, value.as_f64()),
                     VarType::Float32 => inst.set_float32(vr, value.as_f64() as f32),
                     VarType::Int8 => inst.set_int8(vr, value.as_i64() as i8),
@@ -367,9 +386,8 @@ impl Instance {
                     VarType::UInt32 => inst.set_uint32(vr, value.as_u64() as u32),
                     VarType::UInt64 => inst.set_uint64(vr, value.as_u64()),
                     VarType::Boolean => inst.set_boolean(vr, value.as_f64() != 0.0),
-                    _ => Err("not exchanged"),
-                };
-                r.map_err(String::from)
+                    _ => Err(CallStatus::NotExchanged),
+                }
             }
         };
         r.map_err(|e| self.fail(format!("set '{}'", var.name), e))
@@ -377,20 +395,19 @@ impl Instance {
 
     /// The value of `var`.
     pub fn get(&mut self, var: &Variable) -> Result<Value, CallError> {
-        let r: Result<Value, String> = match &mut self.inner {
+        let r: Result<Value, CallStatus> = match &mut self.inner {
             Inner::V2 { inst, .. } => {
                 let vr = var.value_reference;
-                let r = match var.ty {
+                match var.ty {
                     VarType::Float64 => inst.get_real(vr).map(Value::Float),
                     VarType::Int32 | VarType::Enumeration => inst.get_integer(vr).map(|v| Value::Int(v.into())),
                     VarType::Boolean => inst.get_boolean(vr).map(Value::Bool),
-                    _ => Err("not exchanged"),
-                };
-                r.map_err(String::from)
+                    _ => Err(CallStatus::NotExchanged),
+                }
             }
             Inner::V3 { inst, .. } => {
                 let vr = var.value_reference;
-                let r = match var.ty {
+                match var.ty {
                     VarType::Float64 => inst.get_float64(vr).map(Value::Float),
                     VarType::Float32 => inst.get_float32(vr).map(|v| Value::Float(v.into())),
                     VarType::Int8 => inst.get_int8(vr).map(|v| Value::Int(v.into())),
@@ -402,9 +419,8 @@ impl Instance {
                     VarType::UInt32 => inst.get_uint32(vr).map(|v| Value::UInt(v.into())),
                     VarType::UInt64 => inst.get_uint64(vr).map(Value::UInt),
                     VarType::Boolean => inst.get_boolean(vr).map(Value::Bool),
-                    _ => Err("not exchanged"),
-                };
-                r.map_err(String::from)
+                    _ => Err(CallStatus::NotExchanged),
+                }
             }
         };
         r.map_err(|e| self.fail(format!("get '{}'", var.name), e))

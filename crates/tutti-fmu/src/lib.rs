@@ -21,7 +21,7 @@ pub mod model;
 pub mod pack;
 pub mod participant;
 
-pub use fmu::{CallError, Fmu, Instance, LoadError};
+pub use fmu::{CallError, CallStatus, Fmu, Instance, LoadError};
 pub use mapping::{Mapping, MappingError, Pair};
 pub use model::{Causality, FmiVersion, ModelDescription, VarType, Variable};
 pub use participant::{FmuParticipant, RunError, RunOptions, StepMode};

@@ -256,8 +256,7 @@ impl FmuParticipant {
             StepMode::Synchronous => {
                 let p = self.participant();
                 let sim = p.sim_time();
-                let period_ns = p.segment().header().period_ns.load(Ordering::Relaxed);
-                let period = if period_ns > 0 { period_ns as f64 * 1e-9 } else { self.fallback_step };
+                let period = p.period().map_or(self.fallback_step, |d| d.as_nanos() as f64 * 1e-9);
                 let h = step_size(period, self.last_seen, (step, sim));
                 self.last_seen = Some((step, sim));
                 (sim, h)

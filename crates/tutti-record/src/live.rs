@@ -151,8 +151,7 @@ impl LiveRecorder {
 /// Records `f`'s pending step when its framework has moved on, and takes the new one.
 fn follow(f: &mut Followed, i: usize, recorder: &mut dyn Recorder, start: Instant) -> Result<(), RecordError> {
     let Some(seg) = f.obs.segment() else { return Ok(()) };
-    let h = seg.header();
-    let step = h.pub_step.load(Ordering::Acquire);
+    let step = seg.step();
     if step == 0 || f.pending.is_some_and(|(k, _)| k == step) {
         return Ok(());
     }
@@ -174,9 +173,9 @@ fn follow(f: &mut Followed, i: usize, recorder: &mut dyn Recorder, start: Instan
             f.missed += step.saturating_sub(k + 1);
         }
     }
-    let sim = f64::from_bits(h.sim_time_bits.load(Ordering::Acquire));
+    let sim = seg.sim_time();
     // Still step `step` after the copy: else it is caught at the next look.
-    if seg.read_set(Role::Publish, &mut f.publish).is_ok() && h.pub_step.load(Ordering::Acquire) == step {
+    if seg.read_set(Role::Publish, &mut f.publish).is_ok() && seg.step() == step {
         f.pending = Some((step, sim));
     }
     Ok(())

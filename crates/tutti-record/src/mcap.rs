@@ -70,9 +70,23 @@ impl std::fmt::Debug for McapRecorder {
     }
 }
 
+/// Why a set's `ros2msg` schema cannot be written.
+#[derive(Debug, thiserror::Error)]
+pub enum SchemaError {
+    #[error(transparent)]
+    Idl(#[from] idl::IdlError),
+    #[error("no message definition for {ty}")]
+    NoDefinition { ty: String },
+    #[error("{ty} refers to {dep}, which has no definition")]
+    MissingDependency { ty: String, dep: String },
+}
+
+/// `.msg` definitions by type name.
+type Definitions = HashMap<String, String>;
+
 /// The `.msg` definitions `tutti idl` writes for `model`, by type name.
-fn message_definitions(model: &Model, package: &str) -> Result<HashMap<String, String>, String> {
-    let files = idl::generate(model, package).map_err(|e| e.to_string())?;
+fn message_definitions(model: &Model, package: &str) -> Result<Definitions, SchemaError> {
+    let files = idl::generate(model, package)?;
     Ok(files
         .into_iter()
         .filter(|f| f.path.extension().is_some_and(|e| e == "msg"))
@@ -98,8 +112,8 @@ fn referenced_types(msg: &str) -> Vec<String> {
 }
 
 /// The `ros2msg` schema of type `ty`: its definition, then every type it needs, each once.
-pub fn ros2msg_schema(defs: &HashMap<String, String>, package: &str, ty: &str) -> Result<String, String> {
-    let main = defs.get(ty).ok_or_else(|| format!("no message definition for {ty}"))?;
+pub fn ros2msg_schema(defs: &Definitions, package: &str, ty: &str) -> Result<String, SchemaError> {
+    let main = defs.get(ty).ok_or_else(|| SchemaError::NoDefinition { ty: ty.to_string() })?;
     let mut out = main.clone();
     let mut seen = vec![ty.to_string()];
     let mut todo = referenced_types(main);
@@ -107,7 +121,8 @@ pub fn ros2msg_schema(defs: &HashMap<String, String>, package: &str, ty: &str) -
         if seen.contains(&dep) {
             continue;
         }
-        let text = defs.get(&dep).ok_or_else(|| format!("{ty} refers to {dep}, which has no definition"))?;
+        let text =
+            defs.get(&dep).ok_or_else(|| SchemaError::MissingDependency { ty: ty.to_string(), dep: dep.clone() })?;
         if !out.ends_with('\n') {
             out.push('\n');
         }
@@ -130,13 +145,14 @@ impl McapRecorder {
             .create(BufWriter::new(file))
             .map_err(mcap_error)?;
         let package = mapping::package_name(ddf_path);
-        let defs = message_definitions(model, &package).map_err(format_error)?;
+        let schema_error = |e: SchemaError| format_error(e.to_string());
+        let defs = message_definitions(model, &package).map_err(schema_error)?;
         let no_metadata = BTreeMap::new();
         let mut domains = Vec::with_capacity(model.domains.len());
         for d in &model.domains {
             let mut channel = |role: Role| -> Result<SetChannel, RecordError> {
                 let names = mapping::set_names(&package, &d.name, role);
-                let schema = ros2msg_schema(&defs, &package, &names.type_name).map_err(format_error)?;
+                let schema = ros2msg_schema(&defs, &package, &names.type_name).map_err(schema_error)?;
                 let schema_name = format!("{package}/msg/{}", names.type_name);
                 let schema_id = writer.add_schema(&schema_name, "ros2msg", schema.as_bytes()).map_err(mcap_error)?;
                 let id = writer.add_channel(schema_id, &names.ros2_topic, "cdr", &no_metadata).map_err(mcap_error)?;

@@ -6,11 +6,11 @@ use std::ffi::{c_char, c_int, c_uint, c_ushort, c_void};
 use std::time::Duration;
 
 use tutti_core::ddf::Role;
-use tutti_core::shm::WaitMode;
+use tutti_core::shm::{Participant, ShmError, WaitMode};
 
 use crate::codes::*;
-use crate::ffi::{bytes_in, bytes_out, c_str, guard, last_detail_ptr, write_out, Failure};
-use crate::state::{check_size, leaf_by_key, leaf_by_path, leaf_in, state};
+use crate::ffi::{bytes_in, bytes_out, c_str, guard, last_detail_ptr, write_out, CallResult, Failure};
+use crate::state::{check_size, leaf_by_key, leaf_by_path, leaf_in, state, Conn};
 
 /// Creates a connection key (1, 2, …). Key 0 exists from the start and is the current
 /// connection until RTSetConnectionKey selects another.
@@ -75,6 +75,103 @@ pub extern "C" fn RTDisconnect() -> RTAPIReturn_t {
     guard("RTDisconnect", || state().disconnect())
 }
 
+/// One direction of the exchange, as its calls name it: what RTPublish and RTSubscribe, and
+/// their lock pairs, have in common is written once, over this.
+struct Direction {
+    side: Side,
+    /// The set the direction exchanges (RTPublish writes SUBSCRIBE, RTSubscribe reads PUBLISH).
+    role: Role,
+    call: &'static str,
+    lock: &'static str,
+    unlock: &'static str,
+    /// Whether the connection is between the lock and the unlock.
+    locked: fn(&mut Conn) -> &mut bool,
+    /// What the lock does in the core.
+    lock_op: CoreOp<u64>,
+    /// What the unlock does in the core, if anything.
+    unlock_op: Option<CoreOp<()>>,
+}
+
+/// An operation of the core on the current connection's participant.
+type CoreOp<T> = fn(&mut Participant) -> Result<T, ShmError>;
+
+const PUBLISH: Direction = Direction {
+    side: Side::Publish,
+    role: Role::Subscribe,
+    call: "RTPublish",
+    lock: "RTPublishLock",
+    unlock: "RTPublishUnlock",
+    locked: |c| &mut c.pub_locked,
+    lock_op: Participant::publish_lock,
+    unlock_op: Some(Participant::commit),
+};
+
+const SUBSCRIBE: Direction = Direction {
+    side: Side::Subscribe,
+    role: Role::Publish,
+    call: "RTSubscribe",
+    lock: "RTSubscribeLock",
+    unlock: "RTSubscribeUnlock",
+    locked: |c| &mut c.sub_locked,
+    lock_op: Participant::subscribe_lock,
+    unlock_op: None,
+};
+
+/// RTPublish and RTSubscribe: resolves `path` once to the item's index in the set `d`
+/// exchanges (nothing is copied or allocated), checks the size, gets the caller's buffer with
+/// `buffer`, refuses a synchronous domain outside a lock pair, and runs `op(participant,
+/// locked, index, buffer)` on the current connection.
+fn exchange_item<B>(
+    d: &Direction,
+    path: &str,
+    size: c_uint,
+    buffer: impl FnOnce() -> CallResult<B>,
+    op: impl FnOnce(&mut Participant, bool, usize, B) -> Result<(), ShmError>,
+) -> CallResult {
+    let mut st = state();
+    let conn = st.current()?;
+    let locked = *(d.locked)(conn);
+    let p = &conn.participant;
+    let item = leaf_in(p, d.role, path)?;
+    check_size(p, item.leaf, size)?;
+    let index = item.index;
+    let buf = buffer()?;
+    if !locked && p.info().flags.synchronous {
+        return Err(Failure::new(
+            RTAPI_ERROR_OUT_OF_ORDER,
+            format!("domain '{}' is synchronous: call {} between {} and {}", p.info().name, d.call, d.lock, d.unlock),
+        ));
+    }
+    st.exchange(d.side, |c| op(&mut c.participant, locked, index, buf))
+}
+
+/// RTPublishLock and RTSubscribeLock.
+fn lock(d: &Direction) -> CallResult {
+    let mut st = state();
+    if *(d.locked)(st.current()?) {
+        return Err(Failure::new(RTAPI_ERROR_OUT_OF_ORDER, format!("{} called twice without {}", d.lock, d.unlock)));
+    }
+    st.exchange(d.side, |c| {
+        (d.lock_op)(&mut c.participant)?;
+        *(d.locked)(c) = true;
+        Ok(())
+    })
+}
+
+/// RTPublishUnlock and RTSubscribeUnlock.
+fn unlock(d: &Direction) -> CallResult {
+    let mut st = state();
+    let locked = (d.locked)(st.current()?);
+    if !*locked {
+        return Err(Failure::new(RTAPI_ERROR_OUT_OF_ORDER, format!("{} without {}", d.unlock, d.lock)));
+    }
+    *locked = false;
+    match d.unlock_op {
+        Some(op) => st.exchange(d.side, |c| op(&mut c.participant)),
+        None => Ok(()),
+    }
+}
+
 /// Writes the SUBSCRIBE item `itemPath` (`sizeBytes` must equal its size). Inside
 /// RTPublishLock/RTPublishUnlock it is staged and committed at the unlock; outside a lock
 /// pair in an asynchronous domain it is committed at once; in a synchronous domain outside
@@ -88,33 +185,22 @@ pub unsafe extern "C" fn RTPublish(itemPath: *const c_char, value: *const c_void
     guard("RTPublish", || {
         // SAFETY: the caller promises a NUL-terminated string or NULL.
         let path = unsafe { c_str(itemPath, "itemPath") }?;
-        let mut st = state();
-        let conn = st.current()?;
-        let p = &conn.participant;
-        let leaf = leaf_in(p, Role::Subscribe, path)?;
-        check_size(p, &leaf, sizeBytes)?;
-        // SAFETY: the caller promises `sizeBytes` readable bytes at `value` (or NULL).
-        let bytes = unsafe { bytes_in(value.cast(), sizeBytes as usize, "value") }?;
-        let locked = conn.pub_locked;
-        if !locked && p.info().flags.synchronous {
-            return Err(Failure::new(
-                RTAPI_ERROR_OUT_OF_ORDER,
-                format!(
-                    "domain '{}' is synchronous: call RTPublish between RTPublishLock and RTPublishUnlock",
-                    p.info().name
-                ),
-            ));
-        }
-        st.exchange(Side::Publish, |c| {
-            let p = &mut c.participant;
-            if locked {
-                p.stage(path, bytes)
-            } else {
-                p.publish_lock()?;
-                p.stage(path, bytes)?;
-                p.commit()
-            }
-        })
+        exchange_item(
+            &PUBLISH,
+            path,
+            sizeBytes,
+            // SAFETY: the caller promises `sizeBytes` readable bytes at `value` (or NULL).
+            || unsafe { bytes_in(value.cast(), sizeBytes as usize, "value") },
+            |p, locked, index, bytes| {
+                if locked {
+                    p.stage_at(index, bytes)
+                } else {
+                    p.publish_lock()?;
+                    p.stage_at(index, bytes)?;
+                    p.commit()
+                }
+            },
+        )
     })
 }
 
@@ -131,31 +217,23 @@ pub unsafe extern "C" fn RTSubscribe(itemPath: *const c_char, value: *mut c_void
     guard("RTSubscribe", || {
         // SAFETY: the caller promises a NUL-terminated string or NULL.
         let path = unsafe { c_str(itemPath, "itemPath") }?;
-        let mut st = state();
-        let conn = st.current()?;
-        let p = &conn.participant;
-        let leaf = leaf_in(p, Role::Publish, path)?;
-        check_size(p, &leaf, sizeBytes)?;
-        // SAFETY: the caller promises `sizeBytes` writable bytes at `value` (or NULL).
-        let out = unsafe { bytes_out(value.cast(), sizeBytes as usize, "value") }?;
-        let locked = conn.sub_locked;
-        if !locked && p.info().flags.synchronous {
-            return Err(Failure::new(
-                RTAPI_ERROR_OUT_OF_ORDER,
-                format!(
-                    "domain '{}' is synchronous: call RTSubscribe between RTSubscribeLock and RTSubscribeUnlock",
-                    p.info().name
-                ),
-            ));
-        }
-        st.exchange(Side::Subscribe, |c| {
-            let p = &mut c.participant;
-            if !locked {
-                p.subscribe_lock()?;
-            }
-            out.copy_from_slice(&p.snapshot()[leaf.range()]);
-            Ok(())
-        })
+        exchange_item(
+            &SUBSCRIBE,
+            path,
+            sizeBytes,
+            // SAFETY: the caller promises `sizeBytes` writable bytes at `value` (or NULL).
+            || unsafe { bytes_out(value.cast(), sizeBytes as usize, "value") },
+            |p, locked, index, out| {
+                if !locked {
+                    p.subscribe_lock()?;
+                }
+                // The index was resolved in this participant's own layout: always there.
+                if let Some(bytes) = p.snapshot_item(index) {
+                    out.copy_from_slice(bytes);
+                }
+                Ok(())
+            },
+        )
     })
 }
 
@@ -163,17 +241,7 @@ pub unsafe extern "C" fn RTSubscribe(itemPath: *const c_char, value: *mut c_void
 /// RTAPI_ERROR_NOT_OWNER) and, in a synchronous domain, waits for the step to answer.
 #[no_mangle]
 pub extern "C" fn RTPublishLock() -> RTAPIReturn_t {
-    guard("RTPublishLock", || {
-        let mut st = state();
-        if st.current()?.pub_locked {
-            return Err(Failure::new(RTAPI_ERROR_OUT_OF_ORDER, "RTPublishLock called twice without RTPublishUnlock"));
-        }
-        st.exchange(Side::Publish, |c| {
-            c.participant.publish_lock()?;
-            c.pub_locked = true;
-            Ok(())
-        })
-    })
+    guard("RTPublishLock", || lock(&PUBLISH))
 }
 
 /// Commits what was staged since RTPublishLock (RTPublish calls and writes through the
@@ -181,49 +249,20 @@ pub extern "C" fn RTPublishLock() -> RTAPIReturn_t {
 /// contribution to the step.
 #[no_mangle]
 pub extern "C" fn RTPublishUnlock() -> RTAPIReturn_t {
-    guard("RTPublishUnlock", || {
-        let mut st = state();
-        let conn = st.current()?;
-        if !conn.pub_locked {
-            return Err(Failure::new(RTAPI_ERROR_OUT_OF_ORDER, "RTPublishUnlock without RTPublishLock"));
-        }
-        conn.pub_locked = false;
-        st.exchange(Side::Publish, |c| c.participant.commit())
-    })
+    guard("RTPublishUnlock", || unlock(&PUBLISH))
 }
 
 /// Takes a consistent snapshot of the PUBLISH set into the connection's own buffer; in a
 /// synchronous domain waits for the framework's next step (each step is read once).
 #[no_mangle]
 pub extern "C" fn RTSubscribeLock() -> RTAPIReturn_t {
-    guard("RTSubscribeLock", || {
-        let mut st = state();
-        if st.current()?.sub_locked {
-            return Err(Failure::new(
-                RTAPI_ERROR_OUT_OF_ORDER,
-                "RTSubscribeLock called twice without RTSubscribeUnlock",
-            ));
-        }
-        st.exchange(Side::Subscribe, |c| {
-            c.participant.subscribe_lock()?;
-            c.sub_locked = true;
-            Ok(())
-        })
-    })
+    guard("RTSubscribeLock", || lock(&SUBSCRIBE))
 }
 
 /// Ends a read started by RTSubscribeLock (the snapshot stays readable until the next lock).
 #[no_mangle]
 pub extern "C" fn RTSubscribeUnlock() -> RTAPIReturn_t {
-    guard("RTSubscribeUnlock", || {
-        let mut st = state();
-        let conn = st.current()?;
-        if !conn.sub_locked {
-            return Err(Failure::new(RTAPI_ERROR_OUT_OF_ORDER, "RTSubscribeUnlock without RTSubscribeLock"));
-        }
-        conn.sub_locked = false;
-        Ok(())
-    })
+    guard("RTSubscribeUnlock", || unlock(&SUBSCRIBE))
 }
 
 /// The item key of `itemPath` in the current connection's domain: its index among the
@@ -238,7 +277,7 @@ pub unsafe extern "C" fn RTGetKeyForItem(itemPath: *const c_char, itemKey: *mut 
         let path = unsafe { c_str(itemPath, "itemPath") }?;
         crate::ffi::non_null(itemKey.cast_const(), "itemKey")?;
         let mut st = state();
-        let (key, _, _) = leaf_by_path(&st.current()?.participant, path)?;
+        let key = leaf_by_path(&st.current()?.participant, path)?.key;
         // SAFETY: the caller promises `itemKey` is writable (NULL was refused above).
         unsafe { write_out(itemKey, "itemKey", key) }
     })
@@ -261,7 +300,7 @@ pub unsafe extern "C" fn RTGetInfoForItem(
         crate::ffi::non_null(typeSize.cast_const(), "typeSize")?;
         crate::ffi::non_null(length.cast_const(), "length")?;
         let mut st = state();
-        let (_, _, leaf) = leaf_by_path(&st.current()?.participant, path)?;
+        let leaf = leaf_by_path(&st.current()?.participant, path)?.leaf;
         // SAFETY: both pointers are writable as the caller promises (NULL refused above).
         unsafe {
             write_out(typeSize, "typeSize", leaf.ty.size())?;
@@ -283,12 +322,12 @@ pub unsafe extern "C" fn RTGetBuffer(connKey: c_uint, itemKey: c_ushort, buffer:
         crate::ffi::non_null(buffer.cast_const(), "buffer")?;
         let mut st = state();
         let p = st.participant(connKey)?;
-        let (role, leaf) = leaf_by_key(p, itemKey)?;
+        let (role, range) = leaf_by_key(p, itemKey).map(|(role, leaf)| (role, leaf.range()))?;
         let set = match role {
             Role::Publish => p.snapshot_mut(),
             Role::Subscribe => p.staging_mut(),
         };
-        let ptr = set[leaf.range()].as_mut_ptr().cast::<c_void>();
+        let ptr = set[range].as_mut_ptr().cast::<c_void>();
         // SAFETY: `buffer` is writable as the caller promises (NULL refused above).
         unsafe { write_out(buffer, "buffer", ptr) }
     })
@@ -344,7 +383,7 @@ pub unsafe extern "C" fn RTGetConnectionStatusPtr(connKey: c_uint, status: *mut 
     guard("RTGetConnectionStatusPtr", || {
         crate::ffi::non_null(status.cast_const(), "status")?;
         let mut st = state();
-        let word = st.participant(connKey)?.state_word().as_ptr();
+        let word = st.participant(connKey)?.state_word_ptr();
         // SAFETY: `status` is writable as the caller promises (NULL refused above).
         unsafe { write_out(status, "status", word) }
     })

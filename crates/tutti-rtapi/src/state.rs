@@ -266,38 +266,53 @@ impl State {
 }
 
 /// The leaf with key `key` (PUBLISH leaves first, then SUBSCRIBE).
-pub fn leaf_by_key(p: &Participant, key: u16) -> CallResult<(Role, Leaf)> {
-    p.info().leaves().nth(usize::from(key)).map(|(r, l)| (r, l.clone())).ok_or_else(|| {
+pub fn leaf_by_key(p: &Participant, key: u16) -> CallResult<(Role, &Leaf)> {
+    p.info().leaves().nth(usize::from(key)).ok_or_else(|| {
         Failure::new(RTAPI_ERROR_UNKNOWN_ITEM, format!("domain '{}' has no item key {key}", p.info().name))
     })
 }
 
+/// An item found by its path, borrowed from the participant's layout (nothing is copied).
+#[derive(Debug, Clone, Copy)]
+pub struct Found<'a> {
+    /// The item key: its index among all items, PUBLISH first.
+    pub key: u16,
+    pub role: Role,
+    /// Its index in its own set (what `Participant::stage_at` and `snapshot_item` take).
+    pub index: usize,
+    pub leaf: &'a Leaf,
+}
+
 /// The leaf at `path` in either set, with its item key.
-pub fn leaf_by_path(p: &Participant, path: &str) -> CallResult<(u16, Role, Leaf)> {
+pub fn leaf_by_path<'a>(p: &'a Participant, path: &str) -> CallResult<Found<'a>> {
+    let publish = p.info().publish.leaves.len();
     p.info()
         .leaves()
         .enumerate()
         .find(|(_, (_, l))| l.path == path)
-        .and_then(|(i, (r, l))| Some((u16::try_from(i).ok()?, r, l.clone())))
+        .and_then(|(i, (role, leaf))| {
+            let index = if role == Role::Publish { i } else { i - publish };
+            Some(Found { key: u16::try_from(i).ok()?, role, index, leaf })
+        })
         .ok_or_else(|| {
             Failure::new(RTAPI_ERROR_UNKNOWN_ITEM, format!("domain '{}' has no item '{path}'", p.info().name))
         })
 }
 
 /// The leaf at `path` in set `role`; an item of the other set is named in the detail.
-pub fn leaf_in(p: &Participant, role: Role, path: &str) -> CallResult<Leaf> {
-    let (_, r, leaf) = leaf_by_path(p, path)?;
-    if r != role {
+pub fn leaf_in<'a>(p: &'a Participant, role: Role, path: &str) -> CallResult<Found<'a>> {
+    let found = leaf_by_path(p, path)?;
+    if found.role != role {
         let hint = match role {
             Role::Publish => "RTSubscribe reads the PUBLISH set; write SUBSCRIBE items with RTPublish",
             Role::Subscribe => "RTPublish writes the SUBSCRIBE set; read PUBLISH items with RTSubscribe",
         };
         return Err(Failure::new(
             RTAPI_ERROR_UNKNOWN_ITEM,
-            format!("item '{path}' of domain '{}' is in the {r} set: {hint}", p.info().name),
+            format!("item '{path}' of domain '{}' is in the {} set: {hint}", p.info().name, found.role),
         ));
     }
-    Ok(leaf)
+    Ok(found)
 }
 
 /// Checks that `got` bytes fit leaf `leaf` exactly.

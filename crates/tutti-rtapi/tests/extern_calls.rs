@@ -16,7 +16,7 @@ use std::time::Duration;
 use common::*;
 use rtapi::*;
 use tutti_core::ddf::{self, Model};
-use tutti_core::shm::segment::{Segment, VERSION};
+use tutti_core::shm::segment::VERSION;
 use tutti_core::shm::{Framework, FrameworkOptions};
 
 static SERIAL: Mutex<()> = Mutex::new(());
@@ -510,12 +510,11 @@ fn remote_connection_setup_checks_the_domain_is_served_here() {
 #[test]
 fn connection_removed_by_the_framework_is_reported_and_closed() {
     let _turn = serial();
-    let _fw = framework("lost1", false, true);
+    let mut fw = framework("lost1", false, true);
     key();
     expect(connect("lost1", 2), RTAPI_SUCCESS);
     // Remove the connection as the framework does for a connection it judges dead.
-    let seg = Segment::open(&ns(), "lost1").expect("segment");
-    assert!(seg.release_slot(0, std::process::id()));
+    assert!(fw.domain("lost1").expect("domain").remove_connection(0));
     expect(publish("a", &1.0f64.to_ne_bytes()), RTAPI_ERROR_CONNECTION_LOST);
     expect(RTSubscribeLock(), RTAPI_ERROR_CONNECTION_LOST);
     expect(RTDisconnect(), RTAPI_SUCCESS);

@@ -75,11 +75,20 @@ struct Follow {
     buf: Vec<u8>,
 }
 
-/// The elements of leaf `path` of set `role`, as numbers; `None` when it cannot be read now.
-fn read_leaf(seg: &Segment, role: Role, path: &str, buf: &mut Vec<u8>) -> Result<Vec<f64>, String> {
-    let leaf = seg.info.set(role).leaf(path).ok_or_else(|| format!("no item {path} in the {role} set"))?;
+/// Why a watched item cannot be read now.
+#[derive(Debug, thiserror::Error)]
+enum ReadError {
+    #[error("no item {path} in the {role} set")]
+    NoItem { path: String, role: Role },
+    #[error(transparent)]
+    Shm(#[from] tutti_core::shm::ShmError),
+}
+
+/// The elements of leaf `path` of set `role`, as numbers, or why it cannot be read now.
+fn read_leaf(seg: &Segment, role: Role, path: &str, buf: &mut Vec<u8>) -> Result<Vec<f64>, ReadError> {
+    let leaf = seg.info.set(role).leaf(path).ok_or_else(|| ReadError::NoItem { path: path.to_string(), role })?;
     buf.resize(leaf.size as usize, 0);
-    seg.read_set_at(role, leaf.offset as usize, buf).map_err(|e| e.to_string())?;
+    seg.read_set_at(role, leaf.offset as usize, buf)?;
     let n = leaf.ty.size() as usize;
     Ok(buf.chunks_exact(n).map(|c| leaf.ty.decode(c).as_f64()).collect())
 }
@@ -125,11 +134,11 @@ impl Follow {
                 }
                 continue;
             };
-            let step = seg.header().pub_step.load(std::sync::atomic::Ordering::Acquire);
+            let step = seg.step();
             for w in self.wanted.iter().filter(|w| &w.domain == name) {
                 let v = match read_leaf(seg, w.role, &w.path, &mut self.buf) {
                     Ok(v) => json!({ "step": step, "v": v }),
-                    Err(e) => json!({ "error": e }),
+                    Err(e) => json!({ "error": e.to_string() }),
                 };
                 values.insert(w.key.clone(), v);
             }

@@ -185,7 +185,7 @@ fn fly(args: NodeArgs) -> anyhow::Result<()> {
             // Disconnected: fly on with the co-simulation's clock.
             std::thread::sleep(Duration::from_millis(5));
             let t = match clock.as_ref().filter(|seg| seg.framework_alive()) {
-                Some(seg) => f64::from_bits(seg.header().sim_time_bits.load(Ordering::Relaxed)),
+                Some(seg) => seg.sim_time(),
                 None => anchor.1 + anchor.0.elapsed().as_secs_f64() * args.speed,
             };
             node.fly_to(t)?;

@@ -286,12 +286,21 @@ const REMOTE_SETTINGS: &[(&str, Option<(i64, i64)>)] = &[("card", None), ("pciin
 const DOLPHIN_SETTINGS: &[(&str, Option<(i64, i64)>)] =
     &[("nodeIdFramework", Some((0, 65535))), ("segmentId", Some((0, u32::MAX as i64)))];
 
+/// What is wrong with a connection setting that must be an integer in a range.
+#[derive(Debug, thiserror::Error)]
+enum IntegerError {
+    #[error("out of range {lo}..{hi}")]
+    OutOfRange { lo: i64, hi: i64 },
+    #[error("not an integer ({lo}..{hi})")]
+    NotAnInteger { lo: i64, hi: i64 },
+}
+
 /// `value` as an integer within `range`, or what is wrong with it.
-fn integer_in(value: &str, (lo, hi): (i64, i64)) -> Result<i64, String> {
+fn integer_in(value: &str, (lo, hi): (i64, i64)) -> Result<i64, IntegerError> {
     match value.trim().parse::<i64>() {
         Ok(v) if (lo..=hi).contains(&v) => Ok(v),
-        Ok(_) => Err(format!("out of range {lo}..{hi}")),
-        Err(_) => Err(format!("not an integer ({lo}..{hi})")),
+        Ok(_) => Err(IntegerError::OutOfRange { lo, hi }),
+        Err(_) => Err(IntegerError::NotAnInteger { lo, hi }),
     }
 }
 

@@ -316,6 +316,14 @@ impl DomainHost {
         sweep(&self.seg)
     }
 
+    /// Removes connection slot `slot` as the framework removes a connection it judges dead,
+    /// whether or not its process lives: the participant's next call fails with
+    /// [`ShmError::ConnectionLost`]. Returns whether a connection was removed.
+    pub fn remove_connection(&self, slot: usize) -> bool {
+        let pid = self.seg.conn(slot).map_or(0, |c| c.active.load(Ordering::Acquire));
+        self.seg.release_slot(slot, pid)
+    }
+
     /// Holds (`true`) or releases (`false`) the wait-to-go signal.
     pub fn set_hold(&self, hold: bool) {
         let h = self.seg.header();

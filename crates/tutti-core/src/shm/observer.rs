@@ -21,10 +21,19 @@ pub struct Observer {
     pub domain: String,
     seg: Option<Segment>,
     /// The observer connection held while the segment is open, if asked for
-    /// ([`Observer::with_presence`]): its name and slot.
-    presence: Option<(String, Option<usize>)>,
+    /// ([`Observer::with_presence`]).
+    presence: Option<Presence>,
     next_open: Instant,
     next_alive_check: Instant,
+}
+
+/// An observer's connection: listed by `tutti status`, never waited for.
+#[derive(Debug)]
+struct Presence {
+    /// The name the connection shows.
+    name: String,
+    /// Its connection slot while the segment is open and one was free.
+    slot: Option<usize>,
 }
 
 /// What [`Observer::look`] found ([`Observer::segment`] is the segment after `Fresh` and
@@ -54,13 +63,13 @@ impl Observer {
     /// [`set_dds_readers`](Self::set_dds_readers)), never waited for, not a participant.
     pub fn with_presence(domain: String, name: &str) -> Self {
         let mut o = Observer::new(domain);
-        o.presence = Some((name.to_string(), None));
+        o.presence = Some(Presence { name: name.to_string(), slot: None });
         o
     }
 
     /// Shows `n` DDS readers in the presence connection.
     pub fn set_dds_readers(&self, n: u64) {
-        if let (Some(seg), Some((_, Some(slot)))) = (&self.seg, &self.presence) {
+        if let (Some(seg), Some(Presence { slot: Some(slot), .. })) = (&self.seg, &self.presence) {
             seg.set_peers(*slot, n);
         }
     }
@@ -73,8 +82,8 @@ impl Observer {
 
     /// Releases the presence connection (the segment stays open).
     fn leave(&mut self) {
-        if let (Some(seg), Some((_, slot))) = (&self.seg, &mut self.presence) {
-            if let Some(i) = slot.take() {
+        if let (Some(seg), Some(presence)) = (&self.seg, &mut self.presence) {
+            if let Some(i) = presence.slot.take() {
                 seg.release_slot(i, super::os::current_process().pid);
             }
         }
@@ -88,8 +97,8 @@ impl Observer {
                 self.next_alive_check = now + ALIVE_CHECK;
                 if !seg.framework_alive() {
                     // The framework is gone, and its segment with the presence connection.
-                    if let Some((_, slot)) = &mut self.presence {
-                        *slot = None;
+                    if let Some(presence) = &mut self.presence {
+                        presence.slot = None;
                     }
                     self.seg = None;
                     return Look::Stopped;
@@ -104,10 +113,11 @@ impl Observer {
             self.next_open = now + REOPEN;
             match Segment::open(namespace, &self.domain) {
                 Ok(s) if s.framework_alive() => {
-                    if let Some((name, slot)) = &mut self.presence {
+                    if let Some(presence) = &mut self.presence {
                         // A full connection table leaves the observer without its presence;
                         // it still observes.
-                        *slot = s.claim_slot(super::os::current_process(), name, ConnKind::Observer).ok();
+                        presence.slot =
+                            s.claim_slot(super::os::current_process(), &presence.name, ConnKind::Observer).ok();
                     }
                     self.seg = Some(s);
                     fresh = true;

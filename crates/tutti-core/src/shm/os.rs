@@ -68,10 +68,33 @@ pub fn current_process() -> ProcessId {
 }
 
 /// The start time of `pid`, or `None` if no such process is running (zombies count as dead).
+/// Allocates nothing (the path and the file are read into buffers on the stack): the
+/// participant's liveness checks run on the real-time path.
 pub fn start_time(pid: u32) -> Option<u64> {
-    let stat = std::fs::read_to_string(format!("/proc/{pid}/stat")).ok()?;
-    // The command name may contain spaces and parentheses: fields start after the last ')'.
-    let rest = &stat[stat.rfind(')')? + 1..];
+    use std::io::{Read, Write};
+    use std::os::unix::ffi::OsStrExt;
+    let mut path = [0u8; 32];
+    let path_len = {
+        let mut w = &mut path[..];
+        write!(w, "/proc/{pid}/stat").ok()?;
+        32 - w.len()
+    };
+    let mut file = File::open(std::ffi::OsStr::from_bytes(&path[..path_len])).ok()?;
+    // A stat line is a few hundred bytes: the command name (at most 64 bytes) and 50 numbers.
+    let mut buf = [0u8; 2048];
+    let mut len = 0;
+    while len < buf.len() {
+        match file.read(&mut buf[len..]) {
+            Ok(0) => break,
+            Ok(n) => len += n,
+            Err(e) if e.kind() == io::ErrorKind::Interrupted => {}
+            Err(_) => return None,
+        }
+    }
+    let stat = &buf[..len];
+    // The command name may contain spaces, parentheses and any byte: fields start after the
+    // last ')', and are ASCII.
+    let rest = std::str::from_utf8(&stat[stat.iter().rposition(|&b| b == b')')? + 1..]).ok()?;
     let mut fields = rest.split_whitespace();
     let state = fields.next()?;
     if state == "Z" || state == "X" {

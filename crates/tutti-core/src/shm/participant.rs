@@ -10,7 +10,7 @@ use super::segment::{
 };
 use super::{os, ShmError};
 use crate::ddf::{Domain, Leaf, Role};
-use crate::sync::{AtomicU32, AtomicU64, Ordering};
+use crate::sync::{AtomicU64, Ordering};
 
 /// How a participant connects and waits.
 #[derive(Debug, Clone)]
@@ -64,6 +64,9 @@ pub struct Participant {
     shadow: Vec<u8>,
     /// Leaves staged explicitly (committed even when unchanged).
     marked: Vec<bool>,
+    /// The byte ranges a commit writes, (offset, length): kept between commits so that a
+    /// commit allocates nothing.
+    changed: Vec<(usize, usize)>,
     last_read: u64,
     last_commit: u64,
     locked_step: u64,
@@ -102,6 +105,7 @@ impl Participant {
             staging: vec![0; sub_size],
             shadow: vec![0; sub_size],
             marked: vec![false; seg.info.subscribe.leaves.len()],
+            changed: Vec::with_capacity(seg.info.subscribe.leaves.len()),
             last_read: 0,
             last_commit: 0,
             locked_step: 0,
@@ -178,9 +182,11 @@ impl Participant {
         self.opts.timeout = timeout;
     }
 
-    /// The framework's state word (1 running, 2 stopped): a live status for the RTAPI.
-    pub fn state_word(&self) -> &AtomicU32 {
-        &self.seg.header().state
+    /// A pointer to the framework's state word (0 while it initialises, 1 running, 2
+    /// stopped): the live status the RTAPI hands to C. Valid while this participant lives;
+    /// another process writes it, so read it as `volatile`.
+    pub fn state_word_ptr(&self) -> *mut u32 {
+        self.seg.header().state.as_ptr()
     }
 
     /// Connections now in the domain (this one included).
@@ -193,8 +199,20 @@ impl Participant {
         self.last_read
     }
 
+    /// The simulated time (seconds) of the framework's latest step.
     pub fn sim_time(&self) -> f64 {
-        f64::from_bits(self.seg.header().sim_time_bits.load(Ordering::Relaxed))
+        self.seg.sim_time()
+    }
+
+    /// The step the framework published last (0 before its first): unlike
+    /// [`last_step`](Self::last_step), not necessarily one this connection has read.
+    pub fn step(&self) -> u64 {
+        self.seg.step()
+    }
+
+    /// The framework's step period, when it steps at a fixed rate (see [`Segment::period`]).
+    pub fn period(&self) -> Option<Duration> {
+        self.seg.period()
     }
 
     /// Whether the connection is still in place (the framework removes connections it
@@ -419,8 +437,11 @@ impl Participant {
 
     /// Starts a SUBSCRIBE write: declares this connection a writer, claims exclusive
     /// ownership where the domain allows one writer, and in a synchronous domain waits for
-    /// the step this commit answers (the seed needs no step).
-    pub fn publish_lock(&mut self) -> Result<(), ShmError> {
+    /// the step this commit answers (the seed needs no step). Returns the step locked: in a
+    /// synchronous domain the step the next commit answers (for a connection that reads and
+    /// has answered what it read, its last answer: the commit answers no new step), in an
+    /// asynchronous one the framework's latest step.
+    pub fn publish_lock(&mut self) -> Result<u64, ShmError> {
         self.check()?;
         self.claim_writer()?;
         let seg = &self.seg;
@@ -429,7 +450,7 @@ impl Participant {
             if self.has_read && self.last_read > self.last_commit {
                 // Answer the step this connection read and has not answered yet.
                 self.locked_step = self.last_read;
-                return Ok(());
+                return Ok(self.locked_step);
             }
             if self.has_read {
                 // A connection that reads has answered the step it read (or given up its
@@ -437,7 +458,7 @@ impl Participant {
                 // and answers no step. Waiting for the next step here would count it as read
                 // for the reader, which would then skip it.
                 self.locked_step = self.last_commit;
-                return Ok(());
+                return Ok(self.locked_step);
             }
             let last = self.last_commit;
             let states = seg.info.flags.states;
@@ -461,8 +482,9 @@ impl Participant {
                 }
                 segment::wake(&h.ack_seq, &h.ack_waiters);
             }
+            return Ok(k);
         }
-        Ok(())
+        Ok(seg.step())
     }
 
     fn claim_writer(&self) -> Result<(), ShmError> {
@@ -517,7 +539,21 @@ impl Participant {
 
     /// Stages one item of the SUBSCRIBE set (committed even if unchanged).
     pub fn stage(&mut self, path: &str, bytes: &[u8]) -> Result<(), ShmError> {
-        let (idx, range) = self.leaf(Role::Subscribe, path).map(|(i, l)| (i, l.range()))?;
+        let (index, _) = self.leaf(Role::Subscribe, path)?;
+        self.stage_at(index, bytes)
+    }
+
+    /// Stages the SUBSCRIBE item with index `index` in its set (as [`leaf`](Self::leaf) and
+    /// [`item_index`](Self::item_index) give it): [`stage`](Self::stage) without looking the
+    /// path up, for a caller that resolved the item once.
+    pub fn stage_at(&mut self, index: usize, bytes: &[u8]) -> Result<(), ShmError> {
+        let Some(range) = self.seg.info.subscribe.leaves.get(index).map(Leaf::range) else {
+            return Err(ShmError::UnknownItem {
+                domain: self.seg.info.name.clone(),
+                role: Role::Subscribe,
+                item: format!("#{index}"),
+            });
+        };
         if bytes.len() != range.len() {
             return Err(ShmError::SizeMismatch {
                 domain: self.seg.info.name.clone(),
@@ -528,8 +564,13 @@ impl Participant {
         }
         self.refresh_staging()?;
         self.staging[range].copy_from_slice(bytes);
-        self.marked[idx] = true;
+        self.marked[index] = true;
         Ok(())
+    }
+
+    /// The bytes of PUBLISH item `index` (its index in the set) in the last snapshot.
+    pub fn snapshot_item(&self, index: usize) -> Option<&[u8]> {
+        self.seg.info.publish.leaves.get(index).map(|l| &self.snapshot[l.range()])
     }
 
     /// After [`commit_all_with`](Self::commit_all_with): staging and the record of the last
@@ -543,6 +584,12 @@ impl Participant {
             self.stale_staging = false;
         }
         Ok(())
+    }
+
+    /// The index of item `path` in set `role`: resolve an item once, then stage it with
+    /// [`stage_at`](Self::stage_at) or read it with [`snapshot_item`](Self::snapshot_item).
+    pub fn item_index(&self, role: Role, path: &str) -> Result<usize, ShmError> {
+        self.leaf(role, path).map(|(i, _)| i)
     }
 
     /// The leaf `path` of set `role`, with its index in that set.
@@ -564,17 +611,34 @@ impl Participant {
         self.check()?;
         self.claim_writer()?;
         self.refresh_staging()?;
-        let seg = &self.seg;
-        let changed: Vec<(usize, usize)> = seg
-            .info
-            .subscribe
-            .leaves
-            .iter()
-            .enumerate()
-            .filter(|(i, l)| self.marked[*i] || self.staging[l.range()] != self.shadow[l.range()])
-            .map(|(_, l)| (l.offset as usize, l.size as usize))
-            .collect();
+        // The scratch list is taken out for the commit and put back, whatever the outcome.
+        let mut changed = std::mem::take(&mut self.changed);
+        changed.clear();
+        changed.extend(
+            self.seg
+                .info
+                .subscribe
+                .leaves
+                .iter()
+                .enumerate()
+                .filter(|(i, l)| self.marked[*i] || self.staging[l.range()] != self.shadow[l.range()])
+                .map(|(_, l)| (l.offset as usize, l.size as usize)),
+        );
+        let written = self.write_changed(&changed);
+        if written.is_ok() {
+            for &(off, len) in &changed {
+                self.shadow[off..off + len].copy_from_slice(&self.staging[off..off + len]);
+            }
+        }
+        self.changed = changed;
+        written
+    }
+
+    /// The write of [`commit`](Self::commit): the byte ranges `changed` of staging replace
+    /// those of the SUBSCRIBE set, the rest is carried over.
+    fn write_changed(&mut self, changed: &[(usize, usize)]) -> Result<(), ShmError> {
         let lock = self.lock_writers()?;
+        let seg = &self.seg;
         let staging = &self.staging;
         let whole = changed.len() == seg.info.subscribe.leaves.len();
         seg.bucket(Role::Subscribe).write_with(|prev, next| {
@@ -584,16 +648,13 @@ impl Participant {
                 return;
             }
             copy_words(next, prev);
-            for &(off, len) in &changed {
+            for &(off, len) in changed {
                 store_range(next, off, &staging[off..off + len]);
             }
         });
         drop(lock);
         Self::committed(seg, self.slot, self.locked_step);
         self.reset_after_commit();
-        for &(off, len) in &changed {
-            self.shadow[off..off + len].copy_from_slice(&self.staging[off..off + len]);
-        }
         Ok(())
     }
 

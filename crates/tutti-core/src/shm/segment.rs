@@ -36,29 +36,28 @@ use crate::ddf::{Domain, Flags, Leaf, Role, ScalarType, SetLayout};
 use crate::sync::{AtomicU32, AtomicU64, Ordering};
 
 /// `TUTTISHM`, little-endian.
-pub const MAGIC: u64 = u64::from_le_bytes(*b"TUTTISHM");
+pub(crate) const MAGIC: u64 = u64::from_le_bytes(*b"TUTTISHM");
 /// Segment format version (2: header fields grouped by writer on separate cache lines; 3:
 /// DDS writers and observers counted apart from participants, 192-byte connection slots).
 pub const VERSION: u32 = 3;
 /// Bytes reserved for the header.
-pub const HEADER_BYTES: usize = 1024;
+pub(crate) const HEADER_BYTES: usize = 1024;
 /// Connection slots per domain.
 pub const DEFAULT_CONNECTIONS: u32 = 64;
 /// Attempts of a seqlock read before a set is declared corrupt (only a writer committing
 /// faster than one copy, without pause, or a damaged segment, exhausts them).
-pub const MAX_READ_TRIES: u32 = 1 << 20;
+pub(crate) const MAX_READ_TRIES: u32 = 1 << 20;
 const MAX_CONNECTIONS: u32 = 4096;
 const CONN_BYTES: usize = 192;
 const DIR_ENTRY_BYTES: usize = 16;
 const ALIGN: usize = 64;
 
 /// `ConnSlot::active` while a slot is being released (no process has this pid).
-pub const RELEASING: u32 = u32::MAX;
+pub(crate) const RELEASING: u32 = u32::MAX;
 
-/// Framework state values.
-pub const STATE_INIT: u32 = 0;
-pub const STATE_RUNNING: u32 = 1;
-pub const STATE_STOPPED: u32 = 2;
+/// Framework state values (0 while the framework initialises the segment).
+pub(crate) const STATE_RUNNING: u32 = 1;
+pub(crate) const STATE_STOPPED: u32 = 2;
 
 /// The namespace from `TUTTI_NAMESPACE` (default `tutti`).
 pub fn namespace_from_env() -> String {
@@ -101,11 +100,11 @@ pub enum WaitMode {
 /// Zero bytes that start a new cache line: the header field after it is 64-byte aligned.
 #[repr(C, align(64))]
 #[derive(Debug)]
-pub struct LineBreak;
+pub(crate) struct LineBreak;
 
 #[repr(C)]
 #[derive(Debug)]
-pub struct SetHeader {
+pub(crate) struct SetHeader {
     /// Each set's seqlock words on lines of their own: one writer, polled by the other side.
     pub _line: LineBreak,
     pub size: AtomicU32,
@@ -122,7 +121,7 @@ pub struct SetHeader {
 
 #[repr(C)]
 #[derive(Debug)]
-pub struct Header {
+pub(crate) struct Header {
     pub magic: AtomicU64,
     pub version: AtomicU32,
     pub header_bytes: AtomicU32,
@@ -179,7 +178,7 @@ pub struct Header {
 
 #[repr(C)]
 #[derive(Debug)]
-pub struct ConnSlot {
+pub(crate) struct ConnSlot {
     /// The owner's pid while in use, 0 when free.
     pub active: AtomicU32,
     pub generation: AtomicU32,
@@ -277,7 +276,13 @@ impl Segment {
     /// dead framework; a live one is refused with its owner's pid.
     /// With `hold`, the segment is published already holding wait-to-go, so that no
     /// participant can slip past a hold its framework is about to set.
-    pub fn create(ns: &str, domain: &Domain, conn_capacity: u32, mode: u32, hold: bool) -> Result<Segment, ShmError> {
+    pub(crate) fn create(
+        ns: &str,
+        domain: &Domain,
+        conn_capacity: u32,
+        mode: u32,
+        hold: bool,
+    ) -> Result<Segment, ShmError> {
         check_namespace(ns)?;
         let shm_name = segment_name(ns, &domain.name);
         let info = DomainInfo::from_domain(domain);
@@ -544,7 +549,7 @@ impl Segment {
         Ok(unsafe { std::slice::from_raw_parts(self.map.as_mut_ptr().add(off).cast::<AtomicU64>(), n) })
     }
 
-    pub fn header(&self) -> &Header {
+    pub(crate) fn header(&self) -> &Header {
         // SAFETY: every segment is at least HEADER_BYTES long (created so, checked on open),
         // the mapping is page-aligned, and Header consists of atomics only, valid for any
         // bit pattern and safe to share between processes.
@@ -552,7 +557,7 @@ impl Segment {
     }
 
     /// Connection slot `i` (`i < conn_capacity`, checked).
-    pub fn conn(&self, i: usize) -> Option<&ConnSlot> {
+    pub(crate) fn conn(&self, i: usize) -> Option<&ConnSlot> {
         let cap = self.capacity();
         if i >= cap {
             return None;
@@ -564,17 +569,17 @@ impl Segment {
     }
 
     /// Connection capacity, as validated on open.
-    pub fn capacity(&self) -> usize {
+    pub(crate) fn capacity(&self) -> usize {
         let cap = self.header().conn_capacity.load(Ordering::Relaxed) as usize;
         cap.min((self.len.saturating_sub(HEADER_BYTES)) / CONN_BYTES)
     }
 
     /// Slots to scan: up to the high-water mark.
-    pub fn scan_len(&self) -> usize {
+    pub(crate) fn scan_len(&self) -> usize {
         (self.header().conn_hwm.load(Ordering::Acquire) as usize).min(self.capacity())
     }
 
-    pub fn conn_ctl(&self, i: usize) -> Option<ConnCtl<'_>> {
+    pub(crate) fn conn_ctl(&self, i: usize) -> Option<ConnCtl<'_>> {
         self.conn(i).map(|c| ConnCtl {
             active: &c.active,
             flags: &c.flags,
@@ -584,7 +589,7 @@ impl Segment {
         })
     }
 
-    pub fn step_ctl(&self) -> StepCtl<'_> {
+    pub(crate) fn step_ctl(&self) -> StepCtl<'_> {
         let h = self.header();
         StepCtl { pub_step: &h.pub_step, step_seq: &h.step_seq, ack_seq: &h.ack_seq }
     }
@@ -592,7 +597,7 @@ impl Segment {
     /// The bucket of one set. Its geometry was checked when the segment was created or
     /// opened and is not read from shared memory again, so a process that rewrites the header
     /// afterwards cannot move the slots.
-    pub fn bucket(&self, role: Role) -> Bucket<'_> {
+    pub(crate) fn bucket(&self, role: Role) -> Bucket<'_> {
         let sh = &self.header().sets[role as usize];
         let (off, words) = self.slots[role as usize];
         let slots = std::array::from_fn(|i| {
@@ -618,7 +623,7 @@ impl Segment {
     }
 
     /// The error of a set that never holds still long enough to be read.
-    pub fn never_settles(&self, role: Role) -> ShmError {
+    pub(crate) fn never_settles(&self, role: Role) -> ShmError {
         ShmError::Corrupt { domain: self.info.name.clone(), detail: format!("{role} set never settles") }
     }
 
@@ -634,7 +639,7 @@ impl Segment {
     }
 
     /// Sets the DDS reader count an observer's slot `i` shows.
-    pub fn set_peers(&self, i: usize, n: u64) {
+    pub(crate) fn set_peers(&self, i: usize, n: u64) {
         if let Some(c) = self.conn(i) {
             c.peers.store(n, Ordering::Relaxed);
         }
@@ -667,7 +672,39 @@ impl Segment {
         self.header().sets[role as usize].current.load(Ordering::Acquire)
     }
 
-    pub fn framework_id(&self) -> ProcessId {
+    /// The step the framework published last (0 before its first).
+    pub fn step(&self) -> u64 {
+        self.header().pub_step.load(Ordering::Acquire)
+    }
+
+    /// The simulated time (seconds) of the step the framework published last.
+    pub fn sim_time(&self) -> f64 {
+        f64::from_bits(self.header().sim_time_bits.load(Ordering::Acquire))
+    }
+
+    /// The framework's step period, when it steps at a fixed rate (`None` when it has not
+    /// said: it steps as fast as it can, or is driven from outside).
+    pub fn period(&self) -> Option<Duration> {
+        match self.header().period_ns.load(Ordering::Relaxed) {
+            0 => None,
+            ns => Some(Duration::from_nanos(ns)),
+        }
+    }
+
+    /// Whether the SUBSCRIBE set has been committed at least once (its values are no longer
+    /// only the DDF's defaults).
+    pub fn seeded(&self) -> bool {
+        self.header().seeded.load(Ordering::Acquire) != 0
+    }
+
+    /// A consistent copy of the whole set `role` if one is had within `tries` attempts (a
+    /// writer committing without pause can exhaust them); returns its generation. For a
+    /// poller that would rather look again later than wait for a busy set to settle.
+    pub fn try_read_set(&self, role: Role, out: &mut [u8], tries: u32) -> Option<u64> {
+        self.bucket(role).read(out, tries)
+    }
+
+    pub(crate) fn framework_id(&self) -> ProcessId {
         let h = self.header();
         ProcessId { pid: h.owner_pid.load(Ordering::Relaxed), start_time: h.owner_start.load(Ordering::Relaxed) }
     }
@@ -678,26 +715,26 @@ impl Segment {
     }
 
     /// The slot of connection id `id` (see [`conn_id`](Self::conn_id)).
-    pub fn slot_of(id: u64) -> usize {
+    pub(crate) fn slot_of(id: u64) -> usize {
         ((id & 0xffff_ffff) as usize).wrapping_sub(1)
     }
 
     /// Releases the connection in slot `i` if its process (`pid`) is dead; returns whether
     /// this call released it.
-    pub fn release_if_dead(&self, i: usize, pid: u32) -> bool {
+    pub(crate) fn release_if_dead(&self, i: usize, pid: u32) -> bool {
         let start_time = self.conn(i).map_or(0, |c| c.start_time.load(Ordering::Acquire));
         pid != 0 && pid != RELEASING && !os::is_alive(ProcessId { pid, start_time }) && self.release_slot(i, pid)
     }
 
     /// The id of connection slot `i` in its current generation (never 0).
-    pub fn conn_id(&self, i: usize) -> u64 {
+    pub(crate) fn conn_id(&self, i: usize) -> u64 {
         let generation = self.conn(i).map_or(0, |c| c.generation.load(Ordering::Acquire));
         u64::from(generation) << 32 | (i as u64 + 1)
     }
 
     /// Claims a free connection slot for this process; returns its index. Only
     /// [`ConnKind::Participant`] slots count in [`connection_count`](Self::connection_count).
-    pub fn claim_slot(&self, me: ProcessId, name: &str, kind: ConnKind) -> Result<usize, ShmError> {
+    pub(crate) fn claim_slot(&self, me: ProcessId, name: &str, kind: ConnKind) -> Result<usize, ShmError> {
         let h = self.header();
         for i in 0..self.capacity() {
             let Some(c) = self.conn(i) else { break };
@@ -746,7 +783,7 @@ impl Segment {
     /// released it first. Exclusive: the caller that swaps `pid` for [`RELEASING`] does the
     /// whole release, so two releasers (the framework's sweep and a writer freeing a dead
     /// owner) can never both touch a slot that a new connection has meanwhile claimed.
-    pub fn release_slot(&self, i: usize, pid: u32) -> bool {
+    pub(crate) fn release_slot(&self, i: usize, pid: u32) -> bool {
         let h = self.header();
         let Some(c) = self.conn(i) else { return false };
         if pid == 0 || pid == RELEASING {
@@ -780,7 +817,7 @@ impl Segment {
 
     /// Connection slot `i` as a person reads it: `'NAME' (pid N)`, with `, a DDS writer`
     /// for one standing for DDS.
-    pub fn describe_conn(&self, i: usize) -> String {
+    pub(crate) fn describe_conn(&self, i: usize) -> String {
         let Some(c) = self.conn(i) else { return format!("slot {i}") };
         let remote = c.flags.load(Ordering::Relaxed) & CONN_REMOTE != 0;
         format!(

@@ -8,7 +8,6 @@
 //! written, so ROS 2 time stops too. The writer is RELIABLE, KEEP_LAST 1, VOLATILE: it
 //! matches rclcpp's `ClockQoS` subscriptions (BEST_EFFORT, KEEP_LAST 1) and reliable ones.
 
-use std::sync::atomic::Ordering;
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
@@ -101,8 +100,7 @@ impl Polled for ClockPump {
             self.last_step = None;
             self.last_time = f64::NEG_INFINITY;
         }
-        let h = seg.header();
-        let step = h.pub_step.load(Ordering::Acquire);
+        let step = seg.step();
         if step == 0 || self.last_step == Some(step) {
             return false;
         }
@@ -111,7 +109,7 @@ impl Polled for ClockPump {
             return false;
         }
         self.last_step = Some(step);
-        let t = f64::from_bits(h.sim_time_bits.load(Ordering::Acquire));
+        let t = seg.sim_time();
         if t < self.last_time {
             return false;
         }

@@ -367,8 +367,7 @@ fn commit(p: &mut Participant, sample: Sample<'_>, own_commits: &AtomicU64) -> R
         // earlier step is not committed for the current one, or every later step would
         // get its predecessor's answer; the lock alone makes the connection a writer, so
         // the framework waits for the next answer.
-        p.publish_lock()?;
-        let locked = p.segment().header().pub_step.load(Ordering::Acquire);
+        let locked = p.publish_lock()?;
         if let Some(step) = sample.step() {
             if step != 0 && step < locked {
                 return Ok(Committed::Late);

@@ -272,7 +272,6 @@ impl Watched {
             self.out.reset();
             self.last_gen = None;
         }
-        let h = seg.header();
         let gen = seg.generation(self.role);
         if self.last_gen == Some(gen) {
             return false;
@@ -293,7 +292,7 @@ impl Watched {
             if first {
                 self.base = (gen, own);
                 self.last_local = 0;
-                if h.seeded.load(Ordering::Acquire) == 0 {
+                if !seg.seeded() {
                     return false;
                 }
             } else {
@@ -304,12 +303,10 @@ impl Watched {
                 self.last_local = local;
             }
         }
-        if seg.bucket(self.role).read(&mut self.buf, 1 << 16).is_none() {
+        if seg.try_read_set(self.role, &mut self.buf, 1 << 16).is_none() {
             return false;
         }
-        let step = h.pub_step.load(Ordering::Acquire);
-        let sim_time = f64::from_bits(h.sim_time_bits.load(Ordering::Relaxed));
-        self.out.write(step, sim_time, &self.buf, stats, self.set.as_deref()) > 0
+        self.out.write(seg.step(), seg.sim_time(), &self.buf, stats, self.set.as_deref()) > 0
     }
 }
 
@@ -415,11 +412,10 @@ pub fn spawn_sync_pump(
                     thread::sleep(Duration::from_millis(50));
                     continue;
                 };
-                let h = seg.header();
                 if fresh {
                     buf = vec![0; seg.info.publish.size as usize];
                     // From the next step on, as a lock-step reader joining now would.
-                    last = h.pub_step.load(Ordering::Acquire);
+                    last = seg.step();
                     out.reset();
                 }
                 let joined = activation.joined();
@@ -431,7 +427,7 @@ pub fn spawn_sync_pump(
                     continue;
                 }
                 // The PUBLISH generation counts the framework's steps.
-                let Some(step) = seg.bucket(Role::Publish).read(&mut buf, 1 << 16) else { continue };
+                let Some(step) = seg.try_read_set(Role::Publish, &mut buf, 1 << 16) else { continue };
                 if step <= last {
                     continue;
                 }
@@ -446,8 +442,7 @@ pub fn spawn_sync_pump(
                     }
                 }
                 last = step;
-                let sim_time = f64::from_bits(h.sim_time_bits.load(Ordering::Acquire));
-                out.send(step, sim_time, &buf, &stats, Some(&set));
+                out.send(step, seg.sim_time(), &buf, &stats, Some(&set));
             }
         })
 }

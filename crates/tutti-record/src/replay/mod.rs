@@ -81,7 +81,7 @@ impl Recording {
                     .map_err(|e| RecordError::Format { path: ddf.display().to_string(), detail: e.to_string() })?;
                 (model, ddf.file_name().map_or_else(String::new, |n| n.to_string_lossy().into_owned()))
             }
-            None => embedded_ddf(&bytes, &summary).map_err(format)?,
+            None => embedded_ddf(&bytes, &summary).map_err(|e| format(e.to_string()))?,
         };
         let package = package_of(&bytes, &summary).unwrap_or_else(|| mapping::package_name(Path::new(&ddf_name)));
         // Each set's topic, as the recorder named it.
@@ -162,16 +162,23 @@ impl Recording {
     }
 }
 
+/// Why the DDF a recording carries cannot be had.
+#[derive(Debug, thiserror::Error)]
+pub enum EmbeddedDdfError {
+    #[error("no DDF inside (recorded by another tool?): give the DDF with --ddf")]
+    Missing,
+    #[error("the DDF attachment: {0}")]
+    Attachment(#[source] ::mcap::McapError),
+    #[error(transparent)]
+    Invalid(#[from] tutti_core::ddf::DdfError),
+}
+
 /// The DDF attachment: its model and file name.
-fn embedded_ddf(bytes: &[u8], summary: &::mcap::Summary) -> Result<(Model, String), String> {
-    let index = summary
-        .attachment_indexes
-        .iter()
-        .find(|a| a.media_type == DDF_MEDIA_TYPE)
-        .ok_or("no DDF inside (recorded by another tool?): give the DDF with --ddf")?;
-    let attachment = ::mcap::read::attachment(bytes, index).map_err(|e| format!("the DDF attachment: {e}"))?;
-    let model = tutti_core::ddf::parse_bytes(&attachment.data, &format!("{} (inside the recording)", attachment.name))
-        .map_err(|e| e.to_string())?;
+fn embedded_ddf(bytes: &[u8], summary: &::mcap::Summary) -> Result<(Model, String), EmbeddedDdfError> {
+    let index =
+        summary.attachment_indexes.iter().find(|a| a.media_type == DDF_MEDIA_TYPE).ok_or(EmbeddedDdfError::Missing)?;
+    let attachment = ::mcap::read::attachment(bytes, index).map_err(EmbeddedDdfError::Attachment)?;
+    let model = tutti_core::ddf::parse_bytes(&attachment.data, &format!("{} (inside the recording)", attachment.name))?;
     Ok((model, attachment.name))
 }
 
