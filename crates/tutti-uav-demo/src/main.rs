@@ -7,7 +7,8 @@
 //! and the gateway are the `tutti` executable next to this one ([`tutti_exe`]).
 //!
 //! Modules: `scenario` (the script and its constants) ← `node` (one UAV component) ←
-//! `analysis` (the checks) ← `plot` (the figures) ← `uav` (the run and its report).
+//! `analysis` (the checks) ← `plot` (the figures); `sim` (the co-simulation run) ← `uav` (the
+//! command: its options, the run and its report).
 
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -19,6 +20,7 @@ mod analysis;
 mod node;
 mod plot;
 mod scenario;
+mod sim;
 mod uav;
 
 /// Run a case study: `tutti-demo uav` (the paper's UAV formation, Figures 5 and 6).
