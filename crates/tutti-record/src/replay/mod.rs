@@ -1,7 +1,7 @@
 //! An MCAP recording read back, for `tutti replay`: the DDF it carries (or one given
 //! instead), and every recorded step of every domain with both sets in shared-memory layout
 //! and the domain's connection count at that step (from the `/tutti/events` channel). The
-//! framework that replays it is [`Replay`] ([`run`]).
+//! framework that replays it is [`Replay`].
 //!
 //! The whole recording is read into memory: a step costs the two sets' sizes plus some 60
 //! bytes, so a minute of the 4-domain UAV DDF at 1 kHz takes about 100 MB.
