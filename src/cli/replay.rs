@@ -53,10 +53,10 @@ pub struct Args {
     quiet: bool,
 }
 
-fn parse_speed(s: &str) -> Result<f64, String> {
+fn parse_speed(s: &str) -> anyhow::Result<f64> {
     match s.trim().parse::<f64>() {
         Ok(v) if v.is_finite() && v >= 0.0 => Ok(v),
-        _ => Err(format!("'{s}' is not a speed: a factor like 1, 0.5 or 10, or 0 for as fast as possible")),
+        _ => anyhow::bail!("'{s}' is not a speed: a factor like 1, 0.5 or 10, or 0 for as fast as possible"),
     }
 }
 

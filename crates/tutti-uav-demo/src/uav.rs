@@ -99,11 +99,11 @@ impl RunArgs {
 }
 
 /// Seconds as a plain number (`40`, `12.5`) or a duration (`40s`, `2min`).
-pub fn parse_seconds(s: &str) -> Result<f64, String> {
+pub fn parse_seconds(s: &str) -> anyhow::Result<f64> {
     match s.trim().parse::<f64>() {
         Ok(v) if v > 0.0 && v.is_finite() => Ok(v),
-        Ok(_) => Err(format!("'{s}' must be a positive number of seconds")),
-        Err(_) => parse_duration(s).map(|d| d.as_secs_f64()).map_err(|e| e.to_string()),
+        Ok(_) => anyhow::bail!("'{s}' must be a positive number of seconds"),
+        Err(_) => Ok(parse_duration(s)?.as_secs_f64()),
     }
 }
 
