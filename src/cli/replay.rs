@@ -92,7 +92,7 @@ pub fn run(args: Args) -> CliResult {
         .run(&stop, |event| match &event {
             ReplayEvent::Started { .. } if !quiet => eprintln!("replay: {shown} (DDF {ddf_name}) {event}"),
             ReplayEvent::Differs { nth, .. } if !quiet && !args.json && *nth < PRINT => eprintln!("{event}"),
-            ReplayEvent::Progress { .. } if !quiet => eprintln!("replay: {event}"),
+            ReplayEvent::Progress { .. } | ReplayEvent::Waiting(_) if !quiet => eprintln!("replay: {event}"),
             _ => {}
         })
         .map_err(|e| anyhow::Error::new(e).context(format!("replaying {shown}")))?;

@@ -17,6 +17,8 @@ use serde::Serialize;
 use tutti_core::ddf::Domain;
 use tutti_core::shm::{Framework, FrameworkOptions, WaitMode};
 
+use tutti_host::Report;
+
 use super::{RecordedStep, Recording};
 use crate::RecordError;
 
@@ -106,6 +108,8 @@ impl fmt::Display for Comparison {
 pub enum ReplayEvent<'a> {
     /// The domains are created: their names and recorded step counts.
     Started { namespace: &'a str, domains: Vec<(String, usize)> },
+    /// Waiting for writers (every 5 s), then every `wait_for` met: the runner's reports.
+    Waiting(tutti_host::Report),
     /// A compared step differs (the `nth` differing one, from 0).
     Differs { nth: u64, step: &'a DifferingStep },
     /// Once a second.
@@ -119,6 +123,7 @@ impl fmt::Display for ReplayEvent<'_> {
                 let names: Vec<String> = domains.iter().map(|(d, n)| format!("{d} ({n} steps)")).collect();
                 write!(f, "in namespace {namespace}: {}", names.join(", "))
             }
+            ReplayEvent::Waiting(report) => write!(f, "{report}"),
             ReplayEvent::Differs { step, .. } => {
                 let items = &step.items;
                 let list: Vec<String> = items
@@ -226,8 +231,13 @@ impl Replay {
             elapsed: Duration::ZERO,
             comparison: self.opts.compare.then(Comparison::default),
         };
-        if !tutti_host::wait_for_writers(&mut fw, &self.opts.wait_for, stop, |_| {})? {
+        let wants = &self.opts.wait_for;
+        let waiting = |w: &tutti_host::WriterWait| on_event(ReplayEvent::Waiting(Report::WaitingForWriters(w.clone())));
+        if !tutti_host::wait_for_writers(&mut fw, wants, stop, waiting)? {
             return Ok(summary);
+        }
+        if !wants.is_empty() {
+            on_event(ReplayEvent::Waiting(Report::WritersConnected(wants.clone())));
         }
         summary.started = true;
         fw.domains.iter().for_each(|d| d.set_hold(false));
