@@ -29,7 +29,7 @@ use tutti_gateway::{EngineKind, GatewayOptions};
 
 use crate::nearest_rank;
 use crate::{load_ddf, CliResult, Failure};
-use tutti_host::{ChildProcess as Kid, SIGINT};
+use tutti_host::{ChildProcess, SIGINT};
 
 const ITEMS: usize = 8;
 /// The log filter of the benchmark's children: errors only, nothing from the DDS stack.
@@ -104,12 +104,12 @@ fn ddf_text(name: &str, synchronous: bool) -> String {
 
 /// Starts a child pinned to `cpu`; dropped, it gets SIGINT and 3 s to leave (a gateway
 /// says goodbye on DDS), then SIGKILL.
-fn start(name: &str, cmd: Command, cpu: usize) -> anyhow::Result<Kid> {
-    Ok(Kid::spawn(name, cmd, Some(cpu))?.stop_on_drop(Some(SIGINT), Duration::from_secs(3)))
+fn start(name: &str, cmd: Command, cpu: usize) -> anyhow::Result<ChildProcess> {
+    Ok(ChildProcess::spawn(name, cmd, Some(cpu))?.stop_on_drop(Some(SIGINT), Duration::from_secs(3)))
 }
 
 /// Fails if one of `kids` has exited (a gateway or a peer that could not start or died).
-fn check_alive(kids: &mut [&mut Kid]) -> anyhow::Result<()> {
+fn check_alive(kids: &mut [&mut ChildProcess]) -> anyhow::Result<()> {
     for kid in kids.iter_mut() {
         if let Some(status) = kid.poll() {
             bail!("{} exited ({status})", kid.name);
@@ -423,7 +423,7 @@ impl Bench<'_> {
     }
 
     /// `tutti gateway` on the benchmark's DDF, on `cpu`, as fast as it goes.
-    fn gateway(&self, e: EngineKind, slot: &Slot, synchronous: bool, cpus: Cpus) -> anyhow::Result<Kid> {
+    fn gateway(&self, e: EngineKind, slot: &Slot, synchronous: bool, cpus: Cpus) -> anyhow::Result<ChildProcess> {
         let ddf = self.ddf(synchronous).to_string_lossy();
         let wait = if cpus.wait(synchronous) == WaitMode::Spin { "spin" } else { "block" };
         let mut args = vec!["gateway", &ddf, "--interface", "127.0.0.1", "--poll", "0", "--wait", wait, "-q"];
@@ -437,7 +437,7 @@ impl Bench<'_> {
     }
 
     /// A DDS peer of the benchmark (`--echo`, `--sink`, `--source` …) on `cpu`.
-    fn peer(&self, e: EngineKind, slot: &Slot, cpu: usize, what: &[&str]) -> anyhow::Result<Kid> {
+    fn peer(&self, e: EngineKind, slot: &Slot, cpu: usize, what: &[&str]) -> anyhow::Result<ChildProcess> {
         let window = format!("{}ms", self.args.duration.as_millis());
         let args: Vec<&str> = ["gateway", "--duration", &window].into_iter().chain(what.iter().copied()).collect();
         let mut cmd = self.command(&self.bench_exe, e, slot, &args);
@@ -445,7 +445,7 @@ impl Bench<'_> {
         start(&format!("the DDS peer ({})", what.first().unwrap_or(&"")), cmd, cpu)
     }
 
-    fn echo_peer(&self, e: EngineKind, slot: &Slot, synchronous: bool, cpu: usize) -> anyhow::Result<Kid> {
+    fn echo_peer(&self, e: EngineKind, slot: &Slot, synchronous: bool, cpu: usize) -> anyhow::Result<ChildProcess> {
         self.peer(e, slot, cpu, &["--echo", &self.ddf(synchronous).to_string_lossy()])
     }
 
@@ -762,8 +762,8 @@ impl Bench<'_> {
         let ddf = self.args.large.to_string_lossy();
         let mut cmd = self.tutti(e, slot, &["gateway", &ddf, "--interface", "127.0.0.1", "--status-every", "1h"]);
         cmd.stderr(Stdio::piped());
-        let mut kid =
-            Kid::spawn("the gateway on the large DDF", cmd, None)?.stop_on_drop(Some(SIGINT), Duration::from_secs(3));
+        let mut kid = ChildProcess::spawn("the gateway on the large DDF", cmd, None)?
+            .stop_on_drop(Some(SIGINT), Duration::from_secs(3));
         let stderr = kid.child.stderr.take();
         let mut up = None;
         if let Some(s) = stderr {
@@ -822,7 +822,7 @@ fn rate(r: &Received) -> f64 {
 }
 
 /// The sink's "samples seconds lost misordered" line; waits for it to exit.
-fn sink_result(kid: &mut Kid) -> anyhow::Result<Received> {
+fn sink_result(kid: &mut ChildProcess) -> anyhow::Result<Received> {
     let mut line = String::new();
     if let Some(out) = kid.child.stdout.take() {
         BufReader::new(out).read_line(&mut line)?;

@@ -13,7 +13,7 @@ use std::time::{Duration, Instant};
 
 use crate::CliResult;
 use crate::{relax, warmup};
-use tutti_host::ChildProcess as Kid;
+use tutti_host::ChildProcess;
 
 type Res<T> = Result<T, Box<dyn std::error::Error>>;
 const STOP: u64 = u64::MAX;
@@ -103,7 +103,8 @@ fn ping(
     if yield_spin {
         cmd.arg("--yield-spin");
     }
-    let kid = guard.child.insert(Kid::spawn("the iceoryx2 pong", cmd, None)?.stop_on_drop(None, Duration::ZERO));
+    let kid =
+        guard.child.insert(ChildProcess::spawn("the iceoryx2 pong", cmd, None)?.stop_on_drop(None, Duration::ZERO));
     // wait until pong has its subscriber on "ping" and publisher on "pong"
     let t = Instant::now();
     while svc_ping.dynamic_config().number_of_subscribers() < 1 || svc_pong.dynamic_config().number_of_publishers() < 1
@@ -196,7 +197,7 @@ fn pin_current_thread(cpu: usize) {
 /// Kills the child if still running and removes everything iceoryx2 created for this run.
 struct RunGuard {
     tag: String,
-    child: Option<Kid>,
+    child: Option<ChildProcess>,
 }
 impl Drop for RunGuard {
     fn drop(&mut self) {

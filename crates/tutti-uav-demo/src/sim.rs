@@ -14,14 +14,14 @@ use std::time::{Duration, Instant};
 use anyhow::{bail, Context};
 use tutti_core::ddf::{Model, Role};
 use tutti_core::shm::{Framework, FrameworkOptions, StepReport, WaitMode};
-use tutti_host::{step_all, ChildProcess as Kid, StepDone, Tick, Ticker, SIGINT, SIGTERM};
+use tutti_host::{step_all, ChildProcess, StepDone, Tick, Ticker, SIGINT, SIGTERM};
 use tutti_uav::scenario::Formation;
 
 use crate::f64_at;
 use crate::scenario::{Scenario, FMU_TAU, UAVS};
 
-fn spawn(name: &str, cmd: Command) -> anyhow::Result<Kid> {
-    Ok(Kid::spawn(name, cmd, None)?)
+fn spawn(name: &str, cmd: Command) -> anyhow::Result<ChildProcess> {
+    Ok(ChildProcess::spawn(name, cmd, None)?)
 }
 
 /// What `tutti-demo uav` asks of the simulation.
@@ -269,11 +269,11 @@ impl FmuDomain {
 
 /// The processes of the run; each is stopped when this is dropped.
 struct Children {
-    uavs: Vec<Kid>,
-    fmu: Kid,
-    gateway: Option<Kid>,
-    monitor: Option<Kid>,
-    readers: Vec<Kid>,
+    uavs: Vec<ChildProcess>,
+    fmu: ChildProcess,
+    gateway: Option<ChildProcess>,
+    monitor: Option<ChildProcess>,
+    readers: Vec<ChildProcess>,
 }
 
 impl Children {
@@ -373,7 +373,7 @@ impl Children {
                 bail!("{} exited during the run ({st})", k.name);
             }
         }
-        if let Some(st) = self.monitor.as_mut().and_then(Kid::poll) {
+        if let Some(st) = self.monitor.as_mut().and_then(ChildProcess::poll) {
             if !st.success() || sim < scenario.duration - 2.0 {
                 bail!("the monitoring script exited at t={sim:.1}s ({st})");
             }
