@@ -158,13 +158,17 @@ enum Flow {
 }
 
 impl Link {
-    fn connect(&mut self, node: &mut Node) -> anyhow::Result<()> {
+    fn open(&self) -> anyhow::Result<Participant> {
         let opts =
             ConnectOptions { name: self.name.clone(), connect_timeout: Duration::from_secs(10), ..Default::default() };
         let mut p = Participant::connect(&self.domain, opts)
             .with_context(|| format!("{}: connecting to {}", self.who, self.domain))?;
         // Short lock timeouts: signals are looked at between locks.
         p.set_timeout(Duration::from_millis(250));
+        Ok(p)
+    }
+
+    fn connect(&mut self, node: &mut Node, p: Participant) -> anyhow::Result<()> {
         let items = Items::of(&p)?;
         self.part = Some((p, items));
         self.clock = None;
@@ -184,8 +188,11 @@ impl Link {
             }
         }
         if signals.reconnect.swap(false, Ordering::SeqCst) && self.part.is_none() {
-            match self.connect(node) {
-                Ok(()) => eprintln!("{}: connected again at t={:.2}s", self.who, node.uav.time()),
+            match self.open() {
+                Ok(p) => {
+                    self.connect(node, p)?;
+                    eprintln!("{}: connected again at t={:.2}s", self.who, node.uav.time());
+                }
                 Err(e) => eprintln!("{}: {e:#}", self.who),
             }
         }
@@ -255,7 +262,8 @@ fn fly(args: NodeArgs) -> anyhow::Result<()> {
     if args.start_disconnected {
         eprintln!("{}: started disconnected", link.who);
     } else {
-        link.connect(&mut node)?;
+        let p = link.open()?;
+        link.connect(&mut node, p)?;
     }
     let mut result = Ok(());
     while !signals.stop.load(Ordering::SeqCst) {
