@@ -363,3 +363,79 @@ fn apply_sets(sets: &[String], domains: &[Domain], buffers: &mut [Vec<u8>]) -> R
     }
     Ok(())
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const DDF: &str = r#"<?xml version="1.0" encoding="UTF-8"?>
+<orchestra>
+  <domain name="probe">
+    <synchronous>no</synchronous>
+    <multiplePublishAllowed>yes</multiplePublishAllowed>
+    <states>no</states>
+    <set name="PUBLISH">
+      <item name="tick"><type>int32</type><length>1</length></item>
+    </set>
+    <set name="SUBSCRIBE">
+      <item name="value"><type>float64</type><length>1</length></item>
+    </set>
+  </domain>
+</orchestra>
+"#;
+
+    /// Counts the steps it is given and keeps the last PUBLISH set.
+    struct Count(std::rc::Rc<std::cell::RefCell<(u64, Vec<u8>)>>);
+
+    impl StepSink for Count {
+        fn step(&mut self, _: &Framework, done: &StepDone<'_>) -> Result<(), Box<dyn std::error::Error + Send + Sync>> {
+            let mut c = self.0.borrow_mut();
+            c.0 += 1;
+            c.1 = done.publish[0].clone();
+            Ok(())
+        }
+        fn finish(self: Box<Self>) -> Result<(), Box<dyn std::error::Error + Send + Sync>> {
+            Ok(())
+        }
+    }
+
+    fn options(ns: &str) -> HostOptions {
+        HostOptions {
+            step: Duration::from_millis(1),
+            duration: Some(Duration::from_millis(30)),
+            namespace: Some(ns.into()),
+            sets: vec!["probe/tick=7".into()],
+            ..HostOptions::default()
+        }
+    }
+
+    #[test]
+    fn a_host_is_a_value_driven_in_process_and_its_sinks_see_every_step() {
+        let model = tutti_core::ddf::parse_str(DDF, "probe.ddf").unwrap();
+        let ns = format!("hostlib{}", std::process::id());
+        let mut host = Host::new(&model, options(&ns)).unwrap();
+        assert_eq!(host.namespace(), ns);
+        assert_eq!(host.framework().domains.len(), 1);
+        let seen = std::rc::Rc::new(std::cell::RefCell::new((0, Vec::new())));
+        host.add_sink(Box::new(Count(seen.clone())));
+        let stop = AtomicBool::new(false);
+        let summary = host.run(&stop, |_| {}).unwrap();
+        assert!(summary.started);
+        assert!(summary.steps > 0);
+        let (steps, publish) = seen.borrow().clone();
+        assert_eq!(steps, summary.steps, "the sink took every step");
+        assert_eq!(publish, 7i32.to_ne_bytes(), "--set reached the PUBLISH set");
+    }
+
+    #[test]
+    fn options_that_cannot_apply_are_refused_before_anything_is_created() {
+        let model = tutti_core::ddf::parse_str(DDF, "probe.ddf").unwrap();
+        let ns = format!("hostlibx{}", std::process::id());
+        let bad = |opts: HostOptions| Host::new(&model, opts).unwrap_err();
+        assert!(bad(HostOptions { step: Duration::ZERO, ..options(&ns) }).is_invalid());
+        let e = bad(HostOptions { sets: vec!["probe/nothing=1".into()], ..options(&ns) });
+        assert!(e.is_invalid() && e.to_string().contains("no item 'nothing'"), "{e}");
+        let e = bad(HostOptions { wait_for: vec![("elsewhere".into(), 1)], ..options(&ns) });
+        assert!(e.is_invalid() && e.to_string().contains("no domain 'elsewhere'"), "{e}");
+    }
+}
