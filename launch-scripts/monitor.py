@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""The monitoring script of the UAV demo (`tutti demo uav`, docs/uav-demo.md).
+"""The monitoring script of the UAV demo (`tutti-demo uav`, docs/uav-demo.md).
 
 As in the paper's case study, a Python script sends connection and disconnection requests
 to the UAV components at scripted times, and retrieves the number of connections of every
@@ -12,7 +12,7 @@ request SIGUSR2; the component then calls disconnect / connect itself.
         --domains multiuav_uav1,multiuav_uav2,multiuav_uav3,multiuav_uav4 \\
         --out connections.csv --events-out events.csv
 
-The clock: with --clock stdin (as `tutti demo uav` runs it) the script loads, prints "ready"
+The clock: with --clock stdin (as `tutti-demo uav` runs it) the script loads, prints "ready"
 on stdout, then reads the framework's simulated time, one number per line, from its standard
 input: the script follows the co-simulation's own clock, also when a loaded machine slows it
 down. With --clock wall --t0 UNIX_TIME --speed X, simulated time is (now - t0) * X.

@@ -3,11 +3,11 @@
 # Debian machine with the Rust toolchain, Python 3 and apt.
 #
 #   ./launch-scripts/uav-demo.sh                      # the paper's run: 120 s simulated, ~30 s wall
-#   ./launch-scripts/uav-demo.sh --scenario short     # any option of `tutti demo uav`
+#   ./launch-scripts/uav-demo.sh --scenario short     # any option of `tutti-demo uav`
 #
 # Installs what it needs (gcc for the C components, the DejaVu font for the figures, Python 3,
 # cmake and libclang for the Cyclone DDS engine),
-# builds tutti and librtapi in release, then runs `tutti demo uav --out out/uav`. Results:
+# builds tutti, librtapi and tutti-demo in release, then runs `tutti-demo uav --out out/uav`. Results:
 # out/uav/figure5.png, out/uav/figure6.png, the CSV files and summary.txt. The exit status is
 # the demo's: non-zero when a check fails.
 set -euo pipefail
@@ -30,8 +30,8 @@ if [ -z "${TUTTI_PYTHON:-}" ]; then
     fi
 fi
 
-step "building tutti and librtapi (release)"
-cargo build --release --locked --quiet -p tutti -p tutti-rtapi
+step "building tutti, librtapi and tutti-demo (release)"
+cargo build --release --locked --quiet -p tutti -p tutti-rtapi -p tutti-uav-demo
 
-step "tutti demo uav --out out/uav $*"
-exec ./target/release/tutti demo uav --out out/uav "$@"
+step "tutti-demo uav --out out/uav $*"
+exec ./target/release/tutti-demo uav --out out/uav "$@"

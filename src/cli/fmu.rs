@@ -6,17 +6,15 @@
 //! that fails (a `doStep` returning Error or Fatal, the framework gone).
 
 use std::path::PathBuf;
-use std::sync::atomic::{AtomicBool, Ordering};
-use std::sync::Arc;
 use std::time::Duration;
 
 use anyhow::Context as _;
+use tutti_core::parse::parse_duration;
 use tutti_core::shm::ConnectOptions;
 use tutti_fmu::ddf::{domain_name, generate, item_names, unsupported_reason, DdfOptions};
 use tutti_fmu::mapping::parse_spec;
 use tutti_fmu::{Fmu, FmuParticipant, Mapping, RunOptions};
 
-use super::host::parse_duration;
 use super::{load_ddf, CliResult, Failure};
 
 /// FMI 2.0 / 3.0 co-simulation FMUs: inspect them, make a DDF for them, run them as participants.
@@ -142,7 +140,16 @@ fn inspect(a: InspectArgs) -> CliResult {
         println!("{}", serde_json::to_string_pretty(&json).context("serialising")?);
         return Ok(());
     }
-    println!("FMU:            {}", a.fmu.display());
+    print_summary(&a.fmu, &fmu);
+    println!();
+    print_variables(md);
+    Ok(())
+}
+
+/// The FMU's identity, kinds, default experiment and binaries, one line each.
+fn print_summary(path: &std::path::Path, fmu: &Fmu) {
+    let md = &fmu.model;
+    println!("FMU:            {}", path.display());
     println!("FMI version:    {}", md.fmi_version_text);
     println!("model:          {}", md.model_name);
     if let Some(d) = &md.description {
@@ -172,7 +179,10 @@ fn inspect(a: InspectArgs) -> CliResult {
         None => println!("default experiment: none"),
     }
     println!("binaries:       {}", if fmu.binaries.is_empty() { "none".to_string() } else { fmu.binaries.join(", ") });
-    println!();
+}
+
+/// The variables as a table: name, causality, variability, type, start, unit.
+fn print_variables(md: &tutti_fmu::ModelDescription) {
     let rows: Vec<[String; 6]> = md
         .variables
         .iter()
@@ -202,7 +212,6 @@ fn inspect(a: InspectArgs) -> CliResult {
     for r in &rows {
         line(r);
     }
-    Ok(())
 }
 
 fn ddf(a: DdfArgs) -> CliResult {
@@ -221,12 +230,8 @@ fn ddf(a: DdfArgs) -> CliResult {
     Ok(())
 }
 
-fn run_fmu(a: RunArgs) -> CliResult {
-    let fmu = open(&a.fmu)?;
-    let model = load_ddf(&a.ddf)?;
-    let domain = model
-        .domain(&a.domain)
-        .ok_or_else(|| Failure::invalid(anyhow::anyhow!("{}: no domain '{}'", a.ddf.display(), a.domain)))?;
+/// The mapping of `--map`, `--map-file` and the names the FMU and the domain share.
+fn mapping_of(a: &RunArgs, fmu: &Fmu, domain: &tutti_core::ddf::Domain) -> Result<Mapping, Failure> {
     let mut specs = a.maps.clone();
     if let Some(f) = &a.map_file {
         let text =
@@ -234,9 +239,32 @@ fn run_fmu(a: RunArgs) -> CliResult {
         specs.extend(text.lines().map(str::trim).filter(|l| !l.is_empty() && !l.starts_with('#')).map(String::from));
     }
     let explicit = specs.iter().map(|s| parse_spec(s)).collect::<Result<Vec<_>, _>>().map_err(Failure::invalid)?;
-    let mapping = Mapping::build(&fmu.model, domain, &explicit).map_err(|e| {
+    Mapping::build(&fmu.model, domain, &explicit).map_err(|e| {
         Failure::invalid(anyhow::anyhow!("{} with {} domain '{}': {e}", a.fmu.display(), a.ddf.display(), a.domain))
-    })?;
+    })
+}
+
+/// Which variable goes to or comes from which item, and why a variable is left out.
+fn print_mapping(domain: &str, fmu: &Fmu, mapping: &Mapping) {
+    let names = item_names(&fmu.model);
+    for p in mapping.inputs.iter().chain(&mapping.outputs) {
+        let arrow = if p.var.causality == tutti_fmu::Causality::Input { "<-" } else { "->" };
+        eprintln!("fmu: {} {arrow} {domain}/{}", p.var.name, p.leaf.path);
+    }
+    for v in &mapping.unmapped {
+        let why = fmu.model.variable(v).and_then(|var| unsupported_reason(&fmu.model, var));
+        let why = why.unwrap_or_else(|| format!("no item '{}' or '{}'", v, names.get(v).map_or("", |s| s)));
+        eprintln!("fmu: warning: {v} is not mapped ({why})");
+    }
+}
+
+fn run_fmu(a: RunArgs) -> CliResult {
+    let fmu = open(&a.fmu)?;
+    let model = load_ddf(&a.ddf)?;
+    let domain = model
+        .domain(&a.domain)
+        .ok_or_else(|| Failure::invalid(anyhow::anyhow!("{}: no domain '{}'", a.ddf.display(), a.domain)))?;
+    let mapping = mapping_of(&a, &fmu, domain)?;
     let params = a
         .params
         .iter()
@@ -245,17 +273,8 @@ fn run_fmu(a: RunArgs) -> CliResult {
             _ => Err(Failure::invalid(anyhow::anyhow!("--param {p}: expected NAME=VALUE"))),
         })
         .collect::<Result<Vec<_>, _>>()?;
-    let names = item_names(&fmu.model);
     if !a.quiet {
-        for p in mapping.inputs.iter().chain(&mapping.outputs) {
-            let arrow = if p.var.causality == tutti_fmu::Causality::Input { "<-" } else { "->" };
-            eprintln!("fmu: {} {arrow} {}/{}", p.var.name, a.domain, p.leaf.path);
-        }
-        for v in &mapping.unmapped {
-            let why = fmu.model.variable(v).and_then(|var| unsupported_reason(&fmu.model, var));
-            let why = why.unwrap_or_else(|| format!("no item '{}' or '{}'", v, names.get(v).map_or("", |s| s)));
-            eprintln!("fmu: warning: {v} is not mapped ({why})");
-        }
+        print_mapping(&a.domain, &fmu, &mapping);
     }
     let step = a
         .step
@@ -266,11 +285,7 @@ fn run_fmu(a: RunArgs) -> CliResult {
         .unwrap_or(Duration::from_millis(10));
     let name = a.name.clone().unwrap_or_else(|| format!("fmu:{}", fmu.model.model_name));
     let instance = fmu.instantiate(&name, &a.preload).map_err(Failure::invalid)?;
-    let stop = Arc::new(AtomicBool::new(false));
-    {
-        let stop = stop.clone();
-        ctrlc::set_handler(move || stop.store(true, Ordering::SeqCst)).context("installing the signal handler")?;
-    }
+    let stop = super::stop_flag()?;
     let opts = RunOptions {
         connect: ConnectOptions { name, connect_timeout: a.connect_timeout, ..Default::default() },
         step,

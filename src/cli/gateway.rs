@@ -2,11 +2,9 @@
 
 use std::net::{IpAddr, SocketAddr};
 use std::path::PathBuf;
-use std::sync::atomic::{AtomicBool, Ordering};
-use std::sync::Arc;
+use std::sync::atomic::Ordering;
 use std::time::Duration;
 
-use anyhow::Context;
 use clap::ValueEnum;
 use tutti_core::mapping::Profile;
 use tutti_core::shm::WaitMode;
@@ -84,28 +82,28 @@ pub struct Args {
     #[arg(long, value_name = "HZ", value_parser = config::parse_rate)]
     clock_rate: Option<f64>,
     /// Longest shared-memory wait; with --mirror, the framework's step timeout (default 1s).
-    #[arg(long, value_name = "DURATION", value_parser = config::parse_duration)]
+    #[arg(long, value_name = "DURATION", value_parser = tutti_core::parse::parse_duration)]
     timeout: Option<Duration>,
     /// How shared-memory waits wait: block (the default), spin, or poll:DURATION.
-    #[arg(long, value_name = "MODE", value_parser = config::parse_wait)]
+    #[arg(long, value_name = "MODE", value_parser = tutti_core::parse::parse_wait)]
     wait: Option<WaitMode>,
     /// How often an idle asynchronous set is checked for changes (default 500us; 0: keep
     /// polling).
-    #[arg(long, value_name = "DURATION", value_parser = config::parse_duration)]
+    #[arg(long, value_name = "DURATION", value_parser = tutti_core::parse::parse_duration)]
     poll: Option<Duration>,
     /// How long a DDS writer of a synchronous domain may owe a step's answer, silent, before
     /// its lock-step share is released (default 1s).
-    #[arg(long, value_name = "DURATION", value_parser = config::parse_duration)]
+    #[arg(long, value_name = "DURATION", value_parser = tutti_core::parse::parse_duration)]
     lease: Option<Duration>,
     /// Serve the counters over HTTP: JSON at /stats, Prometheus text at /metrics (port 0:
     /// any free port, logged).
     #[arg(long, value_name = "ADDR")]
     http: Option<SocketAddr>,
     /// Period of the status line on stderr (default 5s).
-    #[arg(long, value_name = "DURATION", value_parser = config::parse_duration)]
+    #[arg(long, value_name = "DURATION", value_parser = tutti_core::parse::parse_duration)]
     status_every: Option<Duration>,
     /// Stop after this long (default: run until Ctrl-C).
-    #[arg(long, value_name = "DURATION", value_parser = config::parse_duration)]
+    #[arg(long, value_name = "DURATION", value_parser = tutti_core::parse::parse_duration)]
     duration: Option<Duration>,
     /// Print no status lines.
     #[arg(short, long)]
@@ -189,11 +187,7 @@ pub fn run(args: Args) -> CliResult {
     // shows the same plan).
     config::resolve(&opts).map_err(Failure::invalid)?;
 
-    let stop = Arc::new(AtomicBool::new(false));
-    {
-        let stop = stop.clone();
-        ctrlc::set_handler(move || stop.store(true, Ordering::SeqCst)).context("installing the signal handler")?;
-    }
+    let stop = super::stop_flag()?;
     if let Some(d) = keys.duration {
         let stop = stop.clone();
         std::thread::spawn(move || {

@@ -1,17 +1,16 @@
 //! `tutti host DDF`: a generic framework that creates every domain of a DDF and steps them
-//! at a fixed period; optionally records both sets of every domain to CSV.
+//! at a fixed period; optionally records both sets of every domain (MCAP or CSV). The run is
+//! the `tutti-host` crate's [`Host`]; this module parses, builds its options and prints.
 
 use std::path::PathBuf;
-use std::sync::atomic::{AtomicBool, Ordering};
-use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 use anyhow::Context;
-use tutti_core::ddf::Domain;
-use tutti_core::shm::{Framework, FrameworkOptions, WaitMode};
+use tutti_core::parse::{parse_duration, parse_wait};
+use tutti_core::shm::WaitMode;
+use tutti_host::{Host, HostError, HostOptions};
 
 use super::{load_ddf, CliResult, Failure};
-use crate::rt::{self, Ticker};
 
 /// Run the framework of every domain in a DDF: create the segments, step at a fixed period.
 #[derive(Debug, clap::Args)]
@@ -53,7 +52,7 @@ pub struct Args {
     /// Before the first step, hold participants in wait-to-go until N writers (participants
     /// that have committed once) are connected to DOMAIN, so that they answer every step
     /// from the first; repeatable.
-    #[arg(long = "wait-for", value_name = "DOMAIN=N", value_parser = rt::parse_wait_for)]
+    #[arg(long = "wait-for", value_name = "DOMAIN=N", value_parser = tutti_host::parse_wait_for)]
     wait_for: Vec<(String, usize)>,
     #[command(flatten)]
     rt: super::RealtimeArgs,
@@ -62,151 +61,62 @@ pub struct Args {
     quiet: bool,
 }
 
-// One parser for durations and wait modes across the CLI and the gateway's config file.
-pub use tutti_gateway::config::{parse_duration, parse_wait};
-
-/// Applies `--set DOMAIN/ITEM=VALUE` to the PUBLISH buffers.
-fn apply_sets(sets: &[String], domains: &[Domain], buffers: &mut [Vec<u8>]) -> Result<(), Failure> {
-    for s in sets {
-        let (target, value) = s
-            .split_once('=')
-            .ok_or_else(|| Failure::invalid(anyhow::anyhow!("--set '{s}': expected DOMAIN/ITEM=VALUE")))?;
-        let (domain, item) = target
-            .split_once('/')
-            .ok_or_else(|| Failure::invalid(anyhow::anyhow!("--set '{s}': expected DOMAIN/ITEM=VALUE")))?;
-        let idx = domains
-            .iter()
-            .position(|d| d.name == domain)
-            .ok_or_else(|| Failure::invalid(anyhow::anyhow!("--set '{s}': no domain '{domain}' in the DDF")))?;
-        let leaf = domains[idx].publish.layout.leaf(item).ok_or_else(|| {
-            Failure::invalid(anyhow::anyhow!("--set '{s}': no item '{item}' in the PUBLISH set of domain '{domain}'"))
-        })?;
-        let v = leaf.ty.parse_value(value).ok_or_else(|| {
-            Failure::invalid(anyhow::anyhow!("--set '{s}': '{value}' is not a {} value", leaf.ty.canonical()))
-        })?;
-        let n = leaf.ty.size() as usize;
-        for chunk in buffers[idx][leaf.range()].chunks_exact_mut(n) {
-            leaf.ty.encode(v, chunk);
+impl Args {
+    fn options(&self) -> HostOptions {
+        HostOptions {
+            step: self.step,
+            duration: self.duration,
+            catch_up: self.catch_up,
+            timeout: self.timeout,
+            wait: self.wait,
+            namespace: None,
+            sets: self.sets.clone(),
+            hold: self.hold,
+            wait_for: self.wait_for.clone(),
+            ddf_name: self.file.display().to_string(),
         }
     }
-    Ok(())
+}
+
+/// A run's error with its exit status: 2 for options that cannot apply, else 1.
+pub fn host_failure(e: HostError) -> Failure {
+    if e.is_invalid() {
+        Failure::invalid(e)
+    } else {
+        Failure::from(anyhow::Error::new(e))
+    }
 }
 
 pub fn run(args: Args) -> CliResult {
     let model = load_ddf(&args.file)?;
-    if args.step.is_zero() {
-        return Err(Failure::invalid(anyhow::anyhow!("--step must be longer than 0")));
-    }
-    let mut publish: Vec<Vec<u8>> = model.domains.iter().map(|d| d.publish.layout.default_bytes()).collect();
-    apply_sets(&args.sets, &model.domains, &mut publish)?;
-    let stop = Arc::new(AtomicBool::new(false));
-    {
-        let stop = stop.clone();
-        ctrlc::set_handler(move || stop.store(true, Ordering::SeqCst)).context("installing the signal handler")?;
-    }
-    for (d, n) in &args.wait_for {
-        if model.domain(d).is_none() {
-            return Err(Failure::invalid(anyhow::anyhow!(
-                "--wait-for {d}={n}: no domain '{d}' in {}",
-                args.file.display()
-            )));
-        }
-    }
-    let hold = args.hold.is_some() || !args.wait_for.is_empty();
-    let opts = FrameworkOptions { timeout: args.timeout, wait: args.wait, hold, ..Default::default() };
+    let stop = super::stop_flag()?;
     let started = Instant::now();
-    let mut fw = Framework::create(&model, &opts).with_context(|| format!("hosting {}", args.file.display()))?;
-    let mut recorders = args
-        .record
-        .iter()
-        .map(|path| tutti_record::create(path, &model, &args.file))
-        .collect::<Result<Vec<_>, _>>()
-        .context("starting the recording")?;
+    let mut host = Host::new(&model, args.options()).map_err(host_failure)?;
+    for path in &args.record {
+        let recorder = tutti_record::create(path, &model, &args.file).context("starting the recording")?;
+        host.add_sink(Box::new(tutti_record::RecordingSink(recorder)));
+    }
     if !args.quiet {
         eprintln!(
             "host: {} domain(s) of {} created in {:.1} ms (namespace {}), step {:?}",
-            fw.domains.len(),
+            host.framework().domains.len(),
             args.file.display(),
             started.elapsed().as_secs_f64() * 1e3,
-            opts.namespace,
+            host.namespace(),
             args.step
         );
     }
-    if let Some(req) = args.rt.request() {
-        if args.quiet {
-            rt::enter_realtime(&req);
-        } else {
-            rt::enter_realtime_verbose("host", &req);
-        }
-    }
-    let unseeded = fw.wait_for_seeds();
-    if unseeded > 0 && !args.quiet {
-        eprintln!(
-            "host: {unseeded} domain(s) with states=yes got no seed within {:?}; they start from their defaults",
-            args.timeout
-        );
-    }
-    if !rt::wait_for_writers(&mut fw, &args.wait_for, &stop, "host", args.quiet)? {
-        return Ok(());
-    }
-    if args.hold.is_none() {
-        fw.domains.iter().for_each(|d| d.set_hold(false));
-    }
-    let mut ticker = if args.catch_up { Ticker::catching_up(args.step) } else { Ticker::new(args.step) };
-    let run_start = Instant::now();
-    let mut last_report = Instant::now();
-    let mut held = args.hold.is_some();
-    let mut timeouts = 0u64;
-    while !stop.load(Ordering::SeqCst) {
-        if args.duration.is_some_and(|d| run_start.elapsed() >= d) {
-            break;
-        }
-        let tick = ticker.wait();
-        if held && args.hold.is_some_and(|h| run_start.elapsed() >= h) {
-            held = false;
-            fw.domains.iter().for_each(|d| d.set_hold(false));
-        }
-        let sim = tick.k as f64 * args.step.as_secs_f64();
-        let reports = rt::step_all(&mut fw, &publish, sim, args.step, &tick)?;
-        timeouts += reports.iter().filter(|r| r.timed_out > 0).count() as u64;
-        if !args.quiet {
-            for (d, r) in fw.domains.iter().zip(&reports) {
-                if r.timed_out > 0 {
-                    eprintln!(
-                        "host: step {} of {} timed out after {:?} waiting for {}",
-                        r.step,
-                        d.info().name,
-                        args.timeout,
-                        d.timed_out_on().join(", ")
-                    );
-                }
+    super::enter_realtime(&args.rt, "host", args.quiet);
+    let quiet = args.quiet;
+    let summary = host
+        .run(&stop, |report| {
+            if !quiet {
+                eprintln!("host: {report}");
             }
-        }
-        rt::record_step(&mut recorders, &fw, &reports, &publish, sim, run_start)?;
-        if !args.quiet && last_report.elapsed() >= Duration::from_secs(1) {
-            last_report = Instant::now();
-            let conns: u32 = fw.domains.iter().map(|d| d.connection_count()).sum();
-            eprintln!(
-                "host: t={:.1}s step {} participants {} overruns {} late max {:?} step timeouts {}",
-                run_start.elapsed().as_secs_f64(),
-                tick.k + 1,
-                conns,
-                ticker.overruns,
-                ticker.max_late,
-                timeouts
-            );
-        }
-    }
-    for rec in recorders {
-        rec.finish().context("writing the recording")?;
-    }
-    if !args.quiet {
-        eprintln!(
-            "host: stopped after {:.1}s, {} overruns, {} step timeouts",
-            run_start.elapsed().as_secs_f64(),
-            ticker.overruns,
-            timeouts
-        );
+        })
+        .map_err(host_failure)?;
+    if !quiet && summary.started {
+        eprintln!("host: {summary}");
     }
     Ok(())
 }

@@ -3,12 +3,10 @@
 
 use std::process::ExitCode;
 
+use anyhow::Context;
 use clap::{Parser, Subcommand};
 
-mod bench;
 mod check;
-mod child;
-mod demo;
 mod fmu;
 mod gateway;
 mod host;
@@ -45,9 +43,7 @@ enum Command {
     Status(status::Args),
     Record(record::Args),
     Replay(replay::Args),
-    Bench(bench::Args),
     Gateway(gateway::Args),
-    Demo(demo::Args),
     Studio(studio::Args),
     Fmu(fmu::Args),
 }
@@ -69,9 +65,30 @@ pub struct RealtimeArgs {
 
 impl RealtimeArgs {
     /// What to apply, when `--realtime` was given.
-    pub fn request(&self) -> Option<crate::rt::RealtimeRequest> {
-        self.realtime.then_some(crate::rt::RealtimeRequest { cpu: self.cpu, priority: self.priority })
+    pub fn request(&self) -> Option<tutti_host::RealtimeRequest> {
+        self.realtime.then_some(tutti_host::RealtimeRequest { cpu: self.cpu, priority: self.priority })
     }
+}
+
+/// Applies `--realtime` to the calling thread when it was given, and prints (unless `quiet`)
+/// what was applied and what was not, prefixed by `who`.
+pub fn enter_realtime(args: &RealtimeArgs, who: &str, quiet: bool) {
+    let Some(req) = args.request() else { return };
+    let out = tutti_host::enter_realtime(&req);
+    if quiet {
+        return;
+    }
+    if !out.applied.is_empty() {
+        eprintln!("{who}: real-time: {}", out.applied.join(", "));
+    }
+    for w in &out.warnings {
+        eprintln!("{who}: warning: {w}");
+    }
+}
+
+/// The flag Ctrl-C (or SIGTERM) raises: a command's loop stops when it is set.
+pub fn stop_flag() -> Result<std::sync::Arc<std::sync::atomic::AtomicBool>, Failure> {
+    Ok(tutti_host::stop_on_ctrl_c().context("installing the signal handler")?)
 }
 
 /// A failure with the exit status it maps to.
@@ -104,9 +121,7 @@ pub fn run(cli: Cli) -> ExitCode {
         Command::Status(a) => status::run(a),
         Command::Record(a) => record::run(a),
         Command::Replay(a) => replay::run(a),
-        Command::Bench(a) => bench::run(a),
         Command::Gateway(a) => gateway::run(a),
-        Command::Demo(a) => demo::run(a),
         Command::Studio(a) => studio::run(a),
         Command::Fmu(a) => fmu::run(a),
     };

@@ -7,7 +7,7 @@ use std::time::{Duration, Instant};
 
 use anyhow::Context;
 use tutti_core::shm::segment::namespace_from_env;
-use tutti_core::shm::{list_domains, DomainStatus, ShmError};
+use tutti_core::shm::{list_domains, ConnectionInfo, DomainStatus, ShmError};
 
 use super::CliResult;
 
@@ -38,6 +38,26 @@ fn fmt_ns(ns: u64) -> String {
     }
 }
 
+/// The domains as `--json` prints them, with their rates.
+fn json(domains: &[Result<DomainStatus, ShmError>], rates: &HashMap<String, (f64, f64)>) -> Vec<serde_json::Value> {
+    domains
+        .iter()
+        .map(|d| match d {
+            Ok(d) => {
+                let mut v = serde_json::to_value(d).unwrap_or_default();
+                // Simulated time to the nanosecond: 3.05, not 3.0500000000000003.
+                v["sim_time"] = serde_json::json!((d.sim_time * 1e9).round() / 1e9);
+                if let Some(&(steps, commits)) = rates.get(&d.domain) {
+                    v["steps_per_s"] = serde_json::json!(steps.round());
+                    v["commits_per_s"] = serde_json::json!(commits.round());
+                }
+                v
+            }
+            Err(e) => serde_json::json!({ "error": e.to_string() }),
+        })
+        .collect()
+}
+
 fn render(domains: &[Result<DomainStatus, ShmError>], rates: &HashMap<String, (f64, f64)>, ns: &str) -> String {
     let mut s = String::new();
     if domains.is_empty() {
@@ -51,68 +71,77 @@ fn render(domains: &[Result<DomainStatus, ShmError>], rates: &HashMap<String, (f
                 let _ = writeln!(s, "! {e}");
             }
             Ok(d) => {
-                let f = d.flags;
-                let mode = format!(
-                    "{}{}{}",
-                    if f.synchronous { "sync" } else { "async" },
-                    if f.multiple_publish_allowed { "" } else { ",exclusive" },
-                    if f.states { ",states" } else { "" }
-                );
-                let fw = if d.framework_alive {
-                    format!("pid {}", d.framework_pid)
-                } else {
-                    format!("pid {} (stopped)", d.framework_pid)
-                };
-                let (step_rate, commit_rate) = rates.get(&d.domain).copied().unwrap_or((0.0, 0.0));
-                let _ = writeln!(
-                    s,
-                    "{} [{mode}] framework {fw}  step {}  sim {:.3}s  {:.0} steps/s  {:.0} commits/s  participants {}  DDS writers {}  DDS readers {}",
-                    d.domain, d.step, d.sim_time, step_rate, commit_rate, d.connection_count, d.dds_writers, d.dds_readers
-                );
-                let _ = writeln!(
-                    s,
-                    "    period {}  overruns {}  late last {} max {}  step timeouts {}  seeded {}  wait-to-go {}{}",
-                    fmt_ns(d.period_ns),
-                    d.overruns,
-                    fmt_ns(d.last_late_ns),
-                    fmt_ns(d.max_late_ns),
-                    d.step_timeouts,
-                    if d.seeded { "yes" } else { "no" },
-                    if d.waiting_to_go { "held" } else { "go" },
-                    d.owner_pid.map(|p| format!("  owner pid {p}")).unwrap_or_default()
-                );
+                render_domain(&mut s, d, rates.get(&d.domain).copied().unwrap_or((0.0, 0.0)));
                 for c in &d.connections {
-                    let role = match (c.observer, c.writer, c.sync_reader) {
-                        (true, _, _) => "observer",
-                        (_, true, _) => "writer",
-                        (_, false, true) => "sync reader",
-                        (_, false, false) => "reader",
-                    };
-                    let via = match (c.observer, c.remote) {
-                        (true, _) => format!("bridges {} DDS reader(s)  ", c.dds_readers),
-                        (false, true) => "via DDS  ".to_string(),
-                        _ => String::new(),
-                    };
-                    let since = now_ns.saturating_sub(c.since_ns) as f64 / 1e9;
-                    let _ = writeln!(
-                        s,
-                        "    #{:<3} pid {:<7} {:<20} {:<11} {}since {:.1}s  reads {} commits {} missed {}{}",
-                        c.slot,
-                        c.pid,
-                        c.name,
-                        role,
-                        via,
-                        since,
-                        c.reads,
-                        c.commits,
-                        c.missed_steps,
-                        if c.alive { "" } else { "  (dead, being removed)" }
-                    );
+                    render_connection(&mut s, c, now_ns);
                 }
             }
         }
     }
     s
+}
+
+/// A domain's two lines: its mode, framework, step, rates and participants; its timing.
+fn render_domain(s: &mut String, d: &DomainStatus, (step_rate, commit_rate): (f64, f64)) {
+    let f = d.flags;
+    let mode = format!(
+        "{}{}{}",
+        if f.synchronous { "sync" } else { "async" },
+        if f.multiple_publish_allowed { "" } else { ",exclusive" },
+        if f.states { ",states" } else { "" }
+    );
+    let fw = if d.framework_alive {
+        format!("pid {}", d.framework_pid)
+    } else {
+        format!("pid {} (stopped)", d.framework_pid)
+    };
+    let _ = writeln!(
+        s,
+        "{} [{mode}] framework {fw}  step {}  sim {:.3}s  {:.0} steps/s  {:.0} commits/s  participants {}  DDS writers {}  DDS readers {}",
+        d.domain, d.step, d.sim_time, step_rate, commit_rate, d.connection_count, d.dds_writers, d.dds_readers
+    );
+    let _ = writeln!(
+        s,
+        "    period {}  overruns {}  late last {} max {}  step timeouts {}  seeded {}  wait-to-go {}{}",
+        fmt_ns(d.period_ns),
+        d.overruns,
+        fmt_ns(d.last_late_ns),
+        fmt_ns(d.max_late_ns),
+        d.step_timeouts,
+        if d.seeded { "yes" } else { "no" },
+        if d.waiting_to_go { "held" } else { "go" },
+        d.owner_pid.map(|p| format!("  owner pid {p}")).unwrap_or_default()
+    );
+}
+
+/// A connection's line: slot, pid, name, role, since when, its counters.
+fn render_connection(s: &mut String, c: &ConnectionInfo, now_ns: u64) {
+    let role = match (c.observer, c.writer, c.sync_reader) {
+        (true, _, _) => "observer",
+        (_, true, _) => "writer",
+        (_, false, true) => "sync reader",
+        (_, false, false) => "reader",
+    };
+    let via = match (c.observer, c.remote) {
+        (true, _) => format!("bridges {} DDS reader(s)  ", c.dds_readers),
+        (false, true) => "via DDS  ".to_string(),
+        _ => String::new(),
+    };
+    let since = now_ns.saturating_sub(c.since_ns) as f64 / 1e9;
+    let _ = writeln!(
+        s,
+        "    #{:<3} pid {:<7} {:<20} {:<11} {}since {:.1}s  reads {} commits {} missed {}{}",
+        c.slot,
+        c.pid,
+        c.name,
+        role,
+        via,
+        since,
+        c.reads,
+        c.commits,
+        c.missed_steps,
+        if c.alive { "" } else { "  (dead, being removed)" }
+    );
 }
 
 pub fn run(args: Args) -> CliResult {
@@ -146,23 +175,7 @@ pub fn run(args: Args) -> CliResult {
             previous.insert(d.domain.clone(), now);
         }
         if args.json {
-            let items: Vec<serde_json::Value> = domains
-                .iter()
-                .map(|d| match d {
-                    Ok(d) => {
-                        let mut v = serde_json::to_value(d).unwrap_or_default();
-                        // Simulated time to the nanosecond: 3.05, not 3.0500000000000003.
-                        v["sim_time"] = serde_json::json!((d.sim_time * 1e9).round() / 1e9);
-                        if let Some(&(steps, commits)) = rates.get(&d.domain) {
-                            v["steps_per_s"] = serde_json::json!(steps.round());
-                            v["commits_per_s"] = serde_json::json!(commits.round());
-                        }
-                        v
-                    }
-                    Err(e) => serde_json::json!({ "error": e.to_string() }),
-                })
-                .collect();
-            println!("{}", serde_json::to_string_pretty(&items).map_err(anyhow::Error::from)?);
+            println!("{}", serde_json::to_string_pretty(&json(&domains, &rates)).map_err(anyhow::Error::from)?);
         } else {
             if args.watch {
                 print!("\x1b[2J\x1b[H");

@@ -4,7 +4,6 @@
 
 use std::net::SocketAddr;
 use std::path::PathBuf;
-use std::sync::mpsc;
 
 use anyhow::Context as _;
 use tutti_core::shm::segment::namespace_from_env;
@@ -58,12 +57,10 @@ pub fn run(args: Args) -> CliResult {
         Some(t) => eprintln!("tutti studio: listening on http://{}/?token={t}", running.addr()),
         None => eprintln!("tutti studio: listening on http://{}/", running.addr()),
     }
-    let (tx, rx) = mpsc::channel();
-    ctrlc::set_handler(move || {
-        let _ = tx.send(());
-    })
-    .context("installing the signal handler")?;
-    let _ = rx.recv();
+    let stop = super::stop_flag()?;
+    while !stop.load(std::sync::atomic::Ordering::SeqCst) {
+        std::thread::sleep(std::time::Duration::from_millis(50));
+    }
     running.stop();
     Ok(())
 }

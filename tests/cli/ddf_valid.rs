@@ -295,13 +295,13 @@ fn the_three_connection_forms_are_accepted_and_shown() {
     assert_eq!(c[2]["settings"], serde_json::json!([["nodeIdFramework", "0"], ["segmentId", "0"]]));
 }
 
-/// `tutti bench ddf` outside a checkout times the same 1,000-domain file, generated, and
+/// `tutti-bench ddf` outside a checkout times the same 1,000-domain file, generated, and
 /// leaves nothing behind.
 #[test]
 fn bench_ddf_runs_outside_the_checkout() {
     let dir = tempfile::tempdir().unwrap();
-    let out = common::tutti_command()
-        .args(["bench", "ddf", "--iterations", "1"])
+    let out = std::process::Command::new(common::workspace_bin("tutti-bench", "tutti-bench"))
+        .args(["ddf", "--iterations", "1"])
         .current_dir(dir.path())
         .env("TMPDIR", dir.path())
         .output()

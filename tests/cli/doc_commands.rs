@@ -1,4 +1,4 @@
-//! Every `tutti` command shown in a shell block of README.md and docs/*.md names a real
+//! Every `tutti` (and `tutti-bench`, `tutti-demo`) command shown in a shell block of README.md and docs/*.md names a real
 //! subcommand with flags that exist: each is run with `--help` appended (which clap answers
 //! only when everything before it parses). Every `python3 launch-scripts/…` command has its
 //! arguments parsed by the script's own argparse parser and stops there (see [`PARSE_ONLY`]),
@@ -63,6 +63,8 @@ fn commands(text: &str) -> Vec<(usize, String, &'static str, Vec<String>)> {
         let mut words = cmd.split_whitespace().skip_while(|w| w.contains('=') && !w.starts_with('-') || *w == "sudo");
         let program = match words.next() {
             Some("tutti") => env!("CARGO_BIN_EXE_tutti"),
+            Some("tutti-bench") => "tutti-bench",
+            Some("tutti-demo") => "tutti-demo",
             Some("python3") if cmd.contains("launch-scripts/") && !cmd.contains("ros2_") => "python3",
             _ => continue,
         };
@@ -89,7 +91,12 @@ fn every_documented_command_parses() {
     for file in &files {
         let text = std::fs::read_to_string(file).unwrap();
         for (line, shown, program, args) in commands(&text) {
-            let mut c = Command::new(program);
+            // The benchmarks' and the demo's executables, built beside tutti when first shown.
+            let mut c = match program {
+                "tutti-bench" => Command::new(common::workspace_bin("tutti-bench", "tutti-bench")),
+                "tutti-demo" => Command::new(common::workspace_bin("tutti-uav-demo", "tutti-demo")),
+                _ => Command::new(program),
+            };
             if program == "python3" {
                 c.arg("-c").arg(PARSE_ONLY).args(&args).current_dir(root);
             } else {

@@ -1,4 +1,4 @@
-//! The UAV demo end to end, shortened: `tutti demo uav --scenario short --speed 8` (40 s
+//! The UAV demo end to end, shortened: `tutti-demo uav --scenario short --speed 8` (40 s
 //! simulated: UAV3 disconnected 10-20 s, UAV4 12-22 s, C components at 25 s and 30 s). The
 //! demo's own summary must pass, and the CSV files are read back here to check the paper's
 //! claims independently: the framework's altitude holds level while a UAV is disconnected
@@ -53,8 +53,8 @@ fn the_short_uav_demo_reproduces_figures_5_and_6() {
     let dds_domain = common::dds_domain_in(180..=198).to_string();
     let listened = tmp.path().join("listener.jsonl");
     let _listener = Listener::start(&dds_domain, &listened);
-    let mut child = Command::new(env!("CARGO_BIN_EXE_tutti"))
-        .args(["demo", "uav", "--scenario", "short", "--duration", "40", "--speed", "8"])
+    let mut child = Command::new(common::workspace_bin("tutti-uav-demo", "tutti-demo"))
+        .args(["uav", "--scenario", "short", "--duration", "40", "--speed", "8"])
         .arg("--out")
         .arg(&out)
         // A DDS domain of its own, on loopback (the demo restricts the gateway to it).

@@ -9,6 +9,7 @@ pub mod cdr;
 pub mod ddf;
 pub mod idl;
 pub mod mapping;
+pub mod parse;
 pub mod shm;
 pub mod show;
 pub mod sync;

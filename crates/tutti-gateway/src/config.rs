@@ -21,6 +21,7 @@ use serde::de::{self, DeserializeSeed, Deserializer, SeqAccess, Visitor};
 use serde::{Deserialize, Serialize};
 use tutti_core::ddf::{Domain, Model, Role};
 use tutti_core::mapping::{self, Durability, Endpoint, History, ItemTopic, Profile, Qos, Reliability};
+use tutti_core::parse::{parse_duration, parse_wait};
 use tutti_core::shm::WaitMode;
 
 use crate::engine::{EngineConfig, EngineKind};
@@ -874,24 +875,6 @@ impl GatewayOptions {
 
 // ---------------------------------------------------------------------------------------
 // Value parsers, shared by the CLI's flags and the file's keys.
-
-/// A duration as the CLI takes it: a number and a unit (`10ms`, `500us`, `2s`, `1min`).
-pub fn parse_duration(s: &str) -> Result<Duration, String> {
-    humantime::parse_duration(s.trim())
-        .map_err(|_| format!("'{s}' is not a duration: a number and a unit, like 10ms, 500us, 2s or 1min"))
-}
-
-/// `block`, `spin` or `poll:DURATION`.
-pub fn parse_wait(s: &str) -> Result<WaitMode, String> {
-    match s {
-        "block" => Ok(WaitMode::Block),
-        "spin" => Ok(WaitMode::Spin),
-        _ => match s.strip_prefix("poll:") {
-            Some(d) => parse_duration(d).map(WaitMode::Poll),
-            None => Err(format!("'{s}': use block, spin or poll:DURATION (e.g. poll:50us)")),
-        },
-    }
-}
 
 /// A positive rate in Hz (`100`, `100Hz`).
 pub fn parse_rate(s: &str) -> Result<f64, ConfigError> {

@@ -19,7 +19,6 @@
 
 pub mod cdr;
 pub mod config;
-pub mod echo;
 pub mod engine;
 mod error;
 pub mod http;

@@ -9,13 +9,21 @@
 //!   `/tutti/events`; the DDF travels inside as an attachment, so that `tutti replay` needs
 //!   nothing but the file ([`replay`] reads it back).
 //!
-//! The crate sits above the core and depends on no DDS crate.
+//! Recorders take a framework's steps as a sink of the runner ([`RecordingSink`] for a
+//! `tutti_host::Host`, [`record_step`] for a loop of one's own). Two runs live here too: the
+//! passive [`live::LiveRecorder`] of `tutti record`, and the framework of `tutti replay`
+//! ([`replay::Replay`]).
+//!
+//! The crate sits above the core and the runner (`tutti-host`) and depends on no DDS crate.
 
 use std::path::Path;
 
 use tutti_core::ddf::Model;
+use tutti_core::shm::{Framework, ShmError};
+use tutti_host::{HostError, StepDone, StepSink};
 
 pub mod csv;
+pub mod live;
 pub mod mcap;
 pub mod replay;
 
@@ -30,6 +38,50 @@ pub enum RecordError {
     },
     #[error("{path}: {detail}")]
     Format { path: String, detail: String },
+    /// `--domain` names a domain that is not there.
+    #[error("{path}: no {noun} '{domain}' ({noun}s: {known})")]
+    UnknownDomain { path: String, noun: &'static str, domain: String, known: String },
+    /// `--wait-for` names a domain that is not replayed.
+    #[error("--wait-for {domain}={writers}: no domain '{domain}' replayed")]
+    WaitForDomain { domain: String, writers: usize },
+    /// The framework of a replay, or a domain a recorder follows, failed.
+    #[error("{what}: {source}")]
+    Framework {
+        what: String,
+        #[source]
+        source: ShmError,
+    },
+    #[error(transparent)]
+    Host(#[from] HostError),
+}
+
+impl RecordError {
+    /// Whether the request was impossible (the CLI's exit status 2) rather than the run failing.
+    pub fn is_invalid(&self) -> bool {
+        match self {
+            RecordError::Format { .. } | RecordError::UnknownDomain { .. } | RecordError::WaitForDomain { .. } => true,
+            RecordError::Host(e) => e.is_invalid(),
+            RecordError::Io { .. } | RecordError::Framework { .. } => false,
+        }
+    }
+}
+
+/// Keeps in `model` only the domains named in `names` (all of them when `names` is empty);
+/// a name it lacks is an error that lists what it has. `path` and `noun` word the error
+/// (`"domain"`, `"recorded domain"`).
+pub fn keep_domains(model: &mut Model, names: &[String], path: &Path, noun: &'static str) -> Result<(), RecordError> {
+    if let Some(missing) = names.iter().find(|n| model.domain(n).is_none()) {
+        return Err(RecordError::UnknownDomain {
+            path: path.display().to_string(),
+            noun,
+            domain: missing.clone(),
+            known: model.domains.iter().map(|d| d.name.as_str()).collect::<Vec<_>>().join(", "),
+        });
+    }
+    if !names.is_empty() {
+        model.domains.retain(|d| names.contains(&d.name));
+    }
+    Ok(())
 }
 
 /// One step of one domain, as the framework saw it.
@@ -67,6 +119,45 @@ pub fn create(path: &Path, model: &Model, ddf_path: &Path) -> Result<Box<dyn Rec
         Ok(Box::new(mcap::McapRecorder::create(path, model, ddf_path)?))
     } else {
         Ok(Box::new(csv::CsvRecorder::create(path, model)?))
+    }
+}
+
+/// Records in `recorder` the step every domain of `fw` just made (as `done` says, with the
+/// PUBLISH sets it published).
+pub fn record_step(recorder: &mut dyn Recorder, fw: &Framework, done: &StepDone<'_>) -> Result<(), RecordError> {
+    let (wall_ns, elapsed_s) = (now_ns(), done.run_start.elapsed().as_secs_f64());
+    for (i, (host, report)) in fw.domains.iter().zip(done.reports).enumerate() {
+        let step = Step {
+            step: report.step,
+            sim_time: done.sim,
+            wall_ns,
+            elapsed_s,
+            connections: host.connection_count(),
+            owner_pid: host.segment().exclusive_owner_pid(),
+            publish: &done.publish[i],
+            subscribe: host.subscribe(),
+        };
+        recorder.step(i, &step)?;
+    }
+    Ok(())
+}
+
+/// A recording as a sink of a `tutti_host::Host`: it records every step of the run.
+pub struct RecordingSink(pub Box<dyn Recorder>);
+
+impl std::fmt::Debug for RecordingSink {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str("RecordingSink")
+    }
+}
+
+impl StepSink for RecordingSink {
+    fn step(&mut self, fw: &Framework, done: &StepDone<'_>) -> Result<(), Box<dyn std::error::Error + Send + Sync>> {
+        Ok(record_step(self.0.as_mut(), fw, done)?)
+    }
+
+    fn finish(self: Box<Self>) -> Result<(), Box<dyn std::error::Error + Send + Sync>> {
+        Ok(self.0.finish()?)
     }
 }
 

@@ -13,7 +13,7 @@
 //! | `POST /api/parse` | XML typed by hand: diagnostics, document |
 //! | `POST /api/save` | atomic write of the product dialect (refusals: see [`editor::save`]) |
 //! | `GET /api/monitor` | Server-Sent Events at 10 Hz: domains, plotted items, runs ([`monitor`]) |
-//! | `POST /api/run/start`, `/api/run/stop` | a `tutti host` or `tutti gateway` as a child ([`run`]) |
+//! | `POST /api/run/start`, `/api/run/stop` | a framework (in-process) or a `tutti gateway` child ([`run`]) |
 //!
 //! Safety: the server binds 127.0.0.1 unless told otherwise, and any other address needs
 //! the token made at start ([`Config::token`]); files are read and written only under the
@@ -55,7 +55,7 @@ pub struct Config {
     pub token: Option<String>,
     /// The namespace the monitor shows first.
     pub namespace: String,
-    /// The `tutti` executable run control starts (`None`: no run control).
+    /// The `tutti` executable, which run control starts a gateway with (`None`: no run control).
     pub tutti_exe: Option<PathBuf>,
 }
 

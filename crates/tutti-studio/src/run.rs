@@ -1,14 +1,19 @@
-//! Run control: a `tutti host` and a `tutti gateway` for a DDF under the root, started as
-//! child processes of the studio with their logs kept; stopped on request (SIGTERM, then
-//! SIGKILL after a grace period) and when the studio stops. The monitor's events carry their
-//! state ([`snapshot`]).
+//! Run control: a framework (`tutti host`'s run, in-process on a thread of its own) or a
+//! `tutti gateway` (a child process) for a DDF under the root, with their logs kept; stopped
+//! on request and when the studio stops. The monitor's events carry their state
+//! ([`snapshot`]).
+//!
+//! The framework is `tutti-host`'s [`Host`], driven here as `tutti host` drives it, with the
+//! same log lines; its `pid` is the studio's own. The gateway is started as a child that dies
+//! with the studio (SIGTERM, then SIGKILL after a grace period, when stopped).
 
 use std::collections::{HashMap, VecDeque};
 use std::io::{BufRead, BufReader, Read};
-use std::os::unix::process::CommandExt;
 use std::path::PathBuf;
-use std::process::{Child, Command, Stdio};
+use std::process::{Command, Stdio};
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex};
+use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
 use axum::extract::State;
@@ -16,16 +21,17 @@ use axum::http::StatusCode;
 use axum::Json;
 use serde::Deserialize;
 use serde_json::{json, Value};
-use tutti_core::shm::os;
+use tutti_host::{ChildProcess, Host, HostOptions, SIGTERM};
 
 use crate::error::ApiError;
 use crate::AppState;
 
 /// Lines of log kept per run.
 const LOG_LINES: usize = 400;
-/// How long a stopped run gets to exit before SIGKILL.
+/// How long a stopped gateway gets to exit before SIGKILL.
 const GRACE: Duration = Duration::from_secs(3);
-const SIGTERM: i32 = 15;
+
+type Log = Arc<Mutex<VecDeque<String>>>;
 
 /// The two kinds of run.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Deserialize)]
@@ -44,23 +50,43 @@ impl Kind {
     }
 }
 
-/// One child process and its log.
+/// What runs: a framework on a thread of the studio, or a gateway process.
+#[derive(Debug)]
+enum Runner {
+    Host { stop: Arc<AtomicBool>, thread: Option<JoinHandle<String>> },
+    Gateway(ChildProcess),
+}
+
+/// One run and its log.
 #[derive(Debug)]
 pub struct Run {
-    child: Child,
+    runner: Runner,
     path: String,
     namespace: String,
     started: Instant,
-    log: Arc<Mutex<VecDeque<String>>>,
+    log: Log,
     exit: Option<String>,
 }
 
 impl Run {
+    fn pid(&self) -> u32 {
+        match &self.runner {
+            Runner::Host { .. } => std::process::id(),
+            Runner::Gateway(child) => child.pid(),
+        }
+    }
+
     fn poll(&mut self) {
-        if self.exit.is_none() {
-            if let Ok(Some(status)) = self.child.try_wait() {
-                self.exit = Some(status.to_string());
+        if self.exit.is_some() {
+            return;
+        }
+        match &mut self.runner {
+            Runner::Host { thread, .. } => {
+                if thread.as_ref().is_some_and(|t| t.is_finished()) {
+                    self.exit = thread.take().map(|t| t.join().unwrap_or_else(|_| "panicked".into()));
+                }
             }
+            Runner::Gateway(child) => self.exit = child.poll().map(|s| s.to_string()),
         }
     }
 
@@ -69,17 +95,13 @@ impl Run {
         if self.exit.is_some() {
             return;
         }
-        let _ = os::send_signal(self.child.id(), SIGTERM);
-        let deadline = Instant::now() + GRACE;
-        while Instant::now() < deadline {
-            if let Ok(Some(status)) = self.child.try_wait() {
-                self.exit = Some(status.to_string());
-                return;
+        match &mut self.runner {
+            Runner::Host { stop, thread } => {
+                stop.store(true, Ordering::SeqCst);
+                self.exit = thread.take().map(|t| t.join().unwrap_or_else(|_| "panicked".into()));
             }
-            std::thread::sleep(Duration::from_millis(20));
+            Runner::Gateway(child) => self.exit = child.stop(Some(SIGTERM), GRACE).map(|s| s.to_string()),
         }
-        let _ = self.child.kill();
-        self.exit = self.child.wait().ok().map(|s| s.to_string());
     }
 }
 
@@ -93,7 +115,7 @@ impl Drop for Run {
 #[derive(Debug, Default)]
 pub struct Runs {
     runs: Mutex<HashMap<Kind, Run>>,
-    /// The `tutti` executable the runs start.
+    /// The `tutti` executable that runs a gateway.
     pub exe: Option<PathBuf>,
 }
 
@@ -112,15 +134,19 @@ impl Runs {
     }
 }
 
-fn keep_lines(r: impl Read + Send + 'static, log: Arc<Mutex<VecDeque<String>>>) {
+fn keep_line(log: &Log, line: String) {
+    if let Ok(mut l) = log.lock() {
+        if l.len() == LOG_LINES {
+            l.pop_front();
+        }
+        l.push_back(line);
+    }
+}
+
+fn keep_lines(r: impl Read + Send + 'static, log: Log) {
     std::thread::spawn(move || {
         for line in BufReader::new(r).lines().map_while(Result::ok) {
-            if let Ok(mut l) = log.lock() {
-                if l.len() == LOG_LINES {
-                    l.pop_front();
-                }
-                l.push_back(line);
-            }
+            keep_line(&log, line);
         }
     });
 }
@@ -136,7 +162,7 @@ pub fn snapshot(state: &AppState) -> Value {
         out.insert(
             kind.name().into(),
             json!({
-                "pid": run.child.id(),
+                "pid": run.pid(),
                 "path": run.path,
                 "namespace": run.namespace,
                 "running": run.exit.is_none(),
@@ -153,10 +179,10 @@ pub fn snapshot(state: &AppState) -> Value {
 pub struct StartBody {
     pub kind: Kind,
     pub path: String,
-    /// `tutti host --step` (e.g. `10ms`).
+    /// The framework's step (e.g. `10ms`).
     #[serde(default)]
     pub step: Option<String>,
-    /// `tutti host --duration`.
+    /// How long the framework runs (default: until stopped).
     #[serde(default)]
     pub duration: Option<String>,
     /// TUTTI_NAMESPACE of the run (default: the studio's).
@@ -164,11 +190,77 @@ pub struct StartBody {
     pub namespace: Option<String>,
 }
 
-fn arg_ok(what: &str, v: &str) -> Result<(), ApiError> {
-    if v.is_empty() || v.len() > 32 || !v.chars().all(|c| c.is_ascii_alphanumeric() || c == '.') {
-        return Err(ApiError::bad_request(format!("{what} '{v}': expected a duration such as 10ms or 60s")));
+fn duration(what: &str, v: Option<&str>) -> Result<Option<Duration>, ApiError> {
+    let Some(v) = v.filter(|s| !s.is_empty()) else { return Ok(None) };
+    tutti_core::parse::parse_duration(v)
+        .map(Some)
+        .map_err(|_| ApiError::bad_request(format!("{what} '{v}': expected a duration such as 10ms or 60s")))
+}
+
+/// The framework of `model` in `namespace`, on a thread of its own; its log lines are those
+/// of `tutti host`. The thread returns how the run ended.
+fn start_host(model: tutti_core::ddf::Model, opts: HostOptions, log: Log) -> Runner {
+    let stop = Arc::new(AtomicBool::new(false));
+    let flag = stop.clone();
+    let thread = std::thread::Builder::new().name("studio-host".into()).spawn(move || {
+        let started = Instant::now();
+        let (step, ddf) = (opts.step, opts.ddf_name.clone());
+        let host = match Host::new(&model, opts) {
+            Ok(h) => h,
+            Err(e) => {
+                keep_line(&log, format!("host: {e}"));
+                return format!("failed: {e}");
+            }
+        };
+        keep_line(
+            &log,
+            format!(
+                "host: {} domain(s) of {ddf} created in {:.1} ms (namespace {}), step {step:?}",
+                host.framework().domains.len(),
+                started.elapsed().as_secs_f64() * 1e3,
+                host.namespace()
+            ),
+        );
+        match host.run(&flag, |report| keep_line(&log, format!("host: {report}"))) {
+            Ok(summary) => {
+                if summary.started {
+                    keep_line(&log, format!("host: {summary}"));
+                }
+                "done".into()
+            }
+            Err(e) => {
+                keep_line(&log, format!("host: {e}"));
+                format!("failed: {e}")
+            }
+        }
+    });
+    match thread {
+        Ok(t) => Runner::Host { stop, thread: Some(t) },
+        Err(_) => Runner::Host { stop, thread: None },
     }
-    Ok(())
+}
+
+/// `tutti gateway` on `real` in `namespace`, a child that dies with the studio.
+fn start_gateway(exe: PathBuf, real: &std::path::Path, namespace: &str, log: &Log) -> Result<Runner, ApiError> {
+    let mut cmd = Command::new(exe);
+    cmd.arg("gateway").arg(real);
+    cmd.env("TUTTI_NAMESPACE", namespace).stdin(Stdio::null()).stdout(Stdio::piped()).stderr(Stdio::piped());
+    let mut child = ChildProcess::spawn("tutti gateway", cmd, None)
+        .map_err(|e| {
+            ApiError::new(
+                StatusCode::INTERNAL_SERVER_ERROR,
+                "spawn",
+                format!("cannot start tutti gateway: {}", e.source),
+            )
+        })?
+        .stop_on_drop(Some(SIGTERM), GRACE);
+    if let Some(out) = child.child.stdout.take() {
+        keep_lines(out, log.clone());
+    }
+    if let Some(err) = child.child.stderr.take() {
+        keep_lines(err, log.clone());
+    }
+    Ok(Runner::Gateway(child))
 }
 
 /// `POST /api/run/start {kind, path, step?, duration?, namespace?}`.
@@ -180,67 +272,46 @@ pub async fn start(State(st): State<Arc<AppState>>, Json(body): Json<StartBody>)
             "the studio runs with --read-only: no run control",
         ));
     }
+    // Run control is on when the studio knows the tutti executable (the gateway's).
     let exe = st.runs.exe.clone().ok_or_else(|| {
         ApiError::new(StatusCode::SERVICE_UNAVAILABLE, "no-exe", "this studio does not know the tutti executable")
     })?;
     let real = st.root.existing(&body.path)?;
     let rel = st.root.relative(&real);
-    if let Err(e) = tutti_core::ddf::load(&real) {
-        return Err(ApiError::new(
+    let model = tutti_core::ddf::load(&real).map_err(|e| {
+        ApiError::new(
             StatusCode::UNPROCESSABLE_ENTITY,
             "invalid",
             format!("{rel} is not a valid DDF; not started:\n{e}"),
-        ));
-    }
+        )
+    })?;
     let namespace = body.namespace.filter(|n| !n.is_empty()).unwrap_or_else(|| st.namespace.clone());
     tutti_core::shm::segment::check_namespace(&namespace).map_err(|e| ApiError::bad_request(e.to_string()))?;
-    let mut cmd = Command::new(exe);
-    cmd.arg(body.kind.name()).arg(&real);
-    if body.kind == Kind::Host {
-        if let Some(step) = body.step.as_deref().filter(|s| !s.is_empty()) {
-            arg_ok("step", step)?;
-            cmd.args(["--step", step]);
-        }
-        if let Some(d) = body.duration.as_deref().filter(|s| !s.is_empty()) {
-            arg_ok("duration", d)?;
-            cmd.args(["--duration", d]);
-        }
-    }
-    cmd.env("TUTTI_NAMESPACE", &namespace).stdin(Stdio::null()).stdout(Stdio::piped()).stderr(Stdio::piped());
-    // SAFETY: the closure runs between fork and exec and only makes one system call
-    // (prctl through `die_with_parent`), which is async-signal-safe and allocates nothing.
-    unsafe {
-        cmd.pre_exec(os::die_with_parent);
-    }
+    let opts = HostOptions {
+        step: duration("step", body.step.as_deref())?.unwrap_or(Duration::from_millis(10)),
+        duration: duration("duration", body.duration.as_deref())?,
+        namespace: Some(namespace.clone()),
+        ddf_name: real.display().to_string(),
+        ..HostOptions::default()
+    };
     let mut runs = st.runs.runs.lock().map_err(|_| ApiError::bad_request("run state unavailable"))?;
     if let Some(r) = runs.get_mut(&body.kind) {
         r.poll();
         if r.exit.is_none() {
             return Err(ApiError::conflict(
                 "running",
-                format!("a {} is already running (pid {}, {}): stop it first", body.kind.name(), r.child.id(), r.path),
+                format!("a {} is already running (pid {}, {}): stop it first", body.kind.name(), r.pid(), r.path),
             ));
         }
     }
-    let mut child = cmd.spawn().map_err(|e| {
-        ApiError::new(
-            StatusCode::INTERNAL_SERVER_ERROR,
-            "spawn",
-            format!("cannot start tutti {}: {e}", body.kind.name()),
-        )
-    })?;
-    let log = Arc::new(Mutex::new(VecDeque::new()));
-    if let Some(out) = child.stdout.take() {
-        keep_lines(out, log.clone());
-    }
-    if let Some(err) = child.stderr.take() {
-        keep_lines(err, log.clone());
-    }
-    let pid = child.id();
-    runs.insert(
-        body.kind,
-        Run { child, path: rel.clone(), namespace: namespace.clone(), started: Instant::now(), log, exit: None },
-    );
+    let log: Log = Arc::new(Mutex::new(VecDeque::new()));
+    let runner = match body.kind {
+        Kind::Host => start_host(model, opts, log.clone()),
+        Kind::Gateway => start_gateway(exe, &real, &namespace, &log)?,
+    };
+    let run = Run { runner, path: rel.clone(), namespace: namespace.clone(), started: Instant::now(), log, exit: None };
+    let pid = run.pid();
+    runs.insert(body.kind, run);
     Ok(Json(json!({ "kind": body.kind.name(), "pid": pid, "path": rel, "namespace": namespace })))
 }
 

@@ -293,12 +293,12 @@ fn run_control_refuses_what_it_must_and_keeps_the_log() {
     assert_eq!(status, 400, "{body}");
     let (status, body) = start("multiuav.ddf", "10ms");
     assert_eq!(status, 200, "{body}");
-    // echo prints its arguments and exits: the log holds them once the thread that reads
-    // the child's output has taken them (it runs beside the child: poll, with a watchdog).
+    // The framework runs on a thread of the studio: the log holds its first line (with the
+    // step it was given) once that thread has written it (poll, with a watchdog).
     let deadline = std::time::Instant::now() + std::time::Duration::from_secs(30);
     let mut ev = first_event(&s, "");
-    while !ev["runs"]["host"]["log"].to_string().contains("--step 10ms") {
-        assert!(std::time::Instant::now() < deadline, "echo's output never reached the log: {ev}");
+    while !ev["runs"]["host"]["log"].to_string().contains("step 10ms") {
+        assert!(std::time::Instant::now() < deadline, "the host's output never reached the log: {ev}");
         std::thread::sleep(std::time::Duration::from_millis(20));
         ev = first_event(&s, "");
     }

@@ -30,7 +30,7 @@ pub use c::{compile_c, rtapi_lib_dir};
 pub use names::{dds_domain_in, namespace};
 pub use policy::{ci, python, require, require_tool, which};
 pub use proc::{Proc, Spawn};
-pub use run::{run_output, run_with_timeout, tutti, tutti_command, tutti_exe, TIMEOUT};
+pub use run::{run_output, run_with_timeout, tutti, tutti_command, tutti_exe, workspace_bin, TIMEOUT};
 pub use segments::{segments_of, RemoveSegments};
 pub use worker::Worker;
 

@@ -63,20 +63,25 @@ pub fn run_output(mut cmd: impl BorrowMut<Command>, limit: Duration) -> Output {
 /// --workspace` before the tests, as the test command does, keeps it current).
 pub fn tutti_exe() -> PathBuf {
     static EXE: OnceLock<PathBuf> = OnceLock::new();
-    EXE.get_or_init(|| {
-        let profile = crate::profile_dir();
-        let exe = profile.join("tutti");
-        if !exe.is_file() {
-            let mut cmd = Command::new(crate::cargo());
-            cmd.args(["build", "-q", "-p", "tutti", "--bin", "tutti"]).current_dir(crate::repo_root());
-            if profile.file_name().is_some_and(|n| n == "release") {
-                cmd.arg("--release");
-            }
-            assert!(cmd.status().expect("running cargo").success(), "building the tutti binary");
+    EXE.get_or_init(|| workspace_bin("tutti", "tutti")).clone()
+}
+
+/// The executable `bin` of the workspace member `package` in this build's
+/// `target/<profile>` (the benchmarks' `tutti-bench`, the demo's `tutti-demo`), built when it
+/// is missing, as [`tutti_exe`] is.
+pub fn workspace_bin(package: &str, bin: &str) -> PathBuf {
+    let profile = crate::profile_dir();
+    let exe = profile.join(bin);
+    if !exe.is_file() {
+        let mut cmd = Command::new(crate::cargo());
+        cmd.args(["build", "-q", "-p", package, "--bin", bin]).current_dir(crate::repo_root());
+        if profile.file_name().is_some_and(|n| n == "release") {
+            cmd.arg("--release");
         }
-        exe
-    })
-    .clone()
+        assert!(cmd.status().expect("running cargo").success(), "building {bin} of {package}");
+        assert!(exe.is_file(), "{} missing after building it", exe.display());
+    }
+    exe
 }
 
 /// A `tutti` command, run in the repository root (so that `ddf/…` paths resolve).

@@ -1,6 +1,6 @@
 /*
  * AltitudeFilter: the FMI 3.0 co-simulation FMU of the UAV demo (docs/uav-demo.md), built from
- * this source by `tutti demo uav` and run as a participant with `tutti fmu run`.
+ * this source by `tutti-demo uav` and run as a participant with `tutti fmu run`.
  *
  * Input `elevation` (m, UAV 1's elevation as the framework read it); parameter `tau` (s).
  * Outputs: `altitude`, the elevation through a first-order filter with time constant tau,

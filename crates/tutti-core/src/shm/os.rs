@@ -206,6 +206,26 @@ pub fn die_with_parent() -> io::Result<()> {
     rustix::process::set_parent_process_death_signal(Some(rustix::process::Signal::TERM)).map_err(io::Error::from)
 }
 
+/// Sets `cmd` up so that the process it starts dies with this one ([`die_with_parent`]),
+/// runs under normal scheduling (a real-time parent's `SCHED_FIFO` is not inherited) and, with
+/// `cpu`, is pinned to that CPU. What the child cannot apply fails its spawn (pinning) or is
+/// ignored (normal scheduling). The one place where a child is prepared between fork and exec.
+pub fn die_with_parent_on_spawn(cmd: &mut std::process::Command, cpu: Option<usize>) {
+    use std::os::unix::process::CommandExt;
+    // SAFETY: the closure runs between fork and exec and only makes system calls (prctl,
+    // sched_setscheduler, sched_setaffinity), which are async-signal-safe; it allocates
+    // nothing (pin_to_cpu allocates only for an error about a CPU past the kernel's limit).
+    unsafe {
+        cmd.pre_exec(move || {
+            let _ = set_normal_scheduling();
+            if let Some(c) = cpu {
+                pin_to_cpu(c)?;
+            }
+            die_with_parent()
+        });
+    }
+}
+
 /// Undoes [`lock_memory`].
 pub fn unlock_memory() -> io::Result<()> {
     rustix::mm::munlockall().map_err(io::Error::from)

@@ -1,4 +1,4 @@
-//! `tutti bench record`: what recording costs a real-time host. The framework of a DDF steps
+//! `tutti-bench record`: what recording costs a real-time host. The framework of a DDF steps
 //! every domain at a fixed rate (as `tutti host` does, with values that change every step)
 //! for `--duration`, without a recording, with `--record run.mcap` and with CSV, in
 //! alternating rounds; it prints the step lateness (how late each step woke after its
@@ -11,10 +11,10 @@ use anyhow::Context as _;
 use tutti_core::ddf::ScalarType;
 use tutti_core::shm::{Framework, FrameworkOptions};
 
-use super::super::host::parse_duration;
-use super::super::{load_ddf, CliResult};
-use super::nearest_rank;
-use crate::rt::{self, Ticker};
+use crate::nearest_rank;
+use crate::{load_ddf, CliResult};
+use tutti_core::parse::parse_duration;
+use tutti_host::{step_all, StepDone, Ticker};
 
 /// The host every stepping benchmark runs: a DDF, its period, each run's length.
 #[derive(Debug, clap::Args)]
@@ -32,7 +32,7 @@ pub struct Stepping {
 
 /// Step lateness at a fixed rate with and without a recording, and MB per minute.
 #[derive(Debug, clap::Args)]
-#[command(after_help = "Example:\n  cargo run --release -- bench record --duration 20s --rounds 2")]
+#[command(after_help = "Example:\n  cargo run --release -p tutti-bench -- record --duration 20s --rounds 2")]
 pub struct Args {
     #[command(flatten)]
     run: Stepping,
@@ -125,15 +125,16 @@ fn one_run(
         Mode::Mcap => "run.mcap",
         _ => "run.csv",
     });
-    let mut recorders = match mode {
-        Mode::None => Vec::new(),
-        _ => vec![tutti_record::create(&path, model, &args.run.file)?],
+    let mut recorder = match mode {
+        Mode::None => None,
+        _ => Some(tutti_record::create(&path, model, &args.run.file)?),
     };
     let (late, overruns, secs) =
-        step_run(model, &mut fw, args.run.step, args.run.duration, |fw, reports, publish, sim, start| {
-            rt::record_step(&mut recorders, fw, reports, publish, sim, start)
+        step_run(model, &mut fw, args.run.step, args.run.duration, |fw, done| match recorder.as_mut() {
+            Some(rec) => tutti_record::record_step(rec.as_mut(), fw, done).context("writing the recording"),
+            None => Ok(()),
         })?;
-    for rec in recorders {
+    if let Some(rec) = recorder {
         rec.finish()?;
     }
     let bytes = match mode {
@@ -157,12 +158,12 @@ fn one_run(
 /// each step (a recording, or nothing). Returns each step's lateness, the overruns and the
 /// seconds run. Shared by the benchmarks that measure what something beside the framework
 /// costs it (`bench record`, `bench studio`).
-pub(super) fn step_run(
+pub(crate) fn step_run(
     model: &tutti_core::ddf::Model,
     fw: &mut Framework,
     step: Duration,
     duration: Duration,
-    mut after: impl FnMut(&Framework, &[tutti_core::shm::StepReport], &[Vec<u8>], f64, Instant) -> anyhow::Result<()>,
+    mut after: impl FnMut(&Framework, &StepDone<'_>) -> anyhow::Result<()>,
 ) -> anyhow::Result<(Vec<Duration>, u64, f64)> {
     let mut publish: Vec<Vec<u8>> = model.domains.iter().map(|d| d.publish.layout.default_bytes()).collect();
     let mut late = Vec::with_capacity((duration.as_secs_f64() / step.as_secs_f64()) as usize + 16);
@@ -179,8 +180,8 @@ pub(super) fn step_run(
                 }
             }
         }
-        let reports = rt::step_all(fw, &publish, sim, step, &tick)?;
-        after(fw, &reports, &publish, sim, start)?;
+        let reports = step_all(fw, &publish, sim, step, &tick)?;
+        after(fw, &StepDone { reports: &reports, publish: &publish, sim, run_start: start })?;
     }
     Ok((late, ticker.overruns, start.elapsed().as_secs_f64()))
 }

@@ -13,9 +13,9 @@ use std::time::{Duration, Instant};
 use tutti_core::ddf::{Domain, Role};
 use tutti_core::mapping::{self, Endpoint, History, Reliability};
 
-use crate::cdr::{SetCodec, TypedSample};
-use crate::engine::{self, Data, Decode, Engine, Guid, Sink, Writer};
-use crate::{GatewayError, GatewayOptions};
+use tutti_gateway::cdr::{SetCodec, TypedSample};
+use tutti_gateway::engine::{self, Data, Decode, Engine, Guid, Sink, Writer};
+use tutti_gateway::{GatewayError, GatewayOptions};
 
 /// A sink that decodes typed samples of other participants and hands them to `f`.
 fn typed_sink(
@@ -30,8 +30,8 @@ fn typed_sink(
         let s = match data {
             Data::Raw(raw) => codec.decode(raw),
             Data::Decoded(r) => r.and_then(|p| match p {
-                crate::cdr::Payload::Set(s) => Ok(s),
-                crate::cdr::Payload::Item { .. } => Err(crate::cdr::CdrError::Unexpected("not a set")),
+                tutti_gateway::cdr::Payload::Set(s) => Ok(s),
+                tutti_gateway::cdr::Payload::Item { .. } => Err(tutti_gateway::cdr::CdrError::Unexpected("not a set")),
             }),
         };
         if let Ok(s) = s {

@@ -1,6 +1,6 @@
-//! The peer of `tutti bench shm`: iceoryx2 (0.10) publish-subscribe ping-pong between two
+//! The peer of `tutti-bench shm`: iceoryx2 (0.10) publish-subscribe ping-pong between two
 //! processes, busy polling, measured the same way as tutti's round trips. The pong side is
-//! this binary again, run as the hidden `tutti bench iox-pong`.
+//! this binary again, run as the hidden `tutti-bench iox-pong`.
 //!
 //! Each run uses its own iceoryx2 `Config` (root dir `/tmp/iceoryx2_pp<pid>_<n>/`, shm prefix
 //! `iox2_pp<pid>_<n>_`) plus pid-unique service names, so parallel runs never collide and all
@@ -11,9 +11,9 @@ use std::process::{Command, Stdio};
 use std::sync::atomic::{AtomicUsize, Ordering};
 use std::time::{Duration, Instant};
 
-use super::super::child::{self, Kid};
-use super::super::CliResult;
-use super::{relax, warmup};
+use crate::CliResult;
+use crate::{relax, warmup};
+use tutti_host::ChildProcess;
 
 type Res<T> = Result<T, Box<dyn std::error::Error>>;
 const STOP: u64 = u64::MAX;
@@ -48,7 +48,7 @@ pub struct PongArgs {
     yield_spin: bool,
 }
 
-/// The pong side (`tutti bench iox-pong TAG SIZE --cpu N [--yield-spin]`).
+/// The pong side (`tutti-bench iox-pong TAG SIZE --cpu N [--yield-spin]`).
 pub fn pong_main(a: PongArgs) -> CliResult {
     pong(&a.tag, a.size, a.cpu, a.yield_spin).map_err(|e| anyhow::anyhow!("iceoryx2 pong: {e}"))?;
     Ok(())
@@ -99,11 +99,12 @@ fn ping(
     let subscriber = svc_pong.subscriber_builder().create()?;
 
     let mut cmd = Command::new(std::env::current_exe()?);
-    cmd.args(["bench", "iox-pong", tag, &size.to_string(), "--cpu", &cpu_pong.to_string()]).stdin(Stdio::null());
+    cmd.args(["iox-pong", tag, &size.to_string(), "--cpu", &cpu_pong.to_string()]).stdin(Stdio::null());
     if yield_spin {
         cmd.arg("--yield-spin");
     }
-    let kid = guard.child.insert(child::spawn("the iceoryx2 pong", cmd, None)?.stop_on_drop(None, Duration::ZERO));
+    let kid =
+        guard.child.insert(ChildProcess::spawn("the iceoryx2 pong", cmd, None)?.stop_on_drop(None, Duration::ZERO));
     // wait until pong has its subscriber on "ping" and publisher on "pong"
     let t = Instant::now();
     while svc_ping.dynamic_config().number_of_subscribers() < 1 || svc_pong.dynamic_config().number_of_publishers() < 1
@@ -196,7 +197,7 @@ fn pin_current_thread(cpu: usize) {
 /// Kills the child if still running and removes everything iceoryx2 created for this run.
 struct RunGuard {
     tag: String,
-    child: Option<Kid>,
+    child: Option<ChildProcess>,
 }
 impl Drop for RunGuard {
     fn drop(&mut self) {

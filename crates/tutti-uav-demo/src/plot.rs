@@ -13,8 +13,8 @@ use plotters::coord::Shift;
 use plotters::prelude::*;
 use plotters::style::FontStyle;
 
-use super::analysis::{observed_windows, RunData};
-use super::scenario::{Scenario, UAVS};
+use crate::analysis::{observed_windows, RunData};
+use crate::scenario::{Scenario, UAVS};
 
 /// Where the font is looked for, in order (after `TUTTI_FONT`).
 pub const FONT_CANDIDATES: &[&str] = &[
@@ -24,7 +24,8 @@ pub const FONT_CANDIDATES: &[&str] = &[
     "/usr/share/fonts/truetype/liberation/LiberationSans-Regular.ttf",
 ];
 
-static FONT: OnceLock<Result<PathBuf, String>> = OnceLock::new();
+/// The font registered, or None when none was found.
+static FONT: OnceLock<Option<PathBuf>> = OnceLock::new();
 
 /// Registers the sans-serif font once (for plotters' text measurement); returns its file.
 /// An error names what to install.
@@ -37,12 +38,12 @@ fn font() -> anyhow::Result<PathBuf> {
             let bytes: &'static [u8] = Box::leak(bytes.into_boxed_slice());
             if plotters::style::register_font("sans-serif", FontStyle::Normal, bytes).is_ok() {
                 let _ = plotters::style::register_font("sans-serif", FontStyle::Bold, bytes);
-                return Ok(path);
+                return Some(path);
             }
         }
-        Err("no TrueType font found: install Debian's fonts-dejavu-core, or set TUTTI_FONT to a .ttf file".into())
+        None
     });
-    r.clone().map_err(|e| anyhow::anyhow!("{e}"))
+    r.clone().context("no TrueType font found: install Debian's fonts-dejavu-core, or set TUTTI_FONT to a .ttf file")
 }
 
 /// Writes `svg` to `path` with the extension `.svg`, and its rasterisation to `path` (PNG),

@@ -17,7 +17,7 @@ use std::path::Path;
 
 use anyhow::Context;
 
-use super::scenario::{Action, Scenario, UAVS};
+use crate::scenario::{Action, Scenario, FMU_TAU, UAVS};
 
 /// A CSV file of numbers with a header line.
 #[derive(Debug, Clone, Default)]
@@ -190,7 +190,7 @@ fn fmu_filter(d: &RunData, step: f64) -> Check {
     if n.iter().all(|&k| k.is_nan() || k < 1.0) {
         return Check::new(name, false, "altitude_filter.csv: the FMU never answered".into());
     }
-    let a = (step / crate::cli::demo::uav::FMU_TAU).min(1.0);
+    let a = (step / FMU_TAU).min(1.0);
     let (mut judged, mut skipped, mut worst) = (0usize, 0usize, 0.0f64);
     for i in 1..n.len() {
         if n[i - 1] < 2.0 {
@@ -412,10 +412,7 @@ mod tests {
             }
         }
         let mut uavs: Vec<Table> = (0..UAVS)
-            .map(|_| Table {
-                header: crate::cli::demo::node::UAV_LOG_HEADER.split(',').map(String::from).collect(),
-                rows: vec![],
-            })
+            .map(|_| Table { header: crate::node::UAV_LOG_HEADER.split(',').map(String::from).collect(), rows: vec![] })
             .collect();
         let mut last_read = [0.0f64; UAVS];
         let mut last_time = [0.0f64; UAVS];
@@ -472,7 +469,7 @@ mod tests {
             rows: vec![],
         };
         let elev_col = fw.header.iter().position(|h| h == "uav1_elevation").unwrap();
-        let a = (step / crate::cli::demo::uav::FMU_TAU).min(1.0);
+        let a = (step / FMU_TAU).min(1.0);
         let mut filtered = f64::NAN;
         for (k, r) in fw.rows.iter().enumerate() {
             let e = r[elev_col];

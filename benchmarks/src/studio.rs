@@ -1,4 +1,4 @@
-//! `tutti bench studio`: what watching costs a real-time host. The framework of a DDF steps
+//! `tutti-bench studio`: what watching costs a real-time host. The framework of a DDF steps
 //! every domain at a fixed rate (the stepping loop of `bench record`) for `--duration`,
 //! alone and with a `tutti studio` (a child process) streaming the live monitor with
 //! `--items` items plotted to a reader of its event stream, in alternating rounds; it prints
@@ -14,14 +14,13 @@ use std::time::Duration;
 use anyhow::{bail, Context as _};
 use tutti_core::shm::{Framework, FrameworkOptions};
 
-use super::super::child;
-use super::super::{load_ddf, CliResult};
-use super::nearest_rank;
-use super::record::{step_run, Stepping};
+use crate::nearest_rank;
+use crate::record::{step_run, Stepping};
+use crate::{load_ddf, CliResult};
 
 /// Step lateness at a fixed rate with and without the studio's live monitor plotting items.
 #[derive(Debug, clap::Args)]
-#[command(after_help = "Example:\n  cargo run --release -- bench studio --duration 20s --rounds 2 --items 20")]
+#[command(after_help = "Example:\n  cargo run --release -p tutti-bench -- studio --duration 20s --rounds 2 --items 20")]
 pub struct Args {
     #[command(flatten)]
     run: Stepping,
@@ -35,7 +34,7 @@ pub struct Args {
 
 /// A studio child process and a reader of its monitor stream, counting events.
 struct Watcher {
-    _studio: child::Kid,
+    _studio: tutti_host::ChildProcess,
     stop: Arc<AtomicBool>,
     events: Arc<AtomicU64>,
     reader: Option<std::thread::JoinHandle<()>>,
@@ -51,7 +50,7 @@ impl Drop for Watcher {
 }
 
 fn watch(namespace: &str, file: &std::path::Path, items: &[String]) -> anyhow::Result<Watcher> {
-    let exe = std::env::current_exe().context("finding the tutti executable")?;
+    let exe = crate::tutti_exe()?;
     let root = file.parent().filter(|p| !p.as_os_str().is_empty()).unwrap_or(std::path::Path::new("."));
     let mut cmd = Command::new(exe);
     cmd.args(["studio", "--listen", "127.0.0.1:0", "--read-only", "--root"])
@@ -60,7 +59,7 @@ fn watch(namespace: &str, file: &std::path::Path, items: &[String]) -> anyhow::R
         .stdin(Stdio::null())
         .stdout(Stdio::null())
         .stderr(Stdio::piped());
-    let mut studio = child::spawn("tutti studio", cmd, None)?;
+    let mut studio = tutti_host::ChildProcess::spawn("tutti studio", cmd, None)?;
     let stderr = studio.child.stderr.take().context("the studio's stderr")?;
     let mut lines = BufReader::new(stderr).lines();
     let addr = loop {
@@ -145,7 +144,7 @@ pub fn run(args: Args) -> CliResult {
             }
             let before = watcher.as_ref().map_or(0, |w| w.events.load(Ordering::Relaxed));
             let (mut late, overruns, secs) =
-                step_run(&model, &mut fw, args.run.step, args.run.duration, |_, _, _, _, _| Ok(()))?;
+                step_run(&model, &mut fw, args.run.step, args.run.duration, |_, _| Ok(()))?;
             let events = watcher.as_ref().map_or(0, |w| w.events.load(Ordering::Relaxed)) - before;
             drop(watcher);
             drop(fw);

@@ -1,4 +1,4 @@
-//! `tutti bench gateway`: for each core placement and each DDS engine, the round trip
+//! `tutti-bench gateway`: for each core placement and each DDS engine, the round trip
 //! shared memory -> gateway -> DDS -> echo peer -> DDS -> gateway -> shared memory and the
 //! engine's own ping -> echo without the gateway; Cyclone's `ddsperf` and a Fast DDS
 //! ping-pong on the same cores; the rate of an 8-item asynchronous set through the gateway
@@ -16,20 +16,20 @@ use std::hash::{Hash, Hasher};
 use std::io::{BufRead, BufReader};
 use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
-use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::atomic::AtomicBool;
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
+use crate::peers::Received;
 use anyhow::{bail, Context as _};
 use serde::Serialize;
 use tutti_core::ddf::Role;
 use tutti_core::shm::{os, DomainHost, Framework, FrameworkOptions, WaitMode};
-use tutti_gateway::echo::Received;
 use tutti_gateway::{EngineKind, GatewayOptions};
 
-use super::super::child::{self, Kid, SIGINT};
-use super::super::{load_ddf, CliResult, Failure};
-use super::nearest_rank;
+use crate::nearest_rank;
+use crate::{load_ddf, CliResult, Failure};
+use tutti_host::{ChildProcess, SIGINT};
 
 const ITEMS: usize = 8;
 /// The log filter of the benchmark's children: errors only, nothing from the DDS stack.
@@ -50,14 +50,14 @@ const TARGET_STARTUP_S: f64 = 2.0;
 /// Fast DDS.
 #[derive(Debug, clap::Args)]
 #[command(
-    after_help = "Examples:\n  cargo build --release && target/release/tutti bench gateway\n  tutti bench gateway --engines rustdds --placement same --samples 300 --duration 1s --json\n\nNeeds ddsperf (apt-get install -y cyclonedds-tools) and, for the Fast DDS ping-pong, g++ and\nlibfastrtps-dev; without them those rows say \"not run\". Progress goes to stderr; figures go\nto docs/benchmarks.md."
+    after_help = "Examples:\n  cargo build --release -p tutti -p tutti-bench && target/release/tutti-bench gateway\n  tutti-bench gateway --engines rustdds --placement same --samples 300 --duration 1s --json\n\nNeeds ddsperf (apt-get install -y cyclonedds-tools) and, for the Fast DDS ping-pong, g++ and\nlibfastrtps-dev; without them those rows say \"not run\". Progress goes to stderr; figures go\nto docs/benchmarks.md."
 )]
 pub struct Args {
     /// Round trips timed per placement, engine and mode.
     #[arg(long, default_value_t = 2000)]
     samples: u32,
     /// How long each throughput and lock-step run lasts.
-    #[arg(long, default_value = "3s", value_parser = super::super::host::parse_duration)]
+    #[arg(long, default_value = "3s", value_parser = tutti_core::parse::parse_duration)]
     duration: Duration,
     /// Core placements to run: same (everything on CPU 0), split (the gateway alone on CPU 1),
     /// apart (the DDS peer alone on CPU 1), both (same and split), all.
@@ -104,12 +104,12 @@ fn ddf_text(name: &str, synchronous: bool) -> String {
 
 /// Starts a child pinned to `cpu`; dropped, it gets SIGINT and 3 s to leave (a gateway
 /// says goodbye on DDS), then SIGKILL.
-fn start(name: &str, cmd: Command, cpu: usize) -> anyhow::Result<Kid> {
-    Ok(child::spawn(name, cmd, Some(cpu))?.stop_on_drop(Some(SIGINT), Duration::from_secs(3)))
+fn start(name: &str, cmd: Command, cpu: usize) -> anyhow::Result<ChildProcess> {
+    Ok(ChildProcess::spawn(name, cmd, Some(cpu))?.stop_on_drop(Some(SIGINT), Duration::from_secs(3)))
 }
 
 /// Fails if one of `kids` has exited (a gateway or a peer that could not start or died).
-fn check_alive(kids: &mut [&mut Kid]) -> anyhow::Result<()> {
+fn check_alive(kids: &mut [&mut ChildProcess]) -> anyhow::Result<()> {
     for kid in kids.iter_mut() {
         if let Some(status) = kid.poll() {
             bail!("{} exited ({status})", kid.name);
@@ -273,7 +273,9 @@ const IDS_PER_ENGINE: u16 = 2;
 /// The state of a benchmark run: where things are and the next sub-run's number.
 struct Bench<'a> {
     args: &'a Args,
+    /// The `tutti` executable (the gateway) and this one (the DDS peers).
     exe: PathBuf,
+    bench_exe: PathBuf,
     dir: PathBuf,
     async_ddf: PathBuf,
     sync_ddf: PathBuf,
@@ -299,13 +301,14 @@ pub fn run(args: Args) -> CliResult {
             args.ros_domain_id
         )));
     }
-    let exe = std::env::current_exe().context("locating tutti")?;
+    let exe = crate::tutti_exe()?;
+    let bench_exe = std::env::current_exe().context("locating this executable")?;
     let dir = std::env::temp_dir().join(format!("tutti-bench-gw-{}", std::process::id()));
     std::fs::create_dir_all(&dir).context("creating a scratch directory")?;
     let (async_ddf, sync_ddf) = (dir.join("gwbench.ddf"), dir.join("gwsync.ddf"));
     std::fs::write(&async_ddf, ddf_text("gwbench", false)).context("writing the benchmark DDF")?;
     std::fs::write(&sync_ddf, ddf_text("gwsync", true)).context("writing the benchmark DDF")?;
-    let mut b = Bench { args: &args, exe, dir, async_ddf, sync_ddf, next: 0 };
+    let mut b = Bench { args: &args, exe, bench_exe, dir, async_ddf, sync_ddf, next: 0 };
     let result = b.run_all(&placements);
     let _ = std::fs::remove_dir_all(&b.dir);
     let (runs, large) = result?;
@@ -405,7 +408,12 @@ impl Bench<'_> {
 
     /// A `tutti` child on engine `e` in `slot`'s DDS domain and namespace.
     fn tutti(&self, e: EngineKind, slot: &Slot, args: &[&str]) -> Command {
-        let mut cmd = Command::new(&self.exe);
+        self.command(&self.exe, e, slot, args)
+    }
+
+    /// `exe ARGS` for `slot` and engine `e`.
+    fn command(&self, exe: &Path, e: EngineKind, slot: &Slot, args: &[&str]) -> Command {
+        let mut cmd = Command::new(exe);
         cmd.args(args)
             .args(["--ros-domain-id", &slot.dom.to_string(), "--dds", e.name()])
             .env("TUTTI_NAMESPACE", &slot.ns)
@@ -415,7 +423,7 @@ impl Bench<'_> {
     }
 
     /// `tutti gateway` on the benchmark's DDF, on `cpu`, as fast as it goes.
-    fn gateway(&self, e: EngineKind, slot: &Slot, synchronous: bool, cpus: Cpus) -> anyhow::Result<Kid> {
+    fn gateway(&self, e: EngineKind, slot: &Slot, synchronous: bool, cpus: Cpus) -> anyhow::Result<ChildProcess> {
         let ddf = self.ddf(synchronous).to_string_lossy();
         let wait = if cpus.wait(synchronous) == WaitMode::Spin { "spin" } else { "block" };
         let mut args = vec!["gateway", &ddf, "--interface", "127.0.0.1", "--poll", "0", "--wait", wait, "-q"];
@@ -429,16 +437,15 @@ impl Bench<'_> {
     }
 
     /// A DDS peer of the benchmark (`--echo`, `--sink`, `--source` …) on `cpu`.
-    fn peer(&self, e: EngineKind, slot: &Slot, cpu: usize, what: &[&str]) -> anyhow::Result<Kid> {
+    fn peer(&self, e: EngineKind, slot: &Slot, cpu: usize, what: &[&str]) -> anyhow::Result<ChildProcess> {
         let window = format!("{}ms", self.args.duration.as_millis());
-        let args: Vec<&str> =
-            ["bench", "gateway", "--duration", &window].into_iter().chain(what.iter().copied()).collect();
-        let mut cmd = self.tutti(e, slot, &args);
+        let args: Vec<&str> = ["gateway", "--duration", &window].into_iter().chain(what.iter().copied()).collect();
+        let mut cmd = self.command(&self.bench_exe, e, slot, &args);
         cmd.stdout(Stdio::piped());
         start(&format!("the DDS peer ({})", what.first().unwrap_or(&"")), cmd, cpu)
     }
 
-    fn echo_peer(&self, e: EngineKind, slot: &Slot, synchronous: bool, cpu: usize) -> anyhow::Result<Kid> {
+    fn echo_peer(&self, e: EngineKind, slot: &Slot, synchronous: bool, cpu: usize) -> anyhow::Result<ChildProcess> {
         self.peer(e, slot, cpu, &["--echo", &self.ddf(synchronous).to_string_lossy()])
     }
 
@@ -503,7 +510,7 @@ impl Bench<'_> {
                     // Spin, but give the core away between looks: the echo and the gateway may
                     // share it (a pure spinner is only preempted at the end of its time slice).
                     spins += 1;
-                    super::relax(spins >= 16);
+                    crate::relax(spins >= 16);
                 }
                 if back(host) == seq {
                     times.push(t.elapsed().as_secs_f64() * 1e6);
@@ -528,7 +535,7 @@ impl Bench<'_> {
         let (mut opts, d) = peer_opts(&self.async_ddf, slot.dom, e)?;
         opts.node_name = "tutti_bench_ping".into();
         pin_self(cpus.gw);
-        let t = tutti_gateway::echo::ping(&opts, &d, self.args.samples, PATIENCE);
+        let t = crate::peers::ping(&opts, &d, self.args.samples, PATIENCE);
         pin_self(cpus.fw);
         let t = t?;
         let lost = self.args.samples.saturating_sub(t.len() as u32);
@@ -755,8 +762,8 @@ impl Bench<'_> {
         let ddf = self.args.large.to_string_lossy();
         let mut cmd = self.tutti(e, slot, &["gateway", &ddf, "--interface", "127.0.0.1", "--status-every", "1h"]);
         cmd.stderr(Stdio::piped());
-        let mut kid =
-            child::spawn("the gateway on the large DDF", cmd, None)?.stop_on_drop(Some(SIGINT), Duration::from_secs(3));
+        let mut kid = ChildProcess::spawn("the gateway on the large DDF", cmd, None)?
+            .stop_on_drop(Some(SIGINT), Duration::from_secs(3));
         let stderr = kid.child.stderr.take();
         let mut up = None;
         if let Some(s) = stderr {
@@ -800,7 +807,7 @@ fn ping_pong(name: &str, mut pong: Command, mut ping: Command, cpus: Cpus) -> an
     pong.stdin(Stdio::null()).stderr(Stdio::null());
     let _pong = start(&format!("{name} pong"), pong, pong_cpu)?;
     ping.stdin(Stdio::null()).stderr(Stdio::null());
-    child::prepare(&mut ping, Some(ping_cpu));
+    os::die_with_parent_on_spawn(&mut ping, Some(ping_cpu));
     let out = ping.output().with_context(|| format!("running {name}"))?;
     Ok(String::from_utf8_lossy(&out.stdout).into_owned())
 }
@@ -815,7 +822,7 @@ fn rate(r: &Received) -> f64 {
 }
 
 /// The sink's "samples seconds lost misordered" line; waits for it to exit.
-fn sink_result(kid: &mut Kid) -> anyhow::Result<Received> {
+fn sink_result(kid: &mut ChildProcess) -> anyhow::Result<Received> {
     let mut line = String::new();
     if let Some(out) = kid.child.stdout.take() {
         BufReader::new(out).read_line(&mut line)?;
@@ -847,30 +854,26 @@ fn peer_opts(
 
 /// A flag set by Ctrl-C or SIGTERM.
 fn stop_flag() -> anyhow::Result<Arc<AtomicBool>> {
-    let stop = Arc::new(AtomicBool::new(false));
-    let s = stop.clone();
-    ctrlc::set_handler(move || s.store(true, Ordering::SeqCst)).context("installing the signal handler")?;
-    Ok(stop)
+    tutti_host::stop_on_ctrl_c().context("installing the signal handler")
 }
 
 fn echo(ddf: &Path, args: &Args) -> CliResult {
     let (opts, d) = peer_opts(ddf, args.ros_domain_id, args.dds)?;
-    tutti_gateway::echo::run(&opts, &d, stop_flag()?).map_err(anyhow::Error::new)?;
+    crate::peers::run(&opts, &d, stop_flag()?).map_err(anyhow::Error::new)?;
     Ok(())
 }
 
 fn sink(ddf: &Path, role: &str, args: &Args) -> CliResult {
     let (opts, d) = peer_opts(ddf, args.ros_domain_id, args.dds)?;
     let role = if role == "publish" { Role::Publish } else { Role::Subscribe };
-    let r = tutti_gateway::echo::sink(&opts, &d, role, args.duration, PATIENCE, args.ordered)
-        .map_err(anyhow::Error::new)?;
+    let r = crate::peers::sink(&opts, &d, role, args.duration, PATIENCE, args.ordered).map_err(anyhow::Error::new)?;
     println!("{} {} {} {}", r.samples, r.secs, r.lost, r.misordered);
     Ok(())
 }
 
 fn source(ddf: &Path, args: &Args) -> CliResult {
     let (opts, d) = peer_opts(ddf, args.ros_domain_id, args.dds)?;
-    tutti_gateway::echo::source(&opts, &d, Duration::from_millis(500), stop_flag()?).map_err(anyhow::Error::new)?;
+    crate::peers::source(&opts, &d, Duration::from_millis(500), stop_flag()?).map_err(anyhow::Error::new)?;
     Ok(())
 }
 

@@ -1,6 +1,7 @@
 //! An MCAP recording read back, for `tutti replay`: the DDF it carries (or one given
 //! instead), and every recorded step of every domain with both sets in shared-memory layout
-//! and the domain's connection count at that step (from the `/tutti/events` channel).
+//! and the domain's connection count at that step (from the `/tutti/events` channel). The
+//! framework that replays it is [`Replay`].
 //!
 //! The whole recording is read into memory: a step costs the two sets' sizes plus some 60
 //! bytes, so a minute of the 4-domain UAV DDF at 1 kHz takes about 100 MB.
@@ -12,8 +13,12 @@ use tutti_core::cdr::SetCodec;
 use tutti_core::ddf::{Model, Role};
 use tutti_core::mapping;
 
-use super::mcap::{DDF_MEDIA_TYPE, EVENTS_TOPIC, METADATA_NAME};
-use super::{io_error, RecordError};
+use crate::mcap::{DDF_MEDIA_TYPE, EVENTS_TOPIC, METADATA_NAME};
+use crate::{io_error, RecordError};
+
+mod run;
+
+pub use run::{Comparison, Difference, DifferingStep, Replay, ReplayEvent, ReplayOptions, ReplaySummary};
 
 /// One recorded step of one domain.
 #[derive(Debug, Clone)]

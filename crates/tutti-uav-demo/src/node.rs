@@ -1,4 +1,4 @@
-//! `tutti demo uav-node --index N`: one UAV external component of the demo. It connects to
+//! `tutti-demo uav-node --index N`: one UAV external component of the demo. It connects to
 //! domain `multiuav_uavN` with the Rust participant; each framework step it reads the
 //! formation commands and the step's simulated time (PUBLISH), flies the 6-DOF model up to
 //! that time, and writes Latitude, Longitude, Elevation, Airspeed, Heading and Time
@@ -23,11 +23,11 @@ use tutti_core::ddf::Role;
 use tutti_core::shm::segment::{namespace_from_env, Segment};
 use tutti_core::shm::{ConnectOptions, Participant, ShmError};
 
-use super::f64_at;
-use super::scenario::UAVS;
+use crate::f64_at;
+use crate::scenario::UAVS;
 use tutti_uav::{FormationCommand, Uav, DEFAULT_DT};
 
-use crate::cli::CliResult;
+use crate::CliResult;
 
 #[derive(Debug, clap::Args)]
 pub struct NodeArgs {
@@ -117,88 +117,106 @@ pub fn run(args: NodeArgs) -> CliResult {
     Ok(fly(args)?)
 }
 
-fn fly(args: NodeArgs) -> anyhow::Result<()> {
-    anyhow::ensure!((1..=UAVS).contains(&args.index), "--index must be 1..{UAVS}");
-    anyhow::ensure!(args.speed > 0.0, "--speed must be positive");
-    let domain = args.domain.clone().unwrap_or_else(|| format!("multiuav_uav{}", args.index));
-    let who = format!("uav{}", args.index);
-    let formation = tutti_uav::scenario::default_formation();
-    let uav = formation.build_uav(args.index - 1).map_err(|e| anyhow::anyhow!("UAV {}: {e}", args.index))?;
-    let file = File::create(&args.out).with_context(|| format!("creating {}", args.out.display()))?;
-    let mut log = BufWriter::new(file);
-    writeln!(log, "{UAV_LOG_HEADER}")?;
+/// The signals the monitoring script and the demo send: SIGUSR1 disconnects, SIGUSR2
+/// connects again, SIGTERM or SIGINT stops.
+struct Signals {
+    disconnect: Arc<AtomicBool>,
+    reconnect: Arc<AtomicBool>,
+    stop: Arc<AtomicBool>,
+}
 
-    let disconnect = Arc::new(AtomicBool::new(false));
-    let reconnect = Arc::new(AtomicBool::new(false));
-    let stop = Arc::new(AtomicBool::new(false));
-    signal_hook::flag::register(signal_hook::consts::SIGUSR1, disconnect.clone())?;
-    signal_hook::flag::register(signal_hook::consts::SIGUSR2, reconnect.clone())?;
-    signal_hook::flag::register(signal_hook::consts::SIGTERM, stop.clone())?;
-    signal_hook::flag::register(signal_hook::consts::SIGINT, stop.clone())?;
+impl Signals {
+    fn register() -> anyhow::Result<Signals> {
+        let s = Signals {
+            disconnect: Arc::new(AtomicBool::new(false)),
+            reconnect: Arc::new(AtomicBool::new(false)),
+            stop: Arc::new(AtomicBool::new(false)),
+        };
+        signal_hook::flag::register(signal_hook::consts::SIGUSR1, s.disconnect.clone())?;
+        signal_hook::flag::register(signal_hook::consts::SIGUSR2, s.reconnect.clone())?;
+        signal_hook::flag::register(signal_hook::consts::SIGTERM, s.stop.clone())?;
+        signal_hook::flag::register(signal_hook::consts::SIGINT, s.stop.clone())?;
+        Ok(s)
+    }
+}
 
-    let opts = ConnectOptions { name: format!("uav model {}", args.index), ..Default::default() };
-    let connect = || -> anyhow::Result<Participant> {
-        let mut p =
-            Participant::connect(&domain, ConnectOptions { connect_timeout: Duration::from_secs(10), ..opts.clone() })
-                .with_context(|| format!("{who}: connecting to {domain}"))?;
+/// The component's tie to its domain: connected (a participant and its items), or not (the
+/// segment whose clock to follow, else a wall-clock anchor).
+struct Link {
+    domain: String,
+    who: String,
+    name: String,
+    part: Option<(Participant, Items)>,
+    anchor: (Instant, f64),
+    clock: Option<Segment>,
+}
+
+/// What a step of the exchange says about the loop.
+enum Flow {
+    Go,
+    Stop,
+}
+
+impl Link {
+    fn open(&self) -> anyhow::Result<Participant> {
+        let opts =
+            ConnectOptions { name: self.name.clone(), connect_timeout: Duration::from_secs(10), ..Default::default() };
+        let mut p = Participant::connect(&self.domain, opts)
+            .with_context(|| format!("{}: connecting to {}", self.who, self.domain))?;
         // Short lock timeouts: signals are looked at between locks.
         p.set_timeout(Duration::from_millis(250));
         Ok(p)
-    };
-    let mut node = Node { uav, log, connected: false, logged: f64::NAN };
-    let mut part: Option<(Participant, Items)> = None;
-    if args.start_disconnected {
-        eprintln!("{who}: started disconnected");
-    } else {
-        let p = connect()?;
-        let items = Items::of(&p)?;
-        part = Some((p, items));
-        node.connected = true;
     }
-    // While disconnected: the segment whose clock to follow, else a wall-clock anchor.
-    let mut anchor = (Instant::now(), node.uav.time());
-    let mut clock: Option<Segment> = None;
-    let mut result = Ok(());
-    while !stop.load(Ordering::SeqCst) {
-        if disconnect.swap(false, Ordering::SeqCst) {
-            if let Some((p, _)) = part.take() {
+
+    fn connect(&mut self, node: &mut Node, p: Participant) -> anyhow::Result<()> {
+        let items = Items::of(&p)?;
+        self.part = Some((p, items));
+        self.clock = None;
+        node.connected = true;
+        Ok(())
+    }
+
+    /// Disconnects or connects again as the signals ask.
+    fn follow_signals(&mut self, node: &mut Node, signals: &Signals) -> anyhow::Result<()> {
+        if signals.disconnect.swap(false, Ordering::SeqCst) {
+            if let Some((p, _)) = self.part.take() {
                 p.disconnect();
                 node.connected = false;
-                anchor = (Instant::now(), node.uav.time());
-                clock = Segment::open(&namespace_from_env(), &domain).ok();
-                eprintln!("{who}: disconnected at t={:.2}s", node.uav.time());
+                self.anchor = (Instant::now(), node.uav.time());
+                self.clock = Segment::open(&namespace_from_env(), &self.domain).ok();
+                eprintln!("{}: disconnected at t={:.2}s", self.who, node.uav.time());
             }
         }
-        if reconnect.swap(false, Ordering::SeqCst) && part.is_none() {
-            match connect() {
+        if signals.reconnect.swap(false, Ordering::SeqCst) && self.part.is_none() {
+            match self.open() {
                 Ok(p) => {
-                    let items = Items::of(&p)?;
-                    part = Some((p, items));
-                    node.connected = true;
-                    clock = None;
-                    eprintln!("{who}: connected again at t={:.2}s", node.uav.time());
+                    self.connect(node, p)?;
+                    eprintln!("{}: connected again at t={:.2}s", self.who, node.uav.time());
                 }
-                Err(e) => eprintln!("{who}: {e:#}"),
+                Err(e) => eprintln!("{}: {e:#}", self.who),
             }
         }
-        let Some((p, items)) = part.as_mut() else {
-            // Disconnected: fly on with the co-simulation's clock.
-            std::thread::sleep(Duration::from_millis(5));
-            let t = match clock.as_ref().filter(|seg| seg.framework_alive()) {
-                Some(seg) => seg.sim_time(),
-                None => anchor.1 + anchor.0.elapsed().as_secs_f64() * args.speed,
-            };
-            node.fly_to(t)?;
-            continue;
+        Ok(())
+    }
+
+    /// Disconnected: flies on with the co-simulation's clock.
+    fn fly_alone(&self, node: &mut Node, speed: f64) -> anyhow::Result<()> {
+        std::thread::sleep(Duration::from_millis(5));
+        let t = match self.clock.as_ref().filter(|seg| seg.framework_alive()) {
+            Some(seg) => seg.sim_time(),
+            None => self.anchor.1 + self.anchor.0.elapsed().as_secs_f64() * speed,
         };
+        node.fly_to(t)
+    }
+
+    /// One step connected: read the commands and the time, fly to it, write the state.
+    fn exchange(&mut self, node: &mut Node) -> anyhow::Result<Flow> {
+        let Some((p, items)) = self.part.as_mut() else { return Ok(Flow::Go) };
         match p.subscribe_lock() {
             Ok(_) => {}
-            Err(ShmError::Timeout { .. }) => continue,
-            Err(ShmError::FrameworkStopped { .. }) => break,
-            Err(e) => {
-                result = Err(anyhow::anyhow!("{who}: reading the commands of {domain}: {e}"));
-                break;
-            }
+            Err(ShmError::Timeout { .. }) => return Ok(Flow::Go),
+            Err(ShmError::FrameworkStopped { .. }) => return Ok(Flow::Stop),
+            Err(e) => anyhow::bail!("{}: reading the commands of {}: {e}", self.who, self.domain),
         }
         let snap = p.snapshot();
         let c = items.commands.map(|off| f64_at(snap, off));
@@ -216,16 +234,54 @@ fn fly(args: NodeArgs) -> anyhow::Result<()> {
             p.commit()
         })();
         match step {
-            Ok(()) => {}
-            Err(ShmError::Timeout { .. }) => {}
-            Err(ShmError::FrameworkStopped { .. }) => break,
+            Ok(()) | Err(ShmError::Timeout { .. }) => Ok(Flow::Go),
+            Err(ShmError::FrameworkStopped { .. }) => Ok(Flow::Stop),
+            Err(e) => anyhow::bail!("{}: writing the state to {}: {e}", self.who, self.domain),
+        }
+    }
+}
+
+fn fly(args: NodeArgs) -> anyhow::Result<()> {
+    anyhow::ensure!((1..=UAVS).contains(&args.index), "--index must be 1..{UAVS}");
+    anyhow::ensure!(args.speed > 0.0, "--speed must be positive");
+    let formation = tutti_uav::scenario::default_formation();
+    let uav = formation.build_uav(args.index - 1).map_err(|e| anyhow::anyhow!("UAV {}: {e}", args.index))?;
+    let file = File::create(&args.out).with_context(|| format!("creating {}", args.out.display()))?;
+    let mut log = BufWriter::new(file);
+    writeln!(log, "{UAV_LOG_HEADER}")?;
+    let signals = Signals::register()?;
+    let mut node = Node { uav, log, connected: false, logged: f64::NAN };
+    let mut link = Link {
+        domain: args.domain.clone().unwrap_or_else(|| format!("multiuav_uav{}", args.index)),
+        who: format!("uav{}", args.index),
+        name: format!("uav model {}", args.index),
+        part: None,
+        anchor: (Instant::now(), node.uav.time()),
+        clock: None,
+    };
+    if args.start_disconnected {
+        eprintln!("{}: started disconnected", link.who);
+    } else {
+        let p = link.open()?;
+        link.connect(&mut node, p)?;
+    }
+    let mut result = Ok(());
+    while !signals.stop.load(Ordering::SeqCst) {
+        link.follow_signals(&mut node, &signals)?;
+        if link.part.is_none() {
+            link.fly_alone(&mut node, args.speed)?;
+            continue;
+        }
+        match link.exchange(&mut node) {
+            Ok(Flow::Go) => {}
+            Ok(Flow::Stop) => break,
             Err(e) => {
-                result = Err(anyhow::anyhow!("{who}: writing the state to {domain}: {e}"));
+                result = Err(e);
                 break;
             }
         }
     }
-    if let Some((p, _)) = part.take() {
+    if let Some((p, _)) = link.part.take() {
         p.disconnect();
     }
     node.log.flush().context("writing the altitude log")?;

@@ -1,4 +1,4 @@
-//! `tutti bench shm`: round trips between two processes through shared-memory domains, for
+//! `tutti-bench shm`: round trips between two processes through shared-memory domains, for
 //! asynchronous and synchronous sets, spin and blocking waits, several set sizes, on one
 //! core and on two; iceoryx2's publish-subscribe ping-pong runs in the same run as the peer.
 //!
@@ -17,14 +17,13 @@ use tutti_core::ddf;
 use tutti_core::ddf::Role;
 use tutti_core::shm::{os, ConnectOptions, Framework, FrameworkOptions, Participant, ShmError, WaitMode};
 
-use super::super::child;
-use super::super::CliResult;
-use super::{iceoryx, percentiles, relax, warmup};
+use crate::CliResult;
+use crate::{iceoryx, percentiles, relax, warmup};
 
 /// Measure shared-memory round trips (and iceoryx2's, as the peer in the same run).
 #[derive(Debug, clap::Args)]
 #[command(
-    after_help = "Examples:\n  tutti bench shm\n  tutti bench shm --iterations 50000 --sizes 8,1024\n  tutti bench shm --placement two --no-peer"
+    after_help = "Examples:\n  tutti-bench shm\n  tutti-bench shm --iterations 50000 --sizes 8,1024\n  tutti-bench shm --placement two --no-peer"
 )]
 pub struct Args {
     /// Measured round trips per configuration, in total over the rounds.
@@ -110,7 +109,7 @@ fn run_tutti(c: &Config<'_>) -> anyhow::Result<Vec<f64>> {
     os::pin_to_cpu(c.cpus.0).context("pinning the ping side")?;
     let same_core = c.cpus.0 == c.cpus.1;
     let mut cmd = Command::new(std::env::current_exe()?);
-    cmd.args(["bench", "shm-pong", "--namespace", &namespace, "--cpu", &c.cpus.1.to_string()]);
+    cmd.args(["shm-pong", "--namespace", &namespace, "--cpu", &c.cpus.1.to_string()]);
     if c.sync {
         cmd.arg("--sync");
     }
@@ -124,7 +123,7 @@ fn run_tutti(c: &Config<'_>) -> anyhow::Result<Vec<f64>> {
         cmd.arg("--snapshot");
     }
     cmd.stdin(Stdio::null());
-    let mut child = child::spawn("the pong process", cmd, None)?.stop_on_drop(None, Duration::ZERO);
+    let mut child = tutti_host::ChildProcess::spawn("the pong process", cmd, None)?.stop_on_drop(None, Duration::ZERO);
     let host = &mut fw.domains[0];
     let started = Instant::now();
     while host.connection_count() == 0 {
@@ -326,13 +325,13 @@ pub fn pong(a: PongArgs) -> CliResult {
 
 pub fn run(args: Args) -> CliResult {
     if let Some(bad) = args.sizes.iter().find(|s| **s < 8 || **s % 8 != 0) {
-        return Err(super::super::Failure::invalid(anyhow::anyhow!("--sizes: {bad} is not a multiple of 8 bytes")));
+        return Err(crate::Failure::invalid(anyhow::anyhow!("--sizes: {bad} is not a multiple of 8 bytes")));
     }
     let cpus_online = std::thread::available_parallelism().map(|n| n.get()).unwrap_or(1);
     let rounds = args.rounds.max(1);
     let chunk = (args.iterations / rounds).max(1);
     println!(
-        "tutti bench shm: {} round trips per row in {rounds} interleaved rounds (each after a warm-up), {} CPUs online; times in µs",
+        "tutti-bench shm: {} round trips per row in {rounds} interleaved rounds (each after a warm-up), {} CPUs online; times in µs",
         chunk * rounds,
         cpus_online
     );
@@ -348,9 +347,7 @@ pub fn run(args: Args) -> CliResult {
                 continue;
             }
             "one" => (0, 0),
-            other => {
-                return Err(super::super::Failure::invalid(anyhow::anyhow!("--placement: '{other}' is not one or two")))
-            }
+            other => return Err(crate::Failure::invalid(anyhow::anyhow!("--placement: '{other}' is not one or two"))),
         };
         let same = cpus.0 == cpus.1;
         for &size in &args.sizes {

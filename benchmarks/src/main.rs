@@ -1,20 +1,29 @@
-//! `tutti bench …`: benchmarks that print percentiles and compare against a peer in the
+//! `tutti-bench …`: benchmarks that print percentiles and compare against a peer in the
 //! same run. Results are recorded in `docs/benchmarks.md`.
 
-use clap::Subcommand;
+//!
+//! A workspace member of its own, so that `tutti` links none of what only the benchmarks
+//! need (iceoryx2, the DDS peers). The runs that need `tutti` itself (the gateway, the
+//! studio) start the `tutti` executable next to this one ([`tutti_exe`]).
 
-use super::CliResult;
+use std::path::PathBuf;
+use std::process::ExitCode;
+
+use anyhow::Context as _;
+use clap::{Parser, Subcommand};
 
 mod ddf;
 mod gateway;
 mod iceoryx;
+mod peers;
 mod record;
 mod shm;
 mod studio;
 
-/// Run a benchmark.
-#[derive(Debug, clap::Args)]
-pub struct Args {
+/// Benchmarks of tutti, each next to a peer in the same run.
+#[derive(Debug, Parser)]
+#[command(name = "tutti-bench", version)]
+struct Args {
     #[command(subcommand)]
     what: What,
 }
@@ -32,7 +41,7 @@ enum What {
     /// Round trips through shared-memory domains, next to iceoryx2 in the same run.
     Shm(shm::Args),
     Studio(studio::Args),
-    /// (internal) the pong side of `bench shm`.
+    /// (internal) the pong side of `tutti-bench shm`.
     #[command(hide = true)]
     ShmPong(shm::PongArgs),
     /// (internal) the pong side of iceoryx2's ping-pong.
@@ -40,8 +49,52 @@ enum What {
     IoxPong(iceoryx::PongArgs),
 }
 
-pub fn run(args: Args) -> CliResult {
-    match args.what {
+/// Exit status for invalid input or usage.
+const EXIT_INVALID: u8 = 2;
+
+/// A failure with the exit status it maps to (2: invalid input, 1: the run failed).
+#[derive(Debug)]
+pub struct Failure {
+    pub code: u8,
+    pub error: anyhow::Error,
+}
+
+impl Failure {
+    pub fn invalid(error: impl Into<anyhow::Error>) -> Self {
+        Failure { code: EXIT_INVALID, error: error.into() }
+    }
+}
+
+impl From<anyhow::Error> for Failure {
+    fn from(error: anyhow::Error) -> Self {
+        Failure { code: 1, error }
+    }
+}
+
+pub type CliResult = Result<(), Failure>;
+
+/// Loads a DDF, mapping its diagnostics to exit status 2.
+pub fn load_ddf(path: &std::path::Path) -> Result<tutti_core::ddf::Model, Failure> {
+    tutti_core::ddf::load(path).map_err(Failure::invalid)
+}
+
+/// The `tutti` executable: `TUTTI_EXE`, else the one next to this executable.
+pub fn tutti_exe() -> anyhow::Result<PathBuf> {
+    if let Some(p) = std::env::var_os("TUTTI_EXE") {
+        return Ok(PathBuf::from(p));
+    }
+    let exe = std::env::current_exe().context("locating this executable")?;
+    let tutti = exe.with_file_name("tutti");
+    anyhow::ensure!(
+        tutti.is_file(),
+        "no tutti executable next to {}: build it with `cargo build --release -p tutti` (or set TUTTI_EXE)",
+        exe.display()
+    );
+    Ok(tutti)
+}
+
+fn main() -> ExitCode {
+    let result = match Args::parse().what {
         What::Ddf(a) => ddf::run(a),
         What::Gateway(a) => gateway::run(a),
         What::Record(a) => record::run(a),
@@ -49,6 +102,13 @@ pub fn run(args: Args) -> CliResult {
         What::Studio(a) => studio::run(a),
         What::ShmPong(a) => shm::pong(a),
         What::IoxPong(a) => iceoryx::pong_main(a),
+    };
+    match result {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(f) => {
+            eprintln!("{:#}", f.error);
+            ExitCode::from(f.code)
+        }
     }
 }
 

@@ -1,4 +1,4 @@
-//! `tutti bench ddf`: how long parsing and validating a large DDF takes.
+//! `tutti-bench ddf`: how long parsing and validating a large DDF takes.
 //!
 //! The file is read once; then, after one untimed warm-up, each phase runs `--iterations`
 //! times: the XML reader alone (`raw::parse`, the floor any validation adds to), the full
@@ -11,8 +11,8 @@ use std::time::{Duration, Instant};
 
 use anyhow::Context as _;
 
-use super::super::{CliResult, Failure};
-use super::nearest_rank;
+use crate::nearest_rank;
+use crate::{CliResult, Failure};
 
 /// The default input, as the checkout has it.
 const DEFAULT: &str = "ddf/large-1000.ddf";
@@ -20,7 +20,7 @@ const DEFAULT: &str = "ddf/large-1000.ddf";
 /// Time parsing and validating a DDF: min, p50, p99 and max over N runs.
 #[derive(Debug, clap::Args)]
 #[command(
-    after_help = "Example:\n  cargo run --release -- bench ddf --iterations 200\n\nWithout --file: ddf/large-1000.ddf of the current directory, or, outside a checkout, the same\nfile generated (1,000 domains of 20 items) into a temporary file."
+    after_help = "Example:\n  cargo run --release -p tutti-bench -- ddf --iterations 200\n\nWithout --file: ddf/large-1000.ddf of the current directory, or, outside a checkout, the same\nfile generated (1,000 domains of 20 items) into a temporary file."
 )]
 pub struct Args {
     /// The DDF to parse (default: ddf/large-1000.ddf).

@@ -4,6 +4,10 @@
 
 use std::fmt;
 
+/// The FMU's time constant (s), given to the demo's FMU component with `--param tau=`; the
+/// checks recompute the filter with it.
+pub const FMU_TAU: f64 = 2.0;
+
 /// What the monitoring script asks a UAV component to do.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Action {

@@ -1,0 +1,441 @@
+//! [`Host`]: the framework of every domain of a model, stepped at a fixed period.
+
+use std::fmt;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::time::{Duration, Instant};
+
+use tutti_core::ddf::{Domain, Model};
+use tutti_core::shm::{Framework, FrameworkOptions, StepReport, WaitMode};
+
+use crate::steps::{step_all, wait_for_writers};
+use crate::{HostError, Tick, Ticker};
+
+/// What a run is.
+#[derive(Debug, Clone)]
+pub struct HostOptions {
+    /// The step period (> 0).
+    pub step: Duration,
+    /// Stop after this long (None: until stopped).
+    pub duration: Option<Duration>,
+    /// Run late steps back to back instead of skipping them ([`Ticker::catching_up`]).
+    pub catch_up: bool,
+    /// Longest wait for the participants of a synchronous step, and for a seed.
+    pub timeout: Duration,
+    /// How the framework waits for participants.
+    pub wait: WaitMode,
+    /// The namespace of the segments (None: `TUTTI_NAMESPACE`, else the default).
+    pub namespace: Option<String>,
+    /// PUBLISH values, `DOMAIN/ITEM=VALUE` (arrays get it in every element).
+    pub sets: Vec<String>,
+    /// Hold participants in connect (wait-to-go) for this long after the start.
+    pub hold: Option<Duration>,
+    /// Before the first step, hold until each DOMAIN has N writers.
+    pub wait_for: Vec<(String, usize)>,
+    /// The DDF's name, for messages.
+    pub ddf_name: String,
+}
+
+impl Default for HostOptions {
+    fn default() -> Self {
+        HostOptions {
+            step: Duration::from_millis(10),
+            duration: None,
+            catch_up: false,
+            timeout: Duration::from_secs(1),
+            wait: WaitMode::Block,
+            namespace: None,
+            sets: Vec::new(),
+            hold: None,
+            wait_for: Vec::new(),
+            ddf_name: "the DDF".into(),
+        }
+    }
+}
+
+/// The step every domain just made, for a [`StepSink`].
+#[derive(Debug, Clone, Copy)]
+pub struct StepDone<'a> {
+    /// What each domain's step did, in model order.
+    pub reports: &'a [StepReport],
+    /// The PUBLISH set each domain published.
+    pub publish: &'a [Vec<u8>],
+    /// Simulated time of the step, seconds.
+    pub sim: f64,
+    /// When the stepping started.
+    pub run_start: Instant,
+}
+
+/// Something that takes every step of a run (a recording: `tutti-record`'s recorders are sinks).
+pub trait StepSink {
+    /// Takes the step `done` of `fw`.
+    fn step(&mut self, fw: &Framework, done: &StepDone<'_>) -> Result<(), Box<dyn std::error::Error + Send + Sync>>;
+    /// The run is over: write what is buffered.
+    fn finish(self: Box<Self>) -> Result<(), Box<dyn std::error::Error + Send + Sync>>;
+}
+
+/// Progress of a run, every second.
+#[derive(Debug, Clone, Copy)]
+pub struct Progress {
+    pub elapsed: Duration,
+    /// Steps released so far (the ticker's count, skipped deadlines included).
+    pub step: u64,
+    pub participants: u32,
+    pub overruns: u64,
+    pub max_late: Duration,
+    pub step_timeouts: u64,
+}
+
+/// What a run reports while it goes; `Display` is the line a user reads.
+#[derive(Debug, Clone)]
+pub enum Report {
+    /// Synchronous domains with states that got no seed within the timeout.
+    Unseeded { domains: usize, timeout: Duration },
+    /// Still waiting for writers (every 5 s).
+    WaitingForWriters(crate::WriterWait),
+    /// Every `wait_for` is met: stepping starts.
+    WritersConnected(Vec<(String, usize)>),
+    /// A domain's step timed out waiting for these connections.
+    StepTimedOut { step: u64, domain: String, timeout: Duration, waiting_for: Vec<String> },
+    /// Once a second.
+    Progress(Progress),
+}
+
+impl fmt::Display for Report {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            Report::Unseeded { domains, timeout } => write!(
+                f,
+                "{domains} domain(s) with states=yes got no seed within {timeout:?}; they start from their defaults"
+            ),
+            Report::WaitingForWriters(w) => write!(
+                f,
+                "waiting {:.0} s for {} writer(s) in {} ({} so far)",
+                w.waited.as_secs_f64(),
+                w.want,
+                w.domain,
+                w.seen
+            ),
+            Report::WritersConnected(wants) => {
+                let list: Vec<String> = wants.iter().map(|(d, n)| format!("{d}={n}")).collect();
+                write!(f, "writers connected ({}): stepping", list.join(", "))
+            }
+            Report::StepTimedOut { step, domain, timeout, waiting_for } => {
+                write!(f, "step {step} of {domain} timed out after {timeout:?} waiting for {}", waiting_for.join(", "))
+            }
+            Report::Progress(p) => write!(
+                f,
+                "t={:.1}s step {} participants {} overruns {} late max {:?} step timeouts {}",
+                p.elapsed.as_secs_f64(),
+                p.step,
+                p.participants,
+                p.overruns,
+                p.max_late,
+                p.step_timeouts
+            ),
+        }
+    }
+}
+
+/// How a run ended.
+#[derive(Debug, Clone, Copy)]
+pub struct Summary {
+    /// Whether stepping started (false: stopped while waiting for writers).
+    pub started: bool,
+    pub elapsed: Duration,
+    pub steps: u64,
+    pub overruns: u64,
+    pub max_late: Duration,
+    pub step_timeouts: u64,
+}
+
+impl fmt::Display for Summary {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(
+            f,
+            "stopped after {:.1}s, {} overruns, {} step timeouts",
+            self.elapsed.as_secs_f64(),
+            self.overruns,
+            self.step_timeouts
+        )
+    }
+}
+
+/// A framework run: every domain of a model, created on [`Host::new`] (removed when dropped),
+/// stepped by [`Host::step`] or [`Host::run`].
+pub struct Host {
+    fw: Framework,
+    publish: Vec<Vec<u8>>,
+    opts: HostOptions,
+    namespace: String,
+    sinks: Vec<Box<dyn StepSink>>,
+    ticker: Ticker,
+    run_start: Instant,
+    held: bool,
+    steps: u64,
+    step_timeouts: u64,
+}
+
+impl fmt::Debug for Host {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.debug_struct("Host").field("fw", &self.fw).field("opts", &self.opts).field("steps", &self.steps).finish()
+    }
+}
+
+impl Host {
+    /// Checks `opts` against `model` and creates every domain of it.
+    pub fn new(model: &Model, opts: HostOptions) -> Result<Host, HostError> {
+        if opts.step.is_zero() {
+            return Err(HostError::ZeroStep);
+        }
+        let mut publish: Vec<Vec<u8>> = model.domains.iter().map(|d| d.publish.layout.default_bytes()).collect();
+        apply_sets(&opts.sets, &model.domains, &mut publish)?;
+        for (d, n) in &opts.wait_for {
+            if model.domain(d).is_none() {
+                return Err(HostError::WaitForDomain { domain: d.clone(), writers: *n, ddf: opts.ddf_name.clone() });
+            }
+        }
+        let mut fw_opts = FrameworkOptions {
+            timeout: opts.timeout,
+            wait: opts.wait,
+            hold: opts.hold.is_some() || !opts.wait_for.is_empty(),
+            ..Default::default()
+        };
+        if let Some(ns) = &opts.namespace {
+            fw_opts.namespace = ns.clone();
+        }
+        let fw = Framework::create(model, &fw_opts)
+            .map_err(|source| HostError::Create { ddf: opts.ddf_name.clone(), source })?;
+        let ticker = new_ticker(&opts);
+        Ok(Host {
+            fw,
+            publish,
+            namespace: fw_opts.namespace,
+            held: opts.hold.is_some(),
+            opts,
+            sinks: Vec::new(),
+            ticker,
+            run_start: Instant::now(),
+            steps: 0,
+            step_timeouts: 0,
+        })
+    }
+
+    /// The framework: its domains, their connections and sets.
+    pub fn framework(&self) -> &Framework {
+        &self.fw
+    }
+
+    /// The namespace of the segments.
+    pub fn namespace(&self) -> &str {
+        &self.namespace
+    }
+
+    /// Adds a sink that takes every step from now on.
+    pub fn add_sink(&mut self, sink: Box<dyn StepSink>) {
+        self.sinks.push(sink);
+    }
+
+    /// Waits for the seeds and the writers, then lets the participants go and starts the
+    /// clock. Returns false when `stop` was set while waiting.
+    pub fn start(&mut self, stop: &AtomicBool, on_report: &mut dyn FnMut(Report)) -> Result<bool, HostError> {
+        let unseeded = self.fw.wait_for_seeds();
+        if unseeded > 0 {
+            on_report(Report::Unseeded { domains: unseeded, timeout: self.opts.timeout });
+        }
+        let wants = self.opts.wait_for.clone();
+        let waited = wait_for_writers(&mut self.fw, &wants, stop, |w| on_report(Report::WaitingForWriters(w.clone())))?;
+        if !waited {
+            return Ok(false);
+        }
+        if !wants.is_empty() {
+            on_report(Report::WritersConnected(wants));
+        }
+        if self.opts.hold.is_none() {
+            self.fw.domains.iter().for_each(|d| d.set_hold(false));
+        }
+        self.ticker = new_ticker(&self.opts);
+        self.run_start = Instant::now();
+        Ok(true)
+    }
+
+    /// Waits for the next deadline and makes one step of every domain; its sinks take it.
+    pub fn step(&mut self, on_report: &mut dyn FnMut(Report)) -> Result<Tick, HostError> {
+        let tick = self.ticker.wait();
+        if self.held && self.opts.hold.is_some_and(|h| self.run_start.elapsed() >= h) {
+            self.held = false;
+            self.fw.domains.iter().for_each(|d| d.set_hold(false));
+        }
+        let sim = tick.k as f64 * self.opts.step.as_secs_f64();
+        let reports = step_all(&mut self.fw, &self.publish, sim, self.opts.step, &tick)?;
+        self.steps += 1;
+        for (d, r) in self.fw.domains.iter().zip(&reports) {
+            if r.timed_out > 0 {
+                self.step_timeouts += 1;
+                on_report(Report::StepTimedOut {
+                    step: r.step,
+                    domain: d.info().name.clone(),
+                    timeout: self.opts.timeout,
+                    waiting_for: d.timed_out_on().to_vec(),
+                });
+            }
+        }
+        let done = StepDone { reports: &reports, publish: &self.publish, sim, run_start: self.run_start };
+        for sink in &mut self.sinks {
+            sink.step(&self.fw, &done).map_err(|source| HostError::Sink { what: "writing the recording", source })?;
+        }
+        Ok(tick)
+    }
+
+    /// How the run stands now.
+    pub fn progress(&self, step: u64) -> Progress {
+        Progress {
+            elapsed: self.run_start.elapsed(),
+            step,
+            participants: self.fw.domains.iter().map(|d| d.connection_count()).sum(),
+            overruns: self.ticker.overruns,
+            max_late: self.ticker.max_late,
+            step_timeouts: self.step_timeouts,
+        }
+    }
+
+    /// The whole run: [`Host::start`], then steps until `stop` is set or the duration is
+    /// over, with a [`Report::Progress`] every second; the sinks are finished at the end.
+    pub fn run(mut self, stop: &AtomicBool, mut on_report: impl FnMut(Report)) -> Result<Summary, HostError> {
+        let started = self.start(stop, &mut on_report)?;
+        let mut last_report = Instant::now();
+        while started && !stop.load(Ordering::SeqCst) {
+            if self.opts.duration.is_some_and(|d| self.run_start.elapsed() >= d) {
+                break;
+            }
+            let tick = self.step(&mut on_report)?;
+            if last_report.elapsed() >= Duration::from_secs(1) {
+                last_report = Instant::now();
+                on_report(Report::Progress(self.progress(tick.k + 1)));
+            }
+        }
+        let summary = Summary {
+            started,
+            elapsed: self.run_start.elapsed(),
+            steps: self.steps,
+            overruns: self.ticker.overruns,
+            max_late: self.ticker.max_late,
+            step_timeouts: self.step_timeouts,
+        };
+        for sink in std::mem::take(&mut self.sinks) {
+            sink.finish().map_err(|source| HostError::Sink { what: "writing the recording", source })?;
+        }
+        Ok(summary)
+    }
+}
+
+fn new_ticker(opts: &HostOptions) -> Ticker {
+    if opts.catch_up {
+        Ticker::catching_up(opts.step)
+    } else {
+        Ticker::new(opts.step)
+    }
+}
+
+/// Applies `DOMAIN/ITEM=VALUE` settings to the PUBLISH buffers.
+fn apply_sets(sets: &[String], domains: &[Domain], buffers: &mut [Vec<u8>]) -> Result<(), HostError> {
+    for s in sets {
+        let invalid = |reason: String| HostError::Set { set: s.clone(), reason };
+        let form = || invalid("expected DOMAIN/ITEM=VALUE".into());
+        let (target, value) = s.split_once('=').ok_or_else(form)?;
+        let (domain, item) = target.split_once('/').ok_or_else(form)?;
+        let idx = domains
+            .iter()
+            .position(|d| d.name == domain)
+            .ok_or_else(|| invalid(format!("no domain '{domain}' in the DDF")))?;
+        let leaf = domains[idx]
+            .publish
+            .layout
+            .leaf(item)
+            .ok_or_else(|| invalid(format!("no item '{item}' in the PUBLISH set of domain '{domain}'")))?;
+        let v = leaf
+            .ty
+            .parse_value(value)
+            .ok_or_else(|| invalid(format!("'{value}' is not a {} value", leaf.ty.canonical())))?;
+        let n = leaf.ty.size() as usize;
+        for chunk in buffers[idx][leaf.range()].chunks_exact_mut(n) {
+            leaf.ty.encode(v, chunk);
+        }
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const DDF: &str = r#"<?xml version="1.0" encoding="UTF-8"?>
+<orchestra>
+  <domain name="probe">
+    <synchronous>no</synchronous>
+    <multiplePublishAllowed>yes</multiplePublishAllowed>
+    <states>no</states>
+    <set name="PUBLISH">
+      <item name="tick"><type>int32</type><length>1</length></item>
+    </set>
+    <set name="SUBSCRIBE">
+      <item name="value"><type>float64</type><length>1</length></item>
+    </set>
+  </domain>
+</orchestra>
+"#;
+
+    /// Counts the steps it is given and keeps the last PUBLISH set.
+    struct Count(std::rc::Rc<std::cell::RefCell<(u64, Vec<u8>)>>);
+
+    impl StepSink for Count {
+        fn step(&mut self, _: &Framework, done: &StepDone<'_>) -> Result<(), Box<dyn std::error::Error + Send + Sync>> {
+            let mut c = self.0.borrow_mut();
+            c.0 += 1;
+            c.1 = done.publish[0].clone();
+            Ok(())
+        }
+        fn finish(self: Box<Self>) -> Result<(), Box<dyn std::error::Error + Send + Sync>> {
+            Ok(())
+        }
+    }
+
+    fn options(ns: &str) -> HostOptions {
+        HostOptions {
+            step: Duration::from_millis(1),
+            duration: Some(Duration::from_millis(30)),
+            namespace: Some(ns.into()),
+            sets: vec!["probe/tick=7".into()],
+            ..HostOptions::default()
+        }
+    }
+
+    #[test]
+    fn a_host_is_a_value_driven_in_process_and_its_sinks_see_every_step() {
+        let model = tutti_core::ddf::parse_str(DDF, "probe.ddf").unwrap();
+        let ns = format!("hostlib{}", std::process::id());
+        let mut host = Host::new(&model, options(&ns)).unwrap();
+        assert_eq!(host.namespace(), ns);
+        assert_eq!(host.framework().domains.len(), 1);
+        let seen = std::rc::Rc::new(std::cell::RefCell::new((0, Vec::new())));
+        host.add_sink(Box::new(Count(seen.clone())));
+        let stop = AtomicBool::new(false);
+        let summary = host.run(&stop, |_| {}).unwrap();
+        assert!(summary.started);
+        assert!(summary.steps > 0);
+        let (steps, publish) = seen.borrow().clone();
+        assert_eq!(steps, summary.steps, "the sink took every step");
+        assert_eq!(publish, 7i32.to_ne_bytes(), "--set reached the PUBLISH set");
+    }
+
+    #[test]
+    fn options_that_cannot_apply_are_refused_before_anything_is_created() {
+        let model = tutti_core::ddf::parse_str(DDF, "probe.ddf").unwrap();
+        let ns = format!("hostlibx{}", std::process::id());
+        let bad = |opts: HostOptions| Host::new(&model, opts).unwrap_err();
+        assert!(bad(HostOptions { step: Duration::ZERO, ..options(&ns) }).is_invalid());
+        let e = bad(HostOptions { sets: vec!["probe/nothing=1".into()], ..options(&ns) });
+        assert!(e.is_invalid() && e.to_string().contains("no item 'nothing'"), "{e}");
+        let e = bad(HostOptions { wait_for: vec![("elsewhere".into(), 1)], ..options(&ns) });
+        assert!(e.is_invalid() && e.to_string().contains("no domain 'elsewhere'"), "{e}");
+    }
+}

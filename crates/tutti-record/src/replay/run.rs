@@ -1,0 +1,390 @@
+//! The framework half of `tutti replay`: acts as the framework of the recorded domains and
+//! republishes each recorded step's PUBLISH set, with its simulated time, at the recorded
+//! pace (scaled by the speed); synchronous domains wait for their participants as usual. With
+//! `compare`, the SUBSCRIBE answers of each step of a synchronous domain are checked against
+//! the recording, element by element, and every step that differs is reported.
+//!
+//! A step is compared only when the domain has as many connections as it had in the
+//! recording at that step (a participant that joined or left at another step answers other
+//! steps); those steps are counted, never silently passed. Asynchronous domains are replayed,
+//! not compared: what their participants answer depends on timing.
+
+use std::fmt;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::time::{Duration, Instant};
+
+use serde::Serialize;
+use tutti_core::ddf::Domain;
+use tutti_core::shm::{Framework, FrameworkOptions, WaitMode};
+
+use tutti_host::Report;
+
+use super::{RecordedStep, Recording};
+use crate::RecordError;
+
+/// How to replay.
+#[derive(Debug, Clone)]
+pub struct ReplayOptions {
+    /// Pace: 1 = as recorded, 2 = twice as fast, 0 = as fast as the participants answer.
+    pub speed: f64,
+    /// Check the participants' SUBSCRIBE answers against the recording.
+    pub compare: bool,
+    /// Longest wait for the participants of a synchronous step.
+    pub timeout: Duration,
+    pub wait: WaitMode,
+    /// Before the first step, hold participants until each DOMAIN has N writers.
+    pub wait_for: Vec<(String, usize)>,
+    /// The namespace of the segments (None: `TUTTI_NAMESPACE`, else the default).
+    pub namespace: Option<String>,
+}
+
+/// One element of a SUBSCRIBE set that differs from the recording.
+#[derive(Debug, Clone, Serialize)]
+pub struct Difference {
+    pub item: String,
+    pub recorded: String,
+    pub replayed: String,
+}
+
+/// A step whose answers differ.
+#[derive(Debug, Clone, Serialize)]
+pub struct DifferingStep {
+    pub domain: String,
+    pub step: u64,
+    pub sim_time: f64,
+    pub items: Vec<Difference>,
+}
+
+/// What the comparison found.
+#[derive(Debug, Default, Clone)]
+pub struct Comparison {
+    pub compared: u64,
+    /// Steps not compared because the connection count differs from the recording's.
+    pub other_connections: u64,
+    /// Steps that differ; the first [`Comparison::KEEP`] of them in `kept`.
+    pub differing: u64,
+    pub kept: Vec<DifferingStep>,
+}
+
+impl Comparison {
+    /// The most differing steps kept in full; the rest are counted.
+    pub const KEEP: usize = 1000;
+
+    /// A comparison fails when a step differs or when no step could be compared.
+    pub fn failed(&self) -> bool {
+        self.differing > 0 || self.compared == 0
+    }
+}
+
+impl fmt::Display for Comparison {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let skipped = if self.other_connections > 0 {
+            format!(", {} not compared (connections differ from the recording's)", self.other_connections)
+        } else {
+            String::new()
+        };
+        match self.kept.first() {
+            _ if self.compared == 0 => write!(f, "compare: no step compared{skipped}"),
+            None => write!(f, "compare: {} steps compared, no difference{skipped}", self.compared),
+            Some(first) => {
+                let d = first.items.first();
+                write!(
+                    f,
+                    "compare: {} of {} compared steps differ{skipped}; the first is {} step {} (t={:.6} s): {}",
+                    self.differing,
+                    self.compared,
+                    first.domain,
+                    first.step,
+                    first.sim_time,
+                    d.map_or(String::new(), |d| format!("{} recorded {}, replayed {}", d.item, d.recorded, d.replayed))
+                )
+            }
+        }
+    }
+}
+
+/// What a replay reports while it goes.
+#[derive(Debug)]
+pub enum ReplayEvent<'a> {
+    /// The domains are created: their names and recorded step counts.
+    Started { namespace: &'a str, domains: Vec<(String, usize)> },
+    /// Waiting for writers (every 5 s), then every `wait_for` met: the runner's reports.
+    Waiting(tutti_host::Report),
+    /// A compared step differs (the `nth` differing one, from 0).
+    Differs { nth: u64, step: &'a DifferingStep },
+    /// Once a second.
+    Progress { elapsed: Duration, replayed: usize, total: usize, timeouts: u64, differing: Option<u64> },
+}
+
+impl fmt::Display for ReplayEvent<'_> {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            ReplayEvent::Started { namespace, domains } => {
+                let names: Vec<String> = domains.iter().map(|(d, n)| format!("{d} ({n} steps)")).collect();
+                write!(f, "in namespace {namespace}: {}", names.join(", "))
+            }
+            ReplayEvent::Waiting(report) => write!(f, "{report}"),
+            ReplayEvent::Differs { step, .. } => {
+                let items = &step.items;
+                let list: Vec<String> = items
+                    .iter()
+                    .take(5)
+                    .map(|d| format!("{}: recorded {}, replayed {}", d.item, d.recorded, d.replayed))
+                    .collect();
+                let more = if items.len() > 5 { format!(" (+{} more)", items.len() - 5) } else { String::new() };
+                write!(
+                    f,
+                    "differs: {} step {} (t={:.6} s): {}{more}",
+                    step.domain,
+                    step.step,
+                    step.sim_time,
+                    list.join("; ")
+                )
+            }
+            ReplayEvent::Progress { elapsed, replayed, total, timeouts, differing } => write!(
+                f,
+                "t={:.1}s {replayed}/{total} steps, step timeouts {timeouts}{}",
+                elapsed.as_secs_f64(),
+                differing.map_or(String::new(), |n| format!(", {n} differing"))
+            ),
+        }
+    }
+}
+
+/// How a replay ended.
+#[derive(Debug, Clone)]
+pub struct ReplaySummary {
+    /// Whether stepping started (false: stopped while waiting for writers).
+    pub started: bool,
+    pub replayed: usize,
+    pub total: usize,
+    pub timeouts: u64,
+    pub elapsed: Duration,
+    /// With `compare`: what it found.
+    pub comparison: Option<Comparison>,
+}
+
+impl ReplaySummary {
+    /// Fewer steps replayed than recorded.
+    pub fn stopped_early(&self) -> bool {
+        self.replayed < self.total
+    }
+}
+
+/// A replay of a recording, checked and ready to run.
+#[derive(Debug)]
+pub struct Replay {
+    recording: Recording,
+    opts: ReplayOptions,
+}
+
+/// The replay's position: the next step of each domain, and the domains that have step `k`.
+struct Cursor {
+    next: Vec<usize>,
+    frame: Vec<usize>,
+}
+
+impl Replay {
+    /// Checks `opts` against `recording` (at `path`, for messages).
+    pub fn new(recording: Recording, opts: ReplayOptions, path: &std::path::Path) -> Result<Replay, RecordError> {
+        let invalid = |detail: String| RecordError::Format { path: path.display().to_string(), detail };
+        if recording.model.domains.is_empty() {
+            return Err(invalid("no recorded step to replay".into()));
+        }
+        for (d, n) in &opts.wait_for {
+            if recording.model.domain(d).is_none() {
+                return Err(RecordError::WaitForDomain { domain: d.clone(), writers: *n });
+            }
+        }
+        Ok(Replay { recording, opts })
+    }
+
+    /// Recorded steps, all domains together.
+    pub fn total(&self) -> usize {
+        self.recording.domains.iter().map(|d| d.steps.len()).sum()
+    }
+
+    /// Creates the domains, waits for the writers, and replays until the end or `stop`.
+    pub fn run(
+        self,
+        stop: &AtomicBool,
+        mut on_event: impl FnMut(ReplayEvent<'_>),
+    ) -> Result<ReplaySummary, RecordError> {
+        let mut fw_opts = FrameworkOptions {
+            timeout: self.opts.timeout,
+            wait: self.opts.wait,
+            hold: !self.opts.wait_for.is_empty(),
+            ..Default::default()
+        };
+        if let Some(ns) = &self.opts.namespace {
+            fw_opts.namespace = ns.clone();
+        }
+        let mut fw = Framework::create(&self.recording.model, &fw_opts)
+            .map_err(|source| RecordError::Framework { what: "creating the domains".into(), source })?;
+        let domains = self.recording.domains.iter().map(|d| (d.name.clone(), d.steps.len())).collect();
+        on_event(ReplayEvent::Started { namespace: &fw_opts.namespace, domains });
+        let mut summary = ReplaySummary {
+            started: false,
+            replayed: 0,
+            total: self.total(),
+            timeouts: 0,
+            elapsed: Duration::ZERO,
+            comparison: self.opts.compare.then(Comparison::default),
+        };
+        let wants = &self.opts.wait_for;
+        let waiting = |w: &tutti_host::WriterWait| on_event(ReplayEvent::Waiting(Report::WaitingForWriters(w.clone())));
+        if !tutti_host::wait_for_writers(&mut fw, wants, stop, waiting)? {
+            return Ok(summary);
+        }
+        if !wants.is_empty() {
+            on_event(ReplayEvent::Waiting(Report::WritersConnected(wants.clone())));
+        }
+        summary.started = true;
+        fw.domains.iter().for_each(|d| d.set_hold(false));
+        self.replay_steps(&mut fw, stop, &mut summary, &mut on_event)?;
+        Ok(summary)
+    }
+
+    fn replay_steps(
+        &self,
+        fw: &mut Framework,
+        stop: &AtomicBool,
+        summary: &mut ReplaySummary,
+        on_event: &mut impl FnMut(ReplayEvent<'_>),
+    ) -> Result<(), RecordError> {
+        let recorded = &self.recording.domains;
+        let mut cursor = Cursor { next: vec![0; recorded.len()], frame: Vec::with_capacity(recorded.len()) };
+        let first_log = recorded.iter().filter_map(|d| d.steps.first()).map(|s| s.log_time).min().unwrap_or(0);
+        let start = Instant::now();
+        let mut last_report = Instant::now();
+        while !stop.load(Ordering::SeqCst) && self.next_frame(&mut cursor) {
+            if self.opts.speed > 0.0 {
+                let log = cursor.frame.iter().map(|&i| self.step_of(&cursor, i).log_time).min().unwrap_or(first_log);
+                let due = Duration::from_secs_f64(log.saturating_sub(first_log) as f64 / 1e9 / self.opts.speed);
+                if let Some(wait) = due.checked_sub(start.elapsed()) {
+                    std::thread::sleep(wait);
+                }
+            }
+            self.step_frame(fw, &cursor, summary, on_event)?;
+            for &i in &cursor.frame {
+                cursor.next[i] += 1;
+            }
+            summary.replayed += cursor.frame.len();
+            summary.elapsed = start.elapsed();
+            if last_report.elapsed() >= Duration::from_secs(1) {
+                last_report = Instant::now();
+                on_event(ReplayEvent::Progress {
+                    elapsed: start.elapsed(),
+                    replayed: summary.replayed,
+                    total: summary.total,
+                    timeouts: summary.timeouts,
+                    differing: summary.comparison.as_ref().map(|c| c.differing),
+                });
+            }
+        }
+        summary.elapsed = start.elapsed();
+        Ok(())
+    }
+
+    /// Finds the next recorded step number and the domains that have it; false at the end.
+    fn next_frame(&self, cursor: &mut Cursor) -> bool {
+        let recorded = &self.recording.domains;
+        let next = recorded.iter().zip(&cursor.next).filter_map(|(d, &c)| d.steps.get(c)).map(|s| s.step).min();
+        let Some(k) = next else { return false };
+        cursor.frame.clear();
+        cursor.frame.extend(
+            (0..recorded.len()).filter(|&i| recorded[i].steps.get(cursor.next[i]).is_some_and(|s| s.step == k)),
+        );
+        true
+    }
+
+    fn step_of(&self, cursor: &Cursor, i: usize) -> &RecordedStep {
+        &self.recording.domains[i].steps[cursor.next[i]]
+    }
+
+    /// Publishes the frame's steps to all its domains, then completes and compares them.
+    fn step_frame(
+        &self,
+        fw: &mut Framework,
+        cursor: &Cursor,
+        summary: &mut ReplaySummary,
+        on_event: &mut impl FnMut(ReplayEvent<'_>),
+    ) -> Result<(), RecordError> {
+        let failed = |i: usize| {
+            let what = format!("domain '{}'", self.recording.domains[i].name);
+            move |source| RecordError::Framework { what, source }
+        };
+        for &i in &cursor.frame {
+            let s = self.step_of(cursor, i);
+            fw.domains[i].publish_step(&s.publish, s.sim_time).map_err(failed(i))?;
+        }
+        for &i in &cursor.frame {
+            let s = self.step_of(cursor, i);
+            let host = &mut fw.domains[i];
+            let report = host.complete_step().map_err(failed(i))?;
+            if report.timed_out > 0 {
+                summary.timeouts += 1;
+            }
+            let domain = &self.recording.model.domains[i];
+            let Some(cmp) = summary.comparison.as_mut() else { continue };
+            let Some(want) = s.subscribe.as_deref().filter(|_| domain.flags.synchronous) else { continue };
+            if host.connection_count() != s.connections {
+                cmp.other_connections += 1;
+                continue;
+            }
+            cmp.compared += 1;
+            let items = differences(domain, want, host.subscribe());
+            if !items.is_empty() {
+                let differing =
+                    DifferingStep { domain: domain.name.clone(), step: s.step, sim_time: s.sim_time, items };
+                on_event(ReplayEvent::Differs { nth: cmp.differing, step: &differing });
+                cmp.differing += 1;
+                if cmp.kept.len() < Comparison::KEEP {
+                    cmp.kept.push(differing);
+                }
+            }
+        }
+        Ok(())
+    }
+}
+
+/// The elements of `domain`'s SUBSCRIBE set that differ between `recorded` and `replayed`.
+pub fn differences(domain: &Domain, recorded: &[u8], replayed: &[u8]) -> Vec<Difference> {
+    let mut out = Vec::new();
+    for leaf in &domain.subscribe.layout.leaves {
+        let n = leaf.ty.size() as usize;
+        let (Some(a), Some(b)) = (recorded.get(leaf.range()), replayed.get(leaf.range())) else { continue };
+        for (e, (x, y)) in a.chunks_exact(n).zip(b.chunks_exact(n)).enumerate() {
+            if x != y {
+                let item = if leaf.length == 1 { leaf.path.clone() } else { format!("{}[{e}]", leaf.path) };
+                out.push(Difference {
+                    item,
+                    recorded: leaf.ty.decode(x).to_string(),
+                    replayed: leaf.ty.decode(y).to_string(),
+                });
+            }
+        }
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn differences_name_the_item_and_element() {
+        let ddf = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../ddf/multiuav.ddf");
+        let m = tutti_core::ddf::load(ddf).unwrap();
+        let d = &m.domains[0];
+        let a = d.subscribe.layout.default_bytes();
+        let mut b = a.clone();
+        let leaf = d.subscribe.layout.leaves.iter().find(|l| l.ty.size() == 8).unwrap();
+        b[leaf.range()][..8].copy_from_slice(&2.5f64.to_ne_bytes());
+        let diffs = differences(d, &a, &b);
+        assert_eq!(diffs.len(), 1);
+        assert!(diffs[0].item.starts_with(&leaf.path), "{diffs:?}");
+        assert_eq!(diffs[0].replayed, "2.5");
+        assert!(differences(d, &a, &a).is_empty());
+    }
+}

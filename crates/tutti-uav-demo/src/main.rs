@@ -1,0 +1,137 @@
+//! `tutti-demo`: runnable case studies. `tutti-demo uav` is the paper's multi-UAV
+//! co-simulation (section 7) with its figures reproduced; see docs/uav-demo.md.
+//!
+//! A workspace member of its own beside `tutti-uav`, so that `tutti` links none of what only
+//! the demo needs (plotters, resvg). The demo is the framework itself (a `tutti-host` loop);
+//! its UAV components are this executable again (`tutti-demo uav-node`); the FMU component
+//! and the gateway are the `tutti` executable next to this one ([`tutti_exe`]).
+//!
+//! Modules: `scenario` (the script and its constants) ← `node` (one UAV component) ←
+//! `analysis` (the checks) ← `plot` (the figures); `sim` (the co-simulation run) ← `uav` (the
+//! command: its options, the run and its report).
+
+use std::path::PathBuf;
+use std::process::ExitCode;
+
+use anyhow::Context as _;
+use clap::{Parser, Subcommand};
+
+mod analysis;
+mod node;
+mod plot;
+mod scenario;
+mod sim;
+mod uav;
+
+/// Run a case study: `tutti-demo uav` (the paper's UAV formation, Figures 5 and 6).
+#[derive(Debug, Parser)]
+#[command(name = "tutti-demo", version)]
+struct Args {
+    #[command(subcommand)]
+    command: DemoCommand,
+}
+
+/// Exit status for invalid input or usage.
+const EXIT_INVALID: u8 = 2;
+/// Exit status for a runtime failure.
+pub const EXIT_FAILURE: u8 = 1;
+
+/// A failure with the exit status it maps to.
+#[derive(Debug)]
+pub struct Failure {
+    pub code: u8,
+    pub error: anyhow::Error,
+}
+
+impl Failure {
+    pub fn invalid(error: impl Into<anyhow::Error>) -> Self {
+        Failure { code: EXIT_INVALID, error: error.into() }
+    }
+}
+
+impl From<anyhow::Error> for Failure {
+    fn from(error: anyhow::Error) -> Self {
+        Failure { code: EXIT_FAILURE, error }
+    }
+}
+
+pub type CliResult = Result<(), Failure>;
+
+/// `--realtime [--cpu N] [--priority P]`, as `tutti host` takes it.
+#[derive(Debug, Clone, clap::Args)]
+pub struct RealtimeArgs {
+    /// Step under SCHED_FIFO with locked memory (mlockall), as far as the machine allows;
+    /// what it refuses is a warning, not an error.
+    #[arg(long)]
+    pub realtime: bool,
+    /// With --realtime: pin the stepping thread to this CPU.
+    #[arg(long, value_name = "N", requires = "realtime")]
+    pub cpu: Option<usize>,
+    /// With --realtime: the SCHED_FIFO priority (1..99, default 50).
+    #[arg(long, value_name = "P", requires = "realtime")]
+    pub priority: Option<i32>,
+}
+
+/// Applies `--realtime` to the calling thread when it was given; prints what was applied
+/// and what was not, prefixed by `who`.
+pub fn enter_realtime(args: &RealtimeArgs, who: &str) {
+    if !args.realtime {
+        return;
+    }
+    let out = tutti_host::enter_realtime(&tutti_host::RealtimeRequest { cpu: args.cpu, priority: args.priority });
+    if !out.applied.is_empty() {
+        eprintln!("{who}: real-time: {}", out.applied.join(", "));
+    }
+    for w in &out.warnings {
+        eprintln!("{who}: warning: {w}");
+    }
+}
+
+/// The `tutti` executable: `TUTTI_EXE`, else the one next to this executable.
+pub fn tutti_exe() -> anyhow::Result<PathBuf> {
+    if let Some(p) = std::env::var_os("TUTTI_EXE") {
+        return Ok(PathBuf::from(p));
+    }
+    let exe = std::env::current_exe().context("locating this executable")?;
+    let tutti = exe.with_file_name("tutti");
+    anyhow::ensure!(
+        tutti.is_file(),
+        "no tutti executable next to {}: build it with `cargo build --release -p tutti` (or set TUTTI_EXE)",
+        exe.display()
+    );
+    Ok(tutti)
+}
+
+#[derive(Debug, Subcommand)]
+enum DemoCommand {
+    /// The UAV formation co-simulation: framework, four UAV components, a Python monitoring
+    /// script, two C components and the gateway; CSVs, figures and checks in --out.
+    Uav(uav::UavArgs),
+    /// Check and draw the results of a finished `tutti-demo uav` run again.
+    UavReport(uav::ReportArgs),
+    /// One UAV component (started by `tutti-demo uav`).
+    #[command(hide = true)]
+    UavNode(node::NodeArgs),
+}
+
+/// The float64 at byte `off` of a set.
+fn f64_at(buf: &[u8], off: usize) -> f64 {
+    let mut b = [0u8; 8];
+    b.copy_from_slice(&buf[off..off + 8]);
+    f64::from_ne_bytes(b)
+}
+
+fn main() -> ExitCode {
+    let result = match Args::parse().command {
+        DemoCommand::Uav(a) => uav::run(a),
+        DemoCommand::UavReport(a) => uav::run_report(a),
+        DemoCommand::UavNode(a) => node::run(a),
+    };
+    match result {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(f) => {
+            eprintln!("{:#}", f.error);
+            ExitCode::from(f.code)
+        }
+    }
+}
