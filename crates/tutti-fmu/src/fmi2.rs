@@ -5,11 +5,11 @@
 //! is a C shim (src/fmi2_logger.c, for the printf-style arguments) calling
 //! [`tutti_fmu_fmi2_log`], which takes NULLs.
 
-use std::ffi::{c_char, c_uint, c_void, CStr, CString};
+use std::ffi::{c_char, c_uint, c_void, CString};
 
 use fmi::fmi2::binding::{self, Fmi2Binding};
 
-use crate::fmu::CallStatus;
+use crate::call::{text, CallStatus};
 use crate::log_capture;
 
 extern "C" {
@@ -22,18 +22,6 @@ extern "C" {
         message: binding::fmi2String,
         ...
     );
-}
-
-/// A C string that may be NULL or not UTF-8.
-///
-/// # Safety
-/// `p` is NULL or points to a NUL-terminated string valid for this call.
-pub(crate) unsafe fn text(p: *const c_char) -> String {
-    if p.is_null() {
-        return String::new();
-    }
-    // SAFETY: not NULL, and NUL-terminated by the caller's contract.
-    unsafe { CStr::from_ptr(p) }.to_string_lossy().into_owned()
 }
 
 /// Receives every message an FMI 2.0 FMU logs (through the C shim).

@@ -6,7 +6,7 @@ use std::ffi::{c_char, c_uint, c_void, CString};
 
 use fmi::fmi3::binding::{self, Fmi3Binding};
 
-use crate::fmu::CallStatus;
+use crate::call::CallStatus;
 use crate::log_capture;
 
 /// Receives every message an FMI 3.0 FMU logs; the environment is the instance's name.
@@ -24,7 +24,7 @@ unsafe extern "C" fn log_message(env: *mut c_void, status: c_uint, category: *co
     };
     // SAFETY: per this function's contract.
     let (name, category, message) =
-        unsafe { (crate::fmi2::text(env as *const c_char), crate::fmi2::text(category), crate::fmi2::text(message)) };
+        unsafe { (crate::call::text(env as *const c_char), crate::call::text(category), crate::call::text(message)) };
     let category = if category.is_empty() { String::new() } else { format!(" ({category})") };
     log_capture::record(format!("[{level}] {name}{category}: {message}"));
 }

@@ -10,6 +10,7 @@ use std::path::{Path, PathBuf};
 use fmi::traits::FmiImport as _;
 use tutti_core::ddf::Value;
 
+pub use crate::call::CallStatus;
 use crate::fmi2::Fmi2Cs;
 use crate::fmi3::Fmi3Cs;
 use crate::log_capture;
@@ -38,26 +39,6 @@ pub enum LoadError {
     Import { path: PathBuf, message: String },
     #[error("{path}: instantiating model '{model}' failed{log}")]
     Instantiate { path: PathBuf, model: String, log: String },
-}
-
-/// What an FMI call returned when it is neither OK nor Warning, or why it was not made.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, thiserror::Error)]
-pub enum CallStatus {
-    #[error("Discard")]
-    Discard,
-    #[error("Error")]
-    Error,
-    /// After Fatal the FMU allows no further call.
-    #[error("Fatal")]
-    Fatal,
-    #[error("Pending")]
-    Pending,
-    /// A status number the standard does not define.
-    #[error("unknown")]
-    Unknown,
-    /// A variable of a type tutti does not exchange with this FMI version.
-    #[error("not exchanged")]
-    NotExchanged,
 }
 
 /// An FMU call that returned Error or Fatal (or failed otherwise) while running.

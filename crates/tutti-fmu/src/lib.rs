@@ -11,6 +11,7 @@
 //!
 //! See docs/fmu.md.
 
+mod call;
 pub mod ddf;
 pub mod fmi2;
 pub mod fmi3;
