@@ -325,7 +325,7 @@ fn a_framework_faster_than_real_time_sets_the_step_by_its_simulated_time() {
     let ddf = dir.path().join("fmu_c.ddf");
     std::fs::write(&ddf, ddf_text(true)).unwrap();
     let model = tutti_core::ddf::load(&ddf).unwrap();
-    // 50 ms of simulated time per 10 ms step of wall time (as `tutti demo uav --speed 5`).
+    // 50 ms of simulated time per 10 ms step of wall time (as `tutti-demo uav --speed 5`).
     let host = Host::start(&model, &ns, 0.05);
     let child = spawn_fmu(&ns, &py, &fmu, &ddf, &[]);
     host.wait_for("the FMU to step", |s| s.last().is_some_and(|l| l.count > 30));

@@ -66,7 +66,7 @@ fn the_short_uav_demo_reproduces_figures_5_and_6() {
         .stdout(Stdio::piped())
         .stderr(Stdio::piped())
         .spawn()
-        .expect("starting tutti demo uav");
+        .expect("starting tutti-demo uav");
     // Watchdog: the run takes ~10 s; kill it (its children die with it) if it hangs.
     let deadline = Instant::now() + Duration::from_secs(150);
     let status = loop {
@@ -76,13 +76,13 @@ fn the_short_uav_demo_reproduces_figures_5_and_6() {
         if Instant::now() > deadline {
             let _ = child.kill();
             let _ = child.wait();
-            panic!("tutti demo uav did not finish within 150 s");
+            panic!("tutti-demo uav did not finish within 150 s");
         }
         std::thread::sleep(Duration::from_millis(50));
     };
     let output = child.wait_with_output().unwrap();
     let stderr = String::from_utf8_lossy(&output.stderr).into_owned();
-    assert!(status.success(), "tutti demo uav failed ({status}):\n{stderr}");
+    assert!(status.success(), "tutti-demo uav failed ({status}):\n{stderr}");
     assert!(stderr.contains("0 failed"), "{stderr}");
     if let Some(l) = &_listener {
         // The listener did read all along: both sets of every UAV reached it.

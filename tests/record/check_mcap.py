@@ -3,7 +3,7 @@
 the MCAP libraries of the ROS ecosystem (`mcap`, `mcap-ros2-support`), not tutti's code.
 
 Usage: check_mcap.py [--subset] RUN.mcap CSV_BASE DOMAIN [DOMAIN...]
-       check_mcap.py --demo RUN.mcap FRAMEWORK.csv   (tutti demo uav's run.mcap)
+       check_mcap.py --demo RUN.mcap FRAMEWORK.csv   (tutti-demo uav's run.mcap)
 CSV_BASE is the path given to `--record` for the CSV (STEM-DOMAIN.csv per domain when there
 are several). Every schema must parse; every message must decode; each step's message on
 /DOMAIN/publish and /DOMAIN/subscribe must equal that step's CSV row, element by element (in

@@ -1,4 +1,4 @@
-//! Times the DDF reader the way `tutti bench ddf` does, without building the CLI (which
+//! Times the DDF reader the way `tutti-bench ddf` does, without building the CLI (which
 //! pulls in DDS): quick-xml's events alone, `raw::parse` and the full `parse_bytes`, N runs
 //! after one warm-up.
 //!
@@ -7,7 +7,7 @@
 //! ```
 //!
 //! Meant for comparing two builds run alternately on the same machine; the published
-//! figures come from `tutti bench ddf`. Besides the wall-clock times that `tutti bench`
+//! figures come from `tutti-bench ddf`. Besides the wall-clock times that `tutti-bench`
 //! reports, it prints the median CPU time of the thread, steadier when the machine is busy.
 
 use std::hint::black_box;
@@ -61,7 +61,7 @@ fn cpu_now() -> Duration {
 }
 
 fn report(name: &str, (wall, cpu): (Vec<Duration>, Vec<Duration>)) {
-    // Nearest rank, as `tutti bench` computes it.
+    // Nearest rank, as `tutti-bench` computes it.
     let rank = |s: &[Duration], q: f64| s[((q * s.len() as f64).ceil() as usize).clamp(1, s.len()) - 1];
     let ms = |d: Duration| d.as_secs_f64() * 1e3;
     println!(

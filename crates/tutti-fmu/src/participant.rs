@@ -95,7 +95,7 @@ pub struct FmuParticipant {
 
 /// The step size of a synchronous step: the framework's period, unless its simulated time
 /// advances by something else per step (a framework running faster or slower than real
-/// time, such as `tutti demo uav --speed`): then the simulated time per step, measured over
+/// time, such as `tutti-demo uav --speed`): then the simulated time per step, measured over
 /// the steps since the last one read (steps this participant missed count). The period is
 /// kept exactly when it agrees, so that `doStep` gets the framework's own number.
 pub fn step_size(period: f64, last: Option<(u64, f64)>, now: (u64, f64)) -> f64 {
