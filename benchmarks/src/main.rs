@@ -6,10 +6,8 @@
 //! need (iceoryx2, the DDS peers). The runs that need `tutti` itself (the gateway, the
 //! studio) start the `tutti` executable next to this one ([`tutti_exe`]).
 
-use std::path::PathBuf;
 use std::process::ExitCode;
 
-use anyhow::Context as _;
 use clap::{Parser, Subcommand};
 
 mod ddf;
@@ -49,49 +47,7 @@ enum What {
     IoxPong(iceoryx::PongArgs),
 }
 
-/// Exit status for invalid input or usage.
-const EXIT_INVALID: u8 = 2;
-
-/// A failure with the exit status it maps to (2: invalid input, 1: the run failed).
-#[derive(Debug)]
-pub struct Failure {
-    pub code: u8,
-    pub error: anyhow::Error,
-}
-
-impl Failure {
-    pub fn invalid(error: impl Into<anyhow::Error>) -> Self {
-        Failure { code: EXIT_INVALID, error: error.into() }
-    }
-}
-
-impl From<anyhow::Error> for Failure {
-    fn from(error: anyhow::Error) -> Self {
-        Failure { code: 1, error }
-    }
-}
-
-pub type CliResult = Result<(), Failure>;
-
-/// Loads a DDF, mapping its diagnostics to exit status 2.
-pub fn load_ddf(path: &std::path::Path) -> Result<tutti_core::ddf::Model, Failure> {
-    tutti_core::ddf::load(path).map_err(Failure::invalid)
-}
-
-/// The `tutti` executable: `TUTTI_EXE`, else the one next to this executable.
-pub fn tutti_exe() -> anyhow::Result<PathBuf> {
-    if let Some(p) = std::env::var_os("TUTTI_EXE") {
-        return Ok(PathBuf::from(p));
-    }
-    let exe = std::env::current_exe().context("locating this executable")?;
-    let tutti = exe.with_file_name("tutti");
-    anyhow::ensure!(
-        tutti.is_file(),
-        "no tutti executable next to {}: build it with `cargo build --release -p tutti` (or set TUTTI_EXE)",
-        exe.display()
-    );
-    Ok(tutti)
-}
+pub use tutti_exit::{load_ddf, tutti_exe, CliResult, Failure};
 
 fn main() -> ExitCode {
     let result = match Args::parse().what {
@@ -103,13 +59,7 @@ fn main() -> ExitCode {
         What::ShmPong(a) => shm::pong(a),
         What::IoxPong(a) => iceoryx::pong_main(a),
     };
-    match result {
-        Ok(()) => ExitCode::SUCCESS,
-        Err(f) => {
-            eprintln!("{:#}", f.error);
-            ExitCode::from(f.code)
-        }
-    }
+    tutti_exit::exit(result)
 }
 
 /// (p50, p99, p99.9, max) of nanosecond samples, in microseconds.

@@ -17,10 +17,7 @@ mod show;
 mod status;
 mod studio;
 
-/// Exit status for invalid input or usage.
-pub const EXIT_INVALID: u8 = 2;
-/// Exit status for a runtime failure.
-pub const EXIT_FAILURE: u8 = 1;
+pub use tutti_exit::{load_ddf, CliResult, Failure};
 
 #[derive(Debug, Parser)]
 #[command(
@@ -91,27 +88,6 @@ pub fn stop_flag() -> Result<std::sync::Arc<std::sync::atomic::AtomicBool>, Fail
     Ok(tutti_host::stop_on_ctrl_c().context("installing the signal handler")?)
 }
 
-/// A failure with the exit status it maps to.
-#[derive(Debug)]
-pub struct Failure {
-    pub code: u8,
-    pub error: anyhow::Error,
-}
-
-impl Failure {
-    pub fn invalid(error: impl Into<anyhow::Error>) -> Self {
-        Failure { code: EXIT_INVALID, error: error.into() }
-    }
-}
-
-impl From<anyhow::Error> for Failure {
-    fn from(error: anyhow::Error) -> Self {
-        Failure { code: EXIT_FAILURE, error }
-    }
-}
-
-pub type CliResult = Result<(), Failure>;
-
 pub fn run(cli: Cli) -> ExitCode {
     let result = match cli.command {
         Command::Check(a) => check::run(a),
@@ -125,13 +101,7 @@ pub fn run(cli: Cli) -> ExitCode {
         Command::Studio(a) => studio::run(a),
         Command::Fmu(a) => fmu::run(a),
     };
-    match result {
-        Ok(()) => ExitCode::SUCCESS,
-        Err(f) => {
-            eprintln!("{:#}", f.error);
-            ExitCode::from(f.code)
-        }
-    }
+    tutti_exit::exit(result)
 }
 
 /// `1 domain`, `4 domains`: a count with its noun.
@@ -141,9 +111,4 @@ pub fn count(n: usize, noun: &str) -> String {
     } else {
         format!("{n} {noun}s")
     }
-}
-
-/// Loads a DDF, mapping its diagnostics to exit status 2.
-pub fn load_ddf(path: &std::path::Path) -> Result<tutti_core::ddf::Model, Failure> {
-    tutti_core::ddf::load(path).map_err(Failure::invalid)
 }

@@ -10,10 +10,8 @@
 //! `analysis` (the checks) ← `plot` (the figures); `sim` (the co-simulation run) ← `uav` (the
 //! command: its options, the run and its report).
 
-use std::path::PathBuf;
 use std::process::ExitCode;
 
-use anyhow::Context as _;
 use clap::{Parser, Subcommand};
 
 mod analysis;
@@ -31,31 +29,7 @@ struct Args {
     command: DemoCommand,
 }
 
-/// Exit status for invalid input or usage.
-const EXIT_INVALID: u8 = 2;
-/// Exit status for a runtime failure.
-pub const EXIT_FAILURE: u8 = 1;
-
-/// A failure with the exit status it maps to.
-#[derive(Debug)]
-pub struct Failure {
-    pub code: u8,
-    pub error: anyhow::Error,
-}
-
-impl Failure {
-    pub fn invalid(error: impl Into<anyhow::Error>) -> Self {
-        Failure { code: EXIT_INVALID, error: error.into() }
-    }
-}
-
-impl From<anyhow::Error> for Failure {
-    fn from(error: anyhow::Error) -> Self {
-        Failure { code: EXIT_FAILURE, error }
-    }
-}
-
-pub type CliResult = Result<(), Failure>;
+pub use tutti_exit::{tutti_exe, CliResult, Failure, EXIT_FAILURE};
 
 /// `--realtime [--cpu N] [--priority P]`, as `tutti host` takes it.
 #[derive(Debug, Clone, clap::Args)]
@@ -87,21 +61,6 @@ pub fn enter_realtime(args: &RealtimeArgs, who: &str) {
     }
 }
 
-/// The `tutti` executable: `TUTTI_EXE`, else the one next to this executable.
-pub fn tutti_exe() -> anyhow::Result<PathBuf> {
-    if let Some(p) = std::env::var_os("TUTTI_EXE") {
-        return Ok(PathBuf::from(p));
-    }
-    let exe = std::env::current_exe().context("locating this executable")?;
-    let tutti = exe.with_file_name("tutti");
-    anyhow::ensure!(
-        tutti.is_file(),
-        "no tutti executable next to {}: build it with `cargo build --release -p tutti` (or set TUTTI_EXE)",
-        exe.display()
-    );
-    Ok(tutti)
-}
-
 #[derive(Debug, Subcommand)]
 enum DemoCommand {
     /// The UAV formation co-simulation: framework, four UAV components, a Python monitoring
@@ -127,11 +86,5 @@ fn main() -> ExitCode {
         DemoCommand::UavReport(a) => uav::run_report(a),
         DemoCommand::UavNode(a) => node::run(a),
     };
-    match result {
-        Ok(()) => ExitCode::SUCCESS,
-        Err(f) => {
-            eprintln!("{:#}", f.error);
-            ExitCode::from(f.code)
-        }
-    }
+    tutti_exit::exit(result)
 }

@@ -1,0 +1,69 @@
+//! What tutti's binaries (`tutti`, `tutti-bench`, `tutti-demo`) share: the exit statuses of
+//! `docs/cli.md` (0 success, 2 invalid input or usage, 1 a runtime failure), the failure that
+//! carries one, and where the benchmarks and the demo find the `tutti` executable. It is for
+//! binaries only, so its errors are `anyhow`'s, printed as one chain (`{:#}`).
+
+use std::path::{Path, PathBuf};
+
+use anyhow::Context;
+use std::process::ExitCode;
+
+/// Exit status for invalid input or usage.
+pub const EXIT_INVALID: u8 = 2;
+/// Exit status for a runtime failure.
+pub const EXIT_FAILURE: u8 = 1;
+
+/// A failure with the exit status it maps to.
+#[derive(Debug)]
+pub struct Failure {
+    pub code: u8,
+    pub error: anyhow::Error,
+}
+
+impl Failure {
+    /// Invalid input or usage (exit status 2).
+    pub fn invalid(error: impl Into<anyhow::Error>) -> Self {
+        Failure { code: EXIT_INVALID, error: error.into() }
+    }
+}
+
+impl From<anyhow::Error> for Failure {
+    fn from(error: anyhow::Error) -> Self {
+        Failure { code: EXIT_FAILURE, error }
+    }
+}
+
+/// What a subcommand returns.
+pub type CliResult = Result<(), Failure>;
+
+/// Loads a DDF, mapping its diagnostics to exit status 2.
+pub fn load_ddf(path: &Path) -> Result<tutti_core::ddf::Model, Failure> {
+    tutti_core::ddf::load(path).map_err(Failure::invalid)
+}
+
+/// The process's exit: success, or the failure's chain on stderr and its status.
+pub fn exit(result: CliResult) -> ExitCode {
+    match result {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(f) => {
+            eprintln!("{:#}", f.error);
+            ExitCode::from(f.code)
+        }
+    }
+}
+
+/// The `tutti` executable for `tutti-bench` and `tutti-demo`: `TUTTI_EXE`, else the one next
+/// to the running executable.
+pub fn tutti_exe() -> anyhow::Result<PathBuf> {
+    if let Some(p) = std::env::var_os("TUTTI_EXE") {
+        return Ok(PathBuf::from(p));
+    }
+    let exe = std::env::current_exe().context("locating this executable")?;
+    let tutti = exe.with_file_name("tutti");
+    anyhow::ensure!(
+        tutti.is_file(),
+        "no tutti executable next to {}: build it with `cargo build --release -p tutti` (or set TUTTI_EXE)",
+        exe.display()
+    );
+    Ok(tutti)
+}
