@@ -204,6 +204,9 @@ pub fn min_interval(rate: Option<f64>) -> Duration {
     rate.filter(|r| *r > 0.0).map_or(Duration::ZERO, |r| Duration::from_secs_f64(1.0 / r))
 }
 
+/// Discovery passes after a reader joined in which per-item writers send every item again.
+pub const REJOIN_PASSES: u32 = 3;
+
 /// Whether a route has a remote reader to work for; wakes the thread that serves it.
 #[derive(Debug, Default)]
 pub struct Activation {
@@ -212,12 +215,19 @@ pub struct Activation {
     /// items that changed, so a reader joining one item's topic late must be sent every item
     /// again (an item whose value never changes would never reach it otherwise).
     joined: AtomicU64,
+    /// Discovery passes after a join that count as a join again (see `set_readers`).
+    rejoins: std::sync::atomic::AtomicU32,
     readers: std::sync::Mutex<BTreeSet<Guid>>,
     thread: std::sync::OnceLock<Thread>,
 }
 
 impl Activation {
     /// The remote readers now on the route's topics (from discovery).
+    ///
+    /// A join also counts at the next [`REJOIN_PASSES`] passes: the gateway learns of a
+    /// reader from discovery before that reader has necessarily learnt of the gateway's
+    /// writer, and a volatile reader drops what arrives before it has, so the items sent
+    /// once at the join may never reach it (seen on a loaded machine).
     pub fn set_readers(&self, readers: &BTreeSet<Guid>) {
         let joined = {
             let mut known = self.readers.lock().unwrap_or_else(|e| e.into_inner());
@@ -225,7 +235,12 @@ impl Activation {
             known.clone_from(readers);
             joined
         };
+        let again =
+            !joined && self.rejoins.fetch_update(Ordering::AcqRel, Ordering::Acquire, |n| n.checked_sub(1)).is_ok();
         if joined {
+            self.rejoins.store(REJOIN_PASSES, Ordering::Release);
+        }
+        if joined || again {
             self.joined.fetch_add(1, Ordering::AcqRel);
         }
         self.set(!readers.is_empty());
