@@ -199,7 +199,7 @@ fn duration(what: &str, v: Option<&str>) -> Result<Option<Duration>, ApiError> {
 
 /// The framework of `model` in `namespace`, on a thread of its own; its log lines are those
 /// of `tutti host`. The thread returns how the run ended.
-fn start_host(model: tutti_core::ddf::Model, opts: HostOptions, log: Log) -> Runner {
+fn start_host(model: tutti_core::ddf::Model, opts: HostOptions, log: Log) -> Result<Runner, ApiError> {
     let stop = Arc::new(AtomicBool::new(false));
     let flag = stop.clone();
     let thread = std::thread::Builder::new().name("studio-host".into()).spawn(move || {
@@ -234,10 +234,11 @@ fn start_host(model: tutti_core::ddf::Model, opts: HostOptions, log: Log) -> Run
             }
         }
     });
-    match thread {
-        Ok(t) => Runner::Host { stop, thread: Some(t) },
-        Err(_) => Runner::Host { stop, thread: None },
-    }
+    // A run whose thread never started would show as running for ever and block the next.
+    let thread = thread.map_err(|e| {
+        ApiError::new(StatusCode::INTERNAL_SERVER_ERROR, "spawn", format!("cannot start the framework's thread: {e}"))
+    })?;
+    Ok(Runner::Host { stop, thread: Some(thread) })
 }
 
 /// `tutti gateway` on `real` in `namespace`, a child that dies with the studio.
@@ -306,7 +307,7 @@ pub async fn start(State(st): State<Arc<AppState>>, Json(body): Json<StartBody>)
     }
     let log: Log = Arc::new(Mutex::new(VecDeque::new()));
     let runner = match body.kind {
-        Kind::Host => start_host(model, opts, log.clone()),
+        Kind::Host => start_host(model, opts, log.clone())?,
         Kind::Gateway => start_gateway(exe, &real, &namespace, &log)?,
     };
     let run = Run { runner, path: rel.clone(), namespace: namespace.clone(), started: Instant::now(), log, exit: None };
