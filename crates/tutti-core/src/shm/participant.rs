@@ -204,12 +204,6 @@ impl Participant {
         self.seg.sim_time()
     }
 
-    /// The step the framework published last (0 before its first): unlike
-    /// [`last_step`](Self::last_step), not necessarily one this connection has read.
-    pub fn step(&self) -> u64 {
-        self.seg.step()
-    }
-
     /// The framework's step period, when it steps at a fixed rate (see [`Segment::period`]).
     pub fn period(&self) -> Option<Duration> {
         self.seg.period()
@@ -543,8 +537,8 @@ impl Participant {
         self.stage_at(index, bytes)
     }
 
-    /// Stages the SUBSCRIBE item with index `index` in its set (as [`leaf`](Self::leaf) and
-    /// [`item_index`](Self::item_index) give it): [`stage`](Self::stage) without looking the
+    /// Stages the SUBSCRIBE item with index `index` in its set (as [`leaf`](Self::leaf) gives
+    /// it): [`stage`](Self::stage) without looking the
     /// path up, for a caller that resolved the item once.
     pub fn stage_at(&mut self, index: usize, bytes: &[u8]) -> Result<(), ShmError> {
         let Some(range) = self.seg.info.subscribe.leaves.get(index).map(Leaf::range) else {
@@ -584,12 +578,6 @@ impl Participant {
             self.stale_staging = false;
         }
         Ok(())
-    }
-
-    /// The index of item `path` in set `role`: resolve an item once, then stage it with
-    /// [`stage_at`](Self::stage_at) or read it with [`snapshot_item`](Self::snapshot_item).
-    pub fn item_index(&self, role: Role, path: &str) -> Result<usize, ShmError> {
-        self.leaf(role, path).map(|(i, _)| i)
     }
 
     /// The leaf `path` of set `role`, with its index in that set.
