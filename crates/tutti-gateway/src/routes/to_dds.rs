@@ -205,7 +205,14 @@ pub fn min_interval(rate: Option<f64>) -> Duration {
 }
 
 /// Discovery passes after a reader joined in which per-item writers send every item again.
-pub const REJOIN_PASSES: u32 = 3;
+const REJOIN_PASSES: u32 = 3;
+
+/// The remote readers of a route, and the passes left in which a join counts again.
+#[derive(Debug, Default)]
+struct KnownReaders {
+    readers: BTreeSet<Guid>,
+    rejoins: u32,
+}
 
 /// Whether a route has a remote reader to work for; wakes the thread that serves it.
 #[derive(Debug, Default)]
@@ -215,9 +222,7 @@ pub struct Activation {
     /// items that changed, so a reader joining one item's topic late must be sent every item
     /// again (an item whose value never changes would never reach it otherwise).
     joined: AtomicU64,
-    /// Discovery passes after a join that count as a join again (see `set_readers`).
-    rejoins: std::sync::atomic::AtomicU32,
-    readers: std::sync::Mutex<BTreeSet<Guid>>,
+    known: std::sync::Mutex<KnownReaders>,
     thread: std::sync::OnceLock<Thread>,
 }
 
@@ -229,18 +234,20 @@ impl Activation {
     /// writer, and a volatile reader drops what arrives before it has, so the items sent
     /// once at the join may never reach it (seen on a loaded machine).
     pub fn set_readers(&self, readers: &BTreeSet<Guid>) {
-        let joined = {
-            let mut known = self.readers.lock().unwrap_or_else(|e| e.into_inner());
-            let joined = readers.difference(&known).next().is_some();
-            known.clone_from(readers);
-            joined
+        let counts = {
+            let mut known = self.known.lock().unwrap_or_else(|e| e.into_inner());
+            let counts = if readers.difference(&known.readers).next().is_some() {
+                known.rejoins = REJOIN_PASSES;
+                true
+            } else {
+                let again = known.rejoins > 0;
+                known.rejoins = known.rejoins.saturating_sub(1);
+                again
+            };
+            known.readers.clone_from(readers);
+            counts
         };
-        let again =
-            !joined && self.rejoins.fetch_update(Ordering::AcqRel, Ordering::Acquire, |n| n.checked_sub(1)).is_ok();
-        if joined {
-            self.rejoins.store(REJOIN_PASSES, Ordering::Release);
-        }
-        if joined || again {
+        if counts {
             self.joined.fetch_add(1, Ordering::AcqRel);
         }
         self.set(!readers.is_empty());
@@ -302,6 +309,9 @@ pub struct Watched {
     buf: Vec<u8>,
     /// `activation.joined()` as last acted on.
     joined: u64,
+    /// A reader joined a per-item PUBLISH set: every item goes out again at the next look,
+    /// changed or not (an item whose value never changes would never reach that reader).
+    resend: bool,
     /// Whether the last look wrote a sample, and the samples written but not yet flushed.
     hot: bool,
     unflushed: u32,
@@ -343,6 +353,7 @@ impl Watched {
             last_local: 0,
             buf: Vec::new(),
             joined: 0,
+            resend: false,
             hot: false,
             unflushed: 0,
             min_interval: Duration::ZERO,
@@ -375,6 +386,9 @@ impl Watched {
         if joined != self.joined {
             self.joined = joined;
             self.out.reset();
+            // A SUBSCRIBE set's items go out again with its next local commit (the gateway's
+            // own commits are never echoed back to DDS).
+            self.resend = matches!(self.out, Outbound::Items(_)) && self.own_commits.is_none();
         }
         let Some((seg, fresh)) = look(&mut self.live, &cfg.namespace) else {
             self.last_gen = None;
@@ -386,7 +400,7 @@ impl Watched {
             self.last_gen = None;
         }
         let gen = seg.generation(self.role);
-        if self.last_gen == Some(gen) {
+        if self.last_gen == Some(gen) && !self.resend {
             return false;
         }
         // Rate-limited: the change waits (and is read, newest, when the limit allows).
@@ -419,7 +433,9 @@ impl Watched {
         if seg.try_read_set(self.role, &mut self.buf, 1 << 16).is_none() {
             return false;
         }
-        self.out.write(seg.step(), seg.sim_time(), &self.buf, stats, self.set.as_deref()) > 0
+        let sent = self.out.write(seg.step(), seg.sim_time(), &self.buf, stats, self.set.as_deref()) > 0;
+        self.resend &= !sent;
+        sent
     }
 }
 
