@@ -229,7 +229,7 @@ pub struct Activation {
 impl Activation {
     /// The remote readers now on the route's topics (from discovery).
     ///
-    /// A join also counts at the next [`REJOIN_PASSES`] passes: the gateway learns of a
+    /// A join also counts at the next three discovery passes (`REJOIN_PASSES`): the gateway learns of a
     /// reader from discovery before that reader has necessarily learnt of the gateway's
     /// writer, and a volatile reader drops what arrives before it has, so the items sent
     /// once at the join may never reach it (seen on a loaded machine).
