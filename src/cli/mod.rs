@@ -17,7 +17,7 @@ mod show;
 mod status;
 mod studio;
 
-pub use tutti_exit::{load_ddf, CliResult, Failure};
+pub use tutti_exit::{enter_realtime, load_ddf, CliResult, Failure, RealtimeArgs};
 
 #[derive(Debug, Parser)]
 #[command(
@@ -43,44 +43,6 @@ enum Command {
     Gateway(gateway::Args),
     Studio(studio::Args),
     Fmu(fmu::Args),
-}
-
-/// `--realtime [--cpu N] [--priority P]`, shared by the commands that step domains.
-#[derive(Debug, Clone, clap::Args)]
-pub struct RealtimeArgs {
-    /// Step under SCHED_FIFO with locked memory (mlockall), as far as the machine allows;
-    /// what it refuses is a warning, not an error.
-    #[arg(long)]
-    pub realtime: bool,
-    /// With --realtime: pin the stepping thread to this CPU.
-    #[arg(long, value_name = "N", requires = "realtime")]
-    pub cpu: Option<usize>,
-    /// With --realtime: the SCHED_FIFO priority (1..99, default 50).
-    #[arg(long, value_name = "P", requires = "realtime")]
-    pub priority: Option<i32>,
-}
-
-impl RealtimeArgs {
-    /// What to apply, when `--realtime` was given.
-    pub fn request(&self) -> Option<tutti_host::RealtimeRequest> {
-        self.realtime.then_some(tutti_host::RealtimeRequest { cpu: self.cpu, priority: self.priority })
-    }
-}
-
-/// Applies `--realtime` to the calling thread when it was given, and prints (unless `quiet`)
-/// what was applied and what was not, prefixed by `who`.
-pub fn enter_realtime(args: &RealtimeArgs, who: &str, quiet: bool) {
-    let Some(req) = args.request() else { return };
-    let out = tutti_host::enter_realtime(&req);
-    if quiet {
-        return;
-    }
-    if !out.applied.is_empty() {
-        eprintln!("{who}: real-time: {}", out.applied.join(", "));
-    }
-    for w in &out.warnings {
-        eprintln!("{who}: warning: {w}");
-    }
 }
 
 /// The flag Ctrl-C (or SIGTERM) raises: a command's loop stops when it is set.

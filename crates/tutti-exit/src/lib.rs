@@ -1,6 +1,7 @@
 //! What tutti's binaries (`tutti`, `tutti-bench`, `tutti-demo`) share: the exit statuses of
 //! `docs/cli.md` (0 success, 2 invalid input or usage, 1 a runtime failure), the failure that
-//! carries one, and where the benchmarks and the demo find the `tutti` executable. It is for
+//! carries one, the `--realtime` options, and where the benchmarks and the demo find the
+//! `tutti` executable. It is for
 //! binaries only, so its errors are `anyhow`'s, printed as one chain (`{:#}`).
 
 use std::path::{Path, PathBuf};
@@ -66,4 +67,43 @@ pub fn tutti_exe() -> anyhow::Result<PathBuf> {
         exe.display()
     );
     Ok(tutti)
+}
+
+/// `--realtime [--cpu N] [--priority P]`, shared by the commands that step domains
+/// (`tutti host`, `tutti-demo uav`).
+#[derive(Debug, Clone, clap::Args)]
+pub struct RealtimeArgs {
+    /// Step under SCHED_FIFO with locked memory (mlockall), as far as the machine allows;
+    /// what it refuses is a warning, not an error.
+    #[arg(long)]
+    pub realtime: bool,
+    /// With --realtime: pin the stepping thread to this CPU.
+    #[arg(long, value_name = "N", requires = "realtime")]
+    pub cpu: Option<usize>,
+    /// With --realtime: the SCHED_FIFO priority (1..99, default 50).
+    #[arg(long, value_name = "P", requires = "realtime")]
+    pub priority: Option<i32>,
+}
+
+impl RealtimeArgs {
+    /// What to apply, when `--realtime` was given.
+    pub fn request(&self) -> Option<tutti_host::RealtimeRequest> {
+        self.realtime.then_some(tutti_host::RealtimeRequest { cpu: self.cpu, priority: self.priority })
+    }
+}
+
+/// Applies `--realtime` to the calling thread when it was given, and prints (unless `quiet`)
+/// what was applied and what was not, prefixed by `who`.
+pub fn enter_realtime(args: &RealtimeArgs, who: &str, quiet: bool) {
+    let Some(req) = args.request() else { return };
+    let out = tutti_host::enter_realtime(&req);
+    if quiet {
+        return;
+    }
+    if !out.applied.is_empty() {
+        eprintln!("{who}: real-time: {}", out.applied.join(", "));
+    }
+    for w in &out.warnings {
+        eprintln!("{who}: warning: {w}");
+    }
 }

@@ -29,37 +29,7 @@ struct Args {
     command: DemoCommand,
 }
 
-pub use tutti_exit::{tutti_exe, CliResult, Failure, EXIT_FAILURE};
-
-/// `--realtime [--cpu N] [--priority P]`, as `tutti host` takes it.
-#[derive(Debug, Clone, clap::Args)]
-pub struct RealtimeArgs {
-    /// Step under SCHED_FIFO with locked memory (mlockall), as far as the machine allows;
-    /// what it refuses is a warning, not an error.
-    #[arg(long)]
-    pub realtime: bool,
-    /// With --realtime: pin the stepping thread to this CPU.
-    #[arg(long, value_name = "N", requires = "realtime")]
-    pub cpu: Option<usize>,
-    /// With --realtime: the SCHED_FIFO priority (1..99, default 50).
-    #[arg(long, value_name = "P", requires = "realtime")]
-    pub priority: Option<i32>,
-}
-
-/// Applies `--realtime` to the calling thread when it was given; prints what was applied
-/// and what was not, prefixed by `who`.
-pub fn enter_realtime(args: &RealtimeArgs, who: &str) {
-    if !args.realtime {
-        return;
-    }
-    let out = tutti_host::enter_realtime(&tutti_host::RealtimeRequest { cpu: args.cpu, priority: args.priority });
-    if !out.applied.is_empty() {
-        eprintln!("{who}: real-time: {}", out.applied.join(", "));
-    }
-    for w in &out.warnings {
-        eprintln!("{who}: warning: {w}");
-    }
-}
+pub use tutti_exit::{enter_realtime, tutti_exe, CliResult, Failure, RealtimeArgs, EXIT_FAILURE};
 
 #[derive(Debug, Subcommand)]
 enum DemoCommand {

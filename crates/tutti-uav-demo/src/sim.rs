@@ -591,7 +591,7 @@ pub fn simulate(opts: &SimOptions, scenario: &Scenario, out: &Path, interrupted:
     }
     let logs = Logs::create(out)?;
     let monitor_in = children.start_monitor(&setup, scenario, out)?;
-    crate::enter_realtime(&opts.rt, "demo");
+    crate::enter_realtime(&opts.rt, "demo", false);
     let mut stepper = Stepper {
         publish: setup.model.domains.iter().map(|d| d.publish.layout.default_bytes()).collect(),
         setup: &setup,
