@@ -74,14 +74,14 @@ fn a_dds_reader_of_a_synchronous_domain_is_an_observer_not_a_participant(e: Eng)
                 .unwrap();
             let v: serde_json::Value = serde_json::from_slice(&out.stdout).expect("status --json");
             let d = v.as_array().unwrap().iter().find(|d| d["domain"] == "gw_sync").cloned().unwrap();
-            assert_eq!(d["connection_count"], 0, "{d}");
-            assert_eq!(d["dds_readers"], 1, "{d}");
+            assert_eq!(d["connection_count"], 0, "{d}\n{}", gw.dump());
+            assert_eq!(d["dds_readers"], 1, "{d}\n{}", gw.dump());
             cli_checked = true;
         }
         thread::sleep(Duration::from_millis(20));
     }
     assert_eq!(reader.wait(SECS(30)), Some(0), "{}", reader.dump());
-    assert!(looks > 0 && readers_seen == 1, "the observer never showed the DDS reader ({readers_seen})");
+    assert!(looks > 0 && readers_seen == 1, "the observer never showed the DDS reader ({readers_seen})\n{}", gw.dump());
     assert!(cli_checked, "tutti status never showed the DDS reader");
     let steps: Vec<u64> = json_lines(&reader, "step").iter().map(|v| v["step"].as_u64().unwrap()).collect();
     for (v, k) in json_lines(&reader, "step").iter().zip(&steps) {

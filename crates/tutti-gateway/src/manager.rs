@@ -246,7 +246,11 @@ impl Manager {
         let Some(obs) = self.domains[di].presence.as_mut() else { return true };
         match obs.look(&ns) {
             Look::Fresh | Look::Same => true,
-            Look::Gone | Look::Stopped => false,
+            Look::Gone => false,
+            Look::Stopped => {
+                info!(domain = %self.domains[di].name, "its framework stopped: the presence connection is released");
+                false
+            }
             Look::Refused(e) => {
                 warn!(domain = %self.domains[di].name, "cannot open the domain: {e}");
                 false

@@ -96,11 +96,11 @@ impl Observer {
             if now >= self.next_alive_check {
                 self.next_alive_check = now + ALIVE_CHECK;
                 if !seg.framework_alive() {
-                    // The framework is gone, and its segment with the presence connection.
-                    if let Some(presence) = &mut self.presence {
-                        presence.slot = None;
-                    }
-                    self.seg = None;
+                    // The presence connection is released, not just forgotten: were the
+                    // framework seen gone while its segment lives on, a forgotten slot would
+                    // stay claimed beside the one taken at the next open, and `tutti status`
+                    // would count this gateway's DDS readers twice.
+                    self.close();
                     return Look::Stopped;
                 }
             }
@@ -142,5 +142,52 @@ impl Observer {
 impl Drop for Observer {
     fn drop(&mut self) {
         self.leave();
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use std::sync::atomic::Ordering;
+
+    use super::*;
+    use crate::shm::segment::{STATE_RUNNING, STATE_STOPPED};
+    use crate::shm::{Framework, FrameworkOptions};
+
+    const DDF: &str = r#"<?xml version="1.0"?>
+<orchestra>
+  <domain name="seen">
+    <synchronous>no</synchronous><multiplePublishAllowed>yes</multiplePublishAllowed><states>no</states>
+    <set name="PUBLISH"><item name="x"><type>float64</type><length>1</length></item></set>
+    <set name="SUBSCRIBE"><item name="y"><type>float64</type><length>1</length></item></set>
+  </domain>
+</orchestra>"#;
+
+    /// A framework seen gone while its segment lives on (here: its state word flips and
+    /// back) costs the observer its presence connection, which it takes again at the next
+    /// open: one connection, never two, so `tutti status` does not count its DDS readers twice.
+    #[test]
+    fn a_framework_seen_gone_and_back_leaves_one_presence_connection() {
+        let model = crate::ddf::parse_str(DDF, "seen.ddf").unwrap();
+        let ns = format!("observer{}", std::process::id());
+        let fw = Framework::create(&model, &FrameworkOptions { namespace: ns.clone(), ..Default::default() }).unwrap();
+        let observers = || fw.domains[0].status().connections.iter().filter(|c| c.observer).count();
+        let mut watcher = Observer::with_presence("seen".into(), "tutti_gateway");
+        assert!(matches!(watcher.look(&ns), Look::Fresh));
+        watcher.set_dds_readers(1);
+        assert_eq!(observers(), 1);
+
+        let seg = Segment::open(&ns, "seen").unwrap();
+        let state = &seg.header().state;
+        state.store(STATE_STOPPED, Ordering::Release);
+        watcher.next_alive_check = Instant::now();
+        assert!(matches!(watcher.look(&ns), Look::Stopped));
+        assert_eq!(observers(), 0, "the presence connection is released when the framework reads as gone");
+
+        state.store(STATE_RUNNING, Ordering::Release);
+        watcher.next_open = Instant::now();
+        assert!(matches!(watcher.look(&ns), Look::Fresh));
+        watcher.set_dds_readers(1);
+        let s = fw.domains[0].status();
+        assert_eq!((s.connections.iter().filter(|c| c.observer).count(), s.dds_readers), (1, 1), "{:?}", s.connections);
     }
 }
