@@ -79,12 +79,8 @@ impl Args {
 }
 
 /// A run's error with its exit status: 2 for options that cannot apply, else 1.
-pub fn host_failure(e: HostError) -> Failure {
-    if e.is_invalid() {
-        Failure::invalid(e)
-    } else {
-        Failure::from(anyhow::Error::new(e))
-    }
+fn host_failure(e: HostError) -> Failure {
+    Failure::classed(e.is_invalid(), e)
 }
 
 pub fn run(args: Args) -> CliResult {

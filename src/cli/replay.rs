@@ -63,12 +63,9 @@ fn parse_speed(s: &str) -> anyhow::Result<f64> {
 /// The differing steps printed in full; the rest are counted.
 const PRINT: u64 = 20;
 
+/// A replay's error with its exit status: 2 for a recording or options that cannot apply, else 1.
 fn record_failure(e: RecordError) -> Failure {
-    if e.is_invalid() {
-        Failure::invalid(e)
-    } else {
-        Failure::from(anyhow::Error::new(e))
-    }
+    Failure::classed(e.is_invalid(), e)
 }
 
 pub fn run(args: Args) -> CliResult {
@@ -92,7 +89,7 @@ pub fn run(args: Args) -> CliResult {
         .run(&stop, |event| match &event {
             ReplayEvent::Started { .. } if !quiet => eprintln!("replay: {shown} (DDF {ddf_name}) {event}"),
             ReplayEvent::Differs { nth, .. } if !quiet && !args.json && *nth < PRINT => eprintln!("{event}"),
-            ReplayEvent::Progress { .. } | ReplayEvent::Waiting(_) if !quiet => eprintln!("replay: {event}"),
+            ReplayEvent::Progress { .. } | ReplayEvent::Host(_) if !quiet => eprintln!("replay: {event}"),
             _ => {}
         })
         .map_err(|e| anyhow::Error::new(e).context(format!("replaying {shown}")))?;

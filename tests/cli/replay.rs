@@ -232,4 +232,12 @@ fn replay_refuses_what_is_not_a_recording_or_not_recorded() {
     let (status, _, err) = common::run_with_timeout(c, LIMIT);
     assert_eq!(status.code(), Some(2), "{err}");
     assert!(err.contains("no recorded domain 'nowhere'") && err.contains(&d.name), "{err}");
+
+    // Writers awaited in a domain the replay does not have: refused before anything is created.
+    let mut c = tutti(&ns, &["replay", "--wait-for", "nowhere=1"]);
+    c.arg(&run);
+    let (status, _, err) = common::run_with_timeout(c, LIMIT);
+    assert_eq!(status.code(), Some(2), "{err}");
+    assert!(err.contains("--wait-for nowhere=1: no domain 'nowhere'") && err.contains("one.mcap"), "{err}");
+    assert!(tutti_test_support::segments_of(&ns).is_empty(), "a refused replay left segments");
 }

@@ -26,6 +26,12 @@ impl Failure {
     pub fn invalid(error: impl Into<anyhow::Error>) -> Self {
         Failure { code: EXIT_INVALID, error: error.into() }
     }
+
+    /// `error`, invalid input (status 2) when `invalid`, else a runtime failure (status 1):
+    /// for library errors that know which they are (`e.is_invalid()`).
+    pub fn classed(invalid: bool, error: impl Into<anyhow::Error>) -> Self {
+        Failure { code: if invalid { EXIT_INVALID } else { EXIT_FAILURE }, error: error.into() }
+    }
 }
 
 impl From<anyhow::Error> for Failure {

@@ -28,6 +28,9 @@ pub enum HostError {
         #[source]
         source: ShmError,
     },
+    /// A step names a domain index the run does not have.
+    #[error("no domain {index} in the run")]
+    NoDomain { index: usize },
     /// A step sink (a recording) failed.
     #[error("{what}: {source}")]
     Sink {

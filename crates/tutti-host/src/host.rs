@@ -5,7 +5,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
 use tutti_core::ddf::{Domain, Model};
-use tutti_core::shm::{Framework, FrameworkOptions, StepReport, WaitMode};
+use tutti_core::shm::{DomainHost, Framework, FrameworkOptions, StepReport, WaitMode};
 
 use crate::steps::{step_all, wait_for_writers};
 use crate::{HostError, Tick, Ticker};
@@ -71,6 +71,17 @@ pub trait StepSink {
     fn step(&mut self, fw: &Framework, done: &StepDone<'_>) -> Result<(), Box<dyn std::error::Error + Send + Sync>>;
     /// The run is over: write what is buffered.
     fn finish(self: Box<Self>) -> Result<(), Box<dyn std::error::Error + Send + Sync>>;
+}
+
+/// One domain's step in [`Host::step_domains`].
+#[derive(Debug, Clone, Copy)]
+pub struct DomainStep<'a> {
+    /// The domain's index in the model.
+    pub domain: usize,
+    /// Its PUBLISH set for the step.
+    pub publish: &'a [u8],
+    /// Simulated time of the step, seconds.
+    pub sim: f64,
 }
 
 /// Progress of a run, every second.
@@ -235,13 +246,12 @@ impl Host {
         self.sinks.push(sink);
     }
 
-    /// Waits for the seeds and the writers, then lets the participants go and starts the
-    /// clock. Returns false when `stop` was set while waiting.
+    /// Waits for the writers, lets the participants go, waits for their seeds, and starts
+    /// the clock. Returns false when `stop` was set while waiting.
+    ///
+    /// The seeds come after the release: a participant held in connect cannot commit its
+    /// seed, so waiting for it first would only spend the timeout.
     pub fn start(&mut self, stop: &AtomicBool, on_report: &mut dyn FnMut(Report)) -> Result<bool, HostError> {
-        let unseeded = self.fw.wait_for_seeds();
-        if unseeded > 0 {
-            on_report(Report::Unseeded { domains: unseeded, timeout: self.opts.timeout });
-        }
         let wants = self.opts.wait_for.clone();
         let waited = wait_for_writers(&mut self.fw, &wants, stop, |w| on_report(Report::WaitingForWriters(w.clone())))?;
         if !waited {
@@ -252,6 +262,10 @@ impl Host {
         }
         if self.opts.hold.is_none() {
             self.fw.domains.iter().for_each(|d| d.set_hold(false));
+        }
+        let unseeded = self.fw.wait_for_seeds();
+        if unseeded > 0 {
+            on_report(Report::Unseeded { domains: unseeded, timeout: self.opts.timeout });
         }
         self.ticker = new_ticker(&self.opts);
         self.run_start = Instant::now();
@@ -268,22 +282,65 @@ impl Host {
         let sim = tick.k as f64 * self.opts.step.as_secs_f64();
         let reports = step_all(&mut self.fw, &self.publish, sim, self.opts.step, &tick)?;
         self.steps += 1;
-        for (d, r) in self.fw.domains.iter().zip(&reports) {
-            if r.timed_out > 0 {
-                self.step_timeouts += 1;
-                on_report(Report::StepTimedOut {
-                    step: r.step,
-                    domain: d.info().name.clone(),
-                    timeout: self.opts.timeout,
-                    waiting_for: d.timed_out_on().to_vec(),
-                });
-            }
+        for (i, r) in reports.iter().enumerate() {
+            self.count_timeout(i, r, on_report);
         }
         let done = StepDone { reports: &reports, publish: &self.publish, sim, run_start: self.run_start };
         for sink in &mut self.sinks {
             sink.step(&self.fw, &done).map_err(|source| HostError::Sink { what: "writing the recording", source })?;
         }
         Ok(tick)
+    }
+
+    /// Makes one step of the domains in `steps` now, each with its own PUBLISH set and
+    /// simulated time, the caller keeping the pace (a replay follows its recording's):
+    /// publishes to all, then completes all, so their participants work in parallel. Returns
+    /// each domain's report in the order of `steps`. Step timeouts are reported and counted
+    /// as in [`Host::step`]; the sinks, which take steps of every domain, are not given these.
+    pub fn step_domains(
+        &mut self,
+        steps: &[DomainStep<'_>],
+        on_report: &mut dyn FnMut(Report),
+    ) -> Result<Vec<StepReport>, HostError> {
+        let failed = |host: &DomainHost| {
+            let domain = host.info().name.clone();
+            move |source| HostError::Domain { domain, source }
+        };
+        for s in steps {
+            let host = self.fw.domains.get_mut(s.domain).ok_or(HostError::NoDomain { index: s.domain })?;
+            let on_error = failed(host);
+            host.publish_step(s.publish, s.sim).map_err(on_error)?;
+        }
+        let mut reports = Vec::with_capacity(steps.len());
+        for s in steps {
+            let host = &mut self.fw.domains[s.domain];
+            let on_error = failed(host);
+            let report = host.complete_step().map_err(on_error)?;
+            self.count_timeout(s.domain, &report, on_report);
+            reports.push(report);
+        }
+        self.steps += 1;
+        Ok(reports)
+    }
+
+    /// Counts and reports domain `i`'s step if it timed out.
+    fn count_timeout(&mut self, i: usize, r: &StepReport, on_report: &mut dyn FnMut(Report)) {
+        if r.timed_out == 0 {
+            return;
+        }
+        self.step_timeouts += 1;
+        let d = &self.fw.domains[i];
+        on_report(Report::StepTimedOut {
+            step: r.step,
+            domain: d.info().name.clone(),
+            timeout: self.opts.timeout,
+            waiting_for: d.timed_out_on().to_vec(),
+        });
+    }
+
+    /// Steps whose participants did not all answer within the timeout, so far.
+    pub fn step_timeouts(&self) -> u64 {
+        self.step_timeouts
     }
 
     /// How the run stands now.
@@ -425,6 +482,26 @@ mod tests {
         let (steps, publish) = seen.borrow().clone();
         assert_eq!(steps, summary.steps, "the sink took every step");
         assert_eq!(publish, 7i32.to_ne_bytes(), "--set reached the PUBLISH set");
+    }
+
+    #[test]
+    fn a_caller_paced_step_publishes_its_own_set_and_time_and_is_counted() {
+        let model = tutti_core::ddf::parse_str(DDF, "probe.ddf").unwrap();
+        let ns = format!("hostlibd{}", std::process::id());
+        let mut host = Host::new(&model, HostOptions { sets: Vec::new(), ..options(&ns) }).unwrap();
+        assert!(host.start(&AtomicBool::new(false), &mut |_| {}).unwrap());
+        let set = 41i32.to_ne_bytes();
+        let steps = [DomainStep { domain: 0, publish: &set, sim: 2.5 }];
+        let reports = host.step_domains(&steps, &mut |_| {}).unwrap();
+        assert_eq!((reports.len(), reports[0].step, reports[0].timed_out), (1, 1, 0));
+        let s = host.framework().domains[0].status();
+        assert_eq!((s.step, s.sim_time), (1, 2.5), "the step carries the caller's simulated time");
+        let mut seen = [0u8; 4];
+        let seg = tutti_core::shm::Segment::open(&ns, "probe").unwrap();
+        seg.read_set(tutti_core::ddf::Role::Publish, &mut seen).unwrap();
+        assert_eq!(seen, set, "the step carries the caller's PUBLISH set");
+        let missing = [DomainStep { domain: 3, publish: &set, sim: 0.0 }];
+        assert!(matches!(host.step_domains(&missing, &mut |_| {}), Err(HostError::NoDomain { index: 3 })));
     }
 
     #[test]

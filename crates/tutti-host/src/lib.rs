@@ -5,15 +5,15 @@
 //! per-step sinks (recordings) and reports of lateness, overruns and step timeouts.
 //!
 //! A run is a value ([`Host`]) that other code drives in-process: `tutti host`, the studio's
-//! run control, the UAV demo and the benchmarks. Nothing here prints: progress comes back as
+//! run control, replay, the UAV demo and the benchmarks. Nothing here prints: progress comes back as
 //! [`Report`]s (whose `Display` is the line a user reads) and the end as a [`Summary`].
 //!
 //! # Layering
 //!
 //! The crate stands on `tutti-core` alone. Recordings plug in through [`StepSink`] instead of
 //! this crate depending on `tutti-record`, so that `tutti-record` can stand on this one: its
-//! replay is a framework too (it uses [`wait_for_writers`]), and its recorders are sinks of a
-//! [`Host`]. The order is core → host → record → the binaries, with no cycle.
+//! replay drives a [`Host`] whose steps it paces itself ([`Host::step_domains`]), and its
+//! recorders are sinks of a [`Host`]. The order is core → host → record → the binaries, with no cycle.
 //!
 //! Beside the runner sit two small process helpers that the binaries share: a child process
 //! stopped when dropped ([`ChildProcess`]), and a stop flag raised by Ctrl-C
@@ -28,7 +28,7 @@ mod ticker;
 
 pub use child::{ChildProcess, SpawnError, SIGINT, SIGTERM};
 pub use error::HostError;
-pub use host::{Host, HostOptions, Progress, Report, StepDone, StepSink, Summary};
+pub use host::{DomainStep, Host, HostOptions, Progress, Report, StepDone, StepSink, Summary};
 pub use realtime::{enter_realtime, RealtimeOutcome, RealtimeRequest};
 pub use steps::{parse_wait_for, step_all, wait_for_writers, WaitForError, WriterWait};
 pub use ticker::{Tick, Ticker};

@@ -19,7 +19,7 @@
 use std::path::Path;
 
 use tutti_core::ddf::Model;
-use tutti_core::shm::{Framework, ShmError};
+use tutti_core::shm::Framework;
 use tutti_host::{HostError, StepDone, StepSink};
 
 pub mod csv;
@@ -41,16 +41,7 @@ pub enum RecordError {
     /// `--domain` names a domain that is not there.
     #[error("{path}: no {noun} '{domain}' ({noun}s: {known})")]
     UnknownDomain { path: String, noun: &'static str, domain: String, known: String },
-    /// `--wait-for` names a domain that is not replayed.
-    #[error("--wait-for {domain}={writers}: no domain '{domain}' replayed")]
-    WaitForDomain { domain: String, writers: usize },
-    /// The framework of a replay, or a domain a recorder follows, failed.
-    #[error("{what}: {source}")]
-    Framework {
-        what: String,
-        #[source]
-        source: ShmError,
-    },
+    /// The framework of a replay.
     #[error(transparent)]
     Host(#[from] HostError),
 }
@@ -59,9 +50,9 @@ impl RecordError {
     /// Whether the request was impossible (the CLI's exit status 2) rather than the run failing.
     pub fn is_invalid(&self) -> bool {
         match self {
-            RecordError::Format { .. } | RecordError::UnknownDomain { .. } | RecordError::WaitForDomain { .. } => true,
+            RecordError::Format { .. } | RecordError::UnknownDomain { .. } => true,
             RecordError::Host(e) => e.is_invalid(),
-            RecordError::Io { .. } | RecordError::Framework { .. } => false,
+            RecordError::Io { .. } => false,
         }
     }
 }

@@ -15,9 +15,9 @@ use std::time::{Duration, Instant};
 
 use serde::Serialize;
 use tutti_core::ddf::Domain;
-use tutti_core::shm::{Framework, FrameworkOptions, WaitMode};
+use tutti_core::shm::WaitMode;
 
-use tutti_host::Report;
+use tutti_host::{DomainStep, Host, HostOptions, Report};
 
 use super::{RecordedStep, Recording};
 use crate::RecordError;
@@ -108,8 +108,9 @@ impl fmt::Display for Comparison {
 pub enum ReplayEvent<'a> {
     /// The domains are created: their names and recorded step counts.
     Started { namespace: &'a str, domains: Vec<(String, usize)> },
-    /// Waiting for writers (every 5 s), then every `wait_for` met: the runner's reports.
-    Waiting(tutti_host::Report),
+    /// What the framework reports: waiting for writers (every 5 s), every `wait_for` met,
+    /// seeds missing, a step that timed out.
+    Host(Report),
     /// A compared step differs (the `nth` differing one, from 0).
     Differs { nth: u64, step: &'a DifferingStep },
     /// Once a second.
@@ -123,7 +124,7 @@ impl fmt::Display for ReplayEvent<'_> {
                 let names: Vec<String> = domains.iter().map(|(d, n)| format!("{d} ({n} steps)")).collect();
                 write!(f, "in namespace {namespace}: {}", names.join(", "))
             }
-            ReplayEvent::Waiting(report) => write!(f, "{report}"),
+            ReplayEvent::Host(report) => write!(f, "{report}"),
             ReplayEvent::Differs { step, .. } => {
                 let items = &step.items;
                 let list: Vec<String> = items
@@ -171,11 +172,12 @@ impl ReplaySummary {
     }
 }
 
-/// A replay of a recording, checked and ready to run.
+/// A replay of a recording: its domains created, ready to run.
 #[derive(Debug)]
 pub struct Replay {
     recording: Recording,
     opts: ReplayOptions,
+    host: Host,
 }
 
 /// The replay's position: the next step of each domain, and the domains that have step `k`.
@@ -185,18 +187,23 @@ struct Cursor {
 }
 
 impl Replay {
-    /// Checks `opts` against `recording` (at `path`, for messages).
+    /// Checks `opts` against `recording` (at `path`, for messages) and creates the domains:
+    /// the framework is a [`Host`], whose steps the replay paces by the recording's.
     pub fn new(recording: Recording, opts: ReplayOptions, path: &std::path::Path) -> Result<Replay, RecordError> {
-        let invalid = |detail: String| RecordError::Format { path: path.display().to_string(), detail };
         if recording.model.domains.is_empty() {
-            return Err(invalid("no recorded step to replay".into()));
+            let detail = "no recorded step to replay".into();
+            return Err(RecordError::Format { path: path.display().to_string(), detail });
         }
-        for (d, n) in &opts.wait_for {
-            if recording.model.domain(d).is_none() {
-                return Err(RecordError::WaitForDomain { domain: d.clone(), writers: *n });
-            }
-        }
-        Ok(Replay { recording, opts })
+        let host_opts = HostOptions {
+            timeout: opts.timeout,
+            wait: opts.wait,
+            namespace: opts.namespace.clone(),
+            wait_for: opts.wait_for.clone(),
+            ddf_name: format!("the domains replayed from {}", path.display()),
+            ..HostOptions::default()
+        };
+        let host = Host::new(&recording.model, host_opts)?;
+        Ok(Replay { recording, opts, host })
     }
 
     /// Recorded steps, all domains together.
@@ -204,25 +211,14 @@ impl Replay {
         self.recording.domains.iter().map(|d| d.steps.len()).sum()
     }
 
-    /// Creates the domains, waits for the writers, and replays until the end or `stop`.
+    /// Waits for the writers (and seeds), then replays until the end or `stop`.
     pub fn run(
-        self,
+        mut self,
         stop: &AtomicBool,
         mut on_event: impl FnMut(ReplayEvent<'_>),
     ) -> Result<ReplaySummary, RecordError> {
-        let mut fw_opts = FrameworkOptions {
-            timeout: self.opts.timeout,
-            wait: self.opts.wait,
-            hold: !self.opts.wait_for.is_empty(),
-            ..Default::default()
-        };
-        if let Some(ns) = &self.opts.namespace {
-            fw_opts.namespace = ns.clone();
-        }
-        let mut fw = Framework::create(&self.recording.model, &fw_opts)
-            .map_err(|source| RecordError::Framework { what: "creating the domains".into(), source })?;
         let domains = self.recording.domains.iter().map(|d| (d.name.clone(), d.steps.len())).collect();
-        on_event(ReplayEvent::Started { namespace: &fw_opts.namespace, domains });
+        on_event(ReplayEvent::Started { namespace: self.host.namespace(), domains });
         let mut summary = ReplaySummary {
             started: false,
             replayed: 0,
@@ -231,23 +227,16 @@ impl Replay {
             elapsed: Duration::ZERO,
             comparison: self.opts.compare.then(Comparison::default),
         };
-        let wants = &self.opts.wait_for;
-        let waiting = |w: &tutti_host::WriterWait| on_event(ReplayEvent::Waiting(Report::WaitingForWriters(w.clone())));
-        if !tutti_host::wait_for_writers(&mut fw, wants, stop, waiting)? {
+        if !self.host.start(stop, &mut |report| on_event(ReplayEvent::Host(report)))? {
             return Ok(summary);
         }
-        if !wants.is_empty() {
-            on_event(ReplayEvent::Waiting(Report::WritersConnected(wants.clone())));
-        }
         summary.started = true;
-        fw.domains.iter().for_each(|d| d.set_hold(false));
-        self.replay_steps(&mut fw, stop, &mut summary, &mut on_event)?;
+        self.replay_steps(stop, &mut summary, &mut on_event)?;
         Ok(summary)
     }
 
     fn replay_steps(
-        &self,
-        fw: &mut Framework,
+        &mut self,
         stop: &AtomicBool,
         summary: &mut ReplaySummary,
         on_event: &mut impl FnMut(ReplayEvent<'_>),
@@ -265,7 +254,7 @@ impl Replay {
                     std::thread::sleep(wait);
                 }
             }
-            self.step_frame(fw, &cursor, summary, on_event)?;
+            self.step_frame(&cursor, summary, on_event)?;
             for &i in &cursor.frame {
                 cursor.next[i] += 1;
             }
@@ -302,32 +291,27 @@ impl Replay {
         &self.recording.domains[i].steps[cursor.next[i]]
     }
 
-    /// Publishes the frame's steps to all its domains, then completes and compares them.
+    /// Steps the frame's domains with their recorded sets, then compares their answers.
     fn step_frame(
-        &self,
-        fw: &mut Framework,
+        &mut self,
         cursor: &Cursor,
         summary: &mut ReplaySummary,
         on_event: &mut impl FnMut(ReplayEvent<'_>),
     ) -> Result<(), RecordError> {
-        let failed = |i: usize| {
-            let what = format!("domain '{}'", self.recording.domains[i].name);
-            move |source| RecordError::Framework { what, source }
-        };
+        let recorded = &self.recording.domains;
+        let step_of = |i: usize| &recorded[i].steps[cursor.next[i]];
+        let steps: Vec<DomainStep<'_>> = cursor
+            .frame
+            .iter()
+            .map(|&i| DomainStep { domain: i, publish: &step_of(i).publish, sim: step_of(i).sim_time })
+            .collect();
+        let reports = self.host.step_domains(&steps, &mut |report| on_event(ReplayEvent::Host(report)))?;
+        summary.timeouts += reports.iter().filter(|r| r.timed_out > 0).count() as u64;
+        let Some(cmp) = summary.comparison.as_mut() else { return Ok(()) };
         for &i in &cursor.frame {
-            let s = self.step_of(cursor, i);
-            fw.domains[i].publish_step(&s.publish, s.sim_time).map_err(failed(i))?;
-        }
-        for &i in &cursor.frame {
-            let s = self.step_of(cursor, i);
-            let host = &mut fw.domains[i];
-            let report = host.complete_step().map_err(failed(i))?;
-            if report.timed_out > 0 {
-                summary.timeouts += 1;
-            }
-            let domain = &self.recording.model.domains[i];
-            let Some(cmp) = summary.comparison.as_mut() else { continue };
+            let (s, domain) = (step_of(i), &self.recording.model.domains[i]);
             let Some(want) = s.subscribe.as_deref().filter(|_| domain.flags.synchronous) else { continue };
+            let host = &self.host.framework().domains[i];
             if host.connection_count() != s.connections {
                 cmp.other_connections += 1;
                 continue;
