@@ -852,14 +852,9 @@ fn peer_opts(
     Ok((opts, d))
 }
 
-/// A flag set by Ctrl-C or SIGTERM.
-fn stop_flag() -> anyhow::Result<Arc<AtomicBool>> {
-    tutti_host::stop_on_ctrl_c().context("installing the signal handler")
-}
-
 fn echo(ddf: &Path, args: &Args) -> CliResult {
     let (opts, d) = peer_opts(ddf, args.ros_domain_id, args.dds)?;
-    crate::peers::run(&opts, &d, stop_flag()?).map_err(anyhow::Error::new)?;
+    crate::peers::run(&opts, &d, tutti_exit::stop_flag()?).map_err(anyhow::Error::new)?;
     Ok(())
 }
 
@@ -873,7 +868,7 @@ fn sink(ddf: &Path, role: &str, args: &Args) -> CliResult {
 
 fn source(ddf: &Path, args: &Args) -> CliResult {
     let (opts, d) = peer_opts(ddf, args.ros_domain_id, args.dds)?;
-    crate::peers::source(&opts, &d, Duration::from_millis(500), stop_flag()?).map_err(anyhow::Error::new)?;
+    crate::peers::source(&opts, &d, Duration::from_millis(500), tutti_exit::stop_flag()?).map_err(anyhow::Error::new)?;
     Ok(())
 }
 

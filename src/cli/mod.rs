@@ -3,7 +3,6 @@
 
 use std::process::ExitCode;
 
-use anyhow::Context;
 use clap::{Parser, Subcommand};
 
 mod check;
@@ -47,7 +46,7 @@ enum Command {
 
 /// The flag Ctrl-C (or SIGTERM) raises: a command's loop stops when it is set.
 pub fn stop_flag() -> Result<std::sync::Arc<std::sync::atomic::AtomicBool>, Failure> {
-    Ok(tutti_host::stop_on_ctrl_c().context("installing the signal handler")?)
+    Ok(tutti_exit::stop_flag()?)
 }
 
 pub fn run(cli: Cli) -> ExitCode {

@@ -113,3 +113,9 @@ pub fn enter_realtime(args: &RealtimeArgs, who: &str, quiet: bool) {
         eprintln!("{who}: warning: {w}");
     }
 }
+
+/// The flag Ctrl-C (or SIGTERM) raises: a command's loop stops when it is set. Installs the
+/// process's one signal handler: call it once per process.
+pub fn stop_flag() -> anyhow::Result<std::sync::Arc<std::sync::atomic::AtomicBool>> {
+    tutti_host::stop_on_ctrl_c().context("installing the signal handler")
+}

@@ -118,7 +118,7 @@ pub fn run(args: UavArgs) -> CliResult {
     let dir = &args.run.out;
     std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
     let out = dir.canonicalize().unwrap_or(dir.clone());
-    let interrupted = tutti_host::stop_on_ctrl_c().context("installing the signal handler")?;
+    let interrupted = tutti_exit::stop_flag()?;
     let started = Instant::now();
     let ran = crate::sim::simulate(&args.sim_options(), &scenario, &out, &interrupted);
     if interrupted.load(Ordering::SeqCst) {
