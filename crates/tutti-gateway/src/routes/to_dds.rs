@@ -52,7 +52,8 @@ pub enum ServedBy {
 }
 
 /// The typed route of planned set `p` of domain `d` (shared memory -> DDS): a synchronous
-/// PUBLISH set is followed by a pump thread (a lock-step reader named `every_step`, when
+/// PUBLISH set (a whole set: a per-item writer, which sends an item again when a reader
+/// joins, is only ever watched by the poller) is followed by a pump thread (a lock-step reader named `every_step`, when
 /// given), every other set is watched by the poller (`own_commits`: the gateway's own
 /// commits to a SUBSCRIBE set, which are not sent back to DDS).
 pub fn typed(
@@ -529,7 +530,6 @@ pub fn spawn_sync_pump(
             let mut live = Observer::new(domain.clone());
             let mut buf = Vec::new();
             let mut last = 0u64;
-            let mut seen_joined = activation.joined();
             let mut skip_log = LogLimit::new(Duration::from_secs(5));
             while !cfg.stop.load(Ordering::Acquire) {
                 if !activation.is_active() {
@@ -545,12 +545,6 @@ pub fn spawn_sync_pump(
                     buf = vec![0; seg.info.publish.size as usize];
                     // From the next step on, as a lock-step reader joining now would.
                     last = seg.step();
-                    out.reset();
-                }
-                let joined = activation.joined();
-                if joined != seen_joined {
-                    seen_joined = joined;
-                    out.reset();
                 }
                 if seg.wait_step_after(last, Duration::from_millis(200)) <= last {
                     continue;
@@ -593,7 +587,6 @@ pub fn spawn_lockstep_pump(
         .spawn(move || {
             let _ = activation.thread.set(thread::current());
             let mut p: Option<Participant> = None;
-            let mut seen_joined = 0;
             while !cfg.stop.load(Ordering::Acquire) {
                 if !activation.is_active() {
                     p = None;
@@ -617,11 +610,6 @@ pub fn spawn_lockstep_pump(
                         }
                     }
                 };
-                let joined = activation.joined();
-                if joined != seen_joined {
-                    seen_joined = joined;
-                    out.reset();
-                }
                 match part.subscribe_lock() {
                     Ok(step) => {
                         out.send(step, part.sim_time(), part.snapshot(), &stats, Some(&set));
