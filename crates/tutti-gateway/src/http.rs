@@ -371,14 +371,7 @@ mod tests {
     fn prometheus_client_parses_the_text() {
         use std::io::Write as _;
         use std::process::{Command, Stdio};
-        let py = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../.venv/bin/python");
-        let ok = Command::new(&py).args(["-c", "import prometheus_client"]).status().is_ok_and(|s| s.success());
-        if !ok {
-            let msg = format!("{} with prometheus_client missing (launch-scripts/test.sh installs it)", py.display());
-            assert!(std::env::var("CI").as_deref() != Ok("true"), "{msg}");
-            eprintln!("skipped: {msg}");
-            return;
-        }
+        let Some(py) = tutti_test_support::python(&["prometheus_client"]) else { return };
         const SCRIPT: &str = "import json, sys\n\
             from prometheus_client.parser import text_string_to_metric_families\n\
             out = {}\n\
