@@ -868,7 +868,8 @@ fn sink(ddf: &Path, role: &str, args: &Args) -> CliResult {
 
 fn source(ddf: &Path, args: &Args) -> CliResult {
     let (opts, d) = peer_opts(ddf, args.ros_domain_id, args.dds)?;
-    crate::peers::source(&opts, &d, Duration::from_millis(500), tutti_exit::stop_flag()?).map_err(anyhow::Error::new)?;
+    crate::peers::source(&opts, &d, Duration::from_millis(500), tutti_exit::stop_flag()?)
+        .map_err(anyhow::Error::new)?;
     Ok(())
 }
 

@@ -17,10 +17,6 @@ use tutti_core::shm::{ConnectOptions, Framework, FrameworkOptions, Participant};
 pub const DDF: &str = "tests/gateway/gw.ddf";
 pub const PEER: &str = "tests/gateway/dds_peer.py";
 
-pub fn root() -> PathBuf {
-    tutti_test_support::repo_root().to_path_buf()
-}
-
 /// The venv's Python with cyclonedds (`tutti_test_support::python`: the test is skipped when
 /// it is missing, and fails under CI=true).
 pub fn python() -> Option<PathBuf> {
@@ -179,7 +175,7 @@ pub fn counter(p: &Proc, name: &str) -> u64 {
 }
 
 pub fn model() -> Model {
-    tutti_core::ddf::load(root().join(DDF)).unwrap()
+    tutti_core::ddf::load(tutti_test_support::repo_root().join(DDF)).unwrap()
 }
 
 /// Each step's SUBSCRIBE set, as (step, bytes).
@@ -230,7 +226,7 @@ impl Host {
         timeout: Duration,
         publish: impl Fn(u64) -> Vec<u8> + Send + 'static,
     ) -> Host {
-        let model = tutti_core::ddf::load(root().join(ddf)).unwrap();
+        let model = tutti_core::ddf::load(tutti_test_support::repo_root().join(ddf)).unwrap();
         let opts = FrameworkOptions { namespace: ns.into(), timeout, ..Default::default() };
         let mut fw = Framework::create(&model, &opts).expect("framework");
         let seen = Arc::new(Mutex::new(Vec::new()));

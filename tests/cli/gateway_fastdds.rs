@@ -26,9 +26,10 @@ fn build_subscriber() -> Option<(tempfile::TempDir, PathBuf)> {
     )?;
     let scratch = tempfile::Builder::new().prefix("gateway-fastdds").tempdir_in(env!("CARGO_TARGET_TMPDIR")).unwrap();
     let dir = scratch.path().to_path_buf();
-    let idl = root().join("idl/multiuav_msgs/msg/dds_/MultiuavUav1Publish_.idl");
+    let idl = tutti_test_support::repo_root().join("idl/multiuav_msgs/msg/dds_/MultiuavUav1Publish_.idl");
     std::fs::copy(&idl, dir.join("MultiuavUav1Publish_.idl")).unwrap();
-    std::fs::copy(root().join("tests/gateway/fastdds_sub.cpp"), dir.join("fastdds_sub.cpp")).unwrap();
+    std::fs::copy(tutti_test_support::repo_root().join("tests/gateway/fastdds_sub.cpp"), dir.join("fastdds_sub.cpp"))
+        .unwrap();
     let hint = "install them with `apt-get install -y libfastrtps-dev fastddsgen`";
     // -t: fastddsgen's preprocessed copies go to the scratch directory, not to /tmp.
     let gen =

@@ -62,10 +62,6 @@ fn which(name: &str) -> Option<PathBuf> {
 
 /// The executable `name` on PATH; when it is missing the test is skipped, or fails under
 /// CI=true, saying what to install.
-fn require(name: &str, package: &str) -> Option<PathBuf> {
-    tutti_test_support::require_tool(name, package)
-}
-
 /// A step that needs `tool` (a compiler with the DDS headers): `None`, when it is missing,
 /// skips the step with a note, except under CI=true, where it fails the test.
 fn optional_step(tool: Option<PathBuf>, note: &str) -> Option<PathBuf> {
@@ -156,7 +152,7 @@ fn has_header(header: &str) -> bool {
 
 #[test]
 fn idlc_accepts_every_generated_idl() {
-    let Some(idlc) = require("idlc", "cyclonedds-tools") else { return };
+    let Some(idlc) = tutti_test_support::require_tool("idlc", "cyclonedds-tools") else { return };
     let compile = optional_step(
         which("gcc").filter(|_| has_header("dds/dds.h")),
         "gcc or the Cyclone DDS headers (Debian package cyclonedds-dev) missing: not compiling the generated C",
@@ -199,7 +195,7 @@ fn idlc_accepts_every_generated_idl() {
 
 #[test]
 fn fastddsgen_accepts_every_generated_idl() {
-    let Some(fastddsgen) = require("fastddsgen", "fastddsgen") else { return };
+    let Some(fastddsgen) = tutti_test_support::require_tool("fastddsgen", "fastddsgen") else { return };
     let compile = optional_step(
         which("g++").filter(|_| has_header("fastcdr/Cdr.h") && has_header("fastdds/dds/topic/TopicDataType.hpp")),
         "g++ or the Fast DDS headers (Debian package libfastrtps-dev) missing: not compiling the generated C++",

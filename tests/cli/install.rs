@@ -12,15 +12,6 @@ use std::time::Duration;
 
 const LIMIT: Duration = Duration::from_secs(300);
 
-fn root() -> &'static Path {
-    common::repo_root()
-}
-
-/// A tool the test needs: present, or None and the test is skipped (a failure under CI=true).
-fn tool(name: &str, package: &str) -> Option<()> {
-    common::require_tool(name, package).map(|_| ())
-}
-
 /// `tutti host` in its own namespace, stopped (SIGINT: it removes its segments) when dropped,
 /// and what it may have left removed after it.
 struct HostGuard {
@@ -37,7 +28,7 @@ fn run(cmd: Command, what: &str) -> String {
 /// Runs the uav_reader program `exe` for 20 steps against the host: it reads Z = 1.5.
 fn reads_from_the_host(exe: &Path, ns: &str, what: &str) {
     let mut c = Command::new(exe);
-    c.env("TUTTI_NAMESPACE", ns).arg(root().join("ddf/multiuav.ddf")).args([
+    c.env("TUTTI_NAMESPACE", ns).arg(common::repo_root().join("ddf/multiuav.ddf")).args([
         "multiuav_uav2",
         "Z",
         "Elevation",
@@ -50,8 +41,11 @@ fn reads_from_the_host(exe: &Path, ns: &str, what: &str) {
 
 #[test]
 fn an_installed_rtapi_builds_c_programs_with_pkg_config_and_cmake_and_a_pip_installed_python_module() {
-    let (Some(()), Some(()), Some(())) = (tool("pkg-config", "pkgconf"), tool("cmake", "cmake"), tool("gcc", "gcc"))
-    else {
+    let (Some(_), Some(_), Some(_)) = (
+        common::require_tool("pkg-config", "pkgconf"),
+        common::require_tool("cmake", "cmake"),
+        common::require_tool("gcc", "gcc"),
+    ) else {
         return;
     };
     let dir = tempfile::tempdir().unwrap();
@@ -60,7 +54,7 @@ fn an_installed_rtapi_builds_c_programs_with_pkg_config_and_cmake_and_a_pip_inst
     let build_dir: PathBuf = common::rtapi_lib_dir();
     let mut install = Command::new("bash");
     install
-        .arg(root().join("launch-scripts/install.sh"))
+        .arg(common::repo_root().join("launch-scripts/install.sh"))
         .arg("--prefix")
         .arg(&prefix)
         .arg("--build-dir")
@@ -84,7 +78,7 @@ fn an_installed_rtapi_builds_c_programs_with_pkg_config_and_cmake_and_a_pip_inst
         _segments: common::RemoveSegments(ns.clone()),
     };
     let pc_path = prefix.join("lib/pkgconfig");
-    let reader = root().join("examples/c/uav_reader.c");
+    let reader = common::repo_root().join("examples/c/uav_reader.c");
 
     // pkg-config
     let mut pc = Command::new("pkg-config");
@@ -132,8 +126,8 @@ fn an_installed_rtapi_builds_c_programs_with_pkg_config_and_cmake_and_a_pip_inst
     // pip install of the Python module into a fresh venv (from a copy: a build writes beside
     // its sources), run outside the checkout: it finds the library through pkg-config. Offline:
     // its build backend (setuptools) comes from the wheels launch-scripts/test.sh downloads.
-    let Some(()) = tool("python3", "python3-venv") else { return };
-    let wheels = root().join("target/wheels");
+    let Some(_) = common::require_tool("python3", "python3-venv") else { return };
+    let wheels = common::repo_root().join("target/wheels");
     let has_setuptools = std::fs::read_dir(&wheels)
         .map_err(|e| e.to_string())
         .map(|d| d.flatten().any(|e| e.file_name().to_string_lossy().starts_with("setuptools-")))
@@ -143,7 +137,7 @@ fn an_installed_rtapi_builds_c_programs_with_pkg_config_and_cmake_and_a_pip_inst
     let pysrc = dir.path().join("python-src");
     std::fs::create_dir_all(&pysrc).unwrap();
     for f in ["pyproject.toml", "README.md", "tutti_rtapi.py"] {
-        std::fs::copy(root().join("python").join(f), pysrc.join(f)).unwrap();
+        std::fs::copy(common::repo_root().join("python").join(f), pysrc.join(f)).unwrap();
     }
     let venv = dir.path().join("venv");
     let mut mk = Command::new("python3");

@@ -14,19 +14,19 @@ use tutti_core::shm::{ConnectOptions, Participant};
 
 const LIMIT: Duration = Duration::from_secs(120);
 
-fn root() -> &'static Path {
-    Path::new(env!("CARGO_MANIFEST_DIR"))
-}
-
 fn tutti(ns: &str, args: &[&str]) -> Command {
     let mut c = common::tutti_command();
-    c.args(args).current_dir(root()).env("TUTTI_NAMESPACE", ns);
+    c.args(args).current_dir(tutti_test_support::repo_root()).env("TUTTI_NAMESPACE", ns);
     c
 }
 
 /// The test's C component, compiled against the workspace's librtapi.
 fn compile_answer(dir: &Path) -> PathBuf {
-    common::compile_c(&root().join("tests/replay/answer.c"), &dir.join("answer"), &["-std=c99", "-Wall", "-Werror"])
+    common::compile_c(
+        &tutti_test_support::repo_root().join("tests/replay/answer.c"),
+        &dir.join("answer"),
+        &["-std=c99", "-Wall", "-Werror"],
+    )
 }
 
 /// Runs `framework` (a host or a replay, which holds its first step for one writer) beside
@@ -40,7 +40,7 @@ fn beside_component(
 ) -> ((ExitStatus, String, String), (ExitStatus, String, String)) {
     let fw = thread::spawn(move || common::run_with_timeout(framework, LIMIT));
     let mut c = Command::new(answer);
-    c.arg(root().join("ddf/multiuav.ddf"))
+    c.arg(tutti_test_support::repo_root().join("ddf/multiuav.ddf"))
         .args(["multiuav_uav2", "Z", "Elevation", "100", "2", &deviate.to_string()])
         .env("TUTTI_NAMESPACE", ns);
     let component = common::run_with_timeout(c, LIMIT);
@@ -125,7 +125,7 @@ fn a_replay_republishes_every_recorded_step_with_its_simulated_time() {
     let dir = tempfile::tempdir().unwrap();
     let ns = tutti_test_support::namespace("replaypub");
     let _segments = common::RemoveSegments(ns.clone());
-    let ddf = root().join("ddf/multiuav.ddf");
+    let ddf = tutti_test_support::repo_root().join("ddf/multiuav.ddf");
     let mut model = tutti_core::ddf::load(&ddf).unwrap();
     model.domains.retain(|d| d.name == "multiuav_uav2");
     let d = &model.domains[0];
@@ -209,7 +209,7 @@ fn replay_refuses_what_is_not_a_recording_or_not_recorded() {
     assert!(err.contains("junk.mcap") && err.contains("MCAP"), "{err}");
 
     // A recording of one domain, asked for another.
-    let ddf = root().join("ddf/product-sample.ddf");
+    let ddf = tutti_test_support::repo_root().join("ddf/product-sample.ddf");
     let model = tutti_core::ddf::load(&ddf).unwrap();
     let run = dir.path().join("one.mcap");
     let mut rec = tutti_record::create(&run, &model, &ddf).unwrap();

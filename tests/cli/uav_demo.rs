@@ -14,10 +14,6 @@ use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
 
-fn root() -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-}
-
 /// `program` (on PATH), or None (skipped; a failure under CI=true).
 fn have(program: &str, package: &str) -> Option<PathBuf> {
     common::require_tool(program, package)
@@ -182,10 +178,10 @@ fn the_short_uav_demo_reproduces_figures_5_and_6() {
 
     // run.mcap, read with the ROS ecosystem's MCAP libraries: every schema parses, and each
     // step's values are those of framework.csv.
-    let py = root().join(".venv/bin/python");
+    let py = tutti_test_support::repo_root().join(".venv/bin/python");
     if Command::new(&py).args(["-c", "import mcap, mcap_ros2"]).status().is_ok_and(|s| s.success()) {
         let check = Command::new(&py)
-            .arg(root().join("tests/record/check_mcap.py"))
+            .arg(tutti_test_support::repo_root().join("tests/record/check_mcap.py"))
             .arg("--demo")
             .arg(out.join("run.mcap"))
             .arg(out.join("framework.csv"))
@@ -215,7 +211,7 @@ struct Listener {
 
 impl Listener {
     fn start(dds_domain: &str, out: &Path) -> Option<Listener> {
-        let py = root().join(".venv/bin/python");
+        let py = tutti_test_support::repo_root().join(".venv/bin/python");
         let ok = Command::new(&py).args(["-c", "import cyclonedds"]).status().is_ok_and(|s| s.success());
         if !ok {
             assert!(!common::ci(), "CI=true: {} with cyclonedds is missing", py.display());
@@ -223,7 +219,7 @@ impl Listener {
             return None;
         }
         let mut cmd = Command::new(py);
-        cmd.arg(root().join("launch-scripts/cyclone_uav_listener.py"))
+        cmd.arg(tutti_test_support::repo_root().join("launch-scripts/cyclone_uav_listener.py"))
             .args(["--domain", dds_domain, "--uavs", "1,2,3,4", "--publish", "--timeout", "200"])
             .stdout(std::fs::File::create(out).unwrap())
             .stderr(Stdio::null());
