@@ -50,23 +50,8 @@ pub unsafe extern "C" fn tutti_fmu_fmi2_log(
     log_capture::record(format!("[{level}] {instance}{category}: {message}"));
 }
 
-/// What an FMI 2.0 call returned, when it is not OK or Warning.
-pub fn call_status(status: binding::fmi2Status) -> CallStatus {
-    match status {
-        2 => CallStatus::Discard,
-        3 => CallStatus::Error,
-        4 => CallStatus::Fatal,
-        5 => CallStatus::Pending,
-        _ => CallStatus::Unknown,
-    }
-}
-
 fn check(status: binding::fmi2Status) -> Result<(), CallStatus> {
-    if status <= 1 {
-        Ok(())
-    } else {
-        Err(call_status(status))
-    }
+    CallStatus::check(status, true)
 }
 
 /// One FMI 2.0 co-simulation instance. Freed on drop.

@@ -30,13 +30,7 @@ unsafe extern "C" fn log_message(env: *mut c_void, status: c_uint, category: *co
 }
 
 fn check(status: binding::fmi3Status) -> Result<(), CallStatus> {
-    match status {
-        0 | 1 => Ok(()),
-        2 => Err(CallStatus::Discard),
-        3 => Err(CallStatus::Error),
-        4 => Err(CallStatus::Fatal),
-        _ => Err(CallStatus::Unknown),
-    }
+    CallStatus::check(status, false)
 }
 
 /// One FMI 3.0 co-simulation instance. Freed on drop.
