@@ -88,6 +88,7 @@ pub fn run(args: Args) -> CliResult {
     let stop = super::stop_flag()?;
     let started = Instant::now();
     let mut host = Host::new(&model, args.options()).map_err(host_failure)?;
+    host.serve_control(stop.clone(), None).map_err(host_failure)?;
     for path in &args.record {
         let recorder = tutti_record::create(path, &model, &args.file).context("starting the recording")?;
         host.add_sink(Box::new(tutti_record::RecordingSink(recorder)));

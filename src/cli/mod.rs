@@ -6,6 +6,7 @@ use std::process::ExitCode;
 use clap::{Parser, Subcommand};
 
 mod check;
+mod ctl;
 mod fmu;
 mod gateway;
 mod host;
@@ -37,6 +38,7 @@ enum Command {
     Idl(idl::Args),
     Host(host::Args),
     Status(status::Args),
+    Ctl(ctl::Args),
     Record(record::Args),
     Replay(replay::Args),
     Gateway(gateway::Args),
@@ -56,6 +58,7 @@ pub fn run(cli: Cli) -> ExitCode {
         Command::Idl(a) => idl::run(a),
         Command::Host(a) => host::run(a),
         Command::Status(a) => status::run(a),
+        Command::Ctl(a) => ctl::run(a),
         Command::Record(a) => record::run(a),
         Command::Replay(a) => replay::run(a),
         Command::Gateway(a) => gateway::run(a),

@@ -109,7 +109,11 @@ fn render_domain(s: &mut String, d: &DomainStatus, (step_rate, commit_rate): (f6
         fmt_ns(d.max_late_ns),
         d.step_timeouts,
         if d.seeded { "yes" } else { "no" },
-        if d.waiting_to_go { "held" } else { "go" },
+        match (d.waiting_to_go, d.paused) {
+            (true, _) => "held",
+            (false, true) => "go (paused)",
+            (false, false) => "go",
+        },
         d.owner_pid.map(|p| format!("  owner pid {p}")).unwrap_or_default()
     );
 }

@@ -11,6 +11,7 @@
 #[macro_use]
 mod gateway;
 
+mod ctl;
 mod ddf_invalid;
 mod ddf_valid;
 mod doc_commands;

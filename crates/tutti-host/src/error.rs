@@ -31,6 +31,9 @@ pub enum HostError {
     /// A step names a domain index the run does not have.
     #[error("no domain {index} in the run")]
     NoDomain { index: usize },
+    /// The control plane could not be served.
+    #[error(transparent)]
+    Control(#[from] crate::control::ControlError),
     /// A step sink (a recording) failed.
     #[error("{what}: {source}")]
     Sink {

@@ -2,11 +2,13 @@
 
 use std::fmt;
 use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 use tutti_core::ddf::{Domain, Model};
 use tutti_core::shm::{DomainHost, Framework, FrameworkOptions, StepReport, WaitMode};
 
+use crate::control::{Components, ControlPort, Refusal, Reply, Request, RunState};
 use crate::steps::{step_all, wait_for_writers};
 use crate::{HostError, Tick, Ticker};
 
@@ -184,6 +186,10 @@ pub struct Host {
     held: bool,
     steps: u64,
     step_timeouts: u64,
+    /// The control plane, once [`Host::serve_control`] was called.
+    control: Option<ControlPort>,
+    /// Time spent paused, which a `duration` does not count.
+    paused_for: Duration,
 }
 
 impl fmt::Debug for Host {
@@ -228,6 +234,8 @@ impl Host {
             run_start: Instant::now(),
             steps: 0,
             step_timeouts: 0,
+            control: None,
+            paused_for: Duration::ZERO,
         })
     }
 
@@ -244,6 +252,30 @@ impl Host {
     /// Adds a sink that takes every step from now on.
     pub fn add_sink(&mut self, sink: Box<dyn StepSink>) {
         self.sinks.push(sink);
+    }
+
+    /// Serves this run's control plane (`tutti ctl`) from now on, on the namespace's control
+    /// socket ([`crate::control::socket_path`]); `stop` is the flag the run stops on, which
+    /// a `stop` command raises. `components` answers the commands on the components of a
+    /// launched run. The socket is removed with the host.
+    pub fn serve_control(
+        &mut self,
+        stop: Arc<AtomicBool>,
+        components: Option<Arc<dyn Components>>,
+    ) -> Result<(), HostError> {
+        self.control = Some(ControlPort::serve(&self.namespace, stop, components)?);
+        Ok(())
+    }
+
+    /// The run's state now.
+    pub fn state(&self) -> RunState {
+        self.control.as_ref().map_or(RunState::Ready, |c| c.shared.state())
+    }
+
+    fn publish_state(&self, state: RunState, sim: f64) {
+        if let Some(c) = &self.control {
+            c.shared.set(state, self.ticker.next_k(), sim);
+        }
     }
 
     /// Waits for the writers, lets the participants go, waits for their seeds, and starts
@@ -269,12 +301,19 @@ impl Host {
         }
         self.ticker = new_ticker(&self.opts);
         self.run_start = Instant::now();
+        self.publish_state(RunState::Playing, 0.0);
         Ok(true)
     }
 
     /// Waits for the next deadline and makes one step of every domain; its sinks take it.
     pub fn step(&mut self, on_report: &mut dyn FnMut(Report)) -> Result<Tick, HostError> {
         let tick = self.ticker.wait();
+        self.make_step(tick, on_report)?;
+        Ok(tick)
+    }
+
+    /// Makes the step of `tick`: every domain, then the sinks.
+    fn make_step(&mut self, tick: Tick, on_report: &mut dyn FnMut(Report)) -> Result<(), HostError> {
         if self.held && self.opts.hold.is_some_and(|h| self.run_start.elapsed() >= h) {
             self.held = false;
             self.fw.domains.iter().for_each(|d| d.set_hold(false));
@@ -289,7 +328,10 @@ impl Host {
         for sink in &mut self.sinks {
             sink.step(&self.fw, &done).map_err(|source| HostError::Sink { what: "writing the recording", source })?;
         }
-        Ok(tick)
+        if let Some(c) = &self.control {
+            c.shared.set(c.shared.state(), tick.k + 1, sim);
+        }
+        Ok(())
     }
 
     /// Makes one step of the domains in `steps` now, each with its own PUBLISH set and
@@ -361,7 +403,11 @@ impl Host {
         let started = self.start(stop, &mut on_report)?;
         let mut last_report = Instant::now();
         while started && !stop.load(Ordering::SeqCst) {
-            if self.opts.duration.is_some_and(|d| self.run_start.elapsed() >= d) {
+            if self.opts.duration.is_some_and(|d| self.run_start.elapsed().saturating_sub(self.paused_for) >= d) {
+                break;
+            }
+            self.take_commands(stop, &mut on_report)?;
+            if stop.load(Ordering::SeqCst) {
                 break;
             }
             let tick = self.step(&mut on_report)?;
@@ -378,10 +424,123 @@ impl Host {
             max_late: self.ticker.max_late,
             step_timeouts: self.step_timeouts,
         };
+        self.publish_state(RunState::Stopped, self.ticker.next_k() as f64 * self.opts.step.as_secs_f64());
         for sink in std::mem::take(&mut self.sinks) {
             sink.finish().map_err(|source| HostError::Sink { what: "writing the recording", source })?;
         }
         Ok(summary)
+    }
+
+    /// Carries out the commands that came since the last step; a pause holds here until
+    /// resumed or stopped.
+    fn take_commands(&mut self, stop: &AtomicBool, on_report: &mut dyn FnMut(Report)) -> Result<(), HostError> {
+        loop {
+            let Some(c) = &self.control else { return Ok(()) };
+            let Ok(cmd) = c.commands.try_recv() else { return Ok(()) };
+            match cmd.request {
+                Request::Pause => self.pause(cmd.reply, stop, on_report)?,
+                Request::Reset => {
+                    self.reset(RunState::Playing);
+                    let _ = cmd.reply.send(Ok(()));
+                }
+                Request::Step { .. } => {
+                    let _ = cmd.reply.send(Err(Refusal("step: the run is playing; pause it first".into())));
+                }
+                _ => {
+                    let _ = cmd.reply.send(Ok(()));
+                }
+            }
+        }
+    }
+
+    /// Holds every domain at this step boundary until resumed or stopped, making the steps
+    /// asked for meanwhile.
+    /// `reply` is answered once paused; a resume is answered once playing again.
+    fn pause(&mut self, reply: Reply, stop: &AtomicBool, on_report: &mut dyn FnMut(Report)) -> Result<(), HostError> {
+        let since = Instant::now();
+        self.fw.domains.iter().for_each(|d| d.set_paused(true));
+        self.publish_state(RunState::Paused, self.last_sim());
+        let _ = reply.send(Ok(()));
+        let result = self.paused(stop, on_report);
+        self.fw.domains.iter().for_each(|d| d.set_paused(false));
+        self.ticker.restart_at(self.ticker.next_k());
+        self.paused_for += since.elapsed();
+        if !stop.load(Ordering::SeqCst) {
+            self.publish_state(RunState::Playing, self.last_sim());
+        }
+        let resumed = result?;
+        if let Some(reply) = resumed {
+            let _ = reply.send(Ok(()));
+        }
+        Ok(())
+    }
+
+    /// Serves the commands of a pause until a resume (returned, to be answered once playing)
+    /// or a stop.
+    fn paused(&mut self, stop: &AtomicBool, on_report: &mut dyn FnMut(Report)) -> Result<Option<Reply>, HostError> {
+        while !stop.load(Ordering::SeqCst) {
+            let Some(c) = &self.control else { return Ok(None) };
+            let Ok(cmd) = c.commands.recv_timeout(Duration::from_millis(50)) else { continue };
+            let done = match cmd.request {
+                Request::Resume => return Ok(Some(cmd.reply)),
+                Request::Step { n } => self.steps_while_paused(n, on_report),
+                Request::Reset => {
+                    self.reset(RunState::Paused);
+                    Ok(Ok(()))
+                }
+                _ => Ok(Ok(())),
+            };
+            match done {
+                Ok(answer) => {
+                    let _ = cmd.reply.send(answer);
+                }
+                Err(e) => {
+                    let _ = cmd.reply.send(Err(Refusal(format!("the step failed: {e}"))));
+                    return Err(e);
+                }
+            }
+        }
+        Ok(None)
+    }
+
+    /// `step n` while paused: exactly `n` steps, one after the other, then paused again.
+    fn steps_while_paused(
+        &mut self,
+        n: u64,
+        on_report: &mut dyn FnMut(Report),
+    ) -> Result<Result<(), Refusal>, HostError> {
+        if let Some(refusal) = self.step_refusal() {
+            return Ok(Err(refusal));
+        }
+        for _ in 0..n {
+            let tick = self.ticker.release_now();
+            self.make_step(tick, on_report)?;
+        }
+        Ok(Ok(()))
+    }
+
+    /// Why `step` cannot apply to this run, if it cannot.
+    fn step_refusal(&self) -> Option<Refusal> {
+        let domains = &self.fw.domains;
+        if domains.iter().any(|d| d.info().flags.synchronous) {
+            return None;
+        }
+        let names: Vec<&str> = domains.iter().map(|d| d.info().name.as_str()).collect();
+        Some(Refusal(format!(
+            "step: every domain of this run is asynchronous ({}): their participants do not step with the framework, so there is no step to count; use resume and pause",
+            names.join(", ")
+        )))
+    }
+
+    /// Step count and simulated time back to zero; the run stays in `state`.
+    fn reset(&mut self, state: RunState) {
+        self.ticker.restart_at(0);
+        self.publish_state(state, 0.0);
+    }
+
+    /// Simulated time of the last step made.
+    fn last_sim(&self) -> f64 {
+        self.ticker.next_k().saturating_sub(1) as f64 * self.opts.step.as_secs_f64()
     }
 }
 
@@ -502,6 +661,52 @@ mod tests {
         assert_eq!(seen, set, "the step carries the caller's PUBLISH set");
         let missing = [DomainStep { domain: 3, publish: &set, sim: 0.0 }];
         assert!(matches!(host.step_domains(&missing, &mut |_| {}), Err(HostError::NoDomain { index: 3 })));
+    }
+
+    #[test]
+    fn a_run_is_paused_stepped_reset_and_stopped_through_its_control_plane() {
+        use crate::control::{ControlClient, ControlError, RunState};
+        let model = tutti_core::ddf::parse_str(DDF, "probe.ddf").unwrap();
+        let ns = format!("hostlibc{}", std::process::id());
+        let stop = Arc::new(AtomicBool::new(false));
+        let runner = std::thread::spawn({
+            let (stop, ns) = (stop.clone(), ns.clone());
+            move || {
+                let mut host = Host::new(&model, HostOptions { duration: None, ..options(&ns) }).unwrap();
+                host.serve_control(stop.clone(), None).unwrap();
+                host.run(&stop, |_| {})
+            }
+        });
+        let end = Instant::now() + Duration::from_secs(30);
+        while !crate::control::socket_path(&ns).exists() {
+            assert!(Instant::now() < end && !runner.is_finished(), "the run never served its control plane");
+            std::thread::sleep(Duration::from_millis(1));
+        }
+        let mut c = ControlClient::connect(&ns, Duration::from_secs(30)).unwrap();
+        while c.state().unwrap().state != RunState::Playing {
+            assert!(Instant::now() < end, "the run never started");
+            std::thread::sleep(Duration::from_millis(1));
+        }
+        // Every domain of the probe is asynchronous: stepping is refused with the reason.
+        let refused = |r: Result<_, ControlError>| matches!(r, Err(ControlError::Refused(_)));
+        assert!(refused(c.step(1)), "step while playing");
+        let paused = c.pause().unwrap();
+        assert_eq!(paused.state, RunState::Paused);
+        let e = c.step(3).unwrap_err().to_string();
+        assert!(e.contains("every domain of this run is asynchronous (probe)"), "{e}");
+        assert_eq!(c.state().unwrap().step, paused.step, "no step while paused");
+        let reset = c.reset().unwrap();
+        assert_eq!((reset.state, reset.step, reset.sim_time), (RunState::Paused, 0, 0.0));
+        assert_eq!(c.resume().unwrap().state, RunState::Playing);
+        assert!(matches!(
+            c.component(crate::control::ComponentAction::Restart, "x"),
+            Err(ControlError::Refused(r)) if r.0.contains("no components")
+        ));
+        c.stop().unwrap();
+        let summary = runner.join().unwrap().unwrap();
+        assert!(summary.started && stop.load(Ordering::SeqCst));
+        assert!(!crate::control::socket_path(&ns).exists(), "the socket goes with the run");
+        assert!(matches!(ControlClient::connect(&ns, Duration::from_secs(1)), Err(ControlError::NoRun { .. })));
     }
 
     #[test]

@@ -41,6 +41,26 @@ impl Ticker {
         Ticker { catch_up: true, ..Ticker::new(period) }
     }
 
+    /// The index of the next release.
+    pub fn next_k(&self) -> u64 {
+        self.k
+    }
+
+    /// Moves the deadlines so that release `k` is due now (a run that resumes from a pause,
+    /// or is reset to step 0): the time in between counts as neither lateness nor overrun.
+    pub fn restart_at(&mut self, k: u64) {
+        let now = Instant::now();
+        self.start = now.checked_sub(self.period.mul_f64(k as f64)).unwrap_or(now);
+        self.k = k;
+    }
+
+    /// A release now, outside the deadlines (a step made while paused).
+    pub fn release_now(&mut self) -> Tick {
+        let tick = Tick { k: self.k, late: Duration::ZERO, overrun: false };
+        self.k += 1;
+        tick
+    }
+
     /// Waits for the next deadline. When the loop is a period or more behind, the overrun is
     /// counted and the missed deadlines are skipped (no burst of catch-up steps), unless the
     /// ticker catches up ([`Ticker::catching_up`]).

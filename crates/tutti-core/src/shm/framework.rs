@@ -325,6 +325,17 @@ impl DomainHost {
     }
 
     /// Holds (`true`) or releases (`false`) the wait-to-go signal.
+    /// Pauses or resumes the domain between two steps: while paused, a participant waiting
+    /// for the next step waits as long as the pause lasts, without a timeout, and gets a
+    /// whole timeout from the resume on.
+    pub fn set_paused(&self, paused: bool) {
+        let h = self.seg.header();
+        if !paused {
+            h.resumed_ns.store(os::now_ns(), Ordering::Release);
+        }
+        h.paused.store(u32::from(paused), Ordering::Release);
+    }
+
     pub fn set_hold(&self, hold: bool) {
         let h = self.seg.header();
         h.hold.store(u32::from(hold), Ordering::Release);

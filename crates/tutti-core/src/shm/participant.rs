@@ -351,10 +351,24 @@ impl Participant {
     fn wait_next_step(&self) -> Result<(), ShmError> {
         let ctl = self.seg.step_ctl();
         let last = self.last_read;
-        let deadline = Instant::now() + self.opts.timeout;
-        match self.waiter("step").wait(deadline, || Ok(ctl.next_step(last).is_some()), || self.check_alive())? {
-            Waited::Ready => self.check(),
-            Waited::TimedOut => Err(self.timeout("the framework's next step", self.opts.timeout)),
+        self.wait_for_step("the framework's next step", || Ok(ctl.next_step(last).is_some()))?;
+        self.check()
+    }
+
+    /// Waits until `ready`, at most the timeout, except that a paused framework costs no
+    /// timeout: the wait goes on for as long as the pause lasts, and a whole timeout after it.
+    fn wait_for_step(
+        &self,
+        what: &'static str,
+        mut ready: impl FnMut() -> Result<bool, ShmError>,
+    ) -> Result<(), ShmError> {
+        loop {
+            let deadline = Instant::now() + self.opts.timeout;
+            match self.waiter("step").wait(deadline, &mut ready, || self.check_alive())? {
+                Waited::Ready => return Ok(()),
+                Waited::TimedOut if !self.seg.step_wait_may_time_out(self.opts.timeout) => {}
+                Waited::TimedOut => return Err(self.timeout(what, self.opts.timeout)),
+            }
         }
     }
 
@@ -460,11 +474,7 @@ impl Participant {
                 let k = h.pub_step.load(Ordering::Acquire);
                 Ok(k > last || (states && k == 0 && h.seeded.load(Ordering::Acquire) == 0))
             };
-            let deadline = Instant::now() + self.opts.timeout;
-            match self.waiter("step").wait(deadline, ready, || self.check_alive())? {
-                Waited::Ready => {}
-                Waited::TimedOut => return Err(self.timeout("a step to publish for", self.opts.timeout)),
-            }
+            self.wait_for_step("a step to publish for", ready)?;
             let k = h.pub_step.load(Ordering::Acquire);
             self.locked_step = k;
             // Waiting for step k counts as having seen it: a connection that writes before

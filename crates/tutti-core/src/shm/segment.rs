@@ -39,7 +39,7 @@ use crate::sync::{AtomicU32, AtomicU64, Ordering};
 pub(crate) const MAGIC: u64 = u64::from_le_bytes(*b"TUTTISHM");
 /// Segment format version (2: header fields grouped by writer on separate cache lines; 3:
 /// DDS writers and observers counted apart from participants, 192-byte connection slots).
-pub const VERSION: u32 = 3;
+pub const VERSION: u32 = 4;
 /// Bytes reserved for the header.
 pub(crate) const HEADER_BYTES: usize = 1024;
 /// Connection slots per domain.
@@ -148,6 +148,11 @@ pub(crate) struct Header {
     pub go_waiters: AtomicU32,
     /// Observer connections (see [`ConnKind::Observer`]).
     pub observer_count: AtomicU32,
+    /// 1 while the framework is paused: participants waiting for a step do not time out.
+    pub paused: AtomicU32,
+    /// When the framework last resumed (ns since the epoch): a wait that began during the
+    /// pause gets a whole timeout from then.
+    pub resumed_ns: AtomicU64,
     pub sets: [SetHeader; 2],
     /// Written by the framework on every step.
     pub _framework: LineBreak,
@@ -709,6 +714,22 @@ impl Segment {
         ProcessId { pid: h.owner_pid.load(Ordering::Relaxed), start_time: h.owner_start.load(Ordering::Relaxed) }
     }
 
+    /// Whether the framework is paused (its run holds every domain at a step boundary).
+    pub fn paused(&self) -> bool {
+        self.header().paused.load(Ordering::Acquire) != 0
+    }
+
+    /// Whether a wait of at most `timeout` for the framework's next step may time out now:
+    /// not while the framework is paused, nor within `timeout` after it resumed.
+    pub(crate) fn step_wait_may_time_out(&self, timeout: Duration) -> bool {
+        let h = self.header();
+        if h.paused.load(Ordering::Acquire) != 0 {
+            return false;
+        }
+        let since = os::now_ns().saturating_sub(h.resumed_ns.load(Ordering::Acquire));
+        since >= timeout.as_nanos().min(u128::from(u64::MAX)) as u64
+    }
+
     /// Whether the framework is running (state and process both alive).
     pub fn framework_alive(&self) -> bool {
         self.header().state.load(Ordering::Acquire) == STATE_RUNNING && os::is_alive(self.framework_id())
@@ -875,6 +896,7 @@ impl Segment {
             rejected: h.rejected.load(Ordering::Relaxed),
             seeded: h.seeded.load(Ordering::Relaxed) != 0,
             waiting_to_go: h.hold.load(Ordering::Relaxed) != 0,
+            paused: h.paused.load(Ordering::Relaxed) != 0,
             connection_count: h.conn_count.load(Ordering::Relaxed),
             dds_writers: h.remote_count.load(Ordering::Relaxed),
             // DDS readers of the domain's topics, as the live gateways attached to it count them.
@@ -971,6 +993,8 @@ pub struct DomainStatus {
     pub rejected: u64,
     pub seeded: bool,
     pub waiting_to_go: bool,
+    /// The framework's run is paused (`tutti ctl pause`).
+    pub paused: bool,
     /// Participants (components), not counting DDS writers or observers.
     pub connection_count: u32,
     /// Connections standing for DDS writers, through the gateway.

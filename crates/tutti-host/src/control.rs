@@ -1,0 +1,428 @@
+//! The run's control plane: its lifecycle ([`RunState`]) and the commands that move it
+//! ([`Request`]), served to other processes of the same user on a Unix socket beside the
+//! namespace's segments, `/dev/shm/tutti-ctl.<namespace>` ([`socket_path`]), as one JSON
+//! object a line each way. `tutti ctl`, the Python module (`tutti_ctl`) and [`ControlClient`]
+//! speak it; docs/run.md describes it.
+//!
+//! Only the owner may use it, as with the segments: the socket is the owner's alone (mode
+//! 0600) and a connection from another user is closed unanswered (its peer's credentials are
+//! checked). Nothing leaves the machine.
+//!
+//! The server thread answers `state` itself; every other command goes to the run's loop,
+//! which carries it out between two steps and answers when it is done (`step N`: after the
+//! N steps).
+
+use std::io::{BufRead, BufReader, Write};
+use std::os::unix::fs::PermissionsExt;
+use std::os::unix::net::{UnixListener, UnixStream};
+use std::path::PathBuf;
+use std::sync::atomic::{AtomicBool, AtomicU64, AtomicU8, Ordering};
+use std::sync::{mpsc, Arc};
+use std::thread::JoinHandle;
+use std::time::Duration;
+
+use serde::{Deserialize, Serialize};
+
+/// Where the control socket of namespace `ns` is.
+pub fn socket_path(ns: &str) -> PathBuf {
+    PathBuf::from(tutti_core::shm::os::SHM_DIR).join(format!("tutti-ctl.{ns}"))
+}
+
+/// Where a run is in its life.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum RunState {
+    /// Domains created; participants held in wait-to-go until the run starts.
+    Ready,
+    Playing,
+    /// Held at a step boundary: no step is made, and no participant times out.
+    Paused,
+    Stopped,
+}
+
+impl RunState {
+    fn from_u8(v: u8) -> RunState {
+        match v {
+            1 => RunState::Playing,
+            2 => RunState::Paused,
+            3 => RunState::Stopped,
+            _ => RunState::Ready,
+        }
+    }
+
+    /// The name `tutti ctl state` prints.
+    pub fn name(self) -> &'static str {
+        match self {
+            RunState::Ready => "ready",
+            RunState::Playing => "playing",
+            RunState::Paused => "paused",
+            RunState::Stopped => "stopped",
+        }
+    }
+}
+
+/// What can be done to a component of a launched run (`tutti run`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum ComponentAction {
+    Restart,
+    Stop,
+    Start,
+}
+
+/// A command, as it travels on the socket: `{"op": "step", "n": 7}`.
+#[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(tag = "op", rename_all = "snake_case", deny_unknown_fields)]
+pub enum Request {
+    /// The run's state; changes nothing.
+    State,
+    /// Hold every domain at the next step boundary.
+    Pause,
+    /// Step on from a pause.
+    Resume,
+    /// While paused: make exactly `n` steps, then pause again.
+    Step { n: u64 },
+    /// Step count and simulated time back to zero.
+    Reset,
+    /// End the run (a launched run tears its components down).
+    Stop,
+    /// Restart, stop or start one component of a launched run.
+    Component { action: ComponentAction, name: String },
+}
+
+/// One component of a launched run, as `tutti ctl state` shows it.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct ComponentStatus {
+    pub name: String,
+    /// `starting`, `running`, `stopped`, `exited`, `failed`, …
+    pub state: String,
+    pub pid: Option<u32>,
+    pub restarts: u32,
+}
+
+/// The state of a run, in every answer.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct RunStatus {
+    pub state: RunState,
+    /// Steps since the start (or the last reset).
+    pub step: u64,
+    /// Simulated time of the last step, seconds.
+    pub sim_time: f64,
+    pub namespace: String,
+    /// The framework's process.
+    pub pid: u32,
+    /// The components of a launched run (none for `tutti host`).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub components: Vec<ComponentStatus>,
+}
+
+/// An answer on the socket: `{"ok": true, "status": {…}}` or `{"ok": false, "error": "…"}`.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+struct Answer {
+    ok: bool,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    error: Option<String>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    status: Option<RunStatus>,
+}
+
+/// A command the run could not carry out, with the reason a user reads.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[error("{0}")]
+pub struct Refusal(pub String);
+
+/// What goes wrong talking to a run.
+#[derive(Debug, thiserror::Error)]
+pub enum ControlError {
+    /// No run serves namespace `namespace`.
+    #[error(
+        "no run in namespace '{namespace}' (no control socket {path}): is a `tutti host` or `tutti run` running there?"
+    )]
+    NoRun { namespace: String, path: String },
+    /// Another run already serves the namespace.
+    #[error("namespace '{namespace}' already has a running framework (its control socket {path} answers)")]
+    Taken { namespace: String, path: String },
+    #[error("{what} {path}: {source}")]
+    Io {
+        what: &'static str,
+        path: String,
+        #[source]
+        source: std::io::Error,
+    },
+    /// The run answered something that is not a reply.
+    #[error("the run's answer is not understood: {0}")]
+    Protocol(String),
+    /// The run refused the command.
+    #[error("{0}")]
+    Refused(Refusal),
+    /// No answer within the time asked for.
+    #[error("no answer from the run within {0:?}")]
+    NoAnswer(Duration),
+}
+
+/// The components of a launched run, as the control plane reaches them.
+pub trait Components: Send + Sync {
+    /// Restarts, stops or starts component `name`.
+    fn act(&self, action: ComponentAction, name: &str) -> Result<(), Refusal>;
+    /// Every component's state.
+    fn status(&self) -> Vec<ComponentStatus>;
+}
+
+/// The state the server thread answers from, written by the run's loop.
+#[derive(Debug)]
+pub(crate) struct Shared {
+    state: AtomicU8,
+    step: AtomicU64,
+    sim_bits: AtomicU64,
+    namespace: String,
+}
+
+impl Shared {
+    pub(crate) fn set(&self, state: RunState, step: u64, sim: f64) {
+        self.step.store(step, Ordering::Relaxed);
+        self.sim_bits.store(sim.to_bits(), Ordering::Relaxed);
+        self.state.store(state as u8, Ordering::Release);
+    }
+
+    pub(crate) fn state(&self) -> RunState {
+        RunState::from_u8(self.state.load(Ordering::Acquire))
+    }
+
+    fn status(&self, components: Option<&dyn Components>) -> RunStatus {
+        RunStatus {
+            state: self.state(),
+            step: self.step.load(Ordering::Relaxed),
+            sim_time: f64::from_bits(self.sim_bits.load(Ordering::Relaxed)),
+            namespace: self.namespace.clone(),
+            pid: std::process::id(),
+            components: components.map(|c| c.status()).unwrap_or_default(),
+        }
+    }
+}
+
+/// Where the answer to a command goes.
+pub(crate) type Reply = mpsc::Sender<Result<(), Refusal>>;
+
+/// A command for the run's loop, with where its answer goes.
+pub(crate) struct Command {
+    pub request: Request,
+    pub reply: Reply,
+}
+
+/// The run's end of the control plane: commands to carry out, and the socket's server.
+pub(crate) struct ControlPort {
+    pub commands: mpsc::Receiver<Command>,
+    pub shared: Arc<Shared>,
+    server: Option<JoinHandle<()>>,
+    closing: Arc<AtomicBool>,
+    path: PathBuf,
+}
+
+impl std::fmt::Debug for ControlPort {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("ControlPort").field("path", &self.path).finish()
+    }
+}
+
+impl ControlPort {
+    /// Binds the socket of namespace `ns` and starts serving it. `stop` is the run's stop
+    /// flag, which `stop` raises at once (also while the run still waits to start).
+    pub(crate) fn serve(
+        ns: &str,
+        stop: Arc<AtomicBool>,
+        components: Option<Arc<dyn Components>>,
+    ) -> Result<ControlPort, ControlError> {
+        let path = socket_path(ns);
+        let listener = bind(ns, &path)?;
+        let shared = Arc::new(Shared {
+            state: AtomicU8::new(RunState::Ready as u8),
+            step: AtomicU64::new(0),
+            sim_bits: AtomicU64::new(0),
+            namespace: ns.to_string(),
+        });
+        let (tx, commands) = mpsc::channel();
+        let closing = Arc::new(AtomicBool::new(false));
+        let server = Server { shared: shared.clone(), commands: tx, stop, components, closing: closing.clone() };
+        let io = |source| ControlError::Io { what: "serving", path: path.display().to_string(), source };
+        let thread =
+            std::thread::Builder::new().name("tutti-ctl".into()).spawn(move || server.accept(listener)).map_err(io)?;
+        Ok(ControlPort { commands, shared, server: Some(thread), closing, path })
+    }
+}
+
+impl Drop for ControlPort {
+    fn drop(&mut self) {
+        self.closing.store(true, Ordering::Release);
+        // Wakes the accepting thread, which then sees `closing`.
+        let _ = UnixStream::connect(&self.path);
+        if let Some(t) = self.server.take() {
+            let _ = t.join();
+        }
+        let _ = std::fs::remove_file(&self.path);
+    }
+}
+
+/// Binds `path`, the owner's alone; a socket left by a run that died is replaced, one that
+/// answers is another run's.
+fn bind(ns: &str, path: &std::path::Path) -> Result<UnixListener, ControlError> {
+    let shown = || path.display().to_string();
+    if path.exists() {
+        if UnixStream::connect(path).is_ok() {
+            return Err(ControlError::Taken { namespace: ns.to_string(), path: shown() });
+        }
+        let _ = std::fs::remove_file(path);
+    }
+    let listener =
+        UnixListener::bind(path).map_err(|source| ControlError::Io { what: "binding", path: shown(), source })?;
+    std::fs::set_permissions(path, std::fs::Permissions::from_mode(0o600)).map_err(|source| ControlError::Io {
+        what: "restricting",
+        path: shown(),
+        source,
+    })?;
+    Ok(listener)
+}
+
+struct Server {
+    shared: Arc<Shared>,
+    commands: mpsc::Sender<Command>,
+    stop: Arc<AtomicBool>,
+    components: Option<Arc<dyn Components>>,
+    closing: Arc<AtomicBool>,
+}
+
+impl Server {
+    fn accept(self, listener: UnixListener) {
+        let me = rustix::process::getuid();
+        let server = Arc::new(self);
+        for stream in listener.incoming() {
+            if server.closing.load(Ordering::Acquire) {
+                return;
+            }
+            let Ok(stream) = stream else { continue };
+            // Another user's connection is closed unanswered.
+            if rustix::net::sockopt::socket_peercred(&stream).map_or(true, |c| c.uid != me) {
+                continue;
+            }
+            let s = server.clone();
+            let _ = std::thread::Builder::new().name("tutti-ctl-conn".into()).spawn(move || s.serve(stream));
+        }
+    }
+
+    /// Answers the requests of one connection until it closes.
+    fn serve(&self, stream: UnixStream) {
+        let Ok(mut out) = stream.try_clone() else { return };
+        for line in BufReader::new(stream).lines() {
+            let Ok(line) = line else { return };
+            if line.trim().is_empty() {
+                continue;
+            }
+            let reply = match serde_json::from_str::<Request>(&line) {
+                Ok(request) => self.answer(request),
+                Err(e) => Answer { ok: false, error: Some(format!("not a request: {e}")), status: None },
+            };
+            let Ok(mut text) = serde_json::to_string(&reply) else { return };
+            text.push('\n');
+            if out.write_all(text.as_bytes()).is_err() {
+                return;
+            }
+        }
+    }
+
+    fn answer(&self, request: Request) -> Answer {
+        let done = match &request {
+            Request::State => Ok(()),
+            Request::Component { action, name } => match &self.components {
+                Some(c) => c.act(*action, name),
+                None => Err(Refusal("this run has no components: it is a framework alone (`tutti host`)".into())),
+            },
+            Request::Stop => {
+                self.stop.store(true, Ordering::SeqCst);
+                Ok(())
+            }
+            _ => self.forward(request),
+        };
+        let status = Some(self.shared.status(self.components.as_deref()));
+        match done {
+            Ok(()) => Answer { ok: true, error: None, status },
+            Err(Refusal(why)) => Answer { ok: false, error: Some(why), status },
+        }
+    }
+
+    /// Hands `request` to the run's loop and waits for it to be carried out.
+    fn forward(&self, request: Request) -> Result<(), Refusal> {
+        if self.shared.state() == RunState::Stopped {
+            return Err(Refusal("the run has stopped".into()));
+        }
+        let (reply, answer) = mpsc::channel();
+        self.commands.send(Command { request, reply }).map_err(|_| Refusal("the run has stopped".into()))?;
+        answer.recv().unwrap_or_else(|_| Err(Refusal("the run stopped before carrying it out".into())))
+    }
+}
+
+/// A connection to the run of a namespace: what `tutti ctl` and the studio use.
+#[derive(Debug)]
+pub struct ControlClient {
+    stream: BufReader<UnixStream>,
+    timeout: Duration,
+}
+
+impl ControlClient {
+    /// Connects to the run of namespace `ns`; each answer is awaited at most `timeout`.
+    pub fn connect(ns: &str, timeout: Duration) -> Result<ControlClient, ControlError> {
+        let path = socket_path(ns);
+        let stream = UnixStream::connect(&path).map_err(|source| match source.kind() {
+            std::io::ErrorKind::NotFound | std::io::ErrorKind::ConnectionRefused => {
+                ControlError::NoRun { namespace: ns.to_string(), path: path.display().to_string() }
+            }
+            _ => ControlError::Io { what: "connecting to", path: path.display().to_string(), source },
+        })?;
+        let io = |source| ControlError::Io { what: "setting up", path: path.display().to_string(), source };
+        stream.set_read_timeout(Some(timeout)).map_err(io)?;
+        Ok(ControlClient { stream: BufReader::new(stream), timeout })
+    }
+
+    /// Sends `request` and returns the run's state after it.
+    pub fn request(&mut self, request: &Request) -> Result<RunStatus, ControlError> {
+        let io = |what, source| ControlError::Io { what, path: "the control socket".into(), source };
+        let mut text = serde_json::to_string(request).map_err(|e| ControlError::Protocol(e.to_string()))?;
+        text.push('\n');
+        self.stream.get_mut().write_all(text.as_bytes()).map_err(|e| io("writing to", e))?;
+        let mut line = String::new();
+        match self.stream.read_line(&mut line) {
+            Ok(0) => return Err(ControlError::Protocol("the run closed the connection".into())),
+            Ok(_) => {}
+            Err(e) if matches!(e.kind(), std::io::ErrorKind::WouldBlock | std::io::ErrorKind::TimedOut) => {
+                return Err(ControlError::NoAnswer(self.timeout))
+            }
+            Err(e) => return Err(io("reading from", e)),
+        }
+        let reply: Answer = serde_json::from_str(&line).map_err(|e| ControlError::Protocol(format!("{e}: {line}")))?;
+        match (reply.ok, reply.status) {
+            (true, Some(status)) => Ok(status),
+            (false, _) => Err(ControlError::Refused(Refusal(reply.error.unwrap_or_default()))),
+            (true, None) => Err(ControlError::Protocol(line)),
+        }
+    }
+
+    pub fn state(&mut self) -> Result<RunStatus, ControlError> {
+        self.request(&Request::State)
+    }
+    pub fn pause(&mut self) -> Result<RunStatus, ControlError> {
+        self.request(&Request::Pause)
+    }
+    pub fn resume(&mut self) -> Result<RunStatus, ControlError> {
+        self.request(&Request::Resume)
+    }
+    pub fn step(&mut self, n: u64) -> Result<RunStatus, ControlError> {
+        self.request(&Request::Step { n })
+    }
+    pub fn reset(&mut self) -> Result<RunStatus, ControlError> {
+        self.request(&Request::Reset)
+    }
+    pub fn stop(&mut self) -> Result<RunStatus, ControlError> {
+        self.request(&Request::Stop)
+    }
+    pub fn component(&mut self, action: ComponentAction, name: &str) -> Result<RunStatus, ControlError> {
+        self.request(&Request::Component { action, name: name.to_string() })
+    }
+}

@@ -1,0 +1,138 @@
+//! `tutti ctl state|pause|resume|step N|reset|stop [--json]`, and `tutti ctl
+//! restart|stop|start COMPONENT`: acts on the run of the namespace through its control
+//! plane (`tutti_host::control`, docs/run.md).
+
+use std::time::{Duration, Instant};
+
+use tutti_core::parse::parse_duration;
+use tutti_core::shm::segment::namespace_from_env;
+use tutti_host::control::{ComponentAction, ControlClient, ControlError, Request, RunStatus};
+
+use super::{CliResult, Failure};
+
+/// Control the running framework of the namespace (TUTTI_NAMESPACE): pause, step, reset,
+/// resume or stop it, or restart, stop and start the components of a `tutti run`.
+#[derive(Debug, clap::Args)]
+#[command(
+    after_help = "Examples:\n  tutti ctl state\n  tutti ctl pause\n  tutti ctl step 7 --json\n  tutti ctl reset\n  tutti ctl resume\n  tutti ctl restart ctrl\n  tutti ctl stop\n  TUTTI_NAMESPACE=lab2 tutti ctl state --json\n\nWhile paused, no step is made and no participant times out, however long the pause; `step N`\nmakes exactly N steps and pauses again. `stop` with no component ends the run and waits\nuntil it is gone. Only the user who started the run may control it. See docs/run.md."
+)]
+pub struct Args {
+    /// state, pause, resume, step N, reset, stop, or stop/restart/start COMPONENT
+    #[arg(value_name = "COMMAND", required = true, num_args = 1..=2)]
+    command: Vec<String>,
+    /// Print the run's state after the command as one JSON object.
+    #[arg(long)]
+    json: bool,
+    /// Namespace of the run (default: TUTTI_NAMESPACE, else tutti).
+    #[arg(long)]
+    namespace: Option<String>,
+    /// Longest wait for the run's answer (a `step N` answers once its N steps are made).
+    #[arg(long, default_value = "30s", value_parser = parse_duration)]
+    timeout: Duration,
+}
+
+/// The request that `words` ask for.
+fn request(words: &[String]) -> anyhow::Result<Request> {
+    let arg = words.get(1).map(String::as_str);
+    let component = |action| match arg {
+        Some(name) => Ok(Request::Component { action, name: name.to_string() }),
+        None => Err(anyhow::anyhow!("{} needs a COMPONENT", words[0])),
+    };
+    let alone = |r: Request| match arg {
+        None => Ok(r),
+        Some(a) => Err(anyhow::anyhow!("{} takes no argument (got '{a}')", words[0])),
+    };
+    match words[0].as_str() {
+        "state" => alone(Request::State),
+        "pause" => alone(Request::Pause),
+        "resume" => alone(Request::Resume),
+        "reset" => alone(Request::Reset),
+        "step" => match arg.map(str::parse::<u64>) {
+            Some(Ok(n)) if n > 0 => Ok(Request::Step { n }),
+            Some(_) => Err(anyhow::anyhow!("step N: '{}' is not a number of steps above 0", arg.unwrap_or_default())),
+            None => Err(anyhow::anyhow!("step needs N, the number of steps")),
+        },
+        "stop" if arg.is_none() => Ok(Request::Stop),
+        "stop" => component(ComponentAction::Stop),
+        "restart" => component(ComponentAction::Restart),
+        "start" => component(ComponentAction::Start),
+        other => Err(anyhow::anyhow!(
+            "unknown command '{other}': expected state, pause, resume, step N, reset, stop [COMPONENT], restart COMPONENT or start COMPONENT"
+        )),
+    }
+}
+
+pub fn run(args: Args) -> CliResult {
+    let request = request(&args.command).map_err(|e| Failure::invalid(e.context("tutti ctl")))?;
+    let ns = args.namespace.clone().unwrap_or_else(namespace_from_env);
+    let failed = |e: ControlError| match e {
+        ControlError::Refused(_) | ControlError::NoRun { .. } => Failure::from(anyhow::Error::new(e)),
+        e => Failure::from(anyhow::Error::new(e).context(format!("tutti ctl {}", args.command.join(" ")))),
+    };
+    let mut client = ControlClient::connect(&ns, args.timeout).map_err(failed)?;
+    let status = client.request(&request).map_err(failed)?;
+    if request == Request::Stop {
+        wait_gone(&ns, args.timeout)?;
+    }
+    print(&status, args.json);
+    Ok(())
+}
+
+/// Waits until the run of `ns` has ended (its control socket is gone).
+fn wait_gone(ns: &str, timeout: Duration) -> CliResult {
+    let end = Instant::now() + timeout;
+    while tutti_host::control::socket_path(ns).exists() {
+        if Instant::now() >= end {
+            return Err(anyhow::anyhow!(
+                "the run of namespace '{ns}' was asked to stop but still runs after {timeout:?}"
+            )
+            .into());
+        }
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    Ok(())
+}
+
+fn print(s: &RunStatus, json: bool) {
+    if json {
+        println!("{}", serde_json::to_string(s).unwrap_or_default());
+        return;
+    }
+    println!(
+        "{}  step {}  sim {:.6} s  (namespace {}, pid {})",
+        s.state.name(),
+        s.step,
+        s.sim_time,
+        s.namespace,
+        s.pid
+    );
+    for c in &s.components {
+        let pid = c.pid.map(|p| format!("pid {p}")).unwrap_or_else(|| "no process".into());
+        println!("  {:<16} {:<10} {pid}  restarts {}", c.name, c.state, c.restarts);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn words(s: &str) -> Vec<String> {
+        s.split_whitespace().map(String::from).collect()
+    }
+
+    #[test]
+    fn commands_parse_and_mistakes_say_what_is_expected() {
+        let err = |s: &str| request(&words(s)).unwrap_err().to_string();
+        assert_eq!(request(&words("step 7")).unwrap(), Request::Step { n: 7 });
+        assert_eq!(request(&words("stop")).unwrap(), Request::Stop);
+        assert_eq!(
+            request(&words("stop ctrl")).unwrap(),
+            Request::Component { action: ComponentAction::Stop, name: "ctrl".into() }
+        );
+        assert!(err("step 0").contains("above 0"));
+        assert!(err("step").contains("needs N"));
+        assert!(err("restart").contains("needs a COMPONENT"));
+        assert!(err("pause now").contains("takes no argument"));
+        assert!(err("jump").contains("unknown command 'jump'"));
+    }
+}

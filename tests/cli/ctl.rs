@@ -1,0 +1,191 @@
+//! `tutti ctl`, the run's control plane: pause, step, reset, resume and stop a running
+//! `tutti host` from the command line, from Python (`tutti_ctl`) and from the Rust library,
+//! with a C participant and a DDS reader watching every step.
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+use std::thread;
+use std::time::{Duration, Instant};
+
+use tutti_host::control::{ControlClient, RunState};
+use tutti_test_support::{self as common, Proc};
+
+use super::gateway::{json_lines, python, Eng, PEER};
+
+const DDF: &str = "tests/gateway/gw.ddf";
+const SYNC_PUB: &str = r#"[["step","uint64"],["sim_time","float64"],["x","float64"]]"#;
+const WATCHDOG: Duration = Duration::from_secs(180);
+
+/// The test's C participant, compiled against the workspace's librtapi.
+fn stepper(dir: &Path) -> PathBuf {
+    common::compile_c(
+        &common::repo_root().join("tests/ctl/stepper.c"),
+        &dir.join("stepper"),
+        &["-std=c99", "-Wall", "-Werror"],
+    )
+}
+
+/// `tutti ARGS` in namespace `ns`: (exit code, stdout, stderr).
+fn tutti(ns: &str, args: &[&str]) -> (i32, String, String) {
+    let mut cmd = common::tutti_command();
+    cmd.args(args).env("TUTTI_NAMESPACE", ns);
+    let (status, out, err) = common::run_with_timeout(cmd, Duration::from_secs(60));
+    (status.code().unwrap_or(-1), out, err)
+}
+
+/// `tutti ctl ARGS --json` in namespace `ns`: the run's state after the command.
+fn ctl(ns: &str, args: &[&str]) -> serde_json::Value {
+    let (code, out, err) = tutti(ns, &[&["ctl"], args, &["--json"]].concat());
+    assert_eq!(code, 0, "tutti ctl {args:?}: {err}");
+    serde_json::from_str(out.trim()).unwrap_or_else(|e| panic!("tutti ctl {args:?}: {e}: {out}"))
+}
+
+/// The steps the C participant has printed so far.
+fn steps_seen(p: &Proc) -> usize {
+    p.lines().iter().filter(|l| l.starts_with("step ")).count()
+}
+
+/// Waits until `p` has printed `n` steps; fails with what it printed.
+fn wait_steps(p: &Proc, n: usize, also: &Proc) {
+    let end = Instant::now() + Duration::from_secs(60);
+    while steps_seen(p) < n {
+        assert!(Instant::now() < end, "{} of {n} steps seen\n{}\n{}", steps_seen(p), p.dump(), also.dump());
+        thread::sleep(Duration::from_millis(10));
+    }
+}
+
+/// The step numbers the DDS reader has received.
+fn dds_steps(reader: &Proc) -> Vec<u64> {
+    json_lines(reader, "step").iter().filter_map(|v| v["step"].as_u64()).collect()
+}
+
+/// A synchronous domain with a C participant and a DDS reader of its PUBLISH set (the
+/// gateway a lock-step reader, so that every step reaches DDS): a pause ten times the
+/// participant's lock timeout costs no timeout, `step 7` (from Python) is seven steps for
+/// both, reset (from the library) sets the step count and simulated time to zero, resume
+/// and stop (from the command line) end the run with nothing left.
+#[test]
+fn a_paused_run_steps_exactly_as_asked_and_no_participant_times_out() {
+    let Some(py) = python() else { return };
+    let dir = tempfile::tempdir().unwrap();
+    let ns = common::namespace("ctlsync");
+    let _segments = common::RemoveSegments(ns.clone());
+    let dom = Eng::CYCLONE.dom(130);
+    let mut host = common::tutti_command();
+    host.args(["host", DDF, "--step", "5ms", "--timeout", "300ms", "-q"]).env("TUTTI_NAMESPACE", &ns);
+    let mut host = Proc::spawn("tutti host", host, WATCHDOG);
+    let mut c = Command::new(stepper(dir.path()));
+    c.arg(common::repo_root().join(DDF)).args(["gw_sync", "x", "y", "1"]).env("TUTTI_NAMESPACE", &ns);
+    let mut part = Proc::spawn("stepper", c, WATCHDOG);
+    let gw = Eng::CYCLONE.gateway(DDF, dom, &ns, &["--every-step"]);
+    let args = ["--topic", "rt/gw_sync/publish", "--type", "gw_msgs::msg::dds_::GwSyncPublish_"];
+    let mut cmd = Command::new(&py);
+    cmd.arg(PEER).args(["sub", "--domain", &dom.to_string()]).args(args);
+    cmd.args(["--fields", SYNC_PUB, "--count", "1000000", "--timeout", "170"]);
+    let reader = Proc::spawn("dds reader", cmd, WATCHDOG);
+    wait_steps(&part, 20, &host);
+    let end = Instant::now() + Duration::from_secs(90);
+    while dds_steps(&reader).len() < 5 {
+        assert!(Instant::now() < end, "the DDS reader got no step\n{}\n{}", reader.dump(), gw.dump());
+        thread::sleep(Duration::from_millis(20));
+    }
+
+    // Pause, for ten times the participant's lock timeout (1 s) and far more than the
+    // framework's step timeout: no step, no timeout.
+    let paused = ctl(&ns, &["pause"]);
+    assert_eq!(paused["state"], "paused", "{paused}");
+    let at = paused["step"].as_u64().unwrap();
+    let seen = steps_seen(&part);
+    thread::sleep(Duration::from_millis(10_500));
+    assert_eq!(steps_seen(&part), seen, "a step was made while paused\n{}", part.dump());
+    assert!(part.exited().is_none(), "the participant ended while paused\n{}", part.dump());
+    assert_eq!(ctl(&ns, &["state"])["step"].as_u64(), Some(at), "the step count moved while paused");
+    let before = *dds_steps(&reader).last().unwrap();
+
+    // `step 7`, from Python: seven steps for the C participant and for the DDS reader.
+    let script = "import json, sys, tutti_ctl\nprint(json.dumps(tutti_ctl.connect(sys.argv[1]).step(7)))";
+    let mut cmd = Command::new(&py);
+    cmd.args(["-c", script, &ns]).env("PYTHONPATH", common::repo_root().join("python"));
+    let (status, out, err) = common::run_with_timeout(cmd, Duration::from_secs(60));
+    assert!(status.success(), "{out}{err}");
+    let stepped: serde_json::Value = serde_json::from_str(out.trim()).unwrap();
+    assert_eq!((stepped["state"].as_str(), stepped["step"].as_u64()), (Some("paused"), Some(at + 7)), "{stepped}");
+    wait_steps(&part, seen + 7, &host);
+    let end = Instant::now() + Duration::from_secs(30);
+    while dds_steps(&reader).last() < Some(&(before + 7)) {
+        assert!(Instant::now() < end, "the DDS reader did not get the 7 steps\n{}", reader.dump());
+        thread::sleep(Duration::from_millis(20));
+    }
+    thread::sleep(Duration::from_millis(300));
+    assert_eq!(steps_seen(&part), seen + 7, "the participant saw other than 7 steps\n{}", part.dump());
+    let after: Vec<u64> = dds_steps(&reader).into_iter().filter(|&s| s > before).collect();
+    assert_eq!(after, (before + 1..=before + 7).collect::<Vec<_>>(), "the DDS reader's steps");
+
+    // Reset, from the library: step count and simulated time back to zero, still paused.
+    let mut client = ControlClient::connect(&ns, Duration::from_secs(30)).unwrap();
+    let reset = client.reset().unwrap();
+    assert_eq!((reset.state, reset.step, reset.sim_time), (RunState::Paused, 0, 0.0));
+    let one = client.step(1).unwrap();
+    assert_eq!((one.step, one.sim_time), (1, 0.0), "the first step after a reset is at t=0");
+
+    // Resume and stop, from the command line.
+    let seen = steps_seen(&part);
+    assert_eq!(ctl(&ns, &["resume"])["state"], "playing");
+    wait_steps(&part, seen + 10, &host);
+    let s = tutti_core::shm::Segment::open(&ns, "gw_sync").unwrap().status();
+    assert_eq!(s.step_timeouts, 0, "a step timed out: {s:?}");
+    let stopped = ctl(&ns, &["stop"]);
+    assert_eq!(stopped["namespace"], ns.as_str());
+    assert_eq!(host.wait(Duration::from_secs(30)), Some(0), "{}", host.dump());
+    assert_eq!(part.wait(Duration::from_secs(30)), Some(0), "the participant: {}", part.dump());
+    assert!(!part.lines().iter().any(|l| l.contains("TIMEOUT")), "{}", part.dump());
+    assert!(common::segments_of(&ns).is_empty(), "segments left: {:?}", common::segments_of(&ns));
+    assert!(!tutti_host::control::socket_path(&ns).exists(), "the control socket was left");
+}
+
+/// An asynchronous run pauses (its PUBLISH set stops changing) and refuses `step` with the
+/// reason; the socket is the owner's alone; with no run, `tutti ctl` says so.
+#[test]
+fn an_asynchronous_run_pauses_and_refuses_to_step() {
+    let ns = common::namespace("ctlasync");
+    let _segments = common::RemoveSegments(ns.clone());
+    let (code, _, err) = tutti(&ns, &["ctl", "state"]);
+    assert_eq!(code, 1, "{err}");
+    assert!(err.contains(&format!("no run in namespace '{ns}'")), "{err}");
+
+    // The asynchronous domain of the gateway tests' DDF, alone.
+    let dir = tempfile::tempdir().unwrap();
+    let text = std::fs::read_to_string(common::repo_root().join(DDF)).unwrap();
+    let (start, end) =
+        (text.find("<domain name=\"gw_async\">").unwrap(), text.find("<domain name=\"gw_sync\">").unwrap());
+    let ddf = dir.path().join("async.ddf");
+    std::fs::write(&ddf, format!("<orchestra>\n{}</orchestra>\n", &text[start..end])).unwrap();
+    let mut host = common::tutti_command();
+    host.arg("host").arg(&ddf).args(["--step", "5ms", "-q"]).env("TUTTI_NAMESPACE", &ns);
+    let mut host = Proc::spawn("tutti host", host, WATCHDOG);
+    let socket = tutti_host::control::socket_path(&ns);
+    let end = Instant::now() + Duration::from_secs(30);
+    while !socket.exists() {
+        assert!(Instant::now() < end, "no control socket\n{}", host.dump());
+        thread::sleep(Duration::from_millis(20));
+    }
+    use std::os::unix::fs::PermissionsExt;
+    assert_eq!(std::fs::metadata(&socket).unwrap().permissions().mode() & 0o777, 0o600);
+
+    assert_eq!(ctl(&ns, &["pause"])["state"], "paused");
+    let steps = |d: &str| tutti_core::shm::Segment::open(&ns, d).unwrap().status().steps;
+    let before = steps("gw_async");
+    thread::sleep(Duration::from_millis(200));
+    assert_eq!(steps("gw_async"), before, "the framework published while paused");
+    let (code, _, err) = tutti(&ns, &["ctl", "step", "3"]);
+    assert_eq!(code, 1, "{err}");
+    assert!(err.contains("every domain of this run is asynchronous (gw_async)"), "{err}");
+    assert_eq!(ctl(&ns, &["state"])["state"], "paused", "a refused step leaves the run paused");
+    let (code, _, err) = tutti(&ns, &["ctl", "bogus"]);
+    assert_eq!(code, 2, "{err}");
+    assert!(err.contains("unknown command 'bogus'"), "{err}");
+    assert_eq!(ctl(&ns, &["resume"])["state"], "playing");
+    assert_eq!(ctl(&ns, &["stop"])["namespace"], ns.as_str());
+    assert_eq!(host.wait(Duration::from_secs(30)), Some(0), "{}", host.dump());
+    assert!(!socket.exists());
+}
