@@ -419,6 +419,17 @@ async fn monitor_follows_a_host_started_from_the_page_and_a_c_component() {
         w.until("the connection gone", &format!("!document.querySelector(\"#domains tr[data-pid='{pid}']\")")).await;
         drop(component);
 
+        // Run control through the framework's control plane: pause, step 3, resume.
+        w.click("#pause-host").await;
+        let state = "document.querySelector('#run-state').dataset";
+        let paused = w.until("the run paused", &format!("{state}.state === 'paused' && +{state}.step")).await;
+        let at = paused.as_u64().expect("the step where it paused");
+        w.type_into("#step-count", "3").await;
+        w.click("#step-host").await;
+        w.until("three steps made", &format!("{state}.state === 'paused' && +{state}.step === {}", at + 3)).await;
+        w.click("#resume-host").await;
+        w.until("the run playing again", &format!("{state}.state === 'playing'")).await;
+
         w.click("#stop-host").await;
         w.message_contains("stopped tutti host").await;
         let deadline = Instant::now() + WAIT;

@@ -564,5 +564,21 @@ $("plot-add").addEventListener("click", () => {
 $("plot-clear").addEventListener("click", () => { mon.plotted = []; mon.series = {}; follow(); });
 $("start-host").addEventListener("click", () => runStart("host"));
 $("stop-host").addEventListener("click", () => runStop("host"));
+async function runControl(op) {
+  const n = parseInt($("step-count").value, 10);
+  try {
+    const r = await api("POST", "run/control", op === "step" ? { op, n } : { op });
+    const state = $("run-state");
+    state.dataset.state = r.state;
+    state.dataset.step = String(r.step);
+    state.textContent = r.state + ", step " + r.step + ", t = " + r.sim_time.toFixed(3) + " s";
+    say("framework " + op + ": " + state.textContent, "ok");
+  } catch (e) { fail(e); }
+}
+
+$("pause-host").addEventListener("click", () => runControl("pause"));
+$("step-host").addEventListener("click", () => runControl("step"));
+$("reset-host").addEventListener("click", () => runControl("reset"));
+$("resume-host").addEventListener("click", () => runControl("resume"));
 $("start-gateway").addEventListener("click", () => runStart("gateway"));
 $("stop-gateway").addEventListener("click", () => runStop("gateway"));

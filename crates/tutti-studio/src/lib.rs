@@ -14,6 +14,7 @@
 //! | `POST /api/save` | atomic write of the product dialect (refusals: see [`editor::save`]) |
 //! | `GET /api/monitor` | Server-Sent Events at 10 Hz: domains, plotted items, runs ([`monitor`]) |
 //! | `POST /api/run/start`, `/api/run/stop` | a framework (in-process) or a `tutti gateway` child ([`run`]) |
+//! | `POST /api/run/control` | pause, step N, reset or resume the framework, through its control plane (`tutti ctl`) |
 //!
 //! Safety: the server binds 127.0.0.1 unless told otherwise, and any other address needs
 //! the token made at start ([`Config::token`]); files are read and written only under the
@@ -174,6 +175,7 @@ pub fn router(state: Arc<AppState>) -> Router {
         .route("/monitor", get(monitor::stream))
         .route("/run/start", post(run::start))
         .route("/run/stop", post(run::stop))
+        .route("/run/control", post(run::control))
         .fallback(not_found)
         .layer(middleware::from_fn_with_state(state.clone(), require_token));
     Router::new()

@@ -21,6 +21,7 @@ use axum::http::StatusCode;
 use axum::Json;
 use serde::Deserialize;
 use serde_json::{json, Value};
+use tutti_host::control::{ControlClient, ControlError, Request};
 use tutti_host::{ChildProcess, Host, HostOptions, SIGTERM};
 
 use crate::error::ApiError;
@@ -205,7 +206,8 @@ fn start_host(model: tutti_core::ddf::Model, opts: HostOptions, log: Log) -> Res
     let thread = std::thread::Builder::new().name("studio-host".into()).spawn(move || {
         let started = Instant::now();
         let (step, ddf) = (opts.step, opts.ddf_name.clone());
-        let host = match Host::new(&model, opts) {
+        let host = Host::new(&model, opts).and_then(|mut h| h.serve_control(flag.clone(), None).map(|()| h));
+        let host = match host {
             Ok(h) => h,
             Err(e) => {
                 keep_line(&log, format!("host: {e}"));
@@ -342,4 +344,56 @@ pub async fn stop(State(st): State<Arc<AppState>>, Json(body): Json<StopBody>) -
     .ok()
     .flatten();
     Ok(Json(json!({ "kind": body.kind.name(), "exit": exit })))
+}
+
+#[derive(Debug, Deserialize)]
+pub struct ControlBody {
+    /// `state`, `pause`, `resume`, `step` (with `n`) or `reset`.
+    pub op: String,
+    pub n: Option<u64>,
+}
+
+/// `POST /api/run/control {op, n?}`: pauses, steps, resets or resumes the framework the
+/// studio started, through the run's control plane (as `tutti ctl` does); answers the run's
+/// state after it.
+pub async fn control(State(st): State<Arc<AppState>>, Json(body): Json<ControlBody>) -> Result<Json<Value>, ApiError> {
+    if st.read_only {
+        return Err(ApiError::new(
+            StatusCode::FORBIDDEN,
+            "read-only",
+            "the studio runs with --read-only: no run control",
+        ));
+    }
+    let request = match (body.op.as_str(), body.n) {
+        ("state", _) => Request::State,
+        ("pause", _) => Request::Pause,
+        ("resume", _) => Request::Resume,
+        ("reset", _) => Request::Reset,
+        ("step", Some(n)) if n > 0 => Request::Step { n },
+        ("step", _) => return Err(ApiError::bad_request("step needs n, a number of steps above 0")),
+        (op, _) => {
+            return Err(ApiError::bad_request(format!(
+                "unknown op '{op}': expected state, pause, resume, step or reset"
+            )))
+        }
+    };
+    let namespace = {
+        let mut runs = st.runs.runs.lock().map_err(|_| ApiError::bad_request("run state unavailable"))?;
+        let run = runs.get_mut(&Kind::Host).ok_or_else(|| ApiError::not_found("no framework was started"))?;
+        run.poll();
+        if run.exit.is_some() {
+            return Err(ApiError::conflict("stopped", "the framework has stopped"));
+        }
+        run.namespace.clone()
+    };
+    let answer = tokio::task::spawn_blocking(move || {
+        ControlClient::connect(&namespace, Duration::from_secs(30)).and_then(|mut c| c.request(&request))
+    })
+    .await
+    .map_err(|e| ApiError::new(StatusCode::INTERNAL_SERVER_ERROR, "control", e.to_string()))?;
+    match answer {
+        Ok(status) => Ok(Json(serde_json::to_value(status).unwrap_or_default())),
+        Err(ControlError::Refused(why)) => Err(ApiError::conflict("refused", why.to_string())),
+        Err(e) => Err(ApiError::new(StatusCode::SERVICE_UNAVAILABLE, "control", e.to_string())),
+    }
 }

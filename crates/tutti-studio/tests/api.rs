@@ -303,12 +303,36 @@ fn run_control_refuses_what_it_must_and_keeps_the_log() {
         ev = first_event(&s, "");
     }
     assert!(ev["runs"]["host"]["log"].to_string().contains("host"), "{ev}");
+
+    // The framework is paused, stepped, reset and resumed through its control plane.
+    let control = |body: Value| s.post("/api/run/control", body);
+    let (status, paused) = control(json!({ "op": "pause" }));
+    assert_eq!((status, paused["state"].as_str()), (200, Some("paused")), "{paused}");
+    let (status, stepped) = control(json!({ "op": "step", "n": 3 }));
+    assert_eq!(status, 200, "{stepped}");
+    assert_eq!(
+        (stepped["state"].as_str(), stepped["step"].as_u64()),
+        (Some("paused"), Some(paused["step"].as_u64().unwrap() + 3))
+    );
+    let (status, reset) = control(json!({ "op": "reset" }));
+    assert_eq!((status, reset["step"].as_u64(), reset["sim_time"].as_f64()), (200, Some(0), Some(0.0)), "{reset}");
+    let (status, body) = control(json!({ "op": "step" }));
+    assert_eq!(status, 400, "{body}");
+    let (status, body) = control(json!({ "op": "jump" }));
+    assert!(status == 400 && body["error"].to_string().contains("unknown op 'jump'"), "{body}");
+    let (status, resumed) = control(json!({ "op": "resume" }));
+    assert_eq!((status, resumed["state"].as_str()), (200, Some("playing")), "{resumed}");
+    let (status, refused) = control(json!({ "op": "step", "n": 1 }));
+    assert_eq!((status, refused["code"].as_str()), (409, Some("refused")), "stepping a playing run: {refused}");
+
     let (status, body) = s.post("/api/run/stop", json!({ "kind": "host" }));
     assert_eq!(status, 200, "{body}");
     let ev = first_event(&s, "");
     assert_eq!(ev["runs"]["host"]["running"], false, "{ev}");
     let (status, _) = s.post("/api/run/stop", json!({ "kind": "gateway" }));
     assert_eq!(status, 404);
+    let (status, body) = s.post("/api/run/control", json!({ "op": "pause" }));
+    assert_eq!((status, body["code"].as_str()), (409, Some("stopped")), "{body}");
 
     let s = studio_with(None, true, Some("/bin/echo"));
     let (status, body) = s.post("/api/run/start", json!({ "kind": "host", "path": "multiuav.ddf" }));
