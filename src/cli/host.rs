@@ -66,6 +66,7 @@ impl Args {
         HostOptions {
             step: self.step,
             duration: self.duration,
+            steps: None,
             catch_up: self.catch_up,
             timeout: self.timeout,
             wait: self.wait,

@@ -17,6 +17,8 @@ pub struct HostOptions {
     pub step: Duration,
     /// Stop after this long (None: until stopped).
     pub duration: Option<Duration>,
+    /// Stop after this many steps (None: until stopped); with `duration`, whichever comes first.
+    pub steps: Option<u64>,
     /// Run late steps back to back instead of skipping them ([`Ticker::catching_up`]).
     pub catch_up: bool,
     /// Longest wait for the participants of a synchronous step, and for a seed.
@@ -40,6 +42,7 @@ impl Default for HostOptions {
         HostOptions {
             step: Duration::from_millis(10),
             duration: None,
+            steps: None,
             catch_up: false,
             timeout: Duration::from_secs(1),
             wait: WaitMode::Block,
@@ -361,7 +364,9 @@ impl Host {
         let started = self.start(stop, &mut on_report)?;
         let mut last_report = Instant::now();
         while started && !stop.load(Ordering::SeqCst) {
-            if self.opts.duration.is_some_and(|d| self.run_start.elapsed() >= d) {
+            if self.opts.duration.is_some_and(|d| self.run_start.elapsed() >= d)
+                || self.opts.steps.is_some_and(|n| self.steps >= n)
+            {
                 break;
             }
             let tick = self.step(&mut on_report)?;
@@ -482,6 +487,18 @@ mod tests {
         let (steps, publish) = seen.borrow().clone();
         assert_eq!(steps, summary.steps, "the sink took every step");
         assert_eq!(publish, 7i32.to_ne_bytes(), "--set reached the PUBLISH set");
+    }
+
+    #[test]
+    fn a_run_with_a_step_limit_makes_exactly_that_many_steps() {
+        let model = tutti_core::ddf::parse_str(DDF, "probe.ddf").unwrap();
+        let ns = format!("hostlibn{}", std::process::id());
+        let opts = HostOptions { duration: None, steps: Some(25), ..options(&ns) };
+        let host = Host::new(&model, opts).unwrap();
+        let summary = host.run(&AtomicBool::new(false), |_| {}).unwrap();
+        assert_eq!(summary.steps, 25);
+        let seg = tutti_core::shm::Segment::open(&ns, "probe");
+        assert!(seg.is_err(), "the domain is removed with the host");
     }
 
     #[test]
