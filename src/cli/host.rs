@@ -74,6 +74,7 @@ impl Args {
             sets: self.sets.clone(),
             hold: self.hold,
             wait_for: self.wait_for.clone(),
+            hold_until_start: false,
             ddf_name: self.file.display().to_string(),
         }
     }

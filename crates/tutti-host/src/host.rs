@@ -33,6 +33,10 @@ pub struct HostOptions {
     pub hold: Option<Duration>,
     /// Before the first step, hold until each DOMAIN has N writers.
     pub wait_for: Vec<(String, usize)>,
+    /// Hold participants in connect (wait-to-go) from the creation of the domains until
+    /// [`Host::start`]: a launcher starts its components in between, and all are released
+    /// together.
+    pub hold_until_start: bool,
     /// The DDF's name, for messages.
     pub ddf_name: String,
 }
@@ -50,6 +54,7 @@ impl Default for HostOptions {
             sets: Vec::new(),
             hold: None,
             wait_for: Vec::new(),
+            hold_until_start: false,
             ddf_name: "the DDF".into(),
         }
     }
@@ -211,7 +216,7 @@ impl Host {
         let mut fw_opts = FrameworkOptions {
             timeout: opts.timeout,
             wait: opts.wait,
-            hold: opts.hold.is_some() || !opts.wait_for.is_empty(),
+            hold: opts.hold.is_some() || !opts.wait_for.is_empty() || opts.hold_until_start,
             ..Default::default()
         };
         if let Some(ns) = &opts.namespace {
@@ -232,6 +237,13 @@ impl Host {
             steps: 0,
             step_timeouts: 0,
         })
+    }
+
+    /// Checks `DOMAIN/ITEM=VALUE` settings (as [`HostOptions::sets`] takes them) against
+    /// `model` without creating anything: a launcher refuses a bad one before it starts.
+    pub fn check_sets(model: &Model, sets: &[String]) -> Result<(), HostError> {
+        let mut publish: Vec<Vec<u8>> = model.domains.iter().map(|d| d.publish.layout.default_bytes()).collect();
+        apply_sets(sets, &model.domains, &mut publish)
     }
 
     /// The framework: its domains, their connections and sets.
@@ -487,6 +499,25 @@ mod tests {
         let (steps, publish) = seen.borrow().clone();
         assert_eq!(steps, summary.steps, "the sink took every step");
         assert_eq!(publish, 7i32.to_ne_bytes(), "--set reached the PUBLISH set");
+    }
+
+    #[test]
+    fn held_until_start_participants_wait_to_go_until_the_host_starts() {
+        let model = tutti_core::ddf::parse_str(DDF, "probe.ddf").unwrap();
+        let ns = format!("hostlibh{}", std::process::id());
+        let mut host = Host::new(&model, HostOptions { hold_until_start: true, ..options(&ns) }).unwrap();
+        let seg = tutti_core::shm::Segment::open(&ns, "probe").unwrap();
+        assert!(seg.status().waiting_to_go, "held from the creation of the domain");
+        assert!(host.start(&AtomicBool::new(false), &mut |_| {}).unwrap());
+        assert!(!seg.status().waiting_to_go, "released by the start");
+    }
+
+    #[test]
+    fn settings_are_checked_without_creating_anything() {
+        let model = tutti_core::ddf::parse_str(DDF, "probe.ddf").unwrap();
+        assert!(Host::check_sets(&model, &["probe/tick=3".into()]).is_ok());
+        let e = Host::check_sets(&model, &["probe/tick=x".into()]).unwrap_err();
+        assert!(e.is_invalid() && e.to_string().contains("'x' is not a int32"), "{e}");
     }
 
     #[test]
