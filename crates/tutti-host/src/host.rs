@@ -372,7 +372,13 @@ impl Host {
 
     /// The whole run: [`Host::start`], then steps until `stop` is set or the duration is
     /// over, with a [`Report::Progress`] every second; the sinks are finished at the end.
-    pub fn run(mut self, stop: &AtomicBool, mut on_report: impl FnMut(Report)) -> Result<Summary, HostError> {
+    pub fn run(mut self, stop: &AtomicBool, on_report: impl FnMut(Report)) -> Result<Summary, HostError> {
+        self.run_and_keep(stop, on_report)
+    }
+
+    /// [`Host::run`], keeping the domains afterwards (they go when the host is dropped): a
+    /// launcher stops its components first, while the domains they are connected to remain.
+    pub fn run_and_keep(&mut self, stop: &AtomicBool, mut on_report: impl FnMut(Report)) -> Result<Summary, HostError> {
         let started = self.start(stop, &mut on_report)?;
         let mut last_report = Instant::now();
         while started && !stop.load(Ordering::SeqCst) {
@@ -526,8 +532,11 @@ mod tests {
         let ns = format!("hostlibn{}", std::process::id());
         let opts = HostOptions { duration: None, steps: Some(25), ..options(&ns) };
         let host = Host::new(&model, opts).unwrap();
-        let summary = host.run(&AtomicBool::new(false), |_| {}).unwrap();
+        let mut host = host;
+        let summary = host.run_and_keep(&AtomicBool::new(false), |_| {}).unwrap();
         assert_eq!(summary.steps, 25);
+        assert_eq!(tutti_core::shm::Segment::open(&ns, "probe").unwrap().status().step, 25, "kept after the run");
+        drop(host);
         let seg = tutti_core::shm::Segment::open(&ns, "probe");
         assert!(seg.is_err(), "the domain is removed with the host");
     }
