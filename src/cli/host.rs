@@ -66,6 +66,7 @@ impl Args {
         HostOptions {
             step: self.step,
             duration: self.duration,
+            steps: None,
             catch_up: self.catch_up,
             timeout: self.timeout,
             wait: self.wait,
@@ -73,6 +74,7 @@ impl Args {
             sets: self.sets.clone(),
             hold: self.hold,
             wait_for: self.wait_for.clone(),
+            hold_until_start: false,
             ddf_name: self.file.display().to_string(),
         }
     }

@@ -13,6 +13,7 @@ mod host;
 mod idl;
 mod record;
 mod replay;
+mod run;
 mod show;
 mod status;
 mod studio;
@@ -44,6 +45,7 @@ enum Command {
     Gateway(gateway::Args),
     Studio(studio::Args),
     Fmu(fmu::Args),
+    Run(run::Args),
 }
 
 /// The flag Ctrl-C (or SIGTERM) raises: a command's loop stops when it is set.
@@ -64,6 +66,7 @@ pub fn run(cli: Cli) -> ExitCode {
         Command::Gateway(a) => gateway::run(a),
         Command::Studio(a) => studio::run(a),
         Command::Fmu(a) => fmu::run(a),
+        Command::Run(a) => run::run(a),
     };
     tutti_exit::exit(result)
 }

@@ -30,5 +30,6 @@ mod idl_tools;
 mod install;
 mod record_mcap;
 mod replay;
+mod run;
 mod studio_browser;
 mod uav_demo;

@@ -19,6 +19,8 @@ pub struct HostOptions {
     pub step: Duration,
     /// Stop after this long (None: until stopped).
     pub duration: Option<Duration>,
+    /// Stop after this many steps (None: until stopped); with `duration`, whichever comes first.
+    pub steps: Option<u64>,
     /// Run late steps back to back instead of skipping them ([`Ticker::catching_up`]).
     pub catch_up: bool,
     /// Longest wait for the participants of a synchronous step, and for a seed.
@@ -33,6 +35,10 @@ pub struct HostOptions {
     pub hold: Option<Duration>,
     /// Before the first step, hold until each DOMAIN has N writers.
     pub wait_for: Vec<(String, usize)>,
+    /// Hold participants in connect (wait-to-go) from the creation of the domains until
+    /// [`Host::start`]: a launcher starts its components in between, and all are released
+    /// together.
+    pub hold_until_start: bool,
     /// The DDF's name, for messages.
     pub ddf_name: String,
 }
@@ -42,6 +48,7 @@ impl Default for HostOptions {
         HostOptions {
             step: Duration::from_millis(10),
             duration: None,
+            steps: None,
             catch_up: false,
             timeout: Duration::from_secs(1),
             wait: WaitMode::Block,
@@ -49,6 +56,7 @@ impl Default for HostOptions {
             sets: Vec::new(),
             hold: None,
             wait_for: Vec::new(),
+            hold_until_start: false,
             ddf_name: "the DDF".into(),
         }
     }
@@ -214,7 +222,7 @@ impl Host {
         let mut fw_opts = FrameworkOptions {
             timeout: opts.timeout,
             wait: opts.wait,
-            hold: opts.hold.is_some() || !opts.wait_for.is_empty(),
+            hold: opts.hold.is_some() || !opts.wait_for.is_empty() || opts.hold_until_start,
             ..Default::default()
         };
         if let Some(ns) = &opts.namespace {
@@ -237,6 +245,13 @@ impl Host {
             control: None,
             paused_for: Duration::ZERO,
         })
+    }
+
+    /// Checks `DOMAIN/ITEM=VALUE` settings (as [`HostOptions::sets`] takes them) against
+    /// `model` without creating anything: a launcher refuses a bad one before it starts.
+    pub fn check_sets(model: &Model, sets: &[String]) -> Result<(), HostError> {
+        let mut publish: Vec<Vec<u8>> = model.domains.iter().map(|d| d.publish.layout.default_bytes()).collect();
+        apply_sets(sets, &model.domains, &mut publish)
     }
 
     /// The framework: its domains, their connections and sets.
@@ -399,11 +414,19 @@ impl Host {
 
     /// The whole run: [`Host::start`], then steps until `stop` is set or the duration is
     /// over, with a [`Report::Progress`] every second; the sinks are finished at the end.
-    pub fn run(mut self, stop: &AtomicBool, mut on_report: impl FnMut(Report)) -> Result<Summary, HostError> {
+    pub fn run(mut self, stop: &AtomicBool, on_report: impl FnMut(Report)) -> Result<Summary, HostError> {
+        self.run_and_keep(stop, on_report)
+    }
+
+    /// [`Host::run`], keeping the domains afterwards (they go when the host is dropped): a
+    /// launcher stops its components first, while the domains they are connected to remain.
+    pub fn run_and_keep(&mut self, stop: &AtomicBool, mut on_report: impl FnMut(Report)) -> Result<Summary, HostError> {
         let started = self.start(stop, &mut on_report)?;
         let mut last_report = Instant::now();
         while started && !stop.load(Ordering::SeqCst) {
-            if self.opts.duration.is_some_and(|d| self.run_start.elapsed().saturating_sub(self.paused_for) >= d) {
+            if self.opts.duration.is_some_and(|d| self.run_start.elapsed().saturating_sub(self.paused_for) >= d)
+                || self.opts.steps.is_some_and(|n| self.steps >= n)
+            {
                 break;
             }
             self.take_commands(stop, &mut on_report)?;
@@ -641,6 +664,40 @@ mod tests {
         let (steps, publish) = seen.borrow().clone();
         assert_eq!(steps, summary.steps, "the sink took every step");
         assert_eq!(publish, 7i32.to_ne_bytes(), "--set reached the PUBLISH set");
+    }
+
+    #[test]
+    fn held_until_start_participants_wait_to_go_until_the_host_starts() {
+        let model = tutti_core::ddf::parse_str(DDF, "probe.ddf").unwrap();
+        let ns = format!("hostlibh{}", std::process::id());
+        let mut host = Host::new(&model, HostOptions { hold_until_start: true, ..options(&ns) }).unwrap();
+        let seg = tutti_core::shm::Segment::open(&ns, "probe").unwrap();
+        assert!(seg.status().waiting_to_go, "held from the creation of the domain");
+        assert!(host.start(&AtomicBool::new(false), &mut |_| {}).unwrap());
+        assert!(!seg.status().waiting_to_go, "released by the start");
+    }
+
+    #[test]
+    fn settings_are_checked_without_creating_anything() {
+        let model = tutti_core::ddf::parse_str(DDF, "probe.ddf").unwrap();
+        assert!(Host::check_sets(&model, &["probe/tick=3".into()]).is_ok());
+        let e = Host::check_sets(&model, &["probe/tick=x".into()]).unwrap_err();
+        assert!(e.is_invalid() && e.to_string().contains("'x' is not a int32"), "{e}");
+    }
+
+    #[test]
+    fn a_run_with_a_step_limit_makes_exactly_that_many_steps() {
+        let model = tutti_core::ddf::parse_str(DDF, "probe.ddf").unwrap();
+        let ns = format!("hostlibn{}", std::process::id());
+        let opts = HostOptions { duration: None, steps: Some(25), ..options(&ns) };
+        let host = Host::new(&model, opts).unwrap();
+        let mut host = host;
+        let summary = host.run_and_keep(&AtomicBool::new(false), |_| {}).unwrap();
+        assert_eq!(summary.steps, 25);
+        assert_eq!(tutti_core::shm::Segment::open(&ns, "probe").unwrap().status().step, 25, "kept after the run");
+        drop(host);
+        let seg = tutti_core::shm::Segment::open(&ns, "probe");
+        assert!(seg.is_err(), "the domain is removed with the host");
     }
 
     #[test]

@@ -1,0 +1,113 @@
+//! A whole run of a launch file ([`run`]): the framework of the DDF's domains (a
+//! [`Host`]), its recordings, the gateway, and the components under a [`Supervisor`].
+//!
+//! In order: the framework creates the domains (holding their participants with `hold`),
+//! the recordings and the gateway start, then the components in file order. With `hold` the
+//! framework starts stepping once every component has connected, releasing them all at
+//! once; without, it steps from the start and the components join as they come. The run
+//! ends at `duration` or `steps`, at the interrupt (Ctrl-C), when every component has ended
+//! by itself, or when the components could not all be started. Then the components are
+//! torn down in reverse order while the framework still exists, the recordings finish, the
+//! gateway stops and the framework removes its domains, last.
+
+use std::path::PathBuf;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
+use std::time::Duration;
+
+use tutti_host::{Host, HostOptions, Summary};
+
+use crate::supervisor::{ComponentStatus, Event, OnEvent, Supervisor, SupervisorOptions};
+use crate::{Launch, RunError, SupervisorError};
+
+/// What a run needs besides its launch file.
+#[derive(Debug, Clone)]
+pub struct RunOptions {
+    /// Where the components' `NAME.log` files go.
+    pub log_dir: PathBuf,
+    /// The `tutti` executable, for FMU components.
+    pub tutti_exe: PathBuf,
+    /// The namespace of the segments (None: `TUTTI_NAMESPACE`, else the default).
+    pub namespace: Option<String>,
+    /// How long a component has to exit after SIGTERM before SIGKILL.
+    pub grace: Duration,
+}
+
+/// How a run ended.
+#[derive(Debug, Clone)]
+pub struct Outcome {
+    /// Every component, in file order, as it ended.
+    pub components: Vec<ComponentStatus>,
+    /// Why the components could not all be started, if they could not.
+    pub start_error: Option<SupervisorError>,
+    /// The framework's summary, if it ran.
+    pub summary: Option<Summary>,
+}
+
+impl Outcome {
+    /// Whether every component ended well ([`ComponentStatus::ended_well`]) and all could
+    /// be started (an interrupted start is no failure).
+    pub fn all_well(&self) -> bool {
+        let started = matches!(self.start_error, None | Some(SupervisorError::Stopping));
+        started && self.components.iter().all(ComponentStatus::ended_well)
+    }
+}
+
+/// Runs `launch` until it ends (see the module); `interrupt` (Ctrl-C) tears it down.
+/// `on_supervisor` is given the supervisor once the components are starting: what a control
+/// plane keeps to restart, stop and start them.
+pub fn run(
+    launch: &Launch,
+    opts: RunOptions,
+    interrupt: Arc<AtomicBool>,
+    on_event: OnEvent,
+    on_supervisor: impl FnOnce(&Supervisor),
+) -> Result<Outcome, RunError> {
+    let fw = &launch.framework;
+    let host_opts = HostOptions {
+        step: fw.step,
+        duration: fw.duration,
+        steps: fw.steps,
+        catch_up: fw.catch_up,
+        timeout: fw.timeout,
+        wait: fw.wait,
+        namespace: opts.namespace.clone(),
+        sets: fw.set.clone(),
+        hold: None,
+        wait_for: Vec::new(),
+        hold_until_start: fw.hold,
+        ddf_name: launch.ddf.display().to_string(),
+    };
+    let mut host = Host::new(&launch.model, host_opts)?;
+    for path in &fw.record {
+        let recorder = tutti_record::create(path, &launch.model, &launch.ddf)
+            .map_err(|source| RunError::Record { path: path.clone(), source })?;
+        host.add_sink(Box::new(tutti_record::RecordingSink(recorder)));
+    }
+    let namespace = host.namespace().to_string();
+    let gateway = match &launch.gateway {
+        Some(g) => crate::gateway::start(g, &namespace, &on_event)?,
+        None => None,
+    };
+    let finished = Arc::new(AtomicBool::new(false));
+    let mut sup_opts = SupervisorOptions::new(namespace, opts.log_dir.clone(), launch.ddf.clone(), opts.tutti_exe);
+    sup_opts.grace = opts.grace;
+    sup_opts.interrupt = interrupt;
+    sup_opts.finished = finished.clone();
+    let supervisor = Supervisor::start(launch.components.clone(), sup_opts, on_event.clone())
+        .map_err(|source| RunError::LogDir { dir: opts.log_dir.clone(), source })?;
+    on_supervisor(&supervisor);
+    // With `hold`, the framework steps once all have connected (or not at all).
+    let go = !fw.hold || supervisor.wait_started().is_ok();
+    let mut stepped = Ok(None);
+    if go && !finished.load(Ordering::SeqCst) {
+        stepped = host.run_and_keep(&finished, |r| on_event(Event::Host(r))).map(Some);
+    }
+    // Components first (reverse order), while their domains still exist; then the
+    // gateway; the framework removes the domains last.
+    let f = supervisor.shutdown();
+    drop(gateway);
+    drop(host);
+    let summary = stepped?;
+    Ok(Outcome { components: f.components, start_error: f.start_error, summary })
+}
