@@ -247,3 +247,73 @@ fn steps_end_the_run_after_that_many_steps_and_a_failed_component_makes_the_stat
     assert!(run.stdout().contains("[fails] giving up"), "{}", run.dump());
     assert!(common::segments_of(&ns).is_empty());
 }
+
+/// `tutti ctl` of a launched run: `state` lists its components, `restart b` replaces the C
+/// component `b` mid-run (a new process that connects and steps again) while `a` keeps
+/// every step, `stop b` and `start b` too; `tutti ctl stop` ends the run and its
+/// components with nothing left.
+#[test]
+fn tutti_ctl_restarts_a_c_component_mid_run_and_stops_the_run() {
+    let ns = common::namespace("runctl");
+    let _clean = RemoveSegments(ns.clone());
+    let (dir, file) = setup(&format!(
+        r#"{{
+  ddf: "lockstep.ddf",
+  framework: {{ step: "2ms", timeout: "5s", hold: true, record: ["run.csv"] }},
+  components: [
+    {{ name: "a", run: {a}, domain: "lock" }},
+    {{ name: "b", run: {b}, domain: "lock" }},
+  ],
+}}"#,
+        a = answer("a"),
+        b = answer("b")
+    ));
+    let tmp = tempfile::tempdir().unwrap();
+    let mut run = start(&file, &ns, tmp.path());
+    let mut at = 0;
+    let a = pid_in(&run.next_line(&mut at, "run: a: connected", WAIT).unwrap_or_else(|| panic!("{}", run.dump())));
+    let b = pid_in(&run.next_line(&mut at, "run: b: connected", WAIT).unwrap_or_else(|| panic!("{}", run.dump())));
+    assert!(run.next_line(&mut at, "every component has connected", WAIT).is_some(), "{}", run.dump());
+    wait_reads(&ns, b, 50, &run);
+    let ctl = |args: &[&str]| {
+        let mut cmd = common::tutti_command();
+        cmd.arg("ctl").args(args).arg("--json").env("TUTTI_NAMESPACE", &ns);
+        let (status, out, err) = common::run_with_timeout(cmd, WAIT);
+        assert!(status.success(), "tutti ctl {args:?}: {err}\n{}", run.dump());
+        serde_json::from_str::<serde_json::Value>(out.trim()).unwrap()
+    };
+    let state = ctl(&["state"]);
+    let names: Vec<&str> =
+        state["components"].as_array().unwrap().iter().map(|c| c["name"].as_str().unwrap()).collect();
+    assert_eq!(names, ["a", "b"], "{state}");
+    assert_eq!(state["components"][1]["pid"], b, "{state}");
+
+    let restarted = ctl(&["restart", "b"]);
+    let b2 = restarted["components"][1]["pid"].as_u64().unwrap() as u32;
+    assert!(b2 != b && !alive(b), "b was replaced by a new process: {restarted}");
+    assert_eq!(restarted["components"][1]["state"], "connected", "{restarted}");
+    wait_reads(&ns, b2, 50, &run);
+    assert_eq!(ctl(&["stop", "b"])["components"][1]["state"], "stopped");
+    let b3 = ctl(&["start", "b"])["components"][1]["pid"].as_u64().unwrap() as u32;
+    wait_reads(&ns, b3, 20, &run);
+    let last = step_of(&ns);
+
+    ctl(&["stop"]);
+    assert_eq!(run.wait(WAIT), Some(0), "{}", run.dump());
+    for pid in [a, b2, b3] {
+        assert!(!alive(pid), "pid {pid} is left\n{}", run.dump());
+    }
+    assert!(common::segments_of(&ns).is_empty(), "{:?}", common::segments_of(&ns));
+    assert!(!tutti_host::control::socket_path(&ns).exists(), "the control socket was left");
+
+    // `a` answered every step while `b` was replaced, stopped and started again.
+    let rows: Vec<(u64, (f64, f64))> =
+        rows(&dir.path().join("run.csv")).into_iter().filter(|(s, _)| *s <= last).collect();
+    let a_steps: Vec<f64> = rows.iter().map(|(_, (a, _))| *a).skip_while(|a| *a < 1.0).collect();
+    assert!(a_steps.len() > 100, "{} steps of a", a_steps.len());
+    for w in a_steps.windows(2) {
+        assert_eq!(w[1] - w[0], 1.0, "a missed or repeated a step: {w:?}");
+    }
+    let b_steps: Vec<f64> = rows.iter().map(|(_, (_, b))| *b).collect();
+    assert_eq!(b_steps.windows(2).filter(|w| w[1] < w[0]).count(), 2, "b started over twice");
+}

@@ -15,6 +15,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 use std::time::Duration;
 
+use tutti_host::control::{self, ComponentAction, Components, Refusal};
 use tutti_host::{Host, HostOptions, Summary};
 
 use crate::supervisor::{ComponentStatus, Event, OnEvent, Supervisor, SupervisorOptions};
@@ -92,11 +93,18 @@ pub fn run(
     let finished = Arc::new(AtomicBool::new(false));
     let mut sup_opts = SupervisorOptions::new(namespace, opts.log_dir.clone(), launch.ddf.clone(), opts.tutti_exe);
     sup_opts.grace = opts.grace;
+    let sup_interrupt = interrupt.clone();
     sup_opts.interrupt = interrupt;
     sup_opts.finished = finished.clone();
     let supervisor = Supervisor::start(launch.components.clone(), sup_opts, on_event.clone())
         .map_err(|source| RunError::LogDir { dir: opts.log_dir.clone(), source })?;
     on_supervisor(&supervisor);
+    // `tutti ctl`: the lifecycle of the framework, and the components through the
+    // supervisor; a stop raises the interrupt, which tears the run down in order.
+    if let Err(e) = host.serve_control(sup_interrupt, Some(Arc::new(Controlled(supervisor.clone())))) {
+        supervisor.shutdown();
+        return Err(e.into());
+    }
     // With `hold`, the framework steps once all have connected (or not at all).
     let go = !fw.hold || supervisor.wait_started().is_ok();
     let mut stepped = Ok(None);
@@ -110,4 +118,28 @@ pub fn run(
     drop(host);
     let summary = stepped?;
     Ok(Outcome { components: f.components, start_error: f.start_error, summary })
+}
+
+/// The components of a launched run, as the control plane reaches them.
+struct Controlled(Supervisor);
+
+impl Components for Controlled {
+    fn act(&self, action: ComponentAction, name: &str) -> Result<(), Refusal> {
+        let done = match action {
+            ComponentAction::Restart => self.0.restart(name).map(|_| ()),
+            ComponentAction::Stop => self.0.stop_component(name),
+            ComponentAction::Start => self.0.start_component(name).map(|_| ()),
+        };
+        done.map_err(|e| Refusal(e.to_string()))
+    }
+
+    fn status(&self) -> Vec<control::ComponentStatus> {
+        let status = |c: ComponentStatus| control::ComponentStatus {
+            name: c.name,
+            state: c.state.name(),
+            pid: c.pid,
+            restarts: c.restarts,
+        };
+        self.0.status().into_iter().map(status).collect()
+    }
 }

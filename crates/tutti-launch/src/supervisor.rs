@@ -83,6 +83,19 @@ pub enum ComponentState {
     Ended(End),
 }
 
+impl ComponentState {
+    /// How `tutti ctl state` names it.
+    pub fn name(&self) -> String {
+        match self {
+            ComponentState::Waiting => "waiting".into(),
+            ComponentState::Starting => "starting".into(),
+            ComponentState::Connected => "connected".into(),
+            ComponentState::Stopped => "stopped".into(),
+            ComponentState::Ended(end) => format!("ended ({end})"),
+        }
+    }
+}
+
 /// A component as [`Supervisor::status`] shows it.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct ComponentStatus {
