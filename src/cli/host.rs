@@ -15,7 +15,7 @@ use super::{load_ddf, CliResult, Failure};
 /// Run the framework of every domain in a DDF: create the segments, step at a fixed period.
 #[derive(Debug, clap::Args)]
 #[command(
-    after_help = "Examples:\n  tutti host ddf/multiuav.ddf --step 10ms --duration 60s\n  tutti host ddf/product-sample.ddf --set grid_clock/tick=1 --record out/run.csv\n  tutti host ddf/multiuav.ddf --step 10ms --duration 60s --record out/run.mcap   # Foxglove, ros2 bag\n  TUTTI_NAMESPACE=lab2 tutti host ddf/large-1000.ddf --step 1ms\n  sudo tutti host ddf/multiuav.ddf --step 1ms --realtime --cpu 1 --priority 80\n  tutti host ddf/multiuav.ddf --wait-for multiuav_uav2=1 --record run.mcap   # replay later: tutti replay\n\nStop with Ctrl-C: the segments are removed on exit."
+    after_help = "Examples:\n  tutti host ddf/multiuav.ddf --step 10ms --duration 60s\n  tutti host ddf/product-sample.ddf --set grid_clock/tick=1 --record out/run.csv\n  tutti host ddf/multiuav.ddf --step 10ms --duration 60s --record out/run.mcap   # Foxglove, ros2 bag\n  TUTTI_NAMESPACE=lab2 tutti host ddf/large-1000.ddf --step 1ms\n  sudo tutti host ddf/multiuav.ddf --step 1ms --realtime --cpu 1 --priority 80\n  tutti host ddf/multiuav.ddf --wait-for multiuav_uav2=1 --record run.mcap   # replay later: tutti replay\n  tutti host ddf/multiuav.ddf --connect 'multiuav_uav2/subscribe/Elevation -> multiuav_uav2/publish/Altitude'\n\nStop with Ctrl-C: the segments are removed on exit."
 )]
 pub struct Args {
     /// The DDF whose domains to host.
@@ -54,6 +54,11 @@ pub struct Args {
     /// from the first; repeatable.
     #[arg(long = "wait-for", value_name = "DOMAIN=N", value_parser = tutti_host::parse_wait_for)]
     wait_for: Vec<(String, usize)>,
+    /// Copy an output to an input at every step: 'FROM -> TO [* GAIN] [+ OFFSET]', each end
+    /// DOMAIN/ROLE/ITEM (FROM a subscribe item, TO a publish item); repeatable. The value
+    /// reaches the input at the next step (docs/run.md, "Connections").
+    #[arg(long = "connect", value_name = "CONNECTION", value_parser = tutti_host::connect::parse_connection)]
+    connections: Vec<tutti_host::connect::ConnectionSpec>,
     #[command(flatten)]
     rt: super::RealtimeArgs,
     /// Print no progress lines.
@@ -75,6 +80,7 @@ impl Args {
             hold: self.hold,
             wait_for: self.wait_for.clone(),
             hold_until_start: false,
+            connections: self.connections.clone(),
             ddf_name: self.file.display().to_string(),
         }
     }

@@ -40,10 +40,17 @@ pub struct Args {
     /// left out.
     #[arg(long, value_name = "FILE")]
     config: Option<PathBuf>,
+    /// Check and list connections in the framework (as `tutti host --connect`): both ends,
+    /// their types and lengths, and when a value arrives.
+    #[arg(long = "connect", value_name = "CONNECTION", value_parser = tutti_host::connect::parse_connection)]
+    connections: Vec<tutti_host::connect::ConnectionSpec>,
 }
 
 pub fn run(args: Args) -> CliResult {
     let model = load_ddf(&args.file)?;
+    if !args.connections.is_empty() {
+        return show_connections(&args, &model);
+    }
     if let Some(cfg) = &args.config {
         return show_plan(&args, model, cfg);
     }
@@ -300,4 +307,47 @@ fn plan_text(v: &PlanJson<'_>) -> String {
         }
     }
     s
+}
+
+/// `tutti show DDF --connect …`: the connections, checked, with both ends' types and lengths.
+fn show_connections(args: &Args, model: &tutti_core::ddf::Model) -> CliResult {
+    use tutti_host::connect::Connections;
+    let checked = Connections::resolve(model, &args.connections, &[])
+        .map_err(|e| Failure::invalid(anyhow::anyhow!("{}: {e}", args.file.display())))?;
+    let rows: Vec<serde_json::Value> = checked
+        .specs()
+        .iter()
+        .enumerate()
+        .map(|(i, c)| {
+            let leaf = |r: &tutti_host::connect::ItemRef| {
+                model
+                    .domain(&r.domain)
+                    .and_then(|d| d.set(r.role).layout.leaf(&r.item))
+                    .map(|l| (l.ty.canonical(), l.length))
+            };
+            let ((ft, fl), (tt, tl)) = (leaf(&c.from).unwrap_or(("?", 0)), leaf(&c.to).unwrap_or(("?", 0)));
+            serde_json::json!({
+                "order": i + 1, "from": c.from.to_string(), "to": c.to.to_string(), "gain": c.gain, "offset": c.offset,
+                "from_type": ft, "to_type": tt, "length": fl.max(tl),
+            })
+        })
+        .collect();
+    if args.json {
+        println!("{}", serde_json::to_string_pretty(&rows).map_err(anyhow::Error::from)?);
+        return Ok(());
+    }
+    println!(
+        "{} connection(s), applied in this order after each step; a value reaches its input at the next step:",
+        rows.len()
+    );
+    for (c, r) in checked.specs().iter().zip(&rows) {
+        println!(
+            "  {}. {c}   ({} -> {}, {} element(s))",
+            r["order"],
+            r["from_type"].as_str().unwrap_or("?"),
+            r["to_type"].as_str().unwrap_or("?"),
+            r["length"]
+        );
+    }
+    Ok(())
 }

@@ -11,6 +11,7 @@
 #[macro_use]
 mod gateway;
 
+mod connect;
 mod ctl;
 mod ddf_invalid;
 mod ddf_valid;

@@ -31,6 +31,9 @@ pub enum HostError {
     /// A step names a domain index the run does not have.
     #[error("no domain {index} in the run")]
     NoDomain { index: usize },
+    /// A connection that cannot be made.
+    #[error(transparent)]
+    Connect(#[from] crate::connect::ConnectError),
     /// The control plane could not be served.
     #[error(transparent)]
     Control(#[from] crate::control::ControlError),
@@ -47,6 +50,9 @@ impl HostError {
     /// Whether the options asked for something impossible (the CLI's exit status 2), rather
     /// than the run failing.
     pub fn is_invalid(&self) -> bool {
-        matches!(self, HostError::ZeroStep | HostError::Set { .. } | HostError::WaitForDomain { .. })
+        matches!(
+            self,
+            HostError::ZeroStep | HostError::Set { .. } | HostError::WaitForDomain { .. } | HostError::Connect(_)
+        )
     }
 }

@@ -8,6 +8,7 @@ use std::time::{Duration, Instant};
 use tutti_core::ddf::{Domain, Model};
 use tutti_core::shm::{DomainHost, Framework, FrameworkOptions, StepReport, WaitMode};
 
+use crate::connect::{ConnectionSpec, Connections};
 use crate::control::{Components, ControlPort, Refusal, Reply, Request, RunState};
 use crate::steps::{step_all, wait_for_writers};
 use crate::{HostError, Tick, Ticker};
@@ -39,6 +40,9 @@ pub struct HostOptions {
     /// [`Host::start`]: a launcher starts its components in between, and all are released
     /// together.
     pub hold_until_start: bool,
+    /// Connections in the framework: outputs copied to inputs at every step
+    /// ([`crate::connect`]).
+    pub connections: Vec<ConnectionSpec>,
     /// The DDF's name, for messages.
     pub ddf_name: String,
 }
@@ -57,6 +61,7 @@ impl Default for HostOptions {
             hold: None,
             wait_for: Vec::new(),
             hold_until_start: false,
+            connections: Vec::new(),
             ddf_name: "the DDF".into(),
         }
     }
@@ -198,6 +203,7 @@ pub struct Host {
     control: Option<ControlPort>,
     /// Time spent paused, which a `duration` does not count.
     paused_for: Duration,
+    connections: Connections,
 }
 
 impl fmt::Debug for Host {
@@ -219,6 +225,7 @@ impl Host {
                 return Err(HostError::WaitForDomain { domain: d.clone(), writers: *n, ddf: opts.ddf_name.clone() });
             }
         }
+        let connections = Connections::resolve(model, &opts.connections, &opts.sets)?;
         let mut fw_opts = FrameworkOptions {
             timeout: opts.timeout,
             wait: opts.wait,
@@ -244,6 +251,7 @@ impl Host {
             step_timeouts: 0,
             control: None,
             paused_for: Duration::ZERO,
+            connections,
         })
     }
 
@@ -342,6 +350,11 @@ impl Host {
         let done = StepDone { reports: &reports, publish: &self.publish, sim, run_start: self.run_start };
         for sink in &mut self.sinks {
             sink.step(&self.fw, &done).map_err(|source| HostError::Sink { what: "writing the recording", source })?;
+        }
+        if !self.connections.is_empty() {
+            // The outputs of this step are the inputs of the next.
+            let subscribe: Vec<&[u8]> = self.fw.domains.iter().map(|d| d.subscribe()).collect();
+            self.connections.apply(&subscribe, &mut self.publish);
         }
         if let Some(c) = &self.control {
             c.shared.set(c.shared.state(), tick.k + 1, sim);

@@ -20,6 +20,7 @@
 //! ([`stop_on_ctrl_c`]).
 
 mod child;
+pub mod connect;
 pub mod control;
 mod error;
 mod host;

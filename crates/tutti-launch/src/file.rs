@@ -26,6 +26,7 @@ use tutti_core::parse::{parse_duration, parse_wait};
 use tutti_core::shm::WaitMode;
 use tutti_gateway::config::{self as gateway_config, ConfigFile};
 use tutti_gateway::GatewayOptions;
+use tutti_host::connect::{parse_connection, ConnectionSpec, Connections};
 
 use crate::LaunchError;
 
@@ -44,6 +45,9 @@ pub struct Launch {
     pub components: Vec<Component>,
     /// The gateway, if the file has one (see [`crate::gateway`]).
     pub gateway: Option<Gateway>,
+    /// `connections`: outputs copied to inputs by the framework at every step
+    /// (`tutti_host::connect`).
+    pub connections: Vec<ConnectionSpec>,
 }
 
 /// The `framework` key: how `tutti host` would step the DDF's domains.
@@ -170,6 +174,7 @@ pub fn parse(text: &str, path: &Path) -> Result<Launch, LaunchError> {
         framework: keys.framework,
         components: keys.components,
         gateway: keys.gateway,
+        connections: keys.connections,
     })
 }
 
@@ -311,6 +316,25 @@ struct FileKeys {
     components: Vec<Component>,
     #[serde(default)]
     gateway: Option<Gateway>,
+    #[serde(default, deserialize_with = "de_connections")]
+    connections: Vec<ConnectionSpec>,
+}
+
+/// `connections: ["plant/subscribe/y -> ctrl/publish/y_meas", …]`, checked against the DDF
+/// (a connection that meets a `set` value is refused when the framework is created, before
+/// any component starts).
+fn de_connections<'de, D: Deserializer<'de>>(d: D) -> Result<Vec<ConnectionSpec>, D::Error> {
+    then(d, |list: Vec<String>| {
+        let specs = list
+            .iter()
+            .map(|s| parse_connection(s))
+            .collect::<Result<Vec<_>, _>>()
+            .map_err(|e| format!("connections: {e}"))?;
+        ctx(|c| match c.model() {
+            Some(m) => Connections::resolve(m, &specs, &[]).map(|_| specs).map_err(|e| format!("connections: {e}")),
+            None => Ok(specs),
+        })
+    })
 }
 
 impl FileKeys {
@@ -711,6 +735,19 @@ mod tests {
         let (_dir, r) = check(text);
         let e = r.expect_err("the file is refused").to_string();
         e.split_once("run.json5").map(|(_, rest)| rest.to_string()).unwrap_or(e)
+    }
+
+    #[test]
+    fn connections_are_read_and_a_bad_one_is_refused_where_it_stands() {
+        let (_dir, r) = check("{ ddf: \"cosim.ddf\", connections: [\"plant/subscribe/y -> plant/publish/x * 2\"] }");
+        let l = r.unwrap();
+        assert_eq!(l.connections.len(), 1);
+        assert_eq!(l.connections[0].gain, 2.0);
+        let e = error("{ ddf: \"cosim.ddf\",\n  connections: [\"plant/subscribe/y -> plant/publish/z\"] }");
+        assert!(e.starts_with(":2:16:"), "{e}");
+        assert!(e.contains("connections: plant/subscribe/y -> plant/publish/z: no item 'z' in the PUBLISH set"), "{e}");
+        let e = error("{ ddf: \"cosim.ddf\", connections: [\"plant/subscribe/y => plant/publish/x\"] }");
+        assert!(e.contains("expected FROM -> TO"), "{e}");
     }
 
     #[test]

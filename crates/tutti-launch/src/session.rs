@@ -77,6 +77,7 @@ pub fn run(
         hold: None,
         wait_for: Vec::new(),
         hold_until_start: fw.hold,
+        connections: launch.connections.clone(),
         ddf_name: launch.ddf.display().to_string(),
     };
     let mut host = Host::new(&launch.model, host_opts)?;

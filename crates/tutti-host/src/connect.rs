@@ -1,0 +1,349 @@
+//! Connections in the framework: at every step the framework copies an item that
+//! participants write (a SUBSCRIBE item) to an item that participants read (a PUBLISH item),
+//! within a domain or across domains, with an optional gain and offset.
+//!
+//! `"plant/subscribe/y -> ctrl/publish/y_meas"`, or with a gain and an offset
+//! `"plant/subscribe/y -> ctrl/publish/y_meas * 2 + 0.5"`. Item paths are the DDF's
+//! (`gw_async/v`, `Formation/X`, …).
+//!
+//! **Order within a step.** Step k publishes every domain's PUBLISH set, then waits for the
+//! answers and reads every SUBSCRIBE set; then the connections are applied, in the order
+//! they are given, to the PUBLISH sets of step k + 1. So a connection carries the value its
+//! output had at the end of the previous step (no output is evaluated again within a step),
+//! and a chain A -> B -> C of n connections takes n steps from A's output to C's input.
+//!
+//! Checked before anything runs ([`Connections::resolve`]): both items exist and have the
+//! roles above, the same length, and types that convert (the same type; or any number into
+//! a float; with a gain or an offset, numbers only); no input has two sources, nor a
+//! connection and a `--set` value. Every refusal names both ends.
+
+use std::fmt;
+
+use tutti_core::ddf::{Leaf, Model, Role, ScalarType, Value};
+
+/// A connection as written, before it is checked against a model.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ConnectionSpec {
+    pub from: ItemRef,
+    pub to: ItemRef,
+    pub gain: f64,
+    pub offset: f64,
+}
+
+/// `DOMAIN/ROLE/ITEM`.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct ItemRef {
+    pub domain: String,
+    pub role: Role,
+    pub item: String,
+}
+
+impl fmt::Display for ItemRef {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let role = match self.role {
+            Role::Publish => "publish",
+            Role::Subscribe => "subscribe",
+        };
+        write!(f, "{}/{role}/{}", self.domain, self.item)
+    }
+}
+
+impl fmt::Display for ConnectionSpec {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "{} -> {}", self.from, self.to)?;
+        if self.gain != 1.0 {
+            write!(f, " * {}", self.gain)?;
+        }
+        if self.offset != 0.0 {
+            write!(f, " + {}", self.offset)?;
+        }
+        Ok(())
+    }
+}
+
+/// A connection that cannot be made.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum ConnectError {
+    #[error("'{0}': expected FROM -> TO [* GAIN] [+ OFFSET], each end DOMAIN/ROLE/ITEM (e.g. plant/subscribe/y -> ctrl/publish/y_meas)")]
+    Form(String),
+    #[error("'{given}': '{end}' is not DOMAIN/ROLE/ITEM with ROLE publish or subscribe")]
+    End { given: String, end: String },
+    #[error("'{given}': '{value}' is not a number")]
+    Number { given: String, value: String },
+    #[error("{connection}: {reason}")]
+    Refused { connection: String, reason: String },
+}
+
+/// Parses `FROM -> TO [* GAIN] [+ OFFSET]` (`- OFFSET` too).
+pub fn parse_connection(s: &str) -> Result<ConnectionSpec, ConnectError> {
+    let (from, rest) = s.split_once("->").ok_or_else(|| ConnectError::Form(s.to_string()))?;
+    let mut words = rest.split_whitespace();
+    let to = words.next().ok_or_else(|| ConnectError::Form(s.to_string()))?;
+    let (mut gain, mut offset) = (1.0, 0.0);
+    let number = |w: Option<&str>| -> Result<f64, ConnectError> {
+        let w = w.ok_or_else(|| ConnectError::Form(s.to_string()))?;
+        w.parse::<f64>()
+            .ok()
+            .filter(|v| v.is_finite())
+            .ok_or_else(|| ConnectError::Number { given: s.to_string(), value: w.to_string() })
+    };
+    while let Some(op) = words.next() {
+        match op {
+            "*" => gain = number(words.next())?,
+            "+" => offset = number(words.next())?,
+            "-" => offset = -number(words.next())?,
+            _ => return Err(ConnectError::Form(s.to_string())),
+        }
+    }
+    let end = |e: &str| -> Result<ItemRef, ConnectError> {
+        let bad = || ConnectError::End { given: s.to_string(), end: e.to_string() };
+        let (domain, rest) = e.split_once('/').ok_or_else(bad)?;
+        let (role, item) = rest.split_once('/').ok_or_else(bad)?;
+        let role = match role.to_ascii_lowercase().as_str() {
+            "publish" => Role::Publish,
+            "subscribe" => Role::Subscribe,
+            _ => return Err(bad()),
+        };
+        if domain.is_empty() || item.is_empty() {
+            return Err(bad());
+        }
+        Ok(ItemRef { domain: domain.to_string(), role, item: item.to_string() })
+    };
+    Ok(ConnectionSpec { from: end(from.trim())?, to: end(to)?, gain, offset })
+}
+
+/// One end of a checked connection.
+#[derive(Debug, Clone)]
+struct End {
+    domain: usize,
+    leaf: Leaf,
+}
+
+/// A checked connection.
+#[derive(Debug, Clone)]
+struct Connection {
+    from: End,
+    to: End,
+    gain: f64,
+    offset: f64,
+    /// Same type, no gain, no offset: the bytes are copied.
+    raw: bool,
+}
+
+/// The connections of a run, checked against its model.
+#[derive(Debug, Clone, Default)]
+pub struct Connections {
+    list: Vec<Connection>,
+    specs: Vec<ConnectionSpec>,
+}
+
+impl Connections {
+    /// Checks `specs` against `model`; `sets` are the run's `DOMAIN/ITEM=VALUE` values, whose
+    /// items may not also be a connection's input.
+    pub fn resolve(model: &Model, specs: &[ConnectionSpec], sets: &[String]) -> Result<Connections, ConnectError> {
+        let mut list: Vec<Connection> = Vec::with_capacity(specs.len());
+        for spec in specs {
+            let refused = |reason: String| ConnectError::Refused { connection: spec.to_string(), reason };
+            let from = end(model, &spec.from, Role::Subscribe).map_err(refused)?;
+            let to = end(model, &spec.to, Role::Publish).map_err(refused)?;
+            let (a, b) = (&from.leaf, &to.leaf);
+            if a.length != b.length {
+                return Err(refused(format!(
+                    "length mismatch: {} has {} element(s), {} has {}",
+                    spec.from, a.length, spec.to, b.length
+                )));
+            }
+            let scaled = spec.gain != 1.0 || spec.offset != 0.0;
+            if !converts(a.ty, b.ty, scaled) {
+                return Err(refused(format!(
+                    "type mismatch: {} is {}, {} is {}{}",
+                    spec.from,
+                    a.ty.canonical(),
+                    spec.to,
+                    b.ty.canonical(),
+                    if scaled { " (a gain or an offset needs numbers)" } else { "" }
+                )));
+            }
+            if let Some(other) =
+                list.iter().zip(specs).find(|(c, _)| c.to.domain == to.domain && overlap(&c.to.leaf, b))
+            {
+                return Err(refused(format!("{} already has a source: {}", spec.to, other.1)));
+            }
+            if let Some(set) = sets.iter().find(|s| s.split_once('=').is_some_and(|(t, _)| set_target(t, &spec.to))) {
+                return Err(refused(format!("{} is also given a value by set '{set}'", spec.to)));
+            }
+            let raw = !scaled && a.ty == b.ty;
+            list.push(Connection { from, to, gain: spec.gain, offset: spec.offset, raw });
+        }
+        Ok(Connections { list, specs: specs.to_vec() })
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.list.is_empty()
+    }
+
+    /// The connections as given, in order.
+    pub fn specs(&self) -> &[ConnectionSpec] {
+        &self.specs
+    }
+
+    /// Copies each connection's output in `subscribe` (each domain's SUBSCRIBE set, model
+    /// order) to its input in `publish` (each domain's PUBLISH buffer), in order.
+    pub fn apply(&self, subscribe: &[&[u8]], publish: &mut [Vec<u8>]) {
+        for c in &self.list {
+            let (Some(src), Some(dst)) = (subscribe.get(c.from.domain), publish.get_mut(c.to.domain)) else { continue };
+            let (Some(src), Some(dst)) = (src.get(c.from.leaf.range()), dst.get_mut(c.to.leaf.range())) else {
+                continue;
+            };
+            if c.raw {
+                dst.copy_from_slice(src);
+                continue;
+            }
+            let (a, b) = (c.from.leaf.ty, c.to.leaf.ty);
+            for (x, y) in src.chunks_exact(a.size() as usize).zip(dst.chunks_exact_mut(b.size() as usize)) {
+                let v = a.decode(x);
+                let v = if c.gain != 1.0 || c.offset != 0.0 { Value::Float(v.as_f64() * c.gain + c.offset) } else { v };
+                b.encode(v, y);
+            }
+        }
+    }
+}
+
+/// The leaf `r` names, which must have role `want`.
+fn end(model: &Model, r: &ItemRef, want: Role) -> Result<End, String> {
+    let (domain, d) = model
+        .domains
+        .iter()
+        .enumerate()
+        .find(|(_, d)| d.name == r.domain)
+        .ok_or_else(|| format!("no domain '{}' in the DDF", r.domain))?;
+    let leaf = d.set(r.role).layout.leaf(&r.item).ok_or_else(|| {
+        let role = if r.role == Role::Publish { "PUBLISH" } else { "SUBSCRIBE" };
+        format!("no item '{}' in the {role} set of domain '{}'", r.item, r.domain)
+    })?;
+    if r.role != want {
+        let what = if want == Role::Subscribe {
+            "an output: a SUBSCRIBE item (what participants write)"
+        } else {
+            "an input: a PUBLISH item (what participants read)"
+        };
+        return Err(format!("{r} must be {what}"));
+    }
+    Ok(End { domain, leaf: leaf.clone() })
+}
+
+/// Whether an element of type `a` converts into type `b`.
+fn converts(a: ScalarType, b: ScalarType, scaled: bool) -> bool {
+    let float = |t: ScalarType| matches!(t, ScalarType::Float32 | ScalarType::Float64);
+    let number = |t: ScalarType| t != ScalarType::Boolean;
+    if scaled {
+        return number(a) && number(b);
+    }
+    a == b || (float(b) && number(a))
+}
+
+fn overlap(a: &Leaf, b: &Leaf) -> bool {
+    let (x, y) = (a.range(), b.range());
+    x.start < y.end && y.start < x.end
+}
+
+/// Whether a `--set` target `DOMAIN/ITEM` is the input `to`.
+fn set_target(target: &str, to: &ItemRef) -> bool {
+    target.split_once('/').is_some_and(|(d, i)| d == to.domain && i == to.item)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const DDF: &str = r#"<?xml version="1.0"?>
+<orchestra>
+  <domain name="plant">
+    <synchronous>yes</synchronous><multiplePublishAllowed>no</multiplePublishAllowed><states>no</states>
+    <set name="PUBLISH"><item name="u"><type>float64</type></item><item name="on"><type>boolean</type></item></set>
+    <set name="SUBSCRIBE"><item name="y"><type>float64</type></item><item name="n"><type>int32</type></item>
+      <item name="v"><type>float32</type><length>3</length></item></set>
+  </domain>
+  <domain name="ctrl">
+    <synchronous>no</synchronous><multiplePublishAllowed>yes</multiplePublishAllowed><states>no</states>
+    <set name="PUBLISH"><item name="y_meas"><type>float64</type></item><item name="w"><type>float64</type><length>3</length></item></set>
+    <set name="SUBSCRIBE"><item name="u"><type>float64</type></item></set>
+  </domain>
+</orchestra>"#;
+
+    fn model() -> Model {
+        tutti_core::ddf::parse_str(DDF, "c.ddf").unwrap()
+    }
+
+    fn resolve(specs: &[&str], sets: &[&str]) -> Result<Connections, ConnectError> {
+        let specs: Vec<ConnectionSpec> = specs.iter().map(|s| parse_connection(s).unwrap()).collect();
+        let sets: Vec<String> = sets.iter().map(|s| s.to_string()).collect();
+        Connections::resolve(&model(), &specs, &sets)
+    }
+
+    #[test]
+    fn connections_parse_with_gain_and_offset() {
+        let c = parse_connection("plant/subscribe/y -> ctrl/publish/y_meas * 2 - 0.5").unwrap();
+        assert_eq!((c.gain, c.offset), (2.0, -0.5));
+        assert_eq!(c.to, ItemRef { domain: "ctrl".into(), role: Role::Publish, item: "y_meas".into() });
+        assert_eq!(c.to_string(), "plant/subscribe/y -> ctrl/publish/y_meas * 2 + -0.5");
+        assert!(matches!(parse_connection("plant/y -> ctrl/publish/y"), Err(ConnectError::End { .. })));
+        assert!(matches!(parse_connection("a/subscribe/y ctrl/publish/y"), Err(ConnectError::Form(_))));
+        assert!(matches!(parse_connection("a/subscribe/y -> b/publish/y * x"), Err(ConnectError::Number { .. })));
+    }
+
+    #[test]
+    fn refusals_name_both_ends() {
+        let refused = |specs: &[&str], sets: &[&str]| resolve(specs, sets).unwrap_err().to_string();
+        let e = refused(&["plant/subscribe/nope -> ctrl/publish/y_meas"], &[]);
+        assert!(e.starts_with("plant/subscribe/nope -> ctrl/publish/y_meas: no item 'nope'"), "{e}");
+        let e = refused(&["ctrl/publish/y_meas -> plant/publish/u"], &[]);
+        assert!(e.contains("must be an output"), "{e}");
+        let e = refused(&["plant/subscribe/y -> ctrl/publish/w"], &[]);
+        assert!(e.contains("length mismatch: plant/subscribe/y has 1 element(s), ctrl/publish/w has 3"), "{e}");
+        let e = refused(&["plant/subscribe/y -> plant/publish/on"], &[]);
+        assert!(e.contains("type mismatch: plant/subscribe/y is float64, plant/publish/on is boolean"), "{e}");
+        let e = refused(&["plant/subscribe/y -> ctrl/publish/y_meas", "plant/subscribe/n -> ctrl/publish/y_meas"], &[]);
+        assert!(
+            e.contains("ctrl/publish/y_meas already has a source: plant/subscribe/y -> ctrl/publish/y_meas"),
+            "{e}"
+        );
+        let e = refused(&["plant/subscribe/y -> ctrl/publish/y_meas"], &["ctrl/y_meas=1"]);
+        assert!(e.contains("also given a value by set 'ctrl/y_meas=1'"), "{e}");
+        let e = refused(&["plant/subscribe/y -> elsewhere/publish/x"], &[]);
+        assert!(e.contains("no domain 'elsewhere'"), "{e}");
+    }
+
+    #[test]
+    fn outputs_reach_inputs_converted_and_scaled() {
+        let m = model();
+        let c = resolve(
+            &[
+                "plant/subscribe/y -> ctrl/publish/y_meas * 2 + 1",
+                "ctrl/subscribe/u -> plant/publish/u",
+                "plant/subscribe/v -> ctrl/publish/w",
+            ],
+            &[],
+        )
+        .unwrap();
+        let mut sub: Vec<Vec<u8>> = m.domains.iter().map(|d| d.subscribe.layout.default_bytes()).collect();
+        let leaf = |d: usize, role: Role, p: &str| m.domains[d].set(role).layout.leaf(p).unwrap().clone();
+        let put = |buf: &mut Vec<u8>, l: &Leaf, vals: &[f64]| {
+            for (e, v) in buf[l.range()].chunks_exact_mut(l.ty.size() as usize).zip(vals) {
+                l.ty.encode(Value::Float(*v), e);
+            }
+        };
+        put(&mut sub[0], &leaf(0, Role::Subscribe, "y"), &[3.0]);
+        put(&mut sub[0], &leaf(0, Role::Subscribe, "v"), &[1.5, 2.5, 3.5]);
+        put(&mut sub[1], &leaf(1, Role::Subscribe, "u"), &[-4.0]);
+        let mut publish: Vec<Vec<u8>> = m.domains.iter().map(|d| d.publish.layout.default_bytes()).collect();
+        let views: Vec<&[u8]> = sub.iter().map(Vec::as_slice).collect();
+        c.apply(&views, &mut publish);
+        let get = |buf: &[u8], l: &Leaf| -> Vec<f64> {
+            buf[l.range()].chunks_exact(l.ty.size() as usize).map(|e| l.ty.decode(e).as_f64()).collect()
+        };
+        assert_eq!(get(&publish[1], &leaf(1, Role::Publish, "y_meas")), [7.0], "3 * 2 + 1");
+        assert_eq!(get(&publish[0], &leaf(0, Role::Publish, "u")), [-4.0]);
+        assert_eq!(get(&publish[1], &leaf(1, Role::Publish, "w")), [1.5, 2.5, 3.5], "float32 into float64");
+    }
+}

@@ -1,0 +1,160 @@
+//! Connections in the framework (`tutti host --connect`, `tutti show --connect`): an output a
+//! participant writes reaches an input at the next step, scaled and converted, in a
+//! synchronous domain (a C participant answering every step) and from an asynchronous
+//! domain into another; refusals name both ends before anything is created.
+
+use std::path::Path;
+use std::process::Command;
+use std::thread;
+use std::time::{Duration, Instant};
+
+use tutti_core::ddf::Role;
+use tutti_core::shm::{ConnectOptions, Participant, Segment};
+use tutti_test_support::{self as common, Proc};
+
+const DDF: &str = "tests/gateway/gw.ddf";
+const WATCHDOG: Duration = Duration::from_secs(120);
+
+fn host(ns: &str, connects: &[&str]) -> Proc {
+    let mut cmd = common::tutti_command();
+    cmd.args(["host", DDF, "--step", "5ms", "--timeout", "2s", "-q"]).env("TUTTI_NAMESPACE", ns);
+    for c in connects {
+        cmd.args(["--connect", c]);
+    }
+    Proc::spawn("tutti host", cmd, WATCHDOG)
+}
+
+/// Waits until domain `domain` of `ns` exists.
+fn wait_domain(ns: &str, domain: &str, host: &Proc) {
+    let end = Instant::now() + Duration::from_secs(30);
+    while Segment::open(ns, domain).is_err() {
+        assert!(Instant::now() < end, "no domain {domain}\n{}", host.dump());
+        thread::sleep(Duration::from_millis(10));
+    }
+}
+
+/// In a synchronous domain, `y` (what the C participant answers: its step count n) comes
+/// back as `x = 2 y + 1` at its next step: the participant reads 2(n - 1) + 1 at step n.
+#[test]
+fn an_output_reaches_an_input_at_the_next_step_in_a_synchronous_domain() {
+    let dir = tempfile::tempdir().unwrap();
+    let ns = common::namespace("connsync");
+    let _segments = common::RemoveSegments(ns.clone());
+    let mut fw = host(&ns, &["gw_sync/subscribe/y -> gw_sync/publish/x * 2 + 1"]);
+    wait_domain(&ns, "gw_sync", &fw);
+    let stepper = common::compile_c(
+        &common::repo_root().join("tests/ctl/stepper.c"),
+        &dir.path().join("stepper"),
+        &["-std=c99", "-Wall", "-Werror"],
+    );
+    let mut c = Command::new(stepper);
+    c.arg(common::repo_root().join(DDF)).args(["gw_sync", "x", "y", "5"]).env("TUTTI_NAMESPACE", &ns);
+    let mut part = Proc::spawn("stepper", c, WATCHDOG);
+    assert!(part.wait_line("step 40 ", Duration::from_secs(60)).is_some(), "{}\n{}", part.dump(), fw.dump());
+    let seen: Vec<(u64, f64)> = part
+        .lines()
+        .iter()
+        .filter_map(|l| l.strip_prefix("step "))
+        .filter_map(|l| l.split_once(" x="))
+        .map(|(n, x)| (n.parse().unwrap(), x.parse().unwrap()))
+        .collect();
+    // From its third step: the step it joined in was under way when it connected, so the
+    // framework read that step's answers without waiting for its first one.
+    for &(n, x) in seen.iter().filter(|(n, _)| (3..=40).contains(n)) {
+        assert_eq!(
+            x,
+            2.0 * (n - 1) as f64 + 1.0,
+            "step {n}: the answer of step {} did not arrive\n{}",
+            n - 1,
+            part.dump()
+        );
+    }
+    assert_eq!(fw.interrupt(Duration::from_secs(30)), Some(0), "{}", fw.dump());
+    part.wait(Duration::from_secs(30));
+}
+
+/// From an asynchronous domain to another domain: an int32 output lands in a float64
+/// input, the value of the latest commit, at every step after it.
+#[test]
+fn an_asynchronous_output_reaches_another_domain_converted() {
+    let ns = common::namespace("connasync");
+    let _segments = common::RemoveSegments(ns.clone());
+    let mut fw = host(&ns, &["gw_async/subscribe/n -> gw_states/publish/x - 0.5"]);
+    wait_domain(&ns, "gw_async", &fw);
+    wait_domain(&ns, "gw_states", &fw);
+    let opts = ConnectOptions { namespace: ns.clone(), name: "writer".into(), ..Default::default() };
+    let mut p = Participant::connect("gw_async", opts).unwrap();
+    let target = Segment::open(&ns, "gw_states").unwrap();
+    let x = |seg: &Segment| {
+        let mut buf = vec![0u8; seg.info.publish.size as usize];
+        seg.read_set(Role::Publish, &mut buf).unwrap();
+        f64::from_ne_bytes(buf[0..8].try_into().unwrap())
+    };
+    for n in [7i32, -3, 12] {
+        p.publish_lock().unwrap();
+        p.stage("n", &n.to_ne_bytes()).unwrap();
+        p.commit().unwrap();
+        let end = Instant::now() + Duration::from_secs(30);
+        while x(&target) != f64::from(n) - 0.5 {
+            assert!(Instant::now() < end, "x = {} never became {n} - 0.5\n{}", x(&target), fw.dump());
+            thread::sleep(Duration::from_millis(5));
+        }
+    }
+    drop(p);
+    assert_eq!(fw.interrupt(Duration::from_secs(30)), Some(0), "{}", fw.dump());
+}
+
+/// Refusals name both ends, exit with status 2 and create nothing; `tutti show --connect`
+/// lists what will be copied, in order.
+#[test]
+fn connections_that_cannot_be_made_are_refused_naming_both_ends() {
+    let ns = common::namespace("connbad");
+    let _segments = common::RemoveSegments(ns.clone());
+    let run = |args: &[&str]| {
+        let mut cmd = common::tutti_command();
+        cmd.args(args).env("TUTTI_NAMESPACE", &ns);
+        let (status, out, err) = common::run_with_timeout(cmd, Duration::from_secs(60));
+        (status.code(), out, err)
+    };
+    let cases = [
+        (
+            "gw_sync/subscribe/nope -> gw_sync/publish/x",
+            "gw_sync/subscribe/nope -> gw_sync/publish/x: no item 'nope' in the SUBSCRIBE set of domain 'gw_sync'",
+        ),
+        (
+            "gw_async/subscribe/y -> gw_async/publish/v",
+            "length mismatch: gw_async/subscribe/y has 1 element(s), gw_async/publish/v has 3",
+        ),
+        (
+            "gw_async/subscribe/y -> gw_async/publish/flag",
+            "type mismatch: gw_async/subscribe/y is float64, gw_async/publish/flag is boolean",
+        ),
+        ("gw_async/publish/x -> gw_sync/publish/x", "gw_async/publish/x must be an output"),
+        ("gw_async/y -> gw_sync/publish/x", "is not DOMAIN/ROLE/ITEM"),
+    ];
+    for (connection, want) in cases {
+        let (code, _, err) = run(&["host", DDF, "--connect", connection, "--duration", "10s"]);
+        assert_eq!(code, Some(2), "{connection}: {err}");
+        assert!(err.contains(want), "{connection}: {err}");
+        assert!(common::segments_of(&ns).is_empty(), "a refused run created segments");
+    }
+    let two = [
+        "--connect",
+        "gw_async/subscribe/y -> gw_sync/publish/x",
+        "--connect",
+        "gw_states/subscribe/y -> gw_sync/publish/x",
+    ];
+    let (code, _, err) = run(&[&["host", DDF, "--duration", "10s"], &two[..]].concat());
+    assert_eq!(code, Some(2), "{err}");
+    assert!(err.contains("gw_sync/publish/x already has a source: gw_async/subscribe/y -> gw_sync/publish/x"), "{err}");
+    let (code, _, err) =
+        run(&["host", DDF, "--set", "gw_sync/x=1", "--connect", "gw_async/subscribe/y -> gw_sync/publish/x"]);
+    assert_eq!(code, Some(2), "{err}");
+    assert!(err.contains("also given a value by set 'gw_sync/x=1'"), "{err}");
+
+    let (code, out, err) = run(&[&["show", DDF], &two[..1], &two[1..2]].concat());
+    assert_eq!(code, Some(0), "{err}");
+    assert!(out.contains("1. gw_async/subscribe/y -> gw_sync/publish/x   (float64 -> float64, 1 element(s))"), "{out}");
+    assert!(out.contains("a value reaches its input at the next step"), "{out}");
+    let _ = Path::new(DDF);
+}
