@@ -6,10 +6,14 @@
 //! per second with the DDS echo answering each step; and, per engine, the start-up and
 //! memory of a gateway serving ddf/large-1000.ddf.
 //!
-//! The framework is this process; the gateway and the DDS peers (`--echo`, `--sink`,
-//! `--source`: separate DDS participants on the engine under test, using the gateway's
-//! codec) are child processes, each pinned to its CPU. Every sub-run has a DDS domain id and
-//! a shared-memory namespace of its own, so nothing left of one reaches the next.
+//! The framework is this process; the DDS peers (`--echo`, `--sink`, `--source`: separate
+//! DDS participants on the engine under test, using the gateway's codec) are child
+//! processes, each pinned to its CPU. The gateway is measured both ways, in the same run and
+//! for each placement: as a child process (`tutti gateway`), and inside the framework's
+//! process (`tutti_gateway::in_process`, as `tutti host --gateway` runs it: the framework's
+//! step writes its PUBLISH set to DDS; the gateway's other threads are started on the
+//! gateway's CPU). Every sub-run has a DDS domain id and a shared-memory namespace of its
+//! own, so nothing left of one reaches the next.
 
 use std::collections::hash_map::DefaultHasher;
 use std::hash::{Hash, Hasher};
@@ -23,6 +27,7 @@ use anyhow::{bail, Context as _};
 use serde::Serialize;
 use tutti_core::ddf::Role;
 use tutti_core::shm::{os, DomainHost, Framework, FrameworkOptions, WaitMode};
+use tutti_gateway::in_process::{GatewaySink, InProcess};
 use tutti_gateway::{EngineKind, GatewayOptions};
 
 use crate::nearest_rank;
@@ -48,7 +53,7 @@ const TARGET_STARTUP_S: f64 = 2.0;
 /// Fast DDS.
 #[derive(Debug, clap::Args)]
 #[command(
-    after_help = "Examples:\n  cargo build --release -p tutti -p tutti-bench && target/release/tutti-bench gateway\n  tutti-bench gateway --engines rustdds --placement same --samples 300 --duration 1s --json\n\nNeeds ddsperf (apt-get install -y cyclonedds-tools) and, for the Fast DDS ping-pong, g++ and\nlibfastrtps-dev; without them those rows say \"not run\". Progress goes to stderr; figures go\nto docs/benchmarks.md."
+    after_help = "Examples:\n  cargo build --release -p tutti -p tutti-bench && target/release/tutti-bench gateway\n  tutti-bench gateway --engines rustdds --placement same --samples 300 --duration 1s --json\n  tutti-bench gateway --engines cyclone --gateways in-process --placement same\n\nNeeds ddsperf (apt-get install -y cyclonedds-tools) and, for the Fast DDS ping-pong, g++ and\nlibfastrtps-dev; without them those rows say \"not run\". Progress goes to stderr; figures go\nto docs/benchmarks.md."
 )]
 pub struct Args {
     /// Round trips timed per placement, engine and mode.
@@ -64,8 +69,12 @@ pub struct Args {
     /// DDS engines to measure (comma-separated).
     #[arg(long, value_delimiter = ',', default_value = "cyclone,rustdds", value_name = "ENGINES")]
     engines: Vec<EngineKind>,
+    /// Where the gateway runs: process (`tutti gateway`), in-process (in the framework's
+    /// process, as `tutti host --gateway`); comma-separated.
+    #[arg(long, value_delimiter = ',', default_value = "process,in-process", value_name = "WHERE")]
+    gateways: Vec<GatewayMode>,
     /// First DDS domain id of the runs; each sub-run takes the next one.
-    #[arg(long, default_value_t = 170)]
+    #[arg(long, default_value_t = 140)]
     ros_domain_id: u16,
     /// Also start a gateway on this DDF, per engine, and record its start-up time and memory.
     #[arg(long, default_value = "ddf/large-1000.ddf")]
@@ -88,6 +97,59 @@ pub struct Args {
     /// Internal: write SUBSCRIBE samples of DDF flat out.
     #[arg(long, hide = true, value_name = "DDF")]
     source: Option<PathBuf>,
+}
+
+/// Where the gateway runs.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+enum GatewayMode {
+    /// A `tutti gateway` child process, following the framework in shared memory.
+    Process,
+    /// In the framework's process: the step writes to DDS.
+    InProcess,
+}
+
+impl GatewayMode {
+    fn key(self) -> &'static str {
+        match self {
+            GatewayMode::Process => "process",
+            GatewayMode::InProcess => "in-process",
+        }
+    }
+}
+
+/// The gateway of a sub-run, wherever it runs.
+enum Gw {
+    Process(ChildProcess),
+    /// `_handle` is kept for its drop, which stops the gateway's threads.
+    InProcess {
+        _handle: InProcess,
+        sink: GatewaySink,
+    },
+}
+
+impl Gw {
+    /// Fails if a gateway process has exited.
+    fn check(&mut self) -> anyhow::Result<()> {
+        match self {
+            Gw::Process(kid) => check_alive(&mut [kid]),
+            Gw::InProcess { .. } => Ok(()),
+        }
+    }
+
+    /// The framework just published `host`'s step with `set`: an in-process gateway writes it
+    /// to DDS (what its step sink does in a host); a separate one finds it in shared memory.
+    fn published(&mut self, host: &DomainHost, sim: f64, set: &[u8]) {
+        if let Gw::InProcess { sink, .. } = self {
+            sink.send(0, host.current_step(), sim, set);
+        }
+    }
+
+    /// Sends what a flat-out run left in the writers' batches.
+    fn flush(&mut self) {
+        if let Gw::InProcess { sink, .. } = self {
+            sink.flush();
+        }
+    }
 }
 
 /// The benchmark's DDF: one domain `name` whose PUBLISH and SUBSCRIBE sets are 8 x float64.
@@ -225,10 +287,11 @@ struct LockStep {
     unanswered: u64,
 }
 
-/// The figures of one engine in one placement.
+/// The figures of one engine in one placement, with the gateway in one place.
 #[derive(Debug)]
 struct EngineRun {
     engine: EngineKind,
+    mode: GatewayMode,
     rtt: Fig<Rtt>,
     paced: Fig<Rtt>,
     ping: Fig<Rtt>,
@@ -266,6 +329,9 @@ struct Slot {
 /// (the check that it opens, the large DDF).
 const IDS_PER_PLACEMENT: u16 = 3;
 const IDS_PER_ENGINE_RUN: u16 = 7;
+/// The same for an in-process gateway (round trip, two throughput runs, the synchronous set,
+/// lock-step).
+const IDS_PER_IN_PROCESS_RUN: u16 = 5;
 const IDS_PER_ENGINE: u16 = 2;
 
 /// The state of a benchmark run: where things are and the next sub-run's number.
@@ -292,7 +358,12 @@ pub fn run(args: Args) -> CliResult {
     }
     let placements = Cpus::parse(&args.placement).map_err(Failure::invalid)?;
     let n_eng = args.engines.len() as u16;
-    let needed = placements.len() as u16 * (IDS_PER_PLACEMENT + n_eng * IDS_PER_ENGINE_RUN) + n_eng * IDS_PER_ENGINE;
+    let per_run: u16 = args
+        .gateways
+        .iter()
+        .map(|m| if *m == GatewayMode::Process { IDS_PER_ENGINE_RUN } else { IDS_PER_IN_PROCESS_RUN })
+        .sum();
+    let needed = placements.len() as u16 * (IDS_PER_PLACEMENT + n_eng * per_run) + n_eng * IDS_PER_ENGINE;
     if u32::from(args.ros_domain_id) + u32::from(needed) > u32::from(MAX_DOMAIN_ID) + 1 {
         return Err(Failure::invalid(anyhow::anyhow!(
             "--ros-domain-id {}: this run needs {needed} DDS domain ids from it, up to {MAX_DOMAIN_ID}",
@@ -335,11 +406,13 @@ impl Bench<'_> {
             progress(&format!("{}: ddsperf and Fast DDS", cpus.key));
             let peers = self.peers(cpus, &fastdds);
             let mut per_engine = Vec::new();
-            for (engine, ok) in &engines {
-                per_engine.push(match ok {
-                    Ok(()) => self.engine_run(*engine, cpus),
-                    Err(e) => EngineRun::not_run(*engine, e),
-                });
+            for &mode in &args.gateways {
+                for (engine, ok) in &engines {
+                    per_engine.push(match ok {
+                        Ok(()) => self.engine_run(*engine, cpus, mode),
+                        Err(e) => EngineRun::not_run(*engine, mode, e),
+                    });
+                }
             }
             runs.push(PlacementRun { cpus, peers, engines: per_engine });
         }
@@ -371,29 +444,43 @@ impl Bench<'_> {
         noted(r.map(drop), e.name())
     }
 
-    /// Every figure of engine `e` in placement `cpus`; one that fails is reported, not fatal.
-    fn engine_run(&mut self, e: EngineKind, cpus: Cpus) -> EngineRun {
-        let at = |what: &str| format!("{}: {e}: {what}", cpus.key);
+    /// Every figure of engine `e` in placement `cpus` with the gateway where `mode` says;
+    /// one that fails is reported, not fatal. The figures without a gateway (the engine's
+    /// ping, source -> sink) are measured with the separate gateway's runs only.
+    fn engine_run(&mut self, e: EngineKind, cpus: Cpus, mode: GatewayMode) -> EngineRun {
+        let at = |what: &str| format!("{}: {e}: {} gateway: {what}", cpus.key, mode.key());
         let step = |what: &str| progress(&at(what));
+        let process = mode == GatewayMode::Process;
+        fn skipped<T>() -> Fig<T> {
+            Err("measured with the separate gateway's runs".to_string())
+        }
         step("gateway round trip");
-        let rtt = noted(self.round_trip(e, cpus), &at("round trip"));
-        step("ping -> echo without the gateway");
-        let ping = noted(self.engine_ping(e, cpus), &at("ping"));
+        let rtt = noted(self.round_trip(e, cpus, mode), &at("round trip"));
+        let ping = if process {
+            step("ping -> echo without the gateway");
+            noted(self.engine_ping(e, cpus), &at("ping"))
+        } else {
+            skipped()
+        };
         step("async set shm -> DDS");
-        let to_dds = noted(self.outbound(e, cpus, false).map(|r| rate(&r)), &at("shm -> DDS"));
+        let to_dds = noted(self.outbound(e, cpus, false, mode).map(|r| rate(&r)), &at("shm -> DDS"));
         step("async set DDS -> shm");
-        let from_dds = noted(self.inbound(e, cpus), &at("DDS -> shm"));
-        step("DDS source -> DDS sink, no gateway");
-        let alone = noted(self.alone(e, cpus), &at("source -> sink"));
+        let from_dds = noted(self.inbound(e, cpus, mode), &at("DDS -> shm"));
+        let alone = if process {
+            step("DDS source -> DDS sink, no gateway");
+            noted(self.alone(e, cpus), &at("source -> sink"))
+        } else {
+            skipped()
+        };
         step("sync set shm -> DDS");
-        let sync = noted(self.outbound(e, cpus, true), &at("sync set"));
+        let sync = noted(self.outbound(e, cpus, true, mode), &at("sync set"));
         step("lock-step");
-        let lock = noted(self.lock_step(e, cpus), &at("lock-step"));
+        let lock = noted(self.lock_step(e, cpus, mode), &at("lock-step"));
         let (rtt, paced) = match rtt {
             Ok((hot, paced)) => (Ok(hot), Ok(paced)),
             Err(why) => (Err(why.clone()), Err(why)),
         };
-        EngineRun { engine: e, rtt, paced, ping, to_dds, from_dds, alone, sync, lock }
+        EngineRun { engine: e, mode, rtt, paced, ping, to_dds, from_dds, alone, sync, lock }
     }
 
     fn ddf(&self, synchronous: bool) -> &Path {
@@ -434,6 +521,31 @@ impl Bench<'_> {
         start("the gateway", self.tutti(e, slot, &args), cpus.gw)
     }
 
+    /// The gateway of a sub-run: `tutti gateway` (see [`Bench::gateway`]), or started in
+    /// this process for the framework `fw` has just created, its threads (the engine's
+    /// receive threads, the manager, the poller) on the gateway's CPU.
+    fn start_gateway(
+        &self,
+        e: EngineKind,
+        slot: &Slot,
+        synchronous: bool,
+        cpus: Cpus,
+        mode: GatewayMode,
+    ) -> anyhow::Result<Gw> {
+        if mode == GatewayMode::Process {
+            return Ok(Gw::Process(self.gateway(e, slot, synchronous, cpus)?));
+        }
+        let (mut opts, _) = peer_opts(self.ddf(synchronous), slot.dom, e)?;
+        opts.poll = Duration::ZERO;
+        opts.wait = cpus.wait(synchronous);
+        // Threads inherit the CPU of the thread that starts them.
+        pin_self(cpus.gw);
+        let started = tutti_gateway::in_process::start(opts, &slot.ns, Duration::from_secs(3600), Box::new(|_| {}));
+        pin_self(cpus.fw);
+        let (gw, sink) = started.context("starting the gateway in this process")?;
+        Ok(Gw::InProcess { _handle: gw, sink })
+    }
+
     /// A DDS peer of the benchmark (`--echo`, `--sink`, `--source` …) on `cpu`.
     fn peer(&self, e: EngineKind, slot: &Slot, cpu: usize, what: &[&str]) -> anyhow::Result<ChildProcess> {
         let window = format!("{}ms", self.args.duration.as_millis());
@@ -456,25 +568,27 @@ impl Bench<'_> {
     }
 
     /// The gateway round trip back to back, then paced at 1 kHz (same processes).
-    fn round_trip(&mut self, e: EngineKind, cpus: Cpus) -> anyhow::Result<(Rtt, Rtt)> {
+    fn round_trip(&mut self, e: EngineKind, cpus: Cpus, mode: GatewayMode) -> anyhow::Result<(Rtt, Rtt)> {
         let slot = self.slot();
         let mut fw = self.framework(&slot, false, cpus)?;
         let host = &mut fw.domains[0];
-        let mut gw = self.gateway(e, &slot, false, cpus)?;
+        let mut gw = self.start_gateway(e, &slot, false, cpus, mode)?;
         let mut echo = self.echo_peer(e, &slot, false, cpus.peer)?;
         pin_self(cpus.fw);
         let mut data = vec![0u8; ITEMS * 8];
         let mut seq = 0f64;
-        let mut send = |host: &mut DomainHost, seq: f64| {
+        let mut send = |host: &mut DomainHost, gw: &mut Gw, seq: f64| {
             fill(&mut data, seq);
-            host.publish_step(&data, seq).map(|_| ())
+            host.publish_step(&data, seq)?;
+            gw.published(host, seq, &data);
+            anyhow::Ok(())
         };
         let back = |host: &mut DomainHost| host.read_subscribe().map_or(f64::NAN, first_item);
         // Until the echo path works end to end.
         let end = Instant::now() + PATIENCE;
         loop {
             seq += 1.0;
-            send(host, seq)?;
+            send(host, &mut gw, seq)?;
             let t = Instant::now();
             while t.elapsed() < Duration::from_millis(100) && back(host) != seq {
                 std::hint::spin_loop();
@@ -482,7 +596,8 @@ impl Bench<'_> {
             if back(host) == seq {
                 break;
             }
-            check_alive(&mut [&mut gw, &mut echo])?;
+            gw.check()?;
+            check_alive(&mut [&mut echo])?;
             if Instant::now() > end {
                 bail!("no echo within {} s (is the loopback interface up?)", PATIENCE.as_secs());
             }
@@ -502,7 +617,7 @@ impl Bench<'_> {
                 }
                 seq += 1.0;
                 let t = Instant::now();
-                send(host, seq)?;
+                send(host, &mut gw, seq)?;
                 let mut spins = 0u32;
                 while back(host) != seq && t.elapsed() < Duration::from_secs(1) {
                     // Spin, but give the core away between looks: the echo and the gateway may
@@ -514,7 +629,8 @@ impl Bench<'_> {
                     times.push(t.elapsed().as_secs_f64() * 1e6);
                 } else {
                     lost += 1;
-                    check_alive(&mut [&mut gw, &mut echo])?;
+                    gw.check()?;
+                    check_alive(&mut [&mut echo])?;
                 }
             }
             Rtt::of(times, lost)
@@ -545,12 +661,18 @@ impl Bench<'_> {
     /// completes each step, the gateway's lock-step reader taking part); the gateway sends
     /// what it sees; a sink in another process counts what arrives over `--duration`
     /// (for the synchronous set with the domain's QoS, checking the steps' order).
-    fn outbound(&mut self, e: EngineKind, cpus: Cpus, synchronous: bool) -> anyhow::Result<Received> {
+    fn outbound(
+        &mut self,
+        e: EngineKind,
+        cpus: Cpus,
+        synchronous: bool,
+        mode: GatewayMode,
+    ) -> anyhow::Result<Received> {
         let slot = self.slot();
         let mut fw = self.framework(&slot, synchronous, cpus)?;
         let host = &mut fw.domains[0];
         pin_self(cpus.fw);
-        let mut gw = self.gateway(e, &slot, synchronous, cpus)?;
+        let mut gw = self.start_gateway(e, &slot, synchronous, cpus, mode)?;
         let ddf = self.ddf(synchronous).to_string_lossy();
         let mut what = vec!["--sink", &ddf, "publish"];
         if synchronous {
@@ -562,7 +684,7 @@ impl Bench<'_> {
         let mut k = 0u64;
         while sink.poll().is_none() {
             if k % 1024 == 0 {
-                check_alive(&mut [&mut gw])?;
+                gw.check()?;
                 if Instant::now() > end {
                     bail!("the sink did not finish");
                 }
@@ -570,29 +692,32 @@ impl Bench<'_> {
             k += 1;
             fill(&mut data, k as f64);
             host.publish_step(&data, k as f64)?;
+            gw.published(host, k as f64, &data);
             if synchronous {
                 host.complete_step()?;
             } else {
                 std::thread::yield_now();
             }
         }
+        gw.flush();
         sink_result(&mut sink)
     }
 
     /// DDS -> shm: a source writes SUBSCRIBE samples flat out; the commits the gateway makes
     /// in shared memory are counted over `--duration`.
-    fn inbound(&mut self, e: EngineKind, cpus: Cpus) -> anyhow::Result<f64> {
+    fn inbound(&mut self, e: EngineKind, cpus: Cpus, mode: GatewayMode) -> anyhow::Result<f64> {
         let slot = self.slot();
         let fw = self.framework(&slot, false, cpus)?;
         let host = &fw.domains[0];
         pin_self(cpus.fw);
-        let mut gw = self.gateway(e, &slot, false, cpus)?;
+        let mut gw = self.start_gateway(e, &slot, false, cpus, mode)?;
         let mut source = self.peer(e, &slot, cpus.peer, &["--source", &self.async_ddf.to_string_lossy()])?;
         let commits = || host.status().subscribe_commits;
         let c0 = commits();
         let end = Instant::now() + PATIENCE;
         while commits() < c0 + 100 {
-            check_alive(&mut [&mut gw, &mut source])?;
+            gw.check()?;
+            check_alive(&mut [&mut source])?;
             if Instant::now() > end {
                 bail!("no commits from DDS within {} s", PATIENCE.as_secs());
             }
@@ -615,28 +740,32 @@ impl Bench<'_> {
 
     /// Lock-step across DDS: this process steps a synchronous domain flat out; the DDS echo
     /// answers each step through the gateway, whose commit for the step completes it.
-    fn lock_step(&mut self, e: EngineKind, cpus: Cpus) -> anyhow::Result<LockStep> {
+    fn lock_step(&mut self, e: EngineKind, cpus: Cpus, mode: GatewayMode) -> anyhow::Result<LockStep> {
         let slot = self.slot();
         let mut fw = self.framework(&slot, true, cpus)?;
         let host = &mut fw.domains[0];
         pin_self(cpus.fw);
-        let mut gw = self.gateway(e, &slot, true, cpus)?;
+        let mut gw = self.start_gateway(e, &slot, true, cpus, mode)?;
         let mut echo = self.echo_peer(e, &slot, true, cpus.peer)?;
         let mut data = vec![0u8; ITEMS * 8];
         let mut k = 0u64;
-        // One step; true when the SUBSCRIBE set it read is the echo's answer to it.
-        let mut step = |host: &mut DomainHost| -> anyhow::Result<bool> {
+        // One step (published, handed to an in-process gateway, completed); true when the
+        // SUBSCRIBE set it read is the echo's answer to it.
+        let mut step = |host: &mut DomainHost, gw: &mut Gw| -> anyhow::Result<bool> {
             k += 1;
             fill(&mut data, k as f64);
-            host.step(&data, k as f64)?;
+            host.publish_step(&data, k as f64)?;
+            gw.published(host, k as f64, &data);
+            host.complete_step()?;
             Ok(first_item(host.subscribe()) == k as f64)
         };
         let end = Instant::now() + PATIENCE;
         let mut tries = 0u64;
-        while !step(host)? {
+        while !step(host, &mut gw)? {
             tries += 1;
             if tries % 256 == 0 {
-                check_alive(&mut [&mut gw, &mut echo])?;
+                gw.check()?;
+                check_alive(&mut [&mut echo])?;
                 if Instant::now() > end {
                     bail!("no step answered within {} s", PATIENCE.as_secs());
                 }
@@ -646,11 +775,12 @@ impl Bench<'_> {
         let t = Instant::now();
         while t.elapsed() < self.args.duration {
             steps += 1;
-            if !step(host)? {
+            if !step(host, &mut gw)? {
                 unanswered += 1;
             }
         }
-        check_alive(&mut [&mut gw, &mut echo])?;
+        gw.check()?;
+        check_alive(&mut [&mut echo])?;
         Ok(LockStep { per_s: steps as f64 / t.elapsed().as_secs_f64(), unanswered })
     }
 
@@ -780,12 +910,13 @@ impl Bench<'_> {
 }
 
 impl EngineRun {
-    fn not_run(engine: EngineKind, why: &str) -> EngineRun {
+    fn not_run(engine: EngineKind, mode: GatewayMode, why: &str) -> EngineRun {
         fn no<T>(why: &str) -> Fig<T> {
             Err(why.to_string())
         }
         EngineRun {
             engine,
+            mode,
             rtt: no(why),
             paced: no(why),
             ping: no(why),
@@ -883,7 +1014,7 @@ type Target = Option<(EngineKind, fn(f64) -> bool)>;
 
 /// One row of a placement's table: a label and one cell per engine.
 fn row(label: &str, cells: impl IntoIterator<Item = String>) {
-    let cells: String = cells.into_iter().map(|c| format!(" {c:>14}")).collect();
+    let cells: String = cells.into_iter().map(|c| format!(" {c:>17}")).collect();
     println!("  {label:<62}{cells}");
 }
 
@@ -921,6 +1052,16 @@ fn print_tables(runs: &[PlacementRun], large: &[(EngineKind, LargeFig)], large_d
         println!();
         println!("{}", run.cpus.name);
         row("figure", engines.iter().map(|r| r.engine.name().to_string()));
+        row(
+            "gateway",
+            engines.iter().map(|r| {
+                if r.mode == GatewayMode::Process {
+                    "process".into()
+                } else {
+                    "in-process".to_string()
+                }
+            }),
+        );
         let each = |label: &str, get: &dyn Fn(&EngineRun) -> String| row(label, engines.iter().map(get));
         let rtt_rows: [(&str, Get<Rtt>); 3] = [
             ("gateway round trip, back to back", |r| &r.rtt),
@@ -971,9 +1112,10 @@ fn print_tables(runs: &[PlacementRun], large: &[(EngineKind, LargeFig)], large_d
             let mut reasons: Vec<&String> = [&r.rtt, &r.ping].into_iter().filter_map(|f| f.as_ref().err()).collect();
             let others = [&r.to_dds, &r.from_dds, &r.alone].into_iter().filter_map(|f| f.as_ref().err());
             reasons.extend(others.chain(r.sync.as_ref().err()).chain(r.lock.as_ref().err()));
+            reasons.retain(|why| !why.starts_with("measured with"));
             reasons.dedup();
             for why in reasons {
-                println!("  {}: not run ({why})", r.engine);
+                println!("  {} ({} gateway): not run ({why})", r.engine, r.mode.key());
             }
         }
     }
@@ -1001,6 +1143,8 @@ fn print_tables(runs: &[PlacementRun], large: &[(EngineKind, LargeFig)], large_d
 struct JsonRun {
     engine: &'static str,
     placement: &'static str,
+    /// Where the gateway ran: "process" or "in-process".
+    gateway: &'static str,
     rtt_p50_us: Option<f64>,
     rtt_p99_us: Option<f64>,
     ddsperf_rtt_p50_us: Option<f64>,
@@ -1043,6 +1187,7 @@ fn to_json(runs: &[PlacementRun], large: &[(EngineKind, LargeFig)]) -> Json {
             run.engines.iter().map(move |r| JsonRun {
                 engine: r.engine.name(),
                 placement: run.cpus.key,
+                gateway: r.mode.key(),
                 rtt_p50_us: p50(&r.rtt),
                 rtt_p99_us: r.rtt.as_ref().ok().map(|t| tenths(t.p99)),
                 ddsperf_rtt_p50_us: p50(&run.peers.ddsperf),

@@ -1,11 +1,12 @@
 //! `tutti gateway DDF`: bridge every domain of a DDF to DDS / ROS 2 (`docs/gateway.md`).
 
 use std::net::{IpAddr, SocketAddr};
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::sync::atomic::Ordering;
 use std::time::Duration;
 
 use clap::ValueEnum;
+use tutti_core::ddf::Model;
 use tutti_core::mapping::Profile;
 use tutti_core::shm::WaitMode;
 use tutti_gateway::config::{self, ConfigFile};
@@ -169,7 +170,9 @@ impl Args {
     }
 }
 
-pub fn run(args: Args) -> CliResult {
+/// The gateway's log on stderr (`RUST_LOG`, default: info, DDS internals off); once per
+/// process.
+pub fn init_logging() {
     let _ = tracing_subscriber::fmt()
         .with_env_filter(
             tracing_subscriber::EnvFilter::try_from_default_env()
@@ -180,12 +183,28 @@ pub fn run(args: Args) -> CliResult {
         .with_ansi(std::io::IsTerminal::is_terminal(&std::io::stderr()))
         .with_target(false)
         .try_init();
-    let keys = args.flags().layered(args.config.as_deref()).map_err(Failure::invalid)?;
-    let model = load_ddf(&args.file)?;
-    let opts = GatewayOptions::configured(&args.file, model, &keys).map_err(Failure::invalid)?;
-    // The rules are checked against the DDF before anything starts (tutti show --config
-    // shows the same plan).
+}
+
+/// What the gateway serves for DDF `file` (read into `model`): `flags` laid over the config
+/// file `config` (if any), over the environment; and the keys as laid. The rules are checked
+/// against the DDF before anything starts (tutti show --config shows the same plan). Shared
+/// by `tutti gateway` and `tutti host --gateway`.
+pub fn configured(
+    file: &Path,
+    model: Model,
+    flags: ConfigFile,
+    config: Option<&Path>,
+) -> Result<(GatewayOptions, ConfigFile), Failure> {
+    let keys = flags.layered(config).map_err(Failure::invalid)?;
+    let opts = GatewayOptions::configured(file, model, &keys).map_err(Failure::invalid)?;
     config::resolve(&opts).map_err(Failure::invalid)?;
+    Ok((opts, keys))
+}
+
+pub fn run(args: Args) -> CliResult {
+    init_logging();
+    let model = load_ddf(&args.file)?;
+    let (opts, keys) = configured(&args.file, model, args.flags(), args.config.as_deref())?;
 
     let stop = super::stop_flag()?;
     if let Some(d) = keys.duration {

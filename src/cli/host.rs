@@ -1,6 +1,8 @@
 //! `tutti host DDF`: a generic framework that creates every domain of a DDF and steps them
-//! at a fixed period; optionally records both sets of every domain (MCAP or CSV). The run is
-//! the `tutti-host` crate's [`Host`]; this module parses, builds its options and prints.
+//! at a fixed period; optionally records both sets of every domain (MCAP or CSV) and runs the
+//! DDS / ROS 2 gateway in its own process (`--gateway`). The run is the `tutti-host` crate's
+//! [`Host`], the gateway `tutti_gateway::in_process`; this module parses, builds their
+//! options and prints.
 
 use std::path::PathBuf;
 use std::time::{Duration, Instant};
@@ -8,6 +10,7 @@ use std::time::{Duration, Instant};
 use anyhow::Context;
 use tutti_core::parse::{parse_duration, parse_wait};
 use tutti_core::shm::WaitMode;
+use tutti_gateway::in_process::InProcess;
 use tutti_host::{Host, HostError, HostOptions};
 
 use super::{load_ddf, CliResult, Failure};
@@ -15,7 +18,7 @@ use super::{load_ddf, CliResult, Failure};
 /// Run the framework of every domain in a DDF: create the segments, step at a fixed period.
 #[derive(Debug, clap::Args)]
 #[command(
-    after_help = "Examples:\n  tutti host ddf/multiuav.ddf --step 10ms --duration 60s\n  tutti host ddf/product-sample.ddf --set grid_clock/tick=1 --record out/run.csv\n  tutti host ddf/multiuav.ddf --step 10ms --duration 60s --record out/run.mcap   # Foxglove, ros2 bag\n  TUTTI_NAMESPACE=lab2 tutti host ddf/large-1000.ddf --step 1ms\n  sudo tutti host ddf/multiuav.ddf --step 1ms --realtime --cpu 1 --priority 80\n  tutti host ddf/multiuav.ddf --wait-for multiuav_uav2=1 --record run.mcap   # replay later: tutti replay\n  tutti host ddf/multiuav.ddf --connect 'multiuav_uav2/subscribe/Elevation -> multiuav_uav2/publish/Altitude'\n\nStop with Ctrl-C: the segments are removed on exit."
+    after_help = "Examples:\n  tutti host ddf/multiuav.ddf --step 10ms --duration 60s\n  tutti host ddf/product-sample.ddf --set grid_clock/tick=1 --record out/run.csv\n  tutti host ddf/multiuav.ddf --step 10ms --duration 60s --record out/run.mcap   # Foxglove, ros2 bag\n  TUTTI_NAMESPACE=lab2 tutti host ddf/large-1000.ddf --step 1ms\n  sudo tutti host ddf/multiuav.ddf --step 1ms --realtime --cpu 1 --priority 80\n  tutti host ddf/multiuav.ddf --wait-for multiuav_uav2=1 --record run.mcap   # replay later: tutti replay\n  tutti host ddf/multiuav.ddf --connect 'multiuav_uav2/subscribe/Elevation -> multiuav_uav2/publish/Altitude'\n  ROS_DOMAIN_ID=7 tutti host ddf/multiuav.ddf --gateway   # the DDS / ROS 2 gateway in this process\n  tutti host ddf/multiuav.ddf --gateway=examples/gateway.json5\n\nWith --gateway, the gateway reads the environment as tutti gateway does (ROS_DOMAIN_ID,\nROS_LOCALHOST_ONLY, ROS_AUTOMATIC_DISCOVERY_RANGE, TUTTI_DDS, TUTTI_GATEWAY_INTERFACE,\nCYCLONEDDS_URI, RUST_LOG); its config file's keys win over the environment.\n\nStop with Ctrl-C: the segments are removed on exit."
 )]
 pub struct Args {
     /// The DDF whose domains to host.
@@ -59,6 +62,12 @@ pub struct Args {
     /// reaches the input at the next step (docs/run.md, "Connections").
     #[arg(long = "connect", value_name = "CONNECTION", value_parser = tutti_host::connect::parse_connection)]
     connections: Vec<tutti_host::connect::ConnectionSpec>,
+    /// Run the DDS / ROS 2 gateway in this process, as `tutti gateway DDF --config CONFIG`
+    /// would (the config file is optional; its `duration` and `mirror` keys do not apply):
+    /// the framework's PUBLISH sets go to DDS from each step, with no poller in between.
+    /// Give CONFIG as --gateway=CONFIG, or after the DDF.
+    #[arg(long, value_name = "CONFIG", num_args = 0..=1)]
+    gateway: Option<Option<PathBuf>>,
     #[command(flatten)]
     rt: super::RealtimeArgs,
     /// Print no progress lines.
@@ -97,10 +106,6 @@ pub fn run(args: Args) -> CliResult {
     let started = Instant::now();
     let mut host = Host::new(&model, args.options()).map_err(host_failure)?;
     host.serve_control(stop.clone(), None).map_err(host_failure)?;
-    for path in &args.record {
-        let recorder = tutti_record::create(path, &model, &args.file).context("starting the recording")?;
-        host.add_sink(Box::new(tutti_record::RecordingSink(recorder)));
-    }
     if !args.quiet {
         eprintln!(
             "host: {} domain(s) of {} created in {:.1} ms (namespace {}), step {:?}",
@@ -110,6 +115,14 @@ pub fn run(args: Args) -> CliResult {
             host.namespace(),
             args.step
         );
+    }
+    let gateway = match &args.gateway {
+        Some(config) => Some(start_gateway(&args, &model, config.as_deref(), &mut host)?),
+        None => None,
+    };
+    for path in &args.record {
+        let recorder = tutti_record::create(path, &model, &args.file).context("starting the recording")?;
+        host.add_sink(Box::new(tutti_record::RecordingSink(recorder)));
     }
     super::enter_realtime(&args.rt, "host", args.quiet);
     let quiet = args.quiet;
@@ -123,5 +136,35 @@ pub fn run(args: Args) -> CliResult {
     if !quiet && summary.started {
         eprintln!("host: {summary}");
     }
+    if let Some(gw) = gateway {
+        let stats = gw.stop();
+        if !quiet {
+            eprintln!("host: gateway: stopped | {stats}");
+        }
+    }
     Ok(())
+}
+
+/// `--gateway [CONFIG]`: the gateway for `host`'s domains in this process, its sink added to
+/// the host (first, so DDS has each step before the recordings take it).
+fn start_gateway(
+    args: &Args,
+    model: &tutti_core::ddf::Model,
+    config: Option<&std::path::Path>,
+    host: &mut Host,
+) -> Result<InProcess, Failure> {
+    super::gateway::init_logging();
+    let flags = tutti_gateway::config::ConfigFile::default();
+    let (opts, keys) = super::gateway::configured(&args.file, model.clone(), flags, config)?;
+    let quiet = args.quiet || keys.quiet.unwrap_or(false);
+    let status_every = keys.status_every.unwrap_or(Duration::from_secs(5));
+    let on_status = Box::new(move |line: &str| {
+        if !quiet {
+            eprintln!("host: gateway: {line}");
+        }
+    });
+    let (gw, sink) = tutti_gateway::in_process::start(opts, host.namespace(), status_every, on_status)
+        .map_err(|e| Failure::classed(e.is_invalid(), anyhow::Error::new(e).context("starting the gateway")))?;
+    host.add_sink(Box::new(sink));
+    Ok(gw)
 }

@@ -23,6 +23,7 @@ mod fmu_run;
 mod gateway_citizen;
 mod gateway_config;
 mod gateway_fastdds;
+mod gateway_in_process;
 mod gateway_interop;
 mod gateway_mirror;
 mod host_cli;

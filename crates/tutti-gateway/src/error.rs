@@ -15,6 +15,10 @@ pub enum GatewayError {
     /// `--mirror` with per-item types (exit status 2).
     #[error("--mirror needs --ros2-types typed: per-item samples carry no step")]
     MirrorNeedsTyped,
+    /// `--mirror` for a gateway in the framework's process, which is itself the framework
+    /// (exit status 2).
+    #[error("a gateway in the framework's process cannot be a mirror: the mirror is the framework of its domains")]
+    InProcessMirror,
     /// The rustdds engine was given unicast peers (exit status 2).
     #[error("the rustdds engine cannot be given unicast peers (--peer); use --dds cyclone")]
     PeersUnsupported,
@@ -61,6 +65,7 @@ impl GatewayError {
             self,
             Config(_)
                 | MirrorNeedsTyped
+                | InProcessMirror
                 | PeersUnsupported
                 | EngineNotBuilt { .. }
                 | NodeName { .. }

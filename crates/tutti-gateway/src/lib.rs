@@ -12,8 +12,10 @@
 //! its constructor; [`manager`] builds the routes as domains come to be bridged and runs
 //! one `select!` loop that compares discovery with the routes' connections and prints
 //! status, while samples go straight from each engine's receive path to shared memory or
-//! to a mirror's thread (no waiting call runs on the async runtime). `qos` turns the QoS
-//! table into rustdds QoS.
+//! to a mirror's thread (no waiting call runs on the async runtime). [`in_process`] runs
+//! the same gateway inside the framework's process, where the framework's own PUBLISH sets
+//! go to DDS from its step (a `tutti_host::StepSink`). `qos` turns the QoS table into
+//! rustdds QoS.
 
 #![deny(unsafe_op_in_unsafe_fn)]
 
@@ -22,6 +24,7 @@ pub mod config;
 pub mod engine;
 mod error;
 pub mod http;
+pub mod in_process;
 pub mod manager;
 #[cfg(feature = "rustdds")]
 pub mod qos;

@@ -29,6 +29,7 @@ use crate::cdr::SetCodec;
 use crate::config::{self, PlannedSet};
 use crate::engine::{self, Decode, Engine, Guid};
 use crate::routes::from_dds::{self, Destination, Direct, RemoteWriter, Sample, Target};
+use crate::routes::from_step::{self, StepRoute};
 use crate::routes::mirror::{self, MirrorCounters};
 use crate::routes::to_dds::{self, Activation, Outgoing, Polled, ServedBy};
 use crate::routes::{clock, per_item, Counters, Event, ShmConfig};
@@ -74,11 +75,31 @@ struct WriterEntry {
 /// Serves `opts` until `shutdown` is set; `on_status` is called every `status_every` with
 /// a one-line summary (and once when the gateway is up).
 pub fn run(
-    mut opts: GatewayOptions,
+    opts: GatewayOptions,
     shutdown: Arc<AtomicBool>,
     status_every: Duration,
     on_status: &mut dyn FnMut(&str),
 ) -> Result<Arc<Stats>, GatewayError> {
+    let (m, rt) = start(opts, Placement::Process)?;
+    Ok(m.serve_until(rt, shutdown, status_every, on_status))
+}
+
+/// Where the frameworks whose domains the gateway bridges run.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum Placement {
+    /// In other processes: their PUBLISH sets are followed in shared memory.
+    Process,
+    /// In this process, which hands each step's PUBLISH sets to the routes the manager
+    /// leaves it ([`Manager::take_step_routes`]); every domain is bridged from the start.
+    InProcess,
+}
+
+/// Checks `opts`, opens the engine and builds the routes of the domains to bridge now;
+/// returns the manager and the runtime of its loop.
+pub(crate) fn start(
+    mut opts: GatewayOptions,
+    placement: Placement,
+) -> Result<(Manager, tokio::runtime::Runtime), GatewayError> {
     if opts.mirror && opts.types == TypeMode::PerItem {
         return Err(GatewayError::MirrorNeedsTyped);
     }
@@ -95,29 +116,23 @@ pub fn run(
         lease: opts.lease,
         stop: Arc::new(AtomicBool::new(false)),
     };
-    let mut m = Manager::build(opts, plan, cfg, stats.clone())?;
-    let http = match m.opts.http {
-        Some(addr) => {
-            let (thread, bound, stop) = http::serve(addr, m.report_fn())?;
-            info!("stats on http://{bound}/metrics (Prometheus) and http://{bound}/stats (JSON)");
-            Some((thread, stop))
-        }
-        None => None,
-    };
-    on_status(&format!("up: {}", m.line()));
-    m.warn_unhosted();
-    rt.block_on(m.serve(shutdown, status_every, on_status));
-    m.stop();
-    if let Some((thread, stop)) = http {
-        stop.stop();
-        let _ = thread.join();
+    let mut m = Manager::build(opts, plan, cfg, stats, placement)?;
+    if let Some(addr) = m.opts.http {
+        let (thread, bound, stop) = http::serve(addr, m.report_fn())?;
+        info!("stats on http://{bound}/metrics (Prometheus) and http://{bound}/stats (JSON)");
+        m.http = Some((thread, stop));
     }
-    drop(rt);
-    Ok(stats)
+    Ok((m, rt))
 }
 
-struct Manager {
+pub(crate) struct Manager {
     opts: GatewayOptions,
+    placement: Placement,
+    /// Per domain, its PUBLISH set's route written from the framework's step (in-process),
+    /// until [`Manager::take_step_routes`] hands them over.
+    step_routes: Vec<Option<Box<StepRoute>>>,
+    /// The stats endpoint's thread and its stop, when served.
+    http: Option<(JoinHandle<()>, http::Shutdown)>,
     plan: Vec<PlannedSet>,
     /// The counters of each planned set (same order).
     set_stats: Vec<Arc<SetStats>>,
@@ -150,7 +165,11 @@ impl Manager {
         plan: Vec<PlannedSet>,
         cfg: ShmConfig,
         stats: Arc<Stats>,
+        placement: Placement,
     ) -> Result<Manager, GatewayError> {
+        if opts.mirror && placement == Placement::InProcess {
+            return Err(GatewayError::InProcessMirror);
+        }
         let clock_domain = opts.clock_domain()?;
         let dds = engine::open(opts.engine, &opts.engine_config())?;
         let (events_tx, events) = mpsc::unbounded_channel();
@@ -173,8 +192,12 @@ impl Manager {
             })
             .collect();
         let set_stats = plan.iter().map(|_| Arc::new(SetStats::default())).collect();
+        let step_routes = opts.model.domains.iter().map(|_| None).collect();
         let mut m = Manager {
             opts,
+            placement,
+            step_routes,
+            http: None,
             plan,
             set_stats,
             clock_domain,
@@ -192,7 +215,8 @@ impl Manager {
             topics: 0,
             bad_log: LogLimit::new(Duration::from_secs(5)),
         };
-        let bridge_all = m.opts.mirror || !m.opts.hosted_only;
+        // In-process, the framework of every domain is this process's, there already.
+        let bridge_all = m.opts.mirror || !m.opts.hosted_only || placement == Placement::InProcess;
         for di in 0..m.domains.len() {
             let host = hosts.get_mut(di).and_then(Option::take);
             if bridge_all || m.hosted(di) {
@@ -201,6 +225,38 @@ impl Manager {
         }
         m.dds.announce()?;
         Ok(m)
+    }
+
+    /// The routes of the framework's own PUBLISH sets (per domain; None: not bridged), for
+    /// the in-process sink; empty afterwards.
+    pub(crate) fn take_step_routes(&mut self) -> Vec<Option<Box<StepRoute>>> {
+        std::mem::take(&mut self.step_routes)
+    }
+
+    /// The gateway's counters.
+    pub(crate) fn stats(&self) -> Arc<Stats> {
+        self.stats.clone()
+    }
+
+    /// Serves (the stats endpoint too, if asked for) until `shutdown` is set, then stops
+    /// every route's thread; returns the counters.
+    pub(crate) fn serve_until(
+        mut self,
+        rt: tokio::runtime::Runtime,
+        shutdown: Arc<AtomicBool>,
+        status_every: Duration,
+        on_status: &mut dyn FnMut(&str),
+    ) -> Arc<Stats> {
+        on_status(&format!("up: {}", self.line()));
+        self.warn_unhosted();
+        rt.block_on(self.serve(shutdown, status_every, on_status));
+        self.stop();
+        if let Some((thread, stop)) = self.http.take() {
+            stop.stop();
+            let _ = thread.join();
+        }
+        drop(rt);
+        self.stats.clone()
     }
 
     /// What the stats endpoint serves: the totals and each planned set's counters, read from
@@ -304,6 +360,12 @@ impl Manager {
         Counters { total: self.stats.clone(), set: self.set_stats[si].clone() }
     }
 
+    /// Whether a set in `role` goes to DDS from the framework's step rather than from shared
+    /// memory: the framework's own PUBLISH set, when the framework is this process.
+    fn written_from_step(&self, role: Role) -> bool {
+        self.placement == Placement::InProcess && role == Role::Publish
+    }
+
     /// Typed set `si`: a PUBLISH set goes to DDS; a SUBSCRIBE set comes from DDS, and its
     /// shared-memory writers go to DDS too.
     fn typed(&mut self, di: usize, d: &Domain, si: usize) -> Result<(), GatewayError> {
@@ -317,8 +379,12 @@ impl Manager {
                 Some(self.domains[di].own_commits.clone())
             }
         };
-        let every_step = self.opts.every_step.then(|| format!("{} every-step reader", self.opts.node_name));
-        let out = to_dds::typed(&*self.dds, d, &p, &self.cfg, self.counters(si), own_commits, every_step)?;
+        let out = if self.written_from_step(p.role) {
+            from_step::typed(&*self.dds, d, &p, self.counters(si))?
+        } else {
+            let every_step = self.opts.every_step.then(|| format!("{} every-step reader", self.opts.node_name));
+            to_dds::typed(&*self.dds, d, &p, &self.cfg, self.counters(si), own_commits, every_step)?
+        };
         self.outgoing(di, Some(si), out);
         Ok(())
     }
@@ -338,7 +404,11 @@ impl Manager {
                 Some(self.domains[di].own_commits.clone())
             }
         };
-        let out = to_dds::items(&*self.dds, d, &p, &items, self.set_stats[si].clone(), own_commits)?;
+        let out = if self.written_from_step(p.role) {
+            from_step::items(&*self.dds, d, &p, &items, self.counters(si))?
+        } else {
+            to_dds::items(&*self.dds, d, &p, &items, self.set_stats[si].clone(), own_commits)?
+        };
         self.outgoing(di, Some(si), out);
         Ok(())
     }
@@ -380,6 +450,11 @@ impl Manager {
                 let _ = self.poller.send(p);
             }
             ServedBy::Thread(t) => self.threads.push(t),
+            ServedBy::Step(r) => {
+                if let Some(slot) = self.step_routes.get_mut(di) {
+                    *slot = Some(r);
+                }
+            }
         }
     }
 

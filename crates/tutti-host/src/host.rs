@@ -10,7 +10,7 @@ use tutti_core::shm::{DomainHost, Framework, FrameworkOptions, StepReport, WaitM
 
 use crate::connect::{ConnectionSpec, Connections};
 use crate::control::{Components, ControlPort, Refusal, Reply, Request, RunState};
-use crate::steps::{step_all, wait_for_writers};
+use crate::steps::{complete_all, publish_all, wait_for_writers};
 use crate::{HostError, Tick, Ticker};
 
 /// What a run is.
@@ -80,8 +80,31 @@ pub struct StepDone<'a> {
     pub run_start: Instant,
 }
 
-/// Something that takes every step of a run (a recording: `tutti-record`'s recorders are sinks).
+/// A step every domain has published and none has completed yet, for
+/// [`StepSink::published`]: each domain's step number is its `current_step()`.
+#[derive(Debug, Clone, Copy)]
+pub struct Published<'a> {
+    /// The PUBLISH set each domain published, in model order.
+    pub publish: &'a [Vec<u8>],
+    /// Simulated time of the step, seconds.
+    pub sim: f64,
+}
+
+/// Something that takes every step of a run (a recording: `tutti-record`'s recorders are
+/// sinks; the gateway in the framework's process is one too).
 pub trait StepSink {
+    /// Takes the step every domain of `fw` has just published, before any of them waits
+    /// for its participants: a sink that hands the PUBLISH sets on to where an answer to the
+    /// step may come from (the gateway's DDS writers) does it here, since in a synchronous
+    /// domain the step completes only once it is answered. Does nothing unless overridden.
+    fn published(
+        &mut self,
+        fw: &Framework,
+        step: &Published<'_>,
+    ) -> Result<(), Box<dyn std::error::Error + Send + Sync>> {
+        let _ = (fw, step);
+        Ok(())
+    }
     /// Takes the step `done` of `fw`.
     fn step(&mut self, fw: &Framework, done: &StepDone<'_>) -> Result<(), Box<dyn std::error::Error + Send + Sync>>;
     /// The run is over: write what is buffered.
@@ -342,7 +365,13 @@ impl Host {
             self.fw.domains.iter().for_each(|d| d.set_hold(false));
         }
         let sim = tick.k as f64 * self.opts.step.as_secs_f64();
-        let reports = step_all(&mut self.fw, &self.publish, sim, self.opts.step, &tick)?;
+        publish_all(&mut self.fw, &self.publish, sim, self.opts.step)?;
+        let published = Published { publish: &self.publish, sim };
+        for sink in &mut self.sinks {
+            sink.published(&self.fw, &published)
+                .map_err(|source| HostError::Sink { what: "handing the published step on", source })?;
+        }
+        let reports = complete_all(&mut self.fw, self.opts.step, &tick)?;
         self.steps += 1;
         for (i, r) in reports.iter().enumerate() {
             self.count_timeout(i, r, on_report);
@@ -636,10 +665,22 @@ mod tests {
 </orchestra>
 "#;
 
-    /// Counts the steps it is given and keeps the last PUBLISH set.
-    struct Count(std::rc::Rc<std::cell::RefCell<(u64, Vec<u8>)>>);
+    /// Counts the steps it is given, published and done, and keeps the last PUBLISH set.
+    struct Count(std::rc::Rc<std::cell::RefCell<(u64, Vec<u8>, u64)>>);
 
     impl StepSink for Count {
+        fn published(
+            &mut self,
+            fw: &Framework,
+            p: &Published<'_>,
+        ) -> Result<(), Box<dyn std::error::Error + Send + Sync>> {
+            let mut c = self.0.borrow_mut();
+            // Published and not yet taken as a done step.
+            assert_eq!(fw.domains[0].current_step(), c.0 + 1);
+            assert_eq!(p.publish.len(), 1);
+            c.2 += 1;
+            Ok(())
+        }
         fn step(&mut self, _: &Framework, done: &StepDone<'_>) -> Result<(), Box<dyn std::error::Error + Send + Sync>> {
             let mut c = self.0.borrow_mut();
             c.0 += 1;
@@ -668,14 +709,15 @@ mod tests {
         let mut host = Host::new(&model, options(&ns)).unwrap();
         assert_eq!(host.namespace(), ns);
         assert_eq!(host.framework().domains.len(), 1);
-        let seen = std::rc::Rc::new(std::cell::RefCell::new((0, Vec::new())));
+        let seen = std::rc::Rc::new(std::cell::RefCell::new((0, Vec::new(), 0)));
         host.add_sink(Box::new(Count(seen.clone())));
         let stop = AtomicBool::new(false);
         let summary = host.run(&stop, |_| {}).unwrap();
         assert!(summary.started);
         assert!(summary.steps > 0);
-        let (steps, publish) = seen.borrow().clone();
+        let (steps, publish, published) = seen.borrow().clone();
         assert_eq!(steps, summary.steps, "the sink took every step");
+        assert_eq!(published, summary.steps, "and each one first as published");
         assert_eq!(publish, 7i32.to_ne_bytes(), "--set reached the PUBLISH set");
     }
 

@@ -30,9 +30,9 @@ mod ticker;
 
 pub use child::{ChildProcess, SpawnError, SIGINT, SIGTERM};
 pub use error::HostError;
-pub use host::{DomainStep, Host, HostOptions, Progress, Report, StepDone, StepSink, Summary};
+pub use host::{DomainStep, Host, HostOptions, Progress, Published, Report, StepDone, StepSink, Summary};
 pub use realtime::{enter_realtime, RealtimeOutcome, RealtimeRequest};
-pub use steps::{parse_wait_for, step_all, wait_for_writers, WaitForError, WriterWait};
+pub use steps::{complete_all, parse_wait_for, publish_all, step_all, wait_for_writers, WaitForError, WriterWait};
 pub use ticker::{Tick, Ticker};
 
 /// A flag raised by Ctrl-C (SIGINT) or SIGTERM, for a binary's main loop. Installs the

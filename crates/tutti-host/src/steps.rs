@@ -19,20 +19,29 @@ pub fn step_all(
     period: Duration,
     tick: &Tick,
 ) -> Result<Vec<StepReport>, HostError> {
-    let failed = |host: &tutti_core::shm::DomainHost| {
-        let domain = host.info().name.clone();
-        move |source| HostError::Domain { domain, source }
-    };
+    publish_all(fw, publish, sim, period)?;
+    complete_all(fw, period, tick)
+}
+
+/// The first half of [`step_all`]: publishes the next step of every domain (`publish[i]` is
+/// domain i's PUBLISH set), waiting for none of their participants yet.
+pub fn publish_all(fw: &mut Framework, publish: &[Vec<u8>], sim: f64, period: Duration) -> Result<(), HostError> {
     for (host, data) in fw.domains.iter_mut().zip(publish) {
         // Known before the step is: a participant sizes its step by it (tutti fmu run).
         host.set_period(period);
-        let on_error = failed(host);
-        host.publish_step(data, sim).map_err(on_error)?;
+        host.publish_step(data, sim)
+            .map_err(|source| HostError::Domain { domain: host.info().name.clone(), source })?;
     }
+    Ok(())
+}
+
+/// The second half of [`step_all`]: completes the step [`publish_all`] published in every
+/// domain (a synchronous one waits for its participants) and records the loop's timing.
+pub fn complete_all(fw: &mut Framework, period: Duration, tick: &Tick) -> Result<Vec<StepReport>, HostError> {
     let mut reports = Vec::with_capacity(fw.domains.len());
     for host in fw.domains.iter_mut() {
-        let on_error = failed(host);
-        let report = host.complete_step().map_err(on_error)?;
+        let report =
+            host.complete_step().map_err(|source| HostError::Domain { domain: host.info().name.clone(), source })?;
         host.record_timing(period, tick.late, tick.overrun);
         reports.push(report);
     }

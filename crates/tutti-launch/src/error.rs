@@ -44,13 +44,20 @@ pub enum RunError {
     /// The supervisor failed.
     #[error(transparent)]
     Supervisor(#[from] SupervisorError),
+    /// The gateway could not be started.
+    #[error("starting the gateway: {0}")]
+    Gateway(#[source] tutti_gateway::GatewayError),
 }
 
 impl RunError {
     /// Whether the launch asked for something impossible (exit status 2) rather than the
     /// run failing.
     pub fn is_invalid(&self) -> bool {
-        matches!(self, RunError::Host(e) if e.is_invalid())
+        match self {
+            RunError::Host(e) => e.is_invalid(),
+            RunError::Gateway(e) => e.is_invalid(),
+            _ => false,
+        }
     }
 }
 

@@ -88,7 +88,7 @@ pub fn run(
     }
     let namespace = host.namespace().to_string();
     let gateway = match &launch.gateway {
-        Some(g) => crate::gateway::start(g, &namespace, &on_event)?,
+        Some(g) => crate::gateway::start(g, &mut host, &on_event)?,
         None => None,
     };
     let finished = Arc::new(AtomicBool::new(false));

@@ -7,9 +7,12 @@
 //! * [`per_item`]: the same two directions with one stock-typed topic per item;
 //! * [`mirror`]: local segments whose framework is fed from DDS (`--mirror`), each sample
 //!   handed by the reader's sink straight to the mirror's thread;
-//! * [`clock`]: one domain's simulated time on `/clock`.
+//! * [`clock`]: one domain's simulated time on `/clock`;
+//! * [`from_step`]: the framework's own PUBLISH set written to DDS from its step, when the
+//!   gateway runs in the framework's process ([`crate::in_process`]).
 //!
 //! Each kind has its constructor here ([`to_dds::typed`], [`to_dds::items`],
+//! [`from_step::typed`], [`from_step::items`],
 //! [`from_dds::reader`], [`mirror::spawn`], [`clock::route`]); the manager calls them as
 //! domains come to be bridged and keeps what they return for discovery. This module only
 //! holds what they share; it imports none of them.
@@ -26,6 +29,7 @@ use crate::stats::{SetStats, Stats};
 
 pub mod clock;
 pub mod from_dds;
+pub mod from_step;
 pub mod mirror;
 pub mod per_item;
 pub mod to_dds;

@@ -49,6 +49,8 @@ pub enum ServedBy {
     Poller(Box<dyn Polled>),
     /// A thread of its own (a synchronous PUBLISH set's pump).
     Thread(JoinHandle<()>),
+    /// The framework's step, in the framework's own process (see [`super::from_step`]).
+    Step(Box<super::from_step::StepRoute>),
 }
 
 /// The typed route of planned set `p` of domain `d` (shared memory -> DDS): a synchronous
