@@ -148,7 +148,8 @@ pub fn run(args: UavArgs) -> CliResult {
 
 /// `tutti-demo uav-report`: from the recording of a run made by hand (`tutti run`) too.
 pub fn run_report(args: ReportArgs) -> CliResult {
-    if !args.run.out.join("framework.csv").exists() && args.run.out.join("run-multiuav_uav1.csv").exists() {
+    // The recording is the run's truth: the tables are drawn from it again, whoever ran it.
+    if args.run.out.join("run-multiuav_uav1.csv").exists() {
         crate::recording::demo_tables(&args.run.out).context("drawing framework.csv from the run's recording")?;
     }
     report(&args.run.out, &args.run.scenario(), args.run.step.as_secs_f64())
