@@ -7,7 +7,8 @@
 #
 # Installs what it needs (gcc for the C components, the DejaVu font for the figures, Python 3,
 # cmake and libclang for the Cyclone DDS engine),
-# builds tutti, librtapi and tutti-demo in release, then runs `tutti-demo uav --out out/uav`. Results:
+# builds tutti, librtapi and tutti-demo in release, then runs `tutti-demo uav --out out/uav`, which
+# runs the scenario's launch file (examples/uav/uav-demo.json5) with `tutti run`. Results:
 # out/uav/figure5.png, out/uav/figure6.png, the CSV files and summary.txt. The exit status is
 # the demo's: non-zero when a check fails.
 set -euo pipefail

@@ -7,6 +7,7 @@
     run.reset()                          # step count and simulated time back to zero
     run.resume()
     run.restart("ctrl")                  # a component of a `tutti run`
+    run.signal("uav3", "USR1")           # a signal to a component's process
     run.stop()
 
 Every call returns the run's state after it, a dict: {"state": "paused", "step": 7,
@@ -102,6 +103,10 @@ class Run:
 
     def start_component(self, component):
         return self.request("component", action="start", name=component)
+
+    def signal(self, component, sig):
+        """Sends signal `sig` ("USR1", "SIGUSR2", "TERM", ...) to a running component's process."""
+        return self.request("signal", name=component, signal=str(sig))
 
 
 def connect(namespace=None, timeout=30.0):

@@ -1,5 +1,5 @@
 //! `tutti ctl state|pause|resume|step N|reset|stop [--json]`, and `tutti ctl
-//! restart|stop|start COMPONENT`: acts on the run of the namespace through its control
+//! restart|stop|start COMPONENT`, `tutti ctl signal COMPONENT SIGNAL`: acts on the run of the namespace through its control
 //! plane (`tutti_host::control`, docs/run.md).
 
 use std::time::{Duration, Instant};
@@ -14,11 +14,12 @@ use super::{CliResult, Failure};
 /// resume or stop it, or restart, stop and start the components of a `tutti run`.
 #[derive(Debug, clap::Args)]
 #[command(
-    after_help = "Examples:\n  tutti ctl state\n  tutti ctl pause\n  tutti ctl step 7 --json\n  tutti ctl reset\n  tutti ctl resume\n  tutti ctl restart ctrl\n  tutti ctl stop\n  TUTTI_NAMESPACE=lab2 tutti ctl state --json\n\nWhile paused, no step is made and no participant times out, however long the pause; `step N`\nmakes exactly N steps and pauses again. `stop` with no component ends the run and waits\nuntil it is gone. Only the user who started the run may control it. See docs/run.md."
+    after_help = "Examples:\n  tutti ctl state\n  tutti ctl pause\n  tutti ctl step 7 --json\n  tutti ctl reset\n  tutti ctl resume\n  tutti ctl restart ctrl\n  tutti ctl signal uav3 USR1\n  tutti ctl stop\n  TUTTI_NAMESPACE=lab2 tutti ctl state --json\n\nWhile paused, no step is made and no participant times out, however long the pause; `step N`\nmakes exactly N steps and pauses again. `stop` with no component ends the run and waits\nuntil it is gone. Only the user who started the run may control it. See docs/run.md."
 )]
 pub struct Args {
-    /// state, pause, resume, step N, reset, stop, or stop/restart/start COMPONENT
-    #[arg(value_name = "COMMAND", required = true, num_args = 1..=2)]
+    /// state, pause, resume, step N, reset, stop, stop/restart/start COMPONENT, or signal
+    /// COMPONENT SIGNAL (USR1, USR2, TERM, INT, HUP, …)
+    #[arg(value_name = "COMMAND", required = true, num_args = 1..=3)]
     command: Vec<String>,
     /// Print the run's state after the command as one JSON object.
     #[arg(long)]
@@ -34,6 +35,18 @@ pub struct Args {
 /// The request that `words` ask for.
 fn request(words: &[String]) -> anyhow::Result<Request> {
     let arg = words.get(1).map(String::as_str);
+    if words[0] == "signal" {
+        return match (arg, words.get(2)) {
+            (Some(name), Some(sig)) => {
+                tutti_host::control::parse_signal(sig).map_err(|e| anyhow::anyhow!("signal: {e}"))?;
+                Ok(Request::Signal { name: name.to_string(), signal: sig.clone() })
+            }
+            _ => Err(anyhow::anyhow!("signal needs a COMPONENT and a SIGNAL, like `tutti ctl signal uav3 USR1`")),
+        };
+    }
+    if let Some(extra) = words.get(2) {
+        return Err(anyhow::anyhow!("{}: one argument at most (got '{extra}' too)", words[0]));
+    }
     let component = |action| match arg {
         Some(name) => Ok(Request::Component { action, name: name.to_string() }),
         None => Err(anyhow::anyhow!("{} needs a COMPONENT", words[0])),
@@ -57,7 +70,7 @@ fn request(words: &[String]) -> anyhow::Result<Request> {
         "restart" => component(ComponentAction::Restart),
         "start" => component(ComponentAction::Start),
         other => Err(anyhow::anyhow!(
-            "unknown command '{other}': expected state, pause, resume, step N, reset, stop [COMPONENT], restart COMPONENT or start COMPONENT"
+            "unknown command '{other}': expected state, pause, resume, step N, reset, stop [COMPONENT], restart COMPONENT, start COMPONENT or signal COMPONENT SIGNAL"
         )),
     }
 }
@@ -134,5 +147,12 @@ mod tests {
         assert!(err("restart").contains("needs a COMPONENT"));
         assert!(err("pause now").contains("takes no argument"));
         assert!(err("jump").contains("unknown command 'jump'"));
+        assert_eq!(
+            request(&words("signal uav3 USR1")).unwrap(),
+            Request::Signal { name: "uav3".into(), signal: "USR1".into() }
+        );
+        assert!(err("signal uav3").contains("needs a COMPONENT and a SIGNAL"));
+        assert!(err("signal uav3 USR9").contains("unknown signal 'USR9'"));
+        assert!(err("restart a b").contains("one argument at most"));
     }
 }

@@ -79,6 +79,7 @@ impl Args {
     fn options(&self) -> HostOptions {
         HostOptions {
             step: self.step,
+            speed: 1.0,
             duration: self.duration,
             steps: None,
             catch_up: self.catch_up,

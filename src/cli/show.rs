@@ -325,7 +325,12 @@ fn show_connections(args: &Args, model: &tutti_core::ddf::Model) -> CliResult {
                     .and_then(|d| d.set(r.role).layout.leaf(&r.item))
                     .map(|l| (l.ty.canonical(), l.length))
             };
-            let ((ft, fl), (tt, tl)) = (leaf(&c.from).unwrap_or(("?", 0)), leaf(&c.to).unwrap_or(("?", 0)));
+            let from = match &c.from {
+                tutti_host::connect::Source::Item(r) => leaf(r).unwrap_or(("?", 0)),
+                // The simulated time, in seconds.
+                tutti_host::connect::Source::SimTime => ("float64", 1),
+            };
+            let ((ft, fl), (tt, tl)) = (from, leaf(&c.to).unwrap_or(("?", 0)));
             serde_json::json!({
                 "order": i + 1, "from": c.from.to_string(), "to": c.to.to_string(), "gain": c.gain, "offset": c.offset,
                 "from_type": ft, "to_type": tt, "length": fl.max(tl),

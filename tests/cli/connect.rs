@@ -158,3 +158,38 @@ fn connections_that_cannot_be_made_are_refused_naming_both_ends() {
     assert!(out.contains("a value reaches its input at the next step"), "{out}");
     let _ = Path::new(DDF);
 }
+
+/// `@sim_time -> DOMAIN/publish/ITEM`: every recorded step published its own simulated
+/// time in the item (not the step before's), in a synchronous and an asynchronous domain.
+#[test]
+fn the_simulated_time_reaches_an_input_in_the_step_it_is_published_in() {
+    let dir = tempfile::tempdir().unwrap();
+    let ns = common::namespace("connclock");
+    let _segments = common::RemoveSegments(ns.clone());
+    let csv = dir.path().join("run.csv");
+    let mut cmd = common::tutti_command();
+    cmd.args(["host", DDF, "--step", "5ms", "--duration", "500ms", "-q"])
+        .args(["--connect", "@sim_time -> gw_sync/publish/x", "--connect", "@sim_time -> gw_async/publish/x * 1000"])
+        .arg("--record")
+        .arg(&csv)
+        .env("TUTTI_NAMESPACE", &ns);
+    let mut fw = Proc::spawn("tutti host", cmd, WATCHDOG);
+    assert_eq!(fw.wait(Duration::from_secs(60)), Some(0), "{}", fw.dump());
+    for (domain, gain) in [("gw_sync", 1.0), ("gw_async", 1000.0)] {
+        let text = std::fs::read_to_string(dir.path().join(format!("run-{domain}.csv"))).unwrap();
+        let mut lines = text.lines();
+        let header: Vec<&str> = lines.next().unwrap().split(',').collect();
+        let col =
+            |name: &str| header.iter().position(|h| *h == name).unwrap_or_else(|| panic!("no {name}: {header:?}"));
+        let (t, x) = (col("sim_time"), col("publish.x"));
+        let rows: Vec<(f64, f64)> = lines
+            .map(|l| l.split(',').collect::<Vec<_>>())
+            .map(|f| (f[t].parse().unwrap(), f[x].parse().unwrap()))
+            .collect();
+        assert!(rows.len() > 10, "{domain}: {} steps recorded\n{}", rows.len(), fw.dump());
+        assert!(rows.iter().any(|r| r.0 > 0.0), "{domain}: the time never moved");
+        for (sim, value) in rows {
+            assert!((value - sim * gain).abs() < 1e-6 * gain, "{domain}: the step at {sim} s published {value}");
+        }
+    }
+}

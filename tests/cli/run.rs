@@ -317,3 +317,65 @@ fn tutti_ctl_restarts_a_c_component_mid_run_and_stops_the_run() {
     let b_steps: Vec<f64> = rows.iter().map(|(_, (_, b))| *b).collect();
     assert_eq!(b_steps.windows(2).filter(|w| w[1] < w[0]).count(), 2, "b started over twice");
 }
+
+/// `autostart: false` declares a component that the run does not start (nor wait for);
+/// `tutti ctl start` starts it and `tutti ctl signal` reaches its process, while a signal to
+/// a component with no process, or of an unknown name, is refused with its reason. With
+/// `speed: 4`, step k is made at simulated time k × `step`.
+#[test]
+fn tutti_ctl_signals_a_component_and_starts_one_declared_without_autostart() {
+    let ns = common::namespace("runsig");
+    let _clean = RemoveSegments(ns.clone());
+    let trap = r#"["sh", "-c", "trap 'echo got USR1' USR1; trap 'echo got USR2' USR2; while :; do sleep 0.05; done"]"#;
+    let (dir, file) = setup(&format!(
+        r#"{{
+  ddf: "lockstep.ddf",
+  framework: {{ step: "8ms", speed: 4, timeout: "5s", hold: true }},
+  components: [
+    {{ name: "a", run: {a}, domain: "lock" }},
+    {{ name: "late", run: {trap}, autostart: false }},
+  ],
+}}"#,
+        a = answer("a"),
+    ));
+    let tmp = tempfile::tempdir().unwrap();
+    let mut run = start(&file, &ns, tmp.path());
+    let mut at = 0;
+    assert!(run.next_line(&mut at, "every component has connected", WAIT).is_some(), "{}", run.dump());
+    let ctl = |args: &[&str]| {
+        let mut cmd = common::tutti_command();
+        cmd.arg("ctl").args(args).arg("--json").env("TUTTI_NAMESPACE", &ns);
+        common::run_with_timeout(cmd, WAIT)
+    };
+    let ok = |args: &[&str]| {
+        let (status, out, err) = ctl(args);
+        assert!(status.success(), "tutti ctl {args:?}: {err}\n{}", run.dump());
+        serde_json::from_str::<serde_json::Value>(out.trim()).unwrap()
+    };
+    let state = ok(&["state"]);
+    assert_eq!(state["components"][1]["state"], "not started", "{state}");
+    assert!(state["components"][1]["pid"].is_null(), "{state}");
+    let (status, _, err) = ctl(&["signal", "late", "USR1"]);
+    assert_eq!(status.code(), Some(1), "{err}");
+    assert!(err.contains("component 'late' is not running (not started)"), "{err}");
+    let (status, _, err) = ctl(&["signal", "a", "USR7"]);
+    assert_eq!(status.code(), Some(2), "{err}");
+    assert!(err.contains("unknown signal 'USR7'"), "{err}");
+
+    let started = ok(&["start", "late"]);
+    assert_eq!(started["components"][1]["state"], "connected", "{started}");
+    ok(&["signal", "late", "USR1"]);
+    assert!(run.next_line(&mut at, "[late] got USR1", WAIT).is_some(), "{}", run.dump());
+    ok(&["signal", "late", "sigusr2"]);
+    assert!(run.next_line(&mut at, "[late] got USR2", WAIT).is_some(), "{}", run.dump());
+    // Simulated time is 8 ms a step, whatever the wall-clock period (2 ms).
+    let s = ok(&["state"]);
+    let (step, sim) = (s["step"].as_f64().unwrap(), s["sim_time"].as_f64().unwrap());
+    let k = (sim / 0.008).round();
+    assert!(step > 1.0 && (sim - k * 0.008).abs() < 1e-9 && (k - (step - 1.0)).abs() <= 1.0, "{s}");
+
+    ok(&["stop"]);
+    assert_eq!(run.wait(WAIT), Some(0), "{}", run.dump());
+    let log = std::fs::read_to_string(dir.path().join("logs/late.log")).unwrap();
+    assert!(log.contains("got USR1") && log.contains("got USR2"), "{log}");
+}

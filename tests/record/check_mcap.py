@@ -9,7 +9,8 @@ are several). Every schema must parse; every message must decode; each step's me
 /DOMAIN/publish and /DOMAIN/subscribe must equal that step's CSV row, element by element (in
 DDF order, buses depth first). With --subset (a recording that started after the run and
 stopped before its end: `tutti record`), CSV rows without messages are allowed. With --demo, the UAV demo's recording is compared with its
-framework.csv: each step's Elevation and Time read back (SUBSCRIBE) and Altitude published.
+framework.csv: each step's Elevation and Time read back (SUBSCRIBE) and Altitude published
+(the FMU component's domain, recorded too, is not in framework.csv).
 Prints one JSON line with the counts; exit 0 when all is equal.
 """
 import csv
@@ -74,6 +75,8 @@ def demo(path, framework_csv):
         if topic == "/tutti/events":
             continue
         _, domain, role = topic.split("/")
+        if not domain.startswith("multiuav_"):
+            continue  # the FMU component's domain, recorded with the UAVs' but not in framework.csv
         uav = domain.rsplit("_", 1)[1]
         row = rows.get(m.step)
         if row is None:

@@ -12,6 +12,12 @@
 //! output had at the end of the previous step (no output is evaluated again within a step),
 //! and a chain A -> B -> C of n connections takes n steps from A's output to C's input.
 //!
+//! **The simulated time as a source.** `"@sim_time -> ctrl/publish/t"` writes, into every
+//! step's PUBLISH set, the simulated time of that very step (seconds, the time the framework
+//! publishes the step with and participants find in the segment's header), with the gain and
+//! offset if given. It is written just before the step is published, so unlike an item's
+//! value it is never a step late; the input must be a float (`float32`, `float64`).
+//!
 //! Checked before anything runs ([`Connections::resolve`]): both items exist and have the
 //! roles above, the same length, and types that convert (the same type; or any number into
 //! a float; with a gain or an offset, numbers only); no input has two sources, nor a
@@ -24,7 +30,7 @@ use tutti_core::ddf::{Leaf, Model, Role, ScalarType, Value};
 /// A connection as written, before it is checked against a model.
 #[derive(Debug, Clone, PartialEq)]
 pub struct ConnectionSpec {
-    pub from: ItemRef,
+    pub from: Source,
     pub to: ItemRef,
     pub gain: f64,
     pub offset: f64,
@@ -36,6 +42,27 @@ pub struct ItemRef {
     pub domain: String,
     pub role: Role,
     pub item: String,
+}
+
+/// Where a connection's value comes from.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum Source {
+    /// An output: a SUBSCRIBE item, as the framework read it at the end of the previous step.
+    Item(ItemRef),
+    /// `@sim_time`: the simulated time of the step the value is published in.
+    SimTime,
+}
+
+/// How the simulated time is written as a source.
+pub const SIM_TIME: &str = "@sim_time";
+
+impl fmt::Display for Source {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            Source::Item(r) => r.fmt(f),
+            Source::SimTime => f.write_str(SIM_TIME),
+        }
+    }
 }
 
 impl fmt::Display for ItemRef {
@@ -68,13 +95,15 @@ pub enum ConnectError {
     Form(String),
     #[error("'{given}': '{end}' is not DOMAIN/ROLE/ITEM with ROLE publish or subscribe")]
     End { given: String, end: String },
+    #[error("'{given}': '{source_name}' is not a source: the sources are DOMAIN/subscribe/ITEM and @sim_time")]
+    UnknownSource { given: String, source_name: String },
     #[error("'{given}': '{value}' is not a number")]
     Number { given: String, value: String },
     #[error("{connection}: {reason}")]
     Refused { connection: String, reason: String },
 }
 
-/// Parses `FROM -> TO [* GAIN] [+ OFFSET]` (`- OFFSET` too).
+/// Parses `FROM -> TO [* GAIN] [+ OFFSET]` (`- OFFSET` too); FROM is an item or `@sim_time`.
 pub fn parse_connection(s: &str) -> Result<ConnectionSpec, ConnectError> {
     let (from, rest) = s.split_once("->").ok_or_else(|| ConnectError::Form(s.to_string()))?;
     let mut words = rest.split_whitespace();
@@ -109,7 +138,14 @@ pub fn parse_connection(s: &str) -> Result<ConnectionSpec, ConnectError> {
         }
         Ok(ItemRef { domain: domain.to_string(), role, item: item.to_string() })
     };
-    Ok(ConnectionSpec { from: end(from.trim())?, to: end(to)?, gain, offset })
+    let from = match from.trim() {
+        SIM_TIME => Source::SimTime,
+        f if f.starts_with('@') => {
+            return Err(ConnectError::UnknownSource { given: s.to_string(), source_name: f.to_string() })
+        }
+        f => Source::Item(end(f)?),
+    };
+    Ok(ConnectionSpec { from, to: end(to)?, gain, offset })
 }
 
 /// One end of a checked connection.
@@ -119,7 +155,7 @@ struct End {
     leaf: Leaf,
 }
 
-/// A checked connection.
+/// A checked connection from an item.
 #[derive(Debug, Clone)]
 struct Connection {
     from: End,
@@ -134,6 +170,8 @@ struct Connection {
 #[derive(Debug, Clone, Default)]
 pub struct Connections {
     list: Vec<Connection>,
+    /// The `@sim_time` connections: their input, gain and offset.
+    clocks: Vec<(End, f64, f64)>,
     specs: Vec<ConnectionSpec>,
 }
 
@@ -142,10 +180,33 @@ impl Connections {
     /// items may not also be a connection's input.
     pub fn resolve(model: &Model, specs: &[ConnectionSpec], sets: &[String]) -> Result<Connections, ConnectError> {
         let mut list: Vec<Connection> = Vec::with_capacity(specs.len());
+        let mut clocks = Vec::new();
+        // Every input given so far, with the connection that gives it.
+        let mut inputs: Vec<(End, &ConnectionSpec)> = Vec::new();
         for spec in specs {
             let refused = |reason: String| ConnectError::Refused { connection: spec.to_string(), reason };
-            let from = end(model, &spec.from, Role::Subscribe).map_err(refused)?;
             let to = end(model, &spec.to, Role::Publish).map_err(refused)?;
+            if let Some((_, other)) = inputs.iter().find(|(e, _)| e.domain == to.domain && overlap(&e.leaf, &to.leaf)) {
+                return Err(refused(format!("{} already has a source: {other}", spec.to)));
+            }
+            if let Some(set) = sets.iter().find(|s| s.split_once('=').is_some_and(|(t, _)| set_target(t, &spec.to))) {
+                return Err(refused(format!("{} is also given a value by set '{set}'", spec.to)));
+            }
+            inputs.push((to.clone(), spec));
+            let from = match &spec.from {
+                Source::SimTime => {
+                    if !matches!(to.leaf.ty, ScalarType::Float32 | ScalarType::Float64) {
+                        return Err(refused(format!(
+                            "type mismatch: {SIM_TIME} is a time in seconds and needs a float input, {} is {}",
+                            spec.to,
+                            to.leaf.ty.canonical()
+                        )));
+                    }
+                    clocks.push((to, spec.gain, spec.offset));
+                    continue;
+                }
+                Source::Item(r) => end(model, r, Role::Subscribe).map_err(refused)?,
+            };
             let (a, b) = (&from.leaf, &to.leaf);
             if a.length != b.length {
                 return Err(refused(format!(
@@ -164,22 +225,14 @@ impl Connections {
                     if scaled { " (a gain or an offset needs numbers)" } else { "" }
                 )));
             }
-            if let Some(other) =
-                list.iter().zip(specs).find(|(c, _)| c.to.domain == to.domain && overlap(&c.to.leaf, b))
-            {
-                return Err(refused(format!("{} already has a source: {}", spec.to, other.1)));
-            }
-            if let Some(set) = sets.iter().find(|s| s.split_once('=').is_some_and(|(t, _)| set_target(t, &spec.to))) {
-                return Err(refused(format!("{} is also given a value by set '{set}'", spec.to)));
-            }
             let raw = !scaled && a.ty == b.ty;
             list.push(Connection { from, to, gain: spec.gain, offset: spec.offset, raw });
         }
-        Ok(Connections { list, specs: specs.to_vec() })
+        Ok(Connections { list, clocks, specs: specs.to_vec() })
     }
 
     pub fn is_empty(&self) -> bool {
-        self.list.is_empty()
+        self.list.is_empty() && self.clocks.is_empty()
     }
 
     /// The connections as given, in order.
@@ -187,8 +240,22 @@ impl Connections {
         &self.specs
     }
 
-    /// Copies each connection's output in `subscribe` (each domain's SUBSCRIBE set, model
-    /// order) to its input in `publish` (each domain's PUBLISH buffer), in order.
+    /// Writes `sim`, the simulated time of the step about to be published, into the input
+    /// of every `@sim_time` connection in `publish` (each domain's PUBLISH buffer): called
+    /// just before each step is published.
+    pub fn apply_clock(&self, sim: f64, publish: &mut [Vec<u8>]) {
+        for (to, gain, offset) in &self.clocks {
+            let Some(dst) = publish.get_mut(to.domain).and_then(|p| p.get_mut(to.leaf.range())) else { continue };
+            let v = Value::Float(sim * gain + offset);
+            for y in dst.chunks_exact_mut(to.leaf.ty.size() as usize) {
+                to.leaf.ty.encode(v, y);
+            }
+        }
+    }
+
+    /// Copies each item connection's output in `subscribe` (each domain's SUBSCRIBE set,
+    /// model order) to its input in `publish` (each domain's PUBLISH buffer), in order:
+    /// called after each step, for the next.
     pub fn apply(&self, subscribe: &[&[u8]], publish: &mut [Vec<u8>]) {
         for c in &self.list {
             let (Some(src), Some(dst)) = (subscribe.get(c.from.domain), publish.get_mut(c.to.domain)) else { continue };
@@ -345,5 +412,47 @@ mod tests {
         assert_eq!(get(&publish[1], &leaf(1, Role::Publish, "y_meas")), [7.0], "3 * 2 + 1");
         assert_eq!(get(&publish[0], &leaf(0, Role::Publish, "u")), [-4.0]);
         assert_eq!(get(&publish[1], &leaf(1, Role::Publish, "w")), [1.5, 2.5, 3.5], "float32 into float64");
+    }
+
+    #[test]
+    fn the_simulated_time_is_a_source_written_into_the_step_it_is_published_in() {
+        let m = model();
+        let c = parse_connection("@sim_time -> ctrl/publish/w * 2 + 1").unwrap();
+        assert_eq!(c.from, Source::SimTime);
+        assert_eq!(c.to_string(), "@sim_time -> ctrl/publish/w * 2 + 1");
+        let c = resolve(&["@sim_time -> plant/publish/u", "@sim_time -> ctrl/publish/w * 2 + 1"], &[]).unwrap();
+        let mut publish: Vec<Vec<u8>> = m.domains.iter().map(|d| d.publish.layout.default_bytes()).collect();
+        // Item connections (after a step) leave the clock's inputs alone.
+        let sub: Vec<Vec<u8>> = m.domains.iter().map(|d| d.subscribe.layout.default_bytes()).collect();
+        let views: Vec<&[u8]> = sub.iter().map(Vec::as_slice).collect();
+        c.apply(&views, &mut publish);
+        let leaf = |d: usize, p: &str| m.domains[d].publish.layout.leaf(p).unwrap().clone();
+        let get = |buf: &[u8], l: &Leaf| -> Vec<f64> {
+            buf[l.range()].chunks_exact(l.ty.size() as usize).map(|e| l.ty.decode(e).as_f64()).collect()
+        };
+        assert_eq!(get(&publish[0], &leaf(0, "u")), [0.0]);
+        // Before the step at t = 0.15 s is published: exactly that time, in every element.
+        c.apply_clock(0.15, &mut publish);
+        assert_eq!(get(&publish[0], &leaf(0, "u")), [0.15]);
+        assert_eq!(get(&publish[1], &leaf(1, "w")), [1.3, 1.3, 1.3]);
+        c.apply_clock(3.0 * 0.05, &mut publish);
+        assert_eq!(get(&publish[0], &leaf(0, "u"))[0].to_bits(), (3.0f64 * 0.05).to_bits(), "not rounded");
+    }
+
+    #[test]
+    fn the_simulated_time_needs_a_float_input_of_its_own() {
+        let refused = |specs: &[&str], sets: &[&str]| resolve(specs, sets).unwrap_err().to_string();
+        let e = refused(&["@sim_time -> plant/publish/on"], &[]);
+        assert!(
+            e.contains("@sim_time is a time in seconds and needs a float input, plant/publish/on is boolean"),
+            "{e}"
+        );
+        let e = refused(&["plant/subscribe/y -> ctrl/publish/y_meas", "@sim_time -> ctrl/publish/y_meas"], &[]);
+        assert!(e.contains("already has a source: plant/subscribe/y -> ctrl/publish/y_meas"), "{e}");
+        let e = refused(&["@sim_time -> plant/publish/u"], &["plant/u=2"]);
+        assert!(e.contains("also given a value by set 'plant/u=2'"), "{e}");
+        let e = refused(&["@sim_time -> plant/subscribe/y"], &[]);
+        assert!(e.contains("must be an input"), "{e}");
+        assert!(matches!(parse_connection("@wall_time -> plant/publish/u"), Err(ConnectError::UnknownSource { .. })));
     }
 }

@@ -88,6 +88,33 @@ pub enum Request {
     Stop,
     /// Restart, stop or start one component of a launched run.
     Component { action: ComponentAction, name: String },
+    /// Send a signal (`USR1`, `SIGUSR2`, …: [`SIGNALS`]) to the process of one running
+    /// component of a launched run.
+    Signal { name: String, signal: String },
+}
+
+/// The signals `tutti ctl signal` sends, by name (with or without `SIG`, any case).
+pub const SIGNALS: &[(&str, i32)] = &[
+    ("HUP", 1),
+    ("INT", 2),
+    ("QUIT", 3),
+    ("KILL", 9),
+    ("USR1", 10),
+    ("USR2", 12),
+    ("ALRM", 14),
+    ("TERM", 15),
+    ("CONT", 18),
+    ("STOP", 19),
+];
+
+/// The number of signal `name` (`USR1`, `sigusr1`, `SIGTERM`, …), or why it is refused.
+pub fn parse_signal(name: &str) -> Result<i32, Refusal> {
+    let upper = name.trim().to_ascii_uppercase();
+    let bare = upper.strip_prefix("SIG").unwrap_or(&upper);
+    SIGNALS.iter().find(|(n, _)| *n == bare).map(|(_, v)| *v).ok_or_else(|| {
+        let known: Vec<&str> = SIGNALS.iter().map(|(n, _)| *n).collect();
+        Refusal(format!("unknown signal '{name}': expected one of {}", known.join(", ")))
+    })
 }
 
 /// One component of a launched run, as `tutti ctl state` shows it.
@@ -164,6 +191,8 @@ pub enum ControlError {
 pub trait Components: Send + Sync {
     /// Restarts, stops or starts component `name`.
     fn act(&self, action: ComponentAction, name: &str) -> Result<(), Refusal>;
+    /// Sends signal number `signal` to the process of component `name`, which must run.
+    fn signal(&self, name: &str, signal: i32) -> Result<(), Refusal>;
     /// Every component's state.
     fn status(&self) -> Vec<ComponentStatus>;
 }
@@ -333,7 +362,11 @@ impl Server {
             Request::State => Ok(()),
             Request::Component { action, name } => match &self.components {
                 Some(c) => c.act(*action, name),
-                None => Err(Refusal("this run has no components: it is a framework alone (`tutti host`)".into())),
+                None => Err(no_components()),
+            },
+            Request::Signal { name, signal } => match &self.components {
+                Some(c) => parse_signal(signal).and_then(|sig| c.signal(name, sig)),
+                None => Err(no_components()),
             },
             Request::Stop => {
                 self.stop.store(true, Ordering::SeqCst);
@@ -357,6 +390,10 @@ impl Server {
         self.commands.send(Command { request, reply }).map_err(|_| Refusal("the run has stopped".into()))?;
         answer.recv().unwrap_or_else(|_| Err(Refusal("the run stopped before carrying it out".into())))
     }
+}
+
+fn no_components() -> Refusal {
+    Refusal("this run has no components: it is a framework alone (`tutti host`)".into())
 }
 
 /// A connection to the run of a namespace: what `tutti ctl` and the studio use.
@@ -424,5 +461,32 @@ impl ControlClient {
     }
     pub fn component(&mut self, action: ComponentAction, name: &str) -> Result<RunStatus, ControlError> {
         self.request(&Request::Component { action, name: name.to_string() })
+    }
+    /// Sends `signal` (`USR1`, `SIGTERM`, …) to component `name`'s process.
+    pub fn signal(&mut self, name: &str, signal: &str) -> Result<RunStatus, ControlError> {
+        self.request(&Request::Signal { name: name.to_string(), signal: signal.to_string() })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn signals_are_named_with_or_without_sig_and_unknown_ones_are_refused() {
+        assert_eq!(parse_signal("USR1"), Ok(10));
+        assert_eq!(parse_signal("sigusr2"), Ok(12));
+        assert_eq!(parse_signal("SIGTERM"), Ok(15));
+        let e = parse_signal("USR3").unwrap_err().0;
+        assert!(e.contains("unknown signal 'USR3'") && e.contains("USR1, USR2"), "{e}");
+        assert!(parse_signal("10").is_err(), "numbers are not names");
+    }
+
+    #[test]
+    fn a_signal_request_travels_as_one_json_object() {
+        let r = Request::Signal { name: "uav3".into(), signal: "USR1".into() };
+        let text = serde_json::to_string(&r).unwrap();
+        assert_eq!(text, r#"{"op":"signal","name":"uav3","signal":"USR1"}"#);
+        assert_eq!(serde_json::from_str::<Request>(&text).unwrap(), r);
     }
 }

@@ -8,6 +8,9 @@ pub enum HostError {
     /// The step period is zero.
     #[error("--step must be longer than 0")]
     ZeroStep,
+    /// The speed is not a positive number (or makes the period zero).
+    #[error("speed {0}: must be a positive number of simulated seconds per wall-clock second")]
+    Speed(f64),
     /// A `DOMAIN/ITEM=VALUE` that does not apply to the model.
     #[error("--set '{set}': {reason}")]
     Set { set: String, reason: String },
@@ -52,7 +55,11 @@ impl HostError {
     pub fn is_invalid(&self) -> bool {
         matches!(
             self,
-            HostError::ZeroStep | HostError::Set { .. } | HostError::WaitForDomain { .. } | HostError::Connect(_)
+            HostError::ZeroStep
+                | HostError::Speed(_)
+                | HostError::Set { .. }
+                | HostError::WaitForDomain { .. }
+                | HostError::Connect(_)
         )
     }
 }

@@ -16,8 +16,11 @@ use crate::{HostError, Tick, Ticker};
 /// What a run is.
 #[derive(Debug, Clone)]
 pub struct HostOptions {
-    /// The step period (> 0).
+    /// The simulated time of a step (> 0): step k is made at simulated time k × `step`.
     pub step: Duration,
+    /// Simulated seconds per wall-clock second (> 0, default 1): a step is released every
+    /// `step / speed` of wall time.
+    pub speed: f64,
     /// Stop after this long (None: until stopped).
     pub duration: Option<Duration>,
     /// Stop after this many steps (None: until stopped); with `duration`, whichever comes first.
@@ -51,6 +54,7 @@ impl Default for HostOptions {
     fn default() -> Self {
         HostOptions {
             step: Duration::from_millis(10),
+            speed: 1.0,
             duration: None,
             steps: None,
             catch_up: false,
@@ -241,6 +245,9 @@ impl Host {
         if opts.step.is_zero() {
             return Err(HostError::ZeroStep);
         }
+        if !(opts.speed > 0.0 && opts.speed.is_finite()) || opts.step.div_f64(opts.speed).is_zero() {
+            return Err(HostError::Speed(opts.speed));
+        }
         let mut publish: Vec<Vec<u8>> = model.domains.iter().map(|d| d.publish.layout.default_bytes()).collect();
         apply_sets(&opts.sets, &model.domains, &mut publish)?;
         for (d, n) in &opts.wait_for {
@@ -365,13 +372,15 @@ impl Host {
             self.fw.domains.iter().for_each(|d| d.set_hold(false));
         }
         let sim = tick.k as f64 * self.opts.step.as_secs_f64();
-        publish_all(&mut self.fw, &self.publish, sim, self.opts.step)?;
+        // `@sim_time` connections: the time of the step they are published in.
+        self.connections.apply_clock(sim, &mut self.publish);
+        publish_all(&mut self.fw, &self.publish, sim, self.opts.period())?;
         let published = Published { publish: &self.publish, sim };
         for sink in &mut self.sinks {
             sink.published(&self.fw, &published)
                 .map_err(|source| HostError::Sink { what: "handing the published step on", source })?;
         }
-        let reports = complete_all(&mut self.fw, self.opts.step, &tick)?;
+        let reports = complete_all(&mut self.fw, self.opts.period(), &tick)?;
         self.steps += 1;
         for (i, r) in reports.iter().enumerate() {
             self.count_timeout(i, r, on_report);
@@ -609,11 +618,18 @@ impl Host {
     }
 }
 
+impl HostOptions {
+    /// The wall-clock period of a step: `step / speed`.
+    pub fn period(&self) -> Duration {
+        self.step.div_f64(self.speed)
+    }
+}
+
 fn new_ticker(opts: &HostOptions) -> Ticker {
     if opts.catch_up {
-        Ticker::catching_up(opts.step)
+        Ticker::catching_up(opts.period())
     } else {
-        Ticker::new(opts.step)
+        Ticker::new(opts.period())
     }
 }
 

@@ -82,6 +82,12 @@ pub enum SupervisorError {
     /// It ended before it had connected.
     #[error("component '{name}' ended ({end}) before it connected; its output is in {}", log.display())]
     EndedBeforeConnecting { name: String, end: String, log: PathBuf },
+    /// A signal for a component that has no process.
+    #[error("component '{name}' is not running ({state}): there is no process to signal")]
+    NotRunning { name: String, state: String },
+    /// The signal could not be sent.
+    #[error("component '{name}': sending signal {signal} to pid {pid}: {reason}")]
+    Signal { name: String, pid: u32, signal: i32, reason: String },
     /// The run is being torn down (Ctrl-C, a stop), or is over.
     #[error("the run is stopping")]
     Stopping,

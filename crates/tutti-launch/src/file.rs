@@ -53,8 +53,11 @@ pub struct Launch {
 /// The `framework` key: how `tutti host` would step the DDF's domains.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Framework {
-    /// `step` (default 10ms).
+    /// `step` (default 10ms): the simulated time of a step.
     pub step: Duration,
+    /// `speed` (default 1): simulated seconds per wall-clock second; a step is released
+    /// every `step / speed`.
+    pub speed: f64,
     /// `timeout`: longest wait for a synchronous step's participants (default 1s).
     pub timeout: Duration,
     /// `hold`: participants wait to go until every component has connected.
@@ -76,6 +79,7 @@ impl Default for Framework {
     fn default() -> Self {
         Framework {
             step: Duration::from_millis(10),
+            speed: 1.0,
             timeout: Duration::from_secs(1),
             hold: false,
             duration: None,
@@ -128,6 +132,10 @@ pub struct Component {
     pub max_restarts: u32,
     /// Longest wait for it to connect (default 10s).
     pub connect_timeout: Duration,
+    /// `autostart` (default true): started with the run. A component with `autostart:
+    /// false` is declared but not started: `tutti ctl start NAME` starts it while the run
+    /// goes on, and the run does not wait for it to connect.
+    pub autostart: bool,
 }
 
 /// The `gateway` key: the gateway config file's keys, inline or in `config: FILE`.
@@ -364,6 +372,8 @@ fn duration(key: &'static str) -> impl Fn(String) -> Result<Duration, String> {
 struct FrameworkKeys {
     #[serde(default, deserialize_with = "de_step")]
     step: Option<Duration>,
+    #[serde(default, deserialize_with = "de_speed")]
+    speed: Option<f64>,
     #[serde(default, deserialize_with = "de_timeout")]
     timeout: Option<Duration>,
     hold: Option<bool>,
@@ -383,6 +393,16 @@ fn de_step<'de, D: Deserializer<'de>>(d: D) -> Result<Option<Duration>, D::Error
     then(d, |s: String| match duration("step")(s)? {
         z if z.is_zero() => Err("step: must be longer than 0".into()),
         v => Ok(Some(v)),
+    })
+}
+
+fn de_speed<'de, D: Deserializer<'de>>(d: D) -> Result<Option<f64>, D::Error> {
+    then(d, |v: f64| {
+        if v > 0.0 && v.is_finite() {
+            Ok(Some(v))
+        } else {
+            Err(format!("speed: {v}: must be a positive number of simulated seconds per wall-clock second"))
+        }
     })
 }
 
@@ -420,6 +440,7 @@ impl<'de> Deserialize<'de> for Framework {
             let dflt = Framework::default();
             Ok(Framework {
                 step: k.step.unwrap_or(dflt.step),
+                speed: k.speed.unwrap_or(dflt.speed),
                 timeout: k.timeout.unwrap_or(dflt.timeout),
                 hold: k.hold.unwrap_or(false),
                 duration: k.duration,
@@ -453,6 +474,7 @@ struct ComponentKeys {
     max_restarts: Option<u32>,
     #[serde(default, deserialize_with = "de_connect_timeout")]
     connect_timeout: Option<Duration>,
+    autostart: Option<bool>,
 }
 
 fn de_name<'de, D: Deserializer<'de>>(d: D) -> Result<String, D::Error> {
@@ -591,6 +613,7 @@ impl<'de> Deserialize<'de> for Component {
                 restart: k.restart,
                 max_restarts: k.max_restarts.unwrap_or(3),
                 connect_timeout: k.connect_timeout.unwrap_or(Duration::from_secs(10)),
+                autostart: k.autostart.unwrap_or(true),
             })
         })
     }
@@ -759,7 +782,7 @@ mod tests {
                record: ["run.mcap"], set: ["plant/x=1.5"] },
   components: [
     { name: "a", run: ["sh", "-c", "true"], domain: "plant", env: { K: "1" }, restart: "on-failure", max_restarts: 2 },
-    { name: "b", run: ["true"] },
+    { name: "b", run: ["true"], autostart: false },
   ],
   gateway: { ros_domain_id: 7, clock: "none" },
 }"#,
@@ -774,6 +797,8 @@ mod tests {
         assert_eq!((a.restart, a.max_restarts, a.domain.as_deref()), (Restart::OnFailure, 2, Some("plant")));
         assert_eq!(a.cwd, std::path::absolute(dir.path()).unwrap(), "cwd defaults to the file's directory");
         assert_eq!((l.components[1].restart, l.components[1].max_restarts), (Restart::Never, 3));
+        assert_eq!((a.autostart, l.components[1].autostart), (true, false));
+        assert_eq!(l.framework.speed, 1.0);
         assert_eq!(l.gateway.unwrap().options.ros_domain_id, 7);
     }
 
@@ -816,6 +841,12 @@ mod tests {
         let e =
             error("{ ddf: \"cosim.ddf\", components: [ { name: \"a\", run: [\"true\"], restart: \"sometimes\" } ] }");
         assert!(e.contains("unknown variant `sometimes`") && e.contains("`on-failure`"), "{e}");
+        let e = error("{ ddf: \"cosim.ddf\", components: [\n { name: \"a\", run: [\"true\"], autostart: \"no\" } ] }");
+        assert!(e.starts_with(":2:41:") && e.contains("expected a boolean"), "{e}");
+        let e = error("{ ddf: \"cosim.ddf\",\n framework: { speed: -4 } }");
+        assert!(e.starts_with(":2:22:") && e.contains("speed: -4: must be a positive number"), "{e}");
+        let (_dir, l) = check("{ ddf: \"cosim.ddf\", framework: { step: \"50ms\", speed: 4 } }");
+        assert_eq!(l.unwrap().framework.speed, 4.0);
         let e = error("{ ddf: \"cosim.ddf\"\n  components: [] }");
         assert!(e.starts_with(":1:8: syntax error"), "{e}");
     }

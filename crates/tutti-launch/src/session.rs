@@ -67,6 +67,7 @@ pub fn run(
     let fw = &launch.framework;
     let host_opts = HostOptions {
         step: fw.step,
+        speed: fw.speed,
         duration: fw.duration,
         steps: fw.steps,
         catch_up: fw.catch_up,
@@ -132,6 +133,10 @@ impl Components for Controlled {
             ComponentAction::Start => self.0.start_component(name).map(|_| ()),
         };
         done.map_err(|e| Refusal(e.to_string()))
+    }
+
+    fn signal(&self, name: &str, signal: i32) -> Result<(), Refusal> {
+        self.0.signal(name, signal).map_err(|e| Refusal(e.to_string()))
     }
 
     fn status(&self) -> Vec<control::ComponentStatus> {

@@ -73,6 +73,8 @@ impl fmt::Display for End {
 pub enum ComponentState {
     /// Not started yet: it waits for the component before it to connect.
     Waiting,
+    /// Declared with `autostart: false`: not started until asked ([`Supervisor::start_component`]).
+    NotStarted,
     /// Its process runs and has not connected yet.
     Starting,
     /// Connected to its domain (without a domain: running).
@@ -88,6 +90,7 @@ impl ComponentState {
     pub fn name(&self) -> String {
         match self {
             ComponentState::Waiting => "waiting".into(),
+            ComponentState::NotStarted => "not started".into(),
             ComponentState::Starting => "starting".into(),
             ComponentState::Connected => "connected".into(),
             ComponentState::Stopped => "stopped".into(),
@@ -116,7 +119,7 @@ impl ComponentStatus {
     /// started (a run stopped before its turn).
     pub fn ended_well(&self) -> bool {
         match self.state {
-            ComponentState::Stopped | ComponentState::Waiting => true,
+            ComponentState::Stopped | ComponentState::Waiting | ComponentState::NotStarted => true,
             ComponentState::Ended(e) => e.success(),
             ComponentState::Starting | ComponentState::Connected => false,
         }
@@ -228,6 +231,7 @@ enum Request {
     Start(String, Reply<u32>),
     Stop(String, Reply<()>),
     Restart(String, Reply<u32>),
+    Signal(String, i32, Reply<()>),
     Status(Sender<Vec<ComponentStatus>>),
     WhenStarted(Reply<()>),
     Shutdown(Sender<Finished>),
@@ -259,10 +263,11 @@ impl Supervisor {
         for c in components {
             let log = opts.log_dir.join(format!("{}.log", c.name));
             File::create(&log)?;
+            let state = if c.autostart { ComponentState::Waiting } else { ComponentState::NotStarted };
             slots.push(Slot {
                 c,
                 log,
-                state: ComponentState::Waiting,
+                state,
                 proc: None,
                 restarts: 0,
                 last_end: None,
@@ -307,6 +312,12 @@ impl Supervisor {
     /// has connected.
     pub fn start_component(&self, name: &str) -> Result<u32, SupervisorError> {
         self.ask_result(|r| Request::Start(name.to_string(), r))
+    }
+
+    /// Sends signal number `signal` to component `name`'s process (which must run); the
+    /// supervisor does nothing else: what the component makes of it is its own affair.
+    pub fn signal(&self, name: &str, signal: i32) -> Result<(), SupervisorError> {
+        self.ask_result(|r| Request::Signal(name.to_string(), signal, r))
     }
 
     /// Every component, in file order.
@@ -454,6 +465,22 @@ impl Actor {
                 });
                 let _ = reply.send(r);
             }
+            Request::Signal(name, signal, reply) => {
+                let r = self.find(&name).and_then(|i| {
+                    let s = &self.slots[i];
+                    let Some(p) = s.proc.as_ref() else {
+                        return Err(SupervisorError::NotRunning { name, state: s.state.name() });
+                    };
+                    let pid = p.child.pid();
+                    tutti_core::shm::os::send_signal(pid, signal).map_err(|e| SupervisorError::Signal {
+                        name,
+                        pid,
+                        signal,
+                        reason: e.to_string(),
+                    })
+                });
+                let _ = reply.send(r);
+            }
             Request::Start(_, reply) | Request::Restart(_, reply) if torn_down => {
                 let _ = reply.send(Err(SupervisorError::Stopping));
             }
@@ -519,9 +546,14 @@ impl Actor {
     }
 
     fn advance_startup(&mut self) {
-        let previous_connected = self.next == 0 || self.slots[self.next - 1].connected_once;
+        let previous = self.next.checked_sub(1).map(|i| &self.slots[i]);
+        let previous_connected = previous.map_or(true, |s| s.connected_once || !s.c.autostart);
         if !previous_connected {
             return;
+        }
+        // `autostart: false`: declared, left for a `start`.
+        while self.next < self.slots.len() && !self.slots[self.next].c.autostart {
+            self.next += 1;
         }
         if self.next == self.slots.len() {
             self.startup = Startup::Done;

@@ -50,6 +50,7 @@ fn record(format: Format, dir: &Path) -> Summary {
     let ns = format!("reclib{}{format:?}", std::process::id()).to_lowercase();
     let opts = HostOptions {
         step: Duration::from_millis(2),
+        speed: 1.0,
         duration: Some(Duration::from_millis(60)),
         namespace: Some(ns),
         sets: vec!["rec/x=2.5".into(), "rec/n=7".into()],

@@ -292,6 +292,7 @@ pub async fn start(State(st): State<Arc<AppState>>, Json(body): Json<StartBody>)
     tutti_core::shm::segment::check_namespace(&namespace).map_err(|e| ApiError::bad_request(e.to_string()))?;
     let opts = HostOptions {
         step: duration("step", body.step.as_deref())?.unwrap_or(Duration::from_millis(10)),
+        speed: 1.0,
         duration: duration("duration", body.duration.as_deref())?,
         namespace: Some(namespace.clone()),
         ddf_name: real.display().to_string(),

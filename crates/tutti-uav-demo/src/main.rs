@@ -2,13 +2,15 @@
 //! co-simulation (section 7) with its figures reproduced; see docs/uav-demo.md.
 //!
 //! A workspace member of its own beside `tutti-uav`, so that `tutti` links none of what only
-//! the demo needs (plotters, resvg). The demo is the framework itself (a `tutti-host` loop);
-//! its UAV components are this executable again (`tutti-demo uav-node`); the FMU component
-//! and the gateway are the `tutti` executable next to this one ([`tutti_exe`]).
+//! the demo needs (plotters, resvg). The demo's scenario is a launch file run by `tutti run`
+//! (the `tutti` executable next to this one, [`tutti_exe`]): the framework, the FMU component
+//! and the gateway are `tutti`; its UAV components are this executable again (`tutti-demo
+//! uav-node`).
 //!
 //! Modules: `scenario` (the script and its constants) ← `node` (one UAV component) ←
-//! `analysis` (the checks) ← `plot` (the figures); `sim` (the co-simulation run) ← `uav` (the
-//! command: its options, the run and its report).
+//! `analysis` (the checks) ← `plot` (the figures); `sim` (the launch file and its run) ←
+//! `recording` (the framework's tables from the run's recording) ← `uav` (the command: its
+//! options, the run and its report).
 
 use std::process::ExitCode;
 
@@ -17,6 +19,7 @@ use clap::{Parser, Subcommand};
 mod analysis;
 mod node;
 mod plot;
+mod recording;
 mod scenario;
 mod sim;
 mod uav;
@@ -29,7 +32,7 @@ struct Args {
     command: DemoCommand,
 }
 
-pub use tutti_exit::{enter_realtime, tutti_exe, CliResult, Failure, RealtimeArgs, EXIT_FAILURE};
+pub use tutti_exit::{tutti_exe, CliResult, Failure, EXIT_FAILURE};
 
 #[derive(Debug, Subcommand)]
 enum DemoCommand {

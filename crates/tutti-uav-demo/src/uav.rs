@@ -1,14 +1,15 @@
 //! `tutti-demo uav`: the UAV formation co-simulation of the paper's section 7, end to end:
 //! its options, the run ([`crate::sim`]) and its report (the checks and the figures).
 //!
-//! This process is the framework of `ddf/multiuav.ddf` (formation commands, the altitude it
-//! read and its clock in PUBLISH; UAV states read from SUBSCRIBE), stepped by the real-time
-//! loop of `tutti-host`. It starts four UAV components (`tutti-demo uav-node`), the monitoring script
-//! (`launch-scripts/monitor.py`, Python over the RTAPI) that disconnects and reconnects UAV
-//! components on schedule and logs the connection counts, two C components
-//! (`examples/c/uav_altitude_log.c`) that connect to UAV2's domain on schedule, and the
-//! DDS / ROS 2 gateway (loopback only). At the end it reads the CSV files back, draws
-//! Figures 5 and 6 and prints the checks; exit status 1 when one fails.
+//! The scenario is a launch file (`examples/uav/uav-demo.json5`), run by `tutti run`
+//! ([`crate::sim`]): the framework of `ddf/multiuav.ddf` and the FMU's domain (formation
+//! commands, the altitude it read and its clock in PUBLISH; UAV states read from SUBSCRIBE),
+//! four UAV components (`tutti-demo uav-node`), the FMU component, the DDS / ROS 2 gateway
+//! (loopback only), the monitoring script (`launch-scripts/monitor.py`) that sends the
+//! disconnect and connect requests and starts the two C components
+//! (`examples/c/uav_altitude_log.c`) through the run's control plane, and logs the
+//! connection counts. At the end this reads the CSV files back, draws Figures 5 and 6 and
+//! prints the checks; exit status 1 when one fails.
 
 use std::path::{Path, PathBuf};
 use std::sync::atomic::Ordering;
@@ -45,8 +46,10 @@ pub struct UavArgs {
     /// DDS domain of the gateway (default: ROS_DOMAIN_ID, else 0).
     #[arg(long, value_name = "N")]
     ros_domain_id: Option<u32>,
-    #[command(flatten)]
-    rt: crate::RealtimeArgs,
+    /// Only prepare --out (the DDFs, the C component, the FMU, the launch file
+    /// uav-demo.json5) and say how to run it with `tutti run` and `tutti ctl`.
+    #[arg(long)]
+    prepare: bool,
 }
 
 /// `tutti-demo uav-report`: the checks and figures of a finished run, again.
@@ -83,7 +86,6 @@ impl UavArgs {
             c_reader: self.c_reader.clone(),
             no_gateway: self.no_gateway,
             ros_domain_id: self.ros_domain_id,
-            rt: self.rt.clone(),
         }
     }
 }
@@ -118,6 +120,20 @@ pub fn run(args: UavArgs) -> CliResult {
     let dir = &args.run.out;
     std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
     let out = dir.canonicalize().unwrap_or(dir.clone());
+    if args.prepare {
+        let p = crate::sim::prepare(&args.sim_options(), &scenario, &out)?;
+        eprintln!("demo: prepared {}; run the scenario with", p.launch.display());
+        eprintln!("  TUTTI_NAMESPACE={} tutti run {}", p.namespace, p.launch.display());
+        eprintln!("then check and draw it with");
+        eprintln!(
+            "  tutti-demo uav-report --out {} --scenario {}{}",
+            out.display(),
+            scenario.name,
+            args.run.duration.map(|d| format!(" --duration {d}")).unwrap_or_default()
+        );
+        eprintln!("(uav-report draws framework.csv and altitude_filter.csv from the run's recording)");
+        return Ok(());
+    }
     let interrupted = tutti_exit::stop_flag()?;
     let started = Instant::now();
     let ran = crate::sim::simulate(&args.sim_options(), &scenario, &out, &interrupted);
@@ -130,8 +146,12 @@ pub fn run(args: UavArgs) -> CliResult {
     report(&out, &scenario, args.run.step.as_secs_f64())
 }
 
-/// `tutti-demo uav-report`.
+/// `tutti-demo uav-report`: from the recording of a run made by hand (`tutti run`) too.
 pub fn run_report(args: ReportArgs) -> CliResult {
+    // The recording is the run's truth: the tables are drawn from it again, whoever ran it.
+    if args.run.out.join("run-multiuav_uav1.csv").exists() {
+        crate::recording::demo_tables(&args.run.out).context("drawing framework.csv from the run's recording")?;
+    }
     report(&args.run.out, &args.run.scenario(), args.run.step.as_secs_f64())
 }
 
