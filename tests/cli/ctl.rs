@@ -172,7 +172,35 @@ fn an_asynchronous_run_pauses_and_refuses_to_step() {
     use std::os::unix::fs::PermissionsExt;
     assert_eq!(std::fs::metadata(&socket).unwrap().permissions().mode() & 0o777, 0o600);
 
+    // Run as root (as the test command is), the test can be another user too.
+    if std::os::unix::fs::MetadataExt::uid(&std::fs::metadata("/proc/self").unwrap()) == 0 {
+        another_user_is_refused(&ns, &socket);
+    }
+
+    // Every call from Python, on this run.
+    let script = "import json, sys, tutti_ctl\n\
+        run = tutti_ctl.connect(sys.argv[1])\n\
+        out = [run.state()['state'], run.pause()['state']]\n\
+        try:\n    run.step(2)\nexcept tutti_ctl.ControlError as e:\n    out.append(str(e))\n\
+        out += [run.reset()['step'], run.resume()['state']]\n\
+        try:\n    run.restart('x')\nexcept tutti_ctl.ControlError as e:\n    out.append(str(e))\n\
+        print(json.dumps(out))";
+    let Some(py) = python() else { return };
+    let mut cmd = Command::new(&py);
+    cmd.args(["-c", script, &ns]).env("PYTHONPATH", common::repo_root().join("python"));
+    let (status, out, err) = common::run_with_timeout(cmd, Duration::from_secs(60));
+    assert!(status.success(), "{out}{err}");
+    let v: serde_json::Value = serde_json::from_str(out.trim()).unwrap();
+    assert_eq!(
+        (&v[0], &v[1], &v[3], &v[4]),
+        (&"playing".into(), &"paused".into(), &0.into(), &"playing".into()),
+        "{v}"
+    );
+    assert!(v[2].as_str().unwrap().contains("asynchronous"), "{v}");
+    assert!(v[5].as_str().unwrap().contains("no components"), "{v}");
+
     assert_eq!(ctl(&ns, &["pause"])["state"], "paused");
+    assert_eq!(ctl(&ns, &["reset"])["step"], 0);
     let steps = |d: &str| tutti_core::shm::Segment::open(&ns, d).unwrap().status().steps;
     let before = steps("gw_async");
     thread::sleep(Duration::from_millis(200));
@@ -188,4 +216,25 @@ fn an_asynchronous_run_pauses_and_refuses_to_step() {
     assert_eq!(ctl(&ns, &["stop"])["namespace"], ns.as_str());
     assert_eq!(host.wait(Duration::from_secs(30)), Some(0), "{}", host.dump());
     assert!(!socket.exists());
+}
+
+/// Another user cannot use the run's control plane: the socket is the owner's (mode 0600),
+/// and were it opened to all, the run closes another user's connection unanswered.
+fn another_user_is_refused(ns: &str, socket: &Path) {
+    let as_nobody = || {
+        let mut cmd = Command::new("setpriv");
+        cmd.args(["--reuid=65534", "--regid=65534", "--clear-groups"]).arg(common::tutti_exe());
+        cmd.args(["ctl", "state", "--namespace", ns, "--timeout", "10s"]);
+        let (status, out, err) = common::run_with_timeout(cmd, Duration::from_secs(60));
+        (status.code(), out, err)
+    };
+    let (code, out, err) = as_nobody();
+    assert_eq!(code, Some(1), "another user reached the run: {out}{err}");
+    assert!(err.contains("ermission denied"), "{err}");
+    use std::os::unix::fs::PermissionsExt;
+    std::fs::set_permissions(socket, std::fs::Permissions::from_mode(0o666)).unwrap();
+    let (code, out, err) = as_nobody();
+    std::fs::set_permissions(socket, std::fs::Permissions::from_mode(0o600)).unwrap();
+    assert_eq!(code, Some(1), "another user was answered: {out}{err}");
+    assert!(err.contains("closed the connection"), "{err}");
 }

@@ -420,7 +420,14 @@ impl ControlClient {
 
     /// Sends `request` and returns the run's state after it.
     pub fn request(&mut self, request: &Request) -> Result<RunStatus, ControlError> {
-        let io = |what, source| ControlError::Io { what, path: "the control socket".into(), source };
+        // A run that closes a connection unanswered (another user's) may do so before the
+        // request is written, while it is, or after.
+        let io = |what, source: std::io::Error| match source.kind() {
+            std::io::ErrorKind::BrokenPipe | std::io::ErrorKind::ConnectionReset => {
+                ControlError::Protocol("the run closed the connection".into())
+            }
+            _ => ControlError::Io { what, path: "the control socket".into(), source },
+        };
         let mut text = serde_json::to_string(request).map_err(|e| ControlError::Protocol(e.to_string()))?;
         text.push('\n');
         self.stream.get_mut().write_all(text.as_bytes()).map_err(|e| io("writing to", e))?;
