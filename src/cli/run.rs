@@ -17,7 +17,7 @@ use super::{CliResult, Failure};
 /// Run a co-simulation described by a launch file: the framework, the components, the gateway.
 #[derive(Debug, clap::Args)]
 #[command(
-    after_help = "Examples:\n  tutti run cosim.json5\n  tutti run cosim.json5 --logs /tmp/cosim-logs --check\n\nThe launch file's keys, restart policies and logs: docs/run.md. Exit status: 0 when every component \
+    after_help = "Examples:\n  tutti run cosim.json5\n  tutti run cosim.json5 --logs /tmp/cosim-logs --check\n  sudo tutti run cosim.json5 --realtime --cpu 1 --priority 80\n\nThe launch file's keys, restart policies and logs: docs/run.md. Exit status: 0 when every component \
                   ended well (exit status 0, or stopped by the run), 1 otherwise, 2 for a launch file that is refused."
 )]
 pub struct Args {
@@ -36,6 +36,8 @@ pub struct Args {
     /// Print no framework progress lines (the components' output and the run's events stay).
     #[arg(short, long)]
     quiet: bool,
+    #[command(flatten)]
+    rt: super::RealtimeArgs,
 }
 
 pub fn run(args: Args) -> CliResult {
@@ -56,6 +58,7 @@ pub fn run(args: Args) -> CliResult {
         tutti_exe,
         namespace: None,
         grace: args.grace,
+        realtime: args.rt.request(),
     };
     let quiet = args.quiet;
     let print = Arc::new(move |e: Event| match &e {

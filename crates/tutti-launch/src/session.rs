@@ -32,6 +32,9 @@ pub struct RunOptions {
     pub namespace: Option<String>,
     /// How long a component has to exit after SIGTERM before SIGKILL.
     pub grace: Duration,
+    /// Real-time scheduling for the stepping thread (`tutti run --realtime`), applied once
+    /// the components have started, as `tutti host --realtime` applies it.
+    pub realtime: Option<tutti_host::RealtimeRequest>,
 }
 
 /// How a run ended.
@@ -111,6 +114,15 @@ pub fn run(
     let go = !fw.hold || supervisor.wait_started().is_ok();
     let mut stepped = Ok(None);
     if go && !finished.load(Ordering::SeqCst) {
+        if let Some(req) = &opts.realtime {
+            let got = tutti_host::enter_realtime(req);
+            for line in got.applied.iter().map(|a| format!("real-time: {a}")) {
+                on_event(Event::Notice(line));
+            }
+            for line in got.warnings.iter().map(|r| format!("real-time: not applied: {r}")) {
+                on_event(Event::Notice(line));
+            }
+        }
         stepped = host.run_and_keep(&finished, |r| on_event(Event::Host(r))).map(Some);
     }
     // Components first (reverse order), while their domains still exist; then the

@@ -57,6 +57,7 @@ fn a_component_is_restarted_stopped_and_started_mid_run_while_the_other_keeps_st
         tutti_exe: PathBuf::from("tutti"),
         namespace: Some(ns.clone()),
         grace: Duration::from_secs(3),
+        realtime: None,
     };
     let stop = interrupt.clone();
     let run = std::thread::spawn(move || {

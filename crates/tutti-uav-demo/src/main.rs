@@ -32,7 +32,7 @@ struct Args {
     command: DemoCommand,
 }
 
-pub use tutti_exit::{tutti_exe, CliResult, Failure, EXIT_FAILURE};
+pub use tutti_exit::{tutti_exe, CliResult, Failure, RealtimeArgs, EXIT_FAILURE};
 
 #[derive(Debug, Subcommand)]
 enum DemoCommand {

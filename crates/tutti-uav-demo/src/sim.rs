@@ -35,6 +35,8 @@ pub struct SimOptions {
     pub c_reader: Option<PathBuf>,
     pub no_gateway: bool,
     pub ros_domain_id: Option<u32>,
+    /// `--realtime [--cpu N] [--priority P]`, handed to `tutti run`.
+    pub rt: crate::RealtimeArgs,
 }
 
 /// The DDF of the demo, built in: the demo runs from any directory.
@@ -278,6 +280,11 @@ pub fn simulate(opts: &SimOptions, scenario: &Scenario, out: &Path, interrupted:
     }
     let mut cmd = Command::new(&p.tutti);
     cmd.arg("run").arg(&p.launch).arg("--logs").arg(out.join("logs"));
+    if opts.rt.realtime {
+        cmd.arg("--realtime");
+        opts.rt.cpu.map(|c| cmd.args(["--cpu", &c.to_string()]));
+        opts.rt.priority.map(|p| cmd.args(["--priority", &p.to_string()]));
+    }
     cmd.env("TUTTI_NAMESPACE", &p.namespace).stdin(Stdio::null());
     let mut run = ChildProcess::spawn("tutti run", cmd, None)?.stop_on_drop(Some(SIGINT), Duration::from_secs(15));
     let status = loop {
@@ -314,6 +321,7 @@ mod tests {
             c_reader: None,
             no_gateway: false,
             ros_domain_id: None,
+            rt: crate::RealtimeArgs { realtime: false, cpu: None, priority: None },
         }
     }
 

@@ -50,6 +50,8 @@ pub struct UavArgs {
     /// uav-demo.json5) and say how to run it with `tutti run` and `tutti ctl`.
     #[arg(long)]
     prepare: bool,
+    #[command(flatten)]
+    rt: crate::RealtimeArgs,
 }
 
 /// `tutti-demo uav-report`: the checks and figures of a finished run, again.
@@ -86,6 +88,7 @@ impl UavArgs {
             c_reader: self.c_reader.clone(),
             no_gateway: self.no_gateway,
             ros_domain_id: self.ros_domain_id,
+            rt: self.rt.clone(),
         }
     }
 }
