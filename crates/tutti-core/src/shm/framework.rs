@@ -333,7 +333,7 @@ impl DomainHost {
         if !paused {
             h.resumed_ns.store(os::now_ns(), Ordering::Release);
         }
-        h.paused.store(u32::from(paused), Ordering::Release);
+        h.paused.store(if paused { segment::PAUSED } else { 0 }, Ordering::Release);
     }
 
     pub fn set_hold(&self, hold: bool) {

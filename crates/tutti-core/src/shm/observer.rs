@@ -190,4 +190,31 @@ mod tests {
         let s = fw.domains[0].status();
         assert_eq!((s.connections.iter().filter(|c| c.observer).count(), s.dds_readers), (1, 1), "{:?}", s.connections);
     }
+
+    /// Only the framework's own pause (its pattern in the word) and a resume that is not in the
+    /// future hold a participant's timeout back: a segment written over cannot make a wait
+    /// last for ever.
+    #[test]
+    fn only_a_real_pause_holds_a_wait_back() {
+        let model = crate::ddf::parse_str(DDF, "seen.ddf").unwrap();
+        let ns = format!("pauseword{}", std::process::id());
+        let fw = Framework::create(&model, &FrameworkOptions { namespace: ns.clone(), ..Default::default() }).unwrap();
+        let seg = Segment::open(&ns, "seen").unwrap();
+        let timeout = Duration::from_millis(100);
+        let h = seg.header();
+        assert!(seg.step_wait_may_time_out(timeout), "never paused");
+        fw.domains[0].set_paused(true);
+        assert!(!seg.step_wait_may_time_out(timeout) && seg.paused());
+        fw.domains[0].set_paused(false);
+        assert!(!seg.step_wait_may_time_out(timeout), "just resumed: a whole timeout from the resume");
+        h.resumed_ns.store(0, Ordering::Release);
+        assert!(seg.step_wait_may_time_out(timeout));
+        for garbage in [1u32, 2, 0xdead_beef, u32::MAX] {
+            h.paused.store(garbage, Ordering::Release);
+            assert!(seg.step_wait_may_time_out(timeout) && !seg.paused(), "paused word {garbage:#x}");
+        }
+        h.paused.store(0, Ordering::Release);
+        h.resumed_ns.store(u64::MAX, Ordering::Release);
+        assert!(seg.step_wait_may_time_out(timeout), "a resume in the future is garbage");
+    }
 }

@@ -58,6 +58,9 @@ pub(crate) const RELEASING: u32 = u32::MAX;
 /// Framework state values (0 while the framework initialises the segment).
 pub(crate) const STATE_RUNNING: u32 = 1;
 pub(crate) const STATE_STOPPED: u32 = 2;
+/// The `paused` word of a paused framework: a pattern, not a flag, so that a header written
+/// over is not read as a pause (which would hold participants' timeouts back).
+pub(crate) const PAUSED: u32 = u32::from_le_bytes(*b"PAUS");
 
 /// The namespace from `TUTTI_NAMESPACE` (default `tutti`).
 pub fn namespace_from_env() -> String {
@@ -148,7 +151,8 @@ pub(crate) struct Header {
     pub go_waiters: AtomicU32,
     /// Observer connections (see [`ConnKind::Observer`]).
     pub observer_count: AtomicU32,
-    /// 1 while the framework is paused: participants waiting for a step do not time out.
+    /// [`PAUSED`] while the framework is paused: participants waiting for a step do not time
+    /// out.
     pub paused: AtomicU32,
     /// When the framework last resumed (ns since the epoch): a wait that began during the
     /// pause gets a whole timeout from then.
@@ -716,18 +720,22 @@ impl Segment {
 
     /// Whether the framework is paused (its run holds every domain at a step boundary).
     pub fn paused(&self) -> bool {
-        self.header().paused.load(Ordering::Acquire) != 0
+        self.header().paused.load(Ordering::Acquire) == PAUSED
     }
 
     /// Whether a wait of at most `timeout` for the framework's next step may time out now:
     /// not while the framework is paused, nor within `timeout` after it resumed.
     pub(crate) fn step_wait_may_time_out(&self, timeout: Duration) -> bool {
+        // Only the framework's own words count: the PAUSED pattern, and a resume that is
+        // not in the future. Anything else (a segment written over) leaves the timeout as it
+        // is, so that no wait can last for ever on a corrupted word.
         let h = self.header();
-        if h.paused.load(Ordering::Acquire) != 0 {
+        if h.paused.load(Ordering::Acquire) == PAUSED {
             return false;
         }
-        let since = os::now_ns().saturating_sub(h.resumed_ns.load(Ordering::Acquire));
-        since >= timeout.as_nanos().min(u128::from(u64::MAX)) as u64
+        let (now, resumed) = (os::now_ns(), h.resumed_ns.load(Ordering::Acquire));
+        let timeout = timeout.as_nanos().min(u128::from(u64::MAX)) as u64;
+        resumed > now || now - resumed >= timeout
     }
 
     /// Whether the framework is running (state and process both alive).
@@ -896,7 +904,7 @@ impl Segment {
             rejected: h.rejected.load(Ordering::Relaxed),
             seeded: h.seeded.load(Ordering::Relaxed) != 0,
             waiting_to_go: h.hold.load(Ordering::Relaxed) != 0,
-            paused: h.paused.load(Ordering::Relaxed) != 0,
+            paused: h.paused.load(Ordering::Relaxed) == PAUSED,
             connection_count: h.conn_count.load(Ordering::Relaxed),
             dds_writers: h.remote_count.load(Ordering::Relaxed),
             // DDS readers of the domain's topics, as the live gateways attached to it count them.
