@@ -138,9 +138,10 @@ impl Gw {
 
     /// The framework just published `host`'s step with `set`: an in-process gateway writes it
     /// to DDS (what its step sink does in a host); a separate one finds it in shared memory.
-    fn published(&mut self, host: &DomainHost, sim: f64, set: &[u8]) {
+    /// `more`: the framework steps on at once (flat out), as a host that is catching up says.
+    fn published(&mut self, host: &DomainHost, sim: f64, set: &[u8], more: bool) {
         if let Gw::InProcess { sink, .. } = self {
-            sink.send(0, host.current_step(), sim, set);
+            sink.send(0, host.current_step(), sim, set, more);
         }
     }
 
@@ -580,7 +581,7 @@ impl Bench<'_> {
         let mut send = |host: &mut DomainHost, gw: &mut Gw, seq: f64| {
             fill(&mut data, seq);
             host.publish_step(&data, seq)?;
-            gw.published(host, seq, &data);
+            gw.published(host, seq, &data, false);
             anyhow::Ok(())
         };
         let back = |host: &mut DomainHost| host.read_subscribe().map_or(f64::NAN, first_item);
@@ -692,7 +693,8 @@ impl Bench<'_> {
             k += 1;
             fill(&mut data, k as f64);
             host.publish_step(&data, k as f64)?;
-            gw.published(host, k as f64, &data);
+            // Flat out: another step follows at once.
+            gw.published(host, k as f64, &data, true);
             if synchronous {
                 host.complete_step()?;
             } else {
@@ -755,7 +757,7 @@ impl Bench<'_> {
             k += 1;
             fill(&mut data, k as f64);
             host.publish_step(&data, k as f64)?;
-            gw.published(host, k as f64, &data);
+            gw.published(host, k as f64, &data, false);
             host.complete_step()?;
             Ok(first_item(host.subscribe()) == k as f64)
         };

@@ -23,7 +23,7 @@ use tutti_core::shm::Framework;
 use tutti_host::{Published, StepDone, StepSink};
 
 use crate::manager::{self, Placement};
-use crate::routes::from_step::StepRoute;
+use crate::routes::from_step::{self, StepRoute};
 use crate::{GatewayError, GatewayOptions, Stats};
 
 /// What [`start`] reports on: called on the manager's thread with the status line (every
@@ -41,6 +41,8 @@ pub struct InProcess {
 struct Shared {
     stop: Arc<AtomicBool>,
     thread: Mutex<Option<JoinHandle<()>>>,
+    /// The flush thread of the batched asynchronous sets ([`crate::routes::from_step::Held`]).
+    flusher: Mutex<Option<JoinHandle<()>>>,
     stats: Arc<Stats>,
 }
 
@@ -48,9 +50,12 @@ impl Shared {
     /// Stops the manager and every thread of the gateway, once.
     fn stop(&self) {
         self.stop.store(true, Ordering::Release);
-        let thread = self.thread.lock().unwrap_or_else(PoisonError::into_inner).take();
-        if let Some(t) = thread {
-            let _ = t.join();
+        for slot in [&self.thread, &self.flusher] {
+            let thread = slot.lock().unwrap_or_else(PoisonError::into_inner).take();
+            if let Some(t) = thread {
+                t.thread().unpark();
+                let _ = t.join();
+            }
         }
     }
 }
@@ -88,10 +93,12 @@ pub struct GatewaySink {
 impl GatewaySink {
     /// Writes step `step` of domain `domain` (its index in the model), PUBLISH set `set`,
     /// to DDS if a reader wants it; what [`StepSink::published`] does for every domain, for a
-    /// framework that steps its domains itself. Returns whether it was written.
-    pub fn send(&mut self, domain: usize, step: u64, sim: f64, set: &[u8]) -> bool {
+    /// framework that steps its domains itself. `more`: another step follows at once (an
+    /// asynchronous set may then wait in a batch, at most [`crate::routes::from_step::HOLD_AT_MOST`]).
+    /// Returns whether it was written.
+    pub fn send(&mut self, domain: usize, step: u64, sim: f64, set: &[u8], more: bool) -> bool {
         match self.routes.get_mut(domain) {
-            Some(Some(r)) => r.send(step, sim, set),
+            Some(Some(r)) => r.send(step, sim, set, more),
             _ => false,
         }
     }
@@ -110,7 +117,7 @@ impl StepSink for GatewaySink {
     ) -> Result<(), Box<dyn std::error::Error + Send + Sync>> {
         for ((route, host), set) in self.routes.iter_mut().zip(&fw.domains).zip(step.publish) {
             if let Some(r) = route {
-                r.send(host.current_step(), step.sim, set);
+                r.send(host.current_step(), step.sim, set, step.more);
             }
         }
         Ok(())
@@ -170,7 +177,20 @@ pub fn start(
     let started = rx.recv();
     match started {
         Ok(Ok((routes, stats))) => {
-            let shared = Arc::new(Shared { stop, thread: Mutex::new(Some(thread)), stats });
+            let held: Vec<_> = routes.iter().flatten().filter_map(|r| r.held()).collect();
+            let flusher = match from_step::spawn_flusher(held.clone(), stop.clone()) {
+                Ok(f) => f,
+                Err(e) => {
+                    stop.store(true, Ordering::Release);
+                    let _ = thread.join();
+                    return Err(GatewayError::dds("a thread", e));
+                }
+            };
+            if let Some(f) = &flusher {
+                held.iter().for_each(|h| h.watched_by(f.thread().clone()));
+            }
+            let shared =
+                Arc::new(Shared { stop, thread: Mutex::new(Some(thread)), flusher: Mutex::new(flusher), stats });
             Ok((InProcess { shared: shared.clone() }, GatewaySink { routes, shared }))
         }
         Ok(Err(e)) => {

@@ -92,6 +92,9 @@ pub struct Published<'a> {
     pub publish: &'a [Vec<u8>],
     /// Simulated time of the step, seconds.
     pub sim: f64,
+    /// Another step follows at once (the run is catching up, or making the steps of a
+    /// `step N`): a sink may batch this one with it.
+    pub more: bool,
 }
 
 /// Something that takes every step of a run (a recording: `tutti-record`'s recorders are
@@ -361,12 +364,14 @@ impl Host {
     /// Waits for the next deadline and makes one step of every domain; its sinks take it.
     pub fn step(&mut self, on_report: &mut dyn FnMut(Report)) -> Result<Tick, HostError> {
         let tick = self.ticker.wait();
-        self.make_step(tick, on_report)?;
+        // Released a whole period late: the next deadline is already due.
+        let more = tick.late >= self.opts.period();
+        self.make_step(tick, more, on_report)?;
         Ok(tick)
     }
 
     /// Makes the step of `tick`: every domain, then the sinks.
-    fn make_step(&mut self, tick: Tick, on_report: &mut dyn FnMut(Report)) -> Result<(), HostError> {
+    fn make_step(&mut self, tick: Tick, more: bool, on_report: &mut dyn FnMut(Report)) -> Result<(), HostError> {
         if self.held && self.opts.hold.is_some_and(|h| self.run_start.elapsed() >= h) {
             self.held = false;
             self.fw.domains.iter().for_each(|d| d.set_hold(false));
@@ -375,7 +380,7 @@ impl Host {
         // `@sim_time` connections: the time of the step they are published in.
         self.connections.apply_clock(sim, &mut self.publish);
         publish_all(&mut self.fw, &self.publish, sim, self.opts.period())?;
-        let published = Published { publish: &self.publish, sim };
+        let published = Published { publish: &self.publish, sim, more };
         for sink in &mut self.sinks {
             sink.published(&self.fw, &published)
                 .map_err(|source| HostError::Sink { what: "handing the published step on", source })?;
@@ -586,9 +591,9 @@ impl Host {
         if let Some(refusal) = self.step_refusal() {
             return Ok(Err(refusal));
         }
-        for _ in 0..n {
+        for i in 0..n {
             let tick = self.ticker.release_now();
-            self.make_step(tick, on_report)?;
+            self.make_step(tick, i + 1 < n, on_report)?;
         }
         Ok(Ok(()))
     }

@@ -167,7 +167,15 @@ pub trait Writer: Send {
     fn write_serialized(&mut self, raw: &[u8]) -> bool;
     /// Sends what batching held back (a no-op where writes are not batched).
     fn flush(&mut self) {}
+    /// A flush that another thread may call while this writer writes (None: the engine does
+    /// not batch): it bounds in time how long a batched sample waits.
+    fn flusher(&self) -> Option<Flusher> {
+        None
+    }
 }
+
+/// A writer's flush, callable from any thread.
+pub type Flusher = std::sync::Arc<dyn Fn() + Send + Sync>;
 
 /// Remote (not our participant's) endpoints per topic name, and the QoS each announced.
 #[derive(Debug, Default, Clone, PartialEq, Eq)]

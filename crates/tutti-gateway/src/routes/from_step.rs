@@ -12,13 +12,19 @@
 //!   writer has the domain's QoS (reliable, keep-all), so a reader that cannot keep up
 //!   slows the framework's writes rather than losing steps.
 //! * An **asynchronous** set is written at every step (at most `max_rate` a second where the
-//!   config file says so). Steps that follow each other closer than [`BACK_TO_BACK`] (a
-//!   framework stepping flat out, or catching up) are sent in batches of at most
-//!   [`FLUSH_EVERY`]: the batch goes out with the first step that comes after a pause, or
-//!   when full, or when the run ends ([`StepRoute::flush`]). A step after a pause is sent at
-//!   once, so a framework stepping at its period adds no latency.
+//!   config file says so). When the framework says another step follows at once (it is
+//!   catching up, or a caller steps flat out: [`StepRoute::send`]'s `more`), the sample is
+//!   left in a batch of at most [`FLUSH_EVERY`], which goes out with the first step sent
+//!   without `more`, when full, when the run ends ([`StepRoute::flush`]), and at the latest
+//!   [`HOLD_AT_MOST`] after its first sample: the gateway's flush thread ([`Held`]) sends it
+//!   then, so a held sample never waits long for a step that waits for an answer to it. No
+//!   timing guess decides it: on one core an answer can come back through DDS while the
+//!   write that caused it is still being sent, so a short gap between two steps does not mean
+//!   that nothing waits.
 
-use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+use std::sync::{Arc, OnceLock};
+use std::thread::{JoinHandle, Thread};
 use std::time::{Duration, Instant};
 
 use tutti_core::ddf::{Domain, Role};
@@ -28,22 +34,78 @@ use super::per_item::ItemWriters;
 use super::to_dds::{self, min_interval, Activation, Outbound, Outgoing, ServedBy};
 use super::Counters;
 use crate::config::PlannedSet;
-use crate::engine::Engine;
+use crate::engine::{Engine, Flusher};
 use crate::GatewayError;
 
-/// Steps of an asynchronous set closer together than this are batched. It is below the
-/// shortest DDS round trip on loopback (ddsperf: 7.5 µs), so a step that follows the answer
-/// to its predecessor through DDS is never held: a held sample waits for the next step (a
-/// host makes one within its period; the end of the run flushes), never for an answer to it.
-pub const BACK_TO_BACK: Duration = Duration::from_micros(3);
 /// Samples of an asynchronous set that go out in one batch at most.
 pub const FLUSH_EVERY: u32 = 32;
+/// The longest a batched sample waits: then the flush thread sends its batch.
+pub const HOLD_AT_MOST: Duration = Duration::from_micros(50);
+
+/// A route's batch as the flush thread sees it: since when its first sample waits (ns on
+/// this process's clock, 0: nothing waits), and how to send it from another thread.
+pub struct Held {
+    since_ns: AtomicU64,
+    flush: Flusher,
+    /// The flush thread, woken when a batch starts.
+    thread: OnceLock<Thread>,
+}
+
+impl std::fmt::Debug for Held {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Held").field("since_ns", &self.since_ns).finish()
+    }
+}
+
+impl Held {
+    /// The flush thread to wake when a batch starts.
+    pub fn watched_by(&self, thread: Thread) {
+        let _ = self.thread.set(thread);
+    }
+}
+
+/// Nanoseconds since the first call in this process: a monotonic clock as an integer.
+fn now_ns() -> u64 {
+    static START: OnceLock<Instant> = OnceLock::new();
+    START.get_or_init(Instant::now).elapsed().as_nanos() as u64 | 1
+}
+
+/// The flush thread of an in-process gateway: sends each batch that has waited
+/// [`HOLD_AT_MOST`], until `stop`; sleeps while nothing waits.
+pub fn spawn_flusher(held: Vec<Arc<Held>>, stop: Arc<AtomicBool>) -> std::io::Result<Option<JoinHandle<()>>> {
+    if held.is_empty() {
+        return Ok(None);
+    }
+    let thread = std::thread::Builder::new().name("tutti-gw-flush".into()).spawn(move || {
+        let limit = HOLD_AT_MOST.as_nanos() as u64;
+        while !stop.load(Ordering::Acquire) {
+            let now = now_ns();
+            let mut waiting = false;
+            for h in &held {
+                let since = h.since_ns.load(Ordering::Acquire);
+                if since == 0 {
+                    continue;
+                }
+                if now.saturating_sub(since) >= limit && h.since_ns.swap(0, Ordering::AcqRel) != 0 {
+                    (h.flush)();
+                } else {
+                    waiting = true;
+                }
+            }
+            if waiting {
+                std::thread::sleep(HOLD_AT_MOST / 2);
+            } else {
+                std::thread::park_timeout(Duration::from_millis(100));
+            }
+        }
+    })?;
+    Ok(Some(thread))
+}
 
 /// One domain's PUBLISH set, written to DDS from the framework's step.
 #[derive(Debug)]
 pub struct StepRoute {
     domain: String,
-    synchronous: bool,
     out: Outbound,
     activation: Arc<Activation>,
     counters: Counters,
@@ -52,9 +114,10 @@ pub struct StepRoute {
     /// Shortest time between two samples of an asynchronous set (zero: no limit).
     min_interval: Duration,
     next_allowed: Instant,
-    /// When the last sample was written, and the samples written but not yet sent.
-    last_write: Instant,
+    /// The samples written but not yet sent.
     unflushed: u32,
+    /// The batch as the flush thread sees it (asynchronous sets of a batching engine).
+    held: Option<Arc<Held>>,
 }
 
 /// The typed route of planned PUBLISH set `p` of domain `d`, written from the step.
@@ -79,17 +142,20 @@ pub fn items(
 fn route(d: &Domain, p: &PlannedSet, out: Outbound, topics: Vec<String>, counters: Counters) -> Outgoing {
     let activation = Arc::new(Activation::default());
     let now = Instant::now();
+    let held = match (d.flags.synchronous, out.flusher()) {
+        (false, Some(flush)) => Some(Arc::new(Held { since_ns: AtomicU64::new(0), flush, thread: OnceLock::new() })),
+        _ => None,
+    };
     let r = StepRoute {
         domain: d.name.clone(),
-        synchronous: d.flags.synchronous,
         out,
         activation: activation.clone(),
         counters,
         joined: 0,
         min_interval: if d.flags.synchronous { Duration::ZERO } else { min_interval(p.max_rate) },
         next_allowed: now,
-        last_write: now,
         unflushed: 0,
+        held,
     };
     Outgoing { topics, activation, served_by: ServedBy::Step(Box::new(r)) }
 }
@@ -101,8 +167,9 @@ impl StepRoute {
     }
 
     /// Writes step `step` (simulated time `sim`), whose PUBLISH set is `set`, to DDS if a
-    /// reader wants it; returns whether it was written.
-    pub fn send(&mut self, step: u64, sim: f64, set: &[u8]) -> bool {
+    /// reader wants it; returns whether it was written. `more`: another step follows at once,
+    /// so an asynchronous set may wait in a batch (see the module).
+    pub fn send(&mut self, step: u64, sim: f64, set: &[u8], more: bool) -> bool {
         if !self.activation.is_active() {
             self.flush();
             return false;
@@ -112,8 +179,8 @@ impl StepRoute {
             self.joined = joined;
             self.out.reset();
         }
-        let now = Instant::now();
         if !self.min_interval.is_zero() {
+            let now = Instant::now();
             if now < self.next_allowed {
                 return false;
             }
@@ -122,10 +189,15 @@ impl StepRoute {
         let Counters { total, set: counts } = &self.counters;
         let written = self.out.write(step, sim, set, total, Some(counts)) > 0;
         self.unflushed += 1;
-        let back_to_back = now.saturating_duration_since(self.last_write) < BACK_TO_BACK;
-        self.last_write = now;
-        if self.synchronous || !back_to_back || self.unflushed >= FLUSH_EVERY {
-            self.flush();
+        match &self.held {
+            Some(h) if more && self.unflushed < FLUSH_EVERY => {
+                if h.since_ns.compare_exchange(0, now_ns(), Ordering::AcqRel, Ordering::Acquire).is_ok() {
+                    if let Some(t) = h.thread.get() {
+                        t.unpark();
+                    }
+                }
+            }
+            _ => self.flush(),
         }
         written
     }
@@ -133,8 +205,16 @@ impl StepRoute {
     /// Sends what the last steps left in the writers' batches.
     pub fn flush(&mut self) {
         if self.unflushed > 0 {
+            if let Some(h) = &self.held {
+                h.since_ns.store(0, Ordering::Release);
+            }
             self.out.flush();
             self.unflushed = 0;
         }
+    }
+
+    /// The batch the flush thread watches, if this route batches.
+    pub fn held(&self) -> Option<Arc<Held>> {
+        self.held.clone()
     }
 }

@@ -150,6 +150,11 @@ impl SetWriter {
     pub fn flush(&mut self) {
         self.writer.flush();
     }
+
+    /// Its writer's flush for another thread ([`crate::engine::Writer::flusher`]).
+    pub fn flusher(&self) -> Option<crate::engine::Flusher> {
+        self.writer.flusher()
+    }
 }
 
 /// A DDS side of a set: typed or per item.
@@ -165,6 +170,15 @@ impl Outbound {
         let n = self.write(step, sim_time, shm, stats, set);
         self.flush();
         n
+    }
+
+    /// The flush of a typed set's writer for another thread (None for per-item writers and
+    /// engines that do not batch).
+    pub fn flusher(&self) -> Option<crate::engine::Flusher> {
+        match self {
+            Outbound::Set(w) => w.flusher(),
+            Outbound::Items(_) => None,
+        }
     }
 
     /// Sends what [`Outbound::write`] left in the writers' batches.
