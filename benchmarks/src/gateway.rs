@@ -347,6 +347,20 @@ struct Bench<'a> {
     next: u16,
 }
 
+/// A run ended by Ctrl-C or SIGTERM removes the segments of its frameworks first (every
+/// namespace of this process is `gwb<pid>x<n>`): their `Drop` does not run when the process is
+/// ended, and the peers and gateways it started die with it.
+fn remove_segments_on_signal() -> anyhow::Result<()> {
+    let prefix = format!("tutti.gwb{}x", std::process::id());
+    ctrlc::set_handler(move || {
+        for name in tutti_core::shm::os::list_shm(&prefix).unwrap_or_default() {
+            let _ = std::fs::remove_file(Path::new(tutti_core::shm::os::SHM_DIR).join(name));
+        }
+        std::process::exit(130);
+    })
+    .context("installing the signal handler")
+}
+
 pub fn run(args: Args) -> CliResult {
     if let Some(ddf) = &args.echo {
         return echo(ddf, &args);
@@ -358,6 +372,7 @@ pub fn run(args: Args) -> CliResult {
         return source(ddf, &args);
     }
     let placements = Cpus::parse(&args.placement).map_err(Failure::invalid)?;
+    remove_segments_on_signal()?;
     let n_eng = args.engines.len() as u16;
     let per_run: u16 = args
         .gateways
