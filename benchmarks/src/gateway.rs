@@ -347,15 +347,21 @@ struct Bench<'a> {
     next: u16,
 }
 
-/// A run ended by Ctrl-C or SIGTERM removes the segments of its frameworks first (every
-/// namespace of this process is `gwb<pid>x<n>`): their `Drop` does not run when the process is
-/// ended, and the peers and gateways it started die with it.
-fn remove_segments_on_signal() -> anyhow::Result<()> {
+/// The scratch directory of this run (the benchmark's DDFs).
+fn scratch_dir() -> PathBuf {
+    std::env::temp_dir().join(format!("tutti-bench-gw-{}", std::process::id()))
+}
+
+/// A run ended by Ctrl-C or SIGTERM removes what it made first, the segments of its
+/// frameworks (every namespace of this process is `gwb<pid>x<n>`) and its scratch directory:
+/// no `Drop` runs when the process is ended, and the peers and gateways it started die with it.
+fn clean_up_on_signal() -> anyhow::Result<()> {
     let prefix = format!("tutti.gwb{}x", std::process::id());
     ctrlc::set_handler(move || {
         for name in tutti_core::shm::os::list_shm(&prefix).unwrap_or_default() {
             let _ = std::fs::remove_file(Path::new(tutti_core::shm::os::SHM_DIR).join(name));
         }
+        let _ = std::fs::remove_dir_all(scratch_dir());
         std::process::exit(130);
     })
     .context("installing the signal handler")
@@ -372,7 +378,7 @@ pub fn run(args: Args) -> CliResult {
         return source(ddf, &args);
     }
     let placements = Cpus::parse(&args.placement).map_err(Failure::invalid)?;
-    remove_segments_on_signal()?;
+    clean_up_on_signal()?;
     let n_eng = args.engines.len() as u16;
     let per_run: u16 = args
         .gateways
@@ -388,7 +394,7 @@ pub fn run(args: Args) -> CliResult {
     }
     let exe = crate::tutti_exe()?;
     let bench_exe = std::env::current_exe().context("locating this executable")?;
-    let dir = std::env::temp_dir().join(format!("tutti-bench-gw-{}", std::process::id()));
+    let dir = scratch_dir();
     std::fs::create_dir_all(&dir).context("creating a scratch directory")?;
     let (async_ddf, sync_ddf) = (dir.join("gwbench.ddf"), dir.join("gwsync.ddf"));
     std::fs::write(&async_ddf, ddf_text("gwbench", false)).context("writing the benchmark DDF")?;
