@@ -87,6 +87,46 @@ fn rows(csv: &Path) -> BTreeMap<u64, (f64, f64)> {
         .collect()
 }
 
+/// A launch file of two `answer` components in lock-step, `a` and `b` (with `b_keys` added
+/// to `b`'s), held until both have connected, recorded to `run.csv`.
+fn pair(b_keys: &str) -> String {
+    format!(
+        r#"{{
+  ddf: "lockstep.ddf",
+  framework: {{ step: "2ms", timeout: "5s", hold: true, record: ["run.csv"] }},
+  components: [
+    {{ name: "a", run: {a}, domain: "lock" }},
+    {{ name: "b", run: {b}, domain: "lock"{b_keys} }},
+  ],
+}}"#,
+        a = answer("a"),
+        b = answer("b")
+    )
+}
+
+/// The pids of [`pair`]'s `a` and `b` once both have connected and `b` has read 50 steps,
+/// and the index of the run's next line.
+fn started_pair(ns: &str, run: &Proc) -> (u32, u32, usize) {
+    let mut at = 0;
+    let a = pid_in(&run.next_line(&mut at, "run: a: connected", WAIT).unwrap_or_else(|| panic!("{}", run.dump())));
+    let b = pid_in(&run.next_line(&mut at, "run: b: connected", WAIT).unwrap_or_else(|| panic!("{}", run.dump())));
+    assert!(run.next_line(&mut at, "every component has connected", WAIT).is_some(), "{}", run.dump());
+    wait_reads(ns, b, 50, run);
+    (a, b, at)
+}
+
+/// From the recording `csv`, up to step `last`: checks that `a` answered every step (its
+/// count goes up by one a step) and returns `b`'s answers.
+fn b_answers_while_a_kept_every_step(csv: &Path, last: u64) -> Vec<f64> {
+    let rows: Vec<(u64, (f64, f64))> = rows(csv).into_iter().filter(|(s, _)| *s <= last).collect();
+    let a_steps: Vec<f64> = rows.iter().map(|(_, (a, _))| *a).skip_while(|a| *a < 1.0).collect();
+    assert!(a_steps.len() > 100, "{} steps of a", a_steps.len());
+    for w in a_steps.windows(2) {
+        assert_eq!(w[1] - w[0], 1.0, "a missed or repeated a step: {w:?}");
+    }
+    rows.iter().map(|(_, (_, b))| *b).collect()
+}
+
 #[test]
 fn launch_file_mistakes_are_refused_with_file_line_and_column_before_anything_starts() {
     let ns = common::namespace("runbad");
@@ -115,25 +155,10 @@ fn launch_file_mistakes_are_refused_with_file_line_and_column_before_anything_st
 fn a_killed_component_is_restarted_by_its_policy_and_steps_again_while_the_other_keeps_lock_step() {
     let ns = common::namespace("runkill");
     let _clean = RemoveSegments(ns.clone());
-    let (dir, file) = setup(&format!(
-        r#"{{
-  ddf: "lockstep.ddf",
-  framework: {{ step: "2ms", timeout: "5s", hold: true, record: ["run.csv"] }},
-  components: [
-    {{ name: "a", run: {a}, domain: "lock" }},
-    {{ name: "b", run: {b}, domain: "lock", restart: "on-failure", max_restarts: 1 }},
-  ],
-}}"#,
-        a = answer("a"),
-        b = answer("b")
-    ));
+    let (dir, file) = setup(&pair(r#", restart: "on-failure", max_restarts: 1"#));
     let tmp = tempfile::tempdir().unwrap();
     let mut run = start(&file, &ns, tmp.path());
-    let mut at = 0;
-    let a = pid_in(&run.next_line(&mut at, "run: a: connected", WAIT).unwrap_or_else(|| panic!("{}", run.dump())));
-    let b = pid_in(&run.next_line(&mut at, "run: b: connected", WAIT).unwrap_or_else(|| panic!("{}", run.dump())));
-    assert!(run.next_line(&mut at, "every component has connected", WAIT).is_some(), "{}", run.dump());
-    wait_reads(&ns, b, 50, &run);
+    let (a, b, mut at) = started_pair(&ns, &run);
     common::run_with_timeout(
         {
             let mut k = std::process::Command::new("kill");
@@ -157,14 +182,7 @@ fn a_killed_component_is_restarted_by_its_policy_and_steps_again_while_the_other
 
     // Every step up to the interrupt: `a` answered each (its count goes up by one a step);
     // `b`'s count fell back once, at its restart, and went up by one a step after it.
-    let rows: Vec<(u64, (f64, f64))> =
-        rows(&dir.path().join("run.csv")).into_iter().filter(|(s, _)| *s <= last).collect();
-    let a_steps: Vec<f64> = rows.iter().map(|(_, (a, _))| *a).skip_while(|a| *a < 1.0).collect();
-    assert!(a_steps.len() > 100, "{} steps of a", a_steps.len());
-    for w in a_steps.windows(2) {
-        assert_eq!(w[1] - w[0], 1.0, "a missed or repeated a step: {w:?}");
-    }
-    let b_steps: Vec<f64> = rows.iter().map(|(_, (_, b))| *b).collect();
+    let b_steps = b_answers_while_a_kept_every_step(&dir.path().join("run.csv"), last);
     let falls = b_steps.windows(2).filter(|w| w[1] < w[0]).count();
     assert_eq!(falls, 1, "b started again once");
     let fall = b_steps.windows(2).position(|w| w[1] < w[0]).unwrap();
@@ -256,25 +274,10 @@ fn steps_end_the_run_after_that_many_steps_and_a_failed_component_makes_the_stat
 fn tutti_ctl_restarts_a_c_component_mid_run_and_stops_the_run() {
     let ns = common::namespace("runctl");
     let _clean = RemoveSegments(ns.clone());
-    let (dir, file) = setup(&format!(
-        r#"{{
-  ddf: "lockstep.ddf",
-  framework: {{ step: "2ms", timeout: "5s", hold: true, record: ["run.csv"] }},
-  components: [
-    {{ name: "a", run: {a}, domain: "lock" }},
-    {{ name: "b", run: {b}, domain: "lock" }},
-  ],
-}}"#,
-        a = answer("a"),
-        b = answer("b")
-    ));
+    let (dir, file) = setup(&pair(""));
     let tmp = tempfile::tempdir().unwrap();
     let mut run = start(&file, &ns, tmp.path());
-    let mut at = 0;
-    let a = pid_in(&run.next_line(&mut at, "run: a: connected", WAIT).unwrap_or_else(|| panic!("{}", run.dump())));
-    let b = pid_in(&run.next_line(&mut at, "run: b: connected", WAIT).unwrap_or_else(|| panic!("{}", run.dump())));
-    assert!(run.next_line(&mut at, "every component has connected", WAIT).is_some(), "{}", run.dump());
-    wait_reads(&ns, b, 50, &run);
+    let (a, b, _) = started_pair(&ns, &run);
     let ctl = |args: &[&str]| {
         let mut cmd = common::tutti_command();
         cmd.arg("ctl").args(args).arg("--json").env("TUTTI_NAMESPACE", &ns);
@@ -307,14 +310,7 @@ fn tutti_ctl_restarts_a_c_component_mid_run_and_stops_the_run() {
     assert!(!tutti_host::control::socket_path(&ns).exists(), "the control socket was left");
 
     // `a` answered every step while `b` was replaced, stopped and started again.
-    let rows: Vec<(u64, (f64, f64))> =
-        rows(&dir.path().join("run.csv")).into_iter().filter(|(s, _)| *s <= last).collect();
-    let a_steps: Vec<f64> = rows.iter().map(|(_, (a, _))| *a).skip_while(|a| *a < 1.0).collect();
-    assert!(a_steps.len() > 100, "{} steps of a", a_steps.len());
-    for w in a_steps.windows(2) {
-        assert_eq!(w[1] - w[0], 1.0, "a missed or repeated a step: {w:?}");
-    }
-    let b_steps: Vec<f64> = rows.iter().map(|(_, (_, b))| *b).collect();
+    let b_steps = b_answers_while_a_kept_every_step(&dir.path().join("run.csv"), last);
     assert_eq!(b_steps.windows(2).filter(|w| w[1] < w[0]).count(), 2, "b started over twice");
 }
 
