@@ -253,12 +253,12 @@ impl Connections {
         }
     }
 
-    /// Copies each item connection's output in `subscribe` (each domain's SUBSCRIBE set,
+    /// Copies each item connection's output in `subscribe(i)` (domain i's SUBSCRIBE set, i in
     /// model order) to its input in `publish` (each domain's PUBLISH buffer), in order:
-    /// called after each step, for the next.
-    pub fn apply(&self, subscribe: &[&[u8]], publish: &mut [Vec<u8>]) {
+    /// called after each step, for the next, with nothing allocated.
+    pub fn apply<'a>(&self, subscribe: impl Fn(usize) -> Option<&'a [u8]>, publish: &mut [Vec<u8>]) {
         for c in &self.list {
-            let (Some(src), Some(dst)) = (subscribe.get(c.from.domain), publish.get_mut(c.to.domain)) else { continue };
+            let (Some(src), Some(dst)) = (subscribe(c.from.domain), publish.get_mut(c.to.domain)) else { continue };
             let (Some(src), Some(dst)) = (src.get(c.from.leaf.range()), dst.get_mut(c.to.leaf.range())) else {
                 continue;
             };
@@ -405,7 +405,7 @@ mod tests {
         put(&mut sub[1], &leaf(1, Role::Subscribe, "u"), &[-4.0]);
         let mut publish: Vec<Vec<u8>> = m.domains.iter().map(|d| d.publish.layout.default_bytes()).collect();
         let views: Vec<&[u8]> = sub.iter().map(Vec::as_slice).collect();
-        c.apply(&views, &mut publish);
+        c.apply(|i| views.get(i).copied(), &mut publish);
         let get = |buf: &[u8], l: &Leaf| -> Vec<f64> {
             buf[l.range()].chunks_exact(l.ty.size() as usize).map(|e| l.ty.decode(e).as_f64()).collect()
         };
@@ -425,7 +425,7 @@ mod tests {
         // Item connections (after a step) leave the clock's inputs alone.
         let sub: Vec<Vec<u8>> = m.domains.iter().map(|d| d.subscribe.layout.default_bytes()).collect();
         let views: Vec<&[u8]> = sub.iter().map(Vec::as_slice).collect();
-        c.apply(&views, &mut publish);
+        c.apply(|i| views.get(i).copied(), &mut publish);
         let leaf = |d: usize, p: &str| m.domains[d].publish.layout.leaf(p).unwrap().clone();
         let get = |buf: &[u8], l: &Leaf| -> Vec<f64> {
             buf[l.range()].chunks_exact(l.ty.size() as usize).map(|e| l.ty.decode(e).as_f64()).collect()

@@ -396,8 +396,8 @@ impl Host {
         }
         if !self.connections.is_empty() {
             // The outputs of this step are the inputs of the next.
-            let subscribe: Vec<&[u8]> = self.fw.domains.iter().map(|d| d.subscribe()).collect();
-            self.connections.apply(&subscribe, &mut self.publish);
+            let domains = &self.fw.domains;
+            self.connections.apply(|i| domains.get(i).map(|d| d.subscribe()), &mut self.publish);
         }
         if let Some(c) = &self.control {
             c.shared.set(c.shared.state(), tick.k + 1, sim);
