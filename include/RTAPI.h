@@ -143,6 +143,12 @@ typedef int RTAPIReturn_t;
  */
 #define RTAPI_ERROR_REMOTE_NOT_SERVED 22
 
+/**
+ * The domain's segment is not trusted: it is a symbolic link, or another user owns it and
+ * `TUTTI_TRUST_UIDS` does not name that user.
+ */
+#define RTAPI_ERROR_NOT_TRUSTED 23
+
 #ifdef __cplusplus
 extern "C" {
 #endif // __cplusplus

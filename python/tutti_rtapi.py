@@ -60,6 +60,7 @@ CODES = {
     20: "RTAPI_ERROR_SYSTEM",
     21: "RTAPI_ERROR_VERSION_MISMATCH",
     22: "RTAPI_ERROR_REMOTE_NOT_SERVED",
+    23: "RTAPI_ERROR_NOT_TRUSTED",
 }
 globals().update({name: code for code, name in CODES.items()})
 

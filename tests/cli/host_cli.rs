@@ -141,3 +141,31 @@ fn first_errors_are_said_once_and_plainly() {
     assert_eq!(code, Some(2), "{err}");
     assert!(err.contains("300") && err.contains("0..=232"), "{err}");
 }
+
+#[test]
+fn a_segment_shrunk_under_the_host_ends_it_with_a_clean_error() {
+    // Another process truncates a live segment: the host must not die of SIGBUS, but stop
+    // with an error naming the domain and the file, and remove its segments.
+    use std::os::unix::process::ExitStatusExt;
+    let ns = tutti_test_support::namespace("hc-shrunk-");
+    let mut host = tutti();
+    host.args(["host", "ddf/multiuav.ddf", "--step", "5ms", "--timeout", "100ms", "--quiet"])
+        .env("TUTTI_NAMESPACE", &ns);
+    let mut g = Guard::spawn(host, &ns);
+    let path = tutti_core::shm::segment::segment_path(&ns, "multiuav_uav1");
+    let deadline = Instant::now() + Duration::from_secs(30);
+    while !path.exists() {
+        assert!(Instant::now() < deadline, "{} did not appear", path.display());
+        std::thread::sleep(Duration::from_millis(10));
+    }
+    std::fs::OpenOptions::new().write(true).open(&path).unwrap().set_len(0).unwrap();
+    let status = g.host.wait_status(Duration::from_secs(30)).expect("the host went on over a shrunk segment");
+    assert_eq!(status.signal(), None, "the host was killed by a signal: {status}\n{}", g.host.dump());
+    assert_eq!(status.code(), Some(1), "{}", g.host.dump());
+    let err = g.host.stderr();
+    assert!(
+        err.contains("multiuav_uav1") && err.contains("shrank") && err.contains(&path.display().to_string()),
+        "{err}"
+    );
+    assert_eq!(segments(&ns), 0, "segments left after the error");
+}

@@ -65,8 +65,12 @@ pub const RTAPI_ERROR_VERSION_MISMATCH: RTAPIReturn_t = 21;
 /// mirror gateway serves on this machine: start `tutti gateway --mirror DDF` here.
 pub const RTAPI_ERROR_REMOTE_NOT_SERVED: RTAPIReturn_t = 22;
 
+/// The domain's segment is not trusted: it is a symbolic link, or another user owns it and
+/// `TUTTI_TRUST_UIDS` does not name that user.
+pub const RTAPI_ERROR_NOT_TRUSTED: RTAPIReturn_t = 23;
+
 /// Every code, in order (code `i` is at index `i`).
-pub const ALL: [RTAPIReturn_t; 23] = [
+pub const ALL: [RTAPIReturn_t; 24] = [
     RTAPI_SUCCESS,
     RTAPI_SUBSCRIBE_FAILED_RTLAB_SUBSYSTEM_UNMAPPED,
     RTAPI_PUBLISH_FAILED_RTLAB_SUBSYSTEM_UNMAPPED,
@@ -90,6 +94,7 @@ pub const ALL: [RTAPIReturn_t; 23] = [
     RTAPI_ERROR_SYSTEM,
     RTAPI_ERROR_VERSION_MISMATCH,
     RTAPI_ERROR_REMOTE_NOT_SERVED,
+    RTAPI_ERROR_NOT_TRUSTED,
 ];
 
 /// The C name of a code (`None` for an unknown code).
@@ -151,6 +156,10 @@ fn describe(code: RTAPIReturn_t) -> Option<(&'static str, &'static CStr)> {
             "RTAPI_ERROR_REMOTE_NOT_SERVED",
             c"the remote domain is not served on this machine: start `tutti gateway --mirror DDF` here",
         ),
+        RTAPI_ERROR_NOT_TRUSTED => (
+            "RTAPI_ERROR_NOT_TRUSTED",
+            c"the domain's segment is a symbolic link or belongs to another user (see TUTTI_TRUST_UIDS)",
+        ),
         _ => return None,
     })
 }
@@ -168,7 +177,10 @@ pub fn for_error(e: &ShmError, side: Side) -> RTAPIReturn_t {
     match e {
         ShmError::Io { .. } | ShmError::DomainBusy { .. } => RTAPI_ERROR_SYSTEM,
         ShmError::InvalidNamespace { .. } => RTAPI_ERROR_INVALID_ARGUMENT,
-        ShmError::NotTuttiSegment { .. } | ShmError::Corrupt { .. } => RTAPI_ERROR_CORRUPT_SEGMENT,
+        ShmError::NotTuttiSegment { .. } | ShmError::Corrupt { .. } | ShmError::Truncated { .. } => {
+            RTAPI_ERROR_CORRUPT_SEGMENT
+        }
+        ShmError::Untrusted { .. } => RTAPI_ERROR_NOT_TRUSTED,
         ShmError::VersionMismatch { .. } => RTAPI_ERROR_VERSION_MISMATCH,
         ShmError::NotReady { .. } | ShmError::NoSuchDomain { .. } => RTAPI_ERROR_DOMAIN_NOT_FOUND,
         ShmError::LayoutMismatch { .. } => RTAPI_ERROR_LAYOUT_MISMATCH,

@@ -43,6 +43,10 @@ pub enum ShmError {
     OutOfRange { domain: String, role: Role, offset: usize, end: usize, size: usize },
     #[error("domain '{domain}': no item '{item}' in the {role} set")]
     UnknownItem { domain: String, role: Role, item: String },
+    #[error("domain '{domain}': refusing {path}: {reason}")]
+    Untrusted { domain: String, path: String, reason: String },
+    #[error("domain '{domain}': another process shrank {path} under this process (it was {size} bytes); the domain's data can no longer be trusted")]
+    Truncated { domain: String, path: String, size: usize },
     #[error("domain '{domain}': the connection was removed (the framework judged it dead or it disconnected)")]
     ConnectionLost { domain: String },
 }

@@ -178,6 +178,7 @@ impl DomainHost {
     /// due). A host with many domains publishes to all, then completes all, so that their
     /// participants work in parallel. Returns how many dead connections were removed.
     pub fn publish_step(&mut self, publish: &[u8], sim_time: f64) -> Result<usize, ShmError> {
+        self.seg.intact()?;
         let info = &self.seg.info;
         if publish.len() != info.publish.size as usize {
             return Err(ShmError::SizeMismatch {
@@ -242,6 +243,7 @@ impl DomainHost {
                 self.seg.header().timeouts.fetch_add(1, Ordering::Relaxed);
             }
         }
+        self.seg.intact()?;
         Ok(StepReport { step: k, timed_out, removed })
     }
 

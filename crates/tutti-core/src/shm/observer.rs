@@ -93,15 +93,21 @@ impl Observer {
     pub fn look(&mut self, namespace: &str) -> Look {
         let now = Instant::now();
         if let Some(seg) = &self.seg {
+            if let Err(e) = seg.intact() {
+                self.close();
+                return Look::Refused(e);
+            }
             if now >= self.next_alive_check {
                 self.next_alive_check = now + ALIVE_CHECK;
                 if !seg.framework_alive() {
+                    // A header shrunk away reads as zeros, a framework gone: say which.
+                    let truncated = seg.intact_checked().err();
                     // The presence connection is released, not just forgotten: were the
                     // framework seen gone while its segment lives on, a forgotten slot would
                     // stay claimed beside the one taken at the next open, and `tutti status`
                     // would count this gateway's DDS readers twice.
                     self.close();
-                    return Look::Stopped;
+                    return truncated.map_or(Look::Stopped, Look::Refused);
                 }
             }
         }

@@ -16,14 +16,34 @@ use rustix::thread::futex;
 pub const SHM_DIR: &str = "/dev/shm";
 
 /// Opens a shared-memory object; `create` makes a new one (failing if it exists).
+///
+/// This is `shm_open` done by hand, because the C library's and rustix's follow a symbolic
+/// link planted at the object's path: the object is opened with `O_NOFOLLOW`, so a link is
+/// refused (`ELOOP`) whatever `fs.protected_symlinks` says (see docs/security.md).
 pub fn shm_open(name: &str, create: bool, mode: u32) -> io::Result<File> {
-    let flags = if create { shm::OFlags::CREATE | shm::OFlags::EXCL | shm::OFlags::RDWR } else { shm::OFlags::RDWR };
-    let fd: OwnedFd = shm::open(format!("/{name}").as_str(), flags, Mode::from_bits_truncate(mode))?;
+    use rustix::fs::OFlags;
+    if name.is_empty() || name.contains('/') || name == "." || name == ".." || name.len() > 255 {
+        return Err(io::Error::new(io::ErrorKind::InvalidInput, format!("invalid shared-memory name '{name}'")));
+    }
+    let flags = OFlags::RDWR | OFlags::NOFOLLOW | OFlags::CLOEXEC;
+    let flags = if create { flags | OFlags::CREATE | OFlags::EXCL } else { flags };
+    let fd: OwnedFd = rustix::fs::open(format!("{SHM_DIR}/{name}").as_str(), flags, Mode::from_bits_truncate(mode))?;
     if create {
-        // shm_open applies the umask; set the requested mode exactly.
+        // open applies the umask; set the requested mode exactly.
         rustix::fs::fchmod(&fd, Mode::from_bits_truncate(mode))?;
     }
     Ok(File::from(fd))
+}
+
+/// Who owns an open file, and whether it is a regular file (a shared-memory object is).
+pub fn owner_of(file: &File) -> io::Result<(u32, bool)> {
+    let st = rustix::fs::fstat(file)?;
+    Ok((st.st_uid, rustix::fs::FileType::from_raw_mode(st.st_mode) == rustix::fs::FileType::RegularFile))
+}
+
+/// The effective user id of this process.
+pub fn euid() -> u32 {
+    rustix::process::geteuid().as_raw()
 }
 
 /// Removes a shared-memory object by name.
@@ -31,9 +51,174 @@ pub fn shm_unlink(name: &str) -> io::Result<()> {
     shm::unlink(format!("/{name}").as_str()).map_err(io::Error::from)
 }
 
-/// Maps a whole file read-write and shared.
-pub fn map(file: &File) -> io::Result<MmapRaw> {
-    MmapRaw::map_raw(file)
+/// Maps a whole file read-write and shared, guarded against the file shrinking under it
+/// (see [`SharedMap`]).
+pub fn map(file: &File) -> io::Result<SharedMap> {
+    let map = MmapRaw::map_raw(file)?;
+    let slot = guard::register(map.as_mut_ptr() as usize, map.len());
+    Ok(SharedMap { map, slot })
+}
+
+/// A shared mapping of a segment.
+///
+/// Another process can shrink the file under a live mapping (`ftruncate`); touching a page
+/// past the new end then raises SIGBUS, which would kill the process. While a mapping is
+/// registered here, the process's SIGBUS handler replaces the pages from the faulting one to
+/// the mapping's end with private zero pages, marks the mapping truncated and lets the
+/// access go on. Callers check [`SharedMap::truncated`] at their safe points and end with
+/// a clean error. Nothing is added to the access path itself. This is what Wayland
+/// compositors do for client-provided shared memory (`wl_shm_buffer_begin_access`).
+#[derive(Debug)]
+pub struct SharedMap {
+    map: MmapRaw,
+    /// Registry slot, `None` when the registry was full (the mapping is then unguarded).
+    slot: Option<usize>,
+}
+
+impl SharedMap {
+    pub fn as_mut_ptr(&self) -> *mut u8 {
+        self.map.as_mut_ptr()
+    }
+
+    /// Whether another process shrank the file under this mapping (a page past its end was
+    /// touched, and replaced by zeros).
+    pub fn truncated(&self) -> bool {
+        self.slot.is_some_and(guard::hit)
+    }
+}
+
+impl Drop for SharedMap {
+    fn drop(&mut self) {
+        // Deregister before the mapping goes (the field drops after this).
+        if let Some(slot) = self.slot {
+            guard::deregister(slot);
+        }
+    }
+}
+
+/// The registry of guarded mappings and the SIGBUS handler that reads it. Lock-free: the
+/// handler may run at any point of any thread.
+mod guard {
+    use std::ffi::c_void;
+    use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
+    use std::sync::OnceLock;
+
+    /// Mappings guarded at once; a process with more (over 4,096 domains) leaves the rest
+    /// unguarded.
+    const SLOTS: usize = 4096;
+
+    struct Entry {
+        claimed: AtomicBool,
+        start: AtomicUsize,
+        len: AtomicUsize,
+        hit: AtomicBool,
+    }
+
+    #[allow(clippy::declare_interior_mutable_const)]
+    const EMPTY: Entry = Entry {
+        claimed: AtomicBool::new(false),
+        start: AtomicUsize::new(0),
+        len: AtomicUsize::new(0),
+        hit: AtomicBool::new(false),
+    };
+    static ENTRIES: [Entry; SLOTS] = [EMPTY; SLOTS];
+    static PAGE: AtomicUsize = AtomicUsize::new(4096);
+    /// The SIGBUS disposition found when the handler was installed, to pass foreign faults to.
+    static PREVIOUS: OnceLock<libc::sigaction> = OnceLock::new();
+
+    pub(super) fn register(start: usize, len: usize) -> Option<usize> {
+        install();
+        let i = ENTRIES
+            .iter()
+            .position(|e| e.claimed.compare_exchange(false, true, Ordering::AcqRel, Ordering::Relaxed).is_ok())?;
+        let e = &ENTRIES[i];
+        e.hit.store(false, Ordering::Relaxed);
+        e.len.store(len, Ordering::Relaxed);
+        e.start.store(start, Ordering::Release);
+        Some(i)
+    }
+
+    pub(super) fn deregister(i: usize) {
+        ENTRIES[i].start.store(0, Ordering::Release);
+        ENTRIES[i].claimed.store(false, Ordering::Release);
+    }
+
+    pub(super) fn hit(i: usize) -> bool {
+        ENTRIES[i].hit.load(Ordering::Relaxed)
+    }
+
+    fn install() {
+        PREVIOUS.get_or_init(|| {
+            PAGE.store(rustix::param::page_size(), Ordering::Relaxed);
+            // SAFETY: plain sigaction calls with zero-initialised structs (a valid
+            // `sigaction` value); the handler is an `extern "C"` fn of the SA_SIGINFO shape.
+            unsafe {
+                let mut previous: libc::sigaction = std::mem::zeroed();
+                let mut action: libc::sigaction = std::mem::zeroed();
+                let handler: extern "C" fn(libc::c_int, *mut libc::siginfo_t, *mut c_void) = on_sigbus;
+                action.sa_sigaction = handler as usize;
+                action.sa_flags = libc::SA_SIGINFO | libc::SA_NODEFER | libc::SA_ONSTACK;
+                libc::sigemptyset(&mut action.sa_mask);
+                if libc::sigaction(libc::SIGBUS, &action, &mut previous) != 0 {
+                    previous.sa_sigaction = libc::SIG_DFL;
+                }
+                previous
+            }
+        });
+    }
+
+    extern "C" fn on_sigbus(sig: libc::c_int, info: *mut libc::siginfo_t, ctx: *mut c_void) {
+        // SAFETY: the kernel passes a valid siginfo for a SA_SIGINFO handler.
+        let addr = unsafe { (*info).si_addr() } as usize;
+        let page = PAGE.load(Ordering::Relaxed);
+        for e in &ENTRIES {
+            let start = e.start.load(Ordering::Acquire);
+            let len = e.len.load(Ordering::Relaxed);
+            if start == 0 || addr < start || addr >= start + len {
+                continue;
+            }
+            let from = addr & !(page - 1);
+            let to = (start + len).div_ceil(page) * page;
+            // SAFETY: [from, to) lies within a live mapping of ours (registered until just
+            // before it is unmapped); it is replaced by private zero pages of the same
+            // protection, so every pointer into it stays valid. mmap is a plain system call.
+            let r = unsafe {
+                libc::mmap(
+                    from as *mut c_void,
+                    to - from,
+                    libc::PROT_READ | libc::PROT_WRITE,
+                    libc::MAP_PRIVATE | libc::MAP_ANONYMOUS | libc::MAP_FIXED,
+                    -1,
+                    0,
+                )
+            };
+            if r != libc::MAP_FAILED {
+                e.hit.store(true, Ordering::Relaxed);
+                return;
+            }
+            break;
+        }
+        // Not ours (or the remap failed): what would have happened without us.
+        match PREVIOUS.get() {
+            Some(prev) if prev.sa_sigaction != libc::SIG_DFL && prev.sa_sigaction != libc::SIG_IGN => {
+                if prev.sa_flags & libc::SA_SIGINFO != 0 {
+                    // SAFETY: the previous handler was installed as a SA_SIGINFO handler.
+                    let f: extern "C" fn(libc::c_int, *mut libc::siginfo_t, *mut c_void) =
+                        unsafe { std::mem::transmute(prev.sa_sigaction) };
+                    f(sig, info, ctx);
+                } else {
+                    // SAFETY: the previous handler was installed as a plain handler.
+                    let f: extern "C" fn(libc::c_int) = unsafe { std::mem::transmute(prev.sa_sigaction) };
+                    f(sig);
+                }
+            }
+            _ => {
+                // SAFETY: restoring the default disposition; the faulting access runs again
+                // and the kernel delivers SIGBUS with its default action.
+                unsafe { libc::signal(libc::SIGBUS, libc::SIG_DFL) };
+            }
+        }
+    }
 }
 
 /// Waits while `word` holds `expected`, at most `timeout`. Returns on wake-up, timeout,

@@ -212,6 +212,17 @@ impl Participant {
     /// Whether the connection is still in place (the framework removes connections it
     /// judges dead) and the framework runs.
     pub fn check(&self) -> Result<(), ShmError> {
+        let r = self.check_connection();
+        // A segment shrunk under us reads as zeros (a stopped framework, a lost connection):
+        // say what really happened.
+        if r.is_err() {
+            self.seg.intact_checked()?;
+        }
+        self.seg.intact()?;
+        r
+    }
+
+    fn check_connection(&self) -> Result<(), ShmError> {
         let domain = || self.seg.info.name.clone();
         let h = self.seg.header();
         if h.state.load(Ordering::Acquire) != STATE_RUNNING {
@@ -651,6 +662,8 @@ impl Participant {
             }
         });
         drop(lock);
+        // Written into pages another process cut away: nobody will read it.
+        seg.intact()?;
         Self::committed(seg, self.slot, self.locked_step);
         self.reset_after_commit();
         Ok(())
@@ -671,6 +684,8 @@ impl Participant {
         let snapshot = &self.snapshot;
         seg.bucket(Role::Subscribe).write_with(|_, next| with_bytes_mut(next, |out| f(snapshot, &mut out[..size])));
         drop(lock);
+        // Written into pages another process cut away: nobody will read it.
+        seg.intact()?;
         Self::committed(seg, self.slot, self.locked_step);
         self.stale_staging = true;
         self.reset_after_commit();

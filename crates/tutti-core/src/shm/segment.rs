@@ -24,7 +24,6 @@ use std::mem::size_of;
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
-use memmap2::MmapRaw;
 use serde::Serialize;
 
 use super::bucket::{load_bytes, Bucket, SLOTS};
@@ -264,7 +263,9 @@ fn round_up(n: usize, a: usize) -> usize {
 /// A mapped segment.
 #[derive(Debug)]
 pub struct Segment {
-    map: MmapRaw,
+    map: os::SharedMap,
+    /// The segment's file, kept to look at its size when something reads wrong.
+    file: File,
     len: usize,
     /// Each set's slots: (byte offset, words per slot), checked against the mapping when the
     /// segment is created or opened and never read from shared memory again.
@@ -339,7 +340,8 @@ impl Segment {
         let total = end;
         file.set_len(total as u64).map_err(|e| ShmError::io(format!("sizing {}/{shm_name}", os::SHM_DIR), e))?;
         let map = os::map(&file).map_err(|e| ShmError::io(format!("mapping {}/{shm_name}", os::SHM_DIR), e))?;
-        let seg = Segment { map, len: total, slots: set_geom, shm_name: shm_name.to_string(), info: Arc::new(info) };
+        let seg =
+            Segment { map, file, len: total, slots: set_geom, shm_name: shm_name.to_string(), info: Arc::new(info) };
         let h = seg.header();
         let me = os::current_process();
         h.owner_pid.store(me.pid, Ordering::Relaxed);
@@ -391,25 +393,57 @@ impl Segment {
     pub fn open(ns: &str, domain: &str) -> Result<Segment, ShmError> {
         check_namespace(ns)?;
         let shm_name = segment_name(ns, domain);
-        let file = os::shm_open(&shm_name, false, 0).map_err(|e| {
-            if e.kind() == io::ErrorKind::NotFound {
+        let file = open_trusted(&shm_name, domain).map_err(|e| match e {
+            ShmError::Io { source, .. } if source.kind() == io::ErrorKind::NotFound => {
                 ShmError::NoSuchDomain { domain: domain.to_string(), namespace: ns.to_string() }
-            } else {
-                ShmError::io(format!("opening {}/{shm_name}", os::SHM_DIR), e)
             }
+            e => e,
         })?;
         Self::open_file(file, &shm_name, domain)
     }
 
+    /// Fails once another process has shrunk the segment's file under this mapping (see
+    /// [`os::SharedMap`]): what was read since may be zeros, not the domain's data.
+    pub fn intact(&self) -> Result<(), ShmError> {
+        self.intact_if(self.map.truncated())
+    }
+
+    /// [`intact`](Self::intact), and also fails when the file is now shorter than the
+    /// mapping though no cut page was touched yet (the tail of the last page reads as zeros
+    /// without a fault). A system call: for error paths, where zeros were read.
+    pub fn intact_checked(&self) -> Result<(), ShmError> {
+        let shorter = self.file.metadata().is_ok_and(|m| (m.len() as usize) < self.len);
+        self.intact_if(self.map.truncated() || shorter)
+    }
+
+    fn intact_if(&self, truncated: bool) -> Result<(), ShmError> {
+        if truncated {
+            return Err(ShmError::Truncated {
+                domain: self.info.name.clone(),
+                path: format!("{}/{}", os::SHM_DIR, self.shm_name),
+                size: self.len,
+            });
+        }
+        Ok(())
+    }
+
     fn open_file(file: File, shm_name: &str, domain: &str) -> Result<Segment, ShmError> {
         let corrupt = |detail: String| ShmError::Corrupt { domain: domain.to_string(), detail };
-        let len = file.metadata().map_err(|e| ShmError::io(format!("inspecting {shm_name}"), e))?.len() as usize;
-        // Created but not sized yet: its framework is between `shm_open` and `ftruncate`.
+        let meta = file.metadata().map_err(|e| ShmError::io(format!("inspecting {shm_name}"), e))?;
+        let len = meta.len() as usize;
+        // Created but not sized yet: its framework is between `shm_open` and `ftruncate`,
+        // which follow each other at once. Empty for longer, something else emptied it.
         if len == 0 {
-            return Err(ShmError::NotReady { domain: domain.to_string() });
+            let age = meta.modified().ok().and_then(|t| t.elapsed().ok()).unwrap_or_default();
+            if age < Duration::from_secs(1) {
+                return Err(ShmError::NotReady { domain: domain.to_string() });
+            }
+            return Err(corrupt("the segment is 0 bytes: another process has truncated it".into()));
         }
         if len < HEADER_BYTES {
-            return Err(corrupt(format!("segment is {len} bytes, smaller than a header")));
+            return Err(corrupt(format!(
+                "the segment is {len} bytes, smaller than a header: another process has truncated it"
+            )));
         }
         let map = os::map(&file).map_err(|e| ShmError::io(format!("mapping {}/{shm_name}", os::SHM_DIR), e))?;
         let placeholder = Arc::new(DomainInfo {
@@ -419,7 +453,7 @@ impl Segment {
             publish: SetLayout::default(),
             subscribe: SetLayout::default(),
         });
-        let mut seg = Segment { map, len, slots: [(0, 0); 2], shm_name: shm_name.to_string(), info: placeholder };
+        let mut seg = Segment { map, file, len, slots: [(0, 0); 2], shm_name: shm_name.to_string(), info: placeholder };
         let h = seg.header();
         let magic = h.magic.load(Ordering::Acquire);
         if magic == 0 {
@@ -440,7 +474,7 @@ impl Segment {
         }
         if h.total_size.load(Ordering::Relaxed) != len as u64 {
             return Err(corrupt(format!(
-                "header says {} bytes, segment has {len}",
+                "the segment is {len} bytes but its header says {}: another process has resized it",
                 h.total_size.load(Ordering::Relaxed)
             )));
         }
@@ -622,8 +656,12 @@ impl Segment {
 
     /// A consistent copy of `out.len()` bytes of set `role` from byte `offset` (the caller
     /// keeps the range inside the set); returns the value's generation.
+    /// A copy that met a shrunk segment is refused (see [`intact`](Self::intact)).
     pub fn read_set_at(&self, role: Role, offset: usize, out: &mut [u8]) -> Result<u64, ShmError> {
-        self.bucket(role).read_at(offset, out, MAX_READ_TRIES).ok_or_else(|| self.never_settles(role))
+        let generation =
+            self.bucket(role).read_at(offset, out, MAX_READ_TRIES).ok_or_else(|| self.never_settles(role))?;
+        self.intact()?;
+        Ok(generation)
     }
 
     /// A consistent copy of the whole set `role`; returns its generation.
@@ -710,7 +748,7 @@ impl Segment {
     /// writer committing without pause can exhaust them); returns its generation. For a
     /// poller that would rather look again later than wait for a busy set to settle.
     pub fn try_read_set(&self, role: Role, out: &mut [u8], tries: u32) -> Option<u64> {
-        self.bucket(role).read(out, tries)
+        self.bucket(role).read(out, tries).filter(|_| !self.map.truncated())
     }
 
     pub(crate) fn framework_id(&self) -> ProcessId {
@@ -1022,10 +1060,51 @@ pub fn list_domains(ns: &str) -> Result<Vec<Result<DomainStatus, ShmError>>, Shm
     Ok(names.iter().map(|n| Segment::open(ns, &n[prefix.len()..]).map(|s| s.status())).collect())
 }
 
+/// The user ids whose segments this process trusts besides its own: `TUTTI_TRUST_UIDS`, a
+/// comma-separated list of numbers (docs/security.md).
+fn trusted_uids() -> Vec<u32> {
+    std::env::var("TUTTI_TRUST_UIDS")
+        .map(|v| v.split(',').filter_map(|u| u.trim().parse().ok()).collect())
+        .unwrap_or_default()
+}
+
+/// Opens an existing segment without following a symbolic link, and refuses one that is not
+/// a regular file or is owned by another user that `TUTTI_TRUST_UIDS` does not name: a
+/// segment in a namespace others can write to could be theirs, planted with the expected
+/// name.
+fn open_trusted(shm_name: &str, domain: &str) -> Result<File, ShmError> {
+    let path = format!("{}/{shm_name}", os::SHM_DIR);
+    let untrusted = |reason: String| ShmError::Untrusted { domain: domain.to_string(), path: path.clone(), reason };
+    let file = os::shm_open(shm_name, false, 0).map_err(|e| {
+        if e.raw_os_error() == Some(rustix::io::Errno::LOOP.raw_os_error()) {
+            untrusted("it is a symbolic link".into())
+        } else {
+            ShmError::io(format!("opening {path}"), e)
+        }
+    })?;
+    let (uid, regular) = os::owner_of(&file).map_err(|e| ShmError::io(format!("inspecting {path}"), e))?;
+    if !regular {
+        return Err(untrusted("it is not a regular file".into()));
+    }
+    let me = os::euid();
+    if uid != me && !trusted_uids().contains(&uid) {
+        return Err(untrusted(format!(
+            "it belongs to uid {uid}, not to this user (uid {me}); set TUTTI_TRUST_UIDS={uid} to trust it"
+        )));
+    }
+    Ok(file)
+}
+
 /// An existing segment with our name: reclaim it if its framework is dead, else refuse.
+/// Another user's segment (or a link) is refused, never reclaimed.
 fn reclaim_stale(shm_name: &str, domain: &str) -> Result<(), ShmError> {
     let path = format!("{}/{shm_name}", os::SHM_DIR);
-    if let Ok(file) = os::shm_open(shm_name, false, 0) {
+    let opened = match open_trusted(shm_name, domain) {
+        Ok(file) => Some(file),
+        Err(e @ ShmError::Untrusted { .. }) => return Err(e),
+        Err(_) => None,
+    };
+    if let Some(file) = opened {
         let len = file.metadata().map(|m| m.len()).unwrap_or(0) as usize;
         if len >= HEADER_BYTES {
             if let Ok(map) = os::map(&file) {
