@@ -339,6 +339,7 @@ fn a_config_file_changes_what_a_dds_peer_sees_and_the_stats_endpoint_counts_it(e
 }
 
 per_engine!(
+    a_segment_shrunk_under_the_gateway_leaves_it_running,
     with_every_step_a_dds_reader_gets_every_step,
     a_config_file_changes_what_a_dds_peer_sees_and_the_stats_endpoint_counts_it,
     a_dds_reader_of_a_synchronous_domain_is_an_observer_not_a_participant,
@@ -346,3 +347,24 @@ per_engine!(
     a_dds_writer_that_exits_cleanly_costs_no_step_timeout,
     a_killed_dds_writer_costs_no_more_than_the_lease,
 );
+
+/// Another process shrinks a bridged domain's segment: the gateway lets go of the domain,
+/// says why, and runs on (it used to die of SIGBUS); Ctrl-C still stops it cleanly.
+fn a_segment_shrunk_under_the_gateway_leaves_it_running(e: Eng) {
+    let (dom, ns) = (e.dom(104), e.ns("gwcit104"));
+    let ns = ns.as_str();
+    let host = Host::start(ns, "gw_sync", Duration::from_millis(5), |k| (k as f64).to_ne_bytes().to_vec());
+    let mut gw = e.gateway(DDF, dom, ns, &[]);
+    let path = tutti_core::shm::segment::segment_path(ns, "gw_sync");
+    std::fs::OpenOptions::new().write(true).open(&path).unwrap().set_len(0).unwrap();
+    assert!(
+        gw.wait_line("shrank", SECS(30)).is_some(),
+        "the gateway never said the segment was shrunk\n{}",
+        gw.dump()
+    );
+    thread::sleep(Duration::from_millis(500));
+    assert!(gw.exited().is_none(), "the gateway died\n{}", gw.dump());
+    assert_eq!(gw.interrupt(SECS(30)), Some(0), "{}", gw.dump());
+    assert!(!gw.dump().contains("panicked"), "{}", gw.dump());
+    drop(host);
+}
