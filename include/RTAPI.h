@@ -345,8 +345,9 @@ RTAPIReturn_t RTGetConnectionCount(const char *domainName, unsigned int *count);
 const char *RTGetErrorMessage(RTAPIReturn_t code);
 
 /**
- * Details of this thread's last failed call (domain, item, sizes, what to do), or "" —
- * not in the product. Valid until this thread's next failing call. Never NULL.
+ * Details of this thread's last call if it failed (domain, item, sizes, what to do), or ""
+ * after a successful one — not in the product. Valid until this thread's next failing
+ * call. Never NULL.
  */
 const char *RTGetLastErrorDetail(void);
 

@@ -357,11 +357,7 @@ fn a_segment_shrunk_under_the_gateway_leaves_it_running(e: Eng) {
     let mut gw = e.gateway(DDF, dom, ns, &[]);
     let path = tutti_core::shm::segment::segment_path(ns, "gw_sync");
     std::fs::OpenOptions::new().write(true).open(&path).unwrap().set_len(0).unwrap();
-    assert!(
-        gw.wait_line("shrank", SECS(30)).is_some(),
-        "the gateway never said the segment was shrunk\n{}",
-        gw.dump()
-    );
+    assert!(gw.wait_line("shrank", SECS(30)).is_some(), "the gateway never said the segment was shrunk\n{}", gw.dump());
     thread::sleep(Duration::from_millis(500));
     assert!(gw.exited().is_none(), "the gateway died\n{}", gw.dump());
     assert_eq!(gw.interrupt(SECS(30)), Some(0), "{}", gw.dump());

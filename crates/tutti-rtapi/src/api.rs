@@ -480,8 +480,9 @@ pub extern "C" fn RTGetErrorMessage(code: RTAPIReturn_t) -> *const c_char {
     message(code).as_ptr()
 }
 
-/// Details of this thread's last failed call (domain, item, sizes, what to do), or "" —
-/// not in the product. Valid until this thread's next failing call. Never NULL.
+/// Details of this thread's last call if it failed (domain, item, sizes, what to do), or ""
+/// after a successful one — not in the product. Valid until this thread's next failing
+/// call. Never NULL.
 #[no_mangle]
 pub extern "C" fn RTGetLastErrorDetail() -> *const c_char {
     std::panic::catch_unwind(last_detail_ptr).unwrap_or(c"".as_ptr())

@@ -33,8 +33,10 @@ impl Failure {
 pub type CallResult<T = ()> = Result<T, Failure>;
 
 thread_local! {
-    /// The detail of the last failed call on this thread (see `RTGetLastErrorDetail`).
-    static LAST_DETAIL: RefCell<CString> = RefCell::new(CString::default());
+    /// The detail of this thread's last call if it failed, else empty (see
+    /// `RTGetLastErrorDetail`): NUL-terminated bytes, emptied in place by a success so that
+    /// a pointer handed out earlier stays valid and reads "".
+    static LAST_DETAIL: RefCell<Vec<u8>> = const { RefCell::new(Vec::new()) };
 }
 
 /// Runs the body of an exported call: a panic becomes `RTAPI_ERROR_INTERNAL`, a failure its
@@ -49,7 +51,10 @@ pub fn guard(call: &str, body: impl FnOnce() -> CallResult) -> RTAPIReturn_t {
         Err(Failure::new(RTAPI_ERROR_INTERNAL, format!("internal error: {what}")))
     });
     match outcome {
-        Ok(()) => RTAPI_SUCCESS,
+        Ok(()) => {
+            clear_last_detail();
+            RTAPI_SUCCESS
+        }
         Err(f) => {
             set_last_detail(&format!("{call}: {}", f.detail));
             f.code
@@ -58,15 +63,33 @@ pub fn guard(call: &str, body: impl FnOnce() -> CallResult) -> RTAPIReturn_t {
 }
 
 fn set_last_detail(text: &str) {
-    let text = CString::new(text.replace('\0', " ")).unwrap_or_default();
+    let text = CString::new(text.replace('\0', " ")).unwrap_or_default().into_bytes_with_nul();
     // Ignore the error of a thread being torn down: the detail is only informative.
     let _ = LAST_DETAIL.try_with(|d| *d.borrow_mut() = text);
 }
 
-/// A pointer to the last detail text of this thread, valid until this thread's next failing
-/// call.
+/// A successful call leaves no detail: the text becomes "" where it lies (no allocation).
+fn clear_last_detail() {
+    let _ = LAST_DETAIL.try_with(|d| {
+        if let Some(first) = d.borrow_mut().first_mut() {
+            *first = 0;
+        }
+    });
+}
+
+/// A pointer to this thread's last detail text ("" after a successful call), valid until
+/// this thread's next failing call.
 pub fn last_detail_ptr() -> *const c_char {
-    LAST_DETAIL.try_with(|d| d.borrow().as_ptr()).unwrap_or(c"".as_ptr())
+    LAST_DETAIL
+        .try_with(|d| {
+            let d = d.borrow();
+            if d.is_empty() {
+                c"".as_ptr()
+            } else {
+                d.as_ptr().cast()
+            }
+        })
+        .unwrap_or(c"".as_ptr())
 }
 
 /// Fails with `RTAPI_ERROR_NULL_POINTER` if `p` is NULL; `what` names the argument.

@@ -326,11 +326,12 @@ fn argument_and_order_errors() {
     expect(RTSubscribeUnlock(), RTAPI_SUCCESS);
     expect(RTPublishLock(), RTAPI_SUCCESS);
     expect(RTPublishLock(), RTAPI_ERROR_OUT_OF_ORDER);
+    assert!(detail().contains("RTPublishLock called twice"), "{}", detail());
     expect(RTPublishUnlock(), RTAPI_SUCCESS);
     // None of these errors disconnected.
     expect(RTSubscribeLock(), RTAPI_SUCCESS);
     expect(RTSubscribeUnlock(), RTAPI_SUCCESS);
-    assert!(detail().contains("RTPublishUnlock"), "{}", detail());
+    assert_eq!(detail(), "", "the successes left a detail");
     expect(RTDisconnect(), RTAPI_SUCCESS);
 }
 
@@ -547,4 +548,19 @@ fn damaged_or_foreign_segments() {
     let dir = ShmFile(shm_path(&ns(), "dir1"));
     std::fs::create_dir(&dir.0).expect("mkdir");
     expect(connect("dir1", 0), RTAPI_ERROR_SYSTEM);
+}
+
+#[test]
+fn a_successful_call_leaves_no_detail_and_an_old_pointer_stays_readable() {
+    let _turn = serial();
+    expect(RTSetConnectionKey(4_000_000_000), RTAPI_ERROR_UNKNOWN_CONNECTION_KEY);
+    let held = RTGetLastErrorDetail();
+    assert!(detail().contains("4000000000"), "{}", detail());
+    let mut k = 0;
+    // SAFETY: `k` is a valid out-pointer.
+    expect(unsafe { RTNewConnectionKey(&mut k) }, RTAPI_SUCCESS);
+    assert_eq!(detail(), "", "a success left the earlier failure's detail");
+    // SAFETY: a pointer from before the success is still valid, and now reads "".
+    assert_eq!(unsafe { CStr::from_ptr(held) }.to_bytes(), b"");
+    expect(RTSetConnectionKey(0), RTAPI_SUCCESS);
 }
