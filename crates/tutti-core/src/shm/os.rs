@@ -149,7 +149,11 @@ mod guard {
 
     fn install() {
         PREVIOUS.get_or_init(|| {
-            PAGE.store(rustix::param::page_size(), Ordering::Relaxed);
+            // sysconf, not rustix's page size: rustix reads the vDSO's ELF header from the
+            // auxiliary vector, which valgrind does not map (a client under valgrind crashed).
+            // SAFETY: sysconf has no preconditions.
+            let page = unsafe { libc::sysconf(libc::_SC_PAGESIZE) };
+            PAGE.store(usize::try_from(page).ok().filter(|p| p.is_power_of_two()).unwrap_or(4096), Ordering::Relaxed);
             // SAFETY: plain sigaction calls with zero-initialised structs (a valid
             // `sigaction` value); the handler is an `extern "C"` fn of the SA_SIGINFO shape.
             unsafe {
