@@ -3,9 +3,11 @@
  * of RT-LAB Orchestra. Include it as is from C, or from C++ (also inside extern "C" { }).
  * Link with -lrtapi. Every call and return code is described in docs/rtapi.md.
  *
- * Single-threaded: calls must not overlap. Every call returns RTAPI_SUCCESS (0) or an
- * RTAPI_* code; RTGetErrorMessage(code) gives its text, RTGetLastErrorDetail() the
- * details of the last failure.
+ * Threads: calls may come from several threads at once; they take turns on the library's
+ * state, and none holds it while it waits for the framework (docs/rtapi.md, "Threads and
+ * state", says what threads must still agree on). Every call returns RTAPI_SUCCESS (0) or
+ * an RTAPI_* code; RTGetErrorMessage(code) gives its text, RTGetLastErrorDetail() the
+ * details of this thread's last call if it failed ("" after a success).
  */
 
 #ifndef RTAPI_H

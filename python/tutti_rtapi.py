@@ -22,7 +22,8 @@ lists and written from sequences.
 
 Every failing call raises RTAPIError, with .code (the RTAPI number), .name (RTAPI_...),
 .message (RTGetErrorMessage) and .detail (RTGetLastErrorDetail). docs/rtapi.md has the table.
-The RTAPI is single-threaded: use a connection from one thread at a time.
+Threads may call at the same time; no call holds the library while it waits for the
+framework (docs/rtapi.md, "Threads and state", says what threads must agree on).
 """
 
 import contextlib

@@ -6,7 +6,7 @@ use std::ffi::{c_char, c_int, c_uint, c_ushort, c_void};
 use std::time::Duration;
 
 use tutti_core::ddf::Role;
-use tutti_core::shm::{Participant, ShmError, WaitMode};
+use tutti_core::shm::{Participant, ShmError, StepGate, WaitMode};
 
 use crate::codes::*;
 use crate::ffi::{bytes_in, bytes_out, c_str, guard, last_detail_ptr, write_out, CallResult, Failure};
@@ -44,7 +44,7 @@ pub unsafe extern "C" fn RTConnect(domainName: *const c_char, timeoutSeconds: c_
     guard("RTConnect", || {
         // SAFETY: the caller promises a NUL-terminated string or NULL.
         let domain = unsafe { c_str(domainName, "domainName") }?;
-        state().connect(domain, None, timeoutSeconds)
+        crate::state::connect(domain, None, timeoutSeconds)
     })
 }
 
@@ -64,7 +64,7 @@ pub unsafe extern "C" fn RTConnectWithFile(
         let path = unsafe { c_str(ddfPath, "ddfPath") }?;
         // SAFETY: as above.
         let domain = unsafe { c_str(domainName, "domainName") }?;
-        state().connect(domain, Some(path), timeoutSeconds)
+        crate::state::connect(domain, Some(path), timeoutSeconds)
     })
 }
 
@@ -86,6 +86,8 @@ struct Direction {
     unlock: &'static str,
     /// Whether the connection is between the lock and the unlock.
     locked: fn(&mut Conn) -> &mut bool,
+    /// The part of the lock that may wait for the framework, run with the state released.
+    gate_op: CoreOp<Option<StepGate>>,
     /// What the lock does in the core.
     lock_op: CoreOp<u64>,
     /// What the unlock does in the core, if anything.
@@ -102,6 +104,7 @@ const PUBLISH: Direction = Direction {
     lock: "RTPublishLock",
     unlock: "RTPublishUnlock",
     locked: |c| &mut c.pub_locked,
+    gate_op: Participant::publish_gate,
     lock_op: Participant::publish_lock,
     unlock_op: Some(Participant::commit),
 };
@@ -113,6 +116,7 @@ const SUBSCRIBE: Direction = Direction {
     lock: "RTSubscribeLock",
     unlock: "RTSubscribeUnlock",
     locked: |c| &mut c.sub_locked,
+    gate_op: Participant::read_gate,
     lock_op: Participant::subscribe_lock,
     unlock_op: None,
 };
@@ -145,13 +149,28 @@ fn exchange_item<B>(
     st.exchange(d.side, |c| op(&mut c.participant, locked, index, buf))
 }
 
-/// RTPublishLock and RTSubscribeLock.
+/// RTPublishLock and RTSubscribeLock. The wait for the framework (the next step to read, a
+/// step to answer) runs with the library's state released, so that another thread's calls
+/// go on meanwhile: a writer thread beside a reader looping on RTSubscribeLock waits for
+/// nothing but its own work (docs/rtapi.md, "Threads").
 fn lock(d: &Direction) -> CallResult {
+    let twice = || Failure::new(RTAPI_ERROR_OUT_OF_ORDER, format!("{} called twice without {}", d.lock, d.unlock));
+    let (key, gate) = {
+        let mut st = state();
+        if *(d.locked)(st.current()?) {
+            return Err(twice());
+        }
+        let key = st.current_key();
+        (key, st.exchange_on(key, d.side, |c| (d.gate_op)(&mut c.participant))?)
+    };
+    let waited = gate.map_or(Ok(()), |g| g.wait());
     let mut st = state();
-    if *(d.locked)(st.current()?) {
-        return Err(Failure::new(RTAPI_ERROR_OUT_OF_ORDER, format!("{} called twice without {}", d.lock, d.unlock)));
+    // Another thread may have taken this lock while we waited.
+    if *(d.locked)(st.connected(key)?) {
+        return Err(twice());
     }
-    st.exchange(d.side, |c| {
+    st.exchange_on(key, d.side, |c| {
+        waited?;
         (d.lock_op)(&mut c.participant)?;
         *(d.locked)(c) = true;
         Ok(())

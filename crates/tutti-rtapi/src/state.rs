@@ -1,7 +1,7 @@
 //! The library's state: the connection table and the "current connection", as in the
-//! product. It is process-wide (one `Mutex`), so a client may connect in one thread and
-//! exchange in another, but calls must not overlap: the RTAPI is single-threaded, and a
-//! call that blocks (a lock in a synchronous domain) holds the state until it returns.
+//! product. It is process-wide (one `Mutex`): calls from several threads take turns on it,
+//! and no call holds it while it waits for the framework (the locks wait with it released,
+//! see `api::lock`), so one thread's wait does not hold up another's calls.
 
 use std::collections::BTreeMap;
 use std::sync::{Mutex, MutexGuard};
@@ -132,6 +132,16 @@ impl State {
         self.conn(key)?.as_mut().map(|c| &mut c.participant).ok_or_else(|| not_connected(key))
     }
 
+    /// The key of the current connection.
+    pub fn current_key(&self) -> u32 {
+        self.current
+    }
+
+    /// Connection `key`, which must be connected.
+    pub fn connected(&mut self, key: u32) -> CallResult<&mut Conn> {
+        self.conn(key)?.as_mut().ok_or_else(|| not_connected(key))
+    }
+
     /// The current connection, which must be connected.
     pub fn current(&mut self) -> CallResult<&mut Conn> {
         let key = self.current;
@@ -150,19 +160,10 @@ impl State {
         }
     }
 
-    /// Connects the current connection; with a DDF, checks that it matches the live domain.
-    pub fn connect(&mut self, domain: &str, ddf_path: Option<&str>, timeout_seconds: i32) -> CallResult {
-        let timeout = u64::try_from(timeout_seconds).map(Duration::from_secs).map_err(|_| {
-            Failure::new(RTAPI_ERROR_INVALID_ARGUMENT, format!("timeout {timeout_seconds} s is negative"))
-        })?;
-        if domain.is_empty() {
-            return Err(Failure::new(RTAPI_ERROR_INVALID_ARGUMENT, "the domain name is empty"));
-        }
-        let key = self.current;
-        let (skip, wait) = (self.skip_wait_to_go, self.wait);
-        let remote = self.remote.get(&key).cloned();
+    /// Why connection `key` cannot connect now (it is connected), after forgetting a
+    /// connection whose framework went away (it connects again without RTDisconnect).
+    fn ready_to_connect(&mut self, key: u32) -> CallResult {
         let slot = self.conn(key)?;
-        // A connection whose framework went away connects again without RTDisconnect.
         if slot.as_ref().is_some_and(|c| c.ended.is_some()) {
             *slot = None;
         }
@@ -172,36 +173,60 @@ impl State {
                 format!("connection key {key} is already connected"),
             ));
         }
-        let opts = ConnectOptions {
-            connect_timeout: timeout,
-            timeout: if timeout.is_zero() { DEFAULT_LOCK_TIMEOUT } else { timeout },
-            wait,
-            skip_wait_to_go: skip,
-            ..ConnectOptions::default()
-        };
-        let shm = |e: ShmError| {
-            let f = Failure::shm(&e, Side::Connect);
-            match &remote {
-                Some((card, pci)) if matches!(f.code, RTAPI_ERROR_TIMEOUT | RTAPI_ERROR_DOMAIN_NOT_FOUND) => {
-                    not_served(domain, card, *pci, &f.detail)
-                }
-                _ => f,
-            }
-        };
-        let participant = match ddf_path {
-            None => Participant::connect(domain, opts).map_err(shm)?,
-            Some(path) => {
-                let model = ddf::load(path).map_err(|e| Failure::new(RTAPI_ERROR_DDF_INVALID, e.to_string()))?;
-                let d = model.domain(domain).ok_or_else(|| {
-                    Failure::new(RTAPI_ERROR_DDF_INVALID, format!("{path} does not describe domain '{domain}'"))
-                })?;
-                Participant::connect_checked(d, opts).map_err(shm)?
-            }
-        };
-        *slot = Some(Conn { participant, sub_locked: false, pub_locked: false, ended: None });
         Ok(())
     }
+}
 
+/// Connects the current connection; with a DDF, checks that it matches the live domain. The
+/// wait for the framework (up to the timeout, and its wait-to-go) runs with the state
+/// released, so that other threads' calls go on meanwhile.
+pub fn connect(domain: &str, ddf_path: Option<&str>, timeout_seconds: i32) -> CallResult {
+    let timeout = u64::try_from(timeout_seconds)
+        .map(Duration::from_secs)
+        .map_err(|_| Failure::new(RTAPI_ERROR_INVALID_ARGUMENT, format!("timeout {timeout_seconds} s is negative")))?;
+    if domain.is_empty() {
+        return Err(Failure::new(RTAPI_ERROR_INVALID_ARGUMENT, "the domain name is empty"));
+    }
+    let (key, skip, wait, remote) = {
+        let mut st = state();
+        let key = st.current;
+        st.ready_to_connect(key)?;
+        (key, st.skip_wait_to_go, st.wait, st.remote.get(&key).cloned())
+    };
+    let opts = ConnectOptions {
+        connect_timeout: timeout,
+        timeout: if timeout.is_zero() { DEFAULT_LOCK_TIMEOUT } else { timeout },
+        wait,
+        skip_wait_to_go: skip,
+        ..ConnectOptions::default()
+    };
+    let shm = |e: ShmError| {
+        let f = Failure::shm(&e, Side::Connect);
+        match &remote {
+            Some((card, pci)) if matches!(f.code, RTAPI_ERROR_TIMEOUT | RTAPI_ERROR_DOMAIN_NOT_FOUND) => {
+                not_served(domain, card, *pci, &f.detail)
+            }
+            _ => f,
+        }
+    };
+    let participant = match ddf_path {
+        None => Participant::connect(domain, opts).map_err(shm)?,
+        Some(path) => {
+            let model = ddf::load(path).map_err(|e| Failure::new(RTAPI_ERROR_DDF_INVALID, e.to_string()))?;
+            let d = model.domain(domain).ok_or_else(|| {
+                Failure::new(RTAPI_ERROR_DDF_INVALID, format!("{path} does not describe domain '{domain}'"))
+            })?;
+            Participant::connect_checked(d, opts).map_err(shm)?
+        }
+    };
+    let mut st = state();
+    // Another thread may have connected this key meanwhile: the later connection loses.
+    st.ready_to_connect(key)?;
+    *st.conn(key)? = Some(Conn { participant, sub_locked: false, pub_locked: false, ended: None });
+    Ok(())
+}
+
+impl State {
     /// `RTSetupRefMemRemoteConnection`: the product prepares the current connection to reach
     /// a framework on another machine through a reflective-memory card. Here another machine
     /// is reached through DDS, by a mirror gateway that serves the domain on this one; so the
@@ -234,7 +259,17 @@ impl State {
     /// Runs one core operation on the current connection; when it fails because the other
     /// side is gone, the connection is closed (see docs/rtapi.md, "Errors").
     pub fn exchange<T>(&mut self, side: Side, op: impl FnOnce(&mut Conn) -> Result<T, ShmError>) -> CallResult<T> {
-        let key = self.current;
+        self.exchange_on(self.current, side, op)
+    }
+
+    /// [`exchange`](Self::exchange) on connection `key`, current or not (a call that
+    /// released the state to wait comes back to the connection it started on).
+    pub fn exchange_on<T>(
+        &mut self,
+        key: u32,
+        side: Side,
+        op: impl FnOnce(&mut Conn) -> Result<T, ShmError>,
+    ) -> CallResult<T> {
         let conn = self.conn(key)?.as_mut().ok_or_else(|| not_connected(key))?;
         if let Some(ended) = &conn.ended {
             return Err(ended.failure(side));

@@ -36,7 +36,7 @@ pub use framework::{DomainHost, Framework, FrameworkOptions, StepReport};
 #[cfg(not(tutti_loom))]
 pub use observer::{Look, Observer};
 #[cfg(not(tutti_loom))]
-pub use participant::{ConnectOptions, Participant};
+pub use participant::{ConnectOptions, Participant, StepGate};
 #[cfg(not(tutti_loom))]
 pub use segment::{
     check_namespace, list_domains, namespace_from_env, segment_name, segment_path, ConnKind, ConnectionInfo,

@@ -1,6 +1,7 @@
 //! The external participant role: connect to a domain by name, snapshot the PUBLISH set,
 //! stage and commit the SUBSCRIBE set. The RTAPI (C and Python) is a thin layer over this.
 
+use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 use super::bucket::{copy_words, store_bytes, store_range, with_bytes_mut};
@@ -51,7 +52,7 @@ impl Default for ConnectOptions {
 /// A connection to one domain.
 #[derive(Debug)]
 pub struct Participant {
-    seg: Segment,
+    seg: Arc<Segment>,
     slot: usize,
     id: u64,
     me: os::ProcessId,
@@ -113,7 +114,7 @@ impl Participant {
             // Start from the SUBSCRIBE values as they are: a commit changes only what we change.
             stale_staging: true,
             framework_seen: std::cell::Cell::new(Instant::now()),
-            seg,
+            seg: Arc::new(seg),
             slot,
             id,
             me,
@@ -368,19 +369,48 @@ impl Participant {
 
     /// Waits until `ready`, at most the timeout, except that a paused framework costs no
     /// timeout: the wait goes on for as long as the pause lasts, and a whole timeout after it.
-    fn wait_for_step(
-        &self,
-        what: &'static str,
-        mut ready: impl FnMut() -> Result<bool, ShmError>,
-    ) -> Result<(), ShmError> {
-        loop {
-            let deadline = Instant::now() + self.opts.timeout;
-            match self.waiter("step").wait(deadline, &mut ready, || self.check_alive())? {
-                Waited::Ready => return Ok(()),
-                Waited::TimedOut if !self.seg.step_wait_may_time_out(self.opts.timeout) => {}
-                Waited::TimedOut => return Err(self.timeout(what, self.opts.timeout)),
-            }
+    fn wait_for_step(&self, what: &'static str, ready: impl FnMut() -> Result<bool, ShmError>) -> Result<(), ShmError> {
+        wait_step(&self.seg, self.opts.wait, self.opts.timeout, what, ready, || self.check_alive())
+    }
+
+    fn gate(&self, until: GateFor) -> StepGate {
+        StepGate {
+            seg: self.seg.clone(),
+            slot: self.slot,
+            id: self.id,
+            pid: self.me.pid,
+            wait: self.opts.wait,
+            timeout: self.opts.timeout,
+            until,
         }
+    }
+
+    /// The part of [`subscribe_lock`](Self::subscribe_lock) that waits, apart: in a
+    /// synchronous domain, declares the connection a lock-step reader (giving up an answer it
+    /// owes, as `subscribe_lock` does) and returns a [`StepGate`] that waits for the next
+    /// step without borrowing the participant. A caller that serialises its calls with a
+    /// lock (the RTAPI) waits on the gate with that lock released, then calls
+    /// `subscribe_lock`, which finds the step there. `None`: `subscribe_lock` would not wait.
+    pub fn read_gate(&mut self) -> Result<Option<StepGate>, ShmError> {
+        if !self.seg.info.flags.synchronous {
+            return Ok(None);
+        }
+        self.check()?;
+        self.set_flag(CONN_SYNC_READER);
+        self.forfeit_owed_answer();
+        Ok(Some(self.gate(GateFor::ReadAfter(self.last_read))))
+    }
+
+    /// As [`read_gate`](Self::read_gate), for [`publish_lock`](Self::publish_lock): a gate
+    /// when it would wait for a step to answer (a synchronous domain, a connection that
+    /// does not read).
+    pub fn publish_gate(&mut self) -> Result<Option<StepGate>, ShmError> {
+        if !self.seg.info.flags.synchronous || self.has_read {
+            return Ok(None);
+        }
+        self.check()?;
+        let states = self.seg.info.flags.states;
+        Ok(Some(self.gate(GateFor::PublishAfter { last: self.last_commit, states })))
     }
 
     /// Reads the PUBLISH set where it lies and commits a whole SUBSCRIBE set computed from
@@ -762,6 +792,93 @@ struct WriterLock<'a>(&'a AtomicU64);
 impl Drop for WriterLock<'_> {
     fn drop(&mut self) {
         self.0.store(0, Ordering::Release);
+    }
+}
+
+/// What a [`StepGate`] waits for.
+#[derive(Debug, Clone, Copy)]
+enum GateFor {
+    /// A step after this one (the connection's last read).
+    ReadAfter(u64),
+    /// A step to answer after the last commit (or the seed, with `states`).
+    PublishAfter { last: u64, states: bool },
+}
+
+/// A participant's wait for the framework, apart from the participant (see
+/// [`Participant::read_gate`]): it holds the segment, not the connection, so another
+/// thread may use the connection meanwhile. It ends as the participant's own wait does:
+/// ready, timed out (never while the framework is paused), or with the error of a framework
+/// that stopped, a connection that was removed or a segment that was shrunk.
+#[derive(Debug)]
+pub struct StepGate {
+    seg: Arc<Segment>,
+    slot: usize,
+    id: u64,
+    pid: u32,
+    wait: WaitMode,
+    timeout: Duration,
+    until: GateFor,
+}
+
+impl StepGate {
+    pub fn wait(&self) -> Result<(), ShmError> {
+        let seg = &*self.seg;
+        let h = seg.header();
+        let ctl = seg.step_ctl();
+        let until = self.until;
+        let ready = move || {
+            Ok(match until {
+                GateFor::ReadAfter(last) => ctl.next_step(last).is_some(),
+                GateFor::PublishAfter { last, states } => {
+                    let k = h.pub_step.load(Ordering::Acquire);
+                    k > last || (states && k == 0 && h.seeded.load(Ordering::Acquire) == 0)
+                }
+            })
+        };
+        let check = || {
+            let domain = || seg.info.name.clone();
+            seg.intact()?;
+            if h.state.load(Ordering::Acquire) != STATE_RUNNING || !os::is_alive(seg.framework_id()) {
+                seg.intact_checked()?;
+                return Err(ShmError::FrameworkStopped { domain: domain() });
+            }
+            let c = seg.conn(self.slot).ok_or_else(|| ShmError::ConnectionLost { domain: domain() })?;
+            if c.active.load(Ordering::Acquire) != self.pid || seg.conn_id(self.slot) != self.id {
+                seg.intact_checked()?;
+                return Err(ShmError::ConnectionLost { domain: domain() });
+            }
+            Ok(())
+        };
+        let what = match until {
+            GateFor::ReadAfter(_) => "the framework's next step",
+            GateFor::PublishAfter { .. } => "a step to publish for",
+        };
+        wait_step(seg, self.wait, self.timeout, what, ready, check)
+    }
+}
+
+/// The wait of a participant for a step: until `ready`, at most `timeout`, except that a
+/// paused framework costs no timeout (the wait goes on for as long as the pause lasts, and
+/// a whole timeout after it); `check` runs now and then and ends the wait with its error.
+fn wait_step(
+    seg: &Segment,
+    mode: WaitMode,
+    timeout: Duration,
+    what: &'static str,
+    mut ready: impl FnMut() -> Result<bool, ShmError>,
+    mut check: impl FnMut() -> Result<(), ShmError>,
+) -> Result<(), ShmError> {
+    let h = seg.header();
+    let waiter = Waiter { mode, futex: &h.step_seq, waiters: &h.step_waiters, check_every: Duration::from_millis(20) };
+    loop {
+        let deadline = Instant::now() + timeout;
+        match waiter.wait(deadline, &mut ready, &mut check)? {
+            Waited::Ready => return Ok(()),
+            Waited::TimedOut if !seg.step_wait_may_time_out(timeout) => {}
+            Waited::TimedOut => {
+                return Err(ShmError::Timeout { domain: seg.info.name.clone(), what, ms: timeout.as_millis() as u64 })
+            }
+        }
     }
 }
 
