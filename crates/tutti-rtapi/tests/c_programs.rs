@@ -243,6 +243,52 @@ fn a_two_thread_client_keeps_lock_step_with_and_without_its_own_mutex() {
     }
 }
 
+/// A writer thread beside a reader thread that loops on RTSubscribeLock, neither with a
+/// mutex of its own, over 10,000 steps of 1 ms (a 10 s run): the writer writes every 20
+/// steps the reader reads, and every write reaches the framework. Its RTPublishLock never
+/// waits for the reader's wait for the next step: across all its calls, the reader reads
+/// fewer steps than there were calls (a lock that waited for the reader's step would see one
+/// pass every time; the library used to hold its state through that wait).
+#[test]
+fn a_writer_thread_beside_a_looping_reader_keeps_its_rate() {
+    const STEPS: u64 = 10_000;
+    let dir = tempfile::tempdir().expect("temp dir");
+    let program = compile(&root().join("crates/tutti-rtapi/tests/c/two_threads.c"), dir.path());
+    let ns = namespace("threads-paced");
+    let host = Host::start(&load("ddf/multiuav.ddf"), fopts(&ns), Duration::from_millis(1));
+    let mut cmd = Command::new(&program);
+    cmd.env("TUTTI_NAMESPACE", &ns).args(["multiuav_uav2", "Z", "Elevation", &STEPS.to_string(), "paced"]);
+    let out = run(&mut cmd, LIMIT);
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(out.status.success(), "{stdout}{}", String::from_utf8_lossy(&out.stderr));
+    let field = |name: &str| -> u64 {
+        stdout
+            .lines()
+            .find_map(|l| l.strip_prefix(name)?.trim().parse().ok())
+            .unwrap_or_else(|| panic!("{name}: {stdout}"))
+    };
+    let (writes, lock_steps) = (field("writes "), field("lock_steps "));
+    eprintln!(
+        "paced writer: {writes} writes, {lock_steps} steps read during its locks, max {}",
+        field("max_lock_steps ")
+    );
+    // A write every 20 steps read, counted from the end of the last write: a writer that
+    // loses no step in its locks makes STEPS / 20 of them; one that waits a step in every lock
+    // makes at most STEPS / 21.
+    assert!(writes * 21 > STEPS, "the writer fell behind: {writes} writes in {STEPS} steps\n{stdout}");
+    assert!(lock_steps < writes, "RTPublishLock waited for the reader's steps: {lock_steps} in {writes} calls");
+    // Every write reached the framework: it saw each value 1..=writes in the SUBSCRIBE set.
+    let seen = host.seen_through(&[("multiuav_uav2", STEPS)], Duration::from_secs(30));
+    // Elevation is at SUBSCRIBE offset 16.
+    let values: std::collections::BTreeSet<u64> =
+        seen.iter().filter(|s| s.domain == "multiuav_uav2").map(|s| f64_at(&s.subscribe, 16) as u64).collect();
+    let missing: Vec<u64> = (1..=writes).filter(|v| !values.contains(v)).collect();
+    assert!(missing.is_empty(), "writes the framework never saw: {missing:?}");
+    let status = tutti_core::shm::segment::Segment::open(&ns, "multiuav_uav2").expect("segment").status();
+    drop(host);
+    assert_eq!(status.step_timeouts, 0, "the framework waited for the client until its timeout");
+}
+
 /// Every RTAPI call VILLASnode's Orchestra node makes, with the argument types it declares,
 /// compiled as C++ with -Wconversion (and the C examples with it too), run against `tutti
 /// host` in the three connection forms of the product's DDFs: a synchronous local domain, an

@@ -6,12 +6,21 @@
  * for the whole call, as VILLASnode's RTConnectionLockGuard does; with "no-mutex", the
  * threads call the library concurrently.
  *
- *   two_threads DOMAIN PUB_ITEM SUB_ITEM STEPS own-mutex|no-mutex
+ * With "paced", the writer does not answer the reader: it writes on its own, once every
+ * PACE steps the reader has read (counting the steps from the end of its last write), the
+ * values 1, 2, 3, ..., with no mutex of its own. It counts the steps the reader read while
+ * each RTPublishLock ran: a writer held up by the reader's wait for the next step sees
+ * steps pass there.
  *
- * Prints "read V" for every value read (in order), then "writes N".
+ *   two_threads DOMAIN PUB_ITEM SUB_ITEM STEPS own-mutex|no-mutex|paced
+ *
+ * Prints "read V" for every value read (in order), then "writes N"; "paced" also prints
+ * "lock_steps S" (the steps read during all RTPublishLock calls) and "max_lock_steps M".
  */
 #define _POSIX_C_SOURCE 200809L
 #include <pthread.h>
+#include <stdatomic.h>
+#include <time.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -31,6 +40,11 @@ static double latest;
 static int fresh, done, failed;
 static double *values;
 static long writes;
+static int paced;
+static atomic_long reader_steps;
+static atomic_int reader_done;
+static long lock_steps, max_lock_steps;
+#define PACE 20
 
 static void call_lock(void)
 {
@@ -70,17 +84,51 @@ static void *reader(void *arg)
             break;
         }
         values[i] = v;
+        atomic_store(&reader_steps, i + 1);
         pthread_mutex_lock(&queue_lock);
         latest = v;
         fresh = 1;
         pthread_cond_signal(&queue_cond);
         pthread_mutex_unlock(&queue_lock);
     }
+    atomic_store(&reader_done, 1);
     pthread_mutex_lock(&queue_lock);
     done = 1;
     pthread_cond_signal(&queue_cond);
     pthread_mutex_unlock(&queue_lock);
     return NULL;
+}
+
+static void *paced_writer(void *arg)
+{
+    (void)arg;
+    long next = PACE;
+    const struct timespec nap = {0, 100000};
+    for (;;) {
+        while (atomic_load(&reader_steps) < next && !atomic_load(&reader_done)) {
+            nanosleep(&nap, NULL);
+        }
+        if (atomic_load(&reader_done)) {
+            return NULL;
+        }
+        long before = atomic_load(&reader_steps);
+        int ok = check(RTPublishLock(), "RTPublishLock");
+        long after = atomic_load(&reader_steps);
+        if (ok) {
+            *(double *)out_buf = (double)(writes + 1);
+        }
+        ok = ok && check(RTPublishUnlock(), "RTPublishUnlock");
+        if (!ok) {
+            failed = 1;
+            return NULL;
+        }
+        writes++;
+        lock_steps += after - before;
+        if (after - before > max_lock_steps) {
+            max_lock_steps = after - before;
+        }
+        next = atomic_load(&reader_steps) + PACE;
+    }
 }
 
 static void *writer(void *arg)
@@ -122,6 +170,7 @@ int main(int argc, char **argv)
     }
     steps = atol(argv[4]);
     own_mutex = strcmp(argv[5], "own-mutex") == 0;
+    paced = strcmp(argv[5], "paced") == 0;
     values = calloc((size_t)steps, sizeof *values);
     if (!values) {
         return 1;
@@ -134,7 +183,7 @@ int main(int argc, char **argv)
         return 1;
     }
     pthread_t r, w;
-    pthread_create(&w, NULL, writer, NULL);
+    pthread_create(&w, NULL, paced ? paced_writer : writer, NULL);
     pthread_create(&r, NULL, reader, NULL);
     pthread_join(r, NULL);
     pthread_join(w, NULL);
@@ -142,6 +191,9 @@ int main(int argc, char **argv)
         printf("read %.17g\n", values[i]);
     }
     printf("writes %ld\n", writes);
+    if (paced) {
+        printf("lock_steps %ld\nmax_lock_steps %ld\n", lock_steps, max_lock_steps);
+    }
     free(values);
     check(RTDisconnect(), "RTDisconnect");
     return failed;
