@@ -15,6 +15,7 @@ mod gateway;
 mod iceoryx;
 mod peers;
 mod record;
+mod rtapi;
 mod shm;
 mod studio;
 
@@ -38,6 +39,9 @@ enum What {
     Record(record::Args),
     /// Round trips through shared-memory domains, next to iceoryx2 in the same run.
     Shm(shm::Args),
+    /// RTPublishLock's latency in a client whose writer thread runs beside a reader thread
+    /// looping on RTSubscribeLock, next to a one-thread client.
+    RtapiThreads(rtapi::Args),
     Studio(studio::Args),
     /// (internal) the pong side of `tutti-bench shm`.
     #[command(hide = true)]
@@ -55,6 +59,7 @@ fn main() -> ExitCode {
         What::Gateway(a) => gateway::run(a),
         What::Record(a) => record::run(a),
         What::Shm(a) => shm::run(a),
+        What::RtapiThreads(a) => rtapi::run(a).map_err(Into::into),
         What::Studio(a) => studio::run(a),
         What::ShmPong(a) => shm::pong(a),
         What::IoxPong(a) => iceoryx::pong_main(a),
