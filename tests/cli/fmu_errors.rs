@@ -1,8 +1,9 @@
 //! FMUs that tutti cannot use give a clear error and exit status 2: a file that is not a
 //! zip, a zip that is not an FMU, a broken modelDescription.xml, a model-exchange-only FMU,
 //! no binary for Linux x86_64, a library missing an FMI function, a mapping that does not
-//! fit (type, direction, unknown names). None of them needs a running framework: every check
-//! comes before connecting.
+//! fit (type, direction, unknown names), a model identifier that is a path or a start value
+//! that is not finite (refused alike by `inspect`, `ddf` and `run`). None of them needs a
+//! running framework: every check comes before connecting.
 
 use tutti_test_support as common;
 use tutti_test_support::fmu as fmu_common;
@@ -80,6 +81,60 @@ fn a_broken_model_description_is_reported_with_its_line() {
     let (code, _, err) = tutti(&[os("fmu"), os("ddf"), f.as_os_str()]);
     assert_eq!(code, 2, "{err}");
     assert!(err.contains("modelDescription.xml:6:") && err.contains("valueReference=\"-1\""), "{err}");
+}
+
+/// Runs every command that opens an FMU (`inspect`, `ddf`, `run`) on `fmu`: each must refuse
+/// it with exit 2 and the same message (they share one validation, the model description's
+/// parser), which is returned.
+fn refused_alike_by_every_command(dir: &Path, fmu: &Path) -> String {
+    let mut messages = Vec::new();
+    for cmd in ["inspect", "ddf", "run"] {
+        let (code, _, err) = match cmd {
+            "run" => run_stub(dir, fmu, &[]),
+            _ => tutti(&[os("fmu"), os(cmd), fmu.as_os_str()]),
+        };
+        assert_eq!(code, 2, "tutti fmu {cmd}: {err}");
+        let message = err.lines().rfind(|l| !l.trim().is_empty()).unwrap_or_default().to_string();
+        assert_eq!(message.matches("modelDescription.xml:").count(), 1, "said once: {message}");
+        messages.push((cmd, message));
+    }
+    for (cmd, message) in &messages[1..] {
+        assert_eq!(message, &messages[0].1, "tutti fmu {cmd} and inspect differ");
+    }
+    messages.swap_remove(0).1
+}
+
+#[test]
+fn a_model_identifier_that_is_a_path_is_refused_by_inspect_ddf_and_run_alike() {
+    let dir = tempfile::tempdir().unwrap();
+    let f = dir.path().join("evil.fmu");
+    let text = model_description("../../evil");
+    write_zip(&f, &[("modelDescription.xml", text.as_bytes()), ("binaries/linux64/stub.so", b"")]);
+    let err = refused_alike_by_every_command(dir.path(), &f);
+    assert!(
+        err.contains("evil.fmu: modelDescription.xml:3:")
+            && err.contains("modelIdentifier=\"../../evil\"")
+            && err.contains("not a C identifier"),
+        "{err}"
+    );
+}
+
+#[test]
+fn start_values_that_are_not_finite_are_refused_by_inspect_ddf_and_run_alike() {
+    let dir = tempfile::tempdir().unwrap();
+    for start in ["NaN", "1e999"] {
+        let f = dir.path().join(format!("start-{start}.fmu"));
+        let text = model_description("stub").replace("<Real start=\"0\"/>", &format!("<Real start=\"{start}\"/>"));
+        write_zip(&f, &[("modelDescription.xml", text.as_bytes()), ("binaries/linux64/stub.so", b"")]);
+        let err = refused_alike_by_every_command(dir.path(), &f);
+        let want = format!("start-{start}.fmu: modelDescription.xml:5:");
+        assert!(
+            err.contains(&want)
+                && err.contains(&format!("variable 'u': start=\"{start}\""))
+                && err.contains("not a finite Real"),
+            "{err}"
+        );
+    }
 }
 
 #[test]

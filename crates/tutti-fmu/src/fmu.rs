@@ -17,14 +17,17 @@ use crate::log_capture;
 use crate::model::{Causality, FmiVersion, ModelDescription, ModelError, VarType, Variable};
 
 /// Why an FMU cannot be opened or instantiated (the user's FMU is at fault: exit 2).
+///
+/// The underlying error of `Io` and `Model` is a `cause`, in the message, not a `source`:
+/// a chain printed whole (`{:#}`) would say it twice.
 #[derive(Debug, thiserror::Error)]
 pub enum LoadError {
-    #[error("{path}: {source}")]
-    Io { path: PathBuf, source: std::io::Error },
+    #[error("{path}: {cause}")]
+    Io { path: PathBuf, cause: std::io::Error },
     #[error("{path}: not an FMU: {reason}")]
     NotAnFmu { path: PathBuf, reason: String },
-    #[error("{path}: {source}")]
-    Model { path: PathBuf, source: ModelError },
+    #[error("{path}: {cause}")]
+    Model { path: PathBuf, cause: ModelError },
     #[error("{path}: model '{model}' is not a co-simulation FMU (it has no <CoSimulation>{me}); tutti runs co-simulation FMUs only")]
     NotCoSimulation { path: PathBuf, model: String, me: &'static str },
     #[error("{path}: no binary for Linux x86_64: expected {expected} in the archive ({found})")]
@@ -120,7 +123,7 @@ impl Fmu {
     /// Opens `path`: a zip with a valid `modelDescription.xml`.
     pub fn open(path: impl AsRef<Path>) -> Result<Fmu, LoadError> {
         let path = path.as_ref().to_path_buf();
-        let file = std::fs::File::open(&path).map_err(|source| LoadError::Io { path: path.clone(), source })?;
+        let file = std::fs::File::open(&path).map_err(|cause| LoadError::Io { path: path.clone(), cause })?;
         let mut zip = zip::ZipArchive::new(file)
             .map_err(|e| LoadError::NotAnFmu { path: path.clone(), reason: format!("not a zip archive ({e})") })?;
         let binaries = zip.file_names().filter(|n| n.starts_with("binaries/") && !n.ends_with('/')).map(String::from);
@@ -138,7 +141,7 @@ impl Fmu {
                 reason: format!("modelDescription.xml cannot be read as UTF-8 text ({e})"),
             })?;
         }
-        let model = ModelDescription::parse(&text).map_err(|source| LoadError::Model { path: path.clone(), source })?;
+        let model = ModelDescription::parse(&text).map_err(|cause| LoadError::Model { path: path.clone(), cause })?;
         Ok(Fmu { path, model, binaries })
     }
 

@@ -2,8 +2,12 @@
 //! model's identity, its co-simulation capabilities, the default experiment and the
 //! variables. Read with the core's positioned XML reader, so that every error names a line.
 //!
-//! Only what tutti needs is validated; anything else in the file is ignored (FMUs carry many
-//! vendor annotations).
+//! Only what tutti needs is validated, and what it would be unsafe to take as written (a
+//! `modelIdentifier` that is not a plain name, since it names the library file to load; a
+//! start value that is not a finite value of its variable's type). Every command that opens
+//! an FMU (`tutti fmu inspect`, `ddf`, `run`) goes through [`ModelDescription::parse`], so
+//! they refuse the same files with the same message. Anything else in the file is ignored
+//! (FMUs carry many vendor annotations). See docs/fmu.md, "Loading".
 
 use serde::Serialize;
 use tutti_core::ddf::raw::{self, RawElement};
@@ -323,15 +327,73 @@ fn flag(e: RawElement<'_>, attr: &str) -> Result<bool, ModelError> {
 
 fn number(e: RawElement<'_>, attr: &str) -> Result<Option<f64>, ModelError> {
     e.attr(attr)
-        .map(|t| {
-            t.trim().parse::<f64>().map_err(|_| err(e.pos(), format!("<{}> {attr}=\"{t}\" is not a number", e.name())))
+        .map(|t| match t.trim().parse::<f64>() {
+            Ok(v) if v.is_finite() => Ok(v),
+            Ok(_) => Err(err(e.pos(), format!("<{}> {attr}=\"{t}\" is not a finite number", e.name()))),
+            Err(_) => Err(err(e.pos(), format!("<{}> {attr}=\"{t}\" is not a number", e.name()))),
         })
         .transpose()
 }
 
+/// The `modelIdentifier` of `e`, which must be a C identifier (ASCII letters, digits and
+/// `_`, not starting with a digit): it prefixes the FMU's functions and names its library,
+/// `binaries/PLATFORM/ID.so`, so a `/`, a `..` or a NUL would make it a path.
+fn model_identifier(e: RawElement<'_>) -> Result<String, ModelError> {
+    let id = required(e, "modelIdentifier")?;
+    let ok = id.starts_with(|c: char| c.is_ascii_alphabetic() || c == '_')
+        && id.chars().all(|c| c.is_ascii_alphanumeric() || c == '_');
+    if !ok {
+        return Err(err(
+            e.pos(),
+            format!(
+                "<{}> modelIdentifier=\"{}\" is not a C identifier (ASCII letters, digits and _, not starting with a \
+                 digit): it names the FMU's library file, so it may not be a path",
+                e.name(),
+                id.escape_debug()
+            ),
+        ));
+    }
+    Ok(id.to_string())
+}
+
+/// Checks a variable's start value against its type: every element (an FMI 3.0 array's
+/// start holds several, space-separated) a finite number of a float type, a whole number in
+/// the range of an integer type, `true`, `false`, `1` or `0` for a boolean. Strings,
+/// binaries and clocks are not checked.
+fn check_start(e: RawElement<'_>, name: &str, ty: VarType, version: FmiVersion, text: &str) -> Result<(), ModelError> {
+    let type_name = ty.fmi_name(version);
+    let what = match ty {
+        VarType::Float32 | VarType::Float64 => format!("a finite {type_name} number"),
+        VarType::Boolean => "true, false, 1 or 0".to_string(),
+        VarType::String | VarType::Binary | VarType::Clock => return Ok(()),
+        _ => format!("a whole number in the range of {type_name}"),
+    };
+    let fits = |t: &str| match ty {
+        VarType::Float32 => t.parse::<f32>().is_ok_and(f32::is_finite),
+        VarType::Float64 => t.parse::<f64>().is_ok_and(f64::is_finite),
+        VarType::Boolean => matches!(t, "true" | "false" | "1" | "0"),
+        // An enumeration's start is an Integer (FMI 2.0) or an Int64 (FMI 3.0).
+        _ => match ty.ddf_type(version) {
+            Some(scalar) => scalar.parse_value(t).is_some(),
+            None => true,
+        },
+    };
+    let mut tokens = text.split_ascii_whitespace().peekable();
+    if tokens.peek().is_none() {
+        return Err(err(e.pos(), format!("variable '{name}': start=\"\" is empty, not {what}")));
+    }
+    match tokens.find(|t| !fits(t)) {
+        None => Ok(()),
+        Some(bad) => {
+            let value = if bad == text.trim() { String::new() } else { format!(" (its value \"{bad}\")") };
+            Err(err(e.pos(), format!("variable '{name}': start=\"{}\"{value} is not {what}", text.escape_debug())))
+        }
+    }
+}
+
 fn co_simulation(e: RawElement<'_>) -> Result<CoSimulation, ModelError> {
     Ok(CoSimulation {
-        model_identifier: required(e, "modelIdentifier")?.to_string(),
+        model_identifier: model_identifier(e)?,
         can_handle_variable_communication_step_size: flag(e, "canHandleVariableCommunicationStepSize")?,
         can_get_and_set_fmu_state: flag(e, "canGetAndSetFMUstate")? || flag(e, "canGetAndSetFMUState")?,
         needs_execution_tool: flag(e, "needsExecutionTool")?,
@@ -394,13 +456,17 @@ fn variable(e: RawElement<'_>, version: FmiVersion) -> Result<Variable, ModelErr
     if !["constant", "fixed", "tunable", "discrete", "continuous"].contains(&variability.as_str()) {
         return Err(err(e.pos(), format!("variable '{name}': unknown variability \"{variability}\"")));
     }
+    let start = typed.attr("start");
+    if let Some(text) = start {
+        check_start(typed, &name, ty, version, text)?;
+    }
     Ok(Variable {
         name,
         value_reference,
         causality,
         variability,
         ty,
-        start: typed.attr("start").map(str::to_string),
+        start: start.map(str::to_string),
         unit: typed.attr("unit").map(str::to_string),
         description: e.attr("description").map(str::to_string),
         is_array: version == FmiVersion::Fmi3 && e.children().any(|c| c.name() == "Dimension"),
@@ -463,5 +529,64 @@ mod tests {
         assert_eq!(e.line, 7, "{e}");
         let e = ModelDescription::parse(&FMI2.replace("fmiVersion=\"2.0\"", "fmiVersion=\"1.0\"")).unwrap_err();
         assert!(e.message.contains("only FMI 2.0 and 3.0"), "{e}");
+    }
+
+    #[test]
+    fn a_model_identifier_that_is_a_path_is_refused_at_its_line() {
+        for bad in ["../../evil", "a/b", "..", "", "9lives", "a b", "lib.so", "a\\b"] {
+            let text = FMI2.replace("modelIdentifier=\"m\"", &format!("modelIdentifier=\"{bad}\""));
+            let e = ModelDescription::parse(&text).unwrap_err();
+            assert_eq!(e.line, 3, "{bad}: {e}");
+            assert!(e.message.contains("modelIdentifier") && e.message.contains("not a C identifier"), "{bad}: {e}");
+        }
+        for good in ["m", "_m", "Lag2", "Bouncing_Ball"] {
+            let text = FMI2.replace("modelIdentifier=\"m\"", &format!("modelIdentifier=\"{good}\""));
+            assert!(ModelDescription::parse(&text).is_ok(), "{good}");
+        }
+    }
+
+    #[test]
+    fn start_values_must_be_finite_values_of_their_type() {
+        let fmi3 = |ty: &str, start: &str| {
+            format!(
+                r#"<fmiModelDescription fmiVersion="3.0" modelName="M" instantiationToken="t">
+                <CoSimulation modelIdentifier="m"/><ModelVariables>
+                <{ty} name="v" valueReference="1" causality="input" start="{start}"/>
+                </ModelVariables></fmiModelDescription>"#
+            )
+        };
+        for (ty, bad) in [
+            ("Float64", "NaN"),
+            ("Float64", "1e999"),
+            ("Float64", "-inf"),
+            ("Float64", "x"),
+            ("Float32", "1e39"),
+            ("Float32", "1 NaN"),
+            ("Int8", "128"),
+            ("UInt16", "-1"),
+            ("Int32", "1.5"),
+            ("Boolean", "yes"),
+            ("Enumeration", "1e3"),
+            ("Float64", " "),
+        ] {
+            let e = ModelDescription::parse(&fmi3(ty, bad)).unwrap_err();
+            assert_eq!(e.line, 3, "{ty} {bad}: {e}");
+            assert!(e.message.contains("variable 'v'") && e.message.contains("start="), "{ty} {bad}: {e}");
+        }
+        for (ty, good) in [
+            ("Float64", "-1.5e300"),
+            ("Float32", "1 2"),
+            ("Int8", "-128"),
+            ("UInt64", "18446744073709551615"),
+            ("Boolean", "false"),
+            ("String", "NaN"),
+        ] {
+            assert!(ModelDescription::parse(&fmi3(ty, good)).is_ok(), "{ty} {good}");
+        }
+        // FMI 2.0: the start is on the type element, the message names the variable.
+        let e = ModelDescription::parse(&FMI2.replace("start=\"1\"", "start=\"NaN\"")).unwrap_err();
+        assert!(e.message.contains("variable 'u': start=\"NaN\" is not a finite Real number"), "{e}");
+        let e = ModelDescription::parse(&FMI2.replace("stepSize=\"0.01\"", "stepSize=\"1e999\"")).unwrap_err();
+        assert!(e.message.contains("stepSize=\"1e999\" is not a finite number"), "{e}");
     }
 }

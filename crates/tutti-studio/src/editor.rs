@@ -5,7 +5,7 @@
 use std::path::Path;
 use std::sync::Arc;
 
-use axum::extract::{Query, State};
+use axum::extract::State;
 use axum::http::StatusCode;
 use axum::Json;
 use serde::{Deserialize, Serialize};
@@ -16,6 +16,7 @@ use tutti_core::mapping::Profile;
 
 use crate::error::ApiError;
 use crate::files;
+use crate::request::{ApiJson, ApiQuery};
 use crate::AppState;
 
 /// One diagnostic as the page shows it.
@@ -105,7 +106,7 @@ pub struct PathQuery {
 }
 
 /// `GET /api/open?path=P`: the file's text, version, and its document when valid.
-pub async fn open(State(st): State<Arc<AppState>>, Query(q): Query<PathQuery>) -> Result<Json<Value>, ApiError> {
+pub async fn open(State(st): State<Arc<AppState>>, ApiQuery(q): ApiQuery<PathQuery>) -> Result<Json<Value>, ApiError> {
     let real = st.root.existing(&q.path)?;
     let bytes = files::read_limited(&real, ddf::MAX_FILE_BYTES)?;
     let rel = st.root.relative(&real);
@@ -121,7 +122,7 @@ pub struct CheckBody {
 }
 
 /// `POST /api/check {document, path?}`.
-pub async fn check(Json(body): Json<CheckBody>) -> Json<Checked> {
+pub async fn check(ApiJson(body): ApiJson<CheckBody>) -> Json<Checked> {
     Json(check_document(&body.document, body.path.as_deref().unwrap_or("new.ddf")))
 }
 
@@ -133,7 +134,7 @@ pub struct ParseBody {
 }
 
 /// `POST /api/parse {xml, path?}`: XML typed by hand.
-pub async fn parse(Json(body): Json<ParseBody>) -> Json<Checked> {
+pub async fn parse(ApiJson(body): ApiJson<ParseBody>) -> Json<Checked> {
     Json(check_text(body.xml.as_bytes(), body.path.as_deref().unwrap_or("new.ddf")))
 }
 
@@ -150,10 +151,19 @@ pub struct SaveBody {
 }
 
 /// `POST /api/save {path, document, version?, force?}`: writes the product dialect
-/// atomically. Refused: under `--read-only`, outside the root, when the file changed on
-/// disk since `version` (or exists, for a new file), when the document is invalid and
-/// `force` is not set.
-pub async fn save(State(st): State<Arc<AppState>>, Json(body): Json<SaveBody>) -> Result<Json<Value>, ApiError> {
+/// atomically; a new file answers 201, a file saved over 200. Refused: under
+/// `--read-only`, outside the root, under a file (409 `not-a-folder`), when the file changed
+/// on disk since `version` (or exists, for a new file: 409 `exists`, also when another save
+/// created it an instant before), when the document is invalid and `force` is not set.
+///
+/// The studio's saves take turns (one lock), so that a version is checked and the file
+/// written with no other save of the studio in between; a new file is created only if its
+/// name is free at that instant ([`files::create_new`]), so another process cannot be
+/// overwritten either.
+pub async fn save(
+    State(st): State<Arc<AppState>>,
+    ApiJson(body): ApiJson<SaveBody>,
+) -> Result<(StatusCode, Json<Value>), ApiError> {
     if st.read_only {
         return Err(ApiError::new(
             StatusCode::FORBIDDEN,
@@ -164,8 +174,12 @@ pub async fn save(State(st): State<Arc<AppState>>, Json(body): Json<SaveBody>) -
     if !body.path.ends_with(".ddf") {
         return Err(ApiError::bad_request(format!("'{}': a DDF's name ends with .ddf", body.path)));
     }
+    let _turn = st.save_turn.lock().await;
     let target = st.root.for_write(&body.path)?;
     let rel = st.root.relative(&target);
+    let exists = |rel: &str| {
+        ApiError::conflict("exists", format!("{rel} already exists: not saved. Open it, or save under another name."))
+    };
     let on_disk = match std::fs::symlink_metadata(&target) {
         Ok(_) => Some(files::read_limited(&target, ddf::MAX_FILE_BYTES)?),
         Err(_) => None,
@@ -177,12 +191,7 @@ pub async fn save(State(st): State<Arc<AppState>>, Json(body): Json<SaveBody>) -
                 format!("{rel} changed on disk since it was opened: not saved. Reload it (your edits are lost) or save under another name."),
             ));
         }
-        (Some(_), None) => {
-            return Err(ApiError::conflict(
-                "exists",
-                format!("{rel} already exists: not saved. Open it, or save under another name."),
-            ));
-        }
+        (Some(_), None) => return Err(exists(&rel)),
         (None, Some(_)) => {
             return Err(ApiError::conflict(
                 "changed",
@@ -201,14 +210,19 @@ pub async fn save(State(st): State<Arc<AppState>>, Json(body): Json<SaveBody>) -
         )
         .with(json!(checked.diagnostics)));
     }
-    files::write_atomic(&target, checked.xml.as_bytes()).map_err(|e| {
-        ApiError::new(StatusCode::INTERNAL_SERVER_ERROR, "io", format!("{rel}: could not be written: {e}"))
+    let bytes = checked.xml.as_bytes();
+    let (written, status) = match on_disk {
+        None => (files::create_new(&target, bytes), StatusCode::CREATED),
+        Some(_) => (files::write_atomic(&target, bytes), StatusCode::OK),
+    };
+    written.map_err(|e| match e.kind() {
+        std::io::ErrorKind::AlreadyExists => exists(&rel),
+        std::io::ErrorKind::PermissionDenied => {
+            ApiError::new(StatusCode::FORBIDDEN, "permission", format!("{rel}: could not be written: {e}"))
+        }
+        _ => ApiError::new(StatusCode::INTERNAL_SERVER_ERROR, "io", format!("{rel}: could not be written: {e}")),
     })?;
-    Ok(Json(json!({
-        "path": rel,
-        "version": files::version(checked.xml.as_bytes()),
-        "valid": checked.valid,
-    })))
+    Ok((status, Json(json!({ "path": rel, "version": files::version(bytes), "valid": checked.valid }))))
 }
 
 /// `GET /api/files`: the DDFs under the root.

@@ -1,9 +1,12 @@
 //! Files under the studio's root: every path a request names is resolved (symlinks too)
 //! and must stay under the root; a save is atomic (temp file in the same folder, fsync,
-//! rename) and refused when the file changed on disk since it was opened.
+//! then a hard link for a new file, which fails when the name exists, or a rename over an
+//! existing one), so that no one ever sees a half-written file, and two creations of one
+//! name cannot both win.
 
 use std::io::{Read, Write};
 use std::path::{Component, Path, PathBuf};
+use std::sync::atomic::{AtomicU64, Ordering};
 
 use crate::error::ApiError;
 
@@ -86,16 +89,35 @@ impl Root {
             return Err(ApiError::bad_request(format!("'{asked}' does not name a file")));
         };
         let parent = parent.canonicalize().map_err(|_| {
-            if lexically_inside(&joined, &self.dir) {
-                ApiError::not_found(format!("'{asked}': its folder does not exist under {}", self.dir.display()))
-            } else {
+            if !lexically_inside(&joined, &self.dir) {
                 self.outside(asked)
+            } else if let Some(file) = self.file_in_the_way(&joined) {
+                self.not_a_folder(asked, &file)
+            } else {
+                ApiError::not_found(format!("'{asked}': its folder does not exist under {}", self.dir.display()))
             }
         })?;
         if !parent.starts_with(&self.dir) {
             return Err(self.outside(asked));
         }
+        if !parent.is_dir() {
+            return Err(self.not_a_folder(asked, &parent));
+        }
         Ok(parent.join(name))
+    }
+
+    /// The deepest existing folder of `path` that is a file, not a folder (`a.ddf` of
+    /// `a.ddf/x.ddf`), if there is one.
+    fn file_in_the_way(&self, path: &Path) -> Option<PathBuf> {
+        let existing = path.ancestors().skip(1).find(|p| p.symlink_metadata().is_ok())?;
+        (!existing.is_dir()).then(|| existing.to_path_buf())
+    }
+
+    fn not_a_folder(&self, asked: &str, file: &Path) -> ApiError {
+        ApiError::conflict(
+            "not-a-folder",
+            format!("'{asked}': {} is a file, not a folder: not saved", self.relative(file)),
+        )
     }
 
     /// The DDFs under the root (`*.ddf`, hidden folders skipped), relative, sorted; at most
@@ -165,22 +187,75 @@ pub fn read_limited(path: &Path, max: u64) -> Result<Vec<u8>, ApiError> {
     Ok(bytes)
 }
 
-/// Writes `bytes` to `path` atomically: a temp file in the same folder, synced, renamed
-/// over `path`. The temp file is removed when anything fails.
-pub fn write_atomic(path: &Path, bytes: &[u8]) -> std::io::Result<()> {
+/// A temp file beside `path`, created (never an existing one: a name is taken by another
+/// save, or left by a process that died, gets the next), written and synced. The caller
+/// links or renames it into place, and removes it.
+fn temp_beside(path: &Path, bytes: &[u8]) -> std::io::Result<PathBuf> {
+    static NEXT: AtomicU64 = AtomicU64::new(0);
     let dir = path.parent().unwrap_or(Path::new("."));
     let name = path.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
-    let tmp = dir.join(format!(".{name}.{}.studio-tmp", std::process::id()));
+    loop {
+        let n = NEXT.fetch_add(1, Ordering::Relaxed);
+        let tmp = dir.join(format!(".{name}.{}.{n}.studio-tmp", std::process::id()));
+        let mut f = match std::fs::OpenOptions::new().write(true).create_new(true).open(&tmp) {
+            Ok(f) => f,
+            Err(e) if e.kind() == std::io::ErrorKind::AlreadyExists => continue,
+            Err(e) => return Err(e),
+        };
+        let written = f.write_all(bytes).and_then(|()| f.sync_all());
+        if let Err(e) = written {
+            let _ = std::fs::remove_file(&tmp);
+            return Err(e);
+        }
+        return Ok(tmp);
+    }
+}
+
+/// Syncs the folder of `path`, so that the name just linked or renamed there survives a crash.
+fn sync_folder(path: &Path) {
+    if let Some(dir) = path.parent() {
+        // Best effort: some file systems cannot sync a folder; the file itself is synced.
+        let _ = std::fs::File::open(dir).and_then(|d| d.sync_all());
+    }
+}
+
+/// Writes `bytes` to `path` atomically: a temp file in the same folder, synced, renamed
+/// over `path` (keeping its permissions). A reader sees the old contents or the new, never
+/// a part; the temp file is removed when anything fails.
+pub fn write_atomic(path: &Path, bytes: &[u8]) -> std::io::Result<()> {
+    let tmp = temp_beside(path, bytes)?;
     let result = (|| {
-        let mut f = std::fs::OpenOptions::new().write(true).create_new(true).open(&tmp)?;
-        f.write_all(bytes)?;
-        f.sync_all()?;
+        if let Ok(meta) = std::fs::metadata(path) {
+            std::fs::set_permissions(&tmp, meta.permissions())?;
+        }
         std::fs::rename(&tmp, path)
     })();
     if result.is_err() {
         let _ = std::fs::remove_file(&tmp);
     }
+    sync_folder(path);
     result
+}
+
+/// Creates `path` with `bytes`, atomically and only if it does not exist: a temp file in the
+/// same folder, synced, then hard-linked to `path`, which fails with
+/// [`std::io::ErrorKind::AlreadyExists`] when the name is taken (by another save an instant
+/// before, say). There is no moment when `path` exists with part of `bytes`. On a file
+/// system without hard links the file is created exclusively (`O_EXCL`) and written in place.
+pub fn create_new(path: &Path, bytes: &[u8]) -> std::io::Result<()> {
+    let tmp = temp_beside(path, bytes)?;
+    let linked = std::fs::hard_link(&tmp, path);
+    let _ = std::fs::remove_file(&tmp);
+    match linked {
+        Ok(()) => {}
+        Err(e) if e.kind() == std::io::ErrorKind::AlreadyExists => return Err(e),
+        Err(_) => {
+            let mut f = std::fs::OpenOptions::new().write(true).create_new(true).open(path)?;
+            f.write_all(bytes).and_then(|()| f.sync_all())?;
+        }
+    }
+    sync_folder(path);
+    Ok(())
 }
 
 #[cfg(test)]
@@ -206,6 +281,49 @@ mod tests {
         assert_eq!(root.for_write("new.ddf").unwrap(), root.dir().join("new.ddf"));
         assert!(root.for_write("nofolder/new.ddf").unwrap_err().message.contains("folder"));
         assert_eq!(root.list_ddfs(10), vec!["a.ddf".to_string()]); // a symlink is not listed
+    }
+
+    #[test]
+    fn a_path_under_a_file_is_a_conflict_naming_the_file() {
+        let dir = tempfile::tempdir().unwrap();
+        std::fs::write(dir.path().join("a.ddf"), "x").unwrap();
+        let root = Root::new(dir.path()).unwrap();
+        for asked in ["a.ddf/x.ddf", "a.ddf/sub/x.ddf"] {
+            let e = root.for_write(asked).unwrap_err();
+            assert_eq!((e.status.as_u16(), e.code), (409, "not-a-folder"), "{asked}: {}", e.message);
+            assert!(e.message.contains(": a.ddf is a file"), "{}", e.message);
+            assert!(e.message.contains(asked), "{}", e.message);
+        }
+    }
+
+    #[test]
+    fn of_racing_creations_of_one_name_exactly_one_wins_and_the_file_is_whole() {
+        let dir = tempfile::tempdir().unwrap();
+        for round in 0..20 {
+            let p = dir.path().join(format!("f{round}.ddf"));
+            let barrier = std::sync::Barrier::new(2);
+            let results: Vec<std::io::Result<()>> = std::thread::scope(|s| {
+                let racers: Vec<_> = [b'a', b'b']
+                    .map(|c| {
+                        let (p, barrier) = (&p, &barrier);
+                        s.spawn(move || {
+                            barrier.wait();
+                            create_new(p, &[c; 100_000])
+                        })
+                    })
+                    .into_iter()
+                    .collect();
+                racers.into_iter().map(|t| t.join().unwrap()).collect()
+            });
+            let won = results.iter().filter(|r| r.is_ok()).count();
+            assert_eq!(won, 1, "round {round}: {results:?}");
+            let lost = results.iter().find_map(|r| r.as_ref().err()).unwrap();
+            assert_eq!(lost.kind(), std::io::ErrorKind::AlreadyExists, "round {round}");
+            let bytes = std::fs::read(&p).unwrap();
+            assert!(bytes.len() == 100_000 && bytes.iter().all(|b| *b == bytes[0]), "round {round}: torn file");
+        }
+        // Only the 20 files: no temp file left.
+        assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 20);
     }
 
     #[test]

@@ -18,14 +18,15 @@
 //!
 //! Safety: the server binds 127.0.0.1 unless told otherwise, and any other address needs
 //! the token made at start ([`Config::token`]); files are read and written only under the
-//! root, symlinks resolved; every failure is a JSON message ([`error::ApiError`]).
+//! root, symlinks resolved; every failure is a JSON message ([`error::ApiError`]), bad requests
+//! included (a body too large, JSON that does not parse: [`request`]).
 
 use std::net::SocketAddr;
 use std::path::PathBuf;
 use std::sync::Arc;
 use std::thread::JoinHandle;
 
-use axum::extract::{Request, State};
+use axum::extract::{DefaultBodyLimit, Request, State};
 use axum::http::{header, StatusCode};
 use axum::middleware::{self, Next};
 use axum::response::{IntoResponse, Response};
@@ -37,6 +38,7 @@ pub mod editor;
 pub mod error;
 pub mod files;
 pub mod monitor;
+pub mod request;
 pub mod run;
 
 use error::ApiError;
@@ -69,6 +71,8 @@ pub struct AppState {
     pub files: Vec<String>,
     pub namespace: String,
     pub runs: run::Runs,
+    /// Held by a save from its version check to its write: the studio's saves take turns.
+    pub save_turn: tokio::sync::Mutex<()>,
 }
 
 /// Why the studio could not start.
@@ -176,6 +180,7 @@ pub fn router(state: Arc<AppState>) -> Router {
         .route("/run/start", post(run::start))
         .route("/run/stop", post(run::stop))
         .route("/run/control", post(run::control))
+        .method_not_allowed_fallback(request::method_not_allowed)
         .fallback(not_found)
         .layer(middleware::from_fn_with_state(state.clone(), require_token));
     Router::new()
@@ -183,6 +188,12 @@ pub fn router(state: Arc<AppState>) -> Router {
         .route("/app.js", get(|| async { asset("text/javascript; charset=utf-8", APP_JS) }))
         .route("/style.css", get(|| async { asset("text/css; charset=utf-8", STYLE_CSS) }))
         .nest("/api", api)
+        .method_not_allowed_fallback(request::method_not_allowed)
+        .fallback(not_found)
+        // Outermost: every body is held to the limit (and read whole) before anything else
+        // answers, so that no answer leaves a client writing into a closed connection.
+        .layer(DefaultBodyLimit::max(request::MAX_BODY_BYTES))
+        .layer(middleware::from_fn(request::limit_body))
         .with_state(state)
 }
 
@@ -234,6 +245,7 @@ impl Running {
             files: offered,
             namespace: config.namespace,
             runs: run::Runs::new(config.tutti_exe),
+            save_turn: tokio::sync::Mutex::new(()),
         });
         let app = router(state.clone());
         let (stop, stopped) = tokio::sync::oneshot::channel::<()>();

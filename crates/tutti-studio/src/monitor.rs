@@ -11,7 +11,7 @@ use std::convert::Infallible;
 use std::sync::Arc;
 use std::time::Duration;
 
-use axum::extract::{Query, State};
+use axum::extract::State;
 use axum::response::sse::{Event, KeepAlive, Sse};
 use futures::Stream;
 use serde::Deserialize;
@@ -22,6 +22,7 @@ use tutti_core::shm::observer::{Look, Observer};
 use tutti_core::shm::segment::{check_namespace, Segment};
 
 use crate::error::ApiError;
+use crate::request::ApiQuery;
 use crate::AppState;
 
 /// Time between two events (10 Hz).
@@ -166,7 +167,7 @@ impl Follow {
 /// `GET /api/monitor?namespace=NS&items=...`: the event stream.
 pub async fn stream(
     State(state): State<Arc<AppState>>,
-    Query(q): Query<MonitorQuery>,
+    ApiQuery(q): ApiQuery<MonitorQuery>,
 ) -> Result<Sse<impl Stream<Item = Result<Event, Infallible>>>, ApiError> {
     let namespace = q.namespace.filter(|n| !n.is_empty()).unwrap_or_else(|| state.namespace.clone());
     check_namespace(&namespace).map_err(|e| ApiError::bad_request(e.to_string()))?;

@@ -25,6 +25,7 @@ use tutti_host::control::{ControlClient, ControlError, Request};
 use tutti_host::{ChildProcess, Host, HostOptions, SIGTERM};
 
 use crate::error::ApiError;
+use crate::request::ApiJson;
 use crate::AppState;
 
 /// Lines of log kept per run.
@@ -267,7 +268,10 @@ fn start_gateway(exe: PathBuf, real: &std::path::Path, namespace: &str, log: &Lo
 }
 
 /// `POST /api/run/start {kind, path, step?, duration?, namespace?}`.
-pub async fn start(State(st): State<Arc<AppState>>, Json(body): Json<StartBody>) -> Result<Json<Value>, ApiError> {
+pub async fn start(
+    State(st): State<Arc<AppState>>,
+    ApiJson(body): ApiJson<StartBody>,
+) -> Result<Json<Value>, ApiError> {
     if st.read_only {
         return Err(ApiError::new(
             StatusCode::FORBIDDEN,
@@ -325,7 +329,7 @@ pub struct StopBody {
 }
 
 /// `POST /api/run/stop {kind}`.
-pub async fn stop(State(st): State<Arc<AppState>>, Json(body): Json<StopBody>) -> Result<Json<Value>, ApiError> {
+pub async fn stop(State(st): State<Arc<AppState>>, ApiJson(body): ApiJson<StopBody>) -> Result<Json<Value>, ApiError> {
     let run = st.runs.runs.lock().ok().and_then(|mut g| g.remove(&body.kind));
     let Some(mut run) = run else {
         return Err(ApiError::not_found(format!("no {} was started", body.kind.name())));
@@ -357,7 +361,10 @@ pub struct ControlBody {
 /// `POST /api/run/control {op, n?}`: pauses, steps, resets or resumes the framework the
 /// studio started, through the run's control plane (as `tutti ctl` does); answers the run's
 /// state after it.
-pub async fn control(State(st): State<Arc<AppState>>, Json(body): Json<ControlBody>) -> Result<Json<Value>, ApiError> {
+pub async fn control(
+    State(st): State<Arc<AppState>>,
+    ApiJson(body): ApiJson<ControlBody>,
+) -> Result<Json<Value>, ApiError> {
     if st.read_only {
         return Err(ApiError::new(
             StatusCode::FORBIDDEN,

@@ -1,7 +1,10 @@
 //! The studio's JSON API through HTTP (no browser): opening, checking, saving with its
-//! refusals, root confinement and the token.
+//! refusals, root confinement and the token; bad requests (`api/bad_requests.rs`).
 
 use std::path::Path;
+
+#[path = "api/bad_requests.rs"]
+mod bad_requests;
 
 use serde_json::{json, Value};
 use tutti_studio::{Config, Running};
@@ -56,6 +59,20 @@ impl Studio {
             req = req.header("x-tutti-token", t);
         }
         let mut resp = req.call().unwrap();
+        (resp.status().as_u16(), resp.body_mut().read_json().unwrap_or(Value::Null))
+    }
+
+    /// `method path` with `body` as it is (a `Content-Type` when given): the status and the
+    /// answer as JSON (`Null` when it is not JSON).
+    fn send(&self, method: &str, path: &str, content_type: Option<&str>, body: &[u8]) -> (u16, Value) {
+        let mut req = ureq::http::Request::builder().method(method).uri(self.url(path));
+        if let Some(t) = &self.token {
+            req = req.header("x-tutti-token", t);
+        }
+        if let Some(ct) = content_type {
+            req = req.header("content-type", ct);
+        }
+        let mut resp = self.agent.run(req.body(body).unwrap()).unwrap();
         (resp.status().as_u16(), resp.body_mut().read_json().unwrap_or(Value::Null))
     }
 
@@ -162,7 +179,7 @@ fn save_is_atomic_and_refuses_what_it_must() {
     let s = studio(None, false);
     // A new file.
     let (status, body) = s.post("/api/save", json!({ "path": "new.ddf", "document": figure2("uav1") }));
-    assert_eq!(status, 200, "{body}");
+    assert_eq!(status, 201, "{body}");
     let version = body["version"].as_str().unwrap().to_string();
     let saved = std::fs::read_to_string(s.root.join("new.ddf")).unwrap();
     assert!(tutti_core::ddf::parse_str(&saved, "new.ddf").is_ok());
@@ -187,7 +204,7 @@ fn save_is_atomic_and_refuses_what_it_must() {
     assert!(body["details"][0]["message"].as_str().unwrap().contains("a b"));
     assert!(!s.root.join("bad.ddf").exists());
     let (status, _) = s.post("/api/save", json!({ "path": "bad.ddf", "document": figure2("a b"), "force": true }));
-    assert_eq!(status, 200);
+    assert_eq!(status, 201);
     assert!(s.root.join("bad.ddf").exists());
     // No temp file left behind.
     let names: Vec<String> =
