@@ -5,15 +5,19 @@
 #   PREFIX/include/RTAPI.h
 #   PREFIX/lib/librtapi.so.0.1.0, librtapi.so.0 (the SONAME), librtapi.so, librtapi.a
 #   PREFIX/lib/libOpalOrchestra.so            the product's library name (its clients' builds
-#                                             look for OpalOrchestra and RTAPI.h)
+#                                             look for OpalOrchestra and RTAPI.h): the same
+#                                             library with its own SONAME, so that it works
+#                                             alone in a directory of its own
+# Libraries are installed stripped of debug information.
 #   PREFIX/lib/pkgconfig/rtapi.pc             pkg-config --cflags --libs rtapi
 #   PREFIX/lib/cmake/tutti/tuttiConfig.cmake  find_package(tutti) -> imported target tutti::rtapi
 #   PREFIX/bin/tutti                          the CLI, when it was built
 #
 # Usage: launch-scripts/install.sh [--prefix DIR] [--build-dir DIR] [--no-cli]
 #   --prefix DIR     where to install (default /usr/local)
-#   --build-dir DIR  take the built library from DIR (e.g. target/debug) instead of building
-#                    it (cargo build --release -p tutti-rtapi) and taking it from target/release
+#   --build-dir DIR  take the built library from DIR (e.g. target/debug) instead of
+#                    target/release, which is built (cargo build --release -p tutti-rtapi)
+#                    unless it is newer than every source it is made of
 #   --no-cli         do not install the tutti CLI even when DIR has it
 # The Python module installs with pip: pip install ./python (it finds the library through
 # pkg-config, so add PREFIX/lib/pkgconfig to PKG_CONFIG_PATH for a prefix pip does not know).
@@ -36,10 +40,20 @@ while [ $# -gt 0 ]; do
 done
 
 if [ -z "$build_dir" ]; then
-    echo "building the RTAPI library (release)"
-    cargo build --release --locked -p tutti-rtapi
     build_dir=target/release
+    # A workspace build may have made it already: cargo would build it again for -p alone
+    # (the features it unifies differ), so only what is out of date is built.
+    if [ -f "$build_dir/librtapi.so" ] && [ -f "$build_dir/librtapi.a" ] \
+        && [ -z "$(find crates/tutti-core crates/tutti-rtapi include Cargo.toml Cargo.lock -newer "$build_dir/librtapi.so" -print -quit)" ]; then
+        echo "the RTAPI library in $build_dir is up to date"
+    else
+        echo "building the RTAPI library (release)"
+        cargo build --release --locked -p tutti-rtapi
+    fi
 fi
+for tool in cc strip; do
+    command -v "$tool" >/dev/null || { echo "install.sh: '$tool' is missing (apt-get install gcc binutils)" >&2; exit 2; }
+done
 for f in librtapi.so librtapi.a; do
     [ -f "$build_dir/$f" ] || { echo "install.sh: $build_dir/$f missing: build it first (cargo build -p tutti-rtapi)" >&2; exit 2; }
 done
@@ -53,9 +67,21 @@ mkdir -p "$prefix/include" "$lib/pkgconfig" "$lib/cmake/tutti"
 install -m 0644 include/RTAPI.h "$prefix/include/RTAPI.h"
 install -m 0755 "$build_dir/librtapi.so" "$lib/librtapi.so.$version"
 install -m 0644 "$build_dir/librtapi.a" "$lib/librtapi.a"
+strip --strip-unneeded "$lib/librtapi.so.$version"
+strip --strip-debug "$lib/librtapi.a"
 ln -sfn "librtapi.so.$version" "$lib/librtapi.so.$major"
 ln -sfn "librtapi.so.$major" "$lib/librtapi.so"
-ln -sfn "librtapi.so.$version" "$lib/libOpalOrchestra.so"
+# The product's name as a library of its own (SONAME libOpalOrchestra.so), linked from the
+# static library: a client linked against it needs nothing beside it. Only the RT* calls
+# are exported. A process loads one of the two libraries, not both (each has its own state).
+scratch=$(mktemp -d)
+trap 'rm -rf "$scratch"' EXIT
+printf '{ global: RT*; local: *; };\n' > "$scratch/exports.map"
+rm -f "$lib/libOpalOrchestra.so"
+cc -shared -o "$lib/libOpalOrchestra.so" -Wl,-soname,libOpalOrchestra.so \
+    -Wl,--version-script="$scratch/exports.map" -Wl,--gc-sections \
+    -Wl,--whole-archive "$lib/librtapi.a" -Wl,--no-whole-archive -lpthread -ldl -lm
+strip --strip-unneeded "$lib/libOpalOrchestra.so"
 if [ "$cli" = yes ] && [ -x "$build_dir/tutti" ]; then
     mkdir -p "$prefix/bin"
     install -m 0755 "$build_dir/tutti" "$prefix/bin/tutti"

@@ -27,7 +27,11 @@ fn run(cmd: Command, what: &str) -> String {
 
 /// Runs the uav_reader program `exe` for 20 steps against the host: it reads Z = 1.5.
 fn reads_from_the_host(exe: &Path, ns: &str, what: &str) {
-    let mut c = Command::new(exe);
+    reads_from_the_host_with(Command::new(exe), ns, what)
+}
+
+/// As [`reads_from_the_host`], for the program `c` runs (with its own environment).
+fn reads_from_the_host_with(mut c: Command, ns: &str, what: &str) {
     c.env("TUTTI_NAMESPACE", ns).arg(common::repo_root().join("ddf/multiuav.ddf")).args([
         "multiuav_uav2",
         "Z",
@@ -77,6 +81,38 @@ fn an_installed_rtapi_builds_c_programs_with_pkg_config_and_cmake_and_a_pip_inst
         _host: common::Proc::spawn_with("tutti host", host, opts),
         _segments: common::RemoveSegments(ns.clone()),
     };
+    // Stripped: no debug information in what is installed.
+    for f in ["lib/librtapi.so.0", "lib/libOpalOrchestra.so", "lib/librtapi.a"] {
+        let mut readelf = Command::new("readelf");
+        readelf.arg("-S").arg(prefix.join(f));
+        let sections = run(readelf, &format!("readelf -S {f}"));
+        assert!(!sections.contains(".debug_info"), "{f} carries debug information");
+    }
+
+    // The product's layout: a directory holding only libOpalOrchestra.so (and RTAPI.h), the
+    // client linked against it and run with only that directory on the library path.
+    let product = dir.path().join("opal");
+    std::fs::create_dir_all(&product).unwrap();
+    std::fs::copy(prefix.join("lib/libOpalOrchestra.so"), product.join("libOpalOrchestra.so")).unwrap();
+    std::fs::copy(prefix.join("include/RTAPI.h"), product.join("RTAPI.h")).unwrap();
+    let exe = dir.path().join("reader-opal");
+    let mut gcc = Command::new("gcc");
+    gcc.args(["-std=c99", "-Wall", "-Wextra", "-Werror"])
+        .arg("-I")
+        .arg(&product)
+        .arg(common::repo_root().join("examples/c/uav_reader.c"))
+        .arg("-L")
+        .arg(&product)
+        .arg("-lOpalOrchestra")
+        .arg("-o")
+        .arg(&exe);
+    run(gcc, "gcc against libOpalOrchestra.so alone");
+    let mut readelf = Command::new("readelf");
+    readelf.arg("-d").arg(&exe);
+    let dynamic = run(readelf, "readelf -d");
+    assert!(dynamic.contains("[libOpalOrchestra.so]"), "the client does not name libOpalOrchestra.so:\n{dynamic}");
+    assert!(!dynamic.contains("librtapi"), "the client needs librtapi beside libOpalOrchestra.so:\n{dynamic}");
+
     let pc_path = prefix.join("lib/pkgconfig");
     let reader = common::repo_root().join("examples/c/uav_reader.c");
 
@@ -94,6 +130,9 @@ fn an_installed_rtapi_builds_c_programs_with_pkg_config_and_cmake_and_a_pip_inst
         .arg(&exe);
     run(gcc, "gcc with pkg-config's flags");
     reads_from_the_host(&exe, &ns, "the pkg-config build");
+    let mut opal = Command::new(dir.path().join("reader-opal"));
+    opal.env("LD_LIBRARY_PATH", &product);
+    reads_from_the_host_with(opal, &ns, "the client in the product's layout");
 
     // CMake: find_package(tutti), and the product's way (RTAPI.h + a library OpalOrchestra).
     for (name, body) in [
