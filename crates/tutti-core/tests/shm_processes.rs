@@ -230,6 +230,22 @@ fn child_main() {
             say("seeded");
             std::thread::sleep(Duration::from_secs(30));
         }
+        "stepper" => {
+            // A framework stepping its domain until killed: PUBLISH carries the checksummed
+            // payload of each step; synchronous (lock-step with its participants) or not.
+            let sync = parts.next() == Some("sync");
+            let opts = FrameworkOptions { namespace, timeout: Duration::from_millis(500), ..Default::default() };
+            let mut fw = Framework::create(&model(sync, true, false), &opts).unwrap();
+            say("created");
+            let host = &mut fw.domains[0];
+            loop {
+                let k = host.current_step() + 1;
+                host.step(&payload(k), k as f64).unwrap();
+                if !sync {
+                    std::thread::sleep(Duration::from_micros(100));
+                }
+            }
+        }
         "framework" => {
             let _fw =
                 Framework::create(&model(false, true, false), &FrameworkOptions { namespace, ..Default::default() })
@@ -473,6 +489,77 @@ fn a_framework_killed_outright_is_reported_to_its_participants() {
     drop(p);
     // The dead framework's segment is reclaimed by the next one.
     drop(Framework::create(&model(false, true, false), &fopts("fwdeath", Duration::from_secs(1))).unwrap());
+}
+
+/// The framework is killed (SIGKILL) at a random moment while a participant exchanges with
+/// it as fast as it can, so that the kill falls in every call: the wait for a step, the
+/// snapshot, the lock, staging and the commit. Each time, the participant's next calls end
+/// in `FrameworkStopped` (never a hang, a panic or another error), every snapshot it took
+/// was whole, and after a new framework starts on the same domain the participant connects
+/// again and exchanges whole sets with it.
+fn killing_the_framework_at_random_points(sync: bool) {
+    let tag = if sync { "fwkill-s" } else { "fwkill-a" };
+    let namespace = ns(tag);
+    let mut rng = 0x2545_f491_4f6c_dd1du64 ^ u64::from(std::process::id());
+    let opts = || ConnectOptions { timeout: Duration::from_secs(5), ..copts(&namespace) };
+    let role = if sync { "stepper:sync" } else { "stepper:async" };
+    let mut child = Guard::spawn(role, &namespace);
+    assert_eq!(child.result(Duration::from_secs(30)), "created");
+    let mut p = Participant::connect("d", opts()).unwrap();
+    for round in 0..25 {
+        let deadline = Instant::now() + Duration::from_secs(30);
+        let delay = Duration::from_micros(xorshift(&mut rng) % 30_000);
+        let pid = child.id();
+        let killer = std::thread::spawn(move || {
+            std::thread::sleep(delay);
+            let _ = Command::new("kill").args(["-9", &pid.to_string()]).status();
+        });
+        let err = loop {
+            assert!(Instant::now() < deadline, "round {round}: the participant never saw the framework die");
+            let r = p.subscribe_lock().and_then(|step| {
+                let v = check(p.snapshot());
+                assert!(v.is_some(), "round {round}: a torn snapshot at step {step}");
+                p.publish_lock()?;
+                p.stage("a", &(step as f64).to_ne_bytes())?;
+                p.stage("b", &(step as i64).to_ne_bytes())?;
+                p.commit()
+            });
+            match r {
+                Ok(()) => {}
+                Err(e) => break e,
+            }
+        };
+        assert!(matches!(err, ShmError::FrameworkStopped { .. }), "round {round}: {err}");
+        // Every later call says the same, at once.
+        assert!(matches!(p.subscribe_lock(), Err(ShmError::FrameworkStopped { .. })), "round {round}");
+        killer.join().unwrap();
+        child.kill9();
+        // A new framework on the same domain serves the participant once it connects again.
+        child = Guard::spawn(role, &namespace);
+        assert_eq!(child.result(Duration::from_secs(30)), "created", "round {round}");
+        p = Participant::connect("d", opts()).unwrap_or_else(|e| panic!("round {round}: reconnecting: {e}"));
+        for _ in 0..3 {
+            let step = p.subscribe_lock().unwrap_or_else(|e| panic!("round {round}: after the restart: {e}"));
+            assert!(check(p.snapshot()).is_some(), "round {round}: a torn snapshot after the restart");
+            p.publish_lock().unwrap();
+            p.stage("a", &(step as f64).to_ne_bytes()).unwrap();
+            p.stage("b", &(step as i64).to_ne_bytes()).unwrap();
+            p.commit().unwrap();
+        }
+    }
+    drop(p);
+    child.kill9();
+    let _ = std::fs::remove_file(segment_path(&namespace, "d"));
+}
+
+#[test]
+fn killing_the_framework_of_a_synchronous_domain_at_random_points_gives_clean_errors() {
+    killing_the_framework_at_random_points(true);
+}
+
+#[test]
+fn killing_the_framework_of_an_asynchronous_domain_at_random_points_gives_clean_errors() {
+    killing_the_framework_at_random_points(false);
 }
 
 #[test]
