@@ -102,15 +102,19 @@ pub fn generate(md: &ModelDescription, source: &str, opts: &DdfOptions) -> Strin
             let Some(ty) = v.ty.ddf_type(md.fmi_version) else { continue };
             let unit = v.unit.as_deref().map(|u| format!(", unit {}", xml_comment(u))).unwrap_or_default();
             let _ = writeln!(items, "      <!-- fmu variable \"{}\"{unit} -->", xml_comment(&v.name));
+            // FMI writes booleans as true/false (or 1/0), the DDF as yes/no: translate
+            // before the DDF's own check, which knows only its spelling.
             let default = v
                 .start
                 .as_deref()
-                .and_then(|s| ty.parse_value(s).map(|_| s.trim()))
+                .map(str::trim)
                 .map(|s| match (ty, s) {
-                    (tutti_core::ddf::ScalarType::Boolean, "true" | "1") => "yes".to_string(),
-                    (tutti_core::ddf::ScalarType::Boolean, _) => "no".to_string(),
-                    (_, s) => s.to_string(),
+                    (tutti_core::ddf::ScalarType::Boolean, "true" | "1") => "yes",
+                    (tutti_core::ddf::ScalarType::Boolean, "false" | "0") => "no",
+                    (_, s) => s,
                 })
+                .filter(|s| ty.parse_value(s).is_some())
+                .map(str::to_string)
                 .map(|d| format!("<default>{}</default>", xml_attr(&d)))
                 .unwrap_or_default();
             let _ = writeln!(
@@ -162,5 +166,24 @@ mod tests {
         .unwrap();
         let names = item_names(&md);
         assert_eq!((names["a.b"].as_str(), names["a_b"].as_str()), ("a_b", "a_b_2"));
+    }
+
+    #[test]
+    fn fmi_boolean_start_values_become_ddf_defaults() {
+        let md = crate::model::ModelDescription::parse(
+            r#"<fmiModelDescription fmiVersion="2.0" modelName="M" guid="g"><ModelVariables>
+               <ScalarVariable name="t" valueReference="0" causality="input" variability="discrete"><Boolean start="true"/></ScalarVariable>
+               <ScalarVariable name="f" valueReference="1" causality="input" variability="discrete"><Boolean start="false"/></ScalarVariable>
+               <ScalarVariable name="one" valueReference="2" causality="input" variability="discrete"><Boolean start="1"/></ScalarVariable>
+               </ModelVariables></fmiModelDescription>"#,
+        )
+        .unwrap();
+        let text = generate(&md, "m.fmu", &DdfOptions { domain: "m".into(), synchronous: true });
+        let item = |name: &str| text.lines().find(|l| l.contains(&format!("name=\"{name}\""))).unwrap().to_string();
+        assert!(item("t").contains("<default>yes</default>"), "{text}");
+        assert!(item("f").contains("<default>no</default>"), "{text}");
+        assert!(item("one").contains("<default>yes</default>"), "{text}");
+        let model = tutti_core::ddf::parse_str(&text, "m.ddf").expect("the generated DDF is valid");
+        assert!(model.domain("m").is_some());
     }
 }
