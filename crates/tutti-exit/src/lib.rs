@@ -2,7 +2,7 @@
 //! `docs/cli.md` (0 success, 2 invalid input or usage, 1 a runtime failure), the failure that
 //! carries one, the `--realtime` options, and where the benchmarks and the demo find the
 //! `tutti` executable. It is for
-//! binaries only, so its errors are `anyhow`'s, printed as one chain (`{:#}`).
+//! binaries only, so its errors are `anyhow`'s, printed as one chain ([`said_once`]).
 
 use std::path::{Path, PathBuf};
 
@@ -53,10 +53,25 @@ pub fn exit(result: CliResult) -> ExitCode {
     match result {
         Ok(()) => ExitCode::SUCCESS,
         Err(f) => {
-            eprintln!("{:#}", f.error);
+            eprintln!("{}", said_once(&f.error));
             ExitCode::from(f.code)
         }
     }
+}
+
+/// The error and its causes, as `{:#}` prints them (`outer: cause: cause`), except that a
+/// cause whose text the message already holds is not said again: many errors put their
+/// source in their own text (`"{path}: {source}"`) and mark it as the source too.
+pub fn said_once(error: &anyhow::Error) -> String {
+    let mut out = error.to_string();
+    for cause in error.chain().skip(1) {
+        let text = cause.to_string();
+        if !out.contains(&text) {
+            out.push_str(": ");
+            out.push_str(&text);
+        }
+    }
+    out
 }
 
 /// The `tutti` executable for `tutti-bench` and `tutti-demo`: `TUTTI_EXE`, else the one next
@@ -118,4 +133,26 @@ pub fn enter_realtime(args: &RealtimeArgs, who: &str, quiet: bool) {
 /// process's one signal handler: call it once per process.
 pub fn stop_flag() -> anyhow::Result<std::sync::Arc<std::sync::atomic::AtomicBool>> {
     tutti_host::stop_on_ctrl_c().context("installing the signal handler")
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[derive(Debug, thiserror::Error)]
+    #[error("reading {path}: {source}")]
+    struct Reading {
+        path: String,
+        #[source]
+        source: std::io::Error,
+    }
+
+    #[test]
+    fn a_cause_already_in_the_message_is_said_once() {
+        let io = std::io::Error::new(std::io::ErrorKind::NotFound, "No such file or directory");
+        let e = anyhow::Error::new(Reading { path: "a.ddf".into(), source: io }).context("hosting");
+        assert_eq!(said_once(&e), "hosting: reading a.ddf: No such file or directory");
+        let plain = anyhow::anyhow!("inner").context("outer");
+        assert_eq!(said_once(&plain), "outer: inner");
+    }
 }

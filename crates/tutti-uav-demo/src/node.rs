@@ -193,7 +193,7 @@ impl Link {
                     self.connect(node, p)?;
                     eprintln!("{}: connected again at t={:.2}s", self.who, node.uav.time());
                 }
-                Err(e) => eprintln!("{}: {e:#}", self.who),
+                Err(e) => eprintln!("{}: {}", self.who, tutti_exit::said_once(&e)),
             }
         }
         Ok(())

@@ -173,7 +173,7 @@ fn report(out: &Path, scenario: &Scenario, step: f64) -> CliResult {
             pass: r.is_ok(),
             detail: match r {
                 Ok(()) => path.display().to_string(),
-                Err(e) => format!("{e:#}"),
+                Err(e) => tutti_exit::said_once(&e),
             },
         });
     }
