@@ -139,7 +139,7 @@ fn one_run(
     }
     let bytes = match mode {
         Mode::None => 0,
-        Mode::Mcap => std::fs::metadata(&path).map_or(0, |m| m.len()),
+        Mode::Mcap => std::fs::metadata(&path).with_context(|| format!("the recording {}", path.display()))?.len(),
         Mode::Csv => std::fs::read_dir(dir)?
             .filter_map(Result::ok)
             .filter(|e| e.file_name().to_string_lossy().ends_with(".csv"))

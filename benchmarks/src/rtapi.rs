@@ -89,19 +89,21 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         "RTPublishLock latency (µs): framework step {:?}, a write every {:?}, {} s a row",
         args.period, args.write_every, args.seconds
     );
-    println!("{:<26} {:>7} {:>9} {:>9} {:>9} {:>10}", "client", "writes", "p50", "p99", "p99.9", "max");
+    println!("{:<26} {:>7} {:>7} {:>9} {:>9} {:>9} {:>10}", "client", "writes", "reads", "p50", "p99", "p99.9", "max");
     let result = (|| -> anyhow::Result<()> {
         for two_threads in [false, true] {
             let reading = Arc::new(AtomicBool::new(two_threads));
+            // The reader counts its reads and says why it stopped, if not told to.
             let reader = two_threads.then(|| {
                 let reading = reading.clone();
-                thread::spawn(move || {
+                thread::spawn(move || -> anyhow::Result<u64> {
+                    let mut reads = 0;
                     while reading.load(Ordering::Acquire) {
-                        if RTSubscribeLock() != RTAPI_SUCCESS {
-                            break;
-                        }
-                        RTSubscribeUnlock();
+                        ok(RTSubscribeLock(), "the reader's RTSubscribeLock")?;
+                        ok(RTSubscribeUnlock(), "the reader's RTSubscribeUnlock")?;
+                        reads += 1;
                     }
+                    Ok(reads)
                 })
             });
             let mut samples = Vec::new();
@@ -129,12 +131,18 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                 }
             }
             reading.store(false, Ordering::Release);
-            if let Some(r) = reader {
-                let _ = r.join();
+            let reads = match reader.map(|r| r.join()) {
+                None => samples.len() as u64,
+                Some(Ok(r)) => r?,
+                Some(Err(_)) => bail!("the reader thread panicked"),
+            };
+            let row = if two_threads { "writer + looping reader" } else { "one thread: read, write" };
+            if samples.is_empty() || reads == 0 {
+                println!("{row:<26} not run (stopped)");
+                continue;
             }
             let (p50, p99, p999, max) = percentiles(&samples);
-            let row = if two_threads { "writer + looping reader" } else { "one thread: read, write" };
-            println!("{row:<26} {:>7} {p50:>9.2} {p99:>9.2} {p999:>9.2} {max:>10.1}", samples.len());
+            println!("{row:<26} {:>7} {:>7} {p50:>9.2} {p99:>9.2} {p999:>9.2} {max:>10.1}", samples.len(), reads);
         }
         Ok(())
     })();

@@ -81,20 +81,36 @@ fn watch(namespace: &str, file: &std::path::Path, items: &[String]) -> anyhow::R
     let events = Arc::new(AtomicU64::new(0));
     let reader = {
         let (stop, events) = (stop.clone(), events.clone());
+        let wanted = items.len();
         std::thread::spawn(move || {
             let mut buf = vec![0u8; 1 << 16];
             let mut tail = Vec::new();
+            let mut last_step = 0u64;
             while !stop.load(Ordering::SeqCst) {
                 match conn.read(&mut buf) {
                     Ok(0) => break,
                     Ok(n) => {
                         tail.extend_from_slice(&buf[..n]);
-                        let text = String::from_utf8_lossy(&tail);
-                        let count = text.matches("data: ").count() as u64;
-                        if count > 0 {
-                            events.fetch_add(count, Ordering::Relaxed);
-                            let cut = text.rfind("data: ").map_or(0, |i| i + 6);
-                            tail.drain(..cut.min(tail.len()));
+                        // Whole events only (an event ends with a blank line); an event counts
+                        // when it carries a value for every item asked for, from a step after
+                        // the last one counted: an event saying "no running framework" is not
+                        // a delivered value.
+                        while let Some(end) = tail.windows(2).position(|w| w == b"\n\n") {
+                            let event: Vec<u8> = tail.drain(..end + 2).collect();
+                            let text = String::from_utf8_lossy(&event);
+                            let Some(data) = text.lines().find_map(|l| l.strip_prefix("data: ")) else { continue };
+                            let Ok(v) = serde_json::from_str::<serde_json::Value>(data) else { continue };
+                            let Some(values) = v["values"].as_object() else { continue };
+                            let live: Vec<u64> = values
+                                .values()
+                                .filter(|x| x.get("v").is_some())
+                                .filter_map(|x| x["step"].as_u64())
+                                .collect();
+                            let step = live.iter().copied().max().unwrap_or(0);
+                            if live.len() == wanted && step > last_step {
+                                last_step = step;
+                                events.fetch_add(1, Ordering::Relaxed);
+                            }
                         }
                     }
                     Err(e) if matches!(e.kind(), std::io::ErrorKind::WouldBlock | std::io::ErrorKind::TimedOut) => {}
@@ -147,6 +163,12 @@ pub fn run(args: Args) -> CliResult {
                 step_run(&model, &mut fw, args.run.step, args.run.duration, |_, _| Ok(()))?;
             let events = watcher.as_ref().map_or(0, |w| w.events.load(Ordering::Relaxed)) - before;
             drop(watcher);
+            if monitored && events == 0 {
+                return Err(anyhow::anyhow!(
+                    "the studio's monitor delivered no live value during the run (its events carried no value of the items asked for)"
+                )
+                .into());
+            }
             drop(fw);
             late.sort();
             let us = |d: Duration| d.as_secs_f64() * 1e6;

@@ -64,6 +64,9 @@ fn an_fmi3_fmu_in_a_synchronous_domain_matches_fmpy_at_every_step() {
     let rows = fmu_common::recorded(&csv, &OUTPUTS, 1);
     let counts: Vec<u64> = rows.keys().copied().collect();
     assert!(counts.len() > 50, "only {} steps recorded", counts.len());
+    // Every row, repeats kept: a framework step answered with a stale count shows here.
+    let every = fmu_common::recorded_counts(&csv, OUTPUTS[1]);
+    assert!(every.windows(2).skip(1).all(|w| w[1] == w[0] + 1), "a step is missing or repeated: {every:?}");
     // From the FMU's second step on, lock-step: every step is a row (see fmu_run.rs).
     assert!(counts.windows(2).skip(1).all(|w| w[1] == w[0] + 1), "a step is missing or repeated: {counts:?}");
     let start = rows.values().next().unwrap().0 - (counts[0] - 1) as f64 * H;

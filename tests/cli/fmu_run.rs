@@ -96,6 +96,9 @@ fn a_pythonfmu_fmu_in_a_synchronous_domain_matches_fmpy_at_every_step() {
     // a row (lock-step), and each must equal fmpy's.
     let counts: Vec<u64> = rows.keys().copied().collect();
     assert!(counts.len() > 50, "only {} steps recorded", counts.len());
+    // Every row, repeats kept: a framework step answered with a stale count shows here.
+    let every = fmu_common::recorded_counts(&csv, OUTPUTS[3]);
+    assert!(every.windows(2).skip(1).all(|w| w[1] == w[0] + 1), "a step is missing or repeated: {every:?}");
     assert!(counts.windows(2).skip(1).all(|w| w[1] == w[0] + 1), "a step is missing or repeated: {counts:?}");
     // The FMU started at the framework's time of its first step: t after n steps is start + n·h.
     let (first, (_, values)) = rows.iter().next().unwrap();

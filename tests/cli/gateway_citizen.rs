@@ -175,9 +175,11 @@ fn answered_domain(
     let first = host.wait_for(SECS(75), answered);
     assert!(first.is_some(), "no step was answered\n{}\n{}", answer.dump(), gw.dump());
     let end = Instant::now() + SECS(60);
-    while host.seen.lock().unwrap().iter().filter(|(k, b)| answered(*k, b)).count() < 20 && Instant::now() < end {
+    let count = || host.seen.lock().unwrap().iter().filter(|(k, b)| answered(*k, b)).count();
+    while count() < 20 && Instant::now() < end {
         thread::sleep(Duration::from_millis(20));
     }
+    assert!(count() >= 20, "only {} steps answered\n{}\n{}", count(), answer.dump(), gw.dump());
     (host, gw, answer)
 }
 
@@ -304,7 +306,9 @@ fn a_config_file_changes_what_a_dds_peer_sees_and_the_stats_endpoint_counts_it(e
     // Best effort: a reliable reader does not match the overridden (best-effort) writer.
     let mut renamed =
         peer(&py, "sub renamed", dom, "sub", &[&args("rt/renamed/state")[..], &["--best-effort"]].concat());
-    let mut old = peer(&py, "sub old name", dom, "sub", &args("rt/gw_async/publish"));
+    // Best effort too: a reliable reader would not match a (best-effort) writer still there.
+    let mut old =
+        peer(&py, "sub old name", dom, "sub", &[&args("rt/gw_async/publish")[..], &["--best-effort"]].concat());
     let mut wire = peer(&py, "qos renamed", dom, "qos", &["--topic", "rt/renamed/state", "--timeout", "45"]);
     assert_eq!(wire.wait(SECS(60)), Some(0), "{}\n{}", wire.dump(), gw.dump());
     assert_eq!(json_lines(&wire, "reliability")[0]["reliability"], "BestEffort");

@@ -102,6 +102,7 @@ fn host_records_both_sets_and_status_shows_connections() {
     assert_eq!(values.last(), Some(&9.5), "the committed value");
     let clock = std::fs::read_to_string(dir.path().join("run-grid_clock.csv")).unwrap();
     let tick_col = clock.lines().next().unwrap().split(',').position(|c| c == "publish.tick").unwrap();
+    assert!(clock.lines().count() > 1, "no row recorded for grid_clock");
     assert!(clock.lines().skip(1).all(|l| l.split(',').nth(tick_col) == Some("7")));
     assert_eq!(segments(&ns), 0);
 }

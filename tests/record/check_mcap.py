@@ -123,12 +123,13 @@ def main():
                 if decoders[schema.id] is None:
                     print(f"schema {schema.name} does not parse", file=sys.stderr)
                     return 1
-        checked, events, missing = 0, 0, set(rows)
+        checked, events, missing = 0, {}, set(rows)
         for schema, channel, message in reader.iter_messages():
             if channel.topic == "/tutti/events":
                 event = json.loads(message.data)
                 assert event["kind"] in ("start", "connect", "disconnect", "owner"), event
-                events += 1
+                key = f'{event["domain"]}/{event["kind"]}'
+                events[key] = events.get(key, 0) + 1
                 continue
             decoded = decoders[schema.id](message.data)
             _, domain, role = channel.topic.split("/")

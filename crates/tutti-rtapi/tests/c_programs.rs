@@ -235,7 +235,9 @@ fn a_two_thread_client_keeps_lock_step_with_and_without_its_own_mutex() {
         }
         let writes: u64 =
             stdout.lines().find_map(|l| l.strip_prefix("writes ")?.parse().ok()).expect("the writes line");
-        assert!(writes > 0, "{mode}: {stdout}");
+        // The writer answers the latest value read; a writer held up for steps at a time
+        // answers far fewer than it reads.
+        assert!(writes * 2 >= values.len() as u64, "{mode}: {writes} answers to {} reads", values.len());
         let status = tutti_core::shm::segment::Segment::open(&ns, "multiuav_uav2").expect("segment").status();
         drop(host);
         // A stall would make the framework wait for its 20 s timeout at least once.

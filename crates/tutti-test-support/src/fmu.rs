@@ -104,6 +104,17 @@ pub fn host(
     thread::spawn(move || run_with_timeout(cmd, Duration::from_secs(120)))
 }
 
+/// The FMU's step count (output `count`) of every row of a `tutti host --record` CSV that
+/// the FMU answered, in order, repeats kept: in a synchronous domain each framework step is a
+/// row, so a step answered twice (a stale answer) or missed shows here.
+pub fn recorded_counts(csv: &Path, count: &str) -> Vec<u64> {
+    let text = std::fs::read_to_string(csv).unwrap();
+    let mut lines = text.lines();
+    let head: Vec<&str> = lines.next().unwrap().split(',').collect();
+    let col = head.iter().position(|h| *h == format!("subscribe.{count}")).expect("the count column");
+    lines.map(|l| l.split(',').nth(col).unwrap().parse::<f64>().unwrap() as u64).filter(|&n| n > 0).collect()
+}
+
 /// The rows of a `tutti host --record` CSV that the FMU answered, by its step count (output
 /// `outputs[count]`): (sim_time, outputs, booleans as 0/1).
 pub fn recorded(csv: &Path, outputs: &[&str], count: usize) -> BTreeMap<u64, (f64, Vec<f64>)> {
