@@ -86,7 +86,9 @@ fn a_replay_of_a_damaged_recording_is_an_error_naming_the_file_and_the_offset() 
     let (status, err) = replay("huge-record.mcap", &bytes);
     exited_with(status, INVALID, "a record length of all ones", &err);
     assert!(
-        err.contains("huge-record.mcap: at byte 8: a header record (opcode 0x01) says it is 18446744073709551615 bytes long"),
+        err.contains(
+            "huge-record.mcap: at byte 8: a header record (opcode 0x01) says it is 18446744073709551615 bytes long"
+        ),
         "{err}"
     );
 
@@ -95,7 +97,10 @@ fn a_replay_of_a_damaged_recording_is_an_error_naming_the_file_and_the_offset() 
     bytes[chunk + 9 + 16..chunk + 9 + 24].copy_from_slice(&u64::MAX.to_le_bytes());
     let (status, err) = replay("huge-chunk.mcap", &bytes);
     exited_with(status, INVALID, "a chunk of 2^64-1 bytes", &err);
-    assert!(err.contains(&format!("huge-chunk.mcap: at byte {chunk}: a chunk says it holds 18446744073709551615")), "{err}");
+    assert!(
+        err.contains(&format!("huge-chunk.mcap: at byte {chunk}: a chunk says it holds 18446744073709551615")),
+        "{err}"
+    );
 
     // The length of the first record inside the chunk (stored raw by zstd in so small a file)
     // with a byte flipped: the crash that aborted the process.
