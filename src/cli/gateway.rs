@@ -71,9 +71,10 @@ pub struct Args {
     /// DDS engine: cyclone (Cyclone DDS, the default) or rustdds (pure Rust).
     #[arg(long = "dds", value_name = "ENGINE")]
     engine: Option<EngineKind>,
-    /// Unicast discovery peer (address or host name; repeatable), for networks without
-    /// multicast, e.g. the other machine of a --mirror pair (cyclone engine).
-    #[arg(long = "peer", value_name = "ADDR")]
+    /// Unicast discovery peer (an IPv4 address or a host name that resolves, with an optional
+    /// :PORT; repeatable), for networks without multicast, e.g. the other machine of a
+    /// --mirror pair (cyclone engine).
+    #[arg(long = "peer", value_name = "ADDR", value_parser = config::parse_peer)]
     peers: Vec<String>,
     /// Publish this domain's simulated time on /clock (rosgraph_msgs/msg/Clock, for ROS 2
     /// nodes with use_sim_time); default: the first synchronous domain; `none`: no /clock.
@@ -83,28 +84,28 @@ pub struct Args {
     #[arg(long, value_name = "HZ", value_parser = config::parse_rate)]
     clock_rate: Option<f64>,
     /// Longest shared-memory wait; with --mirror, the framework's step timeout (default 1s).
-    #[arg(long, value_name = "DURATION", value_parser = tutti_core::parse::parse_duration)]
+    #[arg(long, value_name = "DURATION", value_parser = config::parse_period)]
     timeout: Option<Duration>,
     /// How shared-memory waits wait: block (the default), spin, or poll:DURATION.
-    #[arg(long, value_name = "MODE", value_parser = tutti_core::parse::parse_wait)]
+    #[arg(long, value_name = "MODE", value_parser = config::parse_wait_mode)]
     wait: Option<WaitMode>,
     /// How often an idle asynchronous set is checked for changes (default 500us; 0: keep
     /// polling).
-    #[arg(long, value_name = "DURATION", value_parser = tutti_core::parse::parse_duration)]
+    #[arg(long, value_name = "DURATION", value_parser = config::parse_span)]
     poll: Option<Duration>,
     /// How long a DDS writer of a synchronous domain may owe a step's answer, silent, before
     /// its lock-step share is released (default 1s).
-    #[arg(long, value_name = "DURATION", value_parser = tutti_core::parse::parse_duration)]
+    #[arg(long, value_name = "DURATION", value_parser = config::parse_period)]
     lease: Option<Duration>,
     /// Serve the counters over HTTP: JSON at /stats, Prometheus text at /metrics (port 0:
     /// any free port, logged).
     #[arg(long, value_name = "ADDR")]
     http: Option<SocketAddr>,
     /// Period of the status line on stderr (default 5s).
-    #[arg(long, value_name = "DURATION", value_parser = tutti_core::parse::parse_duration)]
+    #[arg(long, value_name = "DURATION", value_parser = config::parse_period)]
     status_every: Option<Duration>,
     /// Stop after this long (default: run until Ctrl-C).
-    #[arg(long, value_name = "DURATION", value_parser = tutti_core::parse::parse_duration)]
+    #[arg(long, value_name = "DURATION", value_parser = config::parse_span)]
     duration: Option<Duration>,
     /// Print no status lines.
     #[arg(short, long)]

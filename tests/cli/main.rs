@@ -27,6 +27,7 @@ mod gateway_in_process;
 mod gateway_interop;
 mod gateway_mirror;
 mod host_cli;
+mod hostile_files;
 mod idl_generated;
 mod idl_tools;
 mod install;

@@ -555,20 +555,22 @@ pub struct ConfigFile {
     pub interface: Option<Vec<IpAddr>>,
     #[serde(default, deserialize_with = "de_engine")]
     pub dds: Option<EngineKind>,
+    /// Checked where each stands ([`parse_peer`]).
+    #[serde(default, deserialize_with = "de_peers")]
     pub peer: Option<Vec<String>>,
     /// A domain, or `none`.
     pub clock: Option<String>,
     #[serde(default, deserialize_with = "de_rate")]
     pub clock_rate: Option<f64>,
-    #[serde(default, deserialize_with = "de_duration")]
+    #[serde(default, deserialize_with = "de_period")]
     pub timeout: Option<Duration>,
     #[serde(default, deserialize_with = "de_wait")]
     pub wait: Option<WaitMode>,
-    #[serde(default, deserialize_with = "de_duration")]
+    #[serde(default, deserialize_with = "de_span")]
     pub poll: Option<Duration>,
-    #[serde(default, deserialize_with = "de_duration")]
+    #[serde(default, deserialize_with = "de_period")]
     pub status_every: Option<Duration>,
-    #[serde(default, deserialize_with = "de_duration")]
+    #[serde(default, deserialize_with = "de_span")]
     pub duration: Option<Duration>,
     pub quiet: Option<bool>,
     /// Canonical (`a/b`).
@@ -576,7 +578,7 @@ pub struct ConfigFile {
     pub ros_namespace: Option<String>,
     /// Bridge a domain only while a framework hosts it (default true; `--all-domains` is false).
     pub hosted_only: Option<bool>,
-    #[serde(default, deserialize_with = "de_duration")]
+    #[serde(default, deserialize_with = "de_period")]
     pub lease: Option<Duration>,
     /// DDS readers of synchronous PUBLISH sets get every step (`--every-step`).
     pub every_step: Option<bool>,
@@ -646,6 +648,15 @@ pub fn load(path: &Path) -> Result<ConfigFile, ConfigError> {
 
 /// A config file's text, read from `source` (named in errors).
 pub fn parse(text: &str, source: &str) -> Result<ConfigFile, ConfigError> {
+    // The parser recurses once per level: a file nested thousands deep would overflow the
+    // stack, so the depth is checked first, by a scan that recurses nowhere.
+    if let Some((line, column)) = too_deep(text) {
+        return Err(ConfigError::File {
+            file: source.to_string(),
+            position: Some((line, column)),
+            message: format!("nested more than {MAX_NESTING} deep (a gateway config needs 4 levels)"),
+        });
+    }
     match json5::from_str::<ConfigFile>(text) {
         Ok(mut c) => {
             c.source = Some(source.to_string());
@@ -669,6 +680,63 @@ pub fn parse(text: &str, source: &str) -> Result<ConfigFile, ConfigError> {
             })
         }
     }
+}
+
+/// The deepest nesting of objects and arrays a config file may have.
+pub const MAX_NESTING: usize = 32;
+
+/// The line and column (1-based, in characters) of the first `{` or `[` that opens a level
+/// deeper than [`MAX_NESTING`], if there is one. Strings and comments are skipped as JSON5
+/// writes them; what is not JSON5 is left to the parser.
+fn too_deep(text: &str) -> Option<(usize, usize)> {
+    #[derive(Clone, Copy, PartialEq)]
+    enum In {
+        Code,
+        Str(char),
+        Escape(char),
+        LineComment,
+        BlockComment,
+    }
+    let (mut state, mut depth, mut line, mut col) = (In::Code, 0usize, 1usize, 0usize);
+    let mut chars = text.chars().peekable();
+    while let Some(c) = chars.next() {
+        if c == '\n' {
+            (line, col) = (line + 1, 0);
+        } else {
+            col += 1;
+        }
+        state = match (state, c) {
+            (In::Code, '"' | '\'') => In::Str(c),
+            (In::Code, '/') if chars.peek() == Some(&'/') => In::LineComment,
+            (In::Code, '/') if chars.peek() == Some(&'*') => {
+                chars.next();
+                col += 1;
+                In::BlockComment
+            }
+            (In::Code, '{' | '[') => {
+                depth += 1;
+                if depth > MAX_NESTING {
+                    return Some((line, col));
+                }
+                In::Code
+            }
+            (In::Code, '}' | ']') => {
+                depth = depth.saturating_sub(1);
+                In::Code
+            }
+            (In::Str(q), '\\') => In::Escape(q),
+            (In::Str(q), c) if c == q => In::Code,
+            (In::Escape(q), _) => In::Str(q),
+            (In::LineComment, '\n') => In::Code,
+            (In::BlockComment, '*') if chars.peek() == Some(&'/') => {
+                chars.next();
+                col += 1;
+                In::Code
+            }
+            (s, _) => s,
+        };
+    }
+    None
 }
 
 impl ConfigFile {
@@ -876,12 +944,106 @@ impl GatewayOptions {
 // ---------------------------------------------------------------------------------------
 // Value parsers, shared by the CLI's flags and the file's keys.
 
-/// A positive rate in Hz (`100`, `100Hz`).
+/// The longest duration a key or flag takes: 365 days. Longer ones are refused, since a
+/// deadline is the time now plus the duration, and that sum overflows the clock for
+/// durations of some hundred billion years (a panic, not an error).
+pub const MAX_DURATION: Duration = Duration::from_secs(365 * 24 * 3600);
+
+/// The lowest rate a key or flag takes: one sample in [`MAX_DURATION`] (the interval between
+/// samples is 1 / rate, which must be a duration).
+pub const MIN_RATE: f64 = 1.0 / (365.0 * 24.0 * 3600.0);
+
+/// A rate in Hz (`100`, `100Hz`), at least [`MIN_RATE`].
 pub fn parse_rate(s: &str) -> Result<f64, ConfigError> {
     match s.trim().trim_end_matches("Hz").trim_end_matches("hz").parse::<f64>() {
-        Ok(r) if r > 0.0 && r.is_finite() => Ok(r),
+        Ok(r) if r.is_finite() && r >= MIN_RATE => Ok(r),
         _ => Err(ConfigError::Rate { value: s.to_string() }),
     }
+}
+
+/// A duration from zero to [`MAX_DURATION`] (`poll`, where 0 means keep polling;
+/// `duration`).
+pub fn parse_span(s: &str) -> Result<Duration, ConfigError> {
+    let d = parse_duration(s)?;
+    if d > MAX_DURATION {
+        return Err(ConfigError::Duration { value: s.to_string(), why: "longer than 365 days" });
+    }
+    Ok(d)
+}
+
+/// A period above zero, at most [`MAX_DURATION`]: `timeout`, `status_every`, `lease` (a
+/// period of zero would time out every wait, or tick without end).
+pub fn parse_period(s: &str) -> Result<Duration, ConfigError> {
+    let d = parse_span(s)?;
+    if d.is_zero() {
+        return Err(ConfigError::Duration { value: s.to_string(), why: "it must be longer than zero" });
+    }
+    Ok(d)
+}
+
+/// A wait mode (`block`, `spin`, `poll:DURATION`) whose poll interval is at most
+/// [`MAX_DURATION`].
+pub fn parse_wait_mode(s: &str) -> Result<WaitMode, ConfigError> {
+    match parse_wait(s)? {
+        WaitMode::Poll(d) if d > MAX_DURATION => {
+            Err(ConfigError::Duration { value: s.to_string(), why: "longer than 365 days" })
+        }
+        w => Ok(w),
+    }
+}
+
+/// The port Cyclone assumes for a peer given without one does not matter here: host names
+/// are resolved only to check that they resolve.
+const ANY_PORT: u16 = 7400;
+
+/// A unicast discovery peer as Cyclone DDS takes it in `<Peer address="...">` on its default
+/// UDP/IPv4 transport: an IPv4 address or a host name, with an optional `:PORT` (1-65535).
+/// A host name must resolve to an IPv4 address now: Cyclone aborts the process on a peer it
+/// cannot resolve, and on an IPv6 one. The value comes back as given (trimmed).
+pub fn parse_peer(s: &str) -> Result<String, ConfigError> {
+    let t = s.trim();
+    // Shown escaped: the value may hold control characters.
+    let bad = |why: String| ConfigError::Peer { value: s.escape_debug().to_string(), why };
+    let (host, port) = match t.rsplit_once(':') {
+        Some((h, p)) if !h.contains(':') => {
+            let port = p.parse::<u16>().ok().filter(|&p| p > 0);
+            (h, Some(port.ok_or_else(|| bad(format!("'{p}' is not a port (1-65535)")))?))
+        }
+        _ => (t, None),
+    };
+    if host.parse::<std::net::Ipv4Addr>().is_ok() {
+        return Ok(t.to_string());
+    }
+    if t.trim_start_matches('[').split(']').next().is_some_and(|h| h.parse::<std::net::Ipv6Addr>().is_ok()) {
+        return Err(bad("IPv6 peers are not supported: the gateway's Cyclone DDS talks UDP over IPv4".into()));
+    }
+    if !host_name(host) {
+        return Err(bad("not an IPv4 address or a host name (letters, digits, '-' and '.', like 192.0.2.1, \
+             site-b.example or site-b:7410)"
+            .into()));
+    }
+    use std::net::ToSocketAddrs;
+    match (host, port.unwrap_or(ANY_PORT)).to_socket_addrs() {
+        Ok(mut addrs) => match addrs.any(|a| a.is_ipv4()) {
+            true => Ok(t.to_string()),
+            false => Err(bad(format!("host name '{host}' has no IPv4 address"))),
+        },
+        Err(e) => Err(bad(format!("host name '{host}' does not resolve: {e}"))),
+    }
+}
+
+/// A host name as RFC 1123 has it: dot-separated labels of 1-63 letters, digits and `-`, not
+/// starting or ending with `-`; 253 characters at most (a final `.` allowed).
+fn host_name(h: &str) -> bool {
+    let h = h.strip_suffix('.').unwrap_or(h);
+    !h.is_empty()
+        && h.len() <= 253
+        && h.split('.').all(|l| {
+            (1..=63).contains(&l.len())
+                && l.bytes().all(|b| b.is_ascii_alphanumeric() || b == b'-')
+                && !l.starts_with('-')
+                && !l.ends_with('-')
+        })
 }
 
 fn parse_types(s: &str) -> Result<TypeMode, ConfigError> {
@@ -968,8 +1130,9 @@ macro_rules! parsed {
 }
 
 parsed! {
-    de_duration -> Duration = parse_duration, "a duration like \"10ms\", \"2s\" or \"1min\"";
-    de_wait -> WaitMode = parse_wait, "\"block\", \"spin\" or \"poll:DURATION\"";
+    de_period -> Duration = parse_period, "a duration above zero like \"10ms\", \"2s\" or \"1min\"";
+    de_span -> Duration = parse_span, "a duration like \"10ms\", \"2s\" or \"1min\"";
+    de_wait -> WaitMode = parse_wait_mode, "\"block\", \"spin\" or \"poll:DURATION\"";
     de_types -> TypeMode = parse_types, "\"typed\" or \"per-item\"";
     de_profile -> Profile = parse_profile, "\"ros2\" or \"dds\"";
     de_engine -> EngineKind = std::str::FromStr::from_str, "\"cyclone\" or \"rustdds\"";
@@ -978,7 +1141,28 @@ parsed! {
 }
 
 fn de_rate<'de, D: Deserializer<'de>>(d: D) -> Result<Option<f64>, D::Error> {
-    d.deserialize_any(Number { expecting: "a rate in Hz above 0", ok: |v| v > 0.0 }).map(Some)
+    let expecting = "a rate in Hz above 0 (at least one sample in 365 days)";
+    d.deserialize_any(Number { expecting, ok: |v| v >= MIN_RATE }).map(Some)
+}
+
+fn de_peers<'de, D: Deserializer<'de>>(d: D) -> Result<Option<Vec<String>>, D::Error> {
+    struct Peers;
+    impl<'de> Visitor<'de> for Peers {
+        type Value = Vec<String>;
+        fn expecting(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+            f.write_str("a list of peers, like [\"192.0.2.1\", \"site-b:7410\"]")
+        }
+        fn visit_seq<A: SeqAccess<'de>>(self, mut seq: A) -> Result<Vec<String>, A::Error> {
+            let mut out = Vec::new();
+            while let Some(p) =
+                seq.next_element_seed(Parsed { expecting: "an IPv4 address or host name", parse: parse_peer })?
+            {
+                out.push(p);
+            }
+            Ok(out)
+        }
+    }
+    d.deserialize_any(Peers).map(Some)
 }
 
 fn de_depth<'de, D: Deserializer<'de>>(d: D) -> Result<Option<u32>, D::Error> {
@@ -1069,7 +1253,7 @@ mod tests {
     fn every_key_is_read() {
         let c = parse(
             r#"{ ros_domain_id: 7, ros2_types: "per-item", qos_profile: "dds", strength: 3, mirror: true,
-                 node_name: "gw", interface: ["127.0.0.1"], dds: "rustdds", peer: ["h1"], clock: "none",
+                 node_name: "gw", interface: ["127.0.0.1"], dds: "rustdds", peer: ["localhost"], clock: "none",
                  clock_rate: 50, timeout: "2s", wait: "poll:50us", poll: "1ms", status_every: "10s",
                  duration: "1min", quiet: true, ros_namespace: "/sim1/", hosted_only: false, lease: "3s",
                  http: "127.0.0.1:9100", allow: ["a/.*"], deny: ["b"], topics: {} }"#,
@@ -1122,6 +1306,73 @@ mod tests {
         let e = err(parse("{ ros_namespace: \"a b\" }", "gw.json5"));
         assert!(e.contains("ROS namespace 'a b'"), "{e}");
         assert!(err(load(Path::new("/nonexistent/gw.json5"))).starts_with("/nonexistent/gw.json5: cannot read"));
+    }
+
+    #[test]
+    fn a_file_nested_too_deep_is_refused_where_it_goes_too_deep_before_it_is_parsed() {
+        for (open, close) in [("[", "]"), ("{a:", "}")] {
+            let text = format!("{{ topics: {}{} }}", open.repeat(100_000), close.repeat(100_000));
+            let e = err(parse(&text, "deep.json5"));
+            let col = 11 + (MAX_NESTING - 1) * open.len();
+            assert!(e.starts_with(&format!("deep.json5:1:{col}: nested more than {MAX_NESTING} deep")), "{e}");
+        }
+        // Brackets in strings and comments do not count; the limit itself is parsed.
+        let quoted =
+            format!("{{ node_name: \"{}\", // {}\n /* {} */ }}", "[".repeat(99), "{".repeat(99), "[".repeat(99));
+        assert_eq!(parse(&quoted, "q.json5").unwrap().node_name.as_deref(), Some("[".repeat(99).as_str()));
+        let at_limit = format!("{}{}", "[".repeat(MAX_NESTING), "]".repeat(MAX_NESTING));
+        assert!(!err(parse(&at_limit, "l.json5")).contains("nested more than"));
+    }
+
+    #[test]
+    fn durations_and_rates_that_would_panic_are_refused_naming_the_key() {
+        for key in ["timeout", "status_every", "lease"] {
+            let e = err(parse(&format!("{{\n {key}: \"0s\" }}"), "gw.json5"));
+            assert!(e.starts_with("gw.json5:2:") && e.contains("'0s': it must be longer than zero"), "{key}: {e}");
+        }
+        for key in ["timeout", "status_every", "lease", "poll", "duration"] {
+            let e = err(parse(&format!("{{ {key}: \"400days\" }}"), "gw.json5"));
+            assert!(e.contains("'400days': longer than 365 days"), "{key}: {e}");
+            let e = err(parse(&format!("{{ {key}: \"18446744073709551615s\" }}"), "gw.json5"));
+            assert!(e.starts_with("gw.json5:1:"), "{key}: {e}");
+        }
+        assert_eq!(parse("{ poll: \"0s\" }", "f").unwrap().poll, Some(Duration::ZERO));
+        assert_eq!(parse("{ duration: \"0s\" }", "f").unwrap().duration, Some(Duration::ZERO));
+        assert!(err(parse("{ wait: \"poll:400days\" }", "f")).contains("longer than 365 days"));
+        for rate in ["1e-300", "-1", "0"] {
+            let e = err(parse(&format!("{{ clock_rate: {rate} }}"), "f"));
+            assert!(e.contains("is not a rate in Hz above 0"), "{rate}: {e}");
+            let e = err(parse(&format!("{{ topics: {{ \"a/publish\": {{ max_rate: {rate} }} }} }}"), "f"));
+            assert!(e.contains("is not a rate in Hz above 0"), "{rate}: {e}");
+        }
+        assert!(parse_rate("1e-300").is_err() && parse_rate("100Hz").is_ok());
+        assert!(parse_period("0ms").is_err() && parse_span("0ms").is_ok());
+    }
+
+    #[test]
+    fn peers_are_ipv4_addresses_or_host_names_that_resolve() {
+        for ok in ["192.0.2.1", "127.0.0.1:7410", "localhost", "localhost:7412", " 10.0.0.2 "] {
+            assert_eq!(parse_peer(ok).ok().as_deref(), Some(ok.trim()), "{ok}");
+        }
+        let refused = [
+            ("\u{1}\u{ff}%%garbage", "not an IPv4 address or a host name"),
+            ("", "not an IPv4 address or a host name"),
+            ("a\"/><Peer address=\"x", "not an IPv4 address or a host name"),
+            ("h<x>&", "not an IPv4 address or a host name"),
+            ("-a.example", "not an IPv4 address or a host name"),
+            ("::1", "IPv6 peers are not supported"),
+            ("[::1]:7400", "IPv6 peers are not supported"),
+            ("127.0.0.1:0", "is not a port"),
+            ("127.0.0.1:99999", "is not a port"),
+            ("nosuchhost.invalid", "does not resolve"),
+        ];
+        for (bad, why) in refused {
+            let e = err(parse_peer(bad));
+            assert!(e.contains(why), "{bad:?}: {e}");
+        }
+        // In the file: at the element, naming the file.
+        let e = err(parse("{ peer: [\"127.0.0.1\",\n \"\\u0001garbage\"] }", "gw.json5"));
+        assert!(e.starts_with("gw.json5:2:2: peer '\\u{1}garbage': not an IPv4 address"), "{e}");
     }
 
     #[test]

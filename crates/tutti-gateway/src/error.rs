@@ -114,9 +114,18 @@ pub enum ConfigError {
     /// An invalid ROS topic name (`remap`).
     #[error("'{name}' is not a ROS topic name: {why} (e.g. uav1/cmd, or /fleet/uav1/cmd)")]
     TopicName { name: String, why: &'static str },
-    /// Not a positive rate.
-    #[error("'{value}' is not a rate in Hz (e.g. 100)")]
+    /// Not a rate of at least one sample in 365 days.
+    #[error("'{value}' is not a rate in Hz above 0 (e.g. 100; at least one sample in 365 days)")]
     Rate { value: String },
+    /// Not a duration.
+    #[error(transparent)]
+    Parse(#[from] tutti_core::parse::ParseError),
+    /// A duration out of its key's range.
+    #[error("'{value}': {why}")]
+    Duration { value: String, why: &'static str },
+    /// A discovery peer Cyclone DDS would not take.
+    #[error("peer '{value}': {why}")]
+    Peer { value: String, why: String },
     /// Not a type mapping.
     #[error("'{value}': use typed or per-item")]
     Types { value: String },

@@ -506,6 +506,10 @@ impl Manager {
     async fn serve(&mut self, shutdown: Arc<AtomicBool>, status_every: Duration, on_status: &mut dyn FnMut(&str)) {
         let mut discovery = tokio::time::interval(self.opts.discovery_every);
         discovery.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Skip);
+        // The CLI and the config file refuse a zero or overlong period; a caller of the library
+        // that passes one gets the nearest one tokio takes (it panics on zero, and the first
+        // tick's instant overflows on a huge one).
+        let status_every = status_every.clamp(Duration::from_millis(1), crate::config::MAX_DURATION);
         let mut status = tokio::time::interval_at(tokio::time::Instant::now() + status_every, status_every);
         let mut check = tokio::time::interval(Duration::from_millis(50));
         loop {

@@ -38,6 +38,9 @@ pub enum RecordError {
     },
     #[error("{path}: {detail}")]
     Format { path: String, detail: String },
+    /// An MCAP file that is damaged (or not MCAP), with the byte offset where it is.
+    #[error("{path}: {error}")]
+    Mcap { path: String, error: mcap::read::ReadError },
     /// `--domain` names a domain that is not there.
     #[error("{path}: no {noun} '{domain}' ({noun}s: {known})")]
     UnknownDomain { path: String, noun: &'static str, domain: String, known: String },
@@ -50,7 +53,7 @@ impl RecordError {
     /// Whether the request was impossible (the CLI's exit status 2) rather than the run failing.
     pub fn is_invalid(&self) -> bool {
         match self {
-            RecordError::Format { .. } | RecordError::UnknownDomain { .. } => true,
+            RecordError::Format { .. } | RecordError::Mcap { .. } | RecordError::UnknownDomain { .. } => true,
             RecordError::Host(e) => e.is_invalid(),
             RecordError::Io { .. } => false,
         }

@@ -26,6 +26,8 @@ use tutti_core::{idl, mapping};
 
 use super::{create_parent, io_error, RecordError, Recorder, Step};
 
+pub mod read;
+
 /// The channel of connection events.
 pub const EVENTS_TOPIC: &str = "/tutti/events";
 

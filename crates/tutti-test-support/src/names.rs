@@ -3,7 +3,7 @@
 //!
 //! DDS domain ids in use (ROS 2 allows 0..=232): the gateway scenarios 101..=125 with Cyclone
 //! DDS and 151..=175 with rustdds (50 above), the UAV demo 180..=198, the gateway that
-//! `tutti show` plans against 199.
+//! `tutti show` plans against 199, the hostile-settings gateway tests 200..=209.
 
 use std::ops::RangeInclusive;
 

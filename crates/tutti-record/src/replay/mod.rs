@@ -13,6 +13,7 @@ use tutti_core::cdr::SetCodec;
 use tutti_core::ddf::{Model, Role};
 use tutti_core::mapping;
 
+use crate::mcap::read::{Attachment, McapFile, Metadata};
 use crate::mcap::{DDF_MEDIA_TYPE, EVENTS_TOPIC, METADATA_NAME};
 use crate::{io_error, RecordError};
 
@@ -71,19 +72,24 @@ impl Recording {
     /// (needed for a recording made by another tool, which has none).
     pub fn read_with(path: &Path, ddf: Option<&Path>) -> Result<Recording, RecordError> {
         let format = |detail: String| RecordError::Format { path: path.display().to_string(), detail };
+        let damaged = |error| RecordError::Mcap { path: path.display().to_string(), error };
         let bytes = std::fs::read(path).map_err(io_error(path))?;
-        let summary = ::mcap::Summary::read(&bytes)
-            .map_err(|e| format(format!("not a readable MCAP file: {e}")))?
-            .ok_or_else(|| format("an MCAP file without a summary (not finished?)".into()))?;
+        // Every length in the file is checked before use: a damaged or hostile file is an
+        // error at its byte offset (crate::mcap::read).
+        let file = McapFile::parse(&bytes).map_err(damaged)?;
         let (model, ddf_name) = match ddf {
             Some(ddf) => {
                 let model = tutti_core::ddf::load(ddf)
                     .map_err(|e| RecordError::Format { path: ddf.display().to_string(), detail: e.to_string() })?;
                 (model, ddf.file_name().map_or_else(String::new, |n| n.to_string_lossy().into_owned()))
             }
-            None => embedded_ddf(&bytes, &summary).map_err(|e| format(e.to_string()))?,
+            None => {
+                let attachments = file.attachments().map_err(damaged)?;
+                embedded_ddf(&attachments).map_err(|e| format(e.to_string()))?
+            }
         };
-        let package = package_of(&bytes, &summary).unwrap_or_else(|| mapping::package_name(Path::new(&ddf_name)));
+        let package = package_of(&file.metadata().map_err(damaged)?)
+            .unwrap_or_else(|| mapping::package_name(Path::new(&ddf_name)));
         // Each set's topic, as the recorder named it.
         let mut by_topic: HashMap<String, (usize, Role)> = HashMap::new();
         for (i, d) in model.domains.iter().enumerate() {
@@ -100,9 +106,8 @@ impl Recording {
         // Connection counts from each domain's events: (step, count from then on).
         let mut counts: Vec<Vec<(u64, u32)>> = vec![Vec::new(); model.domains.len()];
         let mut channels: HashMap<u16, Option<SetMessage>> = HashMap::new();
-        let stream = ::mcap::MessageStream::new(&bytes).map_err(|e| format(e.to_string()))?;
-        for msg in stream {
-            let msg = msg.map_err(|e| format(e.to_string()))?;
+        for msg in file.messages() {
+            let msg = msg.map_err(damaged)?;
             let topic = &msg.channel.topic;
             if topic == EVENTS_TOPIC {
                 if let Some((domain, step, connections)) = connection_event(&msg.data) {
@@ -119,7 +124,7 @@ impl Recording {
             let Some(set) = set else { continue };
             let decoded = codecs[set.domain][set.role as usize]
                 .decode(&msg.data)
-                .map_err(|e| format(format!("{topic}, message {}: {e}", msg.sequence)))?;
+                .map_err(|e| format(format!("{} ({topic}, message {}): {e}", msg.at, msg.sequence)))?;
             let entry = steps[set.domain].entry(decoded.step).or_insert_with(|| RecordedStep {
                 step: decoded.step,
                 sim_time: decoded.sim_time,
@@ -167,25 +172,20 @@ impl Recording {
 pub enum EmbeddedDdfError {
     #[error("no DDF inside (recorded by another tool?): give the DDF with --ddf")]
     Missing,
-    #[error("the DDF attachment: {0}")]
-    Attachment(#[source] ::mcap::McapError),
     #[error(transparent)]
     Invalid(#[from] tutti_core::ddf::DdfError),
 }
 
 /// The DDF attachment: its model and file name.
-fn embedded_ddf(bytes: &[u8], summary: &::mcap::Summary) -> Result<(Model, String), EmbeddedDdfError> {
-    let index =
-        summary.attachment_indexes.iter().find(|a| a.media_type == DDF_MEDIA_TYPE).ok_or(EmbeddedDdfError::Missing)?;
-    let attachment = ::mcap::read::attachment(bytes, index).map_err(EmbeddedDdfError::Attachment)?;
-    let model = tutti_core::ddf::parse_bytes(&attachment.data, &format!("{} (inside the recording)", attachment.name))?;
-    Ok((model, attachment.name))
+fn embedded_ddf(attachments: &[Attachment<'_>]) -> Result<(Model, String), EmbeddedDdfError> {
+    let a = attachments.iter().find(|a| a.media_type == DDF_MEDIA_TYPE).ok_or(EmbeddedDdfError::Missing)?;
+    let model = tutti_core::ddf::parse_bytes(a.data, &format!("{} (inside the recording)", a.name))?;
+    Ok((model, a.name.clone()))
 }
 
 /// The ROS 2 package the recorder named its types after.
-fn package_of(bytes: &[u8], summary: &::mcap::Summary) -> Option<String> {
-    let index = summary.metadata_indexes.iter().find(|m| m.name == METADATA_NAME)?;
-    ::mcap::read::metadata(bytes, index).ok()?.metadata.get("package").cloned()
+fn package_of(metadata: &[Metadata]) -> Option<String> {
+    metadata.iter().find(|m| m.name == METADATA_NAME)?.entries.get("package").cloned()
 }
 
 /// (domain, step, connections) of an event that gives a connection count.
