@@ -32,7 +32,7 @@ pub enum RunError {
     Record {
         path: PathBuf,
         #[source]
-        source: tutti_record::RecordError,
+        source: Box<tutti_record::RecordError>,
     },
     /// The log directory cannot be made.
     #[error("creating the log directory {dir}: {source}")]

@@ -87,7 +87,7 @@ pub fn run(
     let mut host = Host::new(&launch.model, host_opts)?;
     for path in &fw.record {
         let recorder = tutti_record::create(path, &launch.model, &launch.ddf)
-            .map_err(|source| RunError::Record { path: path.clone(), source })?;
+            .map_err(|source| RunError::Record { path: path.clone(), source: Box::new(source) })?;
         host.add_sink(Box::new(tutti_record::RecordingSink(recorder)));
     }
     let namespace = host.namespace().to_string();
