@@ -42,6 +42,12 @@ if ! .venv/bin/python -c 'import pythonfmu, fmpy' 2>/dev/null; then
         lxml==6.1.3 msgpack==1.2.4 nbformat==5.11.1 numpy==2.4.6
     .venv/bin/pip install -q --disable-pip-version-check --no-deps fmpy==0.3.32
 fi
+# The SSP tests: libcosim (the Open Simulation Platform's co-simulation engine, a wheel with
+# its C library inside) runs the same SSP archives for the reference traces.
+if ! .venv/bin/python -c 'import libcosimpy' 2>/dev/null; then
+    step "installing libcosimpy into .venv"
+    .venv/bin/pip install -q --disable-pip-version-check libcosimpy==0.0.6
+fi
 # The Prometheus project's own parser, which reads the gateway's /metrics text in its tests.
 if ! .venv/bin/python -c 'import prometheus_client' 2>/dev/null; then
     step "installing prometheus-client into .venv"

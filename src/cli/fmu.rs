@@ -217,7 +217,7 @@ fn print_variables(md: &tutti_fmu::ModelDescription) {
 fn ddf(a: DdfArgs) -> CliResult {
     let fmu = open(&a.fmu)?;
     let domain = a.domain.unwrap_or_else(|| domain_name(&fmu.model.model_name));
-    let opts = DdfOptions { domain, synchronous: a.synchronous == "yes" };
+    let opts = DdfOptions { domain, synchronous: a.synchronous == "yes", states: false };
     let source = a.fmu.file_name().map_or_else(|| a.fmu.display().to_string(), |n| n.to_string_lossy().into_owned());
     let text = generate(&fmu.model, &source, &opts);
     // What is written must be a valid DDF: check it with the same parser as everything else.

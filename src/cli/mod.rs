@@ -15,6 +15,7 @@ mod record;
 mod replay;
 mod run;
 mod show;
+mod ssp;
 mod status;
 mod studio;
 
@@ -46,6 +47,7 @@ enum Command {
     Studio(studio::Args),
     Fmu(fmu::Args),
     Run(run::Args),
+    Ssp(ssp::Args),
 }
 
 /// The flag Ctrl-C (or SIGTERM) raises: a command's loop stops when it is set.
@@ -67,6 +69,7 @@ pub fn run(cli: Cli) -> ExitCode {
         Command::Studio(a) => studio::run(a),
         Command::Fmu(a) => fmu::run(a),
         Command::Run(a) => run::run(a),
+        Command::Ssp(a) => ssp::run(a),
     };
     tutti_exit::exit(result)
 }

@@ -14,16 +14,23 @@ use tutti_launch::{Event, RunOptions};
 
 use super::{CliResult, Failure};
 
-/// Run a co-simulation described by a launch file: the framework, the components, the gateway.
+/// Run a co-simulation described by a launch file (or an SSP archive): the framework, the components, the gateway.
 #[derive(Debug, clap::Args)]
 #[command(
-    after_help = "Examples:\n  tutti run cosim.json5\n  tutti run cosim.json5 --logs /tmp/cosim-logs --check\n  sudo tutti run cosim.json5 --realtime --cpu 1 --priority 80\n\nThe launch file's keys, restart policies and logs: docs/run.md. Exit status: 0 when every component \
+    after_help = "Examples:\n  tutti run cosim.json5\n  tutti run system.ssp --record run.csv --step 10ms\n  tutti run cosim.json5 --logs /tmp/cosim-logs --check\n  sudo tutti run cosim.json5 --realtime --cpu 1 --priority 80\n\nThe launch file's keys, restart policies and logs: docs/run.md. Exit status: 0 when every component \
                   ended well (exit status 0, or stopped by the run), 1 otherwise, 2 for a launch file that is refused."
 )]
 pub struct Args {
-    /// The launch file (JSON5).
+    /// The launch file (JSON5), or an SSP archive (`.ssp`: docs/ssp.md).
     #[arg(value_name = "FILE")]
     file: PathBuf,
+    /// An SSP archive: extract it and write its DDF and launch file here (kept), instead of a
+    /// temporary directory removed at the end.
+    #[arg(long, value_name = "DIR")]
+    out: Option<PathBuf>,
+    /// An SSP archive: how it steps and what is recorded.
+    #[command(flatten)]
+    ssp: super::ssp::PlanArgs,
     /// Where each component's output goes, as NAME.log (default: `logs/` beside the launch file).
     #[arg(long, value_name = "DIR")]
     logs: Option<PathBuf>,
@@ -41,7 +48,15 @@ pub struct Args {
 }
 
 pub fn run(args: Args) -> CliResult {
-    let launch = tutti_launch::load(&args.file).map_err(Failure::invalid)?;
+    let is_ssp = args.file.extension().is_some_and(|e| e.eq_ignore_ascii_case("ssp"));
+    // An SSP archive becomes a launch file first (and its directory goes when this does).
+    let (launch, _prepared) = if is_ssp {
+        let p = tutti_ssp::prepare(&args.file, args.out.as_deref(), &args.ssp.options()).map_err(Failure::invalid)?;
+        eprintln!("run: {} is {}", args.file.display(), p.launch_file.display());
+        (p.launch.clone(), Some(p))
+    } else {
+        (tutti_launch::load(&args.file).map_err(Failure::invalid)?, None)
+    };
     if args.check {
         eprintln!(
             "run: {} is valid: {} component(s) over {}",

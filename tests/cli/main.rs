@@ -34,5 +34,6 @@ mod install;
 mod record_mcap;
 mod replay;
 mod run;
+mod ssp;
 mod studio_browser;
 mod uav_demo;

@@ -66,6 +66,10 @@ fn sanitize(name: &str) -> String {
 pub struct DdfOptions {
     pub domain: String,
     pub synchronous: bool,
+    /// `<states>`: the framework waits for a first commit (the seed) before its first step
+    /// of a synchronous domain; `tutti fmu run` then commits the FMU's initial outputs as
+    /// that seed (docs/fmu.md, Stepping). `tutti fmu ddf` writes `no`.
+    pub states: bool,
 }
 
 /// Makes a domain name from a model name.
@@ -75,8 +79,6 @@ pub fn domain_name(model_name: &str) -> String {
 
 /// The DDF text (product dialect) for `md`.
 pub fn generate(md: &ModelDescription, source: &str, opts: &DdfOptions) -> String {
-    let names = item_names(md);
-    let yn = |b: bool| if b { "yes" } else { "no" };
     let mut out = String::new();
     let _ = writeln!(out, "<?xml version=\"1.0\" encoding=\"UTF-8\"?>");
     let _ = writeln!(
@@ -87,10 +89,21 @@ pub fn generate(md: &ModelDescription, source: &str, opts: &DdfOptions) -> Strin
         xml_comment(&md.model_name)
     );
     let _ = writeln!(out, "<orchestra>");
+    out.push_str(&generate_domain(md, opts));
+    let _ = writeln!(out, "</orchestra>");
+    out
+}
+
+/// The `<domain>` element of [`generate`] alone (indented for an `<orchestra>`), for a DDF
+/// with the domains of several FMUs.
+pub fn generate_domain(md: &ModelDescription, opts: &DdfOptions) -> String {
+    let names = item_names(md);
+    let yn = |b: bool| if b { "yes" } else { "no" };
+    let mut out = String::new();
     let _ = writeln!(out, "  <domain name=\"{}\">", xml_attr(&opts.domain));
     let _ = writeln!(out, "    <synchronous>{}</synchronous>", yn(opts.synchronous));
     let _ = writeln!(out, "    <multiplePublishAllowed>no</multiplePublishAllowed>");
-    let _ = writeln!(out, "    <states>no</states>");
+    let _ = writeln!(out, "    <states>{}</states>", yn(opts.states));
     for (set, causality) in [("PUBLISH", Causality::Input), ("SUBSCRIBE", Causality::Output)] {
         let vars: Vec<&Variable> = md.variables.iter().filter(|v| v.causality == causality).collect();
         let mut items = String::new();
@@ -134,7 +147,6 @@ pub fn generate(md: &ModelDescription, source: &str, opts: &DdfOptions) -> Strin
         let _ = writeln!(out, "    </set>");
     }
     let _ = writeln!(out, "  </domain>");
-    let _ = writeln!(out, "</orchestra>");
     out
 }
 
@@ -178,7 +190,7 @@ mod tests {
                </ModelVariables></fmiModelDescription>"#,
         )
         .unwrap();
-        let text = generate(&md, "m.fmu", &DdfOptions { domain: "m".into(), synchronous: true });
+        let text = generate(&md, "m.fmu", &DdfOptions { domain: "m".into(), synchronous: true, states: false });
         let item = |name: &str| text.lines().find(|l| l.contains(&format!("name=\"{name}\""))).unwrap().to_string();
         assert!(item("t").contains("<default>yes</default>"), "{text}");
         assert!(item("f").contains("<default>no</default>"), "{text}");

@@ -301,7 +301,41 @@ impl FmuParticipant {
         })
     }
 
+    /// In a synchronous domain with `states` that the framework has not stepped yet (and
+    /// nobody has seeded): initialises the FMU at the domain's time, with its start values
+    /// and parameters, and commits its initial outputs as the domain's seed. The framework
+    /// waits for that seed before its first step, so the FMU answers every step from the
+    /// first, and the framework's initial exchange (docs/run.md, Connections) hands these
+    /// outputs to the connected inputs of the first step. Elsewhere, nothing.
+    pub fn seed(&mut self) -> Result<bool, RunError> {
+        if self.time.is_some() || self.mapping.outputs.is_empty() {
+            return Ok(false);
+        }
+        let p = self.participant();
+        let flags = p.info().flags;
+        let fresh = p.segment().step() == 0 && !p.segment().seeded();
+        if !(flags.synchronous && flags.states && fresh) {
+            return Ok(false);
+        }
+        let start = p.sim_time();
+        self.instance.enter_initialization(start)?;
+        self.instance.exit_initialization()?;
+        self.time = Some(start);
+        self.commit_outputs()?;
+        Ok(true)
+    }
+
     fn run_loop(&mut self, stop: &AtomicBool) -> Result<(), RunError> {
+        if self.mode == StepMode::Synchronous {
+            match self.seed() {
+                Ok(_) => {}
+                Err(RunError::Domain { source: ShmError::FrameworkStopped { .. }, .. }) => {
+                    self.framework_stopped = true;
+                    return Ok(());
+                }
+                Err(e) => return Err(e),
+            }
+        }
         let begin = Instant::now();
         let mut k: u32 = 0;
         while !stop.load(Ordering::Acquire) && self.max_steps.map_or(true, |m| self.steps < m) {

@@ -18,10 +18,19 @@
 //! offset if given. It is written just before the step is published, so unlike an item's
 //! value it is never a step late; the input must be a float (`float32`, `float64`).
 //!
+//! **Units.** Each end may carry a unit in brackets, `"plant/subscribe/h [km: m=1 factor=1000]
+//! -> ctrl/publish/h [m]"`: a unit is a name and its definition against the SI base units
+//! (the exponents of `kg m s A K mol cd rad`, and `factor` and `offset`: a value v in the
+//! unit is `factor × v + offset` in the base units), as SSP's `ssc:Unit` defines one; a base
+//! unit alone (`[m]`, `[K]`) needs no definition. Both ends give a unit or neither; the two
+//! must have the same base dimensions. The output is converted into the input's unit first,
+//! then the gain and the offset apply (in the input's unit).
+//!
 //! Checked before anything runs ([`Connections::resolve`]): both items exist and have the
 //! roles above, the same length, and types that convert (the same type; or any number into
-//! a float; with a gain or an offset, numbers only); no input has two sources, nor a
-//! connection and a `--set` value. Every refusal names both ends.
+//! a float; with a gain, an offset or a unit conversion, numbers only); units of the same
+//! dimensions; no input has two sources, nor a connection and a `--set` value. Every
+//! refusal names both ends.
 
 use std::fmt;
 
@@ -34,6 +43,113 @@ pub struct ConnectionSpec {
     pub to: ItemRef,
     pub gain: f64,
     pub offset: f64,
+    /// The units of both ends (`[UNIT]` after each), when the value is converted.
+    pub units: Option<(Unit, Unit)>,
+}
+
+/// The names of the SI base units, in the order of [`Unit::exponents`] (SSP's `ssc:BaseUnit`).
+pub const BASE_UNITS: [&str; 8] = ["kg", "m", "s", "A", "K", "mol", "cd", "rad"];
+
+/// A unit: a value v in it is `factor × v + offset` in the base units whose exponents it has.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Unit {
+    pub name: String,
+    /// The exponents of `kg m s A K mol cd rad` ([`BASE_UNITS`]).
+    pub exponents: [i32; 8],
+    pub factor: f64,
+    pub offset: f64,
+}
+
+impl Unit {
+    /// The SI base unit `name` (`m`, `K`, …), if it is one.
+    pub fn base(name: &str) -> Option<Unit> {
+        let i = BASE_UNITS.iter().position(|b| *b == name)?;
+        let mut exponents = [0; 8];
+        exponents[i] = 1;
+        Some(Unit { name: name.to_string(), exponents, factor: 1.0, offset: 0.0 })
+    }
+
+    /// Its base dimensions, as `m s-1` (`1` for none).
+    pub fn dimensions(&self) -> String {
+        let terms: Vec<String> = BASE_UNITS
+            .iter()
+            .zip(self.exponents)
+            .filter(|(_, e)| *e != 0)
+            .map(|(b, e)| if e == 1 { b.to_string() } else { format!("{b}{e}") })
+            .collect();
+        if terms.is_empty() {
+            "1".into()
+        } else {
+            terms.join(" ")
+        }
+    }
+
+    /// The gain and offset that take a value in `self` to the same quantity in `to`.
+    pub fn conversion_to(&self, to: &Unit) -> (f64, f64) {
+        (self.factor / to.factor, (self.offset - to.offset) / to.factor)
+    }
+}
+
+impl fmt::Display for Unit {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        if Unit::base(&self.name).as_ref() == Some(self) {
+            return write!(f, "[{}]", self.name);
+        }
+        write!(f, "[{}:", self.name)?;
+        for (b, e) in BASE_UNITS.iter().zip(self.exponents) {
+            if e != 0 {
+                write!(f, " {b}={e}")?;
+            }
+        }
+        if self.factor != 1.0 {
+            write!(f, " factor={}", self.factor)?;
+        }
+        if self.offset != 0.0 {
+            write!(f, " offset={}", self.offset)?;
+        }
+        f.write_str("]")
+    }
+}
+
+/// Parses the inside of `[NAME]` (a base unit) or `[NAME: kg=E m=E … factor=F offset=O]`.
+pub fn parse_unit(s: &str) -> Result<Unit, String> {
+    let (name, terms) = match s.split_once(':') {
+        Some((n, t)) => (n.trim(), Some(t)),
+        None => (s.trim(), None),
+    };
+    if name.is_empty() || name.contains(char::is_whitespace) {
+        return Err(format!("'[{s}]' is not a unit: expected [NAME] or [NAME: m=1 s=-1 factor=F offset=O]"));
+    }
+    let Some(terms) = terms else {
+        return Unit::base(name).ok_or_else(|| {
+            format!(
+                "unit '{name}' is not a base unit ({}): define it, like [{name}: m=1 factor=1000]",
+                BASE_UNITS.join(" ")
+            )
+        });
+    };
+    let mut unit = Unit { name: name.to_string(), exponents: [0; 8], factor: 1.0, offset: 0.0 };
+    for term in terms.split_whitespace() {
+        let (key, value) = term.split_once('=').unwrap_or((term, "1"));
+        let bad = || format!("unit '{name}': '{term}' is not KEY=NUMBER");
+        if let Some(i) = BASE_UNITS.iter().position(|b| *b == key) {
+            unit.exponents[i] = value.parse().map_err(|_| bad())?;
+            continue;
+        }
+        let v: f64 = value.parse().ok().filter(|v: &f64| v.is_finite()).ok_or_else(bad)?;
+        match key {
+            "factor" if v != 0.0 => unit.factor = v,
+            "factor" => return Err(format!("unit '{name}': factor 0 converts nothing")),
+            "offset" => unit.offset = v,
+            _ => {
+                return Err(format!(
+                    "unit '{name}': unknown term '{key}' (the base units {}, factor, offset)",
+                    BASE_UNITS.join(" ")
+                ))
+            }
+        }
+    }
+    Ok(unit)
 }
 
 /// `DOMAIN/ROLE/ITEM`.
@@ -77,7 +193,10 @@ impl fmt::Display for ItemRef {
 
 impl fmt::Display for ConnectionSpec {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        write!(f, "{} -> {}", self.from, self.to)?;
+        match &self.units {
+            Some((a, b)) => write!(f, "{} {a} -> {} {b}", self.from, self.to)?,
+            None => write!(f, "{} -> {}", self.from, self.to)?,
+        }
         if self.gain != 1.0 {
             write!(f, " * {}", self.gain)?;
         }
@@ -99,15 +218,36 @@ pub enum ConnectError {
     UnknownSource { given: String, source_name: String },
     #[error("'{given}': '{value}' is not a number")]
     Number { given: String, value: String },
+    #[error("'{given}': {reason}")]
+    Unit { given: String, reason: String },
     #[error("{connection}: {reason}")]
     Refused { connection: String, reason: String },
 }
 
 /// Parses `FROM -> TO [* GAIN] [+ OFFSET]` (`- OFFSET` too); FROM is an item or `@sim_time`.
 pub fn parse_connection(s: &str) -> Result<ConnectionSpec, ConnectError> {
-    let (from, rest) = s.split_once("->").ok_or_else(|| ConnectError::Form(s.to_string()))?;
-    let mut words = rest.split_whitespace();
-    let to = words.next().ok_or_else(|| ConnectError::Form(s.to_string()))?;
+    let (from, rest) = split_arrow(s).ok_or_else(|| ConnectError::Form(s.to_string()))?;
+    let unit_err = |reason: String| ConnectError::Unit { given: s.to_string(), reason };
+    let (from, from_unit) = take_unit(from).map_err(unit_err)?;
+    let rest = rest.trim_start();
+    let to_end = rest.find(char::is_whitespace).unwrap_or(rest.len());
+    let (to, after) = rest.split_at(to_end);
+    let (to_unit, after) = match after.trim_start().strip_prefix('[') {
+        Some(inner) => {
+            let (u, tail) = inner.split_once(']').ok_or_else(|| unit_err("a '[' without its ']'".into()))?;
+            (Some(parse_unit(u).map_err(unit_err)?), tail)
+        }
+        None => (None, after),
+    };
+    let units = match (from_unit, to_unit) {
+        (Some(a), Some(b)) => Some((a, b)),
+        (None, None) => None,
+        _ => return Err(unit_err("give a unit at both ends or at neither".into())),
+    };
+    if to.is_empty() {
+        return Err(ConnectError::Form(s.to_string()));
+    }
+    let mut words = after.split_whitespace();
     let (mut gain, mut offset) = (1.0, 0.0);
     let number = |w: Option<&str>| -> Result<f64, ConnectError> {
         let w = w.ok_or_else(|| ConnectError::Form(s.to_string()))?;
@@ -145,7 +285,30 @@ pub fn parse_connection(s: &str) -> Result<ConnectionSpec, ConnectError> {
         }
         f => Source::Item(end(f)?),
     };
-    Ok(ConnectionSpec { from, to: end(to)?, gain, offset })
+    Ok(ConnectionSpec { from, to: end(to)?, gain, offset, units })
+}
+
+/// `FROM -> REST`, at the first `->` outside brackets.
+fn split_arrow(s: &str) -> Option<(&str, &str)> {
+    let mut depth = 0i32;
+    for (i, c) in s.char_indices() {
+        match c {
+            '[' => depth += 1,
+            ']' => depth -= 1,
+            '-' if depth == 0 && s[i..].starts_with("->") => return Some((&s[..i], &s[i + 2..])),
+            _ => {}
+        }
+    }
+    None
+}
+
+/// `END [UNIT]` → the end and its unit.
+fn take_unit(s: &str) -> Result<(&str, Option<Unit>), String> {
+    let s = s.trim();
+    match s.strip_suffix(']').and_then(|r| r.split_once('[')) {
+        Some((end, u)) => Ok((end.trim(), Some(parse_unit(u)?))),
+        None => Ok((s, None)),
+    }
 }
 
 /// One end of a checked connection.
@@ -202,7 +365,22 @@ impl Connections {
                             to.leaf.ty.canonical()
                         )));
                     }
-                    clocks.push((to, spec.gain, spec.offset));
+                    let (gain, offset) = match &spec.units {
+                        Some((ua, ub)) if ua.exponents != ub.exponents || ua.dimensions() != "s" => {
+                            return Err(refused(format!(
+                                "unit mismatch: {SIM_TIME} is a time ([s]), {} is in {} ({})",
+                                spec.to,
+                                ub.name,
+                                ub.dimensions()
+                            )))
+                        }
+                        Some((ua, ub)) => {
+                            let (g, o) = ua.conversion_to(ub);
+                            (g * spec.gain, o * spec.gain + spec.offset)
+                        }
+                        None => (spec.gain, spec.offset),
+                    };
+                    clocks.push((to, gain, offset));
                     continue;
                 }
                 Source::Item(r) => end(model, r, Role::Subscribe).map_err(refused)?,
@@ -214,7 +392,24 @@ impl Connections {
                     spec.from, a.length, spec.to, b.length
                 )));
             }
-            let scaled = spec.gain != 1.0 || spec.offset != 0.0;
+            let (mut gain, mut offset) = (spec.gain, spec.offset);
+            if let Some((ua, ub)) = &spec.units {
+                if ua.exponents != ub.exponents {
+                    return Err(refused(format!(
+                        "unit mismatch: {} is in {} ({}), {} in {} ({}): not the same base dimensions",
+                        spec.from,
+                        ua.name,
+                        ua.dimensions(),
+                        spec.to,
+                        ub.name,
+                        ub.dimensions()
+                    )));
+                }
+                // Into the input's unit first, then the gain and the offset.
+                let (g, o) = ua.conversion_to(ub);
+                (gain, offset) = (g * spec.gain, o * spec.gain + spec.offset);
+            }
+            let scaled = gain != 1.0 || offset != 0.0 || spec.units.is_some();
             if !converts(a.ty, b.ty, scaled) {
                 return Err(refused(format!(
                     "type mismatch: {} is {}, {} is {}{}",
@@ -222,11 +417,11 @@ impl Connections {
                     a.ty.canonical(),
                     spec.to,
                     b.ty.canonical(),
-                    if scaled { " (a gain or an offset needs numbers)" } else { "" }
+                    if scaled { " (a gain, an offset or a unit conversion needs numbers)" } else { "" }
                 )));
             }
             let raw = !scaled && a.ty == b.ty;
-            list.push(Connection { from, to, gain: spec.gain, offset: spec.offset, raw });
+            list.push(Connection { from, to, gain, offset, raw });
         }
         Ok(Connections { list, clocks, specs: specs.to_vec() })
     }
@@ -412,6 +607,53 @@ mod tests {
         assert_eq!(get(&publish[1], &leaf(1, Role::Publish, "y_meas")), [7.0], "3 * 2 + 1");
         assert_eq!(get(&publish[0], &leaf(0, Role::Publish, "u")), [-4.0]);
         assert_eq!(get(&publish[1], &leaf(1, Role::Publish, "w")), [1.5, 2.5, 3.5], "float32 into float64");
+    }
+
+    #[test]
+    fn units_convert_between_the_same_dimensions_before_the_gain_and_offset() {
+        let c = parse_connection("plant/subscribe/y [km: m=1 factor=1000] -> ctrl/publish/y_meas [m] * 2 + 1").unwrap();
+        let (a, b) = c.units.clone().unwrap();
+        assert_eq!((a.factor, a.exponents[1], b.name.as_str()), (1000.0, 1, "m"));
+        assert_eq!(c.to_string(), "plant/subscribe/y [km: m=1 factor=1000] -> ctrl/publish/y_meas [m] * 2 + 1");
+        assert_eq!(parse_connection(&c.to_string()).unwrap(), c, "the text form reads back");
+        let m = model();
+        let run = |spec: &str, y: f64| -> f64 {
+            let c = resolve(&[spec], &[]).unwrap();
+            let mut sub: Vec<Vec<u8>> = m.domains.iter().map(|d| d.subscribe.layout.default_bytes()).collect();
+            let l = m.domains[0].subscribe.layout.leaf("y").unwrap().clone();
+            l.ty.encode(Value::Float(y), &mut sub[0][l.range()]);
+            let mut publish: Vec<Vec<u8>> = m.domains.iter().map(|d| d.publish.layout.default_bytes()).collect();
+            let views: Vec<&[u8]> = sub.iter().map(Vec::as_slice).collect();
+            c.apply(|i| views.get(i).copied(), &mut publish);
+            let l = m.domains[1].publish.layout.leaf("y_meas").unwrap();
+            l.ty.decode(&publish[1][l.range()]).as_f64()
+        };
+        assert_eq!(run("plant/subscribe/y [km: m=1 factor=1000] -> ctrl/publish/y_meas [m] * 2 + 1", 3.0), 6001.0);
+        // Celsius to Fahrenheit through kelvin: offsets on both sides.
+        let c_to_f = "plant/subscribe/y [degC: K=1 offset=273.15] -> ctrl/publish/y_meas [degF: K=1 factor=0.5555555555555556 offset=255.3722222222222]";
+        assert!((run(c_to_f, 100.0) - 212.0).abs() < 1e-9, "{}", run(c_to_f, 100.0));
+        assert!((run(c_to_f, -40.0) + 40.0).abs() < 1e-9);
+        let e = resolve(&["plant/subscribe/y [km: m=1 factor=1000] -> ctrl/publish/y_meas [s]"], &[]).unwrap_err();
+        assert!(
+            e.to_string().contains("unit mismatch: plant/subscribe/y is in km (m), ctrl/publish/y_meas in s (s)"),
+            "{e}"
+        );
+        let e = resolve(&["plant/subscribe/n [m] -> plant/publish/on [m]"], &[]).unwrap_err();
+        assert!(e.to_string().contains("a unit conversion needs numbers"), "{e}");
+        for bad in [
+            "plant/subscribe/y [km] -> ctrl/publish/y_meas [m]",
+            "plant/subscribe/y [m] -> ctrl/publish/y_meas",
+            "plant/subscribe/y [km: m=1 factor=0] -> ctrl/publish/y_meas [m]",
+            "plant/subscribe/y [km: m=x] -> ctrl/publish/y_meas [m]",
+            "plant/subscribe/y [km: furlong=1] -> ctrl/publish/y_meas [m]",
+        ] {
+            assert!(matches!(parse_connection(bad), Err(ConnectError::Unit { .. })), "{bad}");
+        }
+        let c = resolve(&["@sim_time [s] -> plant/publish/u [ms: s=1 factor=0.001]"], &[]).unwrap();
+        let mut publish: Vec<Vec<u8>> = m.domains.iter().map(|d| d.publish.layout.default_bytes()).collect();
+        c.apply_clock(0.25, &mut publish);
+        let l = m.domains[0].publish.layout.leaf("u").unwrap();
+        assert_eq!(l.ty.decode(&publish[0][l.range()]).as_f64(), 250.0);
     }
 
     #[test]

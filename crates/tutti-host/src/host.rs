@@ -355,6 +355,16 @@ impl Host {
         if unseeded > 0 {
             on_report(Report::Unseeded { domains: unseeded, timeout: self.opts.timeout });
         }
+        if !self.connections.is_empty() {
+            // The initial exchange: the outputs as they stand before the first step (the
+            // seeds, else the DDF's defaults) are the inputs of the first step.
+            for d in &mut self.fw.domains {
+                let domain = d.info().name.clone();
+                d.read_subscribe().map_err(|source| HostError::Domain { domain, source })?;
+            }
+            let domains = &self.fw.domains;
+            self.connections.apply(|i| domains.get(i).map(|d| d.subscribe()), &mut self.publish);
+        }
         self.ticker = new_ticker(&self.opts);
         self.run_start = Instant::now();
         self.publish_state(RunState::Playing, 0.0);

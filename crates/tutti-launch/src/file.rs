@@ -97,8 +97,9 @@ impl Default for Framework {
 pub enum Program {
     /// `run: [PROGRAM, ARGS…]`: the program found (absolute) and its arguments.
     Run { program: PathBuf, args: Vec<String> },
-    /// `fmu: FILE`: `tutti fmu run FILE --ddf DDF --domain DOMAIN`.
-    Fmu { fmu: PathBuf },
+    /// `fmu: FILE`: `tutti fmu run FILE --ddf DDF --domain DOMAIN`, with `params` as its
+    /// `--param NAME=VALUE` (parameters and inputs' start values, set before initialisation).
+    Fmu { fmu: PathBuf, params: Vec<String> },
 }
 
 /// When a component that ended is started again.
@@ -466,6 +467,8 @@ struct ComponentKeys {
     #[serde(default, deserialize_with = "de_domain")]
     domain: Option<String>,
     #[serde(default)]
+    params: Option<Vec<String>>,
+    #[serde(default)]
     env: BTreeMap<String, String>,
     #[serde(default, deserialize_with = "de_cwd")]
     cwd: Option<PathBuf>,
@@ -548,6 +551,18 @@ fn de_fmu<'de, D: Deserializer<'de>>(
     })
 }
 
+/// Whether `name` is a variable of `md` that `--param` can set (a parameter or an input).
+fn check_param(md: &tutti_fmu::ModelDescription, name: &str) -> Result<(), String> {
+    use tutti_fmu::Causality;
+    let var = md.variable(name).ok_or_else(|| format!("model '{}' has no variable '{name}'", md.model_name))?;
+    match var.causality {
+        Causality::Parameter | Causality::Input | Causality::StructuralParameter if var.variability != "constant" => {
+            Ok(())
+        }
+        _ => Err(format!("'{name}' is {} {}, not a parameter or an input", var.variability, var.causality.as_str())),
+    }
+}
+
 fn de_domain<'de, D: Deserializer<'de>>(d: D) -> Result<Option<String>, D::Error> {
     then(d, |domain: String| {
         ctx(|c| match (c.model(), &c.ddf) {
@@ -588,20 +603,31 @@ impl<'de> Deserialize<'de> for Component {
         then(d, |k: ComponentKeys| {
             let (who, dir) = ctx(|c| (c.who(), c.dir.clone()));
             let program = match (k.run, k.fmu) {
-                (Some(run), None) => run,
+                (Some(run), None) if k.params.is_none() => run,
                 (None, Some((fmu, md))) => {
+                    let md = md.map(|m| *m);
                     let Some(domain) = &k.domain else {
                         return Err(format!("{who}: an FMU component needs `domain`: the domain it joins"));
                     };
-                    if let (Some(md), Some(m)) = (md, ctx(|c| c.model().cloned())) {
+                    if let (Some(md), Some(m)) = (&md, ctx(|c| c.model().cloned())) {
                         if let Some(dom) = m.domain(domain) {
-                            tutti_fmu::Mapping::build(&md, dom, &[])
+                            tutti_fmu::Mapping::build(md, dom, &[])
                                 .map_err(|e| format!("{who}: {} does not fit domain '{domain}': {e}", fmu.display()))?;
                         }
                     }
-                    Program::Fmu { fmu }
+                    let params = k.params.unwrap_or_default();
+                    for p in &params {
+                        let Some((name, _)) = p.split_once('=').filter(|(n, _)| !n.trim().is_empty()) else {
+                            return Err(format!("{who}: params: '{p}' is not NAME=VALUE"));
+                        };
+                        if let (Some(md), true) = (&md, ctx(|c| c.model().is_some())) {
+                            check_param(md, name.trim()).map_err(|why| format!("{who}: params: '{p}': {why}"))?;
+                        }
+                    }
+                    Program::Fmu { fmu, params }
                 }
                 (Some(_), Some(_)) => return Err(format!("{who}: give `run` or `fmu`, not both")),
+                (Some(_), None) => return Err(format!("{who}: `params` are an FMU's: give them with `fmu`")),
                 (None, None) => return Err(format!("{who}: give `run: [PROGRAM, ARGS…]` or `fmu: FILE`")),
             };
             Ok(Component {

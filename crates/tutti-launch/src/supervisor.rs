@@ -709,9 +709,12 @@ impl Actor {
                 cmd.args(args);
                 cmd
             }
-            Program::Fmu { fmu } => {
+            Program::Fmu { fmu, params } => {
                 let mut cmd = Command::new(&self.opts.tutti_exe);
                 cmd.args(["fmu", "run"]).arg(fmu).arg("--ddf").arg(&self.opts.ddf);
+                for p in params {
+                    cmd.arg("--param").arg(p);
+                }
                 cmd.arg("--domain").arg(c.domain.as_deref().unwrap_or_default()).args(["--name", &c.name]);
                 cmd
             }

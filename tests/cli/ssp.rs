@@ -1,0 +1,321 @@
+//! SSP archives (`tutti ssp inspect|ddf`, `tutti run SYSTEM.ssp`): systems of FMUs exported
+//! by pythonfmu (tests/fmu/python/Lag.py, tests/ssp/Gain.py, a gain with direct
+//! feedthrough), run by tutti with a CSV record and by libcosim (tests/ssp/reference.py), and
+//! compared value by value at every communication step; refusals point at the element.
+
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+use std::process::Command;
+use std::time::Duration;
+
+use tutti_test_support::fmu::{build_lag, libpython, write_zip};
+use tutti_test_support::{self as common, run_with_timeout};
+
+const STEP: f64 = 0.01;
+/// Both run the same FMU code with the same numbers; only the order of floating-point
+/// operations in a unit conversion may differ.
+const TOLERANCE: f64 = 1e-12;
+
+/// The venv's Python with pythonfmu and libcosimpy (skipped when missing, a failure under CI).
+fn python() -> Option<PathBuf> {
+    common::python(&["pythonfmu", "libcosimpy"])
+}
+
+/// Builds Lag.fmu and Gain.fmu into `dir`.
+fn build_fmus(py: &Path, dir: &Path) -> (PathBuf, PathBuf) {
+    let lag = build_lag(py, dir);
+    let mut cmd = Command::new(py);
+    cmd.args(["-m", "pythonfmu", "build", "-f"])
+        .arg(common::repo_root().join("tests/ssp/Gain.py"))
+        .arg("-d")
+        .arg(dir)
+        .current_dir(dir);
+    let (status, out, err) = run_with_timeout(cmd, Duration::from_secs(120));
+    assert!(status.success(), "pythonfmu build failed:\n{out}\n{err}");
+    (lag, dir.join("Gain.fmu"))
+}
+
+/// Zips `ssd` (text) with the FMUs and `extra` files into `dir/NAME.ssp`.
+fn archive(dir: &Path, name: &str, ssd: &str, fmus: &(PathBuf, PathBuf), extra: &[(&str, &[u8])]) -> PathBuf {
+    let lag = std::fs::read(&fmus.0).unwrap();
+    let gain = std::fs::read(&fmus.1).unwrap();
+    let mut entries: Vec<(&str, &[u8])> =
+        vec![("SystemStructure.ssd", ssd.as_bytes()), ("resources/Lag.fmu", &lag), ("resources/Gain.fmu", &gain)];
+    entries.extend_from_slice(extra);
+    let path = dir.join(format!("{name}.ssp"));
+    write_zip(&path, &entries);
+    path
+}
+
+fn fixture(name: &str) -> String {
+    std::fs::read_to_string(common::repo_root().join("tests/ssp").join(name)).unwrap()
+}
+
+/// `tutti run SYSTEM.ssp --record DIR/run.csv`, with libpython preloaded for the PythonFMU
+/// models; returns the output directory's CSV files by domain.
+fn run_tutti(py: &Path, ssp: &Path, dir: &Path, tag: &str) -> BTreeMap<String, String> {
+    let ns = common::namespace(tag);
+    let _segments = common::RemoveSegments(ns.clone());
+    let out = dir.join(format!("{tag}-out"));
+    let csv = dir.join(format!("{tag}.csv"));
+    let mut cmd = common::tutti_command();
+    cmd.arg("run")
+        .arg(ssp)
+        .arg("--out")
+        .arg(&out)
+        .arg("--record")
+        .arg(&csv)
+        .args(["--step", "10ms", "-q"])
+        .env("TUTTI_NAMESPACE", &ns)
+        .env("TUTTI_FMU_PRELOAD", libpython(py));
+    let (status, stdout, stderr) = run_with_timeout(cmd, Duration::from_secs(120));
+    assert!(status.success(), "tutti run {}:\n{stdout}\n{stderr}", ssp.display());
+    assert!(common::segments_of(&ns).is_empty(), "the run left segments");
+    let mut files = BTreeMap::new();
+    for e in std::fs::read_dir(dir).unwrap() {
+        let p = e.unwrap().path();
+        let name = p.file_name().unwrap().to_string_lossy().into_owned();
+        if let Some(domain) = name.strip_prefix(&format!("{tag}-")).and_then(|n| n.strip_suffix(".csv")) {
+            files.insert(domain.to_string(), std::fs::read_to_string(&p).unwrap());
+        }
+    }
+    files
+}
+
+/// tutti's value of `COMPONENT.VARIABLE` at every step (its domain is the component's name;
+/// an input is the PUBLISH item of the step, an output the step's answer).
+fn tutti_trace(files: &BTreeMap<String, String>, var: &str, input: bool) -> Vec<f64> {
+    let (domain, item) = var.split_once('.').unwrap();
+    let text = files.get(domain).unwrap_or_else(|| panic!("no CSV of domain {domain}: {:?}", files.keys()));
+    let mut lines = text.lines();
+    let head: Vec<&str> = lines.next().unwrap().split(',').collect();
+    let name = format!("{}.{item}", if input { "publish" } else { "subscribe" });
+    let col = head.iter().position(|h| *h == name).unwrap_or_else(|| panic!("no column {name}: {head:?}"));
+    lines
+        .map(|l| match l.split(',').nth(col).unwrap() {
+            "yes" => 1.0,
+            "no" => 0.0,
+            v => v.parse().unwrap(),
+        })
+        .collect()
+}
+
+/// libcosim's value of each of `vars` after each of `steps` steps (tests/ssp/reference.py).
+fn libcosim(py: &Path, ssp: &Path, steps: usize, vars: &[&str]) -> Vec<Vec<f64>> {
+    let mut cmd = Command::new(py);
+    cmd.arg(common::repo_root().join("tests/ssp/reference.py"))
+        .arg(ssp)
+        .arg(STEP.to_string())
+        .arg(steps.to_string())
+        .args(vars);
+    let (status, out, err) = run_with_timeout(cmd, Duration::from_secs(120));
+    assert!(status.success(), "libcosim failed: {err}");
+    let rows: Vec<Vec<f64>> = out
+        .lines()
+        .filter(|l| !l.trim().is_empty() && !l.starts_with('['))
+        .map(|l| l.split(',').skip(1).map(|v| v.parse().unwrap()).collect())
+        .collect();
+    assert_eq!(rows.len(), steps, "libcosim printed {} rows:\n{out}\n{err}", rows.len());
+    rows
+}
+
+fn close(a: f64, b: f64) -> bool {
+    a == b || (a - b).abs() <= TOLERANCE * a.abs().max(b.abs()).max(1.0)
+}
+
+/// Asserts that tutti's trace of each variable (`name`, input?) equals libcosim's at every
+/// communication step: tutti's row of step k (t = k·h) holds the inputs that step used and
+/// the outputs it ended with, which libcosim shows after the step ending at (k + 1)·h.
+fn compare(files: &BTreeMap<String, String>, reference: &[Vec<f64>], vars: &[(&str, bool)], what: &str) {
+    for (i, (var, input)) in vars.iter().enumerate() {
+        let got = tutti_trace(files, var, *input);
+        assert_eq!(got.len(), reference.len(), "{what}: {var}: tutti recorded {} steps", got.len());
+        for (k, (g, row)) in got.iter().zip(reference).enumerate() {
+            assert!(close(*g, row[i]), "{what}: step {k}: {var} = {g} under tutti, {} under libcosim", row[i]);
+        }
+    }
+}
+
+fn differs(files: &BTreeMap<String, String>, reference: &[Vec<f64>], var: &str, col: usize) -> bool {
+    tutti_trace(files, var, false).iter().zip(reference).any(|(g, r)| !close(*g, r[col]))
+}
+
+/// A chain of three (a lag, a gain with direct feedthrough, a lag), Real, Integer and
+/// Boolean connections, a linear transformation, component-level values from an SSV file
+/// and inline, and a system-level value: equal to libcosim at every step. libcosim does not
+/// apply the system-level value (c.tau = 0.1), so the reference is the same archive with the
+/// value bound at component level, and libcosim's run of the original differs.
+#[test]
+fn a_chain_with_feedthrough_matches_libcosim_at_every_step() {
+    let Some(py) = python() else { return };
+    let dir = tempfile::tempdir().unwrap();
+    let fmus = build_fmus(&py, dir.path());
+    let ssv = fixture("a.ssv");
+    let set = |v: &str| {
+        format!(
+            "<ssd:ParameterBindings><ssd:ParameterBinding><ssd:ParameterValues><ssv:ParameterSet version=\"1.0\" name=\"p\"><ssv:Parameters><ssv:Parameter name=\"{v}\"><ssv:Real value=\"0.1\"/></ssv:Parameter></ssv:Parameters></ssv:ParameterSet></ssd:ParameterValues></ssd:ParameterBinding></ssd:ParameterBindings>"
+        )
+    };
+    let system_level = fixture("chain.ssd").replace("<!--SYSTEM-->", &set("c.tau"));
+    let component_level = fixture("chain.ssd").replace("<!--COMPONENT-C-->", &set("tau"));
+    let extra: [(&str, &[u8]); 1] = [("resources/a.ssv", ssv.as_bytes())];
+    let ssp = archive(dir.path(), "chain", &system_level, &fmus, &extra);
+    let reference_ssp = archive(dir.path(), "chain-component", &component_level, &fmus, &extra);
+
+    let (code, out, err) = common::tutti(["ssp", "inspect", ssp.to_str().unwrap()]);
+    assert_eq!(code, 0, "{err}");
+    for want in [
+        "b  resources/Gain.fmu",
+        "a.y -> b.u",
+        "b.y -> c.u  (× 0.5 + 1)",
+        "a.tau = 0.2  (Real, component level",
+        "c.tau = 0.1  (Real, system level",
+    ] {
+        assert!(out.contains(want), "inspect lacks '{want}':\n{out}");
+    }
+
+    let files = run_tutti(&py, &ssp, dir.path(), "chain");
+    let vars = [
+        ("a.y", false),
+        ("a.count", false),
+        ("b.u", true),
+        ("b.n_in", true),
+        ("b.b_in", true),
+        ("b.y", false),
+        ("b.n_out", false),
+        ("b.b_out", false),
+        ("c.u", true),
+        ("c.y", false),
+    ];
+    let names: Vec<&str> = vars.iter().map(|(v, _)| *v).collect();
+    let steps = 40; // stopTime 0.4 s at 10 ms
+    let reference = libcosim(&py, &reference_ssp, steps, &names);
+    compare(&files, &reference, &vars, "chain");
+    // The chain reaches c: b's feedthrough in the same step, the transformation on c.u.
+    let cu = tutti_trace(&files, "c.u", true);
+    assert_eq!(cu[0], 1.0, "c.u at step 0 is 0.5 · b.y(0) + 1");
+    assert!(cu.iter().any(|v| *v > 1.5), "c.u never moved: {cu:?}");
+
+    let ignored = libcosim(&py, &ssp, steps, &names);
+    assert!(
+        differs(&files, &ignored, "c.y", 9),
+        "libcosim applied the system-level value too: the documented difference is gone"
+    );
+}
+
+/// A feedback loop through a gain with direct feedthrough: each output reaches the other
+/// component at the next step, as in libcosim.
+#[test]
+fn a_feedback_loop_matches_libcosim_at_every_step() {
+    let Some(py) = python() else { return };
+    let dir = tempfile::tempdir().unwrap();
+    let fmus = build_fmus(&py, dir.path());
+    let ssp = archive(dir.path(), "feedback", &fixture("feedback.ssd"), &fmus, &[]);
+    let files = run_tutti(&py, &ssp, dir.path(), "feedback");
+    let vars = [("plant.u", true), ("plant.y", false), ("ctrl.u", true), ("ctrl.y", false)];
+    let names: Vec<&str> = vars.iter().map(|(v, _)| *v).collect();
+    let reference = libcosim(&py, &ssp, 40, &names);
+    compare(&files, &reference, &vars, "feedback");
+}
+
+/// SSP 2.0 (Float64 connectors) with a unit conversion from km to m: equal to libcosim's run
+/// of the same system in SSP 1.0 with the conversion written as a linear transformation.
+#[test]
+fn an_ssp2_system_with_a_unit_conversion_matches_libcosim() {
+    let Some(py) = python() else { return };
+    let dir = tempfile::tempdir().unwrap();
+    let fmus = build_fmus(&py, dir.path());
+    let ssp = archive(dir.path(), "units2", &fixture("units2.ssd"), &fmus, &[]);
+    let reference_ssp = archive(dir.path(), "units1", &fixture("units1.ssd"), &fmus, &[]);
+    let files = run_tutti(&py, &ssp, dir.path(), "units");
+    let vars = [("a.y", false), ("b.u", true), ("b.y", false)];
+    let names: Vec<&str> = vars.iter().map(|(v, _)| *v).collect();
+    let reference = libcosim(&py, &reference_ssp, 30, &names);
+    compare(&files, &reference, &vars, "units");
+    let bu = tutti_trace(&files, "b.u", true);
+    let ay = tutti_trace(&files, "a.y", false);
+    assert!(close(bu[5], ay[4] * 1000.0), "b.u = 1000 × a.y of the step before: {} {}", bu[5], ay[4]);
+}
+
+/// What tutti does not run is refused with the file, line and column of the element, and
+/// `tutti ssp ddf` writes the DDF and one launch file that `tutti run --check` accepts.
+#[test]
+fn refusals_point_at_the_element_and_ddf_writes_one_launch_file() {
+    let Some(py) = python() else { return };
+    let dir = tempfile::tempdir().unwrap();
+    let fmus = build_fmus(&py, dir.path());
+    let ssv = fixture("a.ssv");
+    let extra: [(&str, &[u8]); 1] = [("resources/a.ssv", ssv.as_bytes())];
+    let chain = fixture("chain.ssd");
+    let pos = |text: &str, needle: &str| -> String {
+        let (i, line) = text.lines().enumerate().find(|(_, l)| l.contains(needle)).unwrap();
+        format!("SystemStructure.ssd:{}:{}:", i + 1, line.find('<').unwrap() + 1)
+    };
+    let cases = [
+        (
+            "nested",
+            chain.replace("    </ssd:Elements>", "      <ssd:System name=\"inner\"/>\n    </ssd:Elements>"),
+            "<ssd:System name=\"inner\"/>",
+            "a nested system (<ssd:System> inside <ssd:Elements>) is not supported",
+        ),
+        (
+            "unknown",
+            chain.replace("endConnector=\"n_in\"", "endConnector=\"nope\""),
+            "endConnector=\"nope\"",
+            "unknown connector 'b.nope': component 'b' declares u, n_in, b_in, y",
+        ),
+        (
+            "mismatch",
+            chain.replace("startConnector=\"positive\"", "startConnector=\"y\""),
+            "startConnector=\"y\" endElement=\"b\" endConnector=\"b_in\"",
+            "type mismatch: a.y is Real, b.b_in is Boolean",
+        ),
+        (
+            "mapping",
+            chain.replace(
+                "<ssd:ParameterBinding source=\"resources/a.ssv\"/>",
+                "<ssd:ParameterBinding source=\"resources/a.ssv\">\n<ssd:ParameterMapping source=\"m.ssm\"/></ssd:ParameterBinding>",
+            ),
+            "<ssd:ParameterMapping",
+            "a parameter mapping (<ssd:ParameterMapping>, SSM) is not supported",
+        ),
+    ];
+    for (name, text, needle, want) in cases {
+        let ssp = archive(dir.path(), name, &text, &fmus, &extra);
+        for args in [vec!["ssp", "inspect"], vec!["run"]] {
+            let mut cmd = common::tutti_command();
+            cmd.args(&args).arg(&ssp).env("TUTTI_NAMESPACE", common::namespace("sspbad"));
+            let (status, _, err) = run_with_timeout(cmd, Duration::from_secs(60));
+            assert_eq!(status.code(), Some(2), "{name}: {args:?}: {err}");
+            assert!(err.contains(&pos(&text, needle)), "{name}: {args:?}: no {}: {err}", pos(&text, needle));
+            assert!(err.contains(want), "{name}: {args:?}: {err}");
+        }
+    }
+
+    let ssp = archive(dir.path(), "chain", &chain, &fmus, &extra);
+    let out = dir.path().join("made");
+    let (code, stdout, err) =
+        common::tutti(["ssp", "ddf", ssp.to_str().unwrap(), "--out", out.to_str().unwrap(), "--steps", "7"]);
+    assert_eq!(code, 0, "{err}");
+    let launches: Vec<PathBuf> = std::fs::read_dir(&out)
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .filter(|p| p.extension().is_some_and(|e| e == "json5"))
+        .collect();
+    assert_eq!(launches.len(), 1, "exactly one launch file: {launches:?}");
+    assert_eq!(stdout.trim(), launches[0].display().to_string());
+    let launch = std::fs::read_to_string(&launches[0]).unwrap();
+    for want in [
+        "\"steps\": 7",
+        "\"b/subscribe/y -> c/publish/u * 0.5 + 1\"",
+        "\"a/u=1.5\"",
+        "\"tau=0.2\"",
+        "\"k=3\"",
+        "\"fmu\": \"resources/Gain.fmu\"",
+    ] {
+        assert!(launch.contains(want), "the launch file lacks {want}:\n{launch}");
+    }
+    assert!(out.join("resources/Lag.fmu").is_file() && out.join("chain.ddf").is_file());
+    let (code, _, err) = common::tutti(["run", launches[0].to_str().unwrap(), "--check"]);
+    assert_eq!(code, 0, "{err}");
+}
