@@ -1282,6 +1282,14 @@ mod tests {
     }
 
     #[test]
+    fn the_participant_announces_the_lease_but_never_less_than_the_floor() {
+        let lease = |cfg: &str| opts("product-sample.ddf", cfg).unwrap().engine_config().participant_lease;
+        assert_eq!(lease("{}"), Some(MIN_PARTICIPANT_LEASE), "the default lease (1 s) is below the floor");
+        assert_eq!(lease(r#"{ lease: "5s" }"#), Some(Duration::from_secs(5)));
+        assert_eq!(lease(r#"{ lease: "10ms" }"#), Some(MIN_PARTICIPANT_LEASE));
+    }
+
+    #[test]
     fn ros_discovery_variables() {
         use DiscoveryRange::*;
         assert_eq!(discovery_range(None, None).unwrap(), Default);
