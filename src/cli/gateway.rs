@@ -94,7 +94,9 @@ pub struct Args {
     #[arg(long, value_name = "DURATION", value_parser = config::parse_span)]
     poll: Option<Duration>,
     /// How long a DDS writer of a synchronous domain may owe a step's answer, silent, before
-    /// its lock-step share is released (default 1s).
+    /// its lock-step share is released (default 1s); also the lease the gateway's DDS
+    /// participant announces (at least 2s; Cyclone engine), after which DDS peers forget a
+    /// killed gateway.
     #[arg(long, value_name = "DURATION", value_parser = config::parse_period)]
     lease: Option<Duration>,
     /// Serve the counters over HTTP: JSON at /stats, Prometheus text at /metrics (port 0:

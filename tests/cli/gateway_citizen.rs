@@ -254,19 +254,6 @@ fn with_every_step_a_dds_reader_gets_every_step(e: Eng) {
     drop(host);
 }
 
-/// `GET path` from the gateway's stats endpoint: the body.
-fn http_get(addr: &str, path: &str) -> String {
-    use std::io::{Read, Write};
-    let mut c = std::net::TcpStream::connect(addr).unwrap_or_else(|e| panic!("{addr}: {e}"));
-    c.set_read_timeout(Some(SECS(20))).unwrap();
-    write!(c, "GET {path} HTTP/1.0\r\nHost: {addr}\r\n\r\n").unwrap();
-    let mut text = String::new();
-    c.read_to_string(&mut text).unwrap();
-    let (head, body) = text.split_once("\r\n\r\n").unwrap_or_else(|| panic!("{text}"));
-    assert!(head.starts_with("HTTP/1.") && head.contains(" 200 "), "{head}");
-    body.to_string()
-}
-
 /// A config file changes what a Cyclone peer sees: sets not allowed or denied have no topics, a
 /// remapped set is read under its new name only, its QoS override is on the wire and its
 /// rate limit thins an asynchronous set changing every 5 ms; the stats endpoint counts per

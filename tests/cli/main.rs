@@ -20,6 +20,7 @@ mod fmu_errors;
 mod fmu_exchange;
 mod fmu_fmi3;
 mod fmu_run;
+mod gateway_churn;
 mod gateway_citizen;
 mod gateway_config;
 mod gateway_fastdds;

@@ -6,13 +6,19 @@ e.g. '[["step","uint64"],["sim_time","float64"],["x","float64"],["v","float64[3]
 Every mode prints JSON lines on stdout and exits 0 on success, 3 on timeout.
 
   sub    --topic T --type TN --fields F [--count N] [--timeout S] [--best-effort] [--exclusive]
+         [--transient-local]: a late joiner that asks for what writers kept
   pub    --topic T --type TN --fields F --values '[{...}, ...]' [--period-ms P] [--exclusive [--strength S]]
-         [--linger S]: waits for a matched reader, writes each sample
+         [--linger S] [--transient-local]: waits for a matched reader, writes each sample (transient
+         local: a latched writer, keeping its last sample for late joiners)
   answer --topic T --type TN --fields F --reply-topic T2 --reply-type TN2 --reply-fields F2
-         --count N: for each sample read on T (a step k) writes one sample on T2 with step k
-         and every other field of F2 = the first data field of the sample + 1
+         --count N [--reply-depth D]: for each sample read on T (a step k) writes one sample on T2
+         with step k and every other field of F2 = the first data field of the sample + 1; the
+         writer keeps all its samples until acknowledged, or with D the last D (as rclpy's
+         default KEEP_LAST 10)
   qos    --topic T [--timeout S]: the QoS of the first remote writer on T (DCPSPublication)
   nodes  --name NAME [--timeout S]: waits until ros_discovery_info lists node NAME
+  lease  --name NAME --node-namespace NS [--timeout S]: the lease (in s) that the participant
+         of node NS/NAME (on ros_discovery_info) announces (DCPSParticipant)
   clock  [--timeout S]: prints every rosgraph_msgs/msg/Clock sample on rt/clock (as rclcpp's
          ClockQoS subscription reads it: best effort, keep last 1) until the timeout
 """
@@ -32,7 +38,7 @@ LOOPBACK = (
 )
 os.environ.setdefault("CYCLONEDDS_URI", LOOPBACK)
 
-from cyclonedds.builtin import BuiltinDataReader, BuiltinTopicDcpsPublication  # noqa: E402
+from cyclonedds.builtin import BuiltinDataReader, BuiltinTopicDcpsParticipant, BuiltinTopicDcpsPublication  # noqa: E402
 from cyclonedds.core import Listener  # noqa: E402
 from cyclonedds.domain import DomainParticipant  # noqa: E402
 from cyclonedds.idl import IdlStruct  # noqa: E402
@@ -75,13 +81,18 @@ def default(spec):
 
 def reader_qos(a):
     pol = [Policy.Reliability.BestEffort if a.best_effort else Policy.Reliability.Reliable(duration(milliseconds=100)),
-           Policy.History.KeepLast(100), Policy.Durability.Volatile]
+           Policy.History.KeepLast(100),
+           Policy.Durability.TransientLocal if a.transient_local else Policy.Durability.Volatile]
     pol.append(Policy.Ownership.Exclusive if a.exclusive else Policy.Ownership.Shared)
     return Qos(*pol)
 
 
 def writer_qos(a):
-    pol = [Policy.Reliability.Reliable(duration(milliseconds=100)), Policy.History.KeepLast(100), Policy.Durability.Volatile]
+    pol = [Policy.Reliability.Reliable(duration(milliseconds=100))]
+    if a.transient_local:
+        pol += [Policy.History.KeepLast(1), Policy.Durability.TransientLocal]
+    else:
+        pol += [Policy.History.KeepLast(100), Policy.Durability.Volatile]
     if a.exclusive:
         pol += [Policy.Ownership.Exclusive, Policy.OwnershipStrength(a.strength)]
     else:
@@ -150,8 +161,9 @@ def cmd_answer(dp, a):
     cin, cout = make_type(a.type, f_in), make_type(a.reply_type, f_out)
     rd = DataReader(dp, Topic(dp, a.topic, cin), qos=Qos(Policy.Reliability.Reliable(duration(milliseconds=100)),
                                                            Policy.History.KeepAll, Policy.Durability.Volatile))
+    history = Policy.History.KeepLast(a.reply_depth) if a.reply_depth else Policy.History.KeepAll
     w = DataWriter(dp, Topic(dp, a.reply_topic, cout), qos=Qos(Policy.Reliability.Reliable(duration(milliseconds=100)),
-                                                                 Policy.History.KeepAll, Policy.Durability.Volatile))
+                                                                 history, Policy.Durability.Volatile))
     emit({"ready": True})
     end, n = time.time() + a.timeout, 0
     first = f_in[2][0]
@@ -252,9 +264,31 @@ def cmd_nodes(dp, a):
     return 3
 
 
+def cmd_lease(dp, a):
+    # Deep: ros_discovery_info is one keyless topic that every participant writes.
+    q = Qos(Policy.Reliability.Reliable(duration(milliseconds=100)), Policy.History.KeepLast(100),
+            Policy.Durability.TransientLocal)
+    rd = DataReader(dp, Topic(dp, "ros_discovery_info", ParticipantEntitiesInfo), qos=q)
+    parts = BuiltinDataReader(dp, BuiltinTopicDcpsParticipant)
+    end, gid, leases = time.time() + a.timeout, None, {}
+    while time.time() < end:
+        for s in rd.take(N=100):
+            if s.sample_info.valid_data and any(n.node_name == a.name and n.node_namespace == a.node_namespace
+                                                for n in s.node_entities_info_seq):
+                gid = bytes(s.gid.data)
+        for s in parts.take(N=100):
+            if s.sample_info.valid_data and Policy.Liveliness in s.qos:
+                leases[s.key.bytes] = s.qos[Policy.Liveliness].lease_duration
+        if gid is not None and gid in leases:
+            emit({"namespace": a.node_namespace, "name": a.name, "lease_s": leases[gid] / 1e9})
+            return 0
+        time.sleep(0.05)
+    return 3
+
+
 def main():
     p = argparse.ArgumentParser()
-    p.add_argument("mode", choices=["sub", "pub", "answer", "qos", "nodes", "clock"])
+    p.add_argument("mode", choices=["sub", "pub", "answer", "qos", "nodes", "clock", "lease"])
     p.add_argument("--domain", type=int, required=True)
     p.add_argument("--topic")
     p.add_argument("--type")
@@ -264,17 +298,20 @@ def main():
     p.add_argument("--reply-type")
     p.add_argument("--reply-fields")
     p.add_argument("--name")
+    p.add_argument("--node-namespace", default="/")
     p.add_argument("--count", type=int, default=1)
     p.add_argument("--timeout", type=float, default=60.0)
     p.add_argument("--period-ms", type=float, default=50.0)
     p.add_argument("--linger", type=float, default=0.5)
     p.add_argument("--best-effort", action="store_true")
     p.add_argument("--exclusive", action="store_true")
+    p.add_argument("--transient-local", action="store_true")
+    p.add_argument("--reply-depth", type=int, default=0)
     p.add_argument("--strength", type=int, default=5)
     a = p.parse_args()
     dp = DomainParticipant(a.domain)
     sys.exit({"sub": cmd_sub, "pub": cmd_pub, "answer": cmd_answer, "qos": cmd_qos, "nodes": cmd_nodes,
-              "clock": cmd_clock}[a.mode](dp, a))
+              "clock": cmd_clock, "lease": cmd_lease}[a.mode](dp, a))
 
 
 if __name__ == "__main__":

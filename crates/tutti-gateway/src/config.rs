@@ -25,6 +25,11 @@ use tutti_core::parse::{parse_duration, parse_wait};
 use tutti_core::shm::WaitMode;
 
 use crate::engine::{EngineConfig, EngineKind};
+
+/// The shortest lease the gateway's DDS participant announces, whatever `--lease` says: the
+/// participant renews it every 4/5 of the lease, and a peer that misses a renewal on a
+/// loaded machine would drop every route of a gateway that is still there.
+pub const MIN_PARTICIPANT_LEASE: Duration = Duration::from_secs(2);
 pub use crate::error::ConfigError;
 
 // ---------------------------------------------------------------------------------------
@@ -85,7 +90,8 @@ pub struct GatewayOptions {
     pub hosted_only: bool,
     /// How long a DDS writer of a synchronous domain may owe its answer to a step before
     /// the gateway releases its lock-step share (a killed writer; it joins again with its
-    /// next sample).
+    /// next sample); also the lease the gateway's own DDS participant announces (at least
+    /// [`MIN_PARTICIPANT_LEASE`]), after which the other participants forget a killed gateway.
     pub lease: Duration,
     /// DDS readers of a synchronous PUBLISH set get every step: the gateway reads the set in
     /// lock-step through an observer connection that the framework waits for (a copy and a
@@ -166,6 +172,7 @@ impl GatewayOptions {
             peers: self.peers.clone(),
             node_name: self.node_name.clone(),
             node_namespace: node_namespace(self.ros_namespace.trim().trim_matches('/')),
+            participant_lease: Some(self.lease.max(MIN_PARTICIPANT_LEASE)),
         }
     }
 }
@@ -1523,6 +1530,14 @@ mod tests {
         let before = o.wait;
         m.apply(&mut o).unwrap();
         assert_eq!((o.ros_domain_id, o.wait), (9, before), "a key nobody gave keeps its default");
+    }
+
+    #[test]
+    fn the_participant_announces_the_lease_but_never_less_than_the_floor() {
+        let lease = |cfg: &str| opts("product-sample.ddf", cfg).unwrap().engine_config().participant_lease;
+        assert_eq!(lease("{}"), Some(MIN_PARTICIPANT_LEASE), "the default lease (1 s) is below the floor");
+        assert_eq!(lease(r#"{ lease: "5s" }"#), Some(Duration::from_secs(5)));
+        assert_eq!(lease(r#"{ lease: "10ms" }"#), Some(MIN_PARTICIPANT_LEASE));
     }
 
     #[test]

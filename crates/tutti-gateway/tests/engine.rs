@@ -459,6 +459,7 @@ impl Case {
             peers: Vec::new(),
             node_name: format!("conf_{}_{node}", self.number),
             node_namespace: "/conformance".into(),
+            participant_lease: None,
         };
         match engine::open(kind, &cfg) {
             Ok(e) => e,

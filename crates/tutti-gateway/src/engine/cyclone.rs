@@ -29,6 +29,9 @@
 //!   Cyclone refuse the domain ("the same interface may not be selected twice"): then the domain is
 //!   made again with the peers only, keeping the environment's interfaces (with a warning).
 //!   The domain then also outlives the participant in Cyclone, so it is deleted after it.
+//! * Lease: the participant announces [`EngineConfig::participant_lease`] as its automatic
+//!   liveliness (participant QoS), so that the other participants drop a killed gateway's
+//!   endpoints after it rather than after Cyclone's default 10 s.
 
 use std::collections::HashMap;
 use std::ffi::{c_char, c_void, CStr, CString};
@@ -37,6 +40,7 @@ use std::net::IpAddr;
 use std::panic::{catch_unwind, AssertUnwindSafe};
 use std::ptr;
 use std::sync::{Arc, Mutex, MutexGuard, PoisonError};
+use std::time::Duration;
 
 use cyclors::{
     cdds_create_blob_topic, dds_builtintopic_endpoint_t, dds_builtintopic_free_endpoint, dds_create_domain,
@@ -45,15 +49,16 @@ use cyclors::{
     dds_durability_kind_DDS_DURABILITY_VOLATILE, dds_entity_t, dds_get_children, dds_get_entity_sertype, dds_get_guid,
     dds_get_matched_publication_data, dds_guid_t, dds_history_kind_DDS_HISTORY_KEEP_ALL,
     dds_history_kind_DDS_HISTORY_KEEP_LAST, dds_instance_handle_t, dds_instance_state_DDS_IST_ALIVE,
-    dds_lset_data_available, dds_ownership_kind_DDS_OWNERSHIP_EXCLUSIVE, dds_ownership_kind_DDS_OWNERSHIP_SHARED,
-    dds_qget_durability, dds_qget_ownership, dds_qget_ownership_strength, dds_qget_reliability, dds_qos_t,
-    dds_qset_durability, dds_qset_durability_service, dds_qset_history, dds_qset_ownership,
-    dds_qset_ownership_strength, dds_qset_reliability, dds_qset_writer_batching,
-    dds_reliability_kind_DDS_RELIABILITY_BEST_EFFORT, dds_reliability_kind_DDS_RELIABILITY_RELIABLE, dds_return_loan,
-    dds_return_t, dds_sample_info_t, dds_strretcode, dds_take, dds_takecdr, dds_write_flush, dds_writecdr,
-    ddsi_serdata, ddsi_serdata_from_ser_iov, ddsi_serdata_kind_SDK_DATA, ddsi_serdata_size, ddsi_serdata_to_ser_ref,
-    ddsi_serdata_to_ser_unref, ddsi_serdata_unref, ddsi_sertype, ddsrt_iovec_t, DDS_ANY_STATE,
-    DDS_BUILTIN_TOPIC_DCPSPUBLICATION, DDS_BUILTIN_TOPIC_DCPSSUBSCRIPTION, DDS_RETCODE_PRECONDITION_NOT_MET,
+    dds_liveliness_kind_DDS_LIVELINESS_AUTOMATIC, dds_lset_data_available, dds_ownership_kind_DDS_OWNERSHIP_EXCLUSIVE,
+    dds_ownership_kind_DDS_OWNERSHIP_SHARED, dds_qget_durability, dds_qget_ownership, dds_qget_ownership_strength,
+    dds_qget_reliability, dds_qos_t, dds_qset_durability, dds_qset_durability_service, dds_qset_history,
+    dds_qset_liveliness, dds_qset_ownership, dds_qset_ownership_strength, dds_qset_reliability,
+    dds_qset_writer_batching, dds_reliability_kind_DDS_RELIABILITY_BEST_EFFORT,
+    dds_reliability_kind_DDS_RELIABILITY_RELIABLE, dds_return_loan, dds_return_t, dds_sample_info_t, dds_strretcode,
+    dds_take, dds_takecdr, dds_write_flush, dds_writecdr, ddsi_serdata, ddsi_serdata_from_ser_iov,
+    ddsi_serdata_kind_SDK_DATA, ddsi_serdata_size, ddsi_serdata_to_ser_ref, ddsi_serdata_to_ser_unref,
+    ddsi_serdata_unref, ddsi_sertype, ddsrt_iovec_t, DDS_ANY_STATE, DDS_BUILTIN_TOPIC_DCPSPUBLICATION,
+    DDS_BUILTIN_TOPIC_DCPSSUBSCRIPTION, DDS_RETCODE_OUT_OF_RESOURCES, DDS_RETCODE_PRECONDITION_NOT_MET,
 };
 use tutti_core::mapping::{Durability, History, Ownership, Qos, Reliability};
 
@@ -138,6 +143,29 @@ fn domain_config(cfg: &EngineConfig, interfaces: &[IpAddr], env: Option<&str>) -
         Some(e) => format!("{e},{fragment}"),
         None => fragment,
     })
+}
+
+/// A participant on domain `id` announcing `lease` (None: Cyclone's, `Discovery/LeaseDuration`,
+/// 10 s by default): its handle or Cyclone's return code. The lease is the participant's
+/// automatic liveliness, which Cyclone renews every 4/5 of it.
+fn create_participant(id: u32, lease: Option<Duration>) -> dds_entity_t {
+    let Some(lease) = lease else {
+        // SAFETY: default QoS, no listener.
+        return unsafe { dds_create_participant(id, ptr::null(), ptr::null()) };
+    };
+    // SAFETY: plain allocation; null on failure.
+    let qos = unsafe { dds_create_qos() };
+    if qos.is_null() {
+        return DDS_RETCODE_OUT_OF_RESOURCES;
+    }
+    let qos = NativeQos(qos);
+    let ns = i64::try_from(lease.as_nanos()).unwrap_or(i64::MAX);
+    // SAFETY: `qos.0` is a valid QoS object; the setter stores the value, the participant
+    // copies the QoS during the call; no listener.
+    unsafe {
+        dds_qset_liveliness(qos.0, dds_liveliness_kind_DDS_LIVELINESS_AUTOMATIC, ns);
+        dds_create_participant(id, qos.0, ptr::null())
+    }
 }
 
 /// Creates domain `id` with configuration `conf`: the handle or Cyclone's return code.
@@ -581,8 +609,7 @@ impl Cyclone {
                 domain = Some(d);
             }
         }
-        // SAFETY: default QoS, no listener.
-        let participant = unsafe { dds_create_participant(domain_id, ptr::null(), ptr::null()) };
+        let participant = create_participant(domain_id, cfg.participant_lease);
         if participant < 0 {
             if let Some(d) = domain {
                 delete_entity(d);

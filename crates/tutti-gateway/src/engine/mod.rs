@@ -11,6 +11,7 @@ use std::collections::{BTreeSet, HashMap};
 use std::fmt;
 use std::net::IpAddr;
 use std::sync::Arc;
+use std::time::Duration;
 
 use tutti_core::ddf::Leaf;
 use tutti_core::mapping::{Ownership, Qos, Reliability};
@@ -116,6 +117,12 @@ pub struct EngineConfig {
     pub node_name: String,
     /// Its namespace ("/" for none).
     pub node_namespace: String,
+    /// The lease the participant announces: how long the other participants keep it, and
+    /// its endpoints, once it has gone silent (killed: no goodbye). A reliable DDS writer
+    /// keeps every sample a killed gateway's reader never acknowledged until then, and may
+    /// block on a full history. None: the engine's default. Cyclone only: rustdds 0.15
+    /// always announces 50 s (docs/gateway.md, "Departures").
+    pub participant_lease: Option<Duration>,
 }
 
 /// How the samples of a reader are decoded into a [`Payload`].
