@@ -15,9 +15,9 @@ use std::thread;
 use std::time::{Duration, Instant};
 
 use anyhow::{bail, Context};
-use tutti_core::shm::{Framework, FrameworkOptions};
 use rtapi::codes::{message, RTAPIReturn_t, RTAPI_SUCCESS};
 use rtapi::*;
+use tutti_core::shm::{Framework, FrameworkOptions};
 
 use crate::percentiles;
 
