@@ -34,7 +34,11 @@ fn dom(e: Eng, base: u16) -> u16 {
 /// next status line: `lost=0` (a step its DDS writer refused for the whole step timeout) and
 /// `errors=0`; with `every_step` (the gateway reads in lock-step) also `skipped=0`.
 pub fn assert_no_step_lost(p: &Proc, every_step: bool) {
-    let mut from = p.lines().len();
+    assert_no_step_lost_after(p, p.lines().len(), every_step);
+}
+
+/// As [`assert_no_step_lost`], in the first status line from line `from` of `p`'s output on.
+pub fn assert_no_step_lost_after(p: &Proc, mut from: usize, every_step: bool) {
     let line = p.next_line(&mut from, " lost=", SECS(30)).unwrap_or_else(|| panic!("no status line\n{}", p.dump()));
     let count = |name: &str| -> u64 {
         let key = format!(" {name}=");
