@@ -1181,6 +1181,8 @@ struct JsonRun {
     engine_alone_per_s: Option<f64>,
     sync_shm_to_dds_per_s: Option<f64>,
     sync_in_order: Option<bool>,
+    /// Steps of the synchronous set the sink never got (from its first on).
+    sync_steps_lost: Option<u64>,
     sync_steps_unanswered: Option<u64>,
 }
 
@@ -1224,6 +1226,7 @@ fn to_json(runs: &[PlacementRun], large: &[(EngineKind, LargeFig)]) -> Json {
                 engine_alone_per_s: r.alone.as_ref().ok().map(|x| x.round()),
                 sync_shm_to_dds_per_s: r.sync.as_ref().ok().map(|s| rate(s).round()),
                 sync_in_order: r.sync.as_ref().ok().map(|s| s.lost == 0 && s.misordered == 0),
+                sync_steps_lost: r.sync.as_ref().ok().map(|s| s.lost),
                 sync_steps_unanswered: r.lock.as_ref().ok().map(|l| l.unanswered),
             })
         })
