@@ -89,6 +89,7 @@ fn a_dds_reader_of_a_synchronous_domain_is_an_observer_not_a_participant(e: Eng)
     }
     assert!(steps.windows(2).all(|w| w[1] > w[0]), "steps out of order: {steps:?}");
     assert_eq!(status(ns, "gw_sync").step_timeouts, 0);
+    crate::gateway_reliable::assert_no_step_lost(&gw, false);
     drop(host);
 }
 
@@ -205,6 +206,7 @@ fn a_dds_writer_that_exits_cleanly_costs_no_step_timeout(e: Eng) {
     assert_eq!(s.step_timeouts, 0, "{}", gw.dump());
     assert_eq!(s.dds_writers, 0, "{:?}", s.connections);
     assert!(gw.wait_line("left: its connection is released", SECS(1)).is_some(), "{}", gw.dump());
+    crate::gateway_reliable::assert_no_step_lost(&gw, false);
     drop(host);
 }
 
@@ -223,14 +225,14 @@ fn a_killed_dds_writer_costs_no_more_than_the_lease(e: Eng) {
         "{}",
         gw.dump()
     );
+    crate::gateway_reliable::assert_no_step_lost(&gw, false);
     drop(host);
 }
 
 /// With `--every-step`, a reader of a synchronous PUBLISH set gets every step: the gateway
 /// reads it in lock-step through an observer connection (still not a participant), so the
 /// framework, stepping every millisecond with nobody else to wait for, cannot outrun it as
-/// it can outrun the passive pump on a loaded machine. (Flat out, rustdds' reliable writer
-/// itself drops samples: docs/gateway.md, "Known limits".)
+/// it can outrun the passive pump on a loaded machine; and none is lost.
 fn with_every_step_a_dds_reader_gets_every_step(e: Eng) {
     let Some(py) = python() else { return };
     let (dom, ns) = (e.dom(125), e.ns("gwcit125"));
@@ -251,6 +253,7 @@ fn with_every_step_a_dds_reader_gets_every_step(e: Eng) {
     assert!(observed, "no lock-step observer connection was seen");
     let steps: Vec<u64> = json_lines(&reader, "step").iter().map(|v| v["step"].as_u64().unwrap()).collect();
     assert!(steps.windows(2).all(|w| w[1] == w[0] + 1), "a step is missing: {steps:?}");
+    crate::gateway_reliable::assert_no_step_lost(&gw, true);
     drop(host);
 }
 

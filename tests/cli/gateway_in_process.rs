@@ -41,7 +41,7 @@ fn host_with_gateway(e: Eng, dom: u16, ns: &str, sets: &[&str]) -> (Proc, Remove
 fn every_synchronous_step_reaches_a_reader_once_and_in_order(e: Eng) {
     let Some(py) = python() else { return };
     let (dom, ns) = (e.dom(126), e.ns("gwinproc126"));
-    let (host, _segments) = host_with_gateway(e, dom, &ns, &["gw_sync/x=1.5"]);
+    let (mut host, _segments) = host_with_gateway(e, dom, &ns, &["gw_sync/x=1.5"]);
     let mut sub = peer(
         &py,
         "sub sync publish",
@@ -64,6 +64,10 @@ fn every_synchronous_step_reaches_a_reader_once_and_in_order(e: Eng) {
     let k = first["step"].as_f64().unwrap();
     // The host skips the deadlines it is late for: its time is at least the step's.
     assert!(first["sim_time"].as_f64().unwrap() >= (k - 1.0) * 0.005 - 1e-9, "the step's own time: {first}");
+    // Its last status line, as it stops, counts no step lost.
+    let from = host.lines().len();
+    assert_eq!(host.interrupt(SECS(60)), Some(0), "{}", host.dump());
+    crate::gateway_reliable::assert_no_step_lost_after(&host, from, false);
 }
 
 fn a_dds_writers_samples_reach_the_subscribe_set(e: Eng) {

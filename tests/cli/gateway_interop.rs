@@ -369,6 +369,7 @@ fn a_dds_writer_takes_part_in_lock_step_through_the_gateway(e: Eng) {
     thread::sleep(Duration::from_millis(500));
     let seen = host.seen.lock().unwrap().clone();
     assert_lock_step(&seen, first.unwrap(), answered);
+    crate::gateway_reliable::assert_no_step_lost(&gw, false);
     drop(host);
     let _ = answer.interrupt(SECS(15));
 }

@@ -129,6 +129,8 @@ fn a_component_on_the_mirror_side_takes_part_in_lock_step(e: Eng) {
     let steps = component.join().unwrap();
     assert!(first.is_some(), "no step was answered ({steps} commits)\n{}\n{}", gw_home.dump(), gw_away.dump());
     assert_lock_step(&seen, first.unwrap(), answered);
+    crate::gateway_reliable::assert_no_step_lost(&gw_home, false);
+    crate::gateway_reliable::assert_no_step_lost(&gw_away, false);
 }
 
 per_engine!(

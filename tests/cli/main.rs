@@ -27,6 +27,7 @@ mod gateway_fastdds;
 mod gateway_in_process;
 mod gateway_interop;
 mod gateway_mirror;
+mod gateway_reliable;
 mod host_cli;
 mod hostile_files;
 mod idl_generated;

@@ -15,6 +15,12 @@ Every mode prints JSON lines on stdout and exits 0 on success, 3 on timeout.
          with step k and every other field of F2 = the first data field of the sample + 1; the
          writer keeps all its samples until acknowledged, or with D the last D (as rclpy's
          default KEEP_LAST 10)
+  steps  --topic T --type TN --fields F [--timeout S] [--max-samples N --pause-ms P]: every step of a
+         synchronous PUBLISH set, read with the domain's QoS (reliable, keep-all; a slow reader with
+         --max-samples, which holds at most N samples and takes them every P ms, so that its writer
+         must wait for it): prints {"first": k} at the first sample,
+         and a summary (steps missing, repeated or out of order, data not the step's own) once
+         the sample whose first data field is negative (the framework's last step) arrives
   qos    --topic T [--timeout S]: the QoS of the first remote writer on T (DCPSPublication)
   nodes  --name NAME [--timeout S]: waits until ros_discovery_info lists node NAME
   lease  --name NAME --node-namespace NS [--timeout S]: the lease (in s) that the participant
@@ -183,6 +189,54 @@ def cmd_answer(dp, a):
     return 0 if n >= a.count else 3
 
 
+def cmd_steps(dp, a):
+    fields = json.loads(a.fields)
+    cls = make_type(a.type, fields)
+    pol = [Policy.Reliability.Reliable(duration(seconds=1)), Policy.History.KeepAll, Policy.Durability.Volatile]
+    if a.max_samples:
+        pol.append(Policy.ResourceLimits(max_samples=a.max_samples, max_instances=1,
+                                         max_samples_per_instance=a.max_samples))
+    rd = DataReader(dp, Topic(dp, a.topic, cls), qos=Qos(*pol))
+    emit({"ready": True})
+    data = fields[2][0]
+    pause = a.pause_ms / 1000.0 if a.max_samples else 0.001
+    end = time.time() + a.timeout
+    first = last = None
+    received = missing = gaps = misordered = wrong = 0
+    ended = False
+    while time.time() < end and not ended:
+        for s in rd.take(N=256):
+            if not s.sample_info.valid_data:
+                continue
+            k, x = s.step, getattr(s, data)
+            if first is None:
+                first = k
+                emit({"first": k})
+            elif k <= last:
+                misordered += 1
+                continue
+            elif k != last + 1:
+                gaps += 1
+                missing += k - last - 1
+            last = k
+            received += 1
+            if x < 0:
+                ended = True
+            elif x != float(k):
+                wrong += 1
+        time.sleep(pause)
+    emit({"summary": True, "first": first, "last": last, "received": received, "missing": missing, "gaps": gaps,
+          "misordered": misordered, "wrong": wrong, "ended": ended})
+    return 0 if ended else 3
+
+
+def history(q):
+    """The HISTORY a discovered endpoint announced; Cyclone fills in the DDS default
+    (KEEP_LAST 1) for an endpoint whose discovery data has none."""
+    h = q[Policy.History] if Policy.History in q else Policy.History.KeepLast(1)
+    return ("KeepAll", None) if "KeepAll" in str(h) else ("KeepLast", h.depth)
+
+
 def cmd_qos(dp, a):
     rd = BuiltinDataReader(dp, BuiltinTopicDcpsPublication)
     end = time.time() + a.timeout
@@ -197,6 +251,8 @@ def cmd_qos(dp, a):
                 "durability": str(q[Policy.Durability]).split(".")[-1],
                 "ownership": str(q[Policy.Ownership]).split(".")[-1],
                 "strength": q[Policy.OwnershipStrength].strength if Policy.OwnershipStrength in q else None,
+                "history": history(q)[0],
+                "depth": history(q)[1],
             })
             return 0
         time.sleep(0.05)
@@ -288,7 +344,7 @@ def cmd_lease(dp, a):
 
 def main():
     p = argparse.ArgumentParser()
-    p.add_argument("mode", choices=["sub", "pub", "answer", "qos", "nodes", "clock", "lease"])
+    p.add_argument("mode", choices=["sub", "pub", "answer", "steps", "qos", "nodes", "clock", "lease"])
     p.add_argument("--domain", type=int, required=True)
     p.add_argument("--topic")
     p.add_argument("--type")
@@ -308,10 +364,12 @@ def main():
     p.add_argument("--transient-local", action="store_true")
     p.add_argument("--reply-depth", type=int, default=0)
     p.add_argument("--strength", type=int, default=5)
+    p.add_argument("--max-samples", type=int, default=0)
+    p.add_argument("--pause-ms", type=float, default=1.0)
     a = p.parse_args()
     dp = DomainParticipant(a.domain)
-    sys.exit({"sub": cmd_sub, "pub": cmd_pub, "answer": cmd_answer, "qos": cmd_qos, "nodes": cmd_nodes,
-              "clock": cmd_clock, "lease": cmd_lease}[a.mode](dp, a))
+    sys.exit({"sub": cmd_sub, "pub": cmd_pub, "answer": cmd_answer, "steps": cmd_steps, "qos": cmd_qos,
+              "nodes": cmd_nodes, "clock": cmd_clock, "lease": cmd_lease}[a.mode](dp, a))
 
 
 if __name__ == "__main__":

@@ -171,6 +171,7 @@ fn total_help(name: &str) -> (&'static str, &'static str) {
         "own_samples" => ("counter", "DDS samples that came back from this gateway itself (dropped)."),
         "errors" => ("counter", "Shared-memory or DDS write failures."),
         "skipped" => ("counter", "Synchronous steps the pump could not send to DDS before the framework moved on."),
+        "lost" => ("counter", "Synchronous steps the DDS writer refused for the whole step timeout (never sent)."),
         "lapsed" => ("counter", "Synchronous DDS writers released after owing a step's answer, silent, for the lease."),
         "remote_writers" => ("gauge", "Matched remote DDS writers."),
         "remote_readers" => ("gauge", "Matched remote DDS readers."),

@@ -380,7 +380,7 @@ impl Manager {
             }
         };
         let out = if self.written_from_step(p.role) {
-            from_step::typed(&*self.dds, d, &p, self.counters(si))?
+            from_step::typed(&*self.dds, d, &p, self.counters(si), self.cfg.patience())?
         } else {
             let every_step = self.opts.every_step.then(|| format!("{} every-step reader", self.opts.node_name));
             to_dds::typed(&*self.dds, d, &p, &self.cfg, self.counters(si), own_commits, every_step)?
@@ -405,7 +405,7 @@ impl Manager {
             }
         };
         let out = if self.written_from_step(p.role) {
-            from_step::items(&*self.dds, d, &p, &items, self.counters(si))?
+            from_step::items(&*self.dds, d, &p, &items, self.counters(si), self.cfg.patience())?
         } else {
             to_dds::items(&*self.dds, d, &p, &items, self.set_stats[si].clone(), own_commits)?
         };

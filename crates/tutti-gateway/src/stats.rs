@@ -23,6 +23,9 @@ pub struct Stats {
     /// Steps of a synchronous PUBLISH set that the framework published faster than DDS
     /// could be sent them (a DDS reader never holds a domain back).
     pub skipped: AtomicU64,
+    /// Steps of a synchronous set that never reached DDS: its DDS writer refused them for
+    /// the whole step timeout (each logged with its domain and topic).
+    pub lost: AtomicU64,
     /// Synchronous DDS writers released after owing a step's answer, silent, for the lease.
     pub lapsed: AtomicU64,
     /// Matched remote DDS writers and readers.
@@ -47,6 +50,7 @@ impl Stats {
             ("own_samples", g(&self.own_samples)),
             ("errors", g(&self.errors)),
             ("skipped", g(&self.skipped)),
+            ("lost", g(&self.lost)),
             ("lapsed", g(&self.lapsed)),
             ("remote_writers", g(&self.remote_writers)),
             ("remote_readers", g(&self.remote_readers)),
@@ -72,8 +76,9 @@ pub struct SetStats {
     pub samples_out: AtomicU64,
     /// DDS samples committed to shared memory (or published by a mirror).
     pub samples_in: AtomicU64,
-    /// Samples not delivered: DDS samples refused by the role rules, late or failing, and
-    /// synchronous steps the pump could not send.
+    /// Samples not delivered: DDS samples refused by the role rules, late or failing,
+    /// synchronous steps the pump could not send, and synchronous steps DDS refused for the
+    /// whole step timeout.
     pub dropped: AtomicU64,
     /// DDS samples that could not be decoded.
     pub bad_input: AtomicU64,

@@ -10,7 +10,10 @@
 //!
 //! * A **synchronous** set is written and sent at every step, once and in order: the DDS
 //!   writer has the domain's QoS (reliable, keep-all), so a reader that cannot keep up
-//!   slows the framework's writes rather than losing steps.
+//!   slows the framework's writes rather than losing steps: a step the DDS writer refuses
+//!   (its history full until the readers acknowledge) is tried again on the framework's
+//!   thread for up to the step timeout ([`Patience`]), and only then counted `lost` and
+//!   logged.
 //! * An **asynchronous** set is written at every step (at most `max_rate` a second where the
 //!   config file says so). When the framework says another step follows at once (it is
 //!   catching up, or a caller steps flat out: [`StepRoute::send`]'s `more`), the sample is
@@ -32,7 +35,7 @@ use tutti_core::mapping::ItemTopic;
 
 use super::per_item::ItemWriters;
 use super::to_dds::{self, min_interval, Activation, Outbound, Outgoing, ServedBy};
-use super::Counters;
+use super::{Counters, Patience};
 use crate::config::PlannedSet;
 use crate::engine::{Engine, Flusher};
 use crate::GatewayError;
@@ -118,12 +121,22 @@ pub struct StepRoute {
     unflushed: u32,
     /// The batch as the flush thread sees it (asynchronous sets of a batching engine).
     held: Option<Arc<Held>>,
+    /// A synchronous set's: how long a step DDS refuses is tried again (None: asynchronous,
+    /// where the next step's value replaces a refused one).
+    patience: Option<Patience>,
 }
 
-/// The typed route of planned PUBLISH set `p` of domain `d`, written from the step.
-pub fn typed(dds: &dyn Engine, d: &Domain, p: &PlannedSet, counters: Counters) -> Result<Outgoing, GatewayError> {
+/// The typed route of planned PUBLISH set `p` of domain `d`, written from the step (a step of
+/// a synchronous set that DDS refuses is tried again as `patience` says).
+pub fn typed(
+    dds: &dyn Engine,
+    d: &Domain,
+    p: &PlannedSet,
+    counters: Counters,
+    patience: Patience,
+) -> Result<Outgoing, GatewayError> {
     let out = to_dds::set_writer(dds, d, p)?;
-    Ok(route(d, p, out, vec![p.topic.clone()], counters))
+    Ok(route(d, p, out, vec![p.topic.clone()], counters, patience))
 }
 
 /// The per-item route of planned PUBLISH set `p` of domain `d` (a topic for each of `items`),
@@ -134,12 +147,20 @@ pub fn items(
     p: &PlannedSet,
     items: &[ItemTopic],
     counters: Counters,
+    patience: Patience,
 ) -> Result<Outgoing, GatewayError> {
     let out = Outbound::Items(ItemWriters::create(dds, items, &d.set(Role::Publish).layout, &p.writer_qos)?);
-    Ok(route(d, p, out, items.iter().map(|t| t.topic.clone()).collect(), counters))
+    Ok(route(d, p, out, items.iter().map(|t| t.topic.clone()).collect(), counters, patience))
 }
 
-fn route(d: &Domain, p: &PlannedSet, out: Outbound, topics: Vec<String>, counters: Counters) -> Outgoing {
+fn route(
+    d: &Domain,
+    p: &PlannedSet,
+    out: Outbound,
+    topics: Vec<String>,
+    counters: Counters,
+    patience: Patience,
+) -> Outgoing {
     let activation = Arc::new(Activation::default());
     let now = Instant::now();
     let held = match (d.flags.synchronous, out.flusher()) {
@@ -156,6 +177,7 @@ fn route(d: &Domain, p: &PlannedSet, out: Outbound, topics: Vec<String>, counter
         next_allowed: now,
         unflushed: 0,
         held,
+        patience: d.flags.synchronous.then_some(patience),
     };
     Outgoing { topics, activation, served_by: ServedBy::Step(Box::new(r)) }
 }
@@ -187,7 +209,11 @@ impl StepRoute {
             self.next_allowed = now + self.min_interval;
         }
         let Counters { total, set: counts } = &self.counters;
-        let written = self.out.write(step, sim, set, total, Some(counts)) > 0;
+        let written = match &self.patience {
+            // The framework's thread waits here while DDS refuses the step: back-pressure.
+            Some(patience) => self.out.write_step(step, sim, set, total, Some(counts), patience) > 0,
+            None => self.out.write(step, sim, set, total, Some(counts)) > 0,
+        };
         self.unflushed += 1;
         match &self.held {
             Some(h) if more && self.unflushed < FLUSH_EVERY => {

@@ -66,6 +66,7 @@ fn serve(
     let mut last_sub = host.segment().generation(Role::Subscribe);
     let mut last_sweep = Instant::now();
     let mut log = LogLimit::new(Duration::from_secs(5));
+    let patience = cfg.patience();
     let idle = if cfg.poll.is_zero() { Duration::from_micros(100) } else { cfg.poll };
     while !cfg.stop.load(Ordering::Acquire) {
         match rx.recv_timeout(idle) {
@@ -93,7 +94,7 @@ fn serve(
                 sim_time = s.sim_time;
                 if let (true, true, Some(out)) = (sync, host.seeded(), out.as_mut()) {
                     last_sub = host.segment().generation(Role::Subscribe);
-                    out.send(last_step, sim_time, host.subscribe(), &stats, Some(&subscribe));
+                    out.send_step(last_step, sim_time, host.subscribe(), &stats, Some(&subscribe), &patience);
                 }
             }
             Err(RecvTimeoutError::Timeout) => {}

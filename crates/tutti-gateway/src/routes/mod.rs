@@ -65,6 +65,11 @@ pub struct ShmConfig {
 }
 
 impl ShmConfig {
+    /// How long a synchronous step's write waits for a DDS writer that refuses it.
+    pub fn patience(&self) -> Patience {
+        Patience { timeout: self.timeout, stop: self.stop.clone() }
+    }
+
     /// Options of a connection standing for a DDS-side participant.
     pub fn connect_options(&self, name: String, connect_timeout: Duration) -> ConnectOptions {
         ConnectOptions {
@@ -77,6 +82,17 @@ impl ShmConfig {
             kind: ConnKind::Remote,
         }
     }
+}
+
+/// How a step of a synchronous set is written to DDS: a write the DDS writer refuses (its
+/// reliable, keep-all history is full until its readers acknowledge) is retried until it is
+/// taken, for at most `timeout` (the domain's step timeout) or until the gateway stops; the
+/// writing thread waits meanwhile, which is the back-pressure that paces the framework
+/// (docs/gateway.md, "Nothing lost on a synchronous set").
+#[derive(Debug, Clone)]
+pub struct Patience {
+    pub timeout: Duration,
+    pub stop: Arc<AtomicBool>,
 }
 
 /// Where a route counts what it moves: the gateway's totals and its set's own counters.

@@ -10,6 +10,12 @@
 //! outruns (more than the bucket's slots between two of its wake-ups) sends the newest step
 //! and counts the ones it could not send (`skipped`). Routes work only while a remote reader
 //! is matched ([`Activation`]).
+//!
+//! A step of a synchronous set that DDS refuses (the reliable, keep-all writer's history is
+//! full until its readers acknowledge) is tried again for up to the step timeout
+//! ([`Outbound::write_step`]): with `--every-step` the pump then holds its answer to the next
+//! step, so the framework steps at the rate DDS takes them; a step still refused then is
+//! counted `lost` and logged with its domain and topic, never dropped silently.
 
 use std::collections::BTreeSet;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
@@ -26,7 +32,7 @@ use tutti_core::shm::segment::Segment;
 use tutti_core::shm::{ConnKind, Participant, ShmError};
 
 use super::per_item::ItemWriters;
-use super::{Counters, ShmConfig};
+use super::{Counters, Patience, ShmConfig};
 use crate::cdr::SetCodec;
 use crate::config::PlannedSet;
 use crate::engine::{Engine, Guid, Writer};
@@ -104,7 +110,7 @@ pub fn items(
 pub fn set_writer(dds: &dyn Engine, d: &Domain, p: &PlannedSet) -> Result<Outbound, GatewayError> {
     let codec = Arc::new(SetCodec::new(&d.set(p.role).layout));
     let writer = dds.writer(&p.topic, &p.dds_type, &p.writer_qos)?;
-    Ok(Outbound::Set(Box::new(SetWriter::new(codec, writer))))
+    Ok(Outbound::Set(Box::new(SetWriter::new(codec, writer).named(&d.name, &p.topic))))
 }
 
 /// Planned set `p` of `domain` watched by the poller: `out` carries the set's changes
@@ -127,17 +133,39 @@ pub struct SetWriter {
     codec: Arc<SetCodec>,
     writer: Box<dyn Writer>,
     body: Vec<u8>,
+    /// The domain and the DDS topic, for the log of a lost step.
+    domain: String,
+    topic: String,
+    lost_log: LogLimit,
 }
 
 impl std::fmt::Debug for SetWriter {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.debug_struct("SetWriter").field("codec", &self.codec).finish()
+        f.debug_struct("SetWriter").field("codec", &self.codec).field("topic", &self.topic).finish()
     }
 }
 
+/// The pause between two tries of a write that DDS refused at once (an engine that waits for
+/// room before refusing, as both do for a reliable writer, is tried again at once).
+const RETRY_PAUSE: Duration = Duration::from_micros(200);
+
 impl SetWriter {
     pub fn new(codec: Arc<SetCodec>, writer: Box<dyn Writer>) -> Self {
-        SetWriter { codec, writer, body: Vec::new() }
+        SetWriter {
+            codec,
+            writer,
+            body: Vec::new(),
+            domain: String::new(),
+            topic: String::new(),
+            lost_log: LogLimit::new(Duration::from_secs(5)),
+        }
+    }
+
+    /// Names the domain and topic it writes, for its log.
+    pub fn named(mut self, domain: &str, topic: &str) -> Self {
+        self.domain = domain.to_string();
+        self.topic = topic.to_string();
+        self
     }
 
     /// Encodes and writes one sample (held by a batching engine until [`SetWriter::flush`]);
@@ -145,6 +173,41 @@ impl SetWriter {
     pub fn send(&mut self, step: u64, sim_time: f64, shm: &[u8]) -> bool {
         self.codec.encode(step, sim_time, shm, &mut self.body);
         self.writer.write(&self.body)
+    }
+
+    /// Encodes and writes step `step` of a synchronous set, trying again while DDS refuses it
+    /// (see [`Patience`]); false when it was still refused after `patience.timeout`, which is
+    /// logged here, naming the domain and the topic (at most once every 5 s).
+    pub fn send_step(&mut self, step: u64, sim_time: f64, shm: &[u8], patience: &Patience) -> bool {
+        self.codec.encode(step, sim_time, shm, &mut self.body);
+        let deadline = Instant::now() + patience.timeout;
+        let mut tries = 0u64;
+        loop {
+            let t = Instant::now();
+            if self.writer.write(&self.body) {
+                return true;
+            }
+            tries += 1;
+            // What a batching engine holds goes out, so that its readers can acknowledge it.
+            self.writer.flush();
+            if Instant::now() >= deadline || patience.stop.load(Ordering::Acquire) {
+                break;
+            }
+            if t.elapsed() < RETRY_PAUSE {
+                thread::sleep(RETRY_PAUSE);
+            }
+        }
+        if let Some(held) = self.lost_log.allow() {
+            warn!(
+                domain = %self.domain,
+                topic = %self.topic,
+                "step {step} of domain '{}' was not written to DDS topic '{}': its DDS writer refused it {tries} time(s) for {:?}, the step timeout (its reliable readers did not acknowledge the earlier steps); counted as lost ({held} more lost since the last report)",
+                self.domain,
+                self.topic,
+                patience.timeout
+            );
+        }
+        false
     }
 
     pub fn flush(&mut self) {
@@ -205,6 +268,49 @@ impl Outbound {
         SetStats::add(set, |s| &s.samples_out, &stats.to_dds, sent);
         Stats::add(&stats.errors, failed);
         sent
+    }
+
+    /// Writes step `step` of a synchronous set, `shm`, waiting while DDS refuses it (see
+    /// [`Patience`]); returns the samples written, counted as [`Outbound::write`] counts
+    /// them. A step still refused after the step timeout is counted `lost` (and `dropped` in
+    /// `set`), and logged. Per-item writers (no step travels with them) write as
+    /// [`Outbound::write`] does: an item refused goes out again with the next step.
+    pub fn write_step(
+        &mut self,
+        step: u64,
+        sim_time: f64,
+        shm: &[u8],
+        stats: &Stats,
+        set: Option<&SetStats>,
+        patience: &Patience,
+    ) -> u64 {
+        match self {
+            Outbound::Set(w) => {
+                if w.send_step(step, sim_time, shm, patience) {
+                    SetStats::add(set, |s| &s.samples_out, &stats.to_dds, 1);
+                    1
+                } else {
+                    SetStats::add(set, |s| &s.dropped, &stats.lost, 1);
+                    0
+                }
+            }
+            Outbound::Items(_) => self.write(step, sim_time, shm, stats, set),
+        }
+    }
+
+    /// [`Outbound::write_step`], then sent at once.
+    pub fn send_step(
+        &mut self,
+        step: u64,
+        sim_time: f64,
+        shm: &[u8],
+        stats: &Stats,
+        set: Option<&SetStats>,
+        patience: &Patience,
+    ) -> u64 {
+        let n = self.write_step(step, sim_time, shm, stats, set, patience);
+        self.flush();
+        n
     }
 
     /// Forget what was sent (per-item writers then send every item again).
@@ -543,6 +649,7 @@ pub fn spawn_sync_pump(
         .stack_size(256 << 10)
         .spawn(move || {
             let _ = activation.thread.set(thread::current());
+            let patience = cfg.patience();
             let mut live = Observer::new(domain.clone());
             let mut buf = Vec::new();
             let mut last = 0u64;
@@ -581,7 +688,7 @@ pub fn spawn_sync_pump(
                     }
                 }
                 last = step;
-                out.send(step, seg.sim_time(), &buf, &stats, Some(&set));
+                out.send_step(step, seg.sim_time(), &buf, &stats, Some(&set), &patience);
             }
         })
 }
@@ -602,6 +709,7 @@ pub fn spawn_lockstep_pump(
         .stack_size(256 << 10)
         .spawn(move || {
             let _ = activation.thread.set(thread::current());
+            let patience = cfg.patience();
             let mut p: Option<Participant> = None;
             while !cfg.stop.load(Ordering::Acquire) {
                 if !activation.is_active() {
@@ -627,8 +735,10 @@ pub fn spawn_lockstep_pump(
                     }
                 };
                 match part.subscribe_lock() {
+                    // The step is acknowledged once copied; a write that waits for DDS keeps
+                    // this reader from acknowledging the next one, which holds the framework.
                     Ok(step) => {
-                        out.send(step, part.sim_time(), part.snapshot(), &stats, Some(&set));
+                        out.send_step(step, part.sim_time(), part.snapshot(), &stats, Some(&set), &patience);
                     }
                     Err(ShmError::Timeout { .. }) => {}
                     Err(e) => {
