@@ -63,7 +63,8 @@ pub struct Args {
     #[arg(long, default_value = "3s", value_parser = tutti_core::parse::parse_duration)]
     duration: Duration,
     /// Core placements to run: same (everything on CPU 0), split (the gateway alone on CPU 1),
-    /// apart (the DDS peer alone on CPU 1), both (same and split), all.
+    /// apart (the DDS peer alone on CPU 1), both (same and split), all; none: only the gateway
+    /// on the large DDF.
     #[arg(long, default_value = "all")]
     placement: String,
     /// DDS engines to measure (comma-separated).
@@ -225,7 +226,8 @@ impl Cpus {
             "apart" => vec![Cpus::APART],
             "both" => vec![Cpus::SAME, Cpus::SPLIT],
             "all" => vec![Cpus::SAME, Cpus::SPLIT, Cpus::APART],
-            other => bail!("--placement {other}: expected same, split, apart, both or all"),
+            "none" => Vec::new(),
+            other => bail!("--placement {other}: expected same, split, apart, both, all or none"),
         })
     }
 
@@ -913,8 +915,23 @@ impl Bench<'_> {
         }
     }
 
-    /// Starts a gateway on the large DDF; returns its start-up time and RSS once up.
-    fn large(&self, e: EngineKind, slot: &Slot) -> anyhow::Result<(Duration, u64)> {
+    /// The gateway on the large DDF, as its figure says: a framework hosts every domain of
+    /// it, the gateway bridges them all, and a DDS peer (a Cyclone participant of this
+    /// process) discovers every topic the gateway bridges. Returns the time until the gateway
+    /// is up, the time until the peer has seen every topic, the topics bridged and the RSS.
+    fn large(&self, e: EngineKind, slot: &Slot) -> anyhow::Result<Large> {
+        let model = load_ddf(&self.args.large).map_err(|f| f.error)?;
+        let opts = FrameworkOptions { namespace: slot.ns.clone(), ..Default::default() };
+        let _framework = Framework::create(&model, &opts).context("hosting the large DDF's domains")?;
+        let peer_cfg = tutti_gateway::engine::EngineConfig {
+            domain_id: slot.dom,
+            interfaces: vec![std::net::Ipv4Addr::LOCALHOST.into()],
+            peers: Vec::new(),
+            node_name: "bench_peer".into(),
+            node_namespace: "/".into(),
+            participant_lease: None,
+        };
+        let peer = tutti_gateway::engine::open(EngineKind::Cyclone, &peer_cfg).context("the DDS peer")?;
         let t = Instant::now();
         let ddf = self.args.large.to_string_lossy();
         let mut cmd = self.tutti(e, slot, &["gateway", &ddf, "--interface", "127.0.0.1", "--status-every", "1h"]);
@@ -924,17 +941,44 @@ impl Bench<'_> {
         let stderr = kid.child.stderr.take();
         let mut up = None;
         if let Some(s) = stderr {
-            for line in BufReader::new(s).lines().map_while(Result::ok) {
-                if line.contains("tutti gateway: up") {
-                    up = Some(t.elapsed());
+            let mut lines = BufReader::new(s).lines().map_while(Result::ok);
+            for line in lines.by_ref() {
+                if let Some(rest) = line.split("tutti gateway: up: ").nth(1) {
+                    up = Some((t.elapsed(), rest.to_string()));
                     break;
                 }
             }
+            // Keep the pipe drained: a gateway blocked on stderr would stall.
+            std::thread::spawn(move || for _ in lines {});
         }
-        let up = up.context("the gateway on the large DDF did not start")?;
-        std::thread::sleep(Duration::from_millis(500));
-        let rss = rss_kib(kid.pid()).unwrap_or(0);
-        Ok((up, rss))
+        let (up, line) = up.context("the gateway on the large DDF did not start")?;
+        // "B of D domains bridged, T topics, ..."
+        let number = |after: &str| -> Option<usize> {
+            let words: Vec<&str> = line.split([' ', ',']).filter(|w| !w.is_empty()).collect();
+            let i = words.iter().position(|w| *w == after)?;
+            words.get(i.checked_sub(1)?)?.parse().ok()
+        };
+        let bridged = line.split(' ').next().and_then(|w| w.parse::<usize>().ok()).unwrap_or(0);
+        let topics = number("topics").context("the gateway's up line names no topic count")?;
+        if bridged != model.domains.len() {
+            bail!("the gateway bridged {bridged} of {} domains: {line}", model.domains.len());
+        }
+        // Every topic the gateway bridges, as a DDS peer discovers it.
+        let deadline = Instant::now() + Duration::from_secs(300);
+        let discovered = loop {
+            let remote = peer.remote();
+            let seen: std::collections::BTreeSet<&String> =
+                remote.writers.keys().chain(remote.readers.keys()).filter(|t| t.starts_with("rt/")).collect();
+            if seen.len() >= topics {
+                break t.elapsed();
+            }
+            if Instant::now() > deadline {
+                bail!("the DDS peer discovered {} of the gateway's {topics} topics in 300 s", seen.len());
+            }
+            std::thread::sleep(Duration::from_millis(20));
+        };
+        let rss = rss_kib(kid.pid()).context("the gateway's RSS")?;
+        Ok(Large { up, discovered, topics, rss_kib: rss })
     }
 }
 
@@ -1033,8 +1077,15 @@ fn source(ddf: &Path, args: &Args) -> CliResult {
 
 // --- Output. ---
 
-/// Start-up time and RSS (KiB) of the gateway on the large DDF.
-type LargeFig = Fig<(Duration, u64)>;
+/// The gateway on the large DDF: up, every topic discovered by a DDS peer, topics bridged.
+#[derive(Debug, Clone)]
+struct Large {
+    up: Duration,
+    discovered: Duration,
+    topics: usize,
+    rss_kib: u64,
+}
+type LargeFig = Fig<Large>;
 type LargeRuns = Vec<(EngineKind, LargeFig)>;
 /// Which figure of an engine's run a row shows.
 type Get<T> = fn(&EngineRun) -> &Fig<T>;
@@ -1151,16 +1202,18 @@ fn print_tables(runs: &[PlacementRun], large: &[(EngineKind, LargeFig)], large_d
     println!();
     for (engine, f) in large {
         match f {
-            Ok((up, rss)) => println!(
-                "gateway ({engine}) on {}: up in {:.2} s{}, RSS {:.1} MiB",
+            Ok(l) => println!(
+                "gateway ({engine}) on {} hosted by a framework: up in {:.2} s{}, {} topics bridged, all discovered by a DDS peer in {:.2} s, RSS {:.1} MiB",
                 large_ddf.display(),
-                up.as_secs_f64(),
+                l.up.as_secs_f64(),
                 if *engine == EngineKind::Cyclone {
                     format!(" (target < {TARGET_STARTUP_S} s)")
                 } else {
                     String::new()
                 },
-                *rss as f64 / 1024.0
+                l.topics,
+                l.discovered.as_secs_f64(),
+                l.rss_kib as f64 / 1024.0
             ),
             Err(why) => println!("gateway ({engine}) on {}: not run ({why})", large_ddf.display()),
         }
@@ -1196,6 +1249,10 @@ struct JsonRun {
 struct JsonLarge {
     engine: &'static str,
     startup_s: Option<f64>,
+    /// Until a DDS peer had discovered every topic bridged.
+    discovered_s: Option<f64>,
+    /// The topics bridged.
+    topics: Option<usize>,
     rss_mib: Option<f64>,
 }
 
@@ -1241,8 +1298,10 @@ fn to_json(runs: &[PlacementRun], large: &[(EngineKind, LargeFig)]) -> Json {
         .iter()
         .map(|(engine, f)| JsonLarge {
             engine: engine.name(),
-            startup_s: f.as_ref().ok().map(|(up, _)| (up.as_secs_f64() * 1000.0).round() / 1000.0),
-            rss_mib: f.as_ref().ok().map(|(_, rss)| tenths(*rss as f64 / 1024.0)),
+            startup_s: f.as_ref().ok().map(|l| (l.up.as_secs_f64() * 1000.0).round() / 1000.0),
+            discovered_s: f.as_ref().ok().map(|l| (l.discovered.as_secs_f64() * 1000.0).round() / 1000.0),
+            topics: f.as_ref().ok().map(|l| l.topics),
+            rss_mib: f.as_ref().ok().map(|l| tenths(l.rss_kib as f64 / 1024.0)),
         })
         .collect();
     Json { runs, large }
