@@ -409,6 +409,9 @@ impl Participant {
             return Ok(None);
         }
         self.check()?;
+        // A writer before it waits, as in `publish_lock`: a framework waiting for writers
+        // (`tutti host --wait-for`) counts it, and steps.
+        self.claim_writer()?;
         let states = self.seg.info.flags.states;
         Ok(Some(self.gate(GateFor::PublishAfter { last: self.last_commit, states })))
     }
