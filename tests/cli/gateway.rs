@@ -17,6 +17,24 @@ use tutti_core::shm::{ConnectOptions, Framework, FrameworkOptions, Participant};
 pub const DDF: &str = "tests/gateway/gw.ddf";
 pub const PEER: &str = "tests/gateway/dds_peer.py";
 
+/// A watchdog's limit, in seconds.
+pub const SECS: fn(u64) -> Duration = Duration::from_secs;
+
+/// The fields of the topics of `DDF` (tests/gateway/gw.ddf), as the peer takes them
+/// (`--fields`): the synchronous domain's PUBLISH and SUBSCRIBE sets, the asynchronous one's,
+/// and the states domain's SUBSCRIBE set.
+pub const SYNC_PUB: &str = r#"[["step","uint64"],["sim_time","float64"],["x","float64"]]"#;
+pub const SYNC_SUB: &str = r#"[["step","uint64"],["sim_time","float64"],["y","float64"]]"#;
+pub const ASYNC_PUB: &str =
+    r#"[["step","uint64"],["sim_time","float64"],["x","float64"],["flag","bool"],["v","float64[3]"]]"#;
+pub const ASYNC_SUB: &str = r#"[["step","uint64"],["sim_time","float64"],["y","float64"],["n","int32"]]"#;
+pub const STATES_SUB: &str = r#"[["step","uint64"],["sim_time","float64"],["y","float64"]]"#;
+
+/// The status of `domain` in namespace `ns`, read from its segment.
+pub fn status(ns: &str, domain: &str) -> tutti_core::shm::DomainStatus {
+    tutti_core::shm::segment::Segment::open(ns, domain).unwrap_or_else(|e| panic!("{ns}/{domain}: {e}")).status()
+}
+
 /// The venv's Python with cyclonedds (`tutti_test_support::python`: the test is skipped when
 /// it is missing, and fails under CI=true).
 pub fn python() -> Option<PathBuf> {

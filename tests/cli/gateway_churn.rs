@@ -15,16 +15,7 @@ use std::time::{Duration, Instant};
 
 use gateway::*;
 use tutti_core::ddf::Role;
-use tutti_core::shm::segment::Segment;
-use tutti_core::shm::DomainStatus;
 
-const SECS: fn(u64) -> Duration = Duration::from_secs;
-const SYNC_PUB: &str = r#"[["step","uint64"],["sim_time","float64"],["x","float64"]]"#;
-const SYNC_SUB: &str = r#"[["step","uint64"],["sim_time","float64"],["y","float64"]]"#;
-const ASYNC_PUB: &str =
-    r#"[["step","uint64"],["sim_time","float64"],["x","float64"],["flag","bool"],["v","float64[3]"]]"#;
-const ASYNC_SUB: &str = r#"[["step","uint64"],["sim_time","float64"],["y","float64"],["n","int32"]]"#;
-const STATES: &str = r#"[["step","uint64"],["sim_time","float64"],["y","float64"]]"#;
 const CHURN: &str = "tests/gateway/churn_peer.py";
 
 /// The DDS domain of this engine's run of the churn test (the others share 232).
@@ -38,10 +29,6 @@ fn churn_domain(e: Eng) -> u16 {
 
 fn ns(e: Eng, tag: &str) -> String {
     tutti_test_support::namespace(&format!("gw-churn-{tag}-{}-", e.name))
-}
-
-fn status(ns: &str, domain: &str) -> DomainStatus {
-    Segment::open(ns, domain).unwrap_or_else(|e| panic!("{ns}/{domain}: {e}")).status()
 }
 
 /// The value of gauge or counter `name` (without labels) on the gateway's `/metrics`.
@@ -293,7 +280,7 @@ fn a_gateway_restarted_after_kill_9_takes_its_dds_writer_back(e: Eng) {
 /// A Cyclone writer of `topic` that writes `values` (transient-local, keep last 1) and
 /// stays until killed, so that late readers get its last sample from it.
 fn latched_writer(py: &Path, topic: &str, values: &str) -> Proc {
-    let args = ["--topic", topic, "--type", "gw_msgs::msg::dds_::GwStatesSubscribe_", "--fields", STATES];
+    let args = ["--topic", topic, "--type", "gw_msgs::msg::dds_::GwStatesSubscribe_", "--fields", STATES_SUB];
     let rest = ["--values", values, "--period-ms", "5", "--transient-local", "--linger", "150"];
     let w = peer(py, &format!("latched {values}"), 232, "pub", &[&args[..], &rest].concat());
     assert!(w.wait_line("\"wrote\"", SECS(60)).is_some(), "{}", w.dump());
@@ -303,7 +290,7 @@ fn latched_writer(py: &Path, topic: &str, values: &str) -> Proc {
 /// A late transient-local reader of `topic`: the samples it got within 5 s (nothing is
 /// written meanwhile).
 fn late_reader(py: &Path, topic: &str, ty: &str) -> Vec<serde_json::Value> {
-    let args = ["--topic", topic, "--type", ty, "--fields", STATES, "--count", "100", "--timeout", "5"];
+    let args = ["--topic", topic, "--type", ty, "--fields", STATES_SUB, "--count", "100", "--timeout", "5"];
     let mut r = peer(py, "late reader", 232, "sub", &[&args[..], &["--transient-local"]].concat());
     assert_eq!(r.wait(SECS(60)), Some(3), "{}", r.dump());
     json_lines(&r, "y")

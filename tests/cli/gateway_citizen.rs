@@ -12,19 +12,6 @@ use std::time::{Duration, Instant};
 
 use gateway::*;
 use tutti_core::ddf::Role;
-use tutti_core::shm::segment::Segment;
-use tutti_core::shm::DomainStatus;
-
-const SECS: fn(u64) -> Duration = Duration::from_secs;
-const SYNC_PUB: &str = r#"[["step","uint64"],["sim_time","float64"],["x","float64"]]"#;
-const SYNC_SUB: &str = r#"[["step","uint64"],["sim_time","float64"],["y","float64"]]"#;
-const ASYNC_PUB: &str =
-    r#"[["step","uint64"],["sim_time","float64"],["x","float64"],["flag","bool"],["v","float64[3]"]]"#;
-const ASYNC_SUB: &str = r#"[["step","uint64"],["sim_time","float64"],["y","float64"],["n","int32"]]"#;
-
-fn status(ns: &str, domain: &str) -> DomainStatus {
-    Segment::open(ns, domain).unwrap_or_else(|e| panic!("{ns}/{domain}: {e}")).status()
-}
 
 /// An asynchronous PUBLISH set whose `x` is `x`.
 fn async_publish(x: f64) -> impl Fn(u64) -> Vec<u8> + Send + 'static {

@@ -16,10 +16,6 @@ use tutti_core::ddf::Role;
 use tutti_core::shm::segment::Segment;
 use tutti_test_support::RemoveSegments;
 
-const SECS: fn(u64) -> Duration = Duration::from_secs;
-const SYNC_FIELDS: &str = r#"[["step","uint64"],["sim_time","float64"],["x","float64"]]"#;
-const SUB_FIELDS: &str = r#"[["step","uint64"],["sim_time","float64"],["y","float64"],["n","int32"]]"#;
-
 /// `tutti host DDF --gateway` on engine `e`, in DDS domain `dom` (loopback) and namespace
 /// `ns`, stepping every 5 ms with `sets`; returns once the gateway is up. The segments are
 /// removed when the returned guard drops, even if the host was killed.
@@ -47,7 +43,7 @@ fn every_synchronous_step_reaches_a_reader_once_and_in_order(e: Eng) {
         "sub sync publish",
         dom,
         "sub",
-        &["--topic", "rt/gw_sync/publish", "--type", "gw_msgs::msg::dds_::GwSyncPublish_", "--fields", SYNC_FIELDS]
+        &["--topic", "rt/gw_sync/publish", "--type", "gw_msgs::msg::dds_::GwSyncPublish_", "--fields", SYNC_PUB]
             .into_iter()
             .chain(["--count", "150", "--timeout", "60"])
             .collect::<Vec<_>>(),
@@ -86,7 +82,7 @@ fn a_dds_writers_samples_reach_the_subscribe_set(e: Eng) {
             "--type",
             "gw_msgs::msg::dds_::GwAsyncSubscribe_",
             "--fields",
-            SUB_FIELDS,
+            ASYNC_SUB,
             "--values",
             values,
             "--period-ms",
@@ -136,17 +132,10 @@ fn a_set_an_external_component_writes_still_reaches_dds(e: Eng) {
         "sub subscribe",
         dom,
         "sub",
-        &[
-            "--topic",
-            "rt/gw_async/subscribe",
-            "--type",
-            "gw_msgs::msg::dds_::GwAsyncSubscribe_",
-            "--fields",
-            SUB_FIELDS,
-        ]
-        .into_iter()
-        .chain(["--count", "3", "--timeout", "60"])
-        .collect::<Vec<_>>(),
+        &["--topic", "rt/gw_async/subscribe", "--type", "gw_msgs::msg::dds_::GwAsyncSubscribe_", "--fields", ASYNC_SUB]
+            .into_iter()
+            .chain(["--count", "3", "--timeout", "60"])
+            .collect::<Vec<_>>(),
     );
     let rc = sub.wait(SECS(90));
     stop.store(true, Ordering::Release);
@@ -187,8 +176,7 @@ fn a_launch_files_gateway_runs_in_the_framework_process() {
     cmd.arg("run").arg(&file).env("TUTTI_NAMESPACE", &ns).env("RUST_LOG", "info");
     let mut run = Proc::spawn("tutti run", cmd, SECS(180));
     assert!(run.wait_line("run: gateway: up", SECS(60)).is_some(), "the gateway did not start\n{}", run.dump());
-    let args =
-        ["--topic", "rt/gw_sync/publish", "--type", "gw_msgs::msg::dds_::GwSyncPublish_", "--fields", SYNC_FIELDS];
+    let args = ["--topic", "rt/gw_sync/publish", "--type", "gw_msgs::msg::dds_::GwSyncPublish_", "--fields", SYNC_PUB];
     let mut sub = peer(&py, "sub", dom, "sub", &[&args[..], &["--count", "20", "--timeout", "60"]].concat());
     assert_eq!(sub.wait(SECS(90)), Some(0), "{}\n{}", sub.dump(), run.dump());
     assert!(json_lines(&sub, "x").iter().all(|v| v["x"] == 2.5), "{}", sub.dump());

@@ -12,11 +12,6 @@ use std::time::{Duration, Instant};
 use gateway::*;
 use tutti_core::ddf::Role;
 
-const SECS: fn(u64) -> Duration = Duration::from_secs;
-const SUB_FIELDS: &str = r#"[["step","uint64"],["sim_time","float64"],["y","float64"],["n","int32"]]"#;
-const PUB_FIELDS: &str =
-    r#"[["step","uint64"],["sim_time","float64"],["x","float64"],["flag","bool"],["v","float64[3]"]]"#;
-
 /// A component commits SUBSCRIBE values through shared memory (repeatedly, until stopped).
 fn keep_committing(ns: &str, y: f64, n: i32) -> (Arc<AtomicBool>, thread::JoinHandle<()>) {
     let stop = Arc::new(AtomicBool::new(false));
@@ -57,14 +52,7 @@ fn shared_memory_values_reach_a_cyclone_reader_as_typed_samples(e: Eng) {
         "sub subscribe",
         dom,
         "sub",
-        &[
-            "--topic",
-            "rt/gw_async/subscribe",
-            "--type",
-            "gw_msgs::msg::dds_::GwAsyncSubscribe_",
-            "--fields",
-            SUB_FIELDS,
-        ],
+        &["--topic", "rt/gw_async/subscribe", "--type", "gw_msgs::msg::dds_::GwAsyncSubscribe_", "--fields", ASYNC_SUB],
     );
     let mut pubs = peer(
         &py,
@@ -77,7 +65,7 @@ fn shared_memory_values_reach_a_cyclone_reader_as_typed_samples(e: Eng) {
             "--type",
             "gw_msgs::msg::dds_::GwAsyncPublish_",
             "--fields",
-            PUB_FIELDS,
+            ASYNC_PUB,
             "--count",
             "3",
         ],
@@ -227,7 +215,7 @@ fn a_cyclone_writer_is_read_by_the_framework_through_a_remote_connection(e: Eng)
             "--type",
             "gw_msgs::msg::dds_::GwAsyncSubscribe_",
             "--fields",
-            SUB_FIELDS,
+            ASYNC_SUB,
             "--values",
             r#"[{"y": 9.5, "n": 3}, {"y": 9.5, "n": 3}, {"y": 9.5, "n": 3}, {"y": 9.5, "n": 3}]"#,
             "--period-ms",
@@ -316,7 +304,7 @@ fn bad_samples_and_a_second_writer_are_dropped_and_counted(e: Eng) {
         |y: f64| format!(r#"[{{"y": {y}}}, {{"y": {y}}}, {{"y": {y}}}, {{"y": {y}}}, {{"y": {y}}}, {{"y": {y}}}]"#);
     let (v1, v2) = (vals(1.0), vals(2.0));
     let a =
-        ["--topic", "rt/gw_async/subscribe", "--type", "gw_msgs::msg::dds_::GwAsyncSubscribe_", "--fields", SUB_FIELDS];
+        ["--topic", "rt/gw_async/subscribe", "--type", "gw_msgs::msg::dds_::GwAsyncSubscribe_", "--fields", ASYNC_SUB];
     let mut first = peer(&py, "first writer", dom, "pub", &[&a[..], &["--values", &v1, "--period-ms", "300"]].concat());
     assert!(host.wait_for(SECS(60), |_, b| f64_at(b, 0) == 1.0).is_some(), "{}\n{}", first.dump(), gw.dump());
     let mut second =
@@ -431,7 +419,7 @@ fn dds_profile_ownership_is_matched_on_the_wire_by_the_cyclone_engine() {
             "--type",
             "gw_msgs::msg::dds_::GwAsyncPublish_",
             "--fields",
-            PUB_FIELDS,
+            ASYNC_PUB,
             "--count",
             "3",
             "--exclusive",
@@ -443,7 +431,7 @@ fn dds_profile_ownership_is_matched_on_the_wire_by_the_cyclone_engine() {
     let values = |y: f64, n: usize| format!("[{}]", vec![format!(r#"{{"y": {y}}}"#); n].join(","));
     let (strong_values, weak_values) = (values(1.0, 150), values(2.0, 40));
     let a =
-        ["--topic", "rt/gw_async/subscribe", "--type", "gw_msgs::msg::dds_::GwAsyncSubscribe_", "--fields", SUB_FIELDS];
+        ["--topic", "rt/gw_async/subscribe", "--type", "gw_msgs::msg::dds_::GwAsyncSubscribe_", "--fields", ASYNC_SUB];
     let writer = |name: &str, vals: &str, strength: &str| {
         let opts = ["--values", vals, "--period-ms", "20", "--exclusive", "--strength", strength];
         peer(&py, name, dom, "pub", &[&a[..], &opts].concat())

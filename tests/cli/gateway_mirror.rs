@@ -12,8 +12,6 @@ use std::time::{Duration, Instant};
 
 use gateway::*;
 
-const SECS: fn(u64) -> Duration = Duration::from_secs;
-
 fn a_component_on_the_mirror_side_drives_an_asynchronous_domain(e: Eng) {
     let Some(_py) = python() else { return };
     let (dom, home, away) = (e.dom(109), e.ns("gwtest109a"), e.ns("gwtest109b"));

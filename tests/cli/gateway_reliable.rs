@@ -20,8 +20,6 @@ use tutti_gateway::in_process::GatewaySink;
 use tutti_gateway::{EngineKind, GatewayOptions};
 use tutti_test_support::{RemoveSegments, Worker};
 
-const SECS: fn(u64) -> Duration = Duration::from_secs;
-const SYNC_FIELDS: &str = r#"[["step","uint64"],["sim_time","float64"],["x","float64"]]"#;
 /// Steps stepped flat out once the reader has its first sample.
 const FLAT_OUT_STEPS: u64 = 20_000;
 
@@ -108,7 +106,7 @@ fn every_step_arrives(dom: u16, fw: Framework, sink: Option<GatewaySink>, others
     // A slow reader: it holds at most 64 samples and takes them every 5 ms, so that the
     // gateway's writer must wait for its acknowledgements.
     let slow = ["--max-samples", "64", "--pause-ms", "5"];
-    let args: Vec<&str> = args.into_iter().chain(["--fields", SYNC_FIELDS, "--timeout", "240"]).chain(slow).collect();
+    let args: Vec<&str> = args.into_iter().chain(["--fields", SYNC_PUB, "--timeout", "240"]).chain(slow).collect();
     let mut reader = peer(&py, "steps of gw_sync", dom, "steps", &args);
     let go = Arc::new(AtomicBool::new(false));
     let stepped = Arc::new(Mutex::new(Stepped::default()));
