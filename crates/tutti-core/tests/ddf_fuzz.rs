@@ -6,7 +6,6 @@
 //!
 //! `PROPTEST_CASES=N` runs more cases than the default 256 per property.
 
-use std::sync::mpsc;
 use std::time::Duration;
 
 use proptest::prelude::*;
@@ -52,29 +51,12 @@ const CASE_TIMEOUT: Duration = Duration::from_secs(10);
 /// Parses on a worker thread so a hang fails the test instead of blocking it, and a panic
 /// is reported as such.
 fn parse_with_watchdog(bytes: Vec<u8>) -> Result<Model, DdfError> {
-    let (tx, rx) = mpsc::channel();
-    let worker = std::thread::spawn(move || {
+    let (result, bytes) = tutti_test_support::within("parse_bytes", CASE_TIMEOUT, move || {
         let result = ddf::parse_bytes(&bytes, "fuzz.ddf");
-        let _ = tx.send((result, bytes));
+        (result, bytes)
     });
-    match rx.recv_timeout(CASE_TIMEOUT) {
-        Ok((result, bytes)) => {
-            check(&bytes, &result);
-            result
-        }
-        Err(mpsc::RecvTimeoutError::Timeout) => {
-            panic!("parse_bytes took longer than {CASE_TIMEOUT:?}")
-        }
-        Err(mpsc::RecvTimeoutError::Disconnected) => {
-            let cause = worker.join().err().map(|p| {
-                p.downcast_ref::<String>()
-                    .cloned()
-                    .or_else(|| p.downcast_ref::<&str>().map(|s| s.to_string()))
-                    .unwrap_or_default()
-            });
-            panic!("parse_bytes panicked: {cause:?}");
-        }
-    }
+    check(&bytes, &result);
+    result
 }
 
 /// Invariants of a result, whatever the input.

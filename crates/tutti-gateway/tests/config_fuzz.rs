@@ -12,7 +12,6 @@
 //! property instead of the default 256 (`docs/gateway.md`).
 
 use std::path::Path;
-use std::sync::mpsc;
 use std::time::Duration;
 
 use proptest::prelude::*;
@@ -38,8 +37,7 @@ fn example() -> String {
 /// Parses, applies and resolves `text` on a worker thread, so that a hang fails the test
 /// instead of blocking it and a panic is reported as such.
 fn read_with_watchdog(text: String) {
-    let (tx, rx) = mpsc::channel();
-    let worker = std::thread::spawn(move || {
+    let result = tutti_test_support::within("reading the config", CASE_TIMEOUT, move || {
         let parsed = config::parse(&text, "fuzz.json5");
         if let Ok(cfg) = &parsed {
             let ddf = repo("ddf/multiuav.ddf");
@@ -50,21 +48,10 @@ fn read_with_watchdog(text: String) {
                 let _ = opts.engine_config();
             }
         }
-        let _ = tx.send(parsed.map(|_| ()).map_err(|e| e.to_string()));
+        parsed.map(|_| ()).map_err(|e| e.to_string())
     });
-    match rx.recv_timeout(CASE_TIMEOUT) {
-        Ok(Err(e)) => assert!(e.starts_with("fuzz.json5"), "an error that does not name the file: {e}"),
-        Ok(Ok(())) => {}
-        Err(mpsc::RecvTimeoutError::Timeout) => panic!("reading the config took longer than {CASE_TIMEOUT:?}"),
-        Err(mpsc::RecvTimeoutError::Disconnected) => {
-            let cause = worker.join().err().map(|p| {
-                p.downcast_ref::<String>()
-                    .cloned()
-                    .or_else(|| p.downcast_ref::<&str>().map(|s| s.to_string()))
-                    .unwrap_or_default()
-            });
-            panic!("reading the config panicked: {cause:?}");
-        }
+    if let Err(e) = result {
+        assert!(e.starts_with("fuzz.json5"), "an error that does not name the file: {e}");
     }
 }
 

@@ -9,7 +9,6 @@
 //! instead of the default 256 (`docs/recording.md`).
 
 use std::path::{Path, PathBuf};
-use std::sync::mpsc;
 use std::sync::OnceLock;
 use std::time::Duration;
 
@@ -74,24 +73,8 @@ fn read_with_watchdog(bytes: Vec<u8>) {
     let n = CASE.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
     let path: PathBuf = scratch().join(format!("case-{n}.mcap"));
     std::fs::write(&path, &bytes).expect("writing the case");
-    let (tx, rx) = mpsc::channel();
     let p = path.clone();
-    let worker = std::thread::spawn(move || {
-        let _ = tx.send(Recording::read(&p).map(|_| ()));
-    });
-    let result = match rx.recv_timeout(CASE_TIMEOUT) {
-        Ok(r) => r,
-        Err(mpsc::RecvTimeoutError::Timeout) => panic!("Recording::read took longer than {CASE_TIMEOUT:?}"),
-        Err(mpsc::RecvTimeoutError::Disconnected) => {
-            let cause = worker.join().err().map(|p| {
-                p.downcast_ref::<String>()
-                    .cloned()
-                    .or_else(|| p.downcast_ref::<&str>().map(|s| s.to_string()))
-                    .unwrap_or_default()
-            });
-            panic!("Recording::read panicked: {cause:?}");
-        }
-    };
+    let result = tutti_test_support::within("Recording::read", CASE_TIMEOUT, move || Recording::read(&p).map(|_| ()));
     let _ = std::fs::remove_file(&path);
     if let Err(e) = result {
         let shown = e.to_string();

@@ -30,3 +30,27 @@ impl Drop for Worker {
         }
     }
 }
+
+/// Runs `f` on a thread of its own and returns what it returns; a run longer than `limit`
+/// (a hang) or a panic in `f` fails the calling test, saying `what` did so and, for a
+/// panic, its message. For code that must neither hang nor panic on any input (the fuzz
+/// targets).
+pub fn within<T: Send + 'static>(what: &str, limit: std::time::Duration, f: impl FnOnce() -> T + Send + 'static) -> T {
+    let (tx, rx) = std::sync::mpsc::channel();
+    let worker = std::thread::spawn(move || {
+        let _ = tx.send(f());
+    });
+    match rx.recv_timeout(limit) {
+        Ok(v) => v,
+        Err(std::sync::mpsc::RecvTimeoutError::Timeout) => panic!("{what} took longer than {limit:?}"),
+        Err(std::sync::mpsc::RecvTimeoutError::Disconnected) => {
+            let cause = worker.join().err().map(|p| {
+                p.downcast_ref::<String>()
+                    .cloned()
+                    .or_else(|| p.downcast_ref::<&str>().map(|s| s.to_string()))
+                    .unwrap_or_default()
+            });
+            panic!("{what} panicked: {cause:?}");
+        }
+    }
+}
