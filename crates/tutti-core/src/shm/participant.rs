@@ -213,43 +213,20 @@ impl Participant {
     /// Whether the connection is still in place (the framework removes connections it
     /// judges dead) and the framework runs.
     pub fn check(&self) -> Result<(), ShmError> {
-        let r = self.check_connection();
-        // A segment shrunk under us reads as zeros (a stopped framework, a lost connection):
-        // say what really happened.
-        if r.is_err() {
-            self.seg.intact_checked()?;
+        // A framework killed outright cannot mark its segment stopped: look at its process
+        // now and then (a /proc read costs microseconds; every call would be too many).
+        let look = self.framework_seen.get().elapsed() >= Duration::from_millis(50);
+        let r = self.waiting(GateFor::Nothing).check(&self.seg, look);
+        if look && r.is_ok() {
+            self.framework_seen.set(Instant::now());
         }
-        self.seg.intact()?;
         r
     }
 
-    fn check_connection(&self) -> Result<(), ShmError> {
-        let domain = || self.seg.info.name.clone();
-        let h = self.seg.header();
-        if h.state.load(Ordering::Acquire) != STATE_RUNNING {
-            return Err(ShmError::FrameworkStopped { domain: domain() });
-        }
-        let c = self.seg.conn(self.slot).ok_or_else(|| ShmError::ConnectionLost { domain: domain() })?;
-        if c.active.load(Ordering::Acquire) != self.me.pid || self.seg.conn_id(self.slot) != self.id {
-            return Err(ShmError::ConnectionLost { domain: domain() });
-        }
-        // A framework killed outright cannot mark its segment stopped: look at its process
-        // now and then (a /proc read costs microseconds; every call would be too many).
-        if self.framework_seen.get().elapsed() >= Duration::from_millis(50) {
-            if !os::is_alive(self.seg.framework_id()) {
-                return Err(ShmError::FrameworkStopped { domain: domain() });
-            }
-            self.framework_seen.set(Instant::now());
-        }
-        Ok(())
-    }
-
+    /// [`check`](Self::check), looking at the framework's process every time (a wait's
+    /// periodic check).
     fn check_alive(&self) -> Result<(), ShmError> {
-        self.check()?;
-        if !os::is_alive(self.seg.framework_id()) {
-            return Err(ShmError::FrameworkStopped { domain: self.seg.info.name.clone() });
-        }
-        Ok(())
+        self.waiting(GateFor::Nothing).check(&self.seg, true)
     }
 
     fn timeout(&self, what: &'static str, after: Duration) -> ShmError {
@@ -361,21 +338,13 @@ impl Participant {
     /// Synchronous domains: waits (at most the timeout) until the framework has published a
     /// step after the last one this connection read.
     fn wait_next_step(&self) -> Result<(), ShmError> {
-        let ctl = self.seg.step_ctl();
-        let last = self.last_read;
-        self.wait_for_step("the framework's next step", || Ok(ctl.next_step(last).is_some()))?;
+        self.waiting(GateFor::ReadAfter(self.last_read)).wait(&self.seg)?;
         self.check()
     }
 
-    /// Waits until `ready`, at most the timeout, except that a paused framework costs no
-    /// timeout: the wait goes on for as long as the pause lasts, and a whole timeout after it.
-    fn wait_for_step(&self, what: &'static str, ready: impl FnMut() -> Result<bool, ShmError>) -> Result<(), ShmError> {
-        wait_step(&self.seg, self.opts.wait, self.opts.timeout, what, ready, || self.check_alive())
-    }
-
-    fn gate(&self, until: GateFor) -> StepGate {
-        StepGate {
-            seg: self.seg.clone(),
+    /// This connection's wait for `until` (see [`Waiting`]).
+    fn waiting(&self, until: GateFor) -> Waiting {
+        Waiting {
             slot: self.slot,
             id: self.id,
             pid: self.me.pid,
@@ -383,6 +352,10 @@ impl Participant {
             timeout: self.opts.timeout,
             until,
         }
+    }
+
+    fn gate(&self, until: GateFor) -> StepGate {
+        StepGate { seg: self.seg.clone(), waiting: self.waiting(until) }
     }
 
     /// The part of [`subscribe_lock`](Self::subscribe_lock) that waits, apart: in a
@@ -512,13 +485,8 @@ impl Participant {
                 self.locked_step = self.last_commit;
                 return Ok(self.locked_step);
             }
-            let last = self.last_commit;
             let states = seg.info.flags.states;
-            let ready = || {
-                let k = h.pub_step.load(Ordering::Acquire);
-                Ok(k > last || (states && k == 0 && h.seeded.load(Ordering::Acquire) == 0))
-            };
-            self.wait_for_step("a step to publish for", ready)?;
+            self.waiting(GateFor::PublishAfter { last: self.last_commit, states }).wait(seg)?;
             let k = h.pub_step.load(Ordering::Acquire);
             self.locked_step = k;
             // Waiting for step k counts as having seen it: a connection that writes before
@@ -798,13 +766,95 @@ impl Drop for WriterLock<'_> {
     }
 }
 
-/// What a [`StepGate`] waits for.
+/// What a participant's wait waits for.
 #[derive(Debug, Clone, Copy)]
 enum GateFor {
     /// A step after this one (the connection's last read).
     ReadAfter(u64),
     /// A step to answer after the last commit (or the seed, with `states`).
     PublishAfter { last: u64, states: bool },
+    /// Nothing: only the connection's checks (see [`Waiting::check`]).
+    Nothing,
+}
+
+/// A connection's wait for the framework, by value: the participant waits with it on its
+/// own segment, a [`StepGate`] on a segment it shares, with no borrow of the participant.
+#[derive(Debug, Clone, Copy)]
+struct Waiting {
+    slot: usize,
+    id: u64,
+    pid: u32,
+    wait: WaitMode,
+    timeout: Duration,
+    until: GateFor,
+}
+
+impl Waiting {
+    /// Whether the connection is still in place and its framework runs (looking at the
+    /// framework's process too with `look_at_process`). A segment shrunk under us reads as
+    /// zeros (a stopped framework, a lost connection): that is said instead.
+    fn check(&self, seg: &Segment, look_at_process: bool) -> Result<(), ShmError> {
+        let domain = || seg.info.name.clone();
+        let r = if seg.header().state.load(Ordering::Acquire) != STATE_RUNNING {
+            Err(ShmError::FrameworkStopped { domain: domain() })
+        } else {
+            match seg.conn(self.slot) {
+                Some(c) if c.active.load(Ordering::Acquire) == self.pid && seg.conn_id(self.slot) == self.id => {
+                    if look_at_process && !os::is_alive(seg.framework_id()) {
+                        Err(ShmError::FrameworkStopped { domain: domain() })
+                    } else {
+                        Ok(())
+                    }
+                }
+                _ => Err(ShmError::ConnectionLost { domain: domain() }),
+            }
+        };
+        if r.is_err() {
+            seg.intact_checked()?;
+        }
+        seg.intact()?;
+        r
+    }
+
+    /// Waits until `until`, at most the timeout, except that a paused framework costs no
+    /// timeout (the wait goes on for as long as the pause lasts, and a whole timeout after
+    /// it); the connection is checked now and then, and ends the wait with its error.
+    fn wait(&self, seg: &Segment) -> Result<(), ShmError> {
+        let h = seg.header();
+        let ctl = seg.step_ctl();
+        let until = self.until;
+        let mut ready = move || {
+            Ok(match until {
+                GateFor::ReadAfter(last) => ctl.next_step(last).is_some(),
+                GateFor::PublishAfter { last, states } => {
+                    let k = h.pub_step.load(Ordering::Acquire);
+                    k > last || (states && k == 0 && h.seeded.load(Ordering::Acquire) == 0)
+                }
+                GateFor::Nothing => true,
+            })
+        };
+        let what = match until {
+            GateFor::PublishAfter { .. } => "a step to publish for",
+            _ => "the framework's next step",
+        };
+        let waiter = Waiter {
+            mode: self.wait,
+            futex: &h.step_seq,
+            waiters: &h.step_waiters,
+            check_every: Duration::from_millis(20),
+        };
+        loop {
+            let deadline = Instant::now() + self.timeout;
+            match waiter.wait(deadline, &mut ready, || self.check(seg, true))? {
+                Waited::Ready => return Ok(()),
+                Waited::TimedOut if !seg.step_wait_may_time_out(self.timeout) => {}
+                Waited::TimedOut => {
+                    let ms = self.timeout.as_millis() as u64;
+                    return Err(ShmError::Timeout { domain: seg.info.name.clone(), what, ms });
+                }
+            }
+        }
+    }
 }
 
 /// A participant's wait for the framework, apart from the participant (see
@@ -815,73 +865,12 @@ enum GateFor {
 #[derive(Debug)]
 pub struct StepGate {
     seg: Arc<Segment>,
-    slot: usize,
-    id: u64,
-    pid: u32,
-    wait: WaitMode,
-    timeout: Duration,
-    until: GateFor,
+    waiting: Waiting,
 }
 
 impl StepGate {
     pub fn wait(&self) -> Result<(), ShmError> {
-        let seg = &*self.seg;
-        let h = seg.header();
-        let ctl = seg.step_ctl();
-        let until = self.until;
-        let ready = move || {
-            Ok(match until {
-                GateFor::ReadAfter(last) => ctl.next_step(last).is_some(),
-                GateFor::PublishAfter { last, states } => {
-                    let k = h.pub_step.load(Ordering::Acquire);
-                    k > last || (states && k == 0 && h.seeded.load(Ordering::Acquire) == 0)
-                }
-            })
-        };
-        let check = || {
-            let domain = || seg.info.name.clone();
-            seg.intact()?;
-            if h.state.load(Ordering::Acquire) != STATE_RUNNING || !os::is_alive(seg.framework_id()) {
-                seg.intact_checked()?;
-                return Err(ShmError::FrameworkStopped { domain: domain() });
-            }
-            let c = seg.conn(self.slot).ok_or_else(|| ShmError::ConnectionLost { domain: domain() })?;
-            if c.active.load(Ordering::Acquire) != self.pid || seg.conn_id(self.slot) != self.id {
-                seg.intact_checked()?;
-                return Err(ShmError::ConnectionLost { domain: domain() });
-            }
-            Ok(())
-        };
-        let what = match until {
-            GateFor::ReadAfter(_) => "the framework's next step",
-            GateFor::PublishAfter { .. } => "a step to publish for",
-        };
-        wait_step(seg, self.wait, self.timeout, what, ready, check)
-    }
-}
-
-/// The wait of a participant for a step: until `ready`, at most `timeout`, except that a
-/// paused framework costs no timeout (the wait goes on for as long as the pause lasts, and
-/// a whole timeout after it); `check` runs now and then and ends the wait with its error.
-fn wait_step(
-    seg: &Segment,
-    mode: WaitMode,
-    timeout: Duration,
-    what: &'static str,
-    mut ready: impl FnMut() -> Result<bool, ShmError>,
-    mut check: impl FnMut() -> Result<(), ShmError>,
-) -> Result<(), ShmError> {
-    let h = seg.header();
-    let waiter = Waiter { mode, futex: &h.step_seq, waiters: &h.step_waiters, check_every: Duration::from_millis(20) };
-    loop {
-        let deadline = Instant::now() + timeout;
-        match waiter.wait(deadline, &mut ready, &mut check)? {
-            Waited::Ready => return Ok(()),
-            Waited::TimedOut if !seg.step_wait_may_time_out(timeout) => {}
-            Waited::TimedOut => {
-                return Err(ShmError::Timeout { domain: seg.info.name.clone(), what, ms: timeout.as_millis() as u64 })
-            }
-        }
+        self.waiting.wait(&self.seg)
     }
 }
 
