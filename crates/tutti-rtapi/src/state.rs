@@ -129,7 +129,7 @@ impl State {
 
     /// The participant behind `key`; fails if it is not connected.
     pub fn participant(&mut self, key: u32) -> CallResult<&mut Participant> {
-        self.conn(key)?.as_mut().map(|c| &mut c.participant).ok_or_else(|| not_connected(key))
+        self.connected(key).map(|c| &mut c.participant)
     }
 
     /// The key of the current connection.
@@ -144,8 +144,7 @@ impl State {
 
     /// The current connection, which must be connected.
     pub fn current(&mut self) -> CallResult<&mut Conn> {
-        let key = self.current;
-        self.conn(key)?.as_mut().ok_or_else(|| not_connected(key))
+        self.connected(self.current)
     }
 
     pub fn set_skip_wait_to_go(&mut self, skip: bool) {
@@ -270,7 +269,7 @@ impl State {
         side: Side,
         op: impl FnOnce(&mut Conn) -> Result<T, ShmError>,
     ) -> CallResult<T> {
-        let conn = self.conn(key)?.as_mut().ok_or_else(|| not_connected(key))?;
+        let conn = self.connected(key)?;
         if let Some(ended) = &conn.ended {
             return Err(ended.failure(side));
         }
