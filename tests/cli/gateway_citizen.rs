@@ -336,8 +336,7 @@ fn a_segment_shrunk_under_the_gateway_leaves_it_running(e: Eng) {
     let ns = ns.as_str();
     let host = Host::start(ns, "gw_sync", Duration::from_millis(5), |k| (k as f64).to_ne_bytes().to_vec());
     let mut gw = e.gateway(DDF, dom, ns, &[]);
-    let path = tutti_core::shm::segment::segment_path(ns, "gw_sync");
-    std::fs::OpenOptions::new().write(true).open(&path).unwrap().set_len(0).unwrap();
+    tutti_test_support::shrink_segment(ns, "gw_sync", 0);
     assert!(gw.wait_line("shrank", SECS(30)).is_some(), "the gateway never said the segment was shrunk\n{}", gw.dump());
     thread::sleep(Duration::from_millis(500));
     assert!(gw.exited().is_none(), "the gateway died\n{}", gw.dump());

@@ -159,7 +159,7 @@ fn a_segment_shrunk_under_the_host_ends_it_with_a_clean_error() {
         assert!(Instant::now() < deadline, "{} did not appear", path.display());
         std::thread::sleep(Duration::from_millis(10));
     }
-    std::fs::OpenOptions::new().write(true).open(&path).unwrap().set_len(0).unwrap();
+    tutti_test_support::shrink_segment(&ns, "multiuav_uav1", 0);
     let status = g.host.wait_status(Duration::from_secs(30)).expect("the host went on over a shrunk segment");
     assert_eq!(status.signal(), None, "the host was killed by a signal: {status}\n{}", g.host.dump());
     assert_eq!(status.code(), Some(1), "{}", g.host.dump());

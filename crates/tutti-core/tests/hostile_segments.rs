@@ -7,7 +7,6 @@
 
 mod common;
 
-use std::fs::OpenOptions;
 use std::os::unix::fs::MetadataExt;
 use std::path::PathBuf;
 use std::time::Duration;
@@ -54,13 +53,6 @@ fn truncated(e: &ShmError) -> bool {
     matches!(e, ShmError::Truncated { .. })
 }
 
-/// The segment's file, shrunk to `len` bytes by "another process" (this one, through its
-/// own file handle: the mappings do not know the difference).
-fn shrink(ns: &str, len: u64) {
-    let f = OpenOptions::new().write(true).open(segment_path(ns, "d")).expect("opening the segment's file");
-    f.set_len(len).expect("shrinking the segment");
-}
-
 fn shrunk_under_a_live_framework(cut: u64, sync: bool) {
     let ns = tutti_test_support::namespace(&format!("hs-cut{cut}-"));
     let _clean = Cleanup(vec![segment_path(&ns, "d")]);
@@ -70,7 +62,7 @@ fn shrunk_under_a_live_framework(cut: u64, sync: bool) {
     let mut p = Participant::connect("d", copts(&ns)).expect("connecting");
     let mut obs = Observer::new("d".into());
     assert!(matches!(obs.look(&ns), Look::Fresh));
-    shrink(&ns, cut.min(full - 1));
+    tutti_test_support::shrink_segment(&ns, "d", cut.min(full - 1));
 
     // The framework: a step touches its header and both sets; it ends in Truncated, and
     // this process lives on to say so.

@@ -11,7 +11,8 @@
 //!   when it is missing the test is skipped with a message, and under `CI=true` it fails.
 //! * [`Worker`]: a thread that loops until it is dropped (an in-process framework);
 //!   [`within`]: a call on a thread of its own, failing the test if it hangs or panics.
-//! * [`RemoveSegments`], [`segments_of`]: the shared-memory segments of a namespace.
+//! * [`RemoveSegments`], [`segments_of`], [`shrink_segment`]: the shared-memory segments of a
+//!   namespace.
 //! * [`compile_c`], [`rtapi_lib_dir`]: C programs built against this build's librtapi.
 //! * `fmu` (feature `fmu`): FMUs built for the FMU tests.
 //!
@@ -32,7 +33,7 @@ pub use names::{dds_domain_in, namespace};
 pub use policy::{ci, python, require, require_tool, which};
 pub use proc::{Proc, Spawn};
 pub use run::{run_output, run_with_timeout, tutti, tutti_command, tutti_exe, workspace_bin, TIMEOUT};
-pub use segments::{segments_of, RemoveSegments};
+pub use segments::{segments_of, shrink_segment, RemoveSegments};
 pub use worker::{within, Worker};
 
 use std::path::{Path, PathBuf};

@@ -24,3 +24,12 @@ impl Drop for RemoveSegments {
         }
     }
 }
+
+/// Shrinks the segment of `domain` in namespace `ns` to `len` bytes, as a hostile process
+/// would (`ftruncate` through a file handle of its own: the mappings do not know the
+/// difference).
+pub fn shrink_segment(ns: &str, domain: &str, len: u64) {
+    let path = format!("/dev/shm/tutti.{ns}.{domain}");
+    let f = std::fs::OpenOptions::new().write(true).open(&path).unwrap_or_else(|e| panic!("opening {path}: {e}"));
+    f.set_len(len).unwrap_or_else(|e| panic!("shrinking {path}: {e}"));
+}
