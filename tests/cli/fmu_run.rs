@@ -45,18 +45,36 @@ fn setup(py: &Path, dir: &Path, synchronous: bool) -> (PathBuf, PathBuf) {
 
 /// The FMU is unpacked under the test's temp dir (TMPDIR), which goes even if the run crashes.
 fn fmu_run(ns: &str, py: &Path, fmu: &Path, ddf: &Path, args: &[&str]) -> (ExitStatus, String, String) {
+    fmu_run_with(ns, fmu, ddf, args, Some(&libpython(py)), None)
+}
+
+/// `tutti fmu run`, with `--preload LIB` if given and PATH replaced by `path` if given.
+fn fmu_run_with(
+    ns: &str,
+    fmu: &Path,
+    ddf: &Path,
+    args: &[&str],
+    preload: Option<&Path>,
+    path: Option<&Path>,
+) -> (ExitStatus, String, String) {
     let tmp = fmu.parent().expect("the FMU is in the test's temp dir");
     let mut cmd = common::tutti_command();
     cmd.args(["fmu", "run"])
         .arg(fmu)
         .arg("--ddf")
         .arg(ddf)
-        .args(["--domain", "lag", "--connect-timeout", "20s", "--preload"])
-        .arg(libpython(py))
+        .args(["--domain", "lag", "--connect-timeout", "20s"])
         .args(["--param", "tau=0.25", "--param", "gain=2"])
         .args(args)
         .env("TUTTI_NAMESPACE", ns)
-        .env("TMPDIR", tmp);
+        .env("TMPDIR", tmp)
+        .env_remove("TUTTI_FMU_PRELOAD");
+    if let Some(lib) = preload {
+        cmd.arg("--preload").arg(lib);
+    }
+    if let Some(path) = path {
+        cmd.env("PATH", path);
+    }
     common::run_with_timeout(cmd, Duration::from_secs(120))
 }
 
@@ -172,4 +190,35 @@ fn a_python_exception_in_do_step_is_reported_with_the_fmu_log_not_a_crash() {
         "{err}"
     );
     assert!(host_status.success(), "tutti host failed: {host_err}");
+}
+
+/// Without `--preload`, a PythonFMU model gets the libpython of the `python3` on PATH (the
+/// one whose packages its embedded interpreter finds): the run steps as with `--preload`.
+/// With no python3 on PATH, the refusal says what is missing and how to give it.
+#[test]
+fn a_pythonfmu_model_finds_libpython_from_the_python3_on_path() {
+    let Some(py) = python() else { return };
+    let dir = tempfile::tempdir().unwrap();
+    let ns = tutti_test_support::namespace("fmulibpy");
+    let (fmu, ddf) = setup(&py, dir.path(), false);
+    // PATH is the test's Python's directory only, which has its python3 (a venv's bin, or
+    // the system's).
+    let bin = py.parent().unwrap();
+    assert!(bin.join("python3").exists(), "no python3 beside {}", py.display());
+    let csv = dir.path().join("run.csv");
+    let host = host(&ns, &ddf, &csv, "4s");
+    let args = ["--step", "10ms", "--steps", "30", "-q"];
+    let (status, _, err) = fmu_run_with(&ns, &fmu, &ddf, &args, None, Some(bin));
+    let (host_status, _, host_err) = host.join().unwrap();
+    assert!(host_status.success(), "tutti host failed: {host_err}");
+    assert!(status.success(), "tutti fmu run without --preload failed: {err}");
+    let rows = recorded(&csv);
+    assert!(rows.contains_key(&30), "the last step never reached the framework: {:?}", rows.keys());
+
+    let empty = dir.path().join("empty");
+    std::fs::create_dir(&empty).unwrap();
+    let (status, _, err) = fmu_run_with(&ns, &fmu, &ddf, &args, None, Some(&empty));
+    assert_eq!(status.code(), Some(2), "{err}");
+    assert!(err.contains("undefined symbol") && err.contains("could not find it (running python3"), "{err}");
+    assert!(err.contains("--preload"), "{err}");
 }

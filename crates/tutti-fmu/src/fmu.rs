@@ -55,6 +55,40 @@ pub struct CallError {
     pub log: String,
 }
 
+/// Loads `lib` globally (its symbols resolve the FMU's), for the life of the process.
+fn load_global(lib: &Path) -> Result<(), String> {
+    use libloading::os::unix::{Library, RTLD_GLOBAL, RTLD_NOW};
+    // SAFETY: loading a library runs its initialisers; the user asked for exactly this
+    // library to be loaded into this process (as `LD_PRELOAD` would), or it is the libpython
+    // a PythonFMU model needs.
+    let lib = unsafe { Library::open(Some(lib), RTLD_NOW | RTLD_GLOBAL) }.map_err(|e| e.to_string())?;
+    // Kept: the FMU resolves symbols in it.
+    std::mem::forget(lib);
+    Ok(())
+}
+
+/// The shared libpython of the `python3` on PATH, as `sysconfig` names it.
+fn libpython() -> Result<PathBuf, String> {
+    const WHERE: &str = "import sysconfig, os; \
+        print(os.path.join(sysconfig.get_config_var('LIBDIR') or '', sysconfig.get_config_var('LDLIBRARY') or ''))";
+    let out = std::process::Command::new("python3")
+        .args(["-c", WHERE])
+        .stdin(std::process::Stdio::null())
+        .output()
+        .map_err(|e| format!("running python3: {e}"))?;
+    if !out.status.success() {
+        return Err(format!("python3 failed: {}", String::from_utf8_lossy(&out.stderr).trim()));
+    }
+    let lib = PathBuf::from(String::from_utf8_lossy(&out.stdout).trim());
+    if !lib.is_file() {
+        return Err(format!(
+            "python3 names {}, which is not a file (a Python built without a shared libpython?)",
+            lib.display()
+        ));
+    }
+    Ok(lib)
+}
+
 /// The functions an FMI 2.0 co-simulation FMU must export for tutti.
 const FMI2_SYMBOLS: &[&str] = &[
     "fmi2GetVersion",
@@ -178,25 +212,11 @@ impl Fmu {
     pub fn instantiate(&self, instance_name: &str, preload: &[PathBuf]) -> Result<Instance, LoadError> {
         let entry = self.binary_entry()?;
         for lib in preload {
-            // SAFETY: loading a library runs its initialisers; the user asked for exactly this
-            // library to be loaded into this process (as `LD_PRELOAD` would).
-            let loaded = unsafe {
-                libloading::os::unix::Library::open(
-                    Some(lib),
-                    libloading::os::unix::RTLD_NOW | libloading::os::unix::RTLD_GLOBAL,
-                )
-            };
-            match loaded {
-                // Kept for the life of the process: the FMU resolves symbols in it.
-                Ok(l) => std::mem::forget(l),
-                Err(e) => {
-                    return Err(LoadError::Preload {
-                        path: self.path.clone(),
-                        library: lib.display().to_string(),
-                        message: e.to_string(),
-                    })
-                }
-            }
+            load_global(lib).map_err(|message| LoadError::Preload {
+                path: self.path.clone(),
+                library: lib.display().to_string(),
+                message,
+            })?;
         }
         let import_err = |e: fmi::Error| LoadError::Import { path: self.path.clone(), message: e.to_string() };
         let inner = match self.model.fmi_version {
@@ -236,19 +256,42 @@ impl Fmu {
         let lib_path = dir.join(entry);
         // SAFETY: this is the FMU's own library, which the user asked to run; its
         // initialisers run here as they would when the fmi crate loads it a moment later.
-        let lib = unsafe { libloading::Library::new(&lib_path) }.map_err(|e| {
-            let message = e.to_string();
-            let python = self.model.generation_tool.as_deref().is_some_and(|t| t.starts_with("PythonFMU"));
-            let hint = if python && message.contains("undefined symbol") {
-                "\nhint: a PythonFMU model needs the host to load libpython: pass --preload with the libpython \
-                 of the Python that has the model's dependencies, e.g. --preload \"$(python3 -c 'import sysconfig, \
-                 os; print(os.path.join(sysconfig.get_config_var(\"LIBDIR\"), sysconfig.get_config_var(\"LDLIBRARY\")))')\""
-                    .to_string()
-            } else {
-                String::new()
-            };
-            LoadError::Library { path: self.path.clone(), library: entry.to_string(), message, hint }
-        })?;
+        let open = || unsafe { libloading::Library::new(&lib_path) };
+        let python = self.model.generation_tool.as_deref().is_some_and(|t| t.starts_with("PythonFMU"));
+        let failed = |e: libloading::Error, hint: String| LoadError::Library {
+            path: self.path.clone(),
+            library: entry.to_string(),
+            message: e.to_string(),
+            hint,
+        };
+        let lib = match open() {
+            Ok(lib) => lib,
+            // A PythonFMU model expects its host to provide libpython: find the one of the
+            // `python3` on PATH (the interpreter the model's embedded Python also finds), load
+            // it and try again (docs/fmu.md, PythonFMU models).
+            Err(e) if python && e.to_string().contains("undefined symbol") => {
+                match libpython().and_then(|lib| load_global(&lib).map(|()| lib)) {
+                    Ok(libpython) => open().map_err(|e| {
+                        let hint = format!(
+                            "\nhint: tutti loaded {} (the libpython of the python3 on PATH) for this PythonFMU model; \
+                             pass --preload with the libpython of the Python that has the model's dependencies",
+                            libpython.display()
+                        );
+                        failed(e, hint)
+                    })?,
+                    Err(why) => {
+                        let hint = format!(
+                            "\nhint: a PythonFMU model needs the host to load libpython, and tutti could not find it \
+                             ({why}): put the Python that has the model's dependencies first on PATH, or pass --preload \
+                             with its libpython, e.g. --preload \"$(python3 -c 'import sysconfig, os; \
+                             print(os.path.join(sysconfig.get_config_var(\"LIBDIR\"), sysconfig.get_config_var(\"LDLIBRARY\")))')\""
+                        );
+                        return Err(failed(e, hint));
+                    }
+                }
+            }
+            Err(e) => return Err(failed(e, String::new())),
+        };
         for symbol in symbols {
             // SAFETY: only the symbol's presence is tested; the pointer is never called.
             let found = unsafe { lib.get::<*const std::ffi::c_void>(symbol.as_bytes()) };
