@@ -62,6 +62,11 @@ pub struct Args {
     /// reaches the input at the next step (docs/run.md, "Connections").
     #[arg(long = "connect", value_name = "CONNECTION", value_parser = tutti_host::connect::parse_connection)]
     connections: Vec<tutti_host::connect::ConnectionSpec>,
+    /// How the connections are applied within a step: 'delayed' (each carries its output's
+    /// value of the step before) or 'feedthrough' (domains fed by other domains are
+    /// evaluated again within the step, in graph order; docs/run.md, "Connections").
+    #[arg(long, value_name = "ORDERING", default_value = "delayed")]
+    ordering: tutti_host::connect::StepOrder,
     /// Run the DDS / ROS 2 gateway in this process, as `tutti gateway DDF --config CONFIG`
     /// would (the config file is optional; its `duration` and `mirror` keys do not apply):
     /// the framework's PUBLISH sets go to DDS from each step, with no poller in between.
@@ -91,6 +96,7 @@ impl Args {
             wait_for: self.wait_for.clone(),
             hold_until_start: false,
             connections: self.connections.clone(),
+            ordering: self.ordering,
             ddf_name: self.file.display().to_string(),
         }
     }

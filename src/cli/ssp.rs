@@ -8,6 +8,7 @@ use std::path::PathBuf;
 use std::time::Duration;
 
 use tutti_core::parse::parse_duration;
+use tutti_host::connect::StepOrder;
 use tutti_ssp::{Archive, PlanOptions, System};
 
 use super::{CliResult, Failure};
@@ -62,13 +63,18 @@ pub struct PlanArgs {
     /// The framework's wait for a step's answers.
     #[arg(long, value_parser = parse_duration, default_value = "10s")]
     pub timeout: Duration,
+    /// How the connections are applied within a step: 'delayed' (libcosim's ordering) or
+    /// 'feedthrough' (OMSimulator's: direct-feedthrough outputs evaluated again after the
+    /// exchange; docs/ssp.md).
+    #[arg(long, value_name = "ORDERING", default_value = "delayed")]
+    pub ordering: StepOrder,
 }
 
 impl PlanArgs {
     /// The plan's options; recordings absolute, since the launch file is elsewhere.
     pub fn options(&self) -> PlanOptions {
         let record = self.record.iter().map(|p| std::path::absolute(p).unwrap_or_else(|_| p.clone())).collect();
-        PlanOptions { step: self.step, steps: self.steps, record, timeout: self.timeout }
+        PlanOptions { step: self.step, steps: self.steps, record, timeout: self.timeout, ordering: self.ordering }
     }
 }
 

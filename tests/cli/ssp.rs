@@ -54,6 +54,11 @@ fn fixture(name: &str) -> String {
 /// `tutti run SYSTEM.ssp --record DIR/run.csv`, with libpython preloaded for the PythonFMU
 /// models; returns the output directory's CSV files by domain.
 fn run_tutti(py: &Path, ssp: &Path, dir: &Path, tag: &str) -> BTreeMap<String, String> {
+    run_tutti_with(py, ssp, dir, tag, &[])
+}
+
+/// [`run_tutti`] with more flags.
+fn run_tutti_with(py: &Path, ssp: &Path, dir: &Path, tag: &str, flags: &[&str]) -> BTreeMap<String, String> {
     let ns = common::namespace(tag);
     let _segments = common::RemoveSegments(ns.clone());
     let out = dir.join(format!("{tag}-out"));
@@ -66,6 +71,7 @@ fn run_tutti(py: &Path, ssp: &Path, dir: &Path, tag: &str) -> BTreeMap<String, S
         .arg("--record")
         .arg(&csv)
         .args(["--step", "10ms", "-q"])
+        .args(flags)
         .env("TUTTI_NAMESPACE", &ns)
         .env("TUTTI_FMU_PRELOAD", libpython(py));
     let (status, stdout, stderr) = run_with_timeout(cmd, Duration::from_secs(120));
@@ -203,6 +209,88 @@ fn a_chain_with_feedthrough_matches_libcosim_at_every_step() {
     );
 }
 
+/// The chain under `--ordering feedthrough` (OMSimulator's ordering): b, a gain with direct
+/// feedthrough, is evaluated again within the step, so b.y is 3 × a.y of the same step and
+/// c gets it one step sooner than in the default ordering. That is libcosim's run of the same
+/// system with b folded into the connection (a.y × 1.5 + 1 into c.u): equal at every step.
+#[test]
+fn the_feedthrough_ordering_passes_a_gain_on_within_the_step_as_if_folded() {
+    let Some(py) = python() else { return };
+    let dir = tempfile::tempdir().unwrap();
+    let fmus = build_fmus(&py, dir.path());
+    let ssv = fixture("a.ssv");
+    let extra: [(&str, &[u8]); 1] = [("resources/a.ssv", ssv.as_bytes())];
+    let ssp = archive(dir.path(), "chain", &fixture("chain.ssd"), &fmus, &extra);
+    let folded = archive(dir.path(), "folded", &fixture("chain-folded.ssd"), &fmus, &extra);
+    let files = run_tutti_with(&py, &ssp, dir.path(), "feedthrough", &["--ordering", "feedthrough"]);
+    let steps = 40;
+    let reference = libcosim(&py, &folded, steps, &["a.y", "c.u", "c.y"]);
+    let (ay, by, bu) =
+        (tutti_trace(&files, "a.y", false), tutti_trace(&files, "b.y", false), tutti_trace(&files, "b.u", true));
+    let (cu, cy) = (tutti_trace(&files, "c.u", true), tutti_trace(&files, "c.y", false));
+    assert_eq!(cy.len(), steps, "tutti recorded {} steps", cy.len());
+    assert!(ay.iter().any(|v| *v > 0.1), "a.y never moved: {ay:?}");
+    for k in 0..steps {
+        // Within the step: b's input is a's output of this step, and its output follows.
+        assert!(
+            close(bu[k], ay[k]) && close(by[k], 3.0 * ay[k]),
+            "step {k}: a.y {} b.u {} b.y {}",
+            ay[k],
+            bu[k],
+            by[k]
+        );
+        assert!(
+            close(ay[k], reference[k][0]),
+            "step {k}: a.y = {} under tutti, {} under libcosim",
+            ay[k],
+            reference[k][0]
+        );
+        assert!(
+            close(cy[k], reference[k][2]),
+            "step {k}: c.y = {} under tutti, {} under libcosim",
+            cy[k],
+            reference[k][2]
+        );
+        // A re-evaluated domain's row holds the inputs it was evaluated with last: those of
+        // the next step, which libcosim shows after the next step.
+        if k + 1 < steps {
+            assert!(
+                close(cu[k], reference[k + 1][1]),
+                "step {k}: c.u = {} under tutti, {} under libcosim",
+                cu[k],
+                reference[k + 1][1]
+            );
+        }
+    }
+    // And the default ordering is not that: c is one step behind.
+    let delayed = run_tutti(&py, &ssp, dir.path(), "delayed");
+    let cy_delayed = tutti_trace(&delayed, "c.y", false);
+    assert!(cy_delayed.iter().zip(&cy).any(|(d, f)| !close(*d, *f)), "the orderings gave the same c.y");
+
+    // A feedback loop with one feedthrough component (the controller) is exact too: the
+    // plant's next input is the controller's answer to the plant's output of this step.
+    let loop_ssp = archive(dir.path(), "feedback", &fixture("feedback.ssd"), &fmus, &[]);
+    let loop_folded = archive(dir.path(), "feedback-folded", &fixture("feedback-folded.ssd"), &fmus, &[]);
+    let files = run_tutti_with(&py, &loop_ssp, dir.path(), "loop", &["--ordering", "feedthrough"]);
+    let reference = libcosim(&py, &loop_folded, steps, &["plant.y"]);
+    let (plant_y, ctrl_y) = (tutti_trace(&files, "plant.y", false), tutti_trace(&files, "ctrl.y", false));
+    assert_eq!(plant_y.len(), steps, "tutti recorded {} steps", plant_y.len());
+    for k in 0..steps {
+        assert!(
+            close(plant_y[k], reference[k][0]),
+            "loop step {k}: plant.y = {} under tutti, {} under libcosim",
+            plant_y[k],
+            reference[k][0]
+        );
+        assert!(
+            close(ctrl_y[k], -0.8 * plant_y[k] + 2.0),
+            "loop step {k}: ctrl.y {} for plant.y {}",
+            ctrl_y[k],
+            plant_y[k]
+        );
+    }
+}
+
 /// A feedback loop through a gain with direct feedthrough: each output reaches the other
 /// component at the next step, as in libcosim.
 #[test]
@@ -294,8 +382,17 @@ fn refusals_point_at_the_element_and_ddf_writes_one_launch_file() {
 
     let ssp = archive(dir.path(), "chain", &chain, &fmus, &extra);
     let out = dir.path().join("made");
-    let (code, stdout, err) =
-        common::tutti(["ssp", "ddf", ssp.to_str().unwrap(), "--out", out.to_str().unwrap(), "--steps", "7"]);
+    let (code, stdout, err) = common::tutti([
+        "ssp",
+        "ddf",
+        ssp.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+        "--steps",
+        "7",
+        "--ordering",
+        "feedthrough",
+    ]);
     assert_eq!(code, 0, "{err}");
     let launches: Vec<PathBuf> = std::fs::read_dir(&out)
         .unwrap()
@@ -307,6 +404,7 @@ fn refusals_point_at_the_element_and_ddf_writes_one_launch_file() {
     let launch = std::fs::read_to_string(&launches[0]).unwrap();
     for want in [
         "\"steps\": 7",
+        "\"ordering\": \"feedthrough\"",
         "\"b/subscribe/y -> c/publish/u * 0.5 + 1\"",
         "\"a/u=1.5\"",
         "\"tau=0.2\"",

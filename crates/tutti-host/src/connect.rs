@@ -11,6 +11,17 @@
 //! they are given, to the PUBLISH sets of step k + 1. So a connection carries the value its
 //! output had at the end of the previous step (no output is evaluated again within a step),
 //! and a chain A -> B -> C of n connections takes n steps from A's output to C's input.
+//! That is [`StepOrder::Delayed`], the default (libcosim's ordering).
+//!
+//! **[`StepOrder::Feedthrough`]** (OMSimulator's ordering) adds, after the step's answers and
+//! before the exchange for the next step, one re-evaluation of every synchronous domain that
+//! an output of another domain feeds, in the order of the connections' graph
+//! ([`Connections::reevaluation_order`]): the connections are applied, the domain is
+//! published again with the same simulated time (a repeated step, which a participant
+//! answers without advancing: `tutti fmu run` sets the inputs and reads the outputs again),
+//! and its new outputs feed the domains after it. So a component with direct feedthrough
+//! passes its inputs on within the step. An algebraic loop is not solved: a domain in a
+//! cycle is re-evaluated once, where the cycle is entered.
 //!
 //! **The simulated time as a source.** `"@sim_time -> ctrl/publish/t"` writes, into every
 //! step's PUBLISH set, the simulated time of that very step (seconds, the time the framework
@@ -35,6 +46,42 @@
 use std::fmt;
 
 use tutti_core::ddf::{Leaf, Model, Role, ScalarType, Value};
+
+/// How the connections are applied within a step (see the module).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum StepOrder {
+    /// Each connection carries its output's value at the end of the previous step.
+    #[default]
+    Delayed,
+    /// Domains fed by other domains are re-evaluated within the step, in graph order.
+    Feedthrough,
+}
+
+impl StepOrder {
+    pub fn as_str(self) -> &'static str {
+        match self {
+            StepOrder::Delayed => "delayed",
+            StepOrder::Feedthrough => "feedthrough",
+        }
+    }
+}
+
+impl std::str::FromStr for StepOrder {
+    type Err = String;
+    fn from_str(s: &str) -> Result<StepOrder, String> {
+        match s {
+            "delayed" => Ok(StepOrder::Delayed),
+            "feedthrough" => Ok(StepOrder::Feedthrough),
+            _ => Err(format!("'{s}': expected 'delayed' (the default) or 'feedthrough'")),
+        }
+    }
+}
+
+impl fmt::Display for StepOrder {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self.as_str())
+    }
+}
 
 /// A connection as written, before it is checked against a model.
 #[derive(Debug, Clone, PartialEq)]
@@ -448,6 +495,28 @@ impl Connections {
         }
     }
 
+    /// The domains [`StepOrder::Feedthrough`] re-evaluates, in the order it does: every domain
+    /// for which `synchronous(i)` holds that an output of another domain feeds, each after
+    /// the domains that feed it. Where the graph has a cycle, the first domain of the cycle
+    /// to be fed in the connections' order goes first.
+    pub fn reevaluation_order(&self, synchronous: impl Fn(usize) -> bool) -> Vec<usize> {
+        let edges: Vec<(usize, usize)> =
+            self.list.iter().map(|c| (c.from.domain, c.to.domain)).filter(|&(a, b)| a != b && synchronous(b)).collect();
+        let mut left: Vec<usize> = Vec::new();
+        for &(_, b) in &edges {
+            if !left.contains(&b) {
+                left.push(b);
+            }
+        }
+        let mut order = Vec::with_capacity(left.len());
+        while !left.is_empty() {
+            // The first domain none of whose sources is still to come; else (a cycle) the first.
+            let ready = left.iter().position(|&d| !edges.iter().any(|&(a, b)| b == d && left.contains(&a)));
+            order.push(left.remove(ready.unwrap_or(0)));
+        }
+        order
+    }
+
     /// Copies each item connection's output in `subscribe(i)` (domain i's SUBSCRIBE set, i in
     /// model order) to its input in `publish` (each domain's PUBLISH buffer), in order:
     /// called after each step, for the next, with nothing allocated.
@@ -541,6 +610,62 @@ mod tests {
         let specs: Vec<ConnectionSpec> = specs.iter().map(|s| parse_connection(s).unwrap()).collect();
         let sets: Vec<String> = sets.iter().map(|s| s.to_string()).collect();
         Connections::resolve(&model(), &specs, &sets)
+    }
+
+    /// Four synchronous domains a..d and an asynchronous one e, each with inputs x and x2 and an
+    /// output y. `"a>b"` connects a's y to b's x, `"a>b2"` to b's x2.
+    fn chain_model() -> Model {
+        let domain = |name: &str, sync: &str| {
+            format!(
+                "<domain name=\"{name}\"><synchronous>{sync}</synchronous><multiplePublishAllowed>no</multiplePublishAllowed><states>no</states>\
+                 <set name=\"PUBLISH\"><item name=\"x\"><type>float64</type></item><item name=\"x2\"><type>float64</type></item></set>\
+                 <set name=\"SUBSCRIBE\"><item name=\"y\"><type>float64</type></item></set></domain>"
+            )
+        };
+        let domains: String = [("a", "yes"), ("b", "yes"), ("c", "yes"), ("d", "yes"), ("e", "no")]
+            .iter()
+            .map(|(n, s)| domain(n, s))
+            .collect();
+        tutti_core::ddf::parse_str(&format!("<orchestra>{domains}</orchestra>"), "chain.ddf").unwrap()
+    }
+
+    fn order(specs: &[&str]) -> Vec<String> {
+        let model = chain_model();
+        let specs: Vec<ConnectionSpec> = specs
+            .iter()
+            .map(|s| {
+                let (a, b) = s.split_once('>').unwrap();
+                let (b, x) = b.strip_suffix('2').map_or((b, "x"), |b| (b, "x2"));
+                parse_connection(&format!("{a}/subscribe/y -> {b}/publish/{x}")).unwrap()
+            })
+            .collect();
+        let c = Connections::resolve(&model, &specs, &[]).unwrap();
+        c.reevaluation_order(|i| model.domains[i].flags.synchronous)
+            .into_iter()
+            .map(|i| model.domains[i].name.clone())
+            .collect()
+    }
+
+    #[test]
+    fn feedthrough_reevaluates_each_fed_domain_after_its_sources() {
+        // Given backwards, evaluated forwards; a domain feeding itself and an asynchronous
+        // target are not re-evaluated; a source that nothing feeds is not either.
+        assert_eq!(order(&["c>d", "b>c", "a>b"]), ["b", "c", "d"]);
+        assert_eq!(order(&["a>a", "a>e"]), Vec::<String>::new());
+        // Two branches join: d after both.
+        assert_eq!(order(&["b>d", "c>d2", "a>b", "a>c"]), ["b", "c", "d"]);
+        // A cycle b <-> c fed by a: entered at the first fed domain of the cycle, once each.
+        assert_eq!(order(&["c>b", "b>c", "a>b2"]), ["b", "c"]);
+        assert_eq!(order(&["c>b", "b>c", "c>d"]), ["b", "c", "d"]);
+    }
+
+    #[test]
+    fn an_ordering_is_named_and_an_unknown_one_is_refused() {
+        assert_eq!("feedthrough".parse::<StepOrder>(), Ok(StepOrder::Feedthrough));
+        assert_eq!("delayed".parse::<StepOrder>(), Ok(StepOrder::Delayed));
+        assert_eq!(StepOrder::default(), StepOrder::Delayed);
+        let e = "gauss-seidel".parse::<StepOrder>().unwrap_err();
+        assert!(e.contains("'gauss-seidel'") && e.contains("feedthrough"), "{e}");
     }
 
     #[test]

@@ -8,7 +8,7 @@ use std::time::{Duration, Instant};
 use tutti_core::ddf::{Domain, Model};
 use tutti_core::shm::{DomainHost, Framework, FrameworkOptions, StepReport, WaitMode};
 
-use crate::connect::{ConnectionSpec, Connections};
+use crate::connect::{ConnectionSpec, Connections, StepOrder};
 use crate::control::{Components, ControlPort, Refusal, Reply, Request, RunState};
 use crate::steps::{complete_all, publish_all, wait_for_writers};
 use crate::{HostError, Tick, Ticker};
@@ -46,6 +46,8 @@ pub struct HostOptions {
     /// Connections in the framework: outputs copied to inputs at every step
     /// ([`crate::connect`]).
     pub connections: Vec<ConnectionSpec>,
+    /// How the connections are applied within a step ([`crate::connect`]).
+    pub ordering: StepOrder,
     /// The DDF's name, for messages.
     pub ddf_name: String,
 }
@@ -66,6 +68,7 @@ impl Default for HostOptions {
             wait_for: Vec::new(),
             hold_until_start: false,
             connections: Vec::new(),
+            ordering: StepOrder::Delayed,
             ddf_name: "the DDF".into(),
         }
     }
@@ -234,6 +237,8 @@ pub struct Host {
     /// Time spent paused, which a `duration` does not count.
     paused_for: Duration,
     connections: Connections,
+    /// The domains a [`StepOrder::Feedthrough`] step re-evaluates, in order (else none).
+    reevaluate: Vec<usize>,
 }
 
 impl fmt::Debug for Host {
@@ -271,6 +276,10 @@ impl Host {
         let fw = Framework::create(model, &fw_opts)
             .map_err(|source| HostError::Create { ddf: opts.ddf_name.clone(), source })?;
         let ticker = new_ticker(&opts);
+        let reevaluate = match opts.ordering {
+            StepOrder::Delayed => Vec::new(),
+            StepOrder::Feedthrough => connections.reevaluation_order(|i| model.domains[i].flags.synchronous),
+        };
         Ok(Host {
             fw,
             publish,
@@ -285,6 +294,7 @@ impl Host {
             control: None,
             paused_for: Duration::ZERO,
             connections,
+            reevaluate,
         })
     }
 
@@ -400,6 +410,7 @@ impl Host {
         for (i, r) in reports.iter().enumerate() {
             self.count_timeout(i, r, on_report);
         }
+        self.reevaluate(sim, on_report)?;
         let done = StepDone { reports: &reports, publish: &self.publish, sim, run_start: self.run_start };
         for sink in &mut self.sinks {
             sink.step(&self.fw, &done).map_err(|source| HostError::Sink { what: "writing the recording", source })?;
@@ -411,6 +422,26 @@ impl Host {
         }
         if let Some(c) = &self.control {
             c.shared.set(c.shared.state(), tick.k + 1, sim);
+        }
+        Ok(())
+    }
+
+    /// [`StepOrder::Feedthrough`]: after the step's answers, each fed domain in graph order
+    /// gets its inputs from the outputs as they now stand and is published again with the
+    /// step's simulated time (a repeated step: its participants answer without advancing),
+    /// so that its new outputs reach the domains after it within the step.
+    fn reevaluate(&mut self, sim: f64, on_report: &mut dyn FnMut(Report)) -> Result<(), HostError> {
+        for k in 0..self.reevaluate.len() {
+            let d = self.reevaluate[k];
+            let domains = &self.fw.domains;
+            self.connections.apply(|i| domains.get(i).map(|x| x.subscribe()), &mut self.publish);
+            let host = &mut self.fw.domains[d];
+            let name = host.info().name.clone();
+            let failed = |source| HostError::Domain { domain: name.clone(), source };
+            let removed = host.publish_step(&self.publish[d], sim).map_err(failed)?;
+            let mut report = host.complete_step().map_err(failed)?;
+            report.removed += removed;
+            self.count_timeout(d, &report, on_report);
         }
         Ok(())
     }

@@ -26,7 +26,7 @@ use tutti_core::parse::{parse_duration, parse_wait};
 use tutti_core::shm::WaitMode;
 use tutti_gateway::config::{self as gateway_config, ConfigFile};
 use tutti_gateway::GatewayOptions;
-use tutti_host::connect::{parse_connection, ConnectionSpec, Connections};
+use tutti_host::connect::{parse_connection, ConnectionSpec, Connections, StepOrder};
 
 use crate::LaunchError;
 
@@ -73,6 +73,8 @@ pub struct Framework {
     pub set: Vec<String>,
     /// `wait`: how the framework waits for participants (default block).
     pub wait: WaitMode,
+    /// `ordering`: how connections are applied within a step (default `delayed`).
+    pub ordering: StepOrder,
 }
 
 impl Default for Framework {
@@ -88,6 +90,7 @@ impl Default for Framework {
             record: Vec::new(),
             set: Vec::new(),
             wait: WaitMode::Block,
+            ordering: StepOrder::Delayed,
         }
     }
 }
@@ -388,6 +391,8 @@ struct FrameworkKeys {
     set: Vec<String>,
     #[serde(default, deserialize_with = "de_wait")]
     wait: Option<WaitMode>,
+    #[serde(default, deserialize_with = "de_ordering")]
+    ordering: Option<StepOrder>,
 }
 
 fn de_step<'de, D: Deserializer<'de>>(d: D) -> Result<Option<Duration>, D::Error> {
@@ -417,6 +422,10 @@ fn de_duration<'de, D: Deserializer<'de>>(d: D) -> Result<Option<Duration>, D::E
 
 fn de_wait<'de, D: Deserializer<'de>>(d: D) -> Result<Option<WaitMode>, D::Error> {
     then(d, |s: String| parse_wait(&s).map(Some).map_err(|e| format!("wait: {e}")))
+}
+
+fn de_ordering<'de, D: Deserializer<'de>>(d: D) -> Result<Option<StepOrder>, D::Error> {
+    then(d, |s: String| s.parse().map(Some).map_err(|e| format!("ordering: {e}")))
 }
 
 fn de_record<'de, D: Deserializer<'de>>(d: D) -> Result<Vec<PathBuf>, D::Error> {
@@ -450,6 +459,7 @@ impl<'de> Deserialize<'de> for Framework {
                 record: k.record,
                 set: k.set,
                 wait: k.wait.unwrap_or(dflt.wait),
+                ordering: k.ordering.unwrap_or(dflt.ordering),
             })
         })
     }
@@ -797,6 +807,11 @@ mod tests {
         assert!(e.contains("connections: plant/subscribe/y -> plant/publish/z: no item 'z' in the PUBLISH set"), "{e}");
         let e = error("{ ddf: \"cosim.ddf\", connections: [\"plant/subscribe/y => plant/publish/x\"] }");
         assert!(e.contains("expected FROM -> TO"), "{e}");
+        let l = check("{ ddf: \"cosim.ddf\", framework: { ordering: \"feedthrough\" } }").1.unwrap();
+        assert_eq!(l.framework.ordering, StepOrder::Feedthrough);
+        let e = error("{ ddf: \"cosim.ddf\",\n  framework: { ordering: \"sequential\" } }");
+        assert!(e.starts_with(":2:"), "{e}");
+        assert!(e.contains("ordering: 'sequential': expected 'delayed' (the default) or 'feedthrough'"), "{e}");
     }
 
     #[test]
@@ -816,6 +831,7 @@ mod tests {
         let l = r.unwrap();
         assert_eq!(l.framework.step, Duration::from_millis(1));
         assert_eq!((l.framework.hold, l.framework.steps, l.framework.catch_up), (true, Some(30), true));
+        assert_eq!(l.framework.ordering, StepOrder::Delayed);
         assert_eq!(l.framework.record, vec![l.dir.join("run.mcap")]);
         assert_eq!(l.components.len(), 2);
         let a = &l.components[0];

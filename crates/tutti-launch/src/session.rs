@@ -82,6 +82,7 @@ pub fn run(
         wait_for: Vec::new(),
         hold_until_start: fw.hold,
         connections: launch.connections.clone(),
+        ordering: fw.ordering,
         ddf_name: launch.ddf.display().to_string(),
     };
     let mut host = Host::new(&launch.model, host_opts)?;

@@ -8,7 +8,7 @@ use std::time::Duration;
 
 use tutti_fmu::ddf::{domain_name, generate_domain, item_names, DdfOptions};
 use tutti_fmu::{Causality as FmiCausality, ModelDescription, VarType};
-use tutti_host::connect::{ConnectionSpec, Connections, ItemRef, Source};
+use tutti_host::connect::{ConnectionSpec, Connections, ItemRef, Source, StepOrder};
 
 use crate::model::{At, Causality, Component, System, Type};
 use crate::{Archive, SspError};
@@ -24,6 +24,8 @@ pub struct PlanOptions {
     pub record: Vec<PathBuf>,
     /// The framework's wait for a step's answers and for the seeds.
     pub timeout: Duration,
+    /// How the connections are applied within a step (`framework.ordering`).
+    pub ordering: StepOrder,
 }
 
 impl Default for PlanOptions {
@@ -33,6 +35,7 @@ impl Default for PlanOptions {
             steps: None,
             record: Vec::new(),
             timeout: Duration::from_secs(10),
+            ordering: StepOrder::Delayed,
         }
     }
 }
@@ -252,6 +255,9 @@ impl Plan {
         });
         if let Some(n) = steps {
             framework["steps"] = n.into();
+        }
+        if opts.ordering != StepOrder::Delayed {
+            framework["ordering"] = opts.ordering.as_str().into();
         }
         if !opts.record.is_empty() {
             framework["record"] = opts.record.iter().map(|p| p.display().to_string()).collect::<Vec<_>>().into();
