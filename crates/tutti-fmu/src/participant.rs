@@ -6,7 +6,9 @@
 //!   from that step's PUBLISH set, advances from its time to `s + h` (normally `doStep(s, h)`)
 //!   and commits its outputs as its answer to that step. The FMU is initialised at the time
 //!   of the first step it reads. If the framework went on without it (a step timed out), the
-//!   next `doStep` covers the gap (one longer step).
+//!   next `doStep` covers the gap (one longer step). A step that ends where the FMU already
+//!   is (a repeated step, as the framework's `feedthrough` ordering publishes: docs/run.md)
+//!   sets the inputs and commits the outputs again, with no `doStep`.
 //! * **Asynchronous domain**: the FMU steps on its own clock, every `step` of wall time, from
 //!   time 0 by `step`, with the latest inputs, and commits after each step.
 //!
@@ -281,7 +283,9 @@ impl FmuParticipant {
             // out): one longer step from the FMU's own time.
             self.instance.do_step(now, target - now)?;
         } else {
-            // Already there (the first step read raced with the framework's next one).
+            // Already there: a repeated step (the framework's feedthrough ordering evaluates
+            // the outputs again with new inputs), or the first step read raced with the
+            // framework's next one.
             return self.commit_outputs();
         }
         self.time = Some(target);
