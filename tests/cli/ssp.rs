@@ -1,6 +1,6 @@
 //! SSP archives (`tutti ssp inspect|ddf`, `tutti run SYSTEM.ssp`): systems of FMUs exported
 //! by pythonfmu (tests/fmu/python/Lag.py, tests/ssp/Gain.py, a gain with direct
-//! feedthrough), run by tutti with a CSV record and by libcosim (tests/ssp/reference.py), and
+//! feedthrough) and of the suite's own C FMU (tests/fmu/c2/Gain.c), run by tutti with a CSV record and by libcosim (tests/ssp/reference.py), and
 //! compared value by value at every communication step; refusals point at the element.
 
 use std::collections::BTreeMap;
@@ -8,7 +8,7 @@ use std::path::{Path, PathBuf};
 use std::process::Command;
 use std::time::Duration;
 
-use tutti_test_support::fmu::{build_lag, libpython, write_zip};
+use tutti_test_support::fmu::{build_c_gain, build_lag, libpython, write_zip};
 use tutti_test_support::{self as common, run_with_timeout};
 
 const STEP: f64 = 0.01;
@@ -21,8 +21,8 @@ fn python() -> Option<PathBuf> {
     common::python(&["pythonfmu", "libcosimpy"])
 }
 
-/// Builds Lag.fmu and Gain.fmu into `dir`.
-fn build_fmus(py: &Path, dir: &Path) -> (PathBuf, PathBuf) {
+/// Builds Lag.fmu, Gain.fmu (pythonfmu) and CGain.fmu (C) into `dir`.
+fn build_fmus(py: &Path, dir: &Path) -> Vec<PathBuf> {
     let lag = build_lag(py, dir);
     let mut cmd = Command::new(py);
     cmd.args(["-m", "pythonfmu", "build", "-f"])
@@ -32,15 +32,17 @@ fn build_fmus(py: &Path, dir: &Path) -> (PathBuf, PathBuf) {
         .current_dir(dir);
     let (status, out, err) = run_with_timeout(cmd, Duration::from_secs(120));
     assert!(status.success(), "pythonfmu build failed:\n{out}\n{err}");
-    (lag, dir.join("Gain.fmu"))
+    vec![lag, dir.join("Gain.fmu"), build_c_gain(dir)]
 }
 
 /// Zips `ssd` (text) with the FMUs and `extra` files into `dir/NAME.ssp`.
-fn archive(dir: &Path, name: &str, ssd: &str, fmus: &(PathBuf, PathBuf), extra: &[(&str, &[u8])]) -> PathBuf {
-    let lag = std::fs::read(&fmus.0).unwrap();
-    let gain = std::fs::read(&fmus.1).unwrap();
-    let mut entries: Vec<(&str, &[u8])> =
-        vec![("SystemStructure.ssd", ssd.as_bytes()), ("resources/Lag.fmu", &lag), ("resources/Gain.fmu", &gain)];
+fn archive(dir: &Path, name: &str, ssd: &str, fmus: &[PathBuf], extra: &[(&str, &[u8])]) -> PathBuf {
+    let files: Vec<(String, Vec<u8>)> = fmus
+        .iter()
+        .map(|f| (format!("resources/{}", f.file_name().unwrap().to_string_lossy()), std::fs::read(f).unwrap()))
+        .collect();
+    let mut entries: Vec<(&str, &[u8])> = vec![("SystemStructure.ssd", ssd.as_bytes())];
+    entries.extend(files.iter().map(|(n, b)| (n.as_str(), b.as_slice())));
     entries.extend_from_slice(extra);
     let path = dir.join(format!("{name}.ssp"));
     write_zip(&path, &entries);
@@ -209,6 +211,49 @@ fn a_chain_with_feedthrough_matches_libcosim_at_every_step() {
     );
 }
 
+/// Asserts that tutti's run of a chain a -> b (y = 3·u) -> c (0.5·y + 1) under `--ordering
+/// feedthrough` is libcosim's run of the same system with b folded into the connection
+/// (`folded`: a.y, c.u, c.y): b passes a's output of the step on within the step.
+fn assert_feedthrough_is_folded(files: &BTreeMap<String, String>, folded: &[Vec<f64>], what: &str) {
+    let (ay, by, bu) =
+        (tutti_trace(files, "a.y", false), tutti_trace(files, "b.y", false), tutti_trace(files, "b.u", true));
+    let (cu, cy) = (tutti_trace(files, "c.u", true), tutti_trace(files, "c.y", false));
+    assert_eq!(cy.len(), folded.len(), "{what}: tutti recorded {} steps", cy.len());
+    assert!(ay.iter().any(|v| *v > 0.1), "{what}: a.y never moved: {ay:?}");
+    for k in 0..folded.len() {
+        // Within the step: b's input is a's output of this step, and its output follows.
+        assert!(
+            close(bu[k], ay[k]) && close(by[k], 3.0 * ay[k]),
+            "{what}: step {k}: a.y {} b.u {} b.y {}",
+            ay[k],
+            bu[k],
+            by[k]
+        );
+        assert!(
+            close(ay[k], folded[k][0]),
+            "{what}: step {k}: a.y = {} under tutti, {} under libcosim",
+            ay[k],
+            folded[k][0]
+        );
+        assert!(
+            close(cy[k], folded[k][2]),
+            "{what}: step {k}: c.y = {} under tutti, {} under libcosim",
+            cy[k],
+            folded[k][2]
+        );
+        // A re-evaluated domain's row holds the inputs it was evaluated with last: those of
+        // the next step, which libcosim shows after the next step.
+        if k + 1 < folded.len() {
+            assert!(
+                close(cu[k], folded[k + 1][1]),
+                "{what}: step {k}: c.u = {} under tutti, {} under libcosim",
+                cu[k],
+                folded[k + 1][1]
+            );
+        }
+    }
+}
+
 /// The chain under `--ordering feedthrough` (OMSimulator's ordering): b, a gain with direct
 /// feedthrough, is evaluated again within the step, so b.y is 3 × a.y of the same step and
 /// c gets it one step sooner than in the default ordering. That is libcosim's run of the same
@@ -224,47 +269,10 @@ fn the_feedthrough_ordering_passes_a_gain_on_within_the_step_as_if_folded() {
     let folded = archive(dir.path(), "folded", &fixture("chain-folded.ssd"), &fmus, &extra);
     let files = run_tutti_with(&py, &ssp, dir.path(), "feedthrough", &["--ordering", "feedthrough"]);
     let steps = 40;
-    let reference = libcosim(&py, &folded, steps, &["a.y", "c.u", "c.y"]);
-    let (ay, by, bu) =
-        (tutti_trace(&files, "a.y", false), tutti_trace(&files, "b.y", false), tutti_trace(&files, "b.u", true));
-    let (cu, cy) = (tutti_trace(&files, "c.u", true), tutti_trace(&files, "c.y", false));
-    assert_eq!(cy.len(), steps, "tutti recorded {} steps", cy.len());
-    assert!(ay.iter().any(|v| *v > 0.1), "a.y never moved: {ay:?}");
-    for k in 0..steps {
-        // Within the step: b's input is a's output of this step, and its output follows.
-        assert!(
-            close(bu[k], ay[k]) && close(by[k], 3.0 * ay[k]),
-            "step {k}: a.y {} b.u {} b.y {}",
-            ay[k],
-            bu[k],
-            by[k]
-        );
-        assert!(
-            close(ay[k], reference[k][0]),
-            "step {k}: a.y = {} under tutti, {} under libcosim",
-            ay[k],
-            reference[k][0]
-        );
-        assert!(
-            close(cy[k], reference[k][2]),
-            "step {k}: c.y = {} under tutti, {} under libcosim",
-            cy[k],
-            reference[k][2]
-        );
-        // A re-evaluated domain's row holds the inputs it was evaluated with last: those of
-        // the next step, which libcosim shows after the next step.
-        if k + 1 < steps {
-            assert!(
-                close(cu[k], reference[k + 1][1]),
-                "step {k}: c.u = {} under tutti, {} under libcosim",
-                cu[k],
-                reference[k + 1][1]
-            );
-        }
-    }
+    assert_feedthrough_is_folded(&files, &libcosim(&py, &folded, steps, &["a.y", "c.u", "c.y"]), "pythonfmu gain");
     // And the default ordering is not that: c is one step behind.
     let delayed = run_tutti(&py, &ssp, dir.path(), "delayed");
-    let cy_delayed = tutti_trace(&delayed, "c.y", false);
+    let (cy, cy_delayed) = (tutti_trace(&files, "c.y", false), tutti_trace(&delayed, "c.y", false));
     assert!(cy_delayed.iter().zip(&cy).any(|(d, f)| !close(*d, *f)), "the orderings gave the same c.y");
 
     // A feedback loop with one feedthrough component (the controller) is exact too: the
@@ -289,6 +297,30 @@ fn the_feedthrough_ordering_passes_a_gain_on_within_the_step_as_if_folded() {
             plant_y[k]
         );
     }
+}
+
+/// The chain with b the test suite's own C FMU (tests/fmu/c2/Gain.c, FMI 2.0, its output
+/// computed from its input when read): equal to libcosim at every step in the default
+/// ordering, and to libcosim's folded chain under `--ordering feedthrough`.
+#[test]
+fn a_chain_through_a_c_fmu_matches_libcosim_in_both_orderings() {
+    let Some(py) = python() else { return };
+    let dir = tempfile::tempdir().unwrap();
+    let fmus = build_fmus(&py, dir.path());
+    let ssv = fixture("a.ssv");
+    let extra: [(&str, &[u8]); 1] = [("resources/a.ssv", ssv.as_bytes())];
+    let ssp = archive(dir.path(), "chain-c", &fixture("chain-c.ssd"), &fmus, &extra);
+    let folded = archive(dir.path(), "folded", &fixture("chain-folded.ssd"), &fmus, &extra);
+    let steps = 40;
+    let files = run_tutti(&py, &ssp, dir.path(), "c-delayed");
+    let vars = [("a.y", false), ("b.u", true), ("b.y", false), ("b.n", false), ("c.u", true), ("c.y", false)];
+    let names: Vec<&str> = vars.iter().map(|(v, _)| *v).collect();
+    compare(&files, &libcosim(&py, &ssp, steps, &names), &vars, "C chain");
+    let files = run_tutti_with(&py, &ssp, dir.path(), "c-feedthrough", &["--ordering", "feedthrough"]);
+    assert_feedthrough_is_folded(&files, &libcosim(&py, &folded, steps, &["a.y", "c.u", "c.y"]), "C gain");
+    // The repeated step made no doStep: the C gain counted one per communication step.
+    let n = tutti_trace(&files, "b.n", false);
+    assert_eq!(n.last().copied(), Some(steps as f64), "b.n: {n:?}");
 }
 
 /// A feedback loop through a gain with direct feedthrough: each output reaches the other

@@ -220,20 +220,34 @@ pub fn fmi3_headers() -> PathBuf {
 
 /// Builds tests/fmu/c/Integrator.c (FMI 3.0, C) into `dir/Integrator.fmu`.
 pub fn build_integrator(dir: &Path) -> PathBuf {
-    let src = repo().join("tests/fmu/c");
-    let so = dir.join("Integrator.so");
+    build_c_fmu(dir, "tests/fmu/c", &["Integrator.c", "stubs.c"], &fmi3_headers(), "Integrator")
+}
+
+/// Builds tests/fmu/c2/Gain.c (FMI 2.0, C, direct feedthrough) into `dir/CGain.fmu`.
+pub fn build_c_gain(dir: &Path) -> PathBuf {
+    let headers = fmi3_headers().parent().unwrap().parent().unwrap().join("fmi-standard2/headers");
+    build_c_fmu(dir, "tests/fmu/c2", &["Gain.c"], &headers, "CGain")
+}
+
+/// Compiles `sources` of the repository's `src_dir` against `headers` into an FMU
+/// `dir/ID.fmu` with that directory's modelDescription.xml (its modelIdentifier `id`).
+fn build_c_fmu(dir: &Path, src_dir: &str, sources: &[&str], headers: &Path, id: &str) -> PathBuf {
+    let src = repo().join(src_dir);
+    let so = dir.join(format!("{id}.so"));
     let mut cmd = Command::new("gcc");
-    cmd.args(["-Wall", "-Wextra", "-Werror", "-shared", "-fPIC"])
-        .arg(format!("-I{}", fmi3_headers().display()))
-        .arg(src.join("Integrator.c"))
-        .arg(src.join("stubs.c"))
-        .arg("-o")
-        .arg(&so);
+    cmd.args(["-Wall", "-Wextra", "-Werror", "-shared", "-fPIC"]).arg(format!("-I{}", headers.display()));
+    for s in sources {
+        cmd.arg(src.join(s));
+    }
+    cmd.arg("-o").arg(&so);
     let (status, _, err) = run_with_timeout(cmd, Duration::from_secs(60));
     assert!(status.success(), "gcc failed: {err}");
-    let fmu = dir.join("Integrator.fmu");
+    let fmu = dir.join(format!("{id}.fmu"));
     let md = std::fs::read(src.join("modelDescription.xml")).unwrap();
     let lib = std::fs::read(&so).unwrap();
-    write_zip(&fmu, &[("modelDescription.xml", &md), ("binaries/x86_64-linux/Integrator.so", &lib)]);
+    // FMI 2.0 and 3.0 name the platform folder differently.
+    let platform = if String::from_utf8_lossy(&md).contains("fmiVersion=\"3.0\"") { "x86_64-linux" } else { "linux64" };
+    let entry = format!("binaries/{platform}/{id}.so");
+    write_zip(&fmu, &[("modelDescription.xml", &md), (&entry, &lib)]);
     fmu
 }
