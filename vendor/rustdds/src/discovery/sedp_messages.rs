@@ -174,6 +174,8 @@ pub struct SubscriptionBuiltinTopicData {
   // pub user_data: Option<UserData>,
   time_based_filter: Option<TimeBasedFilter>,
   presentation: Option<Presentation>,
+  // tutti: the reader's HISTORY, announced as PID_HISTORY (TUTTI-PATCHES.md).
+  history: Option<History>,
   // pub partition: Option<Partition>,
   // pub topic_data: Option<TopicData>,
   // pub group_data: Option<GroupData>,
@@ -218,6 +220,7 @@ impl SubscriptionBuiltinTopicData {
       destination_order: None,
       time_based_filter: None,
       presentation: None,
+      history: None, // tutti: set from the QoS below
       lifespan: None,
       data_representation: None,
       // DDS-RPC
@@ -268,7 +271,8 @@ impl SubscriptionBuiltinTopicData {
     self.presentation = qos.presentation;
     self.lifespan = qos.lifespan;
     self.data_representation = qos.data_representation.clone();
-    // history does not exist
+    // tutti: history is kept (and announced), as Cyclone DDS does.
+    self.history = qos.history;
     // resource_limits does not exist
   }
 
@@ -283,7 +287,7 @@ impl SubscriptionBuiltinTopicData {
       time_based_filter: self.time_based_filter,
       reliability: self.reliability,
       destination_order: self.destination_order,
-      history: None, // SubscriptionBuiltinTopicData does not contain History QoS
+      history: self.history, // tutti: announced and read as PID_HISTORY
       resource_limits: None, // nor Resource Limits, see Figure 8.30 in RTPS spec 2.5
       lifespan: self.lifespan,
       data_representation: self.data_representation.clone(),
@@ -487,6 +491,7 @@ impl ParameterListable for DiscoveredReaderData {
           destination_order: _,
           time_based_filter: _,
           presentation: _,
+          history: _, // tutti: in the QoS like the others
           lifespan: _,
           data_representation: _,
 
@@ -644,6 +649,8 @@ pub struct PublicationBuiltinTopicData {
   pub ownership: Option<Ownership>,
   pub destination_order: Option<DestinationOrder>,
   pub presentation: Option<Presentation>,
+  // tutti: the writer's HISTORY, announced as PID_HISTORY (TUTTI-PATCHES.md).
+  pub history: Option<History>,
   pub data_representation: Option<DataRepresentation>,
 
   // From Remote Procedure Call over DDS:
@@ -683,6 +690,7 @@ impl PublicationBuiltinTopicData {
       ownership: None,
       destination_order: None,
       presentation: None,
+      history: None, // tutti: set by set_qos
       data_representation: None,
 
       service_instance_name: None,  // TODO: These are not supported/used
@@ -718,6 +726,7 @@ impl PublicationBuiltinTopicData {
     self.ownership = qos.ownership;
     self.destination_order = qos.destination_order;
     self.presentation = qos.presentation;
+    self.history = qos.history; // tutti: history is kept (and announced), as Cyclone DDS does
     self.data_representation = qos.data_representation.clone();
   }
 
@@ -732,7 +741,7 @@ impl PublicationBuiltinTopicData {
       time_based_filter: self.time_based_filter,
       reliability: self.reliability,
       destination_order: self.destination_order,
-      history: None,         // PublicationBuiltinTopicData does not contain History QoS
+      history: self.history, // tutti: announced and read as PID_HISTORY
       resource_limits: None, // nor Resource Limits, see Figure 8.30 in RTPS spec 2.5
       lifespan: self.lifespan,
       data_representation: self.data_representation.clone(),
@@ -947,6 +956,7 @@ impl ParameterListable for DiscoveredWriterData {
           destination_order: _,
           time_based_filter: _,
           presentation: _,
+          history: _, // tutti: in the QoS like the others
           lifespan: _,
           data_representation: _,
 

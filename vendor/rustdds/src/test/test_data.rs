@@ -298,6 +298,7 @@ pub(crate) fn publication_builtin_topic_data() -> Option<PublicationBuiltinTopic
       coherent_access: true,
       ordered_access: false,
     }),
+    history: Some(History::KeepAll), // tutti: the field the patch adds
     data_representation: None,
     related_datareader_key: None,
     service_instance_name: None,
