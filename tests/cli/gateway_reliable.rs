@@ -4,8 +4,8 @@
 //! the framework's process. Every step from the reader's first on must arrive once, in order
 //! and with its own data, and the gateway must count no step lost (docs/gateway.md, "Nothing
 //! lost on a synchronous set"). Also what a Cyclone peer (as rmw_cyclonedds, so rclpy) sees
-//! of the history of each engine's synchronous writers. DDS domains 220-225, namespaces
-//! `rel-rustdds-*`.
+//! of the history of each engine's writers and readers (docs/gateway.md, "The history a ROS 2
+//! tool shows"). DDS domains 220-225 and 131-132, namespaces `rel-rustdds-*`.
 
 use crate::gateway;
 
@@ -23,7 +23,7 @@ use tutti_test_support::{RemoveSegments, Worker};
 /// Steps stepped flat out once the reader has its first sample.
 const FLAT_OUT_STEPS: u64 = 20_000;
 
-/// This test's DDS domain: `base` for Cyclone, `base + 1` for rustdds (within 220-229).
+/// This test's DDS domain: `base` for Cyclone, `base + 1` for rustdds (within 220-229 or 131-132).
 fn dom(e: Eng, base: u16) -> u16 {
     base + u16::from(e.name == "rustdds")
 }
@@ -187,19 +187,42 @@ fn a_synchronous_writers_history_as_a_cyclone_peer_sees_it(e: Eng) {
     let Some(py) = python() else { return };
     let (dom, ns) = (dom(e, 224), e.ns("rel-rustdds-qos"));
     let gw = e.gateway(DDF, dom, &ns, &["--all-domains"]);
-    let mut p = peer(&py, "qos of gw_sync", dom, "qos", &["--topic", "rt/gw_sync/publish", "--timeout", "45"]);
-    assert_eq!(p.wait(SECS(60)), Some(0), "{}\n{}", p.dump(), gw.dump());
-    let q = json_lines(&p, "history").remove(0);
+    // Both engines announce the history (rustdds through its patch: vendor/rustdds).
+    let q = announced(&py, &gw, dom, "rt/gw_sync/publish", false);
     assert_eq!(q["reliability"], "Reliable", "{q}");
-    if e.name == "cyclone" {
-        assert_eq!((q["history"].as_str(), q["depth"].as_u64()), (Some("KeepAll"), None), "{q}");
-    } else {
-        assert_eq!((q["history"].as_str(), q["depth"].as_u64()), (Some("KeepLast"), Some(1)), "{q}");
+    assert_eq!((q["history"].as_str(), q["depth"].as_u64()), (Some("KeepAll"), None), "{q}");
+    // An asynchronous set's writer keeps the latest value only.
+    let q = announced(&py, &gw, dom, "rt/gw_async/publish", false);
+    assert_eq!((q["history"].as_str(), q["depth"].as_u64()), (Some("KeepLast"), Some(1)), "{q}");
+}
+
+fn a_synchronous_readers_history_as_a_cyclone_peer_sees_it(e: Eng) {
+    let Some(py) = python() else { return };
+    let (dom, ns) = (dom(e, 131), e.ns("rel-rustdds-rqos"));
+    let gw = e.gateway(DDF, dom, &ns, &["--all-domains"]);
+    let q = announced(&py, &gw, dom, "rt/gw_sync/subscribe", true);
+    assert_eq!(q["reliability"], "Reliable", "{q}");
+    assert_eq!((q["history"].as_str(), q["depth"].as_u64()), (Some("KeepAll"), None), "{q}");
+    let q = announced(&py, &gw, dom, "rt/gw_async/subscribe", true);
+    assert_eq!(q["reliability"], "BestEffort", "{q}");
+    assert_eq!((q["history"].as_str(), q["depth"].as_u64()), (Some("KeepLast"), Some(1)), "{q}");
+}
+
+/// The QoS a Cyclone peer reads in discovery of the gateway `gw`'s writer of `topic`
+/// (DCPSPublication), or with `readers` its reader (DCPSSubscription).
+fn announced(py: &std::path::Path, gw: &Proc, dom: u16, topic: &str, readers: bool) -> serde_json::Value {
+    let mut args = vec!["--topic", topic, "--timeout", "45"];
+    if readers {
+        args.push("--readers");
     }
+    let mut p = peer(py, &format!("qos of {topic}"), dom, "qos", &args);
+    assert_eq!(p.wait(SECS(60)), Some(0), "{}\n{}", p.dump(), gw.dump());
+    json_lines(&p, "history").remove(0)
 }
 
 per_engine!(
     a_separate_gateway_in_lock_step_loses_no_step,
     the_gateway_in_the_framework_process_loses_no_step,
     a_synchronous_writers_history_as_a_cyclone_peer_sees_it,
+    a_synchronous_readers_history_as_a_cyclone_peer_sees_it,
 );

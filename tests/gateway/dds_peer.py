@@ -21,7 +21,8 @@ Every mode prints JSON lines on stdout and exits 0 on success, 3 on timeout.
          must wait for it): prints {"first": k} at the first sample,
          and a summary (steps missing, repeated or out of order, data not the step's own) once
          the sample whose first data field is negative (the framework's last step) arrives
-  qos    --topic T [--timeout S]: the QoS of the first remote writer on T (DCPSPublication)
+  qos    --topic T [--timeout S] [--readers]: the QoS of the first remote writer on T (DCPSPublication;
+         with --readers, of the first remote reader: DCPSSubscription)
   nodes  --name NAME [--timeout S]: waits until ros_discovery_info lists node NAME
   lease  --name NAME --node-namespace NS [--timeout S]: the lease (in s) that the participant
          of node NS/NAME (on ros_discovery_info) announces (DCPSParticipant)
@@ -44,7 +45,8 @@ LOOPBACK = (
 )
 os.environ.setdefault("CYCLONEDDS_URI", LOOPBACK)
 
-from cyclonedds.builtin import BuiltinDataReader, BuiltinTopicDcpsParticipant, BuiltinTopicDcpsPublication  # noqa: E402
+from cyclonedds.builtin import (  # noqa: E402
+    BuiltinDataReader, BuiltinTopicDcpsParticipant, BuiltinTopicDcpsPublication, BuiltinTopicDcpsSubscription)
 from cyclonedds.core import Listener  # noqa: E402
 from cyclonedds.domain import DomainParticipant  # noqa: E402
 from cyclonedds.idl import IdlStruct  # noqa: E402
@@ -238,7 +240,7 @@ def history(q):
 
 
 def cmd_qos(dp, a):
-    rd = BuiltinDataReader(dp, BuiltinTopicDcpsPublication)
+    rd = BuiltinDataReader(dp, BuiltinTopicDcpsSubscription if a.readers else BuiltinTopicDcpsPublication)
     end = time.time() + a.timeout
     while time.time() < end:
         for s in rd.take(N=200):
@@ -362,6 +364,7 @@ def main():
     p.add_argument("--best-effort", action="store_true")
     p.add_argument("--exclusive", action="store_true")
     p.add_argument("--transient-local", action="store_true")
+    p.add_argument("--readers", action="store_true")
     p.add_argument("--reply-depth", type=int, default=0)
     p.add_argument("--strength", type=int, default=5)
     p.add_argument("--max-samples", type=int, default=0)

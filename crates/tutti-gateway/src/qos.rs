@@ -75,4 +75,33 @@ mod tests {
         assert_eq!(s.history(), Some(policy::History::KeepAll));
         assert_eq!(s.ownership(), Some(policy::Ownership::Shared));
     }
+
+    /// What rustdds announces of an endpoint in discovery keeps its history (the vendored
+    /// rustdds' patch, vendor/rustdds/TUTTI-PATCHES.md): a synchronous set's writer and reader
+    /// KEEP_ALL, an asynchronous set's KEEP_LAST 1. Without the patch both are `None`, which
+    /// a Cyclone peer shows as KEEP_LAST 1 (docs/gateway.md, "The history a ROS 2 tool shows").
+    #[test]
+    fn discovery_data_carries_the_history() {
+        use ros2_client::dds::rustdds::discovery::{PublicationBuiltinTopicData, SubscriptionBuiltinTopicData};
+        use ros2_client::dds::rustdds::GUID;
+        let f = |s| Flags { synchronous: s, multiple_publish_allowed: true, states: false };
+        let announced = |sync, end| {
+            let q = policies(&mapping::qos(f(sync), Profile::Ros2, end, 0));
+            let (topic, ty) = ("rt/d/publish".to_string(), "d::Set".to_string());
+            match end {
+                Endpoint::Writer => {
+                    PublicationBuiltinTopicData::new_with_qos(GUID::GUID_UNKNOWN, None, topic, ty, &q, None)
+                        .qos()
+                        .history()
+                }
+                Endpoint::Reader => {
+                    SubscriptionBuiltinTopicData::new(GUID::GUID_UNKNOWN, None, topic, ty, &q, None).qos().history()
+                }
+            }
+        };
+        assert_eq!(announced(true, Endpoint::Writer), Some(policy::History::KeepAll));
+        assert_eq!(announced(true, Endpoint::Reader), Some(policy::History::KeepAll));
+        assert_eq!(announced(false, Endpoint::Writer), Some(policy::History::KeepLast { depth: 1 }));
+        assert_eq!(announced(false, Endpoint::Reader), Some(policy::History::KeepLast { depth: 1 }));
+    }
 }

@@ -193,7 +193,7 @@ pub struct Remote {
 }
 
 /// The QoS a remote endpoint announced in discovery: the terms that decide matching and
-/// delivery (history is not announced).
+/// delivery (not the history: it decides neither).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct EndpointQos {
     pub reliability: Reliability,
