@@ -1023,7 +1023,7 @@ fn rate(r: &Received) -> f64 {
     }
 }
 
-/// The sink's "samples seconds lost misordered" line; waits for it to exit.
+/// The sink's "samples seconds lost misordered skipped-joining" line; waits for it to exit.
 fn sink_result(kid: &mut ChildProcess) -> anyhow::Result<Received> {
     let mut line = String::new();
     if let Some(out) = kid.child.stdout.take() {
@@ -1031,9 +1031,13 @@ fn sink_result(kid: &mut ChildProcess) -> anyhow::Result<Received> {
     }
     let v: Vec<f64> = line.split_whitespace().filter_map(|w| w.parse().ok()).collect();
     match v[..] {
-        [samples, secs, lost, misordered] if secs > 0.0 => {
-            Ok(Received { samples: samples as u64, secs, lost: lost as u64, misordered: misordered as u64 })
-        }
+        [samples, secs, lost, misordered, skipped_joining] if secs > 0.0 => Ok(Received {
+            samples: samples as u64,
+            secs,
+            lost: lost as u64,
+            misordered: misordered as u64,
+            skipped_joining: skipped_joining as u64,
+        }),
         _ => bail!("the sink received nothing"),
     }
 }
@@ -1064,7 +1068,7 @@ fn sink(ddf: &Path, role: &str, args: &Args) -> CliResult {
     let (opts, d) = peer_opts(ddf, args.ros_domain_id, args.dds)?;
     let role = if role == "publish" { Role::Publish } else { Role::Subscribe };
     let r = crate::peers::sink(&opts, &d, role, args.duration, PATIENCE, args.ordered).map_err(anyhow::Error::new)?;
-    println!("{} {} {} {}", r.samples, r.secs, r.lost, r.misordered);
+    println!("{} {} {} {} {}", r.samples, r.secs, r.lost, r.misordered, r.skipped_joining);
     Ok(())
 }
 
@@ -1184,7 +1188,10 @@ fn print_tables(runs: &[PlacementRun], large: &[(EngineKind, LargeFig)], large_d
             each(label, &|r| cell(get(r), |x| *x, 0, targeted.then_some((r.engine, met_rate))));
         }
         each("sync set shm -> gateway -> DDS sink, samples/s", &|r| cell(&r.sync, rate, 0, None));
-        each("sync set steps lost", &|r| cell(&r.sync, |s| s.lost as f64, 0, None));
+        each("sync set steps lost (after the reader joined)", &|r| cell(&r.sync, |s| s.lost as f64, 0, None));
+        each("sync set steps skipped while the reader joined", &|r| {
+            cell(&r.sync, |s| s.skipped_joining as f64, 0, None)
+        });
         each("sync set steps duplicated or reordered", &|r| cell(&r.sync, |s| s.misordered as f64, 0, None));
         each("lock-step, DDS echo answering each step, steps/s", &|r| cell(&r.lock, |l| l.per_s, 0, None));
         each("lock-step steps not answered for themselves", &|r| cell(&r.lock, |l| l.unanswered as f64, 0, None));
@@ -1240,8 +1247,11 @@ struct JsonRun {
     engine_alone_per_s: Option<f64>,
     sync_shm_to_dds_per_s: Option<f64>,
     sync_in_order: Option<bool>,
-    /// Steps of the synchronous set the sink never got (from its first on).
+    /// Steps of the synchronous set the sink never got, once its reader had joined (from
+    /// `JOINING` after its first sample on).
     sync_steps_lost: Option<u64>,
+    /// Steps the sink's reader skipped while it joined (DDS's start of a volatile reader).
+    sync_steps_skipped_joining: Option<u64>,
     sync_steps_unanswered: Option<u64>,
 }
 
@@ -1290,6 +1300,7 @@ fn to_json(runs: &[PlacementRun], large: &[(EngineKind, LargeFig)]) -> Json {
                 sync_shm_to_dds_per_s: r.sync.as_ref().ok().map(|s| rate(s).round()),
                 sync_in_order: r.sync.as_ref().ok().map(|s| s.lost == 0 && s.misordered == 0),
                 sync_steps_lost: r.sync.as_ref().ok().map(|s| s.lost),
+                sync_steps_skipped_joining: r.sync.as_ref().ok().map(|s| s.skipped_joining),
                 sync_steps_unanswered: r.lock.as_ref().ok().map(|l| l.unanswered),
             })
         })

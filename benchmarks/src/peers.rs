@@ -66,6 +66,13 @@ pub fn run(opts: &GatewayOptions, domain: &Domain, stop: Arc<AtomicBool>) -> Res
     Ok(n.load(Ordering::Relaxed))
 }
 
+/// How long after its first sample an ordered sink's reader counts as joining. A volatile
+/// reader that matches a writer stepping flat out gets the samples written once the writer
+/// knows it; its stream starts when the writer's first heartbeat reaches it, which may skip
+/// samples it already saw being sent. Measured on rustdds' writer: one gap of 16-47 steps,
+/// 0.2-1.5 ms after the first sample, and none after (docs/benchmarks.md).
+pub const JOINING: Duration = Duration::from_millis(20);
+
 /// What a [`sink`] received in its window.
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
 pub struct Received {
@@ -73,8 +80,11 @@ pub struct Received {
     pub samples: u64,
     /// Seconds they were counted over: the window, or less if the sink gave up earlier.
     pub secs: f64,
-    /// Ordered sinks: steps missing between two received ones.
+    /// Ordered sinks: steps missing between two received ones, once the reader has joined
+    /// (after [`JOINING`]).
     pub lost: u64,
+    /// Ordered sinks: steps missing between two received ones while the reader was joining.
+    pub skipped_joining: u64,
     /// Ordered sinks: samples whose step was not after the previous one (duplicated or
     /// reordered).
     pub misordered: u64,
@@ -118,6 +128,7 @@ pub fn sink(
         if ordered {
             match *last {
                 Some(prev) if s.step <= prev => got.misordered += 1,
+                Some(prev) if first.is_some_and(|t| t.elapsed() < JOINING) => got.skipped_joining += s.step - prev - 1,
                 Some(prev) => got.lost += s.step - prev - 1,
                 None => {}
             }
