@@ -69,8 +69,8 @@ pub fn run(opts: &GatewayOptions, domain: &Domain, stop: Arc<AtomicBool>) -> Res
 /// How long after its first sample an ordered sink's reader counts as joining. A volatile
 /// reader that matches a writer stepping flat out gets the samples written once the writer
 /// knows it; its stream starts when the writer's first heartbeat reaches it, which may skip
-/// samples it already saw being sent. Measured on rustdds' writer: one gap of 16-47 steps,
-/// 0.2-1.5 ms after the first sample, and none after (docs/benchmarks.md).
+/// samples it already saw being sent. Measured on rustdds' writer: one gap of 16-78 steps,
+/// 0.16-1.5 ms after the first sample, and none after (docs/benchmarks.md).
 pub const JOINING: Duration = Duration::from_millis(20);
 
 /// What a [`sink`] received in its window.
