@@ -1188,7 +1188,9 @@ fn print_tables(runs: &[PlacementRun], large: &[(EngineKind, LargeFig)], large_d
             each(label, &|r| cell(get(r), |x| *x, 0, targeted.then_some((r.engine, met_rate))));
         }
         each("sync set shm -> gateway -> DDS sink, samples/s", &|r| cell(&r.sync, rate, 0, None));
-        each("sync set steps lost (after the reader joined)", &|r| cell(&r.sync, |s| s.lost as f64, 0, None));
+        each("sync set steps lost (but for the start of the reader's stream)", &|r| {
+            cell(&r.sync, |s| s.lost as f64, 0, None)
+        });
         each("sync set steps skipped while the reader joined", &|r| {
             cell(&r.sync, |s| s.skipped_joining as f64, 0, None)
         });
@@ -1247,10 +1249,11 @@ struct JsonRun {
     engine_alone_per_s: Option<f64>,
     sync_shm_to_dds_per_s: Option<f64>,
     sync_in_order: Option<bool>,
-    /// Steps of the synchronous set the sink never got, once its reader had joined (from
-    /// `JOINING` after its first sample on).
+    /// Steps of the synchronous set missing from what the sink got, but for the start of its
+    /// stream (`peers::JOINING`).
     sync_steps_lost: Option<u64>,
-    /// Steps the sink's reader skipped while it joined (DDS's start of a volatile reader).
+    /// Steps the sink's reader skipped where its stream started (DDS's start of a volatile
+    /// reader: its first gap, within `peers::JOINING` of its first sample).
     sync_steps_skipped_joining: Option<u64>,
     sync_steps_unanswered: Option<u64>,
 }

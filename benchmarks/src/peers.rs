@@ -66,12 +66,14 @@ pub fn run(opts: &GatewayOptions, domain: &Domain, stop: Arc<AtomicBool>) -> Res
     Ok(n.load(Ordering::Relaxed))
 }
 
-/// How long after its first sample an ordered sink's reader counts as joining. A volatile
+/// How long after its first sample an ordered sink's reader may still be joining. A volatile
 /// reader that matches a writer stepping flat out gets the samples written once the writer
 /// knows it; its stream starts when the writer's first heartbeat reaches it, which may skip
-/// samples it already saw being sent. Measured on rustdds' writer: one gap of 16-78 steps,
-/// 0.16-1.5 ms after the first sample, and none after (docs/benchmarks.md).
-pub const JOINING: Duration = Duration::from_millis(20);
+/// samples it already saw being sent: one gap, the start of its stream. So the first gap
+/// within this time counts as skipped while joining, and any other gap as lost. Measured on
+/// rustdds' writer: one gap of 16-78 steps, 0.16-1.5 ms after the first sample on an idle
+/// machine, later under CPU stress, and none after (docs/benchmarks.md).
+pub const JOINING: Duration = Duration::from_secs(1);
 
 /// What a [`sink`] received in its window.
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
@@ -80,10 +82,11 @@ pub struct Received {
     pub samples: u64,
     /// Seconds they were counted over: the window, or less if the sink gave up earlier.
     pub secs: f64,
-    /// Ordered sinks: steps missing between two received ones, once the reader has joined
-    /// (after [`JOINING`]).
+    /// Ordered sinks: steps missing between two received ones, except the gap where the
+    /// reader's stream started ([`JOINING`]).
     pub lost: u64,
-    /// Ordered sinks: steps missing between two received ones while the reader was joining.
+    /// Ordered sinks: the steps of the first gap, if it came within [`JOINING`] of the first
+    /// sample (the start of a volatile reader's stream).
     pub skipped_joining: u64,
     /// Ordered sinks: samples whose step was not after the previous one (duplicated or
     /// reordered).
@@ -114,12 +117,13 @@ pub fn sink(
         rq.history = History::KeepLast(1 << 16);
     }
     let codec = Arc::new(SetCodec::new(&domain.set(role).layout));
-    // First sample's time, the result so far, the last step seen.
-    let state = Arc::new(Mutex::new((None::<Instant>, Received::default(), None::<u64>)));
+    // First sample's time, the result so far, the last step seen, whether the stream has started
+    // (its first gap, while joining, was seen).
+    let state = Arc::new(Mutex::new((None::<Instant>, Received::default(), None::<u64>, false)));
     let st = state.clone();
     let counter = typed_sink(codec.clone(), dds.own_prefix(), move |s| {
         let mut guard = st.lock().unwrap_or_else(PoisonError::into_inner);
-        let (first, got, last) = &mut *guard;
+        let (first, got, last, started) = &mut *guard;
         match *first {
             None => *first = Some(Instant::now()),
             Some(t) if t.elapsed() < window => got.samples += 1,
@@ -128,7 +132,10 @@ pub fn sink(
         if ordered {
             match *last {
                 Some(prev) if s.step <= prev => got.misordered += 1,
-                Some(prev) if first.is_some_and(|t| t.elapsed() < JOINING) => got.skipped_joining += s.step - prev - 1,
+                Some(prev) if s.step > prev + 1 && !*started && first.is_some_and(|t| t.elapsed() < JOINING) => {
+                    *started = true;
+                    got.skipped_joining += s.step - prev - 1
+                }
                 Some(prev) => got.lost += s.step - prev - 1,
                 None => {}
             }
@@ -147,7 +154,7 @@ pub fn sink(
         }
     }
     drop(dds);
-    let (first, mut got, _) = *state.lock().unwrap_or_else(PoisonError::into_inner);
+    let (first, mut got, _, _) = *state.lock().unwrap_or_else(PoisonError::into_inner);
     got.secs = first.map_or(0.0, |t| t.elapsed().min(window).as_secs_f64());
     Ok(got)
 }
