@@ -436,11 +436,9 @@ impl Host {
             let domains = &self.fw.domains;
             self.connections.apply(|i| domains.get(i).map(|x| x.subscribe()), &mut self.publish);
             let host = &mut self.fw.domains[d];
-            let name = host.info().name.clone();
-            let failed = |source| HostError::Domain { domain: name.clone(), source };
-            let removed = host.publish_step(&self.publish[d], sim).map_err(failed)?;
-            let mut report = host.complete_step().map_err(failed)?;
-            report.removed += removed;
+            let report = host
+                .step(&self.publish[d], sim)
+                .map_err(|source| HostError::Domain { domain: host.info().name.clone(), source })?;
             self.count_timeout(d, &report, on_report);
         }
         Ok(())
