@@ -122,7 +122,7 @@ fn text(v: &ShowJson<'_>) -> String {
             s,
             "\ndomain {}  synchronous={} multiplePublishAllowed={} states={}  layout {}",
             d.name,
-            yn(d.synchronous),
+            if d.event { "event" } else { yn(d.synchronous) },
             yn(d.multiple_publish_allowed),
             yn(d.states),
             d.layout_hash

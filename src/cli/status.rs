@@ -86,7 +86,13 @@ fn render_domain(s: &mut String, d: &DomainStatus, (step_rate, commit_rate): (f6
     let f = d.flags;
     let mode = format!(
         "{}{}{}",
-        if f.synchronous { "sync" } else { "async" },
+        if f.event {
+            "event"
+        } else if f.synchronous {
+            "sync"
+        } else {
+            "async"
+        },
         if f.multiple_publish_allowed { "" } else { ",exclusive" },
         if f.states { ",states" } else { "" }
     );

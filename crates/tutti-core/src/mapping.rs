@@ -478,7 +478,7 @@ mod tests {
 
     #[test]
     fn qos_table() {
-        let f = |s, m, st| Flags { synchronous: s, multiple_publish_allowed: m, states: st };
+        let f = |s, m, st| Flags { synchronous: s, event: false, multiple_publish_allowed: m, states: st };
         let w = qos(f(false, false, true), Profile::Ros2, Endpoint::Writer, 0);
         assert_eq!(w.reliability, Reliability::Reliable);
         assert_eq!(w.history, History::KeepLast(1));

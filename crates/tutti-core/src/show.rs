@@ -26,6 +26,8 @@ pub struct ShowJson<'a> {
 pub struct DomainJson<'a> {
     pub name: &'a str,
     pub synchronous: bool,
+    /// `<synchronous>event</synchronous>`: event-driven (docs/timing.md).
+    pub event: bool,
     pub multiple_publish_allowed: bool,
     pub states: bool,
     pub connection: Option<&'a crate::ddf::Connection>,
@@ -82,6 +84,7 @@ fn domain_json<'a>(d: &'a Domain, package: &str, profile: Profile) -> DomainJson
     DomainJson {
         name: &d.name,
         synchronous: d.flags.synchronous,
+        event: d.flags.event,
         multiple_publish_allowed: d.flags.multiple_publish_allowed,
         states: d.flags.states,
         connection: d.connection.as_ref(),

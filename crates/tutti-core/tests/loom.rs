@@ -9,7 +9,7 @@
 use loom::sync::Arc;
 use loom::thread;
 use tutti_core::shm::bucket::{Bucket, SLOTS};
-use tutti_core::shm::handshake::{ConnCtl, StepCtl, CONN_SYNC_READER, CONN_WRITER};
+use tutti_core::shm::handshake::{ConnCtl, StepCtl, CONN_EVENT, CONN_SYNC_READER, CONN_WRITER};
 use tutti_core::sync::{AtomicU32, AtomicU64, Ordering};
 
 /// The bucket's slots, two words each: enough to see a torn value (the words differ).
@@ -121,11 +121,21 @@ struct Shared {
     first_step: AtomicU64,
     last_read: AtomicU64,
     last_commit: AtomicU64,
+    changed_step: AtomicU64,
+    all_due_step: AtomicU64,
+    due_step: AtomicU64,
+    answered: AtomicU64,
 }
 
 impl Shared {
     fn step_ctl(&self) -> StepCtl<'_> {
-        StepCtl { pub_step: &self.pub_step, step_seq: &self.step_seq, ack_seq: &self.ack_seq }
+        StepCtl {
+            pub_step: &self.pub_step,
+            step_seq: &self.step_seq,
+            ack_seq: &self.ack_seq,
+            changed_step: &self.changed_step,
+            all_due_step: &self.all_due_step,
+        }
     }
     fn conn(&self) -> ConnCtl<'_> {
         ConnCtl {
@@ -134,6 +144,8 @@ impl Shared {
             first_step: &self.first_step,
             last_read: &self.last_read,
             last_commit: &self.last_commit,
+            due_step: &self.due_step,
+            answered: &self.answered,
         }
     }
 }
@@ -153,6 +165,10 @@ fn lock_step_handshake_reads_each_step_once_and_sees_each_answer() {
             first_step: AtomicU64::new(1),
             last_read: AtomicU64::new(0),
             last_commit: AtomicU64::new(0),
+            changed_step: AtomicU64::new(0),
+            all_due_step: AtomicU64::new(0),
+            due_step: AtomicU64::new(0),
+            answered: AtomicU64::new(0),
         });
         let p = s.clone();
         let participant = thread::spawn(move || {
@@ -183,8 +199,8 @@ fn lock_step_handshake_reads_each_step_once_and_sees_each_answer() {
         let mut out = [0u8; 16];
         for k in 1..=STEPS {
             s.publish.bucket().write(&value(k));
-            s.step_ctl().publish(k);
-            while s.conn().owes(k) {
+            s.step_ctl().publish(k, false);
+            while s.conn().owes(&s.step_ctl(), k) {
                 thread::yield_now();
             }
             s.subscribe.bucket().try_read(&mut out).expect("the only writer is done");
@@ -192,5 +208,74 @@ fn lock_step_handshake_reads_each_step_once_and_sees_each_answer() {
         }
         participant.join().unwrap();
         assert_eq!(s.last_read.load(Ordering::Relaxed), STEPS);
+    });
+}
+
+/// The event-driven handshake: a participant due at steps 1 and 3 only (it asks for step 3
+/// when it answers step 1) reads exactly those, and the framework never goes past a due step
+/// before its answer, nor waits at a step the participant is not due at.
+#[test]
+fn event_handshake_reads_exactly_the_due_steps() {
+    const STEPS: u64 = 4;
+    model(|| {
+        let s = Arc::new(Shared {
+            publish: Mem::new(),
+            subscribe: Mem::new(),
+            pub_step: AtomicU64::new(0),
+            step_seq: AtomicU32::new(0),
+            ack_seq: AtomicU32::new(0),
+            active: AtomicU32::new(1),
+            flags: AtomicU32::new(CONN_SYNC_READER | CONN_WRITER | CONN_EVENT),
+            first_step: AtomicU64::new(1),
+            last_read: AtomicU64::new(0),
+            last_commit: AtomicU64::new(0),
+            changed_step: AtomicU64::new(0),
+            all_due_step: AtomicU64::new(0),
+            due_step: AtomicU64::new(0),
+            answered: AtomicU64::new(0),
+        });
+        let p = s.clone();
+        let participant = thread::spawn(move || {
+            let mut answered = 0;
+            let mut out = [0u8; 16];
+            let mut read = Vec::new();
+            for next in [3, u64::MAX] {
+                let k = loop {
+                    if let Some(k) = p.step_ctl().next_due(&p.conn(), answered) {
+                        break k;
+                    }
+                    thread::yield_now();
+                };
+                let g = loop {
+                    if let Some(g) = p.publish.bucket().try_read(&mut out) {
+                        break g;
+                    }
+                    thread::yield_now();
+                };
+                assert_eq!(words(&out), (k, k), "read another step's data (generation {g})");
+                p.subscribe.bucket().write(&value(10 * k));
+                read.push(k);
+                p.step_ctl().answer(&p.conn(), k, next);
+                answered = k;
+            }
+            read
+        });
+        let mut out = [0u8; 16];
+        for k in 1..=STEPS {
+            s.publish.bucket().write(&value(k));
+            s.step_ctl().publish(k, false);
+            if k % 2 == 0 {
+                // Not due: the answer to the step before said so, before that step ended.
+                assert!(!s.conn().owes(&s.step_ctl(), k), "the framework would wait at step {k}");
+            }
+            while s.conn().owes(&s.step_ctl(), k) {
+                thread::yield_now();
+            }
+            if k == 1 || k == 3 {
+                s.subscribe.bucket().try_read(&mut out).expect("the only writer is done");
+                assert_eq!(words(&out), (10 * k, 10 * k), "framework missed the answer to step {k}");
+            }
+        }
+        assert_eq!(participant.join().unwrap(), [1, 3], "the participant reads its due steps only");
     });
 }

@@ -61,7 +61,7 @@ mod tests {
 
     #[test]
     fn table_rows_become_rustdds_policies() {
-        let f = |s, m, st| Flags { synchronous: s, multiple_publish_allowed: m, states: st };
+        let f = |s, m, st| Flags { synchronous: s, event: false, multiple_publish_allowed: m, states: st };
         let w = policies(&mapping::qos(f(false, false, true), Profile::Ros2, Endpoint::Writer, 0));
         assert!(matches!(w.reliability(), Some(policy::Reliability::Reliable { .. })));
         assert_eq!(w.history(), Some(policy::History::KeepLast { depth: 1 }));
@@ -84,7 +84,7 @@ mod tests {
     fn discovery_data_carries_the_history() {
         use ros2_client::dds::rustdds::discovery::{PublicationBuiltinTopicData, SubscriptionBuiltinTopicData};
         use ros2_client::dds::rustdds::GUID;
-        let f = |s| Flags { synchronous: s, multiple_publish_allowed: true, states: false };
+        let f = |s| Flags { synchronous: s, event: false, multiple_publish_allowed: true, states: false };
         let announced = |sync, end| {
             let q = policies(&mapping::qos(f(sync), Profile::Ros2, end, 0));
             let (topic, ty) = ("rt/d/publish".to_string(), "d::Set".to_string());

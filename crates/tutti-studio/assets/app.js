@@ -47,7 +47,7 @@ const ed = {
 };
 
 function newDomain(n) {
-  return { name: "domain" + n, synchronous: false, multiple_publish_allowed: true, states: false,
+  return { name: "domain" + n, synchronous: false, event: false, multiple_publish_allowed: true, states: false,
     connection: null, publish: [], subscribe: [] };
 }
 
@@ -155,6 +155,7 @@ function renderForm() {
         el("label", {}, "domain ", el("input", { "data-field": id, value: d.name, size: 20,
           oninput: (e) => { d.name = e.target.value; changed(false); } })),
         flag("synchronous", "synchronous"),
+        flag("event", "event-driven"),
         flag("multiple_publish_allowed", "multiplePublishAllowed"),
         flag("states", "states"),
         ...domainButtons(n, ["duplicate", "delete"])));
@@ -444,7 +445,7 @@ function onEvent(ev) {
       el("td", {}, d.owner_pid === c.pid ? "owner" : "")));
     box.append(el("div", { class: "live-domain" + (d.framework_alive ? "" : " stopped"), "data-domain": d.domain },
       el("strong", {}, d.domain), " ",
-      (d.flags.synchronous ? "sync" : "async") + (d.flags.multiple_publish_allowed ? "" : ", exclusive") + (d.flags.states ? ", states" : ""),
+      (d.flags.event ? "event" : d.flags.synchronous ? "sync" : "async") + (d.flags.multiple_publish_allowed ? "" : ", exclusive") + (d.flags.states ? ", states" : ""),
       el("div", {}, "framework pid " + d.framework_pid + (d.framework_alive ? "" : " (stopped)") + "  step " + d.step +
         "  " + rate + " steps/s  overruns " + d.overruns + "  late last " + fmtNs(d.last_late_ns) + " max " + fmtNs(d.max_late_ns) +
         "  participants " + d.connection_count + "  DDS writers " + d.dds_writers + "  DDS readers " + d.dds_readers + (d.owner_pid ? "  owner pid " + d.owner_pid : "")),

@@ -144,6 +144,10 @@ pub fn layout_hash(name: &str, flags: Flags, publish: &SetLayout, subscribe: &Se
     let mut h = Fnv::new();
     h.str("tutti-layout-v1").str(name);
     h.bytes(&[u8::from(flags.synchronous), u8::from(flags.multiple_publish_allowed), u8::from(flags.states)]);
+    if flags.event {
+        // Only when set, so that the hashes of every other domain stay as they were.
+        h.str("event");
+    }
     for (role, set) in [(Role::Publish, publish), (Role::Subscribe, subscribe)] {
         h.str(role.as_str()).u32(set.size).u32(set.align).u32(set.leaves.len() as u32);
         for leaf in &set.leaves {

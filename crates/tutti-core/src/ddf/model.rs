@@ -24,7 +24,11 @@ impl Model {
 /// The QoS flags of a domain (`docs/domains.md`).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
 pub struct Flags {
+    /// Lock-step (`yes`), or event-driven (`event`, which is synchronous too).
     pub synchronous: bool,
+    /// `<synchronous>event</synchronous>`: the framework waits at each step only for the
+    /// participants due at it (`docs/timing.md`). Implies `synchronous`.
+    pub event: bool,
     pub multiple_publish_allowed: bool,
     pub states: bool,
 }

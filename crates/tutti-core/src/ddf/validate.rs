@@ -193,7 +193,7 @@ fn domain(el: RawElement, d: &mut Diags) -> Option<Domain> {
     no_text(el, d);
     let name = name_attr(el, "domain", d);
     let label = name.unwrap_or("?");
-    let mut flags = Flags { synchronous: false, multiple_publish_allowed: true, states: false };
+    let mut flags = Flags { synchronous: false, event: false, multiple_publish_allowed: true, states: false };
     // Where each of synchronous, multiplePublishAllowed and states was first given.
     let mut flag_seen: [Option<Pos>; 3] = [None; 3];
     let mut connection = None;
@@ -218,6 +218,13 @@ fn domain(el: RawElement, d: &mut Diags) -> Option<Domain> {
                     continue;
                 }
                 flag_seen[which] = Some(child.pos());
+                if which == 0 && child.text().eq_ignore_ascii_case("event") {
+                    // tutti's extension: event-driven synchronisation (docs/ddf.md).
+                    leaf_element(child, d);
+                    flags.synchronous = true;
+                    flags.event = true;
+                    continue;
+                }
                 if let Some(v) = yes_no(child, d) {
                     match which {
                         0 => flags.synchronous = v,

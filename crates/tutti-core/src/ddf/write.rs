@@ -35,6 +35,9 @@ pub struct Document {
 pub struct DocDomain {
     pub name: String,
     pub synchronous: bool,
+    /// `<synchronous>event</synchronous>` (with `synchronous`): event-driven.
+    #[serde(default)]
+    pub event: bool,
     pub multiple_publish_allowed: bool,
     pub states: bool,
     /// The attributes of the optional `<connection>` element, in order.
@@ -76,6 +79,7 @@ impl From<&Model> for Document {
                 .map(|d| DocDomain {
                     name: d.name.clone(),
                     synchronous: d.flags.synchronous,
+                    event: d.flags.event,
                     multiple_publish_allowed: d.flags.multiple_publish_allowed,
                     states: d.flags.states,
                     connection: d.connection.as_ref().map(|c: &Connection| c.attributes.clone()),
@@ -184,11 +188,17 @@ pub fn write(doc: &Document) -> Written {
     for (n, d) in doc.domains.iter().enumerate() {
         let id = format!("d{n}");
         out.line(1, &format!("<domain name=\"{}\">", escape(&d.name)), Some(id.clone()));
+        if d.event {
+            out.line(2, "<synchronous>event</synchronous>", Some(format!("{id}.synchronous")));
+        }
         for (tag, field, v) in [
             ("synchronous", "synchronous", d.synchronous),
             ("multiplePublishAllowed", "multiple_publish_allowed", d.multiple_publish_allowed),
             ("states", "states", d.states),
         ] {
+            if d.event && tag == "synchronous" {
+                continue;
+            }
             out.line(2, &format!("<{tag}>{}</{tag}>", yes_no(v)), Some(format!("{id}.{field}")));
         }
         if let Some(attrs) = &d.connection {
@@ -283,6 +293,7 @@ mod tests {
             domains: vec![DocDomain {
                 name: "a&b".into(),
                 synchronous: true,
+                event: false,
                 multiple_publish_allowed: false,
                 states: false,
                 connection: None,

@@ -47,6 +47,8 @@ pub enum ShmError {
     Untrusted { domain: String, path: String, reason: String },
     #[error("domain '{domain}': another process shrank {path} under this process (it was {size} bytes); the domain's data can no longer be trusted")]
     Truncated { domain: String, path: String, size: usize },
+    #[error("domain '{domain}': {what} {value} s: {reason}")]
+    InvalidTiming { domain: String, what: &'static str, value: f64, reason: String },
     #[error("domain '{domain}': the connection was removed (the framework judged it dead or it disconnected)")]
     ConnectionLost { domain: String },
 }

@@ -3,7 +3,7 @@
 
 use std::time::{Duration, Instant};
 
-use super::handshake::CONN_WRITER;
+use super::handshake::{CONN_EVENT, CONN_SYNC_READER, CONN_WAKE, CONN_WRITER};
 use super::segment::{
     self, namespace_from_env, DomainInfo, DomainStatus, Segment, WaitMode, Waited, Waiter, STATE_STOPPED,
 };
@@ -116,6 +116,8 @@ pub struct DomainHost {
     /// The connections the last timed-out step waited for (see `timed_out_on`).
     waited_for: Vec<String>,
     seed_waited: bool,
+    /// The PUBLISH set of the last step (event-driven domains: to tell a changed step).
+    last_publish: Option<Vec<u8>>,
 }
 
 impl DomainHost {
@@ -129,6 +131,7 @@ impl DomainHost {
             last_sweep: Instant::now(),
             seed_waited: false,
             waited_for: Vec::new(),
+            last_publish: None,
         }
     }
 
@@ -198,16 +201,91 @@ impl DomainHost {
                 self.seg.header().timeouts.fetch_add(1, Ordering::Relaxed);
             }
         }
+        let changed = self.note_publish(publish);
         let h = self.seg.header();
         let k = self.step + 1;
         self.seg.bucket(Role::Publish).write(publish);
         h.sim_time_bits.store(sim_time.to_bits(), Ordering::Relaxed);
         h.heartbeat_ns.store(os::now_ns(), Ordering::Relaxed);
         h.steps.fetch_add(1, Ordering::Relaxed);
-        self.seg.step_ctl().publish(k);
+        self.seg.step_ctl().publish(k, changed);
         self.step = k;
         segment::wake(&h.step_seq, &h.step_waiters);
         Ok(removed)
+    }
+
+    /// Event-driven domains: whether `publish` differs from the last step's PUBLISH set (the
+    /// first step counts as a change), kept for the next step.
+    fn note_publish(&mut self, publish: &[u8]) -> bool {
+        if !self.seg.info.flags.event {
+            return false;
+        }
+        match &mut self.last_publish {
+            Some(last) if last.as_slice() == publish => false,
+            Some(last) => {
+                last.copy_from_slice(publish);
+                true
+            }
+            None => {
+                self.last_publish = Some(publish.to_vec());
+                true
+            }
+        }
+    }
+
+    /// Event-driven domains: how many of the next steps nobody would be due at if they were
+    /// published with `publish`, so that a framework not paced by the wall clock may skip
+    /// them ([`skip_steps`](Self::skip_steps)). 0 when someone is due at the next step (always
+    /// in a lock-step domain with participants), `None` when nobody will ever be due unless
+    /// an input changes (the framework then steps as usual).
+    pub fn idle_steps(&self, publish: &[u8]) -> Option<u64> {
+        let k = self.step + 1;
+        let seg = &self.seg;
+        if !seg.info.flags.synchronous {
+            return None;
+        }
+        let ctl = seg.step_ctl();
+        if ctl.all_due_step.load(Ordering::Acquire) == k {
+            return Some(0);
+        }
+        let changed = self.last_publish.as_deref() != Some(publish);
+        let mut next: Option<u64> = None;
+        for i in 0..seg.scan_len() {
+            let Some(conn) = seg.conn_ctl(i) else { break };
+            let flags = conn.flags.load(Ordering::Acquire);
+            // As `ConnCtl::owes`: only active connections that read in lock-step or write,
+            // from their first step.
+            if conn.active.load(Ordering::Acquire) == 0
+                || flags & (CONN_SYNC_READER | CONN_WRITER) == 0
+                || conn.first_step.load(Ordering::Acquire) > k
+            {
+                continue;
+            }
+            if flags & CONN_EVENT == 0 || (flags & CONN_WAKE != 0 && changed) {
+                return Some(0);
+            }
+            let due = conn.due_step.load(Ordering::Acquire).max(k);
+            next = Some(next.map_or(due, |n| n.min(due)));
+        }
+        next.map(|due| due - k)
+    }
+
+    /// Event-driven domains: leaves out the next `n` steps (nobody is due at them,
+    /// [`idle_steps`](Self::idle_steps)): the next step published is `current_step() + n + 1`.
+    pub fn skip_steps(&mut self, n: u64) {
+        self.step += n;
+    }
+
+    /// Event-driven domains: every participant is due at the next step (after a reset of
+    /// simulated time, so that each says anew when it is next due).
+    pub fn all_due_next(&self) {
+        self.seg.header().all_due_step.store(self.step + 1, Ordering::Release);
+    }
+
+    /// Says the simulated time of one step (seconds), so that an event-driven participant
+    /// can turn a time it asks for into a step.
+    pub fn set_sim_step(&self, seconds: f64) {
+        self.seg.header().sim_step_bits.store(seconds.to_bits(), Ordering::Release);
     }
 
     /// Second half of [`step`](Self::step): in a synchronous domain wait for the
@@ -226,14 +304,17 @@ impl DomainHost {
         let mut timed_out = 0;
         let mut removed = 0;
         if self.seg.info.flags.synchronous {
-            let (waited, r) =
-                self.wait_acks(move |seg| !(0..seg.scan_len()).any(|i| seg.conn_ctl(i).is_some_and(|c| c.owes(k))))?;
+            let (waited, r) = self.wait_acks(move |seg| {
+                let step = seg.step_ctl();
+                !(0..seg.scan_len()).any(|i| seg.conn_ctl(i).is_some_and(|c| c.owes(&step, k)))
+            })?;
             removed += r;
             if waited == Waited::TimedOut {
                 self.waited_for.clear();
+                let step = self.seg.step_ctl();
                 for i in 0..self.seg.scan_len() {
                     if let (Some(ctl), Some(slot)) = (self.seg.conn_ctl(i), self.seg.conn(i)) {
-                        if ctl.owes(k) {
+                        if ctl.owes(&step, k) {
                             slot.missed.fetch_add(1, Ordering::Relaxed);
                             timed_out += 1;
                             self.waited_for.push(self.seg.describe_conn(i));
@@ -340,6 +421,20 @@ impl DomainHost {
 
     pub fn set_hold(&self, hold: bool) {
         let h = self.seg.header();
+        if !hold {
+            // Every connection held so far takes part from the next step, whenever its
+            // process gets round to running again after the release.
+            let k = self.step;
+            for i in 0..self.seg.scan_len() {
+                let Some(c) = self.seg.conn(i) else { break };
+                if c.active.load(Ordering::Acquire) != 0 && c.first_step.load(Ordering::Acquire) == u64::MAX {
+                    c.last_read.store(k, Ordering::Relaxed);
+                    c.last_commit.store(k, Ordering::Relaxed);
+                    c.answered.store(k, Ordering::Relaxed);
+                    let _ = c.first_step.compare_exchange(u64::MAX, k + 1, Ordering::AcqRel, Ordering::Acquire);
+                }
+            }
+        }
         h.hold.store(u32::from(hold), Ordering::Release);
         if !hold {
             os::futex_wake_all(&h.hold);

@@ -7,6 +7,14 @@
 //! `k + 1` only when no connection that takes part in step `k` still owes it a read or a
 //! commit, or when the timeout expires. Since the framework never publishes twice while a
 //! reader owes a read, a reader's copy is never lapped and no step is read twice or skipped.
+//!
+//! In an event-driven domain (`docs/timing.md`) a connection that has said when it is next
+//! due ([`CONN_EVENT`]) takes part only in the steps it is due at: from `due_step` on, at a
+//! step whose PUBLISH set changed if it wakes on change ([`CONN_WAKE`]), and at the step
+//! after a reset (`all_due_step`). It answers its due step `k` by asking for the next
+//! ([`StepCtl::answer`]: `due_step` first, then `answered = k`), so the framework, which does
+//! not start `k + 1` before that answer, always knows the next due step in time, and a
+//! participant never misses a step it is due at.
 
 use crate::sync::{AtomicU32, AtomicU64, Ordering};
 
@@ -18,6 +26,11 @@ pub const CONN_SYNC_READER: u32 = 2;
 pub const CONN_REMOTE: u32 = 4;
 /// Connection flag: a passive observer (never waited for, not a participant).
 pub const CONN_OBSERVER: u32 = 8;
+/// Connection flag: an event-driven connection, due only at some steps (`due_step`, …).
+pub const CONN_EVENT: u32 = 16;
+/// Connection flag: an event-driven connection also due at any step whose PUBLISH set
+/// differs from the step before.
+pub const CONN_WAKE: u32 = 32;
 
 /// The step counters of one domain.
 #[derive(Debug, Clone, Copy)]
@@ -28,6 +41,11 @@ pub struct StepCtl<'a> {
     pub step_seq: &'a AtomicU32,
     /// Bumped on every acknowledgement or commit; the framework waits on it.
     pub ack_seq: &'a AtomicU32,
+    /// The last step whose PUBLISH set differs from the step before (written before
+    /// `pub_step`).
+    pub changed_step: &'a AtomicU64,
+    /// Every event-driven connection is due at this step (the first after a reset).
+    pub all_due_step: &'a AtomicU64,
 }
 
 /// The handshake fields of one connection slot.
@@ -40,11 +58,19 @@ pub struct ConnCtl<'a> {
     pub first_step: &'a AtomicU64,
     pub last_read: &'a AtomicU64,
     pub last_commit: &'a AtomicU64,
+    /// Event-driven: the step from which the connection is next due.
+    pub due_step: &'a AtomicU64,
+    /// Event-driven: the last step the connection answered.
+    pub answered: &'a AtomicU64,
 }
 
 impl StepCtl<'_> {
-    /// Framework: announce step `k` (its PUBLISH data is already in the bucket).
-    pub fn publish(&self, k: u64) {
+    /// Framework: announce step `k` (its PUBLISH data is already in the bucket); `changed`:
+    /// that data differs from the step before's.
+    pub fn publish(&self, k: u64, changed: bool) {
+        if changed {
+            self.changed_step.store(k, Ordering::Relaxed);
+        }
         self.pub_step.store(k, Ordering::Release);
         self.step_seq.fetch_add(1, Ordering::Release);
     }
@@ -61,6 +87,29 @@ impl StepCtl<'_> {
         self.ack_seq.fetch_add(1, Ordering::Release);
     }
 
+    /// Whether event-driven connection `conn` is due at step `k` (the step published now).
+    pub fn due(&self, conn: &ConnCtl<'_>, k: u64) -> bool {
+        k >= conn.due_step.load(Ordering::Acquire)
+            || self.all_due_step.load(Ordering::Acquire) == k
+            || (conn.flags.load(Ordering::Acquire) & CONN_WAKE != 0 && self.changed_step.load(Ordering::Acquire) == k)
+    }
+
+    /// Event-driven participant: the step published now, if it is after `answered` and the
+    /// connection is due at it. The framework stays at a due step until it is answered, so
+    /// waiting on this never misses one.
+    pub fn next_due(&self, conn: &ConnCtl<'_>, answered: u64) -> Option<u64> {
+        let k = self.pub_step.load(Ordering::Acquire);
+        (k > answered && self.due(conn, k)).then_some(k)
+    }
+
+    /// Event-driven participant: answer step `k` (what it commits for `k` is in already) and
+    /// be due next from step `next_due`.
+    pub fn answer(&self, conn: &ConnCtl<'_>, k: u64, next_due: u64) {
+        conn.due_step.store(next_due, Ordering::Release);
+        conn.answered.store(k, Ordering::Release);
+        self.ack_seq.fetch_add(1, Ordering::Release);
+    }
+
     /// Participant: record the commit (already in the SUBSCRIBE bucket) for step `k`.
     pub fn ack_commit(&self, conn: &ConnCtl<'_>, k: u64) {
         conn.last_commit.store(k, Ordering::Release);
@@ -69,8 +118,9 @@ impl StepCtl<'_> {
 }
 
 impl ConnCtl<'_> {
-    /// Whether this connection still owes the framework something for step `k`.
-    pub fn owes(&self, k: u64) -> bool {
+    /// Whether this connection still owes the framework something for step `k` (`step`: the
+    /// domain's counters, for an event-driven connection's due steps).
+    pub fn owes(&self, step: &StepCtl<'_>, k: u64) -> bool {
         if self.active.load(Ordering::Acquire) == 0 {
             return false;
         }
@@ -78,6 +128,10 @@ impl ConnCtl<'_> {
             return false;
         }
         let flags = self.flags.load(Ordering::Acquire);
+        if flags & CONN_EVENT != 0 {
+            // `answered` before `due_step`: an answer stores them the other way round.
+            return self.answered.load(Ordering::Acquire) < k && step.due(self, k);
+        }
         (flags & CONN_SYNC_READER != 0 && self.last_read.load(Ordering::Acquire) < k)
             || (flags & CONN_WRITER != 0 && self.last_commit.load(Ordering::Acquire) < k)
     }

@@ -5,7 +5,7 @@ use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 use super::bucket::{copy_words, store_bytes, store_range, with_bytes_mut};
-use super::handshake::{CONN_SYNC_READER, CONN_WRITER};
+use super::handshake::{CONN_EVENT, CONN_SYNC_READER, CONN_WAKE, CONN_WRITER};
 use super::segment::{
     self, namespace_from_env, ConnKind, DomainInfo, Segment, WaitMode, Waited, Waiter, MAX_READ_TRIES, STATE_RUNNING,
 };
@@ -78,7 +78,29 @@ pub struct Participant {
     stale_staging: bool,
     /// When the framework's process was last found alive (checked at most every 50 ms).
     framework_seen: std::cell::Cell<Instant>,
+    /// The simulated time of the step last read.
+    read_sim: f64,
+    /// When this connection is due, in an event-driven domain (`docs/timing.md`).
+    due: Due,
 }
+
+/// What an event-driven participant said about when it is due (`docs/timing.md`).
+#[derive(Debug, Clone, Copy, Default)]
+struct Due {
+    /// It said something: it takes part only in the steps it is due at.
+    said: bool,
+    /// Due at the first step at or after this simulated time (once).
+    request: Option<f64>,
+    /// Due every this many steps (at steps whose simulated time is a multiple of it).
+    period_steps: Option<u64>,
+    /// Also due at any step whose PUBLISH set changed.
+    wake: bool,
+    /// Its commit answers the step (a DDS writer: it never asks for a step itself).
+    answer_on_commit: bool,
+}
+
+/// A time within this fraction of a step of a step's time counts as that step.
+const STEP_TOLERANCE: f64 = 1e-6;
 
 impl Participant {
     /// Connects to domain `domain`: waits (up to `connect_timeout`) for its framework, then
@@ -114,6 +136,8 @@ impl Participant {
             // Start from the SUBSCRIBE values as they are: a commit changes only what we change.
             stale_staging: true,
             framework_seen: std::cell::Cell::new(Instant::now()),
+            read_sim: 0.0,
+            due: Due::default(),
             seg: Arc::new(seg),
             slot,
             id,
@@ -137,14 +161,16 @@ impl Participant {
     /// `Segment::claim_slot`) takes part in lock-step from the framework's next step on.
     fn join_lock_step(&mut self) {
         let Some(c) = self.seg.conn(self.slot) else { return };
-        if c.first_step.load(Ordering::Acquire) != u64::MAX {
-            return;
+        if c.first_step.load(Ordering::Acquire) == u64::MAX {
+            let k = self.seg.step();
+            c.last_read.store(k, Ordering::Relaxed);
+            c.last_commit.store(k, Ordering::Relaxed);
+            c.answered.store(k, Ordering::Relaxed);
+            // The framework's release (`DomainHost::set_hold`) may set it first.
+            let _ = c.first_step.compare_exchange(u64::MAX, k + 1, Ordering::AcqRel, Ordering::Acquire);
         }
-        let k = self.seg.step();
-        c.last_read.store(k, Ordering::Relaxed);
-        c.last_commit.store(k, Ordering::Relaxed);
-        (self.last_read, self.last_commit) = (k, k);
-        c.first_step.store(k + 1, Ordering::Release);
+        (self.last_read, self.last_commit) =
+            (c.last_read.load(Ordering::Acquire), c.last_commit.load(Ordering::Acquire));
     }
 
     /// Connects and checks that `domain` (from a DDF) describes the running domain: the same
@@ -276,10 +302,142 @@ impl Participant {
         self.check()?;
         if self.seg.info.flags.synchronous {
             self.set_flag(CONN_SYNC_READER);
+            if self.event_driven() {
+                let answered = self.ask_next();
+                self.waiting(GateFor::DueAfter(answered)).wait(&self.seg)?;
+                return self.check();
+            }
             self.forfeit_owed_answer();
             self.wait_next_step()?;
         }
         Ok(())
+    }
+
+    /// Whether this connection takes part only in the steps it is due at: it said when it
+    /// is due, in an event-driven domain.
+    fn event_driven(&self) -> bool {
+        self.due.said && self.seg.info.flags.event
+    }
+
+    /// Event-driven: answers the step this connection is at (what it committed for it is in)
+    /// and says when it is next due, from what it asked for during the step. Returns the
+    /// step answered; the connection's next step is the first due one after it.
+    fn ask_next(&mut self) -> u64 {
+        let s = self.last_read.max(self.locked_step);
+        let next = if self.has_read || self.locked_step > 0 { self.next_due_after(s) } else { 0 };
+        self.due.request = None;
+        let seg = &self.seg;
+        if let (Some(c), Some(conn)) = (seg.conn(self.slot), seg.conn_ctl(self.slot)) {
+            seg.step_ctl().answer(&conn, s, next);
+            // The kind of due-ness after the answer: the framework reads the flags first.
+            if self.due.wake {
+                c.flags.fetch_or(CONN_WAKE, Ordering::AcqRel);
+            } else {
+                c.flags.fetch_and(!CONN_WAKE, Ordering::AcqRel);
+            }
+            if c.flags.load(Ordering::Acquire) & CONN_EVENT == 0 {
+                c.flags.fetch_or(CONN_EVENT, Ordering::AcqRel);
+            }
+        }
+        let h = seg.header();
+        segment::wake(&h.ack_seq, &h.ack_waiters);
+        s
+    }
+
+    /// The first step after step `s` (at simulated time `read_sim`) this connection is due at:
+    /// the step of the time it asked for, the next multiple of its period, whichever comes
+    /// first; with neither, the next step unless it waits for changes only.
+    fn next_due_after(&self, s: u64) -> u64 {
+        let step = self.seg.sim_step();
+        let mut next = u64::MAX;
+        if let Some(t) = self.due.request {
+            let ahead = match step {
+                Some(dt) => ((t - self.read_sim) / dt - STEP_TOLERANCE).ceil(),
+                None => 1.0,
+            };
+            // At least the next step; far-off times saturate.
+            next = next.min(s.saturating_add(if ahead >= 1.0 { ahead as u64 } else { 1 }));
+        }
+        if let Some(p) = self.due.period_steps {
+            let n = step.map_or(0, |dt| (self.read_sim / dt).round().max(0.0) as u64);
+            let multiple = (n / p + 1) * p;
+            next = next.min(s.saturating_add(multiple - n));
+        }
+        if next == u64::MAX && !self.due.wake {
+            next = s + 1;
+        }
+        next
+    }
+
+    /// Asks to be due next at the first step at or after simulated time `t` (seconds): a
+    /// time within a millionth of a step of a step's time counts as that step. Once: the
+    /// request is used up at that step. Takes effect when this connection asks for its next
+    /// step. In a domain that is not event-driven it changes nothing (the participant is due
+    /// at every step there).
+    pub fn request_time(&mut self, t: f64) -> Result<(), ShmError> {
+        if !t.is_finite() {
+            return Err(self.invalid_timing("a requested time", t, "not a finite number".into()));
+        }
+        self.due.said = true;
+        self.due.request = Some(self.due.request.map_or(t, |r| r.min(t)));
+        Ok(())
+    }
+
+    /// Also due at any step whose PUBLISH set differs from the step before (`on`), or not.
+    pub fn set_wake_on_change(&mut self, on: bool) {
+        self.due.said = true;
+        self.due.wake = on;
+    }
+
+    /// Due every `seconds` of simulated time (a whole multiple of the framework's step), at
+    /// the steps whose time is a multiple of it; 0 turns the period off.
+    pub fn set_period(&mut self, seconds: f64) -> Result<(), ShmError> {
+        if seconds == 0.0 {
+            self.due.said = true;
+            self.due.period_steps = None;
+            return Ok(());
+        }
+        if !seconds.is_finite() || seconds < 0.0 {
+            return Err(self.invalid_timing("a period of", seconds, "must be a positive number of seconds".into()));
+        }
+        let Some(dt) = self.seg.sim_step() else {
+            return Err(self.invalid_timing(
+                "a period of",
+                seconds,
+                "the framework has not said its step yet (it says it when it creates the domain)".into(),
+            ));
+        };
+        let n = seconds / dt;
+        if n.round() < 1.0 || (n - n.round()).abs() > STEP_TOLERANCE * n.max(1.0) {
+            return Err(self.invalid_timing(
+                "a period of",
+                seconds,
+                format!("must be a whole multiple of the framework's step ({dt} s)"),
+            ));
+        }
+        self.due.said = true;
+        self.due.period_steps = Some(n.round() as u64);
+        Ok(())
+    }
+
+    /// A DDS writer through the gateway, in an event-driven domain: due at the steps whose
+    /// PUBLISH set changed, each answered by its commit (it never asks for a step itself).
+    pub fn wake_on_change_writer(&mut self) {
+        self.due = Due { said: true, wake: true, answer_on_commit: true, ..Due::default() };
+    }
+
+    /// The simulated time of the step this connection is at (the one it read last; in an
+    /// asynchronous domain the framework's latest).
+    pub fn simulation_time(&self) -> f64 {
+        if self.seg.info.flags.synchronous && (self.has_read || self.locked_step > 0) {
+            self.read_sim
+        } else {
+            self.seg.sim_time()
+        }
+    }
+
+    fn invalid_timing(&self, what: &'static str, value: f64, reason: String) -> ShmError {
+        ShmError::InvalidTiming { domain: self.seg.info.name.clone(), what, value, reason }
     }
 
     /// A writer that asks for the next step before it has answered the step it read (a
@@ -309,9 +467,20 @@ impl Participant {
     /// The end of every read of PUBLISH generation `generation`: returns the step read and,
     /// in a synchronous domain, acknowledges it (the caller wakes the framework).
     fn finish_read(&mut self, generation: u64) -> u64 {
+        let event = self.event_driven();
         let seg = &self.seg;
-        // The PUBLISH generation counts the framework's publishes, i.e. its steps.
-        let step = if seg.info.flags.synchronous { generation.max(self.last_read + 1) } else { generation };
+        // The PUBLISH generation counts the framework's publishes, i.e. its steps; an
+        // event-driven connection reads the due step the framework stays at (it may have
+        // left steps out).
+        let step = if event {
+            seg.step()
+        } else if seg.info.flags.synchronous {
+            generation.max(self.last_read + 1)
+        } else {
+            generation
+        };
+        // The framework is still at that step: it waits for this connection's answer.
+        self.read_sim = seg.sim_time();
         self.last_read = step;
         self.has_read = true;
         if let Some(c) = seg.conn(self.slot) {
@@ -370,6 +539,10 @@ impl Participant {
         }
         self.check()?;
         self.set_flag(CONN_SYNC_READER);
+        if self.event_driven() {
+            let answered = self.ask_next();
+            return Ok(Some(self.gate(GateFor::DueAfter(answered))));
+        }
         self.forfeit_owed_answer();
         Ok(Some(self.gate(GateFor::ReadAfter(self.last_read))))
     }
@@ -385,6 +558,10 @@ impl Participant {
         // A writer before it waits, as in `publish_lock`: a framework waiting for writers
         // (`tutti host --wait-for`) counts it, and steps.
         self.claim_writer()?;
+        if self.event_driven() && !self.due.answer_on_commit {
+            let answered = self.ask_next();
+            return Ok(Some(self.gate(GateFor::DueAfter(answered))));
+        }
         let states = self.seg.info.flags.states;
         Ok(Some(self.gate(GateFor::PublishAfter { last: self.last_commit, states })))
     }
@@ -443,7 +620,7 @@ impl Participant {
     pub fn owed_step(&self) -> Option<u64> {
         let seg = &self.seg;
         let k = seg.step();
-        seg.conn_ctl(self.slot).filter(|c| c.owes(k)).map(|_| k)
+        seg.conn_ctl(self.slot).filter(|c| c.owes(&seg.step_ctl(), k)).map(|_| k)
     }
 
     /// Whether [`Participant::publish_lock`] would return at once, without waiting for a
@@ -485,9 +662,21 @@ impl Participant {
                 self.locked_step = self.last_commit;
                 return Ok(self.locked_step);
             }
+            if self.event_driven() && !self.due.answer_on_commit {
+                // An event-driven writer that does not read: this asks for its next due step.
+                let answered = self.ask_next();
+                self.waiting(GateFor::DueAfter(answered)).wait(&self.seg)?;
+                let seg = &self.seg;
+                let k = seg.step();
+                self.read_sim = seg.sim_time();
+                self.locked_step = k;
+                self.last_read = self.last_read.max(k);
+                return Ok(k);
+            }
             let states = seg.info.flags.states;
             self.waiting(GateFor::PublishAfter { last: self.last_commit, states }).wait(seg)?;
             let k = h.pub_step.load(Ordering::Acquire);
+            self.read_sim = seg.sim_time();
             self.locked_step = k;
             // Waiting for step k counts as having seen it: a connection that writes before
             // it reads (or never reads) must not stall the framework for a read it never makes.
@@ -667,7 +856,15 @@ impl Participant {
         seg.intact()?;
         Self::committed(seg, self.slot, self.locked_step);
         self.reset_after_commit();
+        self.answer_if_on_commit();
         Ok(())
+    }
+
+    /// An event-driven connection whose commit answers its step ([`Participant::wake_on_change_writer`]).
+    fn answer_if_on_commit(&mut self) {
+        if self.due.answer_on_commit && self.event_driven() {
+            self.ask_next();
+        }
     }
 
     /// Commits a whole SUBSCRIBE set computed from the last snapshot of the PUBLISH set:
@@ -690,6 +887,7 @@ impl Participant {
         Self::committed(seg, self.slot, self.locked_step);
         self.stale_staging = true;
         self.reset_after_commit();
+        self.answer_if_on_commit();
         Ok(())
     }
 
@@ -773,6 +971,8 @@ enum GateFor {
     ReadAfter(u64),
     /// A step to answer after the last commit (or the seed, with `states`).
     PublishAfter { last: u64, states: bool },
+    /// Event-driven: a step after this one (the last answered) that the connection is due at.
+    DueAfter(u64),
     /// Nothing: only the connection's checks (see [`Waiting::check`]).
     Nothing,
 }
@@ -829,6 +1029,9 @@ impl Waiting {
                 GateFor::PublishAfter { last, states } => {
                     let k = h.pub_step.load(Ordering::Acquire);
                     k > last || (states && k == 0 && h.seeded.load(Ordering::Acquire) == 0)
+                }
+                GateFor::DueAfter(answered) => {
+                    seg.conn_ctl(self.slot).is_some_and(|conn| ctl.next_due(&conn, answered).is_some())
                 }
                 GateFor::Nothing => true,
             })

@@ -38,7 +38,7 @@ use crate::sync::{AtomicU32, AtomicU64, Ordering};
 pub(crate) const MAGIC: u64 = u64::from_le_bytes(*b"TUTTISHM");
 /// Segment format version (2: header fields grouped by writer on separate cache lines; 3:
 /// DDS writers and observers counted apart from participants, 192-byte connection slots).
-pub const VERSION: u32 = 4;
+pub const VERSION: u32 = 5;
 /// Bytes reserved for the header.
 pub(crate) const HEADER_BYTES: usize = 1024;
 /// Connection slots per domain.
@@ -170,6 +170,12 @@ pub(crate) struct Header {
     pub timeouts: AtomicU64,
     pub max_late_ns: AtomicU64,
     pub last_late_ns: AtomicU64,
+    /// The last step whose PUBLISH set differs from the step before (event-driven domains).
+    pub changed_step: AtomicU64,
+    /// Every event-driven connection is due at this step (the first after a reset).
+    pub all_due_step: AtomicU64,
+    /// The simulated time of a step, seconds (f64 bits; 0: not said).
+    pub sim_step_bits: AtomicU64,
     /// Written by participants on their reads and commits.
     pub _participants: LineBreak,
     pub ack_seq: AtomicU32,
@@ -204,7 +210,11 @@ pub(crate) struct ConnSlot {
     /// An observer's DDS readers (the gateway's count of the readers of this domain's
     /// topics, every set's readers once).
     pub peers: AtomicU64,
-    pub _reserved: [AtomicU64; 7],
+    /// Event-driven: the step from which the connection is next due.
+    pub due_step: AtomicU64,
+    /// Event-driven: the last step the connection answered.
+    pub answered: AtomicU64,
+    pub _reserved: [AtomicU64; 5],
 }
 
 const _: () = assert!(size_of::<Header>() <= HEADER_BYTES);
@@ -249,11 +259,14 @@ impl DomainInfo {
 }
 
 fn flags_bits(f: Flags) -> u32 {
-    u32::from(f.synchronous) | u32::from(f.multiple_publish_allowed) << 1 | u32::from(f.states) << 2
+    u32::from(f.synchronous)
+        | u32::from(f.multiple_publish_allowed) << 1
+        | u32::from(f.states) << 2
+        | u32::from(f.event) << 3
 }
 
 fn flags_from_bits(b: u32) -> Flags {
-    Flags { synchronous: b & 1 != 0, multiple_publish_allowed: b & 2 != 0, states: b & 4 != 0 }
+    Flags { synchronous: b & 1 != 0, event: b & 8 != 0, multiple_publish_allowed: b & 2 != 0, states: b & 4 != 0 }
 }
 
 fn round_up(n: usize, a: usize) -> usize {
@@ -629,12 +642,20 @@ impl Segment {
             first_step: &c.first_step,
             last_read: &c.last_read,
             last_commit: &c.last_commit,
+            due_step: &c.due_step,
+            answered: &c.answered,
         })
     }
 
     pub(crate) fn step_ctl(&self) -> StepCtl<'_> {
         let h = self.header();
-        StepCtl { pub_step: &h.pub_step, step_seq: &h.step_seq, ack_seq: &h.ack_seq }
+        StepCtl {
+            pub_step: &h.pub_step,
+            step_seq: &h.step_seq,
+            ack_seq: &h.ack_seq,
+            changed_step: &h.changed_step,
+            all_due_step: &h.all_due_step,
+        }
     }
 
     /// The bucket of one set. Its geometry was checked when the segment was created or
@@ -738,6 +759,15 @@ impl Segment {
         }
     }
 
+    /// The simulated time of one step, seconds, as the framework said it
+    /// (`DomainHost::set_sim_step`); else the period, if the framework steps at a fixed rate.
+    pub fn sim_step(&self) -> Option<f64> {
+        match f64::from_bits(self.header().sim_step_bits.load(Ordering::Acquire)) {
+            s if s > 0.0 && s.is_finite() => Some(s),
+            _ => self.period().map(|p| p.as_secs_f64()),
+        }
+    }
+
     /// Whether the SUBSCRIBE set has been committed at least once (its values are no longer
     /// only the DDF's defaults).
     pub fn seeded(&self) -> bool {
@@ -826,6 +856,8 @@ impl Segment {
             c.first_step.store(if held { u64::MAX } else { step + 1 }, Ordering::Relaxed);
             c.last_read.store(step, Ordering::Relaxed);
             c.last_commit.store(step, Ordering::Relaxed);
+            c.due_step.store(0, Ordering::Relaxed);
+            c.answered.store(step, Ordering::Relaxed);
             c.reads.store(0, Ordering::Relaxed);
             c.commits.store(0, Ordering::Relaxed);
             c.missed.store(0, Ordering::Relaxed);
