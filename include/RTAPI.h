@@ -342,6 +342,39 @@ RTAPIReturn_t RTUseFlagWithTool(unsigned int microseconds);
 RTAPIReturn_t RTGetConnectionCount(const char *domainName, unsigned int *count);
 
 /**
+ * Event-driven domains (tutti's extension, docs/timing.md): the current connection is next
+ * due at the first step at or after simulated time `simTime` (seconds); a time within a
+ * millionth of a step of a step's time counts as that step. Once: asked again at each due
+ * step as needed. It takes effect when the connection asks for its next step (its next
+ * RTSubscribeLock, or RTPublishLock if it only writes). In a lock-step or asynchronous
+ * domain it changes nothing. RTAPI_ERROR_INVALID_ARGUMENT for a time that is not a number.
+ */
+RTAPIReturn_t RTRequestTime(double simTime);
+
+/**
+ * Event-driven domains (tutti's extension, docs/timing.md): the current connection is also
+ * due at any step whose PUBLISH set differs from the step before (`on`), or no longer.
+ */
+RTAPIReturn_t RTSetWakeOnChange(bool on);
+
+/**
+ * Event-driven domains (tutti's extension, docs/timing.md): the current connection is due
+ * every `seconds` of simulated time, at the steps whose time is a multiple of it (RT-LAB's
+ * multi-rate); `seconds` must be a whole multiple of the framework's step
+ * (RTAPI_ERROR_INVALID_ARGUMENT otherwise). 0 turns the period off.
+ */
+RTAPIReturn_t RTSetPeriod(double seconds);
+
+/**
+ * The simulated time (seconds) of the step the current connection is at: the step its last
+ * RTSubscribeLock returned (in an asynchronous domain, the framework's latest step).
+ *
+ * # Safety
+ * `simTime` must be NULL or writable.
+ */
+RTAPIReturn_t RTGetSimulationTime(double *simTime);
+
+/**
  * The static text of a return code (a text saying so for an unknown code). Never NULL.
  */
 const char *RTGetErrorMessage(RTAPIReturn_t code);

@@ -2,7 +2,7 @@
 //! checks its pointers, runs under a guard that catches panics, and returns an `RTAPI_*` code; the semantics are
 //! in docs/rtapi.md.
 
-use std::ffi::{c_char, c_int, c_uint, c_ushort, c_void};
+use std::ffi::{c_char, c_double, c_int, c_uint, c_ushort, c_void};
 use std::time::Duration;
 
 use tutti_core::ddf::Role;
@@ -490,6 +490,53 @@ pub unsafe extern "C" fn RTGetConnectionCount(domainName: *const c_char, count: 
         let n = state().connection_count(domain)?;
         // SAFETY: `count` is writable as the caller promises (NULL refused above).
         unsafe { write_out(count, "count", n) }
+    })
+}
+
+/// Event-driven domains (tutti's extension, docs/timing.md): the current connection is next
+/// due at the first step at or after simulated time `simTime` (seconds); a time within a
+/// millionth of a step of a step's time counts as that step. Once: asked again at each due
+/// step as needed. It takes effect when the connection asks for its next step (its next
+/// RTSubscribeLock, or RTPublishLock if it only writes). In a lock-step or asynchronous
+/// domain it changes nothing. RTAPI_ERROR_INVALID_ARGUMENT for a time that is not a number.
+#[no_mangle]
+pub extern "C" fn RTRequestTime(simTime: c_double) -> RTAPIReturn_t {
+    guard("RTRequestTime", || state().exchange(Side::Subscribe, |c| c.participant.request_time(simTime)))
+}
+
+/// Event-driven domains (tutti's extension, docs/timing.md): the current connection is also
+/// due at any step whose PUBLISH set differs from the step before (`on`), or no longer.
+#[no_mangle]
+pub extern "C" fn RTSetWakeOnChange(on: bool) -> RTAPIReturn_t {
+    guard("RTSetWakeOnChange", || {
+        state().exchange(Side::Subscribe, |c| {
+            c.participant.set_wake_on_change(on);
+            Ok(())
+        })
+    })
+}
+
+/// Event-driven domains (tutti's extension, docs/timing.md): the current connection is due
+/// every `seconds` of simulated time, at the steps whose time is a multiple of it (RT-LAB's
+/// multi-rate); `seconds` must be a whole multiple of the framework's step
+/// (RTAPI_ERROR_INVALID_ARGUMENT otherwise). 0 turns the period off.
+#[no_mangle]
+pub extern "C" fn RTSetPeriod(seconds: c_double) -> RTAPIReturn_t {
+    guard("RTSetPeriod", || state().exchange(Side::Subscribe, |c| c.participant.set_period(seconds)))
+}
+
+/// The simulated time (seconds) of the step the current connection is at: the step its last
+/// RTSubscribeLock returned (in an asynchronous domain, the framework's latest step).
+///
+/// # Safety
+/// `simTime` must be NULL or writable.
+#[no_mangle]
+pub unsafe extern "C" fn RTGetSimulationTime(simTime: *mut c_double) -> RTAPIReturn_t {
+    guard("RTGetSimulationTime", || {
+        crate::ffi::non_null(simTime.cast_const(), "simTime")?;
+        let t = state().exchange(Side::Subscribe, |c| Ok(c.participant.simulation_time()))?;
+        // SAFETY: `simTime` is writable as the caller promises (NULL refused above).
+        unsafe { write_out(simTime, "simTime", t) }
     })
 }
 

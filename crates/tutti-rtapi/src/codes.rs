@@ -176,7 +176,7 @@ pub enum Side {
 pub fn for_error(e: &ShmError, side: Side) -> RTAPIReturn_t {
     match e {
         ShmError::Io { .. } | ShmError::DomainBusy { .. } => RTAPI_ERROR_SYSTEM,
-        ShmError::InvalidNamespace { .. } => RTAPI_ERROR_INVALID_ARGUMENT,
+        ShmError::InvalidNamespace { .. } | ShmError::InvalidTiming { .. } => RTAPI_ERROR_INVALID_ARGUMENT,
         ShmError::NotTuttiSegment { .. } | ShmError::Corrupt { .. } | ShmError::Truncated { .. } => {
             RTAPI_ERROR_CORRUPT_SEGMENT
         }
