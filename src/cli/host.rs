@@ -18,7 +18,7 @@ use super::{load_ddf, CliResult, Failure};
 /// Run the framework of every domain in a DDF: create the segments, step at a fixed period.
 #[derive(Debug, clap::Args)]
 #[command(
-    after_help = "Examples:\n  tutti host ddf/multiuav.ddf --step 10ms --duration 60s\n  tutti host ddf/product-sample.ddf --set grid_clock/tick=1 --record out/run.csv\n  tutti host ddf/multiuav.ddf --step 10ms --duration 60s --record out/run.mcap   # Foxglove, ros2 bag\n  TUTTI_NAMESPACE=lab2 tutti host ddf/large-1000.ddf --step 1ms\n  sudo tutti host ddf/multiuav.ddf --step 1ms --realtime --cpu 1 --priority 80\n  tutti host ddf/multiuav.ddf --wait-for multiuav_uav2=1 --record run.mcap   # replay later: tutti replay\n  tutti host ddf/multiuav.ddf --connect 'multiuav_uav2/subscribe/Elevation -> multiuav_uav2/publish/Altitude'\n  ROS_DOMAIN_ID=7 tutti host ddf/multiuav.ddf --gateway   # the DDS / ROS 2 gateway in this process\n  tutti host ddf/multiuav.ddf --gateway=examples/gateway.json5\n\nWith --gateway, the gateway reads the environment as tutti gateway does (ROS_DOMAIN_ID,\nROS_LOCALHOST_ONLY, ROS_AUTOMATIC_DISCOVERY_RANGE, TUTTI_DDS, TUTTI_GATEWAY_INTERFACE,\nCYCLONEDDS_URI, RUST_LOG); its config file's keys win over the environment.\n\nStop with Ctrl-C: the segments are removed on exit."
+    after_help = "Examples:\n  tutti host ddf/multiuav.ddf --step 10ms --duration 60s\n  tutti host examples/event/event.ddf --step 1ms --speed 0 --steps 100000   # as fast as possible\n  tutti host ddf/product-sample.ddf --set grid_clock/tick=1 --record out/run.csv\n  tutti host ddf/multiuav.ddf --step 10ms --duration 60s --record out/run.mcap   # Foxglove, ros2 bag\n  TUTTI_NAMESPACE=lab2 tutti host ddf/large-1000.ddf --step 1ms\n  sudo tutti host ddf/multiuav.ddf --step 1ms --realtime --cpu 1 --priority 80\n  tutti host ddf/multiuav.ddf --wait-for multiuav_uav2=1 --record run.mcap   # replay later: tutti replay\n  tutti host ddf/multiuav.ddf --connect 'multiuav_uav2/subscribe/Elevation -> multiuav_uav2/publish/Altitude'\n  ROS_DOMAIN_ID=7 tutti host ddf/multiuav.ddf --gateway   # the DDS / ROS 2 gateway in this process\n  tutti host ddf/multiuav.ddf --gateway=examples/gateway.json5\n\nWith --gateway, the gateway reads the environment as tutti gateway does (ROS_DOMAIN_ID,\nROS_LOCALHOST_ONLY, ROS_AUTOMATIC_DISCOVERY_RANGE, TUTTI_DDS, TUTTI_GATEWAY_INTERFACE,\nCYCLONEDDS_URI, RUST_LOG); its config file's keys win over the environment.\n\nStop with Ctrl-C: the segments are removed on exit."
 )]
 pub struct Args {
     /// The DDF whose domains to host.
@@ -30,6 +30,13 @@ pub struct Args {
     /// Stop after this long (default: run until Ctrl-C).
     #[arg(long, value_parser = parse_duration)]
     duration: Option<Duration>,
+    /// Stop after this many steps (with --duration, whichever comes first).
+    #[arg(long)]
+    steps: Option<u64>,
+    /// Simulated seconds per wall-clock second; 0: as fast as the participants go, where
+    /// event-driven domains jump over the steps nobody is due at (docs/timing.md).
+    #[arg(long, default_value = "1", value_parser = parse_speed)]
+    speed: f64,
     /// Record both sets of every domain at every step, by FILE's extension: `.mcap` (one
     /// file, ROS 2 CDR with schemas: Foxglove, ros2 bag) or CSV (one file per domain when
     /// there are several: FILE's stem + '-DOMAIN.csv'). Repeatable.
@@ -84,9 +91,9 @@ impl Args {
     fn options(&self) -> HostOptions {
         HostOptions {
             step: self.step,
-            speed: 1.0,
+            speed: self.speed,
             duration: self.duration,
-            steps: None,
+            steps: self.steps,
             catch_up: self.catch_up,
             timeout: self.timeout,
             wait: self.wait,
@@ -99,6 +106,15 @@ impl Args {
             ordering: self.ordering,
             ddf_name: self.file.display().to_string(),
         }
+    }
+}
+
+/// `--speed`: a factor, or 0 for as fast as possible (an infinite speed).
+fn parse_speed(s: &str) -> anyhow::Result<f64> {
+    match s.trim().parse::<f64>() {
+        Ok(0.0) => Ok(f64::INFINITY),
+        Ok(v) if v.is_finite() && v > 0.0 => Ok(v),
+        _ => anyhow::bail!("'{s}' is not a speed: a factor like 1, 0.5 or 10, or 0 for as fast as possible"),
     }
 }
 

@@ -473,6 +473,11 @@ impl Connections {
         Ok(Connections { list, clocks, specs: specs.to_vec() })
     }
 
+    /// Whether some input is the simulated time (`@sim_time`): it changes at every step.
+    pub fn has_clock(&self) -> bool {
+        !self.clocks.is_empty()
+    }
+
     pub fn is_empty(&self) -> bool {
         self.list.is_empty() && self.clocks.is_empty()
     }

@@ -19,7 +19,9 @@ pub struct HostOptions {
     /// The simulated time of a step (> 0): step k is made at simulated time k × `step`.
     pub step: Duration,
     /// Simulated seconds per wall-clock second (> 0, default 1): a step is released every
-    /// `step / speed` of wall time.
+    /// `step / speed` of wall time. Infinite: as fast as the participants go, not paced by
+    /// the wall clock; event-driven domains then jump over the steps nobody is due at
+    /// (docs/timing.md).
     pub speed: f64,
     /// Stop after this long (None: until stopped).
     pub duration: Option<Duration>,
@@ -253,7 +255,10 @@ impl Host {
         if opts.step.is_zero() {
             return Err(HostError::ZeroStep);
         }
-        if !(opts.speed > 0.0 && opts.speed.is_finite()) || opts.step.div_f64(opts.speed).is_zero() {
+        if opts.speed.is_nan()
+            || opts.speed <= 0.0
+            || (opts.speed.is_finite() && opts.step.div_f64(opts.speed).is_zero())
+        {
             return Err(HostError::Speed(opts.speed));
         }
         let mut publish: Vec<Vec<u8>> = model.domains.iter().map(|d| d.publish.layout.default_bytes()).collect();
@@ -275,6 +280,11 @@ impl Host {
         }
         let fw = Framework::create(model, &fw_opts)
             .map_err(|source| HostError::Create { ddf: opts.ddf_name.clone(), source })?;
+        for d in &fw.domains {
+            // Known from the start: an event-driven participant turns the times it asks for
+            // into steps with it.
+            d.set_sim_step(opts.step.as_secs_f64());
+        }
         let ticker = new_ticker(&opts);
         let reevaluate = match opts.ordering {
             StepOrder::Delayed => Vec::new(),
@@ -383,11 +393,55 @@ impl Host {
 
     /// Waits for the next deadline and makes one step of every domain; its sinks take it.
     pub fn step(&mut self, on_report: &mut dyn FnMut(Report)) -> Result<Tick, HostError> {
+        self.skip_idle_steps();
         let tick = self.ticker.wait();
         // Released a whole period late: the next deadline is already due.
         let more = tick.late >= self.opts.period();
         self.make_step(tick, more, on_report)?;
         Ok(tick)
+    }
+
+    /// Discrete-event advance: in a run not paced by the wall clock, leaves out the next
+    /// steps when nobody in any domain would be due at them (event-driven domains whose
+    /// participants are due later and whose inputs do not change), so that the next step made
+    /// is the next one somebody is due at. Its simulated time shows the jump.
+    fn skip_idle_steps(&mut self) {
+        if self.opts.speed.is_finite() || self.connections.has_clock() {
+            return;
+        }
+        if !self.fw.domains.iter().any(|d| d.info().flags.event) {
+            return;
+        }
+        let mut idle: Option<u64> = None;
+        for (d, publish) in self.fw.domains.iter().zip(&self.publish) {
+            if let Some(n) = d.idle_steps(publish) {
+                idle = Some(idle.map_or(n, |m| m.min(n)));
+            }
+        }
+        // Nobody due at all (or only when an input changes, which nothing makes happen):
+        // step as usual.
+        let Some(mut n) = idle.filter(|&n| n > 0 && n < u64::MAX / 2) else { return };
+        if let Some(limit) = self.opts.steps {
+            n = n.min(limit.saturating_sub(self.steps + 1));
+        }
+        if n == 0 {
+            return;
+        }
+        self.ticker.skip(n);
+        self.steps += n;
+        for d in &mut self.fw.domains {
+            d.skip_steps(n);
+        }
+    }
+
+    /// The period the domains are told: the wall-clock period, or the step when the run is
+    /// not paced by the wall clock (a participant sizes its step by it: tutti fmu run).
+    fn told_period(&self) -> Duration {
+        if self.opts.speed.is_finite() {
+            self.opts.period()
+        } else {
+            self.opts.step
+        }
     }
 
     /// Makes the step of `tick`: every domain, then the sinks.
@@ -399,13 +453,14 @@ impl Host {
         let sim = tick.k as f64 * self.opts.step.as_secs_f64();
         // `@sim_time` connections: the time of the step they are published in.
         self.connections.apply_clock(sim, &mut self.publish);
-        publish_all(&mut self.fw, &self.publish, sim, self.opts.period())?;
+        let period = self.told_period();
+        publish_all(&mut self.fw, &self.publish, sim, period)?;
         let published = Published { publish: &self.publish, sim, more };
         for sink in &mut self.sinks {
             sink.published(&self.fw, &published)
                 .map_err(|source| HostError::Sink { what: "handing the published step on", source })?;
         }
-        let reports = complete_all(&mut self.fw, self.opts.period(), &tick)?;
+        let reports = complete_all(&mut self.fw, period, &tick)?;
         self.steps += 1;
         for (i, r) in reports.iter().enumerate() {
             self.count_timeout(i, r, on_report);
@@ -653,6 +708,9 @@ impl Host {
     /// Step count and simulated time back to zero; the run stays in `state`.
     fn reset(&mut self, state: RunState) {
         self.ticker.restart_at(0);
+        // Event-driven participants: each says anew, at the first step of the new time,
+        // when it is next due.
+        self.fw.domains.iter().for_each(|d| d.all_due_next());
         self.publish_state(state, 0.0);
     }
 
@@ -665,6 +723,9 @@ impl Host {
 impl HostOptions {
     /// The wall-clock period of a step: `step / speed`.
     pub fn period(&self) -> Duration {
+        if self.speed.is_infinite() {
+            return Duration::ZERO;
+        }
         self.step.div_f64(self.speed)
     }
 }

@@ -54,6 +54,12 @@ impl Ticker {
         self.k = k;
     }
 
+    /// Leaves out the next `n` releases (a run not paced by the wall clock that jumps over
+    /// steps nobody is due at).
+    pub fn skip(&mut self, n: u64) {
+        self.k += n;
+    }
+
     /// A release now, outside the deadlines (a step made while paused).
     pub fn release_now(&mut self) -> Tick {
         let tick = Tick { k: self.k, late: Duration::ZERO, overrun: false };
@@ -65,6 +71,10 @@ impl Ticker {
     /// counted and the missed deadlines are skipped (no burst of catch-up steps), unless the
     /// ticker catches up ([`Ticker::catching_up`]).
     pub fn wait(&mut self) -> Tick {
+        if self.period.is_zero() {
+            // Not paced by the wall clock: as fast as the steps go.
+            return self.release_now();
+        }
         let mut deadline = self.start + self.period.mul_f64(self.k as f64);
         let now = Instant::now();
         let mut overrun = false;

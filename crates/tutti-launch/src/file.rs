@@ -56,7 +56,7 @@ pub struct Framework {
     /// `step` (default 10ms): the simulated time of a step.
     pub step: Duration,
     /// `speed` (default 1): simulated seconds per wall-clock second; a step is released
-    /// every `step / speed`.
+    /// every `step / speed`. 0 in the file (infinite here): as fast as possible.
     pub speed: f64,
     /// `timeout`: longest wait for a synchronous step's participants (default 1s).
     pub timeout: Duration,
@@ -406,8 +406,11 @@ fn de_speed<'de, D: Deserializer<'de>>(d: D) -> Result<Option<f64>, D::Error> {
     then(d, |v: f64| {
         if v > 0.0 && v.is_finite() {
             Ok(Some(v))
+        } else if v == 0.0 {
+            // As fast as the participants go (docs/timing.md).
+            Ok(Some(f64::INFINITY))
         } else {
-            Err(format!("speed: {v}: must be a positive number of simulated seconds per wall-clock second"))
+            Err(format!("speed: {v}: must be a positive number of simulated seconds per wall-clock second, or 0 for as fast as possible"))
         }
     })
 }
