@@ -16,6 +16,7 @@ mod ctl;
 mod ddf_invalid;
 mod ddf_valid;
 mod doc_commands;
+mod event;
 mod fmu_errors;
 mod fmu_exchange;
 mod fmu_fmi3;

@@ -1,0 +1,177 @@
+//! Event-driven synchronisation (`<synchronous>event</synchronous>`, docs/timing.md), with
+//! C participants through the RTAPI: one due at every step, one every 10 ms
+//! (`RTSetPeriod`), one woken on change (`RTSetWakeOnChange`) and one asking for given times
+//! (`RTRequestTime`). Each is woken exactly at its due steps and reads there what the same
+//! program reads in a lock-step run of the same components; a participant killed while due
+//! frees its step; with nobody due, a run not paced by the wall clock jumps to the next due
+//! step, and its recording shows the jump.
+
+use std::collections::{BTreeMap, BTreeSet};
+use std::path::{Path, PathBuf};
+use std::time::Duration;
+
+use tutti_test_support::{self as common, Proc, RemoveSegments};
+
+const LIMIT: Duration = Duration::from_secs(180);
+const STEPS: u64 = 1000;
+
+/// A directory with both DDFs and the C participant.
+fn setup() -> tempfile::TempDir {
+    let dir = tempfile::tempdir().unwrap();
+    for f in ["event.ddf", "lockstep.ddf"] {
+        std::fs::copy(common::repo_root().join("tests/event").join(f), dir.path().join(f)).unwrap();
+    }
+    common::compile_c(
+        &common::repo_root().join("tests/event/participant.c"),
+        &dir.path().join("participant"),
+        &["-std=c99", "-D_POSIX_C_SOURCE=200809L", "-Wall", "-Werror"],
+    );
+    dir
+}
+
+/// Runs launch file `name` of `dir` (framework and `components`, each `(name, mode)`) to
+/// its end; returns the run and its exit status.
+fn run(dir: &Path, name: &str, ddf: &str, components: &[(&str, &str)], extra: &str) -> (Proc, Option<i32>) {
+    let ns = common::namespace(&format!("ev{name}"));
+    let _clean = RemoveSegments(ns.clone());
+    let list: Vec<String> = components
+        .iter()
+        .map(|(n, args)| {
+            let args: Vec<String> = args.split(' ').map(|a| format!("\"{a}\"")).collect();
+            format!(r#"{{ name: "{n}", run: ["./participant", {}], domain: "ev" }}"#, args.join(", "))
+        })
+        .collect();
+    let text = format!(
+        r#"{{
+  ddf: "{ddf}",
+  framework: {{ step: "1ms", steps: {STEPS}, speed: 0, timeout: "5s", hold: true{extra} }},
+  connections: ["ev/subscribe/src -> ev/publish/x"],
+  components: [ {} ],
+}}"#,
+        list.join(",\n    ")
+    );
+    let file = dir.join(format!("{name}.json5"));
+    std::fs::write(&file, text).unwrap();
+    let mut cmd = common::tutti_command();
+    cmd.arg("run").arg(&file).arg("--logs").arg(dir.join(format!("logs-{name}"))).env("TUTTI_NAMESPACE", &ns);
+    let mut p = Proc::spawn("tutti run", cmd, LIMIT);
+    let code = p.wait(LIMIT);
+    assert!(common::segments_of(&ns).is_empty(), "{:?}", common::segments_of(&ns));
+    (p, code)
+}
+
+/// What a participant printed: step index -> x read there.
+fn wakes(dir: &Path, run: &str, component: &str) -> BTreeMap<u64, f64> {
+    let log: PathBuf = dir.join(format!("logs-{run}/{component}.log"));
+    let text = std::fs::read_to_string(&log).unwrap_or_else(|e| panic!("{}: {e}", log.display()));
+    let mut seen = BTreeMap::new();
+    for line in text.lines().filter_map(|l| l.strip_prefix("wake ")) {
+        let (n, x) = line.split_once(' ').unwrap();
+        let n: u64 = n.parse().unwrap();
+        assert!(seen.insert(n, x.parse().unwrap()).is_none(), "{component} woken twice at step {n}\n{text}");
+    }
+    seen
+}
+
+/// The steps `RTRequestTime(t + 37 ms, + 10.5 ms, + 3 ms, …)` is due at, up to `last`.
+fn requested_steps(last: u64) -> BTreeSet<u64> {
+    let mut due = BTreeSet::new();
+    let (mut n, mut i) = (0, 0);
+    while n <= last {
+        due.insert(n);
+        n += [37, 11, 3][i % 3];
+        i += 1;
+    }
+    due
+}
+
+/// How two sets of steps differ, briefly: the first steps only one of them has.
+fn differ(seen: &BTreeSet<u64>, want: &BTreeSet<u64>) -> String {
+    let extra: Vec<u64> = seen.difference(want).take(10).copied().collect();
+    let missing: Vec<u64> = want.difference(seen).take(10).copied().collect();
+    format!(
+        "{} steps, {} wanted; woken but not due at {extra:?}…, due but not woken at {missing:?}…",
+        seen.len(),
+        want.len()
+    )
+}
+
+const ALL: [(&str, &str); 4] = [("every", "every"), ("period", "period"), ("wake", "wake"), ("request", "request")];
+
+#[test]
+fn each_participant_runs_exactly_at_its_due_steps_and_reads_what_lock_step_gives_there() {
+    let dir = setup();
+    let (lock, code) = run(dir.path(), "lock", "lockstep.ddf", &ALL, "");
+    assert_eq!(code, Some(0), "{}", lock.dump());
+    let (event, code) = run(dir.path(), "event", "event.ddf", &ALL, "");
+    assert_eq!(code, Some(0), "{}", event.dump());
+    assert!(!event.dump().contains("timed out"), "a participant stalled a step\n{}", event.dump());
+
+    // The reference: in lock-step every program is woken at every step, with the same x.
+    let reference = wakes(dir.path(), "lock", "every");
+    let last = STEPS - 1;
+    assert_eq!(reference.keys().copied().collect::<Vec<_>>(), (0..=last).collect::<Vec<_>>());
+    for (component, _) in ALL {
+        assert_eq!(wakes(dir.path(), "lock", component), reference, "{component} in lock-step");
+    }
+    // x changes at irregular steps: what wakes the change-driven participant.
+    let changed: BTreeSet<u64> =
+        reference.iter().filter(|(n, x)| **n == 0 || reference.get(&(*n - 1)) != Some(*x)).map(|(n, _)| *n).collect();
+    assert!(changed.len() > 30 && changed.len() < 100, "{changed:?}");
+    let due: [(&str, BTreeSet<u64>); 4] = [
+        ("every", (0..=last).collect()),
+        ("period", (0..=last).filter(|n| n % 10 == 0).collect()),
+        ("wake", changed),
+        ("request", requested_steps(last)),
+    ];
+    for (component, steps) in due {
+        let seen = wakes(dir.path(), "event", component);
+        let at: BTreeSet<u64> = seen.keys().copied().collect();
+        assert!(at == steps, "{component} was woken at other steps than it is due at: {}", differ(&at, &steps));
+        for (n, x) in &seen {
+            assert_eq!(Some(x), reference.get(n), "{component} read another x at step {n} than in lock-step");
+        }
+    }
+}
+
+#[test]
+fn a_participant_killed_while_due_frees_its_step_and_the_others_go_on() {
+    let dir = setup();
+    let parts = [("every", "every"), ("period", "period 500"), ("request", "request")];
+    let (event, code) = run(dir.path(), "kill", "event.ddf", &parts, "");
+    assert_eq!(code, Some(1), "the killed component did not end well\n{}", event.dump());
+    assert!(event.dump().contains("signal 9"), "{}", event.dump());
+    assert!(!event.dump().contains("timed out"), "the step was not freed before the timeout\n{}", event.dump());
+    let period = wakes(dir.path(), "kill", "period");
+    assert_eq!(period.keys().last(), Some(&500), "it died at its due step 500");
+    let every = wakes(dir.path(), "kill", "every");
+    assert_eq!(every.len() as u64, STEPS, "the every-step participant kept every step");
+    let request: BTreeSet<u64> = wakes(dir.path(), "kill", "request").keys().copied().collect();
+    assert!(request == requested_steps(STEPS - 1), "request: {}", differ(&request, &requested_steps(STEPS - 1)));
+}
+
+#[test]
+fn with_nobody_due_a_run_not_paced_by_the_clock_jumps_to_the_next_due_step() {
+    let dir = setup();
+    let parts = [("period", "period"), ("request", "request")];
+    let (event, code) = run(dir.path(), "jump", "event.ddf", &parts, r#", record: ["jump.csv"]"#);
+    assert_eq!(code, Some(0), "{}", event.dump());
+    // The due steps, and the run's last step (its end is made, whoever is due).
+    let due: BTreeSet<u64> =
+        (0..STEPS).filter(|n| n % 10 == 0).chain(requested_steps(STEPS - 1)).chain([STEPS - 1]).collect();
+    for (component, want) in
+        [("period", (0..STEPS).filter(|n| n % 10 == 0).collect()), ("request", requested_steps(STEPS - 1))]
+    {
+        let at: BTreeSet<u64> = wakes(dir.path(), "jump", component).keys().copied().collect();
+        assert!(at == want, "{component}: {}", differ(&at, &want));
+    }
+    // The recording has a row for each step made: exactly the due ones, at their times.
+    let csv = std::fs::read_to_string(dir.path().join("jump.csv")).unwrap();
+    let mut lines = csv.lines();
+    let head: Vec<&str> = lines.next().unwrap().split(',').collect();
+    let t = head.iter().position(|h| *h == "sim_time").unwrap_or_else(|| panic!("{head:?}"));
+    let made: BTreeSet<u64> =
+        lines.map(|l| (l.split(',').nth(t).unwrap().parse::<f64>().unwrap() * 1000.0).round() as u64).collect();
+    assert!(made == due, "the steps made are not the due ones: {}", differ(&made, &due));
+    assert!(made.len() < STEPS as usize / 5, "{} of {STEPS} steps made", made.len());
+}
