@@ -355,7 +355,15 @@ impl Lockstep {
 /// sample connects it again.
 fn run(ls: &LockstepState, rx: Receiver<Payload>, cfg: ShmConfig) {
     let connect = |out: &Delivery| {
-        Participant::connect(&out.domain, cfg.connect_options(out.name.clone(), Duration::from_millis(100))).ok()
+        let mut p =
+            Participant::connect(&out.domain, cfg.connect_options(out.name.clone(), Duration::from_millis(100)))
+                .ok()?;
+        if p.info().flags.event {
+            // In an event-driven domain a DDS writer is due where its inputs changed, and
+            // its sample answers the step (docs/timing.md).
+            p.wake_on_change_writer();
+        }
+        Some(p)
     };
     {
         let mut st = ls.state.lock().unwrap_or_else(PoisonError::into_inner);
