@@ -54,7 +54,10 @@ int main(int argc, char **argv)
         CHECK(RTSetPeriod(0.010));
     } else if (strcmp(mode, "wake") == 0) {
         CHECK(RTSetWakeOnChange(1));
-    } else if (strcmp(mode, "request") != 0 && strcmp(mode, "every") != 0) {
+    } else if (strcmp(mode, "request") == 0) {
+        /* Said before the first step, as the others: due at the first step, then as asked. */
+        CHECK(RTRequestTime(0.0));
+    } else if (strcmp(mode, "every") != 0) {
         fprintf(stderr, "participant: unknown mode '%s'\n", mode);
         return 2;
     }

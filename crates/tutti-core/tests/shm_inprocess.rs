@@ -403,3 +403,114 @@ fn a_segment_created_but_not_yet_sized_is_waited_for_not_refused() {
     assert_eq!(fw.domains[0].connection_count(), 1);
     p.disconnect();
 }
+
+/// Domain "d" of [`model`], event-driven (docs/timing.md).
+fn event_model() -> Model {
+    tutti_core::ddf::parse_str(
+        r#"<orchestra><domain name="d"><synchronous>event</synchronous><multiplePublishAllowed>yes</multiplePublishAllowed>
+        <set name="PUBLISH"><item name="x"><type>float64</type></item></set>
+        <set name="SUBSCRIBE"><item name="a"><type>float64</type></item></set>
+        </domain></orchestra>"#,
+        "event.ddf",
+    )
+    .unwrap()
+}
+
+/// A DDS writer through the gateway, in an event-driven domain, is due only where the
+/// PUBLISH set changed, and its commit answers the step: the framework waits for it there and
+/// nowhere else.
+#[test]
+fn a_wake_on_change_writer_is_waited_for_at_the_steps_whose_input_changed_only() {
+    let model = event_model();
+    assert!(model.domains[0].flags.event && model.domains[0].flags.synchronous);
+    let opts = FrameworkOptions { timeout: Duration::from_millis(200), ..fopts("wake") };
+    let mut fw = Framework::create(&model, &opts).unwrap();
+    let host = &mut fw.domains[0];
+    host.set_sim_step(0.001);
+    let mut w = Participant::connect("d", ConnectOptions { kind: ConnKind::Remote, ..copts("wake") }).unwrap();
+    w.wake_on_change_writer();
+    // Step 1 (a change: the first) is answered by the writer's commit.
+    host.publish_step(&1.0f64.to_ne_bytes(), 0.0).unwrap();
+    assert_eq!(w.publish_lock().unwrap(), 1);
+    w.stage("a", &10.0f64.to_ne_bytes()).unwrap();
+    w.commit().unwrap();
+    assert_eq!(host.complete_step().unwrap().timed_out, 0);
+    assert_eq!(f64::from_ne_bytes(host.subscribe()[0..8].try_into().unwrap()), 10.0);
+    // Steps 2 and 3 keep x: nobody is due, nothing is waited for.
+    for k in 2..=3u32 {
+        assert_eq!(host.step(&1.0f64.to_ne_bytes(), 0.001 * f64::from(k)).unwrap().timed_out, 0, "step {k}");
+    }
+    // Step 4 changes x: the writer is due, and it does not answer.
+    let r = host.step(&2.0f64.to_ne_bytes(), 0.004).unwrap();
+    assert_eq!(r.timed_out, 1, "the writer was not waited for where its input changed");
+}
+
+/// A period that is not a whole multiple of the framework's step, or a time that is not a
+/// number, is refused with the domain named; in a lock-step domain the calls change nothing.
+#[test]
+fn periods_and_times_that_cannot_be_steps_are_refused() {
+    let _fw = Framework::create(&event_model(), &fopts("period")).unwrap();
+    _fw.domains[0].set_sim_step(0.001);
+    let mut p = Participant::connect("d", copts("period")).unwrap();
+    p.set_period(0.01).unwrap();
+    for bad in [0.0015, -1.0, f64::NAN] {
+        let e = p.set_period(bad).unwrap_err();
+        assert!(matches!(e, ShmError::InvalidTiming { .. }) && e.to_string().contains("domain 'd'"), "{e}");
+    }
+    assert!(matches!(p.request_time(f64::INFINITY), Err(ShmError::InvalidTiming { .. })));
+    p.request_time(0.5).unwrap();
+}
+
+/// An every-10th-step participant and one asking for times, driven by a framework that
+/// leaves out the steps nobody is due at (`idle_steps`, `skip_steps`): each reads exactly
+/// its due steps, and the framework makes no other.
+#[test]
+fn the_framework_skips_exactly_the_steps_nobody_is_due_at() {
+    let mut fw = Framework::create(&event_model(), &fopts("skip")).unwrap();
+    fw.domains[0].set_sim_step(0.001);
+    let spawn = |period: Option<f64>, request: Option<f64>| {
+        let mut p = Participant::connect("d", copts("skip")).unwrap();
+        std::thread::spawn(move || {
+            if let Some(s) = period {
+                p.set_period(s).unwrap();
+            }
+            let mut seen = Vec::new();
+            loop {
+                if let Some(dt) = request {
+                    p.request_time(p.simulation_time() + dt).unwrap();
+                }
+                match p.subscribe_lock() {
+                    Ok(_) => seen.push((p.simulation_time() * 1000.0).round() as u64),
+                    Err(ShmError::FrameworkStopped { .. }) => return seen,
+                    Err(e) => panic!("{e}"),
+                }
+            }
+        })
+    };
+    let a = spawn(Some(0.010), None);
+    let b = spawn(None, Some(0.007));
+    let host = &mut fw.domains[0];
+    let publish = 0.0f64.to_ne_bytes();
+    let mut made = Vec::new();
+    let mut n = 0u64;
+    while n < 100 {
+        let idle = host.idle_steps(&publish).unwrap_or(0);
+        if idle > 0 {
+            host.skip_steps(idle);
+            n += idle;
+        }
+        assert_eq!(host.step(&publish, n as f64 * 0.001).unwrap().timed_out, 0);
+        made.push(n);
+        n += 1;
+    }
+    drop(fw);
+    let (a, b) = (a.join().unwrap(), b.join().unwrap());
+    assert!(a.iter().all(|n| n % 10 == 0) && a.len() >= 10, "{a:?}");
+    assert!(b.windows(2).all(|w| w[1] - w[0] == 7), "{b:?}");
+    let due: std::collections::BTreeSet<u64> = a.iter().chain(&b).copied().collect();
+    assert_eq!(
+        made.iter().copied().collect::<std::collections::BTreeSet<u64>>(),
+        due,
+        "steps made besides the due ones"
+    );
+}
