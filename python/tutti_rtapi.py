@@ -132,6 +132,10 @@ _SIGNATURES = {
     "RTUseFlagWithTool": [ctypes.c_uint],
     "RTGetConnectionCount": [ctypes.c_char_p, _c_uint_p],
     "RTSetupRefMemRemoteConnection": [ctypes.c_char_p, ctypes.c_int],
+    "RTRequestTime": [ctypes.c_double],
+    "RTSetWakeOnChange": [ctypes.c_bool],
+    "RTSetPeriod": [ctypes.c_double],
+    "RTGetSimulationTime": [ctypes.POINTER(ctypes.c_double)],
 }
 for _name, _args in _SIGNATURES.items():
     _fn = getattr(_lib, _name)
@@ -322,6 +326,27 @@ class Connection:
 
     def wait_ready_to_go(self):
         self._exchange("RTWaitReadyToGo")
+
+    # Event-driven domains (tutti's extensions, docs/timing.md). In a lock-step or
+    # asynchronous domain they change nothing: the connection is due at every step there.
+
+    def request_time(self, sim_time):
+        """RTRequestTime: next due at the first step at or after `sim_time` (seconds)."""
+        self._exchange("RTRequestTime", float(sim_time))
+
+    def set_wake_on_change(self, on=True):
+        """RTSetWakeOnChange: also due at any step whose PUBLISH set changed."""
+        self._exchange("RTSetWakeOnChange", bool(on))
+
+    def set_period(self, seconds):
+        """RTSetPeriod: due every `seconds` of simulated time (a whole multiple of the step)."""
+        self._exchange("RTSetPeriod", float(seconds))
+
+    def simulation_time(self):
+        """RTGetSimulationTime: the simulated time of the step this connection is at."""
+        t = ctypes.c_double()
+        self._exchange("RTGetSimulationTime", ctypes.byref(t))
+        return t.value
 
     @property
     def status(self):

@@ -29,6 +29,10 @@ DDF = """<orchestra>
     <item name="gps"><type>bus</type><item name="ok"><type>boolean</type></item><item name="v"><type>float32</type><length>2</length></item></item>
   </set>
 </domain>
+<domain name="pyevent"><synchronous>event</synchronous><multiplePublishAllowed>yes</multiplePublishAllowed><states>no</states>
+  <set name="PUBLISH"><item name="x"><type>float64</type></item></set>
+  <set name="SUBSCRIBE"><item name="a"><type>float64</type></item></set>
+</domain>
 <domain name="pysync"><synchronous>yes</synchronous><multiplePublishAllowed>no</multiplePublishAllowed><states>no</states>
   <set name="PUBLISH"><item name="x"><type>float64</type></item></set>
   <set name="SUBSCRIBE"><item name="a"><type>float64</type></item></set>
@@ -163,6 +167,31 @@ class RtapiTest(unittest.TestCase):
             with self.assertRaises(rt.RTAPIError) as e:
                 conn.subscribe("x")  # outside a lock pair in a synchronous domain
             self.assertEqual(e.exception.name, "RTAPI_ERROR_OUT_OF_ORDER")
+
+    def test_event_driven_period_and_requested_times(self):
+        # The host steps every 2 ms of simulated time, x holding the step number.
+        with rt.connect("pyevent", timeout=5, ddf=self.host.ddf) as conn:
+            conn.set_period(0.010)
+            times, xs = [], []
+            for _ in range(6):
+                with conn.reading():
+                    xs.append(conn.subscribe("x"))
+                times.append(conn.simulation_time())
+            # Due at its first step, then at the steps whose time is a multiple of 10 ms:
+            # every fifth step.
+            for t in times[1:]:
+                self.assertAlmostEqual(t / 0.010, round(t / 0.010), places=6, msg=times)
+            self.assertEqual([b - a for a, b in zip(xs[1:], xs[2:])], [5.0] * 4, xs)
+            conn.set_period(0)
+            conn.request_time(times[-1] + 0.007)  # 3.5 steps on: the 4th step
+            with conn.reading():
+                x = conn.subscribe("x")
+            self.assertEqual(x - xs[-1], 4.0)
+            with self.assertRaises(rt.RTAPIError) as e:
+                conn.set_period(0.003)  # not a whole number of 2 ms steps
+            self.assertEqual(e.exception.name, "RTAPI_ERROR_INVALID_ARGUMENT")
+            self.assertIn("whole multiple", e.exception.detail)
+            conn.set_wake_on_change(True)
 
     def test_connection_count_and_exclusive_writer(self):
         self.assertEqual(rt.connection_count("pysync"), 0)

@@ -27,6 +27,10 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let echo = args.get(4).is_some_and(|a| a == "--echo");
     let opts = FrameworkOptions { timeout: Duration::from_secs(10), ..Default::default() };
     let mut fw = Framework::create(&model, &opts)?;
+    for host in &fw.domains {
+        // Event-driven participants turn times into steps with it.
+        host.set_sim_step(period.as_secs_f64());
+    }
     let stop = Arc::new(AtomicBool::new(false));
     let stop2 = stop.clone();
     std::thread::spawn(move || {
