@@ -666,13 +666,26 @@ impl Actor {
         }
     }
 
-    /// Stops slot `i` if it runs (SIGTERM, SIGKILL after the grace); it is then Stopped.
+    /// Stops slot `i` if it runs (SIGTERM, SIGKILL after the grace); it is then Stopped. A
+    /// process that has ended by itself meanwhile, not yet looked at, keeps how it ended: a
+    /// component that crashed just before the end of a run did not end well.
     fn stop(&mut self, i: usize) {
         let grace = self.opts.grace;
         let s = &mut self.slots[i];
         if let Some(mut p) = s.proc.take() {
             let pid = p.child.pid();
             let name = s.c.name.clone();
+            if let Some(status) = p.child.poll() {
+                join_readers(std::mem::take(&mut p.readers));
+                let end = End::of(status);
+                s.last_end = Some(end);
+                s.state = ComponentState::Ended(end);
+                for w in s.waiters.drain(..) {
+                    let _ = w.send(Err(SupervisorError::Stopping));
+                }
+                (self.on_event)(Event::Ended { component: name, pid, end });
+                return;
+            }
             (self.on_event)(Event::Stopping { component: name, pid });
             let status = p.child.stop(Some(SIGTERM), grace);
             join_readers(std::mem::take(&mut p.readers));
