@@ -30,8 +30,17 @@ fn setup() -> tempfile::TempDir {
 }
 
 /// Runs launch file `name` of `dir` (framework and `components`, each `(name, mode)`) to
-/// its end; returns the run and its exit status.
-fn run(dir: &Path, name: &str, ddf: &str, components: &[(&str, &str)], extra: &str) -> (Proc, Option<i32>) {
+/// its end; returns the run and its exit status. `extra`: more framework keys; `clock`: the
+/// simulated time into `t`, an item that changes at every step and that nobody reads.
+fn run(
+    dir: &Path,
+    name: &str,
+    ddf: &str,
+    components: &[(&str, &str)],
+    extra: &str,
+    clock: bool,
+) -> (Proc, Option<i32>) {
+    let clock = if clock { r#", "@sim_time -> ev/publish/t""# } else { "" };
     let ns = common::namespace(&format!("ev{name}"));
     let _clean = RemoveSegments(ns.clone());
     let list: Vec<String> = components
@@ -45,7 +54,7 @@ fn run(dir: &Path, name: &str, ddf: &str, components: &[(&str, &str)], extra: &s
         r#"{{
   ddf: "{ddf}",
   framework: {{ step: "1ms", steps: {STEPS}, speed: 0, timeout: "5s", hold: true{extra} }},
-  connections: ["ev/subscribe/src -> ev/publish/x"],
+  connections: ["ev/subscribe/src -> ev/publish/x"{clock}],
   components: [ {} ],
 }}"#,
         list.join(",\n    ")
@@ -101,9 +110,9 @@ const ALL: [(&str, &str); 4] = [("every", "every"), ("period", "period"), ("wake
 #[test]
 fn each_participant_runs_exactly_at_its_due_steps_and_reads_what_lock_step_gives_there() {
     let dir = setup();
-    let (lock, code) = run(dir.path(), "lock", "lockstep.ddf", &ALL, "");
+    let (lock, code) = run(dir.path(), "lock", "lockstep.ddf", &ALL, "", true);
     assert_eq!(code, Some(0), "{}", lock.dump());
-    let (event, code) = run(dir.path(), "event", "event.ddf", &ALL, "");
+    let (event, code) = run(dir.path(), "event", "event.ddf", &ALL, "", true);
     assert_eq!(code, Some(0), "{}", event.dump());
     assert!(!event.dump().contains("timed out"), "a participant stalled a step\n{}", event.dump());
 
@@ -114,7 +123,8 @@ fn each_participant_runs_exactly_at_its_due_steps_and_reads_what_lock_step_gives
     for (component, _) in ALL {
         assert_eq!(wakes(dir.path(), "lock", component), reference, "{component} in lock-step");
     }
-    // x changes at irregular steps: what wakes the change-driven participant.
+    // x changes at irregular steps: what wakes the change-driven participant, which reads x
+    // only (t changes at every step).
     let changed: BTreeSet<u64> =
         reference.iter().filter(|(n, x)| **n == 0 || reference.get(&(*n - 1)) != Some(*x)).map(|(n, _)| *n).collect();
     assert!(changed.len() > 30 && changed.len() < 100, "{changed:?}");
@@ -138,7 +148,7 @@ fn each_participant_runs_exactly_at_its_due_steps_and_reads_what_lock_step_gives
 fn a_participant_killed_while_due_frees_its_step_and_the_others_go_on() {
     let dir = setup();
     let parts = [("every", "every"), ("period", "period 500"), ("request", "request")];
-    let (event, code) = run(dir.path(), "kill", "event.ddf", &parts, "");
+    let (event, code) = run(dir.path(), "kill", "event.ddf", &parts, "", false);
     assert_eq!(code, Some(1), "the killed component did not end well\n{}", event.dump());
     assert!(event.dump().contains("signal 9"), "{}", event.dump());
     assert!(!event.dump().contains("timed out"), "the step was not freed before the timeout\n{}", event.dump());
@@ -154,7 +164,7 @@ fn a_participant_killed_while_due_frees_its_step_and_the_others_go_on() {
 fn with_nobody_due_a_run_not_paced_by_the_clock_jumps_to_the_next_due_step() {
     let dir = setup();
     let parts = [("period", "period"), ("request", "request")];
-    let (event, code) = run(dir.path(), "jump", "event.ddf", &parts, r#", record: ["jump.csv"]"#);
+    let (event, code) = run(dir.path(), "jump", "event.ddf", &parts, r#", record: ["jump.csv"]"#, false);
     assert_eq!(code, Some(0), "{}", event.dump());
     // The due steps, and the run's last step (its end is made, whoever is due).
     let due: BTreeSet<u64> =

@@ -10,7 +10,8 @@
  *
  * MODE: every   due at every step (calls nothing); writes src = f(N) at each step
  *       period  RTSetPeriod(0.010): every 10 ms of simulated time
- *       wake    RTSetWakeOnChange(1): when x changed
+ *       wake    RTSetWakeOnChange(1): when x changed (it reads x only; t changes at
+ *               every step)
  *       request RTRequestTime(t + 37 ms, + 10.5 ms, + 3 ms, in turn)
  * DIE_AT: kill itself with SIGKILL at that step, while due, before answering it.
  * Ends with 0 when the framework stops.

@@ -9,7 +9,7 @@
 use loom::sync::Arc;
 use loom::thread;
 use tutti_core::shm::bucket::{Bucket, SLOTS};
-use tutti_core::shm::handshake::{ConnCtl, StepCtl, CONN_EVENT, CONN_SYNC_READER, CONN_WRITER};
+use tutti_core::shm::handshake::{ConnCtl, StepCtl, CONN_EVENT, CONN_SYNC_READER, CONN_WRITER, MASK_WORDS};
 use tutti_core::sync::{AtomicU32, AtomicU64, Ordering};
 
 /// The bucket's slots, two words each: enough to see a torn value (the words differ).
@@ -125,6 +125,8 @@ struct Shared {
     all_due_step: AtomicU64,
     due_step: AtomicU64,
     answered: AtomicU64,
+    changed_items: [AtomicU64; MASK_WORDS],
+    read_items: [AtomicU64; MASK_WORDS],
 }
 
 impl Shared {
@@ -135,6 +137,7 @@ impl Shared {
             ack_seq: &self.ack_seq,
             changed_step: &self.changed_step,
             all_due_step: &self.all_due_step,
+            changed_items: &self.changed_items,
         }
     }
     fn conn(&self) -> ConnCtl<'_> {
@@ -146,6 +149,7 @@ impl Shared {
             last_commit: &self.last_commit,
             due_step: &self.due_step,
             answered: &self.answered,
+            read_items: &self.read_items,
         }
     }
 }
@@ -169,6 +173,8 @@ fn lock_step_handshake_reads_each_step_once_and_sees_each_answer() {
             all_due_step: AtomicU64::new(0),
             due_step: AtomicU64::new(0),
             answered: AtomicU64::new(0),
+            changed_items: std::array::from_fn(|_| AtomicU64::new(0)),
+            read_items: std::array::from_fn(|_| AtomicU64::new(0)),
         });
         let p = s.clone();
         let participant = thread::spawn(move || {
@@ -199,7 +205,7 @@ fn lock_step_handshake_reads_each_step_once_and_sees_each_answer() {
         let mut out = [0u8; 16];
         for k in 1..=STEPS {
             s.publish.bucket().write(&value(k));
-            s.step_ctl().publish(k, false);
+            s.step_ctl().publish(k, &[0; MASK_WORDS]);
             while s.conn().owes(&s.step_ctl(), k) {
                 thread::yield_now();
             }
@@ -233,6 +239,8 @@ fn event_handshake_reads_exactly_the_due_steps() {
             all_due_step: AtomicU64::new(0),
             due_step: AtomicU64::new(0),
             answered: AtomicU64::new(0),
+            changed_items: std::array::from_fn(|_| AtomicU64::new(0)),
+            read_items: std::array::from_fn(|_| AtomicU64::new(0)),
         });
         let p = s.clone();
         let participant = thread::spawn(move || {
@@ -255,7 +263,7 @@ fn event_handshake_reads_exactly_the_due_steps() {
                 assert_eq!(words(&out), (k, k), "read another step's data (generation {g})");
                 p.subscribe.bucket().write(&value(10 * k));
                 read.push(k);
-                p.step_ctl().answer(&p.conn(), k, next);
+                p.step_ctl().answer(&p.conn(), k, next, &[0; MASK_WORDS]);
                 answered = k;
             }
             read
@@ -263,7 +271,7 @@ fn event_handshake_reads_exactly_the_due_steps() {
         let mut out = [0u8; 16];
         for k in 1..=STEPS {
             s.publish.bucket().write(&value(k));
-            s.step_ctl().publish(k, false);
+            s.step_ctl().publish(k, &[0; MASK_WORDS]);
             if k % 2 == 0 {
                 // Not due: the answer to the step before said so, before that step ended.
                 assert!(!s.conn().owes(&s.step_ctl(), k), "the framework would wait at step {k}");

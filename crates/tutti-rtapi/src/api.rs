@@ -246,6 +246,7 @@ pub unsafe extern "C" fn RTSubscribe(itemPath: *const c_char, value: *mut c_void
                 if !locked {
                     p.subscribe_lock()?;
                 }
+                p.reads_item(index);
                 // The index was resolved in this participant's own layout: always there.
                 if let Some(bytes) = p.snapshot_item(index) {
                     out.copy_from_slice(bytes);
@@ -342,6 +343,10 @@ pub unsafe extern "C" fn RTGetBuffer(connKey: c_uint, itemKey: c_ushort, buffer:
         let mut st = state();
         let p = st.participant(connKey)?;
         let (role, range) = leaf_by_key(p, itemKey).map(|(role, leaf)| (role, leaf.range()))?;
+        if role == Role::Publish {
+            // Its buffer is read from now on (the key of a PUBLISH item is its index).
+            p.reads_item(usize::from(itemKey));
+        }
         let set = match role {
             Role::Publish => p.snapshot_mut(),
             Role::Subscribe => p.staging_mut(),

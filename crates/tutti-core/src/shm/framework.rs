@@ -3,7 +3,7 @@
 
 use std::time::{Duration, Instant};
 
-use super::handshake::{CONN_EVENT, CONN_SYNC_READER, CONN_WAKE, CONN_WRITER};
+use super::handshake::{item_bit, CONN_EVENT, CONN_SYNC_READER, CONN_WAKE, CONN_WRITER, MASK_WORDS};
 use super::segment::{
     self, namespace_from_env, DomainInfo, DomainStatus, Segment, WaitMode, Waited, Waiter, STATE_STOPPED,
 };
@@ -208,29 +208,42 @@ impl DomainHost {
         h.sim_time_bits.store(sim_time.to_bits(), Ordering::Relaxed);
         h.heartbeat_ns.store(os::now_ns(), Ordering::Relaxed);
         h.steps.fetch_add(1, Ordering::Relaxed);
-        self.seg.step_ctl().publish(k, changed);
+        self.seg.step_ctl().publish(k, &changed);
         self.step = k;
         segment::wake(&h.step_seq, &h.step_waiters);
         Ok(removed)
     }
 
-    /// Event-driven domains: whether `publish` differs from the last step's PUBLISH set (the
-    /// first step counts as a change), kept for the next step.
-    fn note_publish(&mut self, publish: &[u8]) -> bool {
+    /// Event-driven domains: the items of `publish` that differ from the last step's PUBLISH
+    /// set (every item at the first step), a bit per item ([`item_bit`]); `publish` is kept
+    /// for the next step.
+    fn note_publish(&mut self, publish: &[u8]) -> [u64; MASK_WORDS] {
         if !self.seg.info.flags.event {
-            return false;
+            return [0; MASK_WORDS];
         }
+        let changed = self.changed_items(publish);
         match &mut self.last_publish {
-            Some(last) if last.as_slice() == publish => false,
-            Some(last) => {
-                last.copy_from_slice(publish);
-                true
-            }
-            None => {
-                self.last_publish = Some(publish.to_vec());
-                true
+            Some(last) => last.copy_from_slice(publish),
+            None => self.last_publish = Some(publish.to_vec()),
+        }
+        changed
+    }
+
+    /// The items of `publish` that differ from the last step's PUBLISH set ([`item_bit`]).
+    fn changed_items(&self, publish: &[u8]) -> [u64; MASK_WORDS] {
+        let mut mask = [0; MASK_WORDS];
+        let last = self.last_publish.as_deref();
+        if last == Some(publish) {
+            return mask;
+        }
+        for (i, leaf) in self.seg.info.publish.leaves.iter().enumerate() {
+            let r = leaf.range();
+            if last.map_or(true, |last| last.get(r.clone()) != publish.get(r)) {
+                let (w, bit) = item_bit(i);
+                mask[w] |= bit;
             }
         }
+        mask
     }
 
     /// Event-driven domains: how many of the next steps nobody would be due at if they were
@@ -248,7 +261,7 @@ impl DomainHost {
         if ctl.all_due_step.load(Ordering::Acquire) == k {
             return Some(0);
         }
-        let changed = self.last_publish.as_deref() != Some(publish);
+        let changed = self.changed_items(publish);
         let mut next: Option<u64> = None;
         for i in 0..seg.scan_len() {
             let Some(conn) = seg.conn_ctl(i) else { break };
@@ -261,7 +274,10 @@ impl DomainHost {
             {
                 continue;
             }
-            if flags & CONN_EVENT == 0 || (flags & CONN_WAKE != 0 && changed) {
+            let reads: [u64; MASK_WORDS] = std::array::from_fn(|w| conn.read_items[w].load(Ordering::Acquire));
+            let woken = changed.iter().zip(&reads).any(|(&c, &r)| c & r != 0)
+                || (reads == [0; MASK_WORDS] && changed != [0; MASK_WORDS]);
+            if flags & CONN_EVENT == 0 || (flags & CONN_WAKE != 0 && woken) {
                 return Some(0);
             }
             let due = conn.due_step.load(Ordering::Acquire).max(k);

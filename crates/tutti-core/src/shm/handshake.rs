@@ -46,6 +46,18 @@ pub struct StepCtl<'a> {
     pub changed_step: &'a AtomicU64,
     /// Every event-driven connection is due at this step (the first after a reset).
     pub all_due_step: &'a AtomicU64,
+    /// The PUBLISH items that changed at `changed_step` ([`item_bit`]).
+    pub changed_items: &'a [AtomicU64; MASK_WORDS],
+}
+
+/// Words of an item mask.
+pub const MASK_WORDS: usize = 4;
+
+/// The word and bit of PUBLISH item `index` in an item mask: the last bit stands for every
+/// item from it on.
+pub fn item_bit(index: usize) -> (usize, u64) {
+    let i = index.min(MASK_WORDS * 64 - 1);
+    (i / 64, 1 << (i % 64))
 }
 
 /// The handshake fields of one connection slot.
@@ -62,13 +74,18 @@ pub struct ConnCtl<'a> {
     pub due_step: &'a AtomicU64,
     /// Event-driven: the last step the connection answered.
     pub answered: &'a AtomicU64,
+    /// Event-driven, waking on change: the items it reads ([`item_bit`]; none: all).
+    pub read_items: &'a [AtomicU64; MASK_WORDS],
 }
 
 impl StepCtl<'_> {
     /// Framework: announce step `k` (its PUBLISH data is already in the bucket); `changed`:
-    /// that data differs from the step before's.
-    pub fn publish(&self, k: u64, changed: bool) {
-        if changed {
+    /// the items whose values differ from the step before's ([`item_bit`]; all zero: none).
+    pub fn publish(&self, k: u64, changed: &[u64; MASK_WORDS]) {
+        if changed.iter().any(|&w| w != 0) {
+            for (word, &bits) in self.changed_items.iter().zip(changed) {
+                word.store(bits, Ordering::Relaxed);
+            }
             self.changed_step.store(k, Ordering::Relaxed);
         }
         self.pub_step.store(k, Ordering::Release);
@@ -91,7 +108,9 @@ impl StepCtl<'_> {
     pub fn due(&self, conn: &ConnCtl<'_>, k: u64) -> bool {
         k >= conn.due_step.load(Ordering::Acquire)
             || self.all_due_step.load(Ordering::Acquire) == k
-            || (conn.flags.load(Ordering::Acquire) & CONN_WAKE != 0 && self.changed_step.load(Ordering::Acquire) == k)
+            || (conn.flags.load(Ordering::Acquire) & CONN_WAKE != 0
+                && self.changed_step.load(Ordering::Acquire) == k
+                && reads_changed(conn.read_items, self.changed_items))
     }
 
     /// Event-driven participant: the step published now, if it is after `answered` and the
@@ -103,8 +122,12 @@ impl StepCtl<'_> {
     }
 
     /// Event-driven participant: answer step `k` (what it commits for `k` is in already) and
-    /// be due next from step `next_due`.
-    pub fn answer(&self, conn: &ConnCtl<'_>, k: u64, next_due: u64) {
+    /// be due next from step `next_due`, or where one of the items of `reads` changes if it
+    /// wakes on change.
+    pub fn answer(&self, conn: &ConnCtl<'_>, k: u64, next_due: u64, reads: &[u64; MASK_WORDS]) {
+        for (word, &bits) in conn.read_items.iter().zip(reads) {
+            word.store(bits, Ordering::Relaxed);
+        }
         conn.due_step.store(next_due, Ordering::Release);
         conn.answered.store(k, Ordering::Release);
         self.ack_seq.fetch_add(1, Ordering::Release);
@@ -115,6 +138,20 @@ impl StepCtl<'_> {
         conn.last_commit.store(k, Ordering::Release);
         self.ack_seq.fetch_add(1, Ordering::Release);
     }
+}
+
+/// Whether a connection reading the items of `reads` (none: all) reads one of `changed`.
+fn reads_changed(reads: &[AtomicU64; MASK_WORDS], changed: &[AtomicU64; MASK_WORDS]) -> bool {
+    let reads: [u64; MASK_WORDS] = std::array::from_fn(|i| reads[i].load(Ordering::Acquire));
+    let all = reads.iter().all(|&w| w == 0);
+    reads.iter().zip(changed).any(|(&r, c)| {
+        let c = c.load(Ordering::Acquire);
+        if all {
+            c != 0
+        } else {
+            r & c != 0
+        }
+    })
 }
 
 impl ConnCtl<'_> {

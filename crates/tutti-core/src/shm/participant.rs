@@ -5,7 +5,7 @@ use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 use super::bucket::{copy_words, store_bytes, store_range, with_bytes_mut};
-use super::handshake::{CONN_EVENT, CONN_SYNC_READER, CONN_WAKE, CONN_WRITER};
+use super::handshake::{item_bit, CONN_EVENT, CONN_SYNC_READER, CONN_WAKE, CONN_WRITER, MASK_WORDS};
 use super::segment::{
     self, namespace_from_env, ConnKind, DomainInfo, Segment, WaitMode, Waited, Waiter, MAX_READ_TRIES, STATE_RUNNING,
 };
@@ -97,6 +97,8 @@ struct Due {
     wake: bool,
     /// Its commit answers the step (a DDS writer: it never asks for a step itself).
     answer_on_commit: bool,
+    /// The PUBLISH items it reads ([`item_bit`]; none: all), for waking on change.
+    reads: [u64; MASK_WORDS],
 }
 
 /// A time within this fraction of a step of a step's time counts as that step.
@@ -328,7 +330,7 @@ impl Participant {
         self.due.request = None;
         let seg = &self.seg;
         if let (Some(c), Some(conn)) = (seg.conn(self.slot), seg.conn_ctl(self.slot)) {
-            seg.step_ctl().answer(&conn, s, next);
+            seg.step_ctl().answer(&conn, s, next, &self.due.reads);
             // The kind of due-ness after the answer: the framework reads the flags first.
             if self.due.wake {
                 c.flags.fetch_or(CONN_WAKE, Ordering::AcqRel);
@@ -424,6 +426,14 @@ impl Participant {
     /// PUBLISH set changed, each answered by its commit (it never asks for a step itself).
     pub fn wake_on_change_writer(&mut self) {
         self.due = Due { said: true, wake: true, answer_on_commit: true, ..Due::default() };
+    }
+
+    /// Notes that this connection reads PUBLISH item `index` (its index in the set): woken on
+    /// change, it is due where one of the items it reads changed (none noted: any item). The
+    /// RTAPI notes the items of RTSubscribe and of RTGetBuffer.
+    pub fn reads_item(&mut self, index: usize) {
+        let (w, bit) = item_bit(index);
+        self.due.reads[w] |= bit;
     }
 
     /// The simulated time of the step this connection is at (the one it read last; in an

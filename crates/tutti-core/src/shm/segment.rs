@@ -27,7 +27,7 @@ use std::time::{Duration, Instant};
 use serde::Serialize;
 
 use super::bucket::{load_bytes, Bucket, SLOTS};
-use super::handshake::{ConnCtl, StepCtl, CONN_OBSERVER, CONN_REMOTE, CONN_SYNC_READER, CONN_WRITER};
+use super::handshake::{ConnCtl, StepCtl, CONN_OBSERVER, CONN_REMOTE, CONN_SYNC_READER, CONN_WRITER, MASK_WORDS};
 use super::os::{self, ProcessId};
 use super::ShmError;
 use crate::ddf::layout::{layout_hash, MAX_SET_BYTES};
@@ -176,6 +176,9 @@ pub(crate) struct Header {
     pub all_due_step: AtomicU64,
     /// The simulated time of a step, seconds (f64 bits; 0: not said).
     pub sim_step_bits: AtomicU64,
+    /// The PUBLISH items that changed at `changed_step`, a bit per item (by its index in the
+    /// set; the last bit stands for every item from it on).
+    pub changed_items: [AtomicU64; MASK_WORDS],
     /// Written by participants on their reads and commits.
     pub _participants: LineBreak,
     pub ack_seq: AtomicU32,
@@ -214,7 +217,10 @@ pub(crate) struct ConnSlot {
     pub due_step: AtomicU64,
     /// Event-driven: the last step the connection answered.
     pub answered: AtomicU64,
-    pub _reserved: [AtomicU64; 5],
+    /// Event-driven, waking on change: the PUBLISH items the connection reads, a bit per
+    /// item as in `Header::changed_items` (none: every item).
+    pub read_items: [AtomicU64; MASK_WORDS],
+    pub _reserved: [AtomicU64; 1],
 }
 
 const _: () = assert!(size_of::<Header>() <= HEADER_BYTES);
@@ -644,6 +650,7 @@ impl Segment {
             last_commit: &c.last_commit,
             due_step: &c.due_step,
             answered: &c.answered,
+            read_items: &c.read_items,
         })
     }
 
@@ -655,6 +662,7 @@ impl Segment {
             ack_seq: &h.ack_seq,
             changed_step: &h.changed_step,
             all_due_step: &h.all_due_step,
+            changed_items: &h.changed_items,
         }
     }
 
@@ -858,6 +866,7 @@ impl Segment {
             c.last_commit.store(step, Ordering::Relaxed);
             c.due_step.store(0, Ordering::Relaxed);
             c.answered.store(step, Ordering::Relaxed);
+            c.read_items.iter().for_each(|w| w.store(0, Ordering::Relaxed));
             c.reads.store(0, Ordering::Relaxed);
             c.commits.store(0, Ordering::Relaxed);
             c.missed.store(0, Ordering::Relaxed);
