@@ -185,3 +185,55 @@ fn with_nobody_due_a_run_not_paced_by_the_clock_jumps_to_the_next_due_step() {
     assert!(made == due, "the steps made are not the due ones: {}", differ(&made, &due));
     assert!(made.len() < STEPS as usize / 5, "{} of {STEPS} steps made", made.len());
 }
+
+/// The example (examples/event/tank.json5 with examples/c/event_tank.c), run as its comment
+/// says: the supervisor every 100 ms, the alarm exactly at the steps after the supervisor
+/// changed the valve (the level, which it does not read, changes at every step), the logger
+/// every 250 ms; every component ends well.
+#[test]
+fn the_event_driven_example_runs_each_component_when_it_needs_to() {
+    let dir = tempfile::tempdir().unwrap();
+    let (event, c) = (dir.path().join("event"), dir.path().join("c"));
+    std::fs::create_dir_all(&event).unwrap();
+    std::fs::create_dir_all(&c).unwrap();
+    for f in ["tank.ddf", "tank.json5"] {
+        std::fs::copy(common::repo_root().join("examples/event").join(f), event.join(f)).unwrap();
+    }
+    common::compile_c(
+        &common::repo_root().join("examples/c/event_tank.c"),
+        &c.join("event_tank"),
+        &["-std=c99", "-Wall", "-Wextra", "-Werror"],
+    );
+    let ns = common::namespace("evtank");
+    let _clean = RemoveSegments(ns.clone());
+    let mut cmd = common::tutti_command();
+    cmd.arg("run").arg(event.join("tank.json5")).env("TUTTI_NAMESPACE", &ns);
+    let mut run = Proc::spawn("tutti run", cmd, LIMIT);
+    assert_eq!(run.wait(LIMIT), Some(0), "{}", run.dump());
+    let times = |who: &str| -> Vec<(u64, String)> {
+        let log = std::fs::read_to_string(event.join(format!("logs/{who}.log"))).unwrap();
+        log.lines()
+            .map(|l| {
+                let t = l.split_whitespace().nth(1).and_then(|w| w.strip_prefix("t=")).unwrap();
+                ((t.parse::<f64>().unwrap() * 1000.0).round() as u64, l.to_string())
+            })
+            .collect()
+    };
+    let supervisor = times("supervisor");
+    assert!(supervisor.len() == 50 && supervisor.iter().all(|(n, _)| n % 100 == 0), "{supervisor:?}");
+    let logger: Vec<u64> = times("logger").iter().map(|(n, _)| *n).collect();
+    assert_eq!(logger, (0..20).map(|i| i * 250).collect::<Vec<_>>());
+    // The valve the supervisor set reaches the alarm at the next step, and only then.
+    let mut changes = vec![0];
+    let mut valve = 0.0;
+    for (n, line) in &supervisor {
+        let v: f64 = line.rsplit("valve=").next().unwrap().parse().unwrap();
+        if v != valve {
+            changes.push(n + 1);
+            valve = v;
+        }
+    }
+    let alarm: Vec<u64> = times("alarm").iter().map(|(n, _)| *n).collect();
+    assert!(changes.len() >= 4, "the valve changed {} times", changes.len() - 1);
+    assert_eq!(alarm, changes, "the alarm woke at other steps than where the valve changed");
+}
