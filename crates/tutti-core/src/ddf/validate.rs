@@ -182,7 +182,13 @@ fn yes_no(el: RawElement, d: &mut Diags) -> Option<bool> {
     } else {
         d.at(
             el.text_pos().unwrap_or(el.pos()),
-            format!("<{}> must be yes or no, found '{}'", el.name(), shorten(&text.to_ascii_lowercase())),
+            format!(
+                "<{}> must be yes or no{}, found '{}'",
+                el.name(),
+                // tutti's extension (docs/timing.md).
+                if el.name() == "synchronous" { " (or event)" } else { "" },
+                shorten(&text.to_ascii_lowercase())
+            ),
         );
         None
     }

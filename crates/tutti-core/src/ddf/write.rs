@@ -285,6 +285,14 @@ mod tests {
         // The three connection forms (remote and dolphin with child elements) are kept.
         let forms = format!("{}/../../tests/ddf/connection-forms.ddf", env!("CARGO_MANIFEST_DIR"));
         round_trip(&std::fs::read_to_string(forms).unwrap());
+        // An event-driven domain (docs/timing.md) stays one.
+        let event = std::fs::read_to_string(format!("{}/../../tests/event/event.ddf", env!("CARGO_MANIFEST_DIR"))).unwrap();
+        round_trip(&event);
+        let model = parse_str(&event, "event.ddf").unwrap();
+        let written = write(&Document::from(&model)).xml;
+        assert!(written.contains("<synchronous>event</synchronous>"), "{written}");
+        let again = parse_str(&written, "written.ddf").unwrap();
+        assert!(again.domains[0].flags.event && again.domains[0].flags.synchronous);
     }
 
     #[test]
