@@ -123,8 +123,10 @@ struct Shared {
     last_commit: AtomicU64,
     changed_step: AtomicU64,
     all_due_step: AtomicU64,
-    due_step: AtomicU64,
+    due_index: AtomicU64,
+    pub_index: AtomicU64,
     answered: AtomicU64,
+    due_at: AtomicU64,
     changed_items: [AtomicU64; MASK_WORDS],
     read_items: [AtomicU64; MASK_WORDS],
 }
@@ -136,6 +138,7 @@ impl Shared {
             step_seq: &self.step_seq,
             ack_seq: &self.ack_seq,
             changed_step: &self.changed_step,
+            pub_index: &self.pub_index,
             all_due_step: &self.all_due_step,
             changed_items: &self.changed_items,
         }
@@ -147,9 +150,10 @@ impl Shared {
             first_step: &self.first_step,
             last_read: &self.last_read,
             last_commit: &self.last_commit,
-            due_step: &self.due_step,
+            due_index: &self.due_index,
             answered: &self.answered,
             read_items: &self.read_items,
+            due_at: &self.due_at,
         }
     }
 }
@@ -171,8 +175,10 @@ fn lock_step_handshake_reads_each_step_once_and_sees_each_answer() {
             last_commit: AtomicU64::new(0),
             changed_step: AtomicU64::new(0),
             all_due_step: AtomicU64::new(0),
-            due_step: AtomicU64::new(0),
+            due_index: AtomicU64::new(0),
+            pub_index: AtomicU64::new(0),
             answered: AtomicU64::new(0),
+            due_at: AtomicU64::new(0),
             changed_items: std::array::from_fn(|_| AtomicU64::new(0)),
             read_items: std::array::from_fn(|_| AtomicU64::new(0)),
         });
@@ -205,7 +211,7 @@ fn lock_step_handshake_reads_each_step_once_and_sees_each_answer() {
         let mut out = [0u8; 16];
         for k in 1..=STEPS {
             s.publish.bucket().write(&value(k));
-            s.step_ctl().publish(k, &[0; MASK_WORDS]);
+            s.step_ctl().publish(k, k, &[0; MASK_WORDS]);
             while s.conn().owes(&s.step_ctl(), k) {
                 thread::yield_now();
             }
@@ -219,7 +225,8 @@ fn lock_step_handshake_reads_each_step_once_and_sees_each_answer() {
 
 /// The event-driven handshake: a participant due at steps 1 and 3 only (it asks for step 3
 /// when it answers step 1) reads exactly those, and the framework never goes past a due step
-/// before its answer, nor waits at a step the participant is not due at.
+/// before its answer, nor waits at a step the participant is not due at. The framework alone
+/// decides who is due at its step (it knows the step's index), and tells them.
 #[test]
 fn event_handshake_reads_exactly_the_due_steps() {
     const STEPS: u64 = 4;
@@ -237,8 +244,10 @@ fn event_handshake_reads_exactly_the_due_steps() {
             last_commit: AtomicU64::new(0),
             changed_step: AtomicU64::new(0),
             all_due_step: AtomicU64::new(0),
-            due_step: AtomicU64::new(0),
+            due_index: AtomicU64::new(0),
+            pub_index: AtomicU64::new(0),
             answered: AtomicU64::new(0),
+            due_at: AtomicU64::new(0),
             changed_items: std::array::from_fn(|_| AtomicU64::new(0)),
             read_items: std::array::from_fn(|_| AtomicU64::new(0)),
         });
@@ -271,7 +280,9 @@ fn event_handshake_reads_exactly_the_due_steps() {
         let mut out = [0u8; 16];
         for k in 1..=STEPS {
             s.publish.bucket().write(&value(k));
-            s.step_ctl().publish(k, &[0; MASK_WORDS]);
+            s.step_ctl().publish(k, k, &[0; MASK_WORDS]);
+            // The framework tells it where it is due (here once, after the publish).
+            s.step_ctl().mark_due(&s.conn(), k);
             if k % 2 == 0 {
                 // Not due: the answer to the step before said so, before that step ended.
                 assert!(!s.conn().owes(&s.step_ctl(), k), "the framework would wait at step {k}");

@@ -208,8 +208,12 @@ impl DomainHost {
         h.sim_time_bits.store(sim_time.to_bits(), Ordering::Relaxed);
         h.heartbeat_ns.store(os::now_ns(), Ordering::Relaxed);
         h.steps.fetch_add(1, Ordering::Relaxed);
-        self.seg.step_ctl().publish(k, &changed);
+        self.seg.step_ctl().publish(k, self.index_of(sim_time, k), &changed);
         self.step = k;
+        if self.seg.info.flags.event {
+            // Tells the event-driven participants due at `k`, woken below.
+            tell_due(&self.seg, k);
+        }
         segment::wake(&h.step_seq, &h.step_waiters);
         Ok(removed)
     }
@@ -246,12 +250,22 @@ impl DomainHost {
         mask
     }
 
-    /// Event-driven domains: how many of the next steps nobody would be due at if they were
-    /// published with `publish`, so that a framework not paced by the wall clock may skip
-    /// them ([`skip_steps`](Self::skip_steps)). 0 when someone is due at the next step (always
-    /// in a lock-step domain with participants), `None` when nobody will ever be due unless
-    /// an input changes (the framework then steps as usual).
-    pub fn idle_steps(&self, publish: &[u8]) -> Option<u64> {
+    /// The index of a step at simulated time `sim_time`: its time over the step the
+    /// framework said ([`set_sim_step`](Self::set_sim_step)), else the step number `k`.
+    fn index_of(&self, sim_time: f64, k: u64) -> u64 {
+        match self.seg.sim_step() {
+            Some(dt) if sim_time.is_finite() && sim_time >= 0.0 => (sim_time / dt).round() as u64,
+            _ => k,
+        }
+    }
+
+    /// Event-driven domains: how many steps from index `next` (the next step's simulated
+    /// time over the step) nobody would be due at if they were published with `publish`, so
+    /// that a framework not paced by the wall clock may leave them out and make the step of
+    /// index `next + n` next. 0 when someone is due at the next step (always in a lock-step
+    /// domain with participants), `None` when nobody will be due unless an input changes
+    /// (the framework then steps as usual).
+    pub fn idle_steps(&self, publish: &[u8], next: u64) -> Option<u64> {
         let k = self.step + 1;
         let seg = &self.seg;
         if !seg.info.flags.synchronous {
@@ -262,7 +276,7 @@ impl DomainHost {
             return Some(0);
         }
         let changed = self.changed_items(publish);
-        let mut next: Option<u64> = None;
+        let mut first: Option<u64> = None;
         for i in 0..seg.scan_len() {
             let Some(conn) = seg.conn_ctl(i) else { break };
             let flags = conn.flags.load(Ordering::Acquire);
@@ -280,16 +294,10 @@ impl DomainHost {
             if flags & CONN_EVENT == 0 || (flags & CONN_WAKE != 0 && woken) {
                 return Some(0);
             }
-            let due = conn.due_step.load(Ordering::Acquire).max(k);
-            next = Some(next.map_or(due, |n| n.min(due)));
+            let due = conn.due_index.load(Ordering::Acquire).max(next);
+            first = Some(first.map_or(due, |n| n.min(due)));
         }
-        next.map(|due| due - k)
-    }
-
-    /// Event-driven domains: leaves out the next `n` steps (nobody is due at them,
-    /// [`idle_steps`](Self::idle_steps)): the next step published is `current_step() + n + 1`.
-    pub fn skip_steps(&mut self, n: u64) {
-        self.step += n;
+        first.filter(|&due| due != u64::MAX).map(|due| due - next)
     }
 
     /// Event-driven domains: every participant is due at the next step (after a reset of
@@ -298,8 +306,9 @@ impl DomainHost {
         self.seg.header().all_due_step.store(self.step + 1, Ordering::Release);
     }
 
-    /// Says the simulated time of one step (seconds), so that an event-driven participant
-    /// can turn a time it asks for into a step.
+    /// Says the simulated time of one step (seconds): the steps' indexes are their simulated
+    /// times over it, and an event-driven participant turns a time it asks for into a step
+    /// with it.
     pub fn set_sim_step(&self, seconds: f64) {
         self.seg.header().sim_step_bits.store(seconds.to_bits(), Ordering::Release);
     }
@@ -320,7 +329,13 @@ impl DomainHost {
         let mut timed_out = 0;
         let mut removed = 0;
         if self.seg.info.flags.synchronous {
+            let event = self.seg.info.flags.event;
             let (waited, r) = self.wait_acks(move |seg| {
+                // A participant may have become event-driven, or joined, since the publish.
+                if event && tell_due(seg, k) {
+                    let h = seg.header();
+                    segment::wake(&h.step_seq, &h.step_waiters);
+                }
                 let step = seg.step_ctl();
                 !(0..seg.scan_len()).any(|i| seg.conn_ctl(i).is_some_and(|c| c.owes(&step, k)))
             })?;
@@ -493,6 +508,19 @@ impl DomainHost {
             h.overruns.fetch_add(1, Ordering::Relaxed);
         }
     }
+}
+
+/// Event-driven domains, at step `k`: tells every connection due at `k` that has not been
+/// told (`StepCtl::mark_due`); returns whether it told any.
+fn tell_due(seg: &Segment, k: u64) -> bool {
+    let step = seg.step_ctl();
+    let mut told = false;
+    for i in 0..seg.scan_len() {
+        if let Some(c) = seg.conn_ctl(i) {
+            told |= step.mark_due(&c, k);
+        }
+    }
+    told
 }
 
 /// Removes every connection whose process is gone; returns how many.

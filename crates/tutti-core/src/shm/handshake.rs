@@ -9,12 +9,14 @@
 //! reader owes a read, a reader's copy is never lapped and no step is read twice or skipped.
 //!
 //! In an event-driven domain (`docs/timing.md`) a connection that has said when it is next
-//! due ([`CONN_EVENT`]) takes part only in the steps it is due at: from `due_step` on, at a
-//! step whose PUBLISH set changed if it wakes on change ([`CONN_WAKE`]), and at the step
-//! after a reset (`all_due_step`). It answers its due step `k` by asking for the next
-//! ([`StepCtl::answer`]: `due_step` first, then `answered = k`), so the framework, which does
-//! not start `k + 1` before that answer, always knows the next due step in time, and a
-//! participant never misses a step it is due at.
+//! due ([`CONN_EVENT`]) takes part only in the steps it is due at: from the step whose index
+//! (simulated time over the step, `pub_index`) reaches its `due_index` on, at a step where an
+//! item it reads changed if it wakes on change ([`CONN_WAKE`]), and at the step after a reset
+//! (`all_due_step`). Indexes, not step numbers, so that a framework may leave out steps (or
+//! fall behind the wall clock) without shifting anyone's due times. It answers its due step
+//! `k` by asking for the next ([`StepCtl::answer`]: `due_index` first, then `answered = k`),
+//! so the framework, which does not start `k + 1` before that answer, always knows the next
+//! due step in time, and a participant never misses a step it is due at.
 
 use crate::sync::{AtomicU32, AtomicU64, Ordering};
 
@@ -26,7 +28,7 @@ pub const CONN_SYNC_READER: u32 = 2;
 pub const CONN_REMOTE: u32 = 4;
 /// Connection flag: a passive observer (never waited for, not a participant).
 pub const CONN_OBSERVER: u32 = 8;
-/// Connection flag: an event-driven connection, due only at some steps (`due_step`, …).
+/// Connection flag: an event-driven connection, due only at some steps (`due_index`, …).
 pub const CONN_EVENT: u32 = 16;
 /// Connection flag: an event-driven connection also due at any step whose PUBLISH set
 /// differs from the step before.
@@ -44,6 +46,8 @@ pub struct StepCtl<'a> {
     /// The last step whose PUBLISH set differs from the step before (written before
     /// `pub_step`).
     pub changed_step: &'a AtomicU64,
+    /// The index of the published step (written before `pub_step`).
+    pub pub_index: &'a AtomicU64,
     /// Every event-driven connection is due at this step (the first after a reset).
     pub all_due_step: &'a AtomicU64,
     /// The PUBLISH items that changed at `changed_step` ([`item_bit`]).
@@ -70,18 +74,22 @@ pub struct ConnCtl<'a> {
     pub first_step: &'a AtomicU64,
     pub last_read: &'a AtomicU64,
     pub last_commit: &'a AtomicU64,
-    /// Event-driven: the step from which the connection is next due.
-    pub due_step: &'a AtomicU64,
+    /// Event-driven: the step index from which the connection is next due.
+    pub due_index: &'a AtomicU64,
     /// Event-driven: the last step the connection answered.
     pub answered: &'a AtomicU64,
     /// Event-driven, waking on change: the items it reads ([`item_bit`]; none: all).
     pub read_items: &'a [AtomicU64; MASK_WORDS],
+    /// Event-driven: the last step the framework found it due at.
+    pub due_at: &'a AtomicU64,
 }
 
 impl StepCtl<'_> {
-    /// Framework: announce step `k` (its PUBLISH data is already in the bucket); `changed`:
-    /// the items whose values differ from the step before's ([`item_bit`]; all zero: none).
-    pub fn publish(&self, k: u64, changed: &[u64; MASK_WORDS]) {
+    /// Framework: announce step `k`, of index `index` (its PUBLISH data is already in the
+    /// bucket); `changed`: the items whose values differ from the step before's
+    /// ([`item_bit`]; all zero: none).
+    pub fn publish(&self, k: u64, index: u64, changed: &[u64; MASK_WORDS]) {
+        self.pub_index.store(index, Ordering::Relaxed);
         if changed.iter().any(|&w| w != 0) {
             for (word, &bits) in self.changed_items.iter().zip(changed) {
                 word.store(bits, Ordering::Relaxed);
@@ -104,31 +112,47 @@ impl StepCtl<'_> {
         self.ack_seq.fetch_add(1, Ordering::Release);
     }
 
-    /// Whether event-driven connection `conn` is due at step `k` (the step published now).
+    /// Framework: whether event-driven connection `conn` is due at step `k`, the step it
+    /// published now (only the framework decides: it knows the step's index and changes).
     pub fn due(&self, conn: &ConnCtl<'_>, k: u64) -> bool {
-        k >= conn.due_step.load(Ordering::Acquire)
+        self.pub_index.load(Ordering::Acquire) >= conn.due_index.load(Ordering::Acquire)
             || self.all_due_step.load(Ordering::Acquire) == k
             || (conn.flags.load(Ordering::Acquire) & CONN_WAKE != 0
                 && self.changed_step.load(Ordering::Acquire) == k
                 && reads_changed(conn.read_items, self.changed_items))
     }
 
-    /// Event-driven participant: the step published now, if it is after `answered` and the
-    /// connection is due at it. The framework stays at a due step until it is answered, so
-    /// waiting on this never misses one.
+    /// Framework, at step `k`: tells connection `conn` that it is due at `k` if it owes `k`
+    /// as an event-driven connection and has not been told; returns whether it told it now
+    /// (the caller then wakes the participants).
+    pub fn mark_due(&self, conn: &ConnCtl<'_>, k: u64) -> bool {
+        if conn.flags.load(Ordering::Acquire) & CONN_EVENT == 0 || conn.due_at.load(Ordering::Acquire) >= k {
+            return false;
+        }
+        if !conn.owes(self, k) {
+            return false;
+        }
+        conn.due_at.store(k, Ordering::Release);
+        self.step_seq.fetch_add(1, Ordering::Release);
+        true
+    }
+
+    /// Event-driven participant: the step the framework found it due at, if after
+    /// `answered`. The framework stays at that step until it is answered, so waiting on this
+    /// never misses one.
     pub fn next_due(&self, conn: &ConnCtl<'_>, answered: u64) -> Option<u64> {
-        let k = self.pub_step.load(Ordering::Acquire);
-        (k > answered && self.due(conn, k)).then_some(k)
+        let k = conn.due_at.load(Ordering::Acquire);
+        (k > answered).then_some(k)
     }
 
     /// Event-driven participant: answer step `k` (what it commits for `k` is in already) and
-    /// be due next from step `next_due`, or where one of the items of `reads` changes if it
-    /// wakes on change.
+    /// be due next from the step of index `next_due` on, or where one of the items of `reads`
+    /// changes if it wakes on change.
     pub fn answer(&self, conn: &ConnCtl<'_>, k: u64, next_due: u64, reads: &[u64; MASK_WORDS]) {
         for (word, &bits) in conn.read_items.iter().zip(reads) {
             word.store(bits, Ordering::Relaxed);
         }
-        conn.due_step.store(next_due, Ordering::Release);
+        conn.due_index.store(next_due, Ordering::Release);
         conn.answered.store(k, Ordering::Release);
         self.ack_seq.fetch_add(1, Ordering::Release);
     }
@@ -166,7 +190,7 @@ impl ConnCtl<'_> {
         }
         let flags = self.flags.load(Ordering::Acquire);
         if flags & CONN_EVENT != 0 {
-            // `answered` before `due_step`: an answer stores them the other way round.
+            // `answered` before `due_index`: an answer stores them the other way round.
             return self.answered.load(Ordering::Acquire) < k && step.due(self, k);
         }
         (flags & CONN_SYNC_READER != 0 && self.last_read.load(Ordering::Acquire) < k)

@@ -78,8 +78,9 @@ pub struct Participant {
     stale_staging: bool,
     /// When the framework's process was last found alive (checked at most every 50 ms).
     framework_seen: std::cell::Cell<Instant>,
-    /// The simulated time of the step last read.
+    /// The simulated time of the step last read, and its index (simulated time over step).
     read_sim: f64,
+    read_index: u64,
     /// When this connection is due, in an event-driven domain (`docs/timing.md`).
     due: Due,
 }
@@ -139,6 +140,7 @@ impl Participant {
             stale_staging: true,
             framework_seen: std::cell::Cell::new(Instant::now()),
             read_sim: 0.0,
+            read_index: 0,
             due: Due::default(),
             seg: Arc::new(seg),
             slot,
@@ -326,7 +328,7 @@ impl Participant {
     /// step answered; the connection's next step is the first due one after it.
     fn ask_next(&mut self) -> u64 {
         let s = self.last_read.max(self.locked_step);
-        let next = if self.has_read || self.locked_step > 0 { self.next_due_after(s) } else { 0 };
+        let next = if self.has_read || self.locked_step > 0 { self.next_due_after() } else { 0 };
         self.due.request = None;
         let seg = &self.seg;
         if let (Some(c), Some(conn)) = (seg.conn(self.slot), seg.conn_ctl(self.slot)) {
@@ -346,10 +348,13 @@ impl Participant {
         s
     }
 
-    /// The first step after step `s` (at simulated time `read_sim`) this connection is due at:
-    /// the step of the time it asked for, the next multiple of its period, whichever comes
-    /// first; with neither, the next step unless it waits for changes only.
-    fn next_due_after(&self, s: u64) -> u64 {
+    /// The index of the first step after the one this connection is at (index `read_index`,
+    /// simulated time `read_sim`) that it is due at: the step of the time it asked for, the
+    /// next multiple of its period, whichever comes first; with neither, the next step unless
+    /// it waits for changes only. Indexes count the framework's steps of simulated time, so
+    /// they stay right when the framework leaves steps out.
+    fn next_due_after(&self) -> u64 {
+        let n = self.read_index;
         let step = self.seg.sim_step();
         let mut next = u64::MAX;
         if let Some(t) = self.due.request {
@@ -358,15 +363,13 @@ impl Participant {
                 None => 1.0,
             };
             // At least the next step; far-off times saturate.
-            next = next.min(s.saturating_add(if ahead >= 1.0 { ahead as u64 } else { 1 }));
+            next = next.min(n.saturating_add(if ahead >= 1.0 { ahead as u64 } else { 1 }));
         }
         if let Some(p) = self.due.period_steps {
-            let n = step.map_or(0, |dt| (self.read_sim / dt).round().max(0.0) as u64);
-            let multiple = (n / p + 1) * p;
-            next = next.min(s.saturating_add(multiple - n));
+            next = next.min((n / p).saturating_add(1).saturating_mul(p));
         }
         if next == u64::MAX && !self.due.wake {
-            next = s + 1;
+            next = n + 1;
         }
         next
     }
@@ -483,7 +486,7 @@ impl Participant {
         // event-driven connection reads the due step the framework stays at (it may have
         // left steps out).
         let step = if event {
-            seg.step()
+            seg.conn(self.slot).map_or_else(|| seg.step(), |c| c.due_at.load(Ordering::Acquire))
         } else if seg.info.flags.synchronous {
             generation.max(self.last_read + 1)
         } else {
@@ -491,6 +494,7 @@ impl Participant {
         };
         // The framework is still at that step: it waits for this connection's answer.
         self.read_sim = seg.sim_time();
+        self.read_index = seg.header().pub_index.load(Ordering::Acquire);
         self.last_read = step;
         self.has_read = true;
         if let Some(c) = seg.conn(self.slot) {
@@ -677,8 +681,9 @@ impl Participant {
                 let answered = self.ask_next();
                 self.waiting(GateFor::DueAfter(answered)).wait(&self.seg)?;
                 let seg = &self.seg;
-                let k = seg.step();
+                let k = seg.conn(self.slot).map_or_else(|| seg.step(), |c| c.due_at.load(Ordering::Acquire));
                 self.read_sim = seg.sim_time();
+                self.read_index = seg.header().pub_index.load(Ordering::Acquire);
                 self.locked_step = k;
                 self.last_read = self.last_read.max(k);
                 return Ok(k);
@@ -687,6 +692,7 @@ impl Participant {
             self.waiting(GateFor::PublishAfter { last: self.last_commit, states }).wait(seg)?;
             let k = h.pub_step.load(Ordering::Acquire);
             self.read_sim = seg.sim_time();
+            self.read_index = h.pub_index.load(Ordering::Acquire);
             self.locked_step = k;
             // Waiting for step k counts as having seen it: a connection that writes before
             // it reads (or never reads) must not stall the framework for a read it never makes.

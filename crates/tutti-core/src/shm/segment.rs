@@ -172,6 +172,10 @@ pub(crate) struct Header {
     pub last_late_ns: AtomicU64,
     /// The last step whose PUBLISH set differs from the step before (event-driven domains).
     pub changed_step: AtomicU64,
+    /// The index of the published step: its simulated time over the step, which a framework
+    /// not paced by the wall clock advances by more than one where nobody is due (written
+    /// before `pub_step`).
+    pub pub_index: AtomicU64,
     /// Every event-driven connection is due at this step (the first after a reset).
     pub all_due_step: AtomicU64,
     /// The simulated time of a step, seconds (f64 bits; 0: not said).
@@ -213,14 +217,17 @@ pub(crate) struct ConnSlot {
     /// An observer's DDS readers (the gateway's count of the readers of this domain's
     /// topics, every set's readers once).
     pub peers: AtomicU64,
-    /// Event-driven: the step from which the connection is next due.
-    pub due_step: AtomicU64,
+    /// Event-driven: the index (simulated time over the step) from which the connection is
+    /// next due.
+    pub due_index: AtomicU64,
     /// Event-driven: the last step the connection answered.
     pub answered: AtomicU64,
     /// Event-driven, waking on change: the PUBLISH items the connection reads, a bit per
     /// item as in `Header::changed_items` (none: every item).
     pub read_items: [AtomicU64; MASK_WORDS],
-    pub _reserved: [AtomicU64; 1],
+    /// Event-driven: the last step the framework found the connection due at (it stays at
+    /// that step until the connection answers it).
+    pub due_at: AtomicU64,
 }
 
 const _: () = assert!(size_of::<Header>() <= HEADER_BYTES);
@@ -648,9 +655,10 @@ impl Segment {
             first_step: &c.first_step,
             last_read: &c.last_read,
             last_commit: &c.last_commit,
-            due_step: &c.due_step,
+            due_index: &c.due_index,
             answered: &c.answered,
             read_items: &c.read_items,
+            due_at: &c.due_at,
         })
     }
 
@@ -661,6 +669,7 @@ impl Segment {
             step_seq: &h.step_seq,
             ack_seq: &h.ack_seq,
             changed_step: &h.changed_step,
+            pub_index: &h.pub_index,
             all_due_step: &h.all_due_step,
             changed_items: &h.changed_items,
         }
@@ -864,7 +873,8 @@ impl Segment {
             c.first_step.store(if held { u64::MAX } else { step + 1 }, Ordering::Relaxed);
             c.last_read.store(step, Ordering::Relaxed);
             c.last_commit.store(step, Ordering::Relaxed);
-            c.due_step.store(0, Ordering::Relaxed);
+            c.due_index.store(0, Ordering::Relaxed);
+            c.due_at.store(0, Ordering::Relaxed);
             c.answered.store(step, Ordering::Relaxed);
             c.read_items.iter().for_each(|w| w.store(0, Ordering::Relaxed));
             c.reads.store(0, Ordering::Relaxed);
