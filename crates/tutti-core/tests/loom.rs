@@ -127,6 +127,7 @@ struct Shared {
     pub_index: AtomicU64,
     answered: AtomicU64,
     due_at: AtomicU64,
+    due_seq: AtomicU32,
     changed_items: [AtomicU64; MASK_WORDS],
     read_items: [AtomicU64; MASK_WORDS],
 }
@@ -154,6 +155,7 @@ impl Shared {
             answered: &self.answered,
             read_items: &self.read_items,
             due_at: &self.due_at,
+            due_seq: &self.due_seq,
         }
     }
 }
@@ -179,6 +181,7 @@ fn lock_step_handshake_reads_each_step_once_and_sees_each_answer() {
             pub_index: AtomicU64::new(0),
             answered: AtomicU64::new(0),
             due_at: AtomicU64::new(0),
+            due_seq: AtomicU32::new(0),
             changed_items: std::array::from_fn(|_| AtomicU64::new(0)),
             read_items: std::array::from_fn(|_| AtomicU64::new(0)),
         });
@@ -248,6 +251,7 @@ fn event_handshake_reads_exactly_the_due_steps() {
             pub_index: AtomicU64::new(0),
             answered: AtomicU64::new(0),
             due_at: AtomicU64::new(0),
+            due_seq: AtomicU32::new(0),
             changed_items: std::array::from_fn(|_| AtomicU64::new(0)),
             read_items: std::array::from_fn(|_| AtomicU64::new(0)),
         });

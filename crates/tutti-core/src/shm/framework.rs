@@ -332,9 +332,8 @@ impl DomainHost {
             let event = self.seg.info.flags.event;
             let (waited, r) = self.wait_acks(move |seg| {
                 // A participant may have become event-driven, or joined, since the publish.
-                if event && tell_due(seg, k) {
-                    let h = seg.header();
-                    segment::wake(&h.step_seq, &h.step_waiters);
+                if event {
+                    tell_due(seg, k);
                 }
                 let step = seg.step_ctl();
                 !(0..seg.scan_len()).any(|i| seg.conn_ctl(i).is_some_and(|c| c.owes(&step, k)))
@@ -511,16 +510,16 @@ impl DomainHost {
 }
 
 /// Event-driven domains, at step `k`: tells every connection due at `k` that has not been
-/// told (`StepCtl::mark_due`); returns whether it told any.
-fn tell_due(seg: &Segment, k: u64) -> bool {
+/// told (`StepCtl::mark_due`), and wakes it; the others sleep on.
+fn tell_due(seg: &Segment, k: u64) {
     let step = seg.step_ctl();
-    let mut told = false;
     for i in 0..seg.scan_len() {
-        if let Some(c) = seg.conn_ctl(i) {
-            told |= step.mark_due(&c, k);
+        if let (Some(ctl), Some(slot)) = (seg.conn_ctl(i), seg.conn(i)) {
+            if step.mark_due(&ctl, k) {
+                segment::wake(&slot.due_seq, &slot.due_waiters);
+            }
         }
     }
-    told
 }
 
 /// Removes every connection whose process is gone; returns how many.
@@ -545,6 +544,13 @@ impl Drop for DomainHost {
         os::futex_wake_all(&h.step_seq);
         os::futex_wake_all(&h.ack_seq);
         os::futex_wake_all(&h.hold);
+        // Event-driven connections wait on words of their own.
+        for i in 0..self.seg.scan_len() {
+            if let Some(c) = self.seg.conn(i) {
+                c.due_seq.fetch_add(1, Ordering::Release);
+                os::futex_wake_all(&c.due_seq);
+            }
+        }
         let _ = os::shm_unlink(&self.seg.shm_name);
     }
 }

@@ -82,6 +82,8 @@ pub struct ConnCtl<'a> {
     pub read_items: &'a [AtomicU64; MASK_WORDS],
     /// Event-driven: the last step the framework found it due at.
     pub due_at: &'a AtomicU64,
+    /// Event-driven: bumped when the framework tells it (its own wait word).
+    pub due_seq: &'a AtomicU32,
 }
 
 impl StepCtl<'_> {
@@ -124,7 +126,7 @@ impl StepCtl<'_> {
 
     /// Framework, at step `k`: tells connection `conn` that it is due at `k` if it owes `k`
     /// as an event-driven connection and has not been told; returns whether it told it now
-    /// (the caller then wakes the participants).
+    /// (the caller then wakes the connection, on `due_seq`).
     pub fn mark_due(&self, conn: &ConnCtl<'_>, k: u64) -> bool {
         if conn.flags.load(Ordering::Acquire) & CONN_EVENT == 0 || conn.due_at.load(Ordering::Acquire) >= k {
             return false;
@@ -133,7 +135,7 @@ impl StepCtl<'_> {
             return false;
         }
         conn.due_at.store(k, Ordering::Release);
-        self.step_seq.fetch_add(1, Ordering::Release);
+        conn.due_seq.fetch_add(1, Ordering::Release);
         true
     }
 

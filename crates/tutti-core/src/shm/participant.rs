@@ -1056,17 +1056,23 @@ impl Waiting {
             GateFor::PublishAfter { .. } => "a step to publish for",
             _ => "the framework's next step",
         };
-        let waiter = Waiter {
-            mode: self.wait,
-            futex: &h.step_seq,
-            waiters: &h.step_waiters,
-            check_every: Duration::from_millis(20),
+        // An event-driven connection waits on its own word, which the framework bumps when it
+        // is due, so the steps it is not due at do not wake it.
+        let slot = seg.conn(self.slot).filter(|_| matches!(until, GateFor::DueAfter(_)));
+        let (futex, waiters) = match slot {
+            Some(c) => (&c.due_seq, &c.due_waiters),
+            None => (&h.step_seq, &h.step_waiters),
         };
+        let waiter = Waiter { mode: self.wait, futex, waiters, check_every: Duration::from_millis(20) };
         loop {
             let deadline = Instant::now() + self.timeout;
+            let step_before = h.pub_step.load(Ordering::Acquire);
             match waiter.wait(deadline, &mut ready, || self.check(seg, true))? {
                 Waited::Ready => return Ok(()),
                 Waited::TimedOut if !seg.step_wait_may_time_out(self.timeout) => {}
+                // Not due yet while the framework goes on stepping: nothing is late.
+                Waited::TimedOut
+                    if matches!(until, GateFor::DueAfter(_)) && h.pub_step.load(Ordering::Acquire) != step_before => {}
                 Waited::TimedOut => {
                     let ms = self.timeout.as_millis() as u64;
                     return Err(ShmError::Timeout { domain: seg.info.name.clone(), what, ms });

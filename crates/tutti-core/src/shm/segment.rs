@@ -47,7 +47,7 @@ pub const DEFAULT_CONNECTIONS: u32 = 64;
 /// faster than one copy, without pause, or a damaged segment, exhausts them).
 pub(crate) const MAX_READ_TRIES: u32 = 1 << 20;
 const MAX_CONNECTIONS: u32 = 4096;
-const CONN_BYTES: usize = 192;
+const CONN_BYTES: usize = 256;
 const DIR_ENTRY_BYTES: usize = 16;
 const ALIGN: usize = 64;
 
@@ -228,6 +228,12 @@ pub(crate) struct ConnSlot {
     /// Event-driven: the last step the framework found the connection due at (it stays at
     /// that step until the connection answers it).
     pub due_at: AtomicU64,
+    /// Event-driven: bumped when the framework tells the connection it is due (or stops, or
+    /// removes it); the connection waits on it alone, so the steps it is not due at do not
+    /// wake it.
+    pub due_seq: AtomicU32,
+    pub due_waiters: AtomicU32,
+    pub _reserved: [AtomicU64; 7],
 }
 
 const _: () = assert!(size_of::<Header>() <= HEADER_BYTES);
@@ -659,6 +665,7 @@ impl Segment {
             answered: &c.answered,
             read_items: &c.read_items,
             due_at: &c.due_at,
+            due_seq: &c.due_seq,
         })
     }
 
@@ -930,6 +937,9 @@ impl Segment {
         }
         h.ack_seq.fetch_add(1, Ordering::Release);
         wake(&h.ack_seq, &h.ack_waiters);
+        // An event-driven connection waiting for its due step hears of its removal at once.
+        c.due_seq.fetch_add(1, Ordering::Release);
+        wake(&c.due_seq, &c.due_waiters);
         true
     }
 
