@@ -11,6 +11,7 @@ use std::process::ExitCode;
 use clap::{Parser, Subcommand};
 
 mod ddf;
+mod event;
 mod gateway;
 mod iceoryx;
 mod peers;
@@ -31,6 +32,9 @@ struct Args {
 enum What {
     /// Parse and validate a large DDF (default: the 1,000-domain file) and print the time.
     Ddf(ddf::Args),
+    /// An event-driven domain next to its lock-step twin: one participant due at every step
+    /// and 20 due every 100th, steps per second and CPU time per step.
+    Event(event::Args),
     /// The gateway per DDS engine: round trips, throughput, lock-step rate and start-up, next to
     /// Cyclone's ddsperf and a Fast DDS ping-pong.
     Gateway(gateway::Args),
@@ -56,6 +60,7 @@ pub use tutti_exit::{load_ddf, tutti_exe, CliResult, Failure};
 fn main() -> ExitCode {
     let result = match Args::parse().what {
         What::Ddf(a) => ddf::run(a),
+        What::Event(a) => event::run(a),
         What::Gateway(a) => gateway::run(a),
         What::Record(a) => record::run(a),
         What::Shm(a) => shm::run(a),
