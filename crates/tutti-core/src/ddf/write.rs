@@ -286,7 +286,8 @@ mod tests {
         let forms = format!("{}/../../tests/ddf/connection-forms.ddf", env!("CARGO_MANIFEST_DIR"));
         round_trip(&std::fs::read_to_string(forms).unwrap());
         // An event-driven domain (docs/timing.md) stays one.
-        let event = std::fs::read_to_string(format!("{}/../../tests/event/event.ddf", env!("CARGO_MANIFEST_DIR"))).unwrap();
+        let event =
+            std::fs::read_to_string(format!("{}/../../tests/event/event.ddf", env!("CARGO_MANIFEST_DIR"))).unwrap();
         round_trip(&event);
         let model = parse_str(&event, "event.ddf").unwrap();
         let written = write(&Document::from(&model)).xml;
