@@ -9,7 +9,7 @@ use std::sync::{Arc, Mutex};
 use std::thread;
 use std::time::{Duration, Instant};
 
-use tutti_test_support::Worker;
+use tutti_test_support::{RemoveSegments, Worker};
 
 use tutti_core::ddf::{Model, Role};
 use tutti_core::shm::{ConnectOptions, Framework, FrameworkOptions, Participant};
@@ -59,6 +59,24 @@ fn start_gateway(mut cmd: Command, ddf: &str, domain_id: u16, ns: &str, addr: &s
     let p = Proc::spawn(&format!("gateway {ns}"), cmd, Duration::from_secs(180));
     assert!(p.wait_line("tutti gateway: up", Duration::from_secs(60)).is_some(), "gateway did not start\n{}", p.dump());
     p
+}
+
+/// `tutti host DDF --gateway` on engine `e`, in DDS domain `dom` (loopback) and namespace
+/// `ns`, stepping every 5 ms with more arguments `extra`; returns once the gateway is up. The
+/// segments are removed when the returned guard drops, even if the host was killed.
+pub fn host_with_gateway(e: Eng, ddf: &str, dom: u16, ns: &str, extra: &[&str]) -> (Proc, RemoveSegments) {
+    let guard = RemoveSegments(ns.to_string());
+    let mut cmd = tutti_test_support::tutti_command();
+    cmd.args(["host", ddf, "--step", "5ms", "--gateway"])
+        .args(extra)
+        .env("TUTTI_NAMESPACE", ns)
+        .env("ROS_DOMAIN_ID", dom.to_string())
+        .env("TUTTI_DDS", e.name)
+        .env("TUTTI_GATEWAY_INTERFACE", "127.0.0.1")
+        .env("RUST_LOG", "info,rustdds=off,ros2_client=off");
+    let p = Proc::spawn(&format!("host --gateway {ns}"), cmd, SECS(180));
+    assert!(p.wait_line("host: gateway: up", SECS(60)).is_some(), "the gateway did not start\n{}", p.dump());
+    (p, guard)
 }
 
 /// Two network namespaces joined by a veth pair (`veth0` in each, 192.0.2.1/24 in the first,
@@ -144,6 +162,12 @@ impl Eng {
     /// The DDS domain id of this engine's run of a test numbered `base`.
     pub fn dom(self, base: u16) -> u16 {
         base + self.offset
+    }
+
+    /// The DDS domain of this engine's run of a test numbered `base` whose runs take two
+    /// neighbouring ids: `base` for Cyclone, `base + 1` for rustdds (where 50 above is taken).
+    pub fn dom_beside(self, base: u16) -> u16 {
+        base + u16::from(self.offset != 0)
     }
 
     /// The shared-memory namespace of this engine's run of a test.

@@ -16,28 +16,10 @@ use tutti_core::ddf::Role;
 use tutti_core::shm::segment::Segment;
 use tutti_test_support::RemoveSegments;
 
-/// `tutti host DDF --gateway` on engine `e`, in DDS domain `dom` (loopback) and namespace
-/// `ns`, stepping every 5 ms with `sets`; returns once the gateway is up. The segments are
-/// removed when the returned guard drops, even if the host was killed.
-fn host_with_gateway(e: Eng, dom: u16, ns: &str, sets: &[&str]) -> (Proc, RemoveSegments) {
-    let guard = RemoveSegments(ns.to_string());
-    let mut cmd = tutti_test_support::tutti_command();
-    cmd.args(["host", DDF, "--step", "5ms", "--gateway"])
-        .args(sets.iter().flat_map(|s| ["--set", s]))
-        .env("TUTTI_NAMESPACE", ns)
-        .env("ROS_DOMAIN_ID", dom.to_string())
-        .env("TUTTI_DDS", e.name)
-        .env("TUTTI_GATEWAY_INTERFACE", "127.0.0.1")
-        .env("RUST_LOG", "info,rustdds=off,ros2_client=off");
-    let p = Proc::spawn(&format!("host --gateway {ns}"), cmd, SECS(180));
-    assert!(p.wait_line("host: gateway: up", SECS(60)).is_some(), "the gateway did not start\n{}", p.dump());
-    (p, guard)
-}
-
 fn every_synchronous_step_reaches_a_reader_once_and_in_order(e: Eng) {
     let Some(py) = python() else { return };
     let (dom, ns) = (e.dom(126), e.ns("gwinproc126"));
-    let (mut host, _segments) = host_with_gateway(e, dom, &ns, &["gw_sync/x=1.5"]);
+    let (mut host, _segments) = host_with_gateway(e, DDF, dom, &ns, &["--set", "gw_sync/x=1.5"]);
     let mut sub = peer(
         &py,
         "sub sync publish",
@@ -69,7 +51,7 @@ fn every_synchronous_step_reaches_a_reader_once_and_in_order(e: Eng) {
 fn a_dds_writers_samples_reach_the_subscribe_set(e: Eng) {
     let Some(py) = python() else { return };
     let (dom, ns) = (e.dom(127), e.ns("gwinproc127"));
-    let (host, _segments) = host_with_gateway(e, dom, &ns, &[]);
+    let (host, _segments) = host_with_gateway(e, DDF, dom, &ns, &[]);
     let values = r#"[{"y": 3.25, "n": 11}, {"y": 3.25, "n": 12}, {"y": 3.25, "n": 13}]"#;
     let mut writer = peer(
         &py,
@@ -115,7 +97,7 @@ fn a_dds_writers_samples_reach_the_subscribe_set(e: Eng) {
 fn a_set_an_external_component_writes_still_reaches_dds(e: Eng) {
     let Some(py) = python() else { return };
     let (dom, ns) = (e.dom(128), e.ns("gwinproc128"));
-    let (host, _segments) = host_with_gateway(e, dom, &ns, &[]);
+    let (host, _segments) = host_with_gateway(e, DDF, dom, &ns, &[]);
     let stop = Arc::new(AtomicBool::new(false));
     let (s, ns2) = (stop.clone(), ns.clone());
     let component = thread::spawn(move || {

@@ -23,11 +23,6 @@ use tutti_test_support::{RemoveSegments, Worker};
 /// Steps stepped flat out once the reader has its first sample.
 const FLAT_OUT_STEPS: u64 = 20_000;
 
-/// This test's DDS domain: `base` for Cyclone, `base + 1` for rustdds (within 220-229 or 131-132).
-fn dom(e: Eng, base: u16) -> u16 {
-    base + u16::from(e.name == "rustdds")
-}
-
 /// Asserts that the gateway whose output `p` holds counts no synchronous step lost in its
 /// next status line: `lost=0` (a step its DDS writer refused for the whole step timeout) and
 /// `errors=0`; with `every_step` (the gateway reads in lock-step) also `skipped=0`.
@@ -148,7 +143,7 @@ fn a_separate_gateway_in_lock_step_loses_no_step(e: Eng) {
     if python().is_none() {
         return;
     }
-    let (dom, ns) = (dom(e, 220), e.ns("rel-rustdds-sep"));
+    let (dom, ns) = (e.dom_beside(220), e.ns("rel-rustdds-sep"));
     let (fw, _segments) = framework(&ns);
     let gw = e.gateway(DDF, dom, &ns, &["--every-step", "--timeout", "5s"]);
     every_step_arrives(dom, fw, None, &|| gw.dump());
@@ -161,7 +156,7 @@ fn the_gateway_in_the_framework_process_loses_no_step(e: Eng) {
     if python().is_none() {
         return;
     }
-    let (dom, ns) = (dom(e, 222), e.ns("rel-rustdds-inp"));
+    let (dom, ns) = (e.dom_beside(222), e.ns("rel-rustdds-inp"));
     let (fw, _segments) = framework(&ns);
     let ddf = tutti_test_support::repo_root().join(DDF);
     let mut opts = GatewayOptions::new(&ddf, model());
@@ -185,7 +180,7 @@ fn the_gateway_in_the_framework_process_loses_no_step(e: Eng) {
 /// KEEP_LAST 1 (docs/gateway.md, "QoS").
 fn a_synchronous_writers_history_as_a_cyclone_peer_sees_it(e: Eng) {
     let Some(py) = python() else { return };
-    let (dom, ns) = (dom(e, 224), e.ns("rel-rustdds-qos"));
+    let (dom, ns) = (e.dom_beside(224), e.ns("rel-rustdds-qos"));
     let gw = e.gateway(DDF, dom, &ns, &["--all-domains"]);
     // Both engines announce the history (rustdds through its patch: vendor/rustdds).
     let q = announced(&py, &gw, dom, "rt/gw_sync/publish", false);
@@ -198,7 +193,7 @@ fn a_synchronous_writers_history_as_a_cyclone_peer_sees_it(e: Eng) {
 
 fn a_synchronous_readers_history_as_a_cyclone_peer_sees_it(e: Eng) {
     let Some(py) = python() else { return };
-    let (dom, ns) = (dom(e, 131), e.ns("rel-rustdds-rqos"));
+    let (dom, ns) = (e.dom_beside(131), e.ns("rel-rustdds-rqos"));
     let gw = e.gateway(DDF, dom, &ns, &["--all-domains"]);
     let q = announced(&py, &gw, dom, "rt/gw_sync/subscribe", true);
     assert_eq!(q["reliability"], "Reliable", "{q}");

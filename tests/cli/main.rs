@@ -24,6 +24,7 @@ mod fmu_run;
 mod gateway_churn;
 mod gateway_citizen;
 mod gateway_config;
+mod gateway_event;
 mod gateway_fastdds;
 mod gateway_in_process;
 mod gateway_interop;

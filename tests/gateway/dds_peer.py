@@ -11,10 +11,11 @@ Every mode prints JSON lines on stdout and exits 0 on success, 3 on timeout.
          [--linger S] [--transient-local]: waits for a matched reader, writes each sample (transient
          local: a latched writer, keeping its last sample for late joiners)
   answer --topic T --type TN --fields F --reply-topic T2 --reply-type TN2 --reply-fields F2
-         --count N [--reply-depth D]: for each sample read on T (a step k) writes one sample on T2
+         --count N [--reply-depth D] [--on-change]: for each sample read on T (a step k) writes one sample on T2
          with step k and every other field of F2 = the first data field of the sample + 1; the
          writer keeps all its samples until acknowledged, or with D the last D (as rclpy's
-         default KEEP_LAST 10)
+         default KEEP_LAST 10); with --on-change, only for a sample whose first data field differs
+         from the sample before's (the first sample counts as a change): a node that reacts to changes
   steps  --topic T --type TN --fields F [--timeout S] [--max-samples N --pause-ms P]: every step of a
          synchronous PUBLISH set, read with the domain's QoS (reliable, keep-all; a slow reader with
          --max-samples, which holds at most N samples and takes them every P ms, so that its writer
@@ -175,9 +176,14 @@ def cmd_answer(dp, a):
     emit({"ready": True})
     end, n = time.time() + a.timeout, 0
     first = f_in[2][0]
+    previous = None
     while time.time() < end and n < a.count:
         for s in rd.take(N=100):
             if not s.sample_info.valid_data:
+                continue
+            unchanged = previous is not None and getattr(s, first) == previous
+            previous = getattr(s, first)
+            if a.on_change and unchanged:
                 continue
             out = {name: default(spec) for name, spec in f_out}
             for name, _ in f_out[2:]:
@@ -365,6 +371,7 @@ def main():
     p.add_argument("--exclusive", action="store_true")
     p.add_argument("--transient-local", action="store_true")
     p.add_argument("--readers", action="store_true")
+    p.add_argument("--on-change", action="store_true")
     p.add_argument("--reply-depth", type=int, default=0)
     p.add_argument("--strength", type=int, default=5)
     p.add_argument("--max-samples", type=int, default=0)

@@ -445,6 +445,34 @@ fn a_wake_on_change_writer_is_waited_for_at_the_steps_whose_input_changed_only()
     assert_eq!(r.timed_out, 1, "the writer was not waited for where its input changed");
 }
 
+/// A wake-on-change writer whose first lock commits nothing (the gateway drops a DDS sample
+/// that answers a step the framework has left) is still due only where the PUBLISH set
+/// changed: the lock alone must not make it a lock-step writer that owes every step.
+#[test]
+fn a_wake_on_change_writers_lock_without_a_commit_leaves_it_due_at_changes_only() {
+    let opts = FrameworkOptions { timeout: Duration::from_millis(200), ..fopts("wakelate") };
+    let mut fw = Framework::create(&event_model(), &opts).unwrap();
+    let host = &mut fw.domains[0];
+    host.set_sim_step(0.001);
+    let mut w = Participant::connect("d", ConnectOptions { kind: ConnKind::Remote, ..copts("wakelate") }).unwrap();
+    w.wake_on_change_writer();
+    assert_eq!(host.step(&1.0f64.to_ne_bytes(), 0.0).unwrap().timed_out, 0, "not a writer yet");
+    // Step 2 keeps x; the writer's sample answered step 1: the lock, no commit.
+    host.publish_step(&1.0f64.to_ne_bytes(), 0.001).unwrap();
+    assert_eq!(w.publish_lock().unwrap(), 2);
+    assert_eq!(host.complete_step().unwrap().timed_out, 0, "waited for at a step whose input kept");
+    assert_eq!(host.step(&1.0f64.to_ne_bytes(), 0.002).unwrap().timed_out, 0, "step 3");
+    // Step 4 changes x: due there, and its commit answers it.
+    host.publish_step(&2.0f64.to_ne_bytes(), 0.003).unwrap();
+    assert_eq!(w.publish_lock().unwrap(), 4);
+    w.stage("a", &3.0f64.to_ne_bytes()).unwrap();
+    w.commit().unwrap();
+    assert_eq!(host.complete_step().unwrap().timed_out, 0);
+    assert_eq!(f64::from_ne_bytes(host.subscribe()[0..8].try_into().unwrap()), 3.0);
+    // Step 5 changes x again and nothing answers it: it was waited for.
+    assert_eq!(host.step(&3.0f64.to_ne_bytes(), 0.004).unwrap().timed_out, 1, "not waited for at a change");
+}
+
 /// A period that is not a whole multiple of the framework's step, or a time that is not a
 /// number, is refused with the domain named; in a lock-step domain the calls change nothing.
 #[test]

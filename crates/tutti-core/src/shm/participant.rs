@@ -330,6 +330,14 @@ impl Participant {
         let s = self.last_read.max(self.locked_step);
         let next = if self.has_read || self.locked_step > 0 { self.next_due_after() } else { 0 };
         self.due.request = None;
+        self.answer_as(s, next);
+        s
+    }
+
+    /// Event-driven: tells the framework that this connection has answered step `s` and is
+    /// next due from step `next`, or before it where an item it reads changes if it wakes on
+    /// change.
+    fn answer_as(&self, s: u64, next: u64) {
         let seg = &self.seg;
         if let (Some(c), Some(conn)) = (seg.conn(self.slot), seg.conn_ctl(self.slot)) {
             seg.step_ctl().answer(&conn, s, next, &self.due.reads);
@@ -345,7 +353,21 @@ impl Participant {
         }
         let h = seg.header();
         segment::wake(&h.ack_seq, &h.ack_waiters);
-        s
+    }
+
+    /// A wake-on-change writer's first lock ([`Participant::wake_on_change_writer`]): from the
+    /// step the framework is at on, it takes part as an event-driven connection, due where the
+    /// PUBLISH set changed. The lock flags it a writer; until its first commit it would
+    /// otherwise be a lock-step writer owing every step, and that commit may be long in coming:
+    /// a DDS node's first sample can answer a step the framework has left (the gateway drops
+    /// it, docs/gateway.md) and the node then sends nothing until the set changes again.
+    fn join_on_change(&self) {
+        let seg = &self.seg;
+        if seg.conn(self.slot).is_some_and(|c| c.flags.load(Ordering::Acquire) & CONN_EVENT == 0) {
+            let k = seg.header().pub_step.load(Ordering::Acquire);
+            // Due at step k itself only if its set changed: the node answers that change.
+            self.answer_as(k.saturating_sub(1), u64::MAX);
+        }
     }
 
     /// The index of the first step after the one this connection is at (index `read_index`,
@@ -660,6 +682,9 @@ impl Participant {
     pub fn publish_lock(&mut self) -> Result<u64, ShmError> {
         self.check()?;
         self.claim_writer()?;
+        if self.due.answer_on_commit && self.event_driven() {
+            self.join_on_change();
+        }
         let seg = &self.seg;
         let h = seg.header();
         if seg.info.flags.synchronous {
