@@ -116,9 +116,12 @@ impl StepCtl<'_> {
 
     /// Framework: whether event-driven connection `conn` is due at step `k`, the step it
     /// published now (only the framework decides: it knows the step's index and changes).
+    /// A reset makes everyone due at once, except a connection due only where its inputs
+    /// change: it has no time to say anew, and answers changes only.
     pub fn due(&self, conn: &ConnCtl<'_>, k: u64) -> bool {
-        self.pub_index.load(Ordering::Acquire) >= conn.due_index.load(Ordering::Acquire)
-            || self.all_due_step.load(Ordering::Acquire) == k
+        let due_index = conn.due_index.load(Ordering::Acquire);
+        self.pub_index.load(Ordering::Acquire) >= due_index
+            || (self.all_due_step.load(Ordering::Acquire) == k && due_index != u64::MAX)
             || (conn.flags.load(Ordering::Acquire) & CONN_WAKE != 0
                 && self.changed_step.load(Ordering::Acquire) == k
                 && reads_changed(conn.read_items, self.changed_items))
