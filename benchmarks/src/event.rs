@@ -40,9 +40,13 @@ pub struct Args {
     /// The slow participants' period, in steps.
     #[arg(long, default_value_t = 100, value_parser = clap::value_parser!(u64).range(1..))]
     every: u64,
-    /// Rounds of the four runs, one after the other.
-    #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..))]
+    /// Rounds of the four runs, one after the other, after a warm-up round that is shown but
+    /// not counted (a fresh process's first runs pay for its threads and first page faults).
+    #[arg(long, default_value_t = 3, value_parser = clap::value_parser!(u32).range(1..))]
     rounds: u32,
+    /// Leave out the warm-up round.
+    #[arg(long)]
+    no_warmup: bool,
     /// How the framework and every participant wait: block (futex), spin or poll:DURATION.
     #[arg(long, default_value = "block", value_parser = parse_wait)]
     wait: WaitMode,
@@ -173,15 +177,18 @@ pub fn run(args: Args) -> CliResult {
         );
     }
     let mut results = Vec::new();
-    for round in 1..=args.rounds {
+    let first = if args.no_warmup { 1 } else { 0 };
+    for round in first..=args.rounds {
         for kind in Kind::ALL {
             eprintln!("bench event: round {round}: {}", kind.name());
             let r = one_run(&args, kind, round)?;
             check_answers(&args, &r)?;
+            let label =
+                if round == 0 { format!("{} (warm-up)", kind.name()) } else { format!("{} #{round}", kind.name()) };
             if !args.json {
                 println!(
                     "{:<26} {:>7} {:>11.0} {:>8.3} {:>11.2} {:>8.1} {:>8.1} {:>8.1} {:>9.1} {:>9} {:>11}",
-                    format!("{} #{round}", kind.name()),
+                    label,
                     r.made,
                     r.steps_per_s(),
                     r.wall.as_secs_f64(),
@@ -194,7 +201,9 @@ pub fn run(args: Args) -> CliResult {
                     r.slow_sleeps_per_step().map_or("-".into(), |w| format!("{w:.3}"))
                 );
             }
-            results.push(r);
+            if round > 0 {
+                results.push(r);
+            }
         }
     }
     let rate = |kind: Kind| {
