@@ -133,6 +133,32 @@ struct Shared {
 }
 
 impl Shared {
+    /// One connection, flagged `flags`, taking part from step 1; nothing published yet.
+    fn new(flags: u32) -> Self {
+        let z = || AtomicU64::new(0);
+        Shared {
+            publish: Mem::new(),
+            subscribe: Mem::new(),
+            pub_step: z(),
+            step_seq: AtomicU32::new(0),
+            ack_seq: AtomicU32::new(0),
+            active: AtomicU32::new(1),
+            flags: AtomicU32::new(flags),
+            first_step: AtomicU64::new(1),
+            last_read: z(),
+            last_commit: z(),
+            changed_step: z(),
+            all_due_step: z(),
+            due_index: z(),
+            pub_index: z(),
+            answered: z(),
+            due_at: z(),
+            due_seq: AtomicU32::new(0),
+            changed_items: std::array::from_fn(|_| z()),
+            read_items: std::array::from_fn(|_| z()),
+        }
+    }
+
     fn step_ctl(&self) -> StepCtl<'_> {
         StepCtl {
             pub_step: &self.pub_step,
@@ -164,27 +190,7 @@ impl Shared {
 fn lock_step_handshake_reads_each_step_once_and_sees_each_answer() {
     const STEPS: u64 = 2;
     model(|| {
-        let s = Arc::new(Shared {
-            publish: Mem::new(),
-            subscribe: Mem::new(),
-            pub_step: AtomicU64::new(0),
-            step_seq: AtomicU32::new(0),
-            ack_seq: AtomicU32::new(0),
-            active: AtomicU32::new(1),
-            flags: AtomicU32::new(CONN_SYNC_READER | CONN_WRITER),
-            first_step: AtomicU64::new(1),
-            last_read: AtomicU64::new(0),
-            last_commit: AtomicU64::new(0),
-            changed_step: AtomicU64::new(0),
-            all_due_step: AtomicU64::new(0),
-            due_index: AtomicU64::new(0),
-            pub_index: AtomicU64::new(0),
-            answered: AtomicU64::new(0),
-            due_at: AtomicU64::new(0),
-            due_seq: AtomicU32::new(0),
-            changed_items: std::array::from_fn(|_| AtomicU64::new(0)),
-            read_items: std::array::from_fn(|_| AtomicU64::new(0)),
-        });
+        let s = Arc::new(Shared::new(CONN_SYNC_READER | CONN_WRITER));
         let p = s.clone();
         let participant = thread::spawn(move || {
             let mut last = 0;
@@ -234,27 +240,7 @@ fn lock_step_handshake_reads_each_step_once_and_sees_each_answer() {
 fn event_handshake_reads_exactly_the_due_steps() {
     const STEPS: u64 = 4;
     model(|| {
-        let s = Arc::new(Shared {
-            publish: Mem::new(),
-            subscribe: Mem::new(),
-            pub_step: AtomicU64::new(0),
-            step_seq: AtomicU32::new(0),
-            ack_seq: AtomicU32::new(0),
-            active: AtomicU32::new(1),
-            flags: AtomicU32::new(CONN_SYNC_READER | CONN_WRITER | CONN_EVENT),
-            first_step: AtomicU64::new(1),
-            last_read: AtomicU64::new(0),
-            last_commit: AtomicU64::new(0),
-            changed_step: AtomicU64::new(0),
-            all_due_step: AtomicU64::new(0),
-            due_index: AtomicU64::new(0),
-            pub_index: AtomicU64::new(0),
-            answered: AtomicU64::new(0),
-            due_at: AtomicU64::new(0),
-            due_seq: AtomicU32::new(0),
-            changed_items: std::array::from_fn(|_| AtomicU64::new(0)),
-            read_items: std::array::from_fn(|_| AtomicU64::new(0)),
-        });
+        let s = Arc::new(Shared::new(CONN_SYNC_READER | CONN_WRITER | CONN_EVENT));
         let p = s.clone();
         let participant = thread::spawn(move || {
             let mut answered = 0;
