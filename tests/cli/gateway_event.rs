@@ -4,7 +4,8 @@
 //! peer) answers `y = x + 1` into the same domain only when the `x` it read changed. In the
 //! event-driven domain (`gw_event`) the framework waits for the node only at those steps: no
 //! step times out, and the recording shows each answer at the step of its change. In lock-step
-//! (`gw_lock`) the same node makes every step where `x` kept time out. DDS domains 136-139.
+//! (`gw_lock`) the same node makes every step where `x` kept time out. As fast as possible,
+//! `/clock` jumps from due step to due step. DDS domains 136-141.
 
 use crate::gateway;
 
@@ -129,7 +130,32 @@ fn in_lock_step_the_same_dds_writer_makes_the_steps_it_does_not_answer_time_out(
     assert!(timed_out >= EVERY as usize - 2, "{timed_out} steps timed out\n{}", host.dump());
 }
 
+/// As fast as possible (`--speed 0`), with nobody due but the ticker every 10th step, the
+/// framework jumps from due step to due step, and `/clock` shows it: every time a DDS reader
+/// of `rt/clock` gets is a multiple of 10 steps, none in between.
+fn clock_jumps_from_due_step_to_due_step(e: Eng) {
+    let Some(py) = python() else { return };
+    let (dom, ns) = (e.dom_beside(140), e.ns("gwevent140"));
+    let (mut host, _segments) = host_with_gateway(e, EVENT_DDF, dom, &ns, &["--speed", "0"]);
+    let ticker = ticker(&ns);
+    let clock = peer(&py, "clock", dom, "clock", &["--timeout", "90"]);
+    let mut from = 0;
+    for i in 0..30 {
+        let line = clock.next_line(&mut from, r#""clock""#, SECS(90));
+        assert!(line.is_some(), "{i} /clock samples\n{}\n{}", clock.dump(), host.dump());
+    }
+    assert_eq!(host.interrupt(SECS(60)), Some(0), "{}", host.dump());
+    drop(ticker);
+    let times: Vec<f64> = json_lines(&clock, "clock").iter().map(|v| v["clock"].as_f64().unwrap()).collect();
+    let period = EVERY as f64 * STEP;
+    for t in &times {
+        assert!((t / period - (t / period).round()).abs() < 1e-6, "/clock at {t} s, between two due steps: {times:?}");
+    }
+    assert!(times.windows(2).all(|w| w[1] > w[0]), "{times:?}");
+}
+
 per_engine!(
     a_dds_writer_answering_changes_only_stalls_no_step,
     in_lock_step_the_same_dds_writer_makes_the_steps_it_does_not_answer_time_out,
+    clock_jumps_from_due_step_to_due_step,
 );
