@@ -100,6 +100,9 @@ struct Due {
     answer_on_commit: bool,
     /// The PUBLISH items it reads ([`item_bit`]; none: all), for waking on change.
     reads: [u64; MASK_WORDS],
+    /// The step it last answered by asking for its next, while nothing it said has changed
+    /// since: asking again (the RTAPI's gate, then its lock) answers nothing new.
+    asked: Option<u64>,
 }
 
 /// A time within this fraction of a step of a step's time counts as that step.
@@ -328,6 +331,10 @@ impl Participant {
     /// step answered; the connection's next step is the first due one after it.
     fn ask_next(&mut self) -> u64 {
         let s = self.last_read.max(self.locked_step);
+        if self.due.asked == Some(s) {
+            return s;
+        }
+        self.due.asked = Some(s);
         let next = if self.has_read || self.locked_step > 0 { self.next_due_after() } else { 0 };
         self.due.request = None;
         self.answer_as(s, next);
@@ -406,6 +413,7 @@ impl Participant {
             return Err(self.invalid_timing("a requested time", t, "not a finite number".into()));
         }
         self.due.said = true;
+        self.due.asked = None;
         self.due.request = Some(self.due.request.map_or(t, |r| r.min(t)));
         Ok(())
     }
@@ -413,12 +421,14 @@ impl Participant {
     /// Also due at any step whose PUBLISH set differs from the step before (`on`), or not.
     pub fn set_wake_on_change(&mut self, on: bool) {
         self.due.said = true;
+        self.due.asked = None;
         self.due.wake = on;
     }
 
     /// Due every `seconds` of simulated time (a whole multiple of the framework's step), at
     /// the steps whose time is a multiple of it; 0 turns the period off.
     pub fn set_period(&mut self, seconds: f64) -> Result<(), ShmError> {
+        self.due.asked = None;
         if seconds == 0.0 {
             self.due.said = true;
             self.due.period_steps = None;
@@ -458,7 +468,10 @@ impl Participant {
     /// RTAPI notes the items of RTSubscribe and of RTGetBuffer.
     pub fn reads_item(&mut self, index: usize) {
         let (w, bit) = item_bit(index);
-        self.due.reads[w] |= bit;
+        if self.due.reads[w] & bit == 0 {
+            self.due.reads[w] |= bit;
+            self.due.asked = None;
+        }
     }
 
     /// The simulated time of the step this connection is at (the one it read last; in an
