@@ -25,6 +25,7 @@ mod gateway_churn;
 mod gateway_citizen;
 mod gateway_config;
 mod gateway_fastdds;
+mod gateway_foxglove;
 mod gateway_in_process;
 mod gateway_interop;
 mod gateway_mirror;
