@@ -16,9 +16,9 @@ step() { printf '\n== %s\n' "$*"; }
 # build needs (cmake, libclang for bindgen), C toolchain, valgrind, iproute2 for the
 # network-namespace tests, procps for `kill` (the tests stop their children with SIGINT), the
 # font the UAV demo draws its figures with, headless Chromium and its WebDriver for the
-# studio's browser tests.
+# studio's browser tests, Node.js and npm for the Foxglove WebSocket client.
 ensure_debian_packages cyclonedds-tools cyclonedds-dev fastddsgen libfastrtps-dev fastdds-tools valgrind gcc g++ make \
-    cmake libclang-dev iproute2 procps python3-venv fonts-dejavu-core pkgconf chromium chromium-driver
+    cmake libclang-dev iproute2 procps python3-venv fonts-dejavu-core pkgconf chromium chromium-driver nodejs npm
 
 # --- Python: a local venv with the Cyclone DDS binding (the stand-in for rclpy nodes) and the
 # MCAP readers.
@@ -57,6 +57,12 @@ fi
 if ! ls target/wheels/setuptools-80.9.0-*.whl >/dev/null 2>&1; then
     step "downloading the setuptools wheel into target/wheels"
     .venv/bin/pip download -q --disable-pip-version-check --only-binary=:all: -d target/wheels setuptools==80.9.0
+fi
+# The Foxglove WebSocket client from npm (@foxglove/ws-protocol over ws), as locked in
+# tests/foxglove/package-lock.json, into tests/foxglove/node_modules.
+if ! [ -d tests/foxglove/node_modules/@foxglove/ws-protocol ]; then
+    step "installing the Foxglove WebSocket client into tests/foxglove/node_modules"
+    (cd tests/foxglove && npm ci --no-audit --no-fund --loglevel=error)
 fi
 export PATH="$PWD/.venv/bin:$PATH"
 

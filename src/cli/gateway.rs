@@ -103,6 +103,10 @@ pub struct Args {
     /// any free port, logged).
     #[arg(long, value_name = "ADDR")]
     http: Option<SocketAddr>,
+    /// Serve the bridged sets live over the Foxglove WebSocket protocol (default address
+    /// 127.0.0.1:8765; port 0: any free port, logged).
+    #[arg(long, value_name = "ADDR", num_args = 0..=1, default_missing_value = tutti_gateway::foxglove::DEFAULT_ADDR)]
+    foxglove: Option<SocketAddr>,
     /// Period of the status line on stderr (default 5s).
     #[arg(long, value_name = "DURATION", value_parser = config::parse_period)]
     status_every: Option<Duration>,
@@ -166,6 +170,7 @@ impl Args {
             lease: self.lease,
             every_step: self.every_step.then_some(true),
             http: self.http,
+            foxglove: self.foxglove,
             allow: None,
             deny: None,
             topics: None,

@@ -26,6 +26,7 @@ mod gateway_citizen;
 mod gateway_config;
 mod gateway_event;
 mod gateway_fastdds;
+mod gateway_foxglove;
 mod gateway_in_process;
 mod gateway_interop;
 mod gateway_mirror;

@@ -35,6 +35,8 @@ use crate::ddf::model::join_path;
 use crate::ddf::{Item, ItemKind, Model, Role, ScalarType, Value};
 use crate::mapping;
 
+pub mod ros2msg;
+
 /// The version written into `package.xml`. Fixed, so that the generated package only
 /// changes when the DDF does.
 pub const PACKAGE_VERSION: &str = "0.1.0";

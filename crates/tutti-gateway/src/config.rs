@@ -99,6 +99,8 @@ pub struct GatewayOptions {
     pub every_step: bool,
     /// Serve the counters over HTTP (JSON at `/stats`, Prometheus text at `/metrics`).
     pub http: Option<SocketAddr>,
+    /// Serve the bridged sets over the Foxglove WebSocket protocol (`crate::foxglove`).
+    pub foxglove: Option<SocketAddr>,
     /// Which sets are bridged, and per-topic QoS, rate and name (the config file's
     /// `allow`, `deny` and `topics`).
     pub rules: TopicRules,
@@ -141,6 +143,7 @@ impl GatewayOptions {
             lease: Duration::from_secs(1),
             every_step: false,
             http: None,
+            foxglove: None,
             rules: TopicRules::default(),
         }
     }
@@ -590,6 +593,8 @@ pub struct ConfigFile {
     /// DDS readers of synchronous PUBLISH sets get every step (`--every-step`).
     pub every_step: Option<bool>,
     pub http: Option<SocketAddr>,
+    /// The Foxglove WebSocket server's address (`--foxglove`).
+    pub foxglove: Option<SocketAddr>,
     /// Regexes over set keys (`DOMAIN/publish`), checked when read.
     #[serde(default, deserialize_with = "de_patterns")]
     pub allow: Option<Vec<String>>,
@@ -781,6 +786,7 @@ impl ConfigFile {
             lease: self.lease.or(lower.lease),
             every_step: self.every_step.or(lower.every_step),
             http: self.http.or(lower.http),
+            foxglove: self.foxglove.or(lower.foxglove),
             allow: self.allow.or(lower.allow),
             deny: self.deny.or(lower.deny),
             topics: self.topics.or(lower.topics),
@@ -822,6 +828,9 @@ impl ConfigFile {
         set(&mut opts.every_step, &self.every_step);
         if self.http.is_some() {
             opts.http = self.http;
+        }
+        if self.foxglove.is_some() {
+            opts.foxglove = self.foxglove;
         }
         opts.rules = TopicRules::from_config(self)?;
         Ok(())
@@ -1226,6 +1235,7 @@ pub const KEYS: &[&str] = &[
     "lease",
     "every_step",
     "http",
+    "foxglove",
     "allow",
     "deny",
     "topics",
@@ -1263,7 +1273,7 @@ mod tests {
                  node_name: "gw", interface: ["127.0.0.1"], dds: "rustdds", peer: ["localhost"], clock: "none",
                  clock_rate: 50, timeout: "2s", wait: "poll:50us", poll: "1ms", status_every: "10s",
                  duration: "1min", quiet: true, ros_namespace: "/sim1/", hosted_only: false, lease: "3s",
-                 http: "127.0.0.1:9100", allow: ["a/.*"], deny: ["b"], topics: {} }"#,
+                 http: "127.0.0.1:9100", foxglove: "127.0.0.1:8765", allow: ["a/.*"], deny: ["b"], topics: {} }"#,
             "f",
         )
         .unwrap();
@@ -1276,6 +1286,7 @@ mod tests {
         assert_eq!(c.http, Some("127.0.0.1:9100".parse().unwrap()));
         let mut o = opts("product-sample.ddf", "{}").unwrap();
         c.apply(&mut o).unwrap();
+        assert_eq!(o.foxglove, Some("127.0.0.1:8765".parse().unwrap()));
         assert_eq!((o.ros_domain_id, o.strength, o.mirror, o.hosted_only), (7, 3, true, false));
         assert_eq!((o.profile, o.engine, o.clock.clone()), (Profile::Dds, EngineKind::Rustdds, ClockSource::Off));
         assert_eq!((o.timeout, o.clock_rate, o.ros_namespace.as_str()), (Duration::from_secs(2), Some(50.0), "sim1"));

@@ -34,6 +34,12 @@ pub enum GatewayError {
     /// `--http` cannot listen on its address (exit status 2).
     #[error("--http {addr}: cannot listen there: {error}")]
     Listen { addr: SocketAddr, error: std::io::Error },
+    /// `--foxglove` cannot listen on its address (exit status 2).
+    #[error("--foxglove {addr}: cannot listen there: {error}")]
+    FoxgloveListen { addr: SocketAddr, error: std::io::Error },
+    /// A set's `ros2msg` schema cannot be written (for the Foxglove server's channels).
+    #[error("the Foxglove server's schemas: {0}")]
+    Schema(#[from] tutti_core::idl::ros2msg::SchemaError),
     /// A benchmark peer's domain cannot be echoed (exit status 2).
     #[error("domain '{domain}': the echo needs equal PUBLISH and SUBSCRIBE layouts")]
     EchoLayouts { domain: String },
@@ -71,6 +77,7 @@ impl GatewayError {
                 | NodeName { .. }
                 | NulByte { .. }
                 | Listen { .. }
+                | FoxgloveListen { .. }
                 | EchoLayouts { .. }
                 | NoEcho
                 | NotCreated { .. }

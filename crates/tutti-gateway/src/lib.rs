@@ -14,8 +14,8 @@
 //! status, while samples go straight from each engine's receive path to shared memory or
 //! to a mirror's thread (no waiting call runs on the async runtime). [`in_process`] runs
 //! the same gateway inside the framework's process, where the framework's own PUBLISH sets
-//! go to DDS from its step (a `tutti_host::StepSink`). `qos` turns the QoS table into
-//! rustdds QoS.
+//! go to DDS from its step (a `tutti_host::StepSink`). [`foxglove`] serves the same sets
+//! over the Foxglove WebSocket protocol. `qos` turns the QoS table into rustdds QoS.
 
 #![deny(unsafe_op_in_unsafe_fn)]
 
@@ -23,6 +23,7 @@ pub mod cdr;
 pub mod config;
 pub mod engine;
 mod error;
+pub mod foxglove;
 pub mod http;
 pub mod in_process;
 pub mod manager;

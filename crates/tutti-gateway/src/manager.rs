@@ -34,7 +34,7 @@ use crate::routes::mirror::{self, MirrorCounters};
 use crate::routes::to_dds::{self, Activation, Outgoing, Polled, ServedBy};
 use crate::routes::{clock, per_item, Counters, Event, ShmConfig};
 use crate::stats::{LogLimit, SetStats, Stats};
-use crate::{http, GatewayError, GatewayOptions, TypeMode};
+use crate::{foxglove, http, GatewayError, GatewayOptions, TypeMode};
 
 /// A route as the manager sees it.
 #[derive(Debug)]
@@ -121,6 +121,14 @@ pub(crate) fn start(
         let (thread, bound, stop) = http::serve(addr, m.report_fn())?;
         info!("stats on http://{bound}/metrics (Prometheus) and http://{bound}/stats (JSON)");
         m.http = Some((thread, stop));
+    }
+    if let Some(addr) = m.opts.foxglove {
+        let counters = (0..m.plan.len()).map(|si| m.counters(si)).collect();
+        // Its `time` follows `/clock`'s domain, else the first.
+        let time_domain = m.clock_domain.or((!m.domains.is_empty()).then_some(0));
+        let (thread, bound) = foxglove::serve(addr, &rt, &m.opts, &m.plan, counters, m.cfg.clone(), time_domain)?;
+        info!("Foxglove WebSocket server on ws://{bound}/");
+        m.threads.push(thread);
     }
     Ok((m, rt))
 }
@@ -562,7 +570,7 @@ impl Manager {
         let gid = key.1;
         let spawned = RemoteWriter::spawn(
             d.name.clone(),
-            gid,
+            format!("dds-writer {}", gid.short()),
             d.synchronous,
             self.cfg.clone(),
             Counters { total: self.stats.clone(), set: self.set_stats[*set].clone() },

@@ -4,7 +4,8 @@
 //!   message encoding `cdr`: each message is the sample the gateway would send (plain CDR,
 //!   little-endian, encapsulation header first: `step`, `sim_time`, then the items);
 //! * its schema is `ros2msg`, named `PKG/msg/TYPE`: the `.msg` that `tutti idl` writes, with
-//!   the `.msg` of every nested bus type appended after a `MSG: PKG/msg/BUS` separator line;
+//!   the `.msg` of every nested bus type appended after a `MSG: PKG/msg/BUS` separator line
+//!   (`tutti_core::idl::ros2msg`, which the gateway's Foxglove server uses too);
 //! * log time = wall-clock time, publish time = simulated time (nanoseconds);
 //! * `/tutti/events` (JSON): a `start` message at a domain's first recorded step (its
 //!   connections and exclusive owner then), then one whenever its connection count
@@ -13,7 +14,7 @@
 //!   (media type `application/xml`), and a `tutti` metadata record (`ddf`, `package`);
 //! * chunks compressed with zstd, with message indexes and a summary, so that readers seek.
 
-use std::collections::{BTreeMap, HashMap};
+use std::collections::BTreeMap;
 use std::fs::File;
 use std::io::BufWriter;
 use std::path::{Path, PathBuf};
@@ -22,7 +23,8 @@ use ::mcap::records::MessageHeader;
 use ::mcap::{Compression, WriteOptions, Writer};
 use tutti_core::cdr::{SetCodec, HEADER_LE};
 use tutti_core::ddf::{Model, Role};
-use tutti_core::{idl, mapping};
+use tutti_core::idl::ros2msg::{self, SchemaError};
+use tutti_core::mapping;
 
 use super::{create_parent, io_error, RecordError, Recorder, Step};
 
@@ -37,9 +39,6 @@ const EVENT_SCHEMA: &str = r#"{"type":"object","properties":{"domain":{"type":"s
 pub const DDF_MEDIA_TYPE: &str = "application/xml";
 /// The name of the metadata record that describes the recording.
 pub const METADATA_NAME: &str = "tutti";
-
-/// The separator of the message definitions in a `ros2msg` schema.
-const SEPARATOR: &str = "================================================================================";
 
 struct SetChannel {
     id: u16,
@@ -72,69 +71,6 @@ impl std::fmt::Debug for McapRecorder {
     }
 }
 
-/// Why a set's `ros2msg` schema cannot be written.
-#[derive(Debug, thiserror::Error)]
-pub enum SchemaError {
-    #[error(transparent)]
-    Idl(#[from] idl::IdlError),
-    #[error("no message definition for {ty}")]
-    NoDefinition { ty: String },
-    #[error("{ty} refers to {dep}, which has no definition")]
-    MissingDependency { ty: String, dep: String },
-}
-
-/// `.msg` definitions by type name.
-type Definitions = HashMap<String, String>;
-
-/// The `.msg` definitions `tutti idl` writes for `model`, by type name.
-fn message_definitions(model: &Model, package: &str) -> Result<Definitions, SchemaError> {
-    let files = idl::generate(model, package)?;
-    Ok(files
-        .into_iter()
-        .filter(|f| f.path.extension().is_some_and(|e| e == "msg"))
-        .filter_map(|f| Some((f.path.file_stem()?.to_string_lossy().into_owned(), f.contents)))
-        .collect())
-}
-
-/// The types a `.msg` definition refers to (its fields' types that are not primitives).
-fn referenced_types(msg: &str) -> Vec<String> {
-    const PRIMITIVES: &[&str] = &[
-        "bool", "byte", "char", "float32", "float64", "int8", "uint8", "int16", "uint16", "int32", "uint32", "int64",
-        "uint64", "string", "wstring",
-    ];
-    msg.lines()
-        .map(|l| l.split('#').next().unwrap_or("").trim())
-        .filter(|l| !l.is_empty())
-        .filter_map(|l| {
-            let ty = l.split_whitespace().next()?;
-            let base = ty.split('[').next()?.rsplit('/').next()?;
-            (!PRIMITIVES.contains(&base) && !l.contains('=')).then(|| base.to_string())
-        })
-        .collect()
-}
-
-/// The `ros2msg` schema of type `ty`: its definition, then every type it needs, each once.
-pub fn ros2msg_schema(defs: &Definitions, package: &str, ty: &str) -> Result<String, SchemaError> {
-    let main = defs.get(ty).ok_or_else(|| SchemaError::NoDefinition { ty: ty.to_string() })?;
-    let mut out = main.clone();
-    let mut seen = vec![ty.to_string()];
-    let mut todo = referenced_types(main);
-    while let Some(dep) = todo.pop() {
-        if seen.contains(&dep) {
-            continue;
-        }
-        let text =
-            defs.get(&dep).ok_or_else(|| SchemaError::MissingDependency { ty: ty.to_string(), dep: dep.clone() })?;
-        if !out.ends_with('\n') {
-            out.push('\n');
-        }
-        out.push_str(&format!("{SEPARATOR}\nMSG: {package}/msg/{dep}\n{text}"));
-        todo.extend(referenced_types(text));
-        seen.push(dep);
-    }
-    Ok(out)
-}
-
 impl McapRecorder {
     pub fn create(path: &Path, model: &Model, ddf_path: &Path) -> Result<McapRecorder, RecordError> {
         let format_error = |detail: String| RecordError::Format { path: path.display().to_string(), detail };
@@ -148,15 +84,15 @@ impl McapRecorder {
             .map_err(mcap_error)?;
         let package = mapping::package_name(ddf_path);
         let schema_error = |e: SchemaError| format_error(e.to_string());
-        let defs = message_definitions(model, &package).map_err(schema_error)?;
+        let defs = ros2msg::message_definitions(model, &package).map_err(schema_error)?;
         let no_metadata = BTreeMap::new();
         let mut domains = Vec::with_capacity(model.domains.len());
         for d in &model.domains {
             let mut channel = |role: Role| -> Result<SetChannel, RecordError> {
                 let names = mapping::set_names(&package, &d.name, role);
-                let schema = ros2msg_schema(&defs, &package, &names.type_name).map_err(schema_error)?;
-                let schema_name = format!("{package}/msg/{}", names.type_name);
-                let schema_id = writer.add_schema(&schema_name, "ros2msg", schema.as_bytes()).map_err(mcap_error)?;
+                let schema = ros2msg::set_schema(&defs, &package, &d.name, role).map_err(schema_error)?;
+                let schema_id =
+                    writer.add_schema(&schema.name, "ros2msg", schema.text.as_bytes()).map_err(mcap_error)?;
                 let id = writer.add_channel(schema_id, &names.ros2_topic, "cdr", &no_metadata).map_err(mcap_error)?;
                 Ok(SetChannel { id, codec: SetCodec::new(&d.set(role).layout) })
             };
@@ -275,19 +211,6 @@ mod tests {
     fn model() -> (Model, PathBuf) {
         let ddf = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../ddf/product-sample.ddf");
         (tutti_core::ddf::load(&ddf).unwrap(), ddf)
-    }
-
-    #[test]
-    fn schemas_carry_the_nested_bus_types_once() {
-        let (m, _) = model();
-        let defs = message_definitions(&m, "product_sample_msgs").unwrap();
-        let s = ros2msg_schema(&defs, "product_sample_msgs", "GridFeederPublish").unwrap();
-        assert!(s.starts_with(&defs["GridFeederPublish"]));
-        assert_eq!(s.matches("MSG: product_sample_msgs/msg/GridFeederPublishMeter\n").count(), 1, "{s}");
-        assert_eq!(
-            referenced_types("uint64 step\nfloat64[3] v\nFoo foo # c\npkg/Bar bar\nint32 X=3\n"),
-            ["Foo", "Bar"]
-        );
     }
 
     #[test]

@@ -252,18 +252,18 @@ impl Inline {
 }
 
 impl RemoteWriter {
-    /// Connects to `domain` on behalf of DDS writer `writer`: in its own thread when the
-    /// domain is `synchronous`, else right here (without waiting; retried on the next sample
-    /// or [`RemoteWriter::tick`] if the domain is not there).
+    /// Connects to `domain` on behalf of a remote writer (a DDS writer, or a Foxglove client)
+    /// whose connection shows `name`: in its own thread when the domain is `synchronous`,
+    /// else right here (without waiting; retried on the next sample or
+    /// [`RemoteWriter::tick`] if the domain is not there).
     pub fn spawn(
         domain: String,
-        writer: Guid,
+        name: String,
         synchronous: bool,
         cfg: ShmConfig,
         counters: Counters,
         own_commits: Arc<AtomicU64>,
     ) -> std::io::Result<Self> {
-        let name = format!("dds-writer {}", writer.short());
         let out = Delivery::new(domain, name, counters, own_commits);
         if !synchronous {
             let mut inline = Inline { out, cfg, p: None, next_try: Instant::now() };

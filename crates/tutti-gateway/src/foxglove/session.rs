@@ -1,0 +1,375 @@
+//! One client of the Foxglove server: a task on the manager's runtime that sends the
+//! follower's messages for the client's subscriptions, the simulated time and the
+//! connection graph, commits what the client publishes through a connection per
+//! advertised channel, and answers service calls from the control plane (called on the
+//! runtime's blocking pool, so that a `step N` does not hold up the session).
+
+use std::collections::{BTreeSet, HashMap};
+use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::Arc;
+use std::time::Duration;
+
+use axum::extract::ws::{Message, WebSocket};
+use tokio::sync::{broadcast, mpsc};
+use tracing::{debug, info};
+use tutti_core::ddf::Role;
+use tutti_host::control::{ControlClient, ControlError};
+
+use super::follow::{Graph, Out};
+use super::protocol::{self, ClientBinary, ClientMessage, GraphService, GraphTopic, Level, ServerMessage};
+use super::{Shared, SERVICES};
+use crate::routes::from_dds::{RemoteWriter, Sample};
+
+/// How long a service call waits for the run's answer (a `step N` is answered after N steps).
+const CONTROL_TIMEOUT: Duration = Duration::from_secs(60);
+
+/// A channel the client advertised: the set it writes and its connection.
+struct Publishing {
+    channel: usize,
+    writer: RemoteWriter,
+}
+
+/// A service call's outcome: service, call, and the JSON answer or why there is none.
+type CallResult = (u32, u32, Result<Vec<u8>, String>);
+
+struct Session {
+    sh: Arc<Shared>,
+    /// The client's number (its connections' names).
+    number: u64,
+    /// Subscription id -> channel index.
+    subs: HashMap<u32, usize>,
+    /// Client channel id -> what it writes.
+    publishing: HashMap<u32, Publishing>,
+    /// The graph last sent, while the client follows it.
+    graph: Option<Graph>,
+}
+
+pub(crate) async fn run(mut ws: WebSocket, sh: Arc<Shared>) {
+    let number = sh.next_client.fetch_add(1, Ordering::Relaxed);
+    info!("Foxglove client {number} connected ({})", ws.protocol().and_then(|p| p.to_str().ok()).unwrap_or("?"));
+    let mut s = Session { sh: sh.clone(), number, subs: HashMap::new(), publishing: HashMap::new(), graph: None };
+    let mut out = sh.out.subscribe();
+    let mut graph = sh.graph.clone();
+    let (calls_tx, mut calls) = mpsc::unbounded_channel::<CallResult>();
+    let info = ServerMessage::ServerInfo {
+        name: &sh.server_name,
+        capabilities: &["clientPublish", "services", "connectionGraph", "time"],
+        supported_encodings: &["cdr", "json"],
+        metadata: &sh.metadata,
+        session_id: &format!("{}-{number}", std::process::id()),
+    }
+    .to_text();
+    let hello = [info, sh.advertise.clone(), sh.services.clone()];
+    let mut open = true;
+    for text in hello {
+        open &= ws.send(Message::Text(text.into())).await.is_ok();
+    }
+    while open {
+        let sent = tokio::select! {
+            msg = ws.recv() => match msg {
+                Some(Ok(Message::Text(t))) => s.on_text(&mut ws, t.as_str()).await,
+                Some(Ok(Message::Binary(b))) => s.on_binary(&mut ws, &b, &calls_tx).await,
+                Some(Ok(Message::Close(_))) | None | Some(Err(_)) => false,
+                Some(Ok(_)) => true,
+            },
+            o = out.recv() => match o {
+                Ok(o) => s.on_out(&mut ws, o).await,
+                Err(broadcast::error::RecvError::Lagged(n)) => {
+                    let msg = format!("{n} messages were not sent: the connection is too slow for the run");
+                    send_text(&mut ws, protocol::status(Level::Warning, &msg)).await
+                }
+                Err(broadcast::error::RecvError::Closed) => false,
+            },
+            changed = graph.changed() => match changed {
+                Ok(()) => {
+                    let g = graph.borrow_and_update().clone();
+                    s.on_graph(&mut ws, g, false).await
+                }
+                Err(_) => false,
+            },
+            Some((service, call, result)) = calls.recv() => {
+                let frame = match result {
+                    Ok(json) => Message::Binary(protocol::service_response(service, call, "json", &json).into()),
+                    Err(message) => Message::Text(ServerMessage::ServiceCallFailure { service_id: service, call_id: call, message: &message }.to_text().into()),
+                };
+                ws.send(frame).await.is_ok()
+            }
+        };
+        open = sent;
+    }
+    s.leave();
+    info!("Foxglove client {number} left");
+}
+
+async fn send_text(ws: &mut WebSocket, text: String) -> bool {
+    ws.send(Message::Text(text.into())).await.is_ok()
+}
+
+impl Session {
+    async fn on_out(&mut self, ws: &mut WebSocket, o: Out) -> bool {
+        match o {
+            Out::Time(t) => ws.send(Message::Binary(protocol::time(t).into())).await.is_ok(),
+            Out::Message { channel, time_ns, data } => {
+                let index = channel as usize - 1;
+                let subs: Vec<u32> = self.subs.iter().filter(|(_, c)| **c == index).map(|(s, _)| *s).collect();
+                for sub in subs {
+                    let frame = protocol::message_data(sub, time_ns, &data);
+                    if ws.send(Message::Binary(frame.into())).await.is_err() {
+                        return false;
+                    }
+                }
+                true
+            }
+        }
+    }
+
+    async fn on_text(&mut self, ws: &mut WebSocket, text: &str) -> bool {
+        let msg = match serde_json::from_str::<ClientMessage>(text) {
+            Ok(m) => m,
+            Err(e) => {
+                return send_text(ws, protocol::status(Level::Error, &format!("message not understood: {e}"))).await
+            }
+        };
+        let mut problems = Vec::new();
+        match msg {
+            ClientMessage::Subscribe { subscriptions } => {
+                for sub in subscriptions {
+                    let Some(ch) = self.sh.channels.get((sub.channel_id as usize).wrapping_sub(1)) else {
+                        problems.push(format!("no channel {}", sub.channel_id));
+                        continue;
+                    };
+                    if let Some(old) = self.subs.insert(sub.id, ch.id as usize - 1) {
+                        self.sh.channels[old].subscribers.fetch_sub(1, Ordering::AcqRel);
+                    }
+                    ch.subscribers.fetch_add(1, Ordering::AcqRel);
+                    ch.epoch.fetch_add(1, Ordering::AcqRel);
+                }
+            }
+            ClientMessage::Unsubscribe { subscription_ids } => {
+                for id in subscription_ids {
+                    if let Some(c) = self.subs.remove(&id) {
+                        self.sh.channels[c].subscribers.fetch_sub(1, Ordering::AcqRel);
+                    }
+                }
+            }
+            ClientMessage::Advertise { channels } => {
+                for c in channels {
+                    match self.advertised(&c) {
+                        Ok(p) => {
+                            self.publishing.insert(c.id, p);
+                        }
+                        Err(e) => problems.push(e),
+                    }
+                }
+            }
+            ClientMessage::Unadvertise { channel_ids } => {
+                for id in channel_ids {
+                    self.publishing.remove(&id);
+                }
+            }
+            ClientMessage::SubscribeConnectionGraph => {
+                let g = self.sh.graph.borrow().clone();
+                self.graph = Some(Graph::default());
+                return self.on_graph(ws, g, true).await;
+            }
+            ClientMessage::UnsubscribeConnectionGraph => self.graph = None,
+            ClientMessage::Other => problems.push(format!("not served: {}", op_of(text))),
+        }
+        if problems.is_empty() {
+            return true;
+        }
+        send_text(ws, protocol::status(Level::Error, &problems.join("; "))).await
+    }
+
+    /// A channel the client advertises: it must be a SUBSCRIBE set's topic, in CDR. It
+    /// gets a shared-memory connection of its own, as a DDS writer does.
+    fn advertised(&self, c: &protocol::ClientChannel) -> Result<Publishing, String> {
+        let Some(index) = self.sh.channels.iter().position(|ch| ch.topic == c.topic) else {
+            return Err(format!("'{}' is not a topic of the run (see the advertised channels)", c.topic));
+        };
+        let ch = &self.sh.channels[index];
+        if ch.role != Role::Subscribe {
+            return Err(format!("'{}' is a PUBLISH set: only its framework writes it", c.topic));
+        }
+        if c.encoding != "cdr" {
+            return Err(format!("'{}': publish in cdr encoding (given: {})", c.topic, c.encoding));
+        }
+        let d = &self.sh.domains[ch.domain];
+        let name = format!("foxglove client {}", self.number);
+        let writer = RemoteWriter::spawn(
+            d.name.clone(),
+            name,
+            d.synchronous,
+            self.sh.cfg.clone(),
+            ch.counters.clone(),
+            // Not the gateway's DDS commits: the set goes on to DDS as a component's would.
+            Arc::new(AtomicU64::new(0)),
+        )
+        .map_err(|e| format!("cannot start a thread: {e}"))?;
+        info!(domain = %d.name, "Foxglove client {} writes {} ({})", self.number, c.topic, ch.schema_name);
+        Ok(Publishing { channel: index, writer })
+    }
+
+    async fn on_binary(&mut self, ws: &mut WebSocket, b: &[u8], calls: &mpsc::UnboundedSender<CallResult>) -> bool {
+        let problem = match protocol::parse_binary(b) {
+            Err(e) => e.to_string(),
+            Ok(ClientBinary::MessageData { channel_id, data }) => match self.publishing.get(&channel_id) {
+                None => format!("channel {channel_id} was not advertised"),
+                Some(p) => {
+                    let ch = &self.sh.channels[p.channel];
+                    match ch.codec.check(data) {
+                        Ok((le, body)) => {
+                            let _ = p.writer.send(Sample::Encoded { codec: &ch.codec, le, body });
+                            return true;
+                        }
+                        Err(e) => {
+                            crate::stats::SetStats::add(
+                                Some(&ch.counters.set),
+                                |s| &s.bad_input,
+                                &ch.counters.total.bad_samples,
+                                1,
+                            );
+                            format!("{}: not a {} sample: {e}", ch.topic, ch.schema_name)
+                        }
+                    }
+                }
+            },
+            Ok(ClientBinary::ServiceCall { service_id, call_id, encoding, data }) => {
+                match call(service_id, encoding, data) {
+                    Ok(request) => {
+                        let (tx, ns) = (calls.clone(), self.sh.cfg.namespace.clone());
+                        tokio::task::spawn_blocking(move || {
+                            let answer = control(&ns, request).map_err(|e| e.to_string());
+                            let _ = tx.send((service_id, call_id, answer));
+                        });
+                        return true;
+                    }
+                    Err(message) => {
+                        let m = ServerMessage::ServiceCallFailure { service_id, call_id, message: &message };
+                        return send_text(ws, m.to_text()).await;
+                    }
+                }
+            }
+        };
+        debug!("Foxglove client {}: {problem}", self.number);
+        send_text(ws, protocol::status(Level::Error, &problem)).await
+    }
+
+    /// Sends the graph `g` if the client follows it and it changed since the last one sent
+    /// (or `first`: the client just asked for it), with the topics gone since then.
+    async fn on_graph(&mut self, ws: &mut WebSocket, g: Graph, first: bool) -> bool {
+        let Some(last) = self.graph.replace(g.clone()) else { return true };
+        if last == g && !first {
+            return true;
+        }
+        let topics = |m: &std::collections::BTreeMap<String, BTreeSet<String>>, publishers: bool| {
+            m.iter()
+                .map(|(name, ids)| {
+                    let ids: Vec<String> = ids.iter().cloned().collect();
+                    let (publisher_ids, subscriber_ids) =
+                        if publishers { (ids, Vec::new()) } else { (Vec::new(), ids) };
+                    GraphTopic { name: name.clone(), publisher_ids, subscriber_ids }
+                })
+                .collect::<Vec<_>>()
+        };
+        let now: BTreeSet<&String> = g.published.keys().chain(g.subscribed.keys()).collect();
+        let removed_topics = last
+            .published
+            .keys()
+            .chain(last.subscribed.keys())
+            .filter(|t| !now.contains(t))
+            .cloned()
+            .collect::<BTreeSet<_>>();
+        let advertised_services = SERVICES
+            .iter()
+            .map(|s| GraphService { name: s.1.into(), provider_ids: vec![self.sh.node.clone()] })
+            .collect();
+        let m = ServerMessage::ConnectionGraphUpdate {
+            published_topics: topics(&g.published, true),
+            subscribed_topics: topics(&g.subscribed, false),
+            advertised_services,
+            removed_topics: removed_topics.into_iter().collect(),
+            removed_services: Vec::new(),
+        };
+        send_text(ws, m.to_text()).await
+    }
+
+    /// Gives back the client's subscriptions (its connections close as they drop).
+    fn leave(&mut self) {
+        for (_, c) in self.subs.drain() {
+            self.sh.channels[c].subscribers.fetch_sub(1, Ordering::AcqRel);
+        }
+        self.publishing.clear();
+    }
+}
+
+/// The `op` of a JSON message, for a status.
+fn op_of(text: &str) -> String {
+    serde_json::from_str::<serde_json::Value>(text)
+        .ok()
+        .and_then(|v| v.get("op").and_then(|o| o.as_str()).map(str::to_string))
+        .unwrap_or_else(|| "?".into())
+}
+
+/// What a service call asks the run.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Call {
+    Pause,
+    Resume,
+    Step(u64),
+    State,
+}
+
+/// The call service `service` makes with request `data` (JSON; an empty request is `{}`).
+fn call(service: u32, encoding: &str, data: &[u8]) -> Result<Call, String> {
+    if encoding != "json" {
+        return Err(format!("the services take json requests (given: {encoding})"));
+    }
+    let request: serde_json::Value = if data.iter().all(u8::is_ascii_whitespace) {
+        serde_json::Value::Object(Default::default())
+    } else {
+        serde_json::from_slice(data).map_err(|e| format!("the request is not JSON: {e}"))?
+    };
+    match service {
+        1 => Ok(Call::Pause),
+        2 => Ok(Call::Resume),
+        3 => match request.get("n") {
+            None | Some(serde_json::Value::Null) => Ok(Call::Step(1)),
+            Some(n) => match n.as_u64() {
+                Some(n) if n >= 1 => Ok(Call::Step(n)),
+                _ => Err(format!("n must be a whole number of steps, 1 or more (given: {n})")),
+            },
+        },
+        4 => Ok(Call::State),
+        other => Err(format!("no service {other}")),
+    }
+}
+
+/// Carries out `c` on the run of namespace `ns`; the run's state after it, as JSON.
+fn control(ns: &str, c: Call) -> Result<Vec<u8>, ControlError> {
+    let mut client = ControlClient::connect(ns, CONTROL_TIMEOUT)?;
+    let status = match c {
+        Call::Pause => client.pause(),
+        Call::Resume => client.resume(),
+        Call::Step(n) => client.step(n),
+        Call::State => client.state(),
+    }?;
+    serde_json::to_vec(&status).map_err(|e| ControlError::Protocol(e.to_string()))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn service_requests() {
+        assert_eq!(call(3, "json", br#"{"n": 4}"#), Ok(Call::Step(4)));
+        assert_eq!(call(3, "json", b""), Ok(Call::Step(1)));
+        assert!(call(3, "json", br#"{"n": 0}"#).is_err());
+        assert!(call(3, "json", br#"{"n": -2}"#).is_err());
+        assert!(call(3, "cdr", b"").is_err());
+        assert_eq!(call(1, "json", b"{}"), Ok(Call::Pause));
+        assert!(call(9, "json", b"{}").is_err());
+        assert!(call(1, "json", b"{").is_err());
+    }
+}

@@ -1,0 +1,257 @@
+//! The gateway's Foxglove WebSocket server (`foxglove` key, `--foxglove ADDR`): a client of
+//! the protocol from npm (`@foxglove/ws-protocol`, `tests/foxglove/client.mjs`) against
+//! `tutti host --gateway` with a recording (its messages are the recording's, step for
+//! step; what it publishes into a SUBSCRIBE set is read by the framework; the step service
+//! makes exactly the steps asked for), and the WebSocket handshake of a separate
+//! `tutti gateway` (both names of the protocol accepted, any other refused). Each test has
+//! its own namespace and DDS domain (61-76); the servers listen on a port the system
+//! chooses (`127.0.0.1:0`), read back from their log.
+
+use std::collections::BTreeMap;
+use std::io::{Read, Write};
+use std::net::{SocketAddr, TcpStream};
+use std::path::Path;
+use std::process::Command;
+use std::time::Duration;
+
+use serde_json::Value;
+use tutti_core::cdr::{SetCodec, HEADER_LE};
+use tutti_core::ddf::Role;
+use tutti_test_support::{dds_domain_in, namespace, require, require_tool, Proc, RemoveSegments};
+
+const DDF: &str = "tests/gateway/gw.ddf";
+const SECS: fn(u64) -> Duration = Duration::from_secs;
+
+/// The address the Foxglove server logged (`foxglove on ws://ADDR`).
+fn foxglove_addr(p: &Proc) -> SocketAddr {
+    let line = p.wait_line("Foxglove WebSocket server on ws://", SECS(60));
+    let line = line.unwrap_or_else(|| panic!("the Foxglove server did not start\n{}", p.dump()));
+    let at = line.find("ws://").map(|i| i + 5).unwrap_or(0);
+    let addr: String = line[at..].chars().take_while(|c| !c.is_whitespace() && *c != '/').collect();
+    addr.parse().unwrap_or_else(|e| panic!("{addr}: {e}\n{line}"))
+}
+
+/// A gateway config file in `dir` with `keys`.
+fn config(dir: &Path, keys: &str) -> String {
+    let path = dir.join("gateway.json5");
+    std::fs::write(&path, keys).expect("the config file");
+    path.display().to_string()
+}
+
+fn hex(b: &[u8]) -> String {
+    b.iter().map(|x| format!("{x:02x}")).collect()
+}
+
+fn unhex(s: &str) -> Vec<u8> {
+    (0..s.len() / 2).map(|i| u8::from_str_radix(&s[2 * i..2 * i + 2], 16).expect("hex")).collect()
+}
+
+/// The recording's messages of `topic`, by step (the first 8 bytes of the CDR body).
+fn recorded(mcap: &Path, topic: &str) -> BTreeMap<u64, (u64, Vec<u8>)> {
+    let bytes = std::fs::read(mcap).expect("the recording");
+    let file = tutti_record::mcap::read::McapFile::parse(&bytes).expect("an MCAP file");
+    let mut out = BTreeMap::new();
+    for m in file.messages() {
+        let m = m.expect("a message");
+        if m.channel.topic == topic {
+            let step = u64::from_le_bytes(m.data[4..12].try_into().expect("a step"));
+            out.insert(step, (m.publish_time, m.data));
+        }
+    }
+    out
+}
+
+fn codec(role: Role, domain: &str) -> SetCodec {
+    let model = tutti_core::ddf::load(Path::new(DDF)).expect("the DDF");
+    let d = model.domains.iter().find(|d| d.name == domain).expect("the domain");
+    SetCodec::new(&d.set(role).layout)
+}
+
+#[test]
+fn a_foxglove_client_sees_the_recorded_values_writes_a_subscribe_set_and_steps_the_run() {
+    let Some(node) = require_tool("node", "nodejs") else { return };
+    let modules = tutti_test_support::repo_root().join("tests/foxglove/node_modules/@foxglove/ws-protocol");
+    let found = if modules.is_dir() { Ok(()) } else { Err(format!("no {}", modules.display())) };
+    if require("the npm packages of tests/foxglove (npm ci there)", found).is_none() {
+        return;
+    }
+    let ns = namespace("fgx61_");
+    let _segments = RemoveSegments(ns.clone());
+    let dom = dds_domain_in(61..=68);
+    let dir = tempfile::tempdir().expect("a temporary directory");
+    let mcap = dir.path().join("run.mcap");
+    let cfg = config(dir.path(), r#"{ foxglove: "127.0.0.1:0", clock: "gw_sync" }"#);
+    let mut cmd = tutti_test_support::tutti_command();
+    cmd.args(["host", DDF, "--step", "5ms", "--gateway", &cfg, "--record"])
+        .arg(&mcap)
+        .args(["--connect", "@sim_time -> gw_sync/publish/x"])
+        .args(["--connect", "gw_async/subscribe/y -> gw_async/publish/x"])
+        .env("TUTTI_NAMESPACE", &ns)
+        .env("ROS_DOMAIN_ID", dom.to_string())
+        .env("TUTTI_GATEWAY_INTERFACE", "127.0.0.1")
+        .env("RUST_LOG", "info,rustdds=off,ros2_client=off");
+    let mut host = Proc::spawn("host --gateway (foxglove)", cmd, SECS(240));
+    let addr = foxglove_addr(&host);
+
+    // The sample the client publishes into gw_async's SUBSCRIBE set: y = 4.75, n = 7.
+    let sub = codec(Role::Subscribe, "gw_async");
+    let mut set = vec![0u8; sub.shm_size()];
+    set[0..8].copy_from_slice(&4.75f64.to_ne_bytes());
+    set[8..12].copy_from_slice(&7i32.to_ne_bytes());
+    let mut body = Vec::new();
+    sub.encode(0, 0.0, &set, &mut body);
+    let sample = [&HEADER_LE[..], &body].concat();
+    const STEPS: u64 = 7;
+    let client_cfg = serde_json::json!({
+        "subscribe": "/gw_sync/publish",
+        "count": 40,
+        "publish": "/gw_async/subscribe",
+        "schemaName": "gw_msgs/msg/GwAsyncSubscribe",
+        "sampleHex": hex(&sample),
+        // gw_async/publish/x, after the header, step and sim_time.
+        "watch": "/gw_async/publish",
+        "watchAt": 4 + 16,
+        "watchHex": hex(&4.75f64.to_le_bytes()),
+        "step": STEPS,
+    });
+    let mut client = Command::new(node);
+    client.current_dir(tutti_test_support::repo_root().join("tests/foxglove")).args([
+        "client.mjs",
+        &format!("ws://{addr}/"),
+        &client_cfg.to_string(),
+    ]);
+    let mut client = Proc::spawn("foxglove client", client, SECS(180));
+    let rc = client.wait(SECS(180));
+    assert_eq!(rc, Some(0), "the client failed\n{}\n{}", client.dump(), host.dump());
+    let lines: Vec<Value> = client.stdout().lines().filter_map(|l| serde_json::from_str(l).ok()).collect();
+    let of = |kind: &str| lines.iter().filter(|v| v["kind"] == kind).cloned().collect::<Vec<_>>();
+    assert_eq!(host.interrupt(SECS(60)), Some(0), "{}", host.dump());
+
+    // The channels: one per set, on its ROS 2 topic, in CDR, with the recording's schema.
+    let info = &of("serverInfo")[0];
+    assert_eq!(info["protocol"], "foxglove.websocket.v1");
+    for cap in ["clientPublish", "services", "connectionGraph", "time"] {
+        assert!(info["capabilities"].as_array().unwrap().iter().any(|c| c == cap), "{info}");
+    }
+    let chans = &of("channels")[0];
+    let channel = |topic: &str| -> Value {
+        chans["channels"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .find(|c| c["topic"] == topic)
+            .cloned()
+            .unwrap_or_else(|| panic!("no {topic}: {chans}"))
+    };
+    for topic in
+        ["/gw_async/publish", "/gw_async/subscribe", "/gw_sync/publish", "/gw_sync/subscribe", "/gw_states/publish"]
+    {
+        let c = channel(topic);
+        assert_eq!((c["encoding"].as_str(), c["schemaEncoding"].as_str()), (Some("cdr"), Some("ros2msg")), "{c}");
+    }
+    assert_eq!(channel("/gw_sync/publish")["schemaName"], "gw_msgs/msg/GwSyncPublish");
+    assert!(channel("/gw_async/publish")["schema"].as_str().unwrap().contains("float64[3] v"), "{chans}");
+
+    // Each message is the recording's message of its step, stamped with its simulated time.
+    let rec = recorded(&mcap, "/gw_sync/publish");
+    let msgs = of("message");
+    assert_eq!(msgs.len(), 40, "{}", client.dump());
+    let mut steps = Vec::new();
+    for m in &msgs {
+        let data = unhex(m["hex"].as_str().unwrap());
+        let step = u64::from_le_bytes(data[4..12].try_into().unwrap());
+        let (publish_time, recorded) = rec.get(&step).unwrap_or_else(|| panic!("step {step} is not in the recording"));
+        assert_eq!(&data, recorded, "step {step}: the message differs from the recording's");
+        assert_eq!(m["timestamp"].as_str().unwrap(), publish_time.to_string(), "step {step}: not its simulated time");
+        steps.push(step);
+    }
+    assert!(steps.windows(2).all(|w| w[0] < w[1]), "steps out of order: {steps:?}");
+    // The set changes at every step (x is the simulated time): the values are live.
+    let xs: std::collections::BTreeSet<u64> = msgs
+        .iter()
+        .map(|m| u64::from_le_bytes(unhex(m["hex"].as_str().unwrap())[20..28].try_into().unwrap()))
+        .collect();
+    assert!(xs.len() > 1, "one value only: {xs:?}");
+
+    // The published value reached the framework: it copied y into gw_async/publish/x, and
+    // the recording's SUBSCRIBE set holds it.
+    assert_eq!(of("seen").len(), 1, "{}", client.dump());
+    let subs = recorded(&mcap, "/gw_async/subscribe");
+    let want = [&4.75f64.to_le_bytes()[..], &7i32.to_le_bytes()].concat();
+    assert!(
+        subs.values().any(|(_, d)| d[4 + 16..4 + 28] == want[..]),
+        "the recording never shows y = 4.75, n = 7 in gw_async/subscribe"
+    );
+
+    // The step service made exactly the steps asked for while the run was paused.
+    let calls = of("service");
+    let status = |name: &str| calls.iter().find(|c| c["name"] == name).map(|c| c["status"].clone()).unwrap();
+    let (paused, stepped, state) = (status("/tutti/pause"), status("/tutti/step"), status("/tutti/state"));
+    assert_eq!(paused["state"], "paused", "{paused}");
+    assert_eq!(stepped["state"], "paused", "{stepped}");
+    assert_eq!(stepped["step"].as_u64().unwrap(), paused["step"].as_u64().unwrap() + STEPS, "{paused} then {stepped}");
+    assert_eq!(state["step"], stepped["step"], "a step made while paused: {state}");
+    assert_eq!(status("/tutti/resume")["state"], "playing");
+
+    // The connection graph: the framework of each domain, and the services.
+    let graph = &of("graph")[0];
+    let published = graph["publishedTopics"].as_array().unwrap();
+    let sync_pub = published.iter().find(|t| t["name"] == "/gw_sync/publish").expect("gw_sync's PUBLISH topic");
+    assert!(sync_pub["publisherIds"][0].as_str().unwrap().starts_with("framework of gw_sync"), "{graph}");
+    assert!(graph["advertisedServices"].as_array().unwrap().iter().any(|s| s["name"] == "/tutti/step"), "{graph}");
+
+    // Time messages carry the simulated time of gw_sync.
+    let time = &of("time")[0];
+    assert!(time["count"].as_u64().unwrap() > 0, "no time message: {time}");
+    let last: u64 = time["last"].as_str().unwrap().parse().unwrap();
+    let last_step = *rec.keys().last().unwrap();
+    assert!(last > 0 && last <= rec[&last_step].0, "time {last} is not a simulated time of the run");
+}
+
+/// The status line and headers of the answer to a WebSocket upgrade offering `protocols`.
+fn upgrade(addr: SocketAddr, protocols: Option<&str>) -> String {
+    let mut s = TcpStream::connect(addr).expect("a connection to the server");
+    s.set_read_timeout(Some(SECS(30))).expect("a read timeout");
+    let offer = protocols.map(|p| format!("Sec-WebSocket-Protocol: {p}\r\n")).unwrap_or_default();
+    let req = format!(
+        "GET / HTTP/1.1\r\nHost: {addr}\r\nUpgrade: websocket\r\nConnection: Upgrade\r\nSec-WebSocket-Key: dGhlIHNhbXBsZSBub25jZQ==\r\nSec-WebSocket-Version: 13\r\n{offer}\r\n"
+    );
+    s.write_all(req.as_bytes()).expect("the request");
+    let mut head = Vec::new();
+    let mut byte = [0u8; 1];
+    while !head.ends_with(b"\r\n\r\n") {
+        match s.read(&mut byte) {
+            Ok(1) => head.push(byte[0]),
+            _ => break,
+        }
+    }
+    String::from_utf8_lossy(&head).to_lowercase()
+}
+
+#[test]
+fn the_handshake_takes_both_names_of_the_protocol_and_refuses_others() {
+    let ns = namespace("fgx69_");
+    let _segments = RemoveSegments(ns.clone());
+    let dom = dds_domain_in(69..=76);
+    let mut cmd = tutti_test_support::tutti_command();
+    cmd.args(["gateway", DDF, "--foxglove", "127.0.0.1:0", "--all-domains"])
+        .env("TUTTI_NAMESPACE", &ns)
+        .env("ROS_DOMAIN_ID", dom.to_string())
+        .env("TUTTI_GATEWAY_INTERFACE", "127.0.0.1")
+        .env("RUST_LOG", "info,rustdds=off,ros2_client=off");
+    let mut gw = Proc::spawn("gateway --foxglove", cmd, SECS(120));
+    let addr = foxglove_addr(&gw);
+    for name in ["foxglove.websocket.v1", "foxglove.sdk.v1"] {
+        let head = upgrade(addr, Some(name));
+        assert!(head.starts_with("http/1.1 101"), "{name} refused: {head}");
+        assert!(head.contains(&format!("sec-websocket-protocol: {name}\r\n")), "{name} not chosen: {head}");
+    }
+    // Both offered: one of them is chosen.
+    let head = upgrade(addr, Some("foxglove.sdk.v1, foxglove.websocket.v1"));
+    assert!(head.starts_with("http/1.1 101") && head.contains("sec-websocket-protocol: foxglove."), "{head}");
+    for offer in [Some("foxglove.sdk.v2"), Some("graphql-ws"), None] {
+        let head = upgrade(addr, offer);
+        assert!(head.starts_with("http/1.1 400"), "{offer:?} accepted: {head}");
+    }
+    assert_eq!(gw.interrupt(SECS(60)), Some(0), "{}", gw.dump());
+}
