@@ -258,6 +258,13 @@ impl fmt::Display for TypeHash {
     }
 }
 
+/// As its text, `RIHS01_…`.
+impl serde::Serialize for TypeHash {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        s.collect_str(self)
+    }
+}
+
 impl fmt::Debug for TypeHash {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         fmt::Display::fmt(self, f)
