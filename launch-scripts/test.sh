@@ -42,6 +42,11 @@ if ! .venv/bin/python -c 'import pythonfmu, fmpy' 2>/dev/null; then
         lxml==6.1.3 msgpack==1.2.4 nbformat==5.11.1 numpy==2.4.6
     .venv/bin/pip install -q --disable-pip-version-check --no-deps fmpy==0.3.32
 fi
+# The type-hash tests run ROS 2's rosidl parser (tests/ros2/rosidl/), which needs lark.
+if ! .venv/bin/python -c 'import lark' 2>/dev/null; then
+    step "installing lark into .venv"
+    .venv/bin/pip install -q --disable-pip-version-check lark==1.3.1
+fi
 # The SSP tests: libcosim (the Open Simulation Platform's co-simulation engine, a wheel with
 # its C library inside) runs the same SSP archives for the reference traces.
 if ! .venv/bin/python -c 'import libcosimpy' 2>/dev/null; then

@@ -14,7 +14,7 @@ use tutti_core::ddf::{Domain, Role};
 use tutti_core::mapping::{self, Endpoint, History, Reliability};
 
 use tutti_gateway::cdr::{SetCodec, TypedSample};
-use tutti_gateway::engine::{self, Data, Decode, Engine, Guid, Sink, Writer};
+use tutti_gateway::engine::{self, Data, Decode, Engine, Guid, Sink, TopicType, Writer};
 use tutti_gateway::{GatewayError, GatewayOptions};
 
 /// A sink that decodes typed samples of other participants and hands them to `f`.
@@ -58,7 +58,13 @@ pub fn run(opts: &GatewayOptions, domain: &Domain, stop: Arc<AtomicBool>) -> Res
         }
         w.flush();
     });
-    ep.dds.reader(&ep.reads.topic, &ep.reads.dds_type, &ep.rq, Decode::Set(ep.codec.clone()), sink)?;
+    ep.dds.reader(
+        &ep.reads.topic,
+        &TopicType::plain(&ep.reads.dds_type),
+        &ep.rq,
+        Decode::Set(ep.codec.clone()),
+        sink,
+    )?;
     while !stop.load(Ordering::Acquire) {
         std::thread::sleep(Duration::from_millis(50));
     }
@@ -142,7 +148,7 @@ pub fn sink(
             *last = Some(last.map_or(s.step, |prev| prev.max(s.step)));
         }
     });
-    dds.reader(&names.topic, &names.dds_type, &rq, Decode::Set(codec), counter)?;
+    dds.reader(&names.topic, &TopicType::plain(&names.dds_type), &rq, Decode::Set(codec), counter)?;
     let start = Instant::now();
     loop {
         std::thread::sleep(Duration::from_millis(20));
@@ -174,7 +180,7 @@ pub fn source(
     let wq = mapping::qos(domain.flags, opts.profile, Endpoint::Writer, 0);
     let layout = &domain.subscribe.layout;
     let codec = SetCodec::new(layout);
-    let mut w = dds.writer(&names.topic, &names.dds_type, &wq)?;
+    let mut w = dds.writer(&names.topic, &TopicType::plain(&names.dds_type), &wq)?;
     std::thread::sleep(settle);
     let mut shm = vec![0u8; layout.size as usize];
     let mut body = Vec::new();
@@ -214,7 +220,13 @@ pub fn ping(
     let back = Arc::new(AtomicU64::new(0));
     let b = back.clone();
     let sink = typed_sink(ep.codec.clone(), ep.dds.own_prefix(), move |s| b.store(s.step, Ordering::Release));
-    ep.dds.reader(&ep.reads.topic, &ep.reads.dds_type, &ep.rq, Decode::Set(ep.codec.clone()), sink)?;
+    ep.dds.reader(
+        &ep.reads.topic,
+        &TopicType::plain(&ep.reads.dds_type),
+        &ep.rq,
+        Decode::Set(ep.codec.clone()),
+        sink,
+    )?;
     let shm = vec![0u8; ep.codec.shm_size()];
     let mut body = Vec::new();
     let mut once = |step: u64, limit: Duration| -> Option<f64> {
@@ -284,7 +296,7 @@ impl Endpoints {
         let rq = mapping::qos(domain.flags, opts.profile, Endpoint::Reader, 0);
         let wq = mapping::qos(domain.flags, opts.profile, Endpoint::Writer, 0);
         let codec = Arc::new(SetCodec::new(&domain.publish.layout));
-        let writer = dds.writer(&wn.topic, &wn.dds_type, &wq)?;
+        let writer = dds.writer(&wn.topic, &TopicType::plain(&wn.dds_type), &wq)?;
         Ok(Endpoints { writer, dds, codec, reads: rn, rq })
     }
 }

@@ -18,7 +18,8 @@ use super::{load_ddf, CliResult, Failure};
     PKG/msg/dds_/TYPE_.idl     IDL of PKG::msg::dds_::TYPE_, the type name on the wire\n  \
     PKG/msg/TYPE.msg           ROS 2 message\n  \
     PKG/package.xml, PKG/CMakeLists.txt\n\
-    TYPE is CamelCase(domain) + Publish/Subscribe; each bus is a type of its own.\n\n\
+    TYPE is CamelCase(domain) + Publish/Subscribe; each bus is a type of its own.\n\
+    Each file names its type's ROS 2 type hash (RIHS01_…) in a comment: what the gateway announces.\n\n\
     Examples:\n  \
     tutti idl ddf/multiuav.ddf --out idl\n  \
     idlc -I idl idl/multiuav_msgs/msg/dds_/MultiuavUav1Publish_.idl\n  \

@@ -38,6 +38,7 @@ mod idl_tools;
 mod install;
 mod record_mcap;
 mod replay;
+mod ros2_typehash;
 mod run;
 mod ssp;
 mod studio_browser;

@@ -24,6 +24,9 @@ Every mode prints JSON lines on stdout and exits 0 on success, 3 on timeout.
          the sample whose first data field is negative (the framework's last step) arrives
   qos    --topic T [--timeout S] [--readers]: the QoS of the first remote writer on T (DCPSPublication;
          with --readers, of the first remote reader: DCPSSubscription)
+  endpoints --count N [--timeout S]: every remote writer and reader (DCPSPublication,
+         DCPSSubscription) with its topic, type and USER_DATA (as text), one line each, once N
+         are known and no more came for a second
   nodes  --name NAME [--timeout S]: waits until ros_discovery_info lists node NAME
   lease  --name NAME --node-namespace NS [--timeout S]: the lease (in s) that the participant
          of node NS/NAME (on ros_discovery_info) announces (DCPSParticipant)
@@ -267,6 +270,28 @@ def cmd_qos(dp, a):
     return 3
 
 
+def cmd_endpoints(dp, a):
+    readers = [(kind, BuiltinDataReader(dp, t)) for kind, t in
+               (("writer", BuiltinTopicDcpsPublication), ("reader", BuiltinTopicDcpsSubscription))]
+    seen = {}
+    end, quiet_since = time.time() + a.timeout, time.time()
+    while time.time() < end:
+        for kind, rd in readers:
+            for s in rd.take(N=200):
+                if not s.sample_info.valid_data or s.key.bytes in seen or s.participant_key == dp.guid:
+                    continue
+                ud = s.qos[Policy.Userdata].data if Policy.Userdata in s.qos else None
+                seen[s.key.bytes] = {"kind": kind, "topic": s.topic_name, "type_name": s.type_name,
+                                     "user_data": ud.decode("latin-1") if ud is not None else None}
+                quiet_since = time.time()
+        if len(seen) >= a.count and time.time() - quiet_since > 1.0:
+            break
+        time.sleep(0.05)
+    for e in seen.values():
+        emit(e)
+    return 0 if len(seen) >= a.count else 3
+
+
 @dataclass
 class Gid(IdlStruct, typename="rmw_dds_common::msg::dds_::Gid_"):
     data: T.array[T.uint8, 16]
@@ -352,7 +377,7 @@ def cmd_lease(dp, a):
 
 def main():
     p = argparse.ArgumentParser()
-    p.add_argument("mode", choices=["sub", "pub", "answer", "steps", "qos", "nodes", "clock", "lease"])
+    p.add_argument("mode", choices=["sub", "pub", "answer", "steps", "qos", "endpoints", "nodes", "clock", "lease"])
     p.add_argument("--domain", type=int, required=True)
     p.add_argument("--topic")
     p.add_argument("--type")
@@ -379,7 +404,7 @@ def main():
     a = p.parse_args()
     dp = DomainParticipant(a.domain)
     sys.exit({"sub": cmd_sub, "pub": cmd_pub, "answer": cmd_answer, "steps": cmd_steps, "qos": cmd_qos,
-              "nodes": cmd_nodes, "clock": cmd_clock, "lease": cmd_lease}[a.mode](dp, a))
+              "endpoints": cmd_endpoints, "nodes": cmd_nodes, "clock": cmd_clock, "lease": cmd_lease}[a.mode](dp, a))
 
 
 if __name__ == "__main__":

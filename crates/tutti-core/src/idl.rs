@@ -23,17 +23,22 @@
 //! `idlc` rejects, so arrays have none in IDL. No extensibility annotation is written, as
 //! rosidl writes none: both tools then take `@final`, the plain CDR that ROS 2 sends.
 //!
+//! Each file names, in a comment, the ROS 2 type hash of its type ([`type_hashes`], as rosidl
+//! computes it from the `.msg`: `crate::typehash`), which is what the gateway announces for
+//! it; comments and defaults are not part of the hash.
+//!
 //! IDL identifiers are case-insensitive, so two type names that differ only in case, or a
 //! field named like a type, would make IDL that `idlc` rejects; [`generate`] refuses such a
 //! DDF with an error naming both culprits instead of writing it.
 
-use std::collections::HashMap;
+use std::collections::{BTreeMap, HashMap};
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
 use crate::ddf::model::join_path;
 use crate::ddf::{Item, ItemKind, Model, Role, ScalarType, Value};
 use crate::mapping;
+use crate::typehash::{self, FieldType, IndividualType, MissingType, TypeDescription, TypeHash};
 
 pub mod ros2msg;
 
@@ -88,26 +93,76 @@ pub fn generate(model: &Model, package: &str) -> Result<Vec<GeneratedFile>, IdlE
         .unwrap_or_else(|| model.source.clone());
     let types = collect_types(model, package);
     check_identifiers(&types, &model.source)?;
+    let hashes = hashes_of(&types, package)
+        .map_err(|e| IdlError { source_file: model.source.clone(), message: e.to_string() })?;
 
     let pkg_dir = PathBuf::from(package);
     let mut files = Vec::new();
-    for ty in &types {
+    for (ty, hash) in types.iter().zip(&hashes) {
         files.push(GeneratedFile {
             path: pkg_dir.join("msg").join(format!("{}.idl", ty.name)),
-            contents: idl_file(package, ty, &source_name, Flavor::Rosidl),
+            contents: idl_file(package, ty, hash, &source_name, Flavor::Rosidl),
         });
         files.push(GeneratedFile {
             path: pkg_dir.join("msg").join("dds_").join(format!("{}_.idl", ty.name)),
-            contents: idl_file(package, ty, &source_name, Flavor::Dds),
+            contents: idl_file(package, ty, hash, &source_name, Flavor::Dds),
         });
         files.push(GeneratedFile {
             path: pkg_dir.join("msg").join(format!("{}.msg", ty.name)),
-            contents: msg_file(ty, &source_name),
+            contents: msg_file(ty, hash, &source_name),
         });
     }
     files.push(GeneratedFile { path: pkg_dir.join("package.xml"), contents: package_xml(package, &source_name) });
     files.push(GeneratedFile { path: pkg_dir.join("CMakeLists.txt"), contents: cmake_lists(package, &types) });
     Ok(files)
+}
+
+/// The ROS 2 type hash (`typehash`) of every message type of package `package` (each set's,
+/// each bus's), by its ROS 2 name `PKG/msg/TYPE`: the types [`generate`] writes, hashed as
+/// ROS 2 hashes the `.msg` files (`docs/gateway.md`, "Type hashes").
+pub fn type_hashes(model: &Model, package: &str) -> Result<BTreeMap<String, TypeHash>, MissingType> {
+    let types = collect_types(model, package);
+    let hashes = hashes_of(&types, package)?;
+    Ok(types.iter().map(|t| ros2_name(package, &t.name)).zip(hashes).collect())
+}
+
+/// The type description of every type of the package, as ROS 2 describes its `.msg`.
+pub fn type_descriptions(model: &Model, package: &str) -> Result<Vec<TypeDescription>, MissingType> {
+    let types = collect_types(model, package);
+    let individual: Vec<IndividualType> = types.iter().map(|t| individual_type(package, t)).collect();
+    individual.iter().map(|t| TypeDescription::of(t, &individual)).collect()
+}
+
+fn hashes_of(types: &[TypeDef<'_>], package: &str) -> Result<Vec<TypeHash>, MissingType> {
+    let individual: Vec<IndividualType> = types.iter().map(|t| individual_type(package, t)).collect();
+    individual.iter().map(|t| TypeDescription::of(t, &individual).map(|d| d.hash())).collect()
+}
+
+/// `PKG/msg/TYPE`.
+fn ros2_name(package: &str, type_name: &str) -> String {
+    format!("{package}/msg/{type_name}")
+}
+
+/// One type as its `.msg` describes it: the header fields of a set, then its items (a bus
+/// as its nested type, an array as a fixed-size array).
+fn individual_type(package: &str, ty: &TypeDef<'_>) -> IndividualType {
+    let mut fields = Vec::new();
+    if ty.topic.is_some() {
+        fields.push(typehash::Field::new("step", FieldType::plain(typehash::type_id::UINT64)));
+        fields.push(typehash::Field::new("sim_time", FieldType::plain(typehash::type_id::DOUBLE)));
+    }
+    for field in &ty.fields {
+        let ft = match (&field.item.kind, &field.bus_type) {
+            (ItemKind::Scalar { ty, length, .. }, _) => {
+                FieldType::scalar(typehash::scalar_type_id(*ty), u64::from(*length))
+            }
+            (ItemKind::Bus { .. }, bus) => {
+                FieldType::nested(&ros2_name(package, bus.as_deref().unwrap_or_default()), 0, 0)
+            }
+        };
+        fields.push(typehash::Field::new(&field.name, ft));
+    }
+    IndividualType { type_name: ros2_name(package, &ty.name), fields }
 }
 
 /// Every struct type of the package: per domain, PUBLISH then SUBSCRIBE, each set followed
@@ -302,13 +357,14 @@ fn array_literal(ty: ScalarType, value: Value, length: u16) -> String {
     vec![one; usize::from(length)].join(", ")
 }
 
-fn idl_file(package: &str, ty: &TypeDef<'_>, source_name: &str, flavor: Flavor) -> String {
+fn idl_file(package: &str, ty: &TypeDef<'_>, hash: &TypeHash, source_name: &str, flavor: Flavor) -> String {
     let mut s = String::new();
     let _ = writeln!(s, "// generated by tutti idl from {source_name}");
     let _ = writeln!(s, "// {}", ty.origin);
     if let Some(topic) = &ty.topic {
         let _ = writeln!(s, "// DDS topic {topic}, type {}", mapping::mangled(package, &ty.name));
     }
+    let _ = writeln!(s, "// ROS 2 type hash {hash}");
     let _ = writeln!(s, "// generated code does not contain a copyright notice");
     s.push('\n');
     let mut includes: Vec<&str> = ty.fields.iter().filter_map(|f| f.bus_type.as_deref()).collect();
@@ -366,13 +422,14 @@ fn idl_file(package: &str, ty: &TypeDef<'_>, source_name: &str, flavor: Flavor) 
     s
 }
 
-fn msg_file(ty: &TypeDef<'_>, source_name: &str) -> String {
+fn msg_file(ty: &TypeDef<'_>, hash: &TypeHash, source_name: &str) -> String {
     let mut s = String::new();
     let _ = writeln!(s, "# generated by tutti idl from {source_name}");
     let _ = writeln!(s, "# {}", ty.origin);
     if let Some(topic) = &ty.topic {
         let _ = writeln!(s, "# DDS topic {topic}");
     }
+    let _ = writeln!(s, "# ROS 2 type hash {hash}");
     s.push('\n');
     if ty.topic.is_some() {
         let _ = writeln!(s, "uint64 step");
@@ -476,6 +533,7 @@ mod tests {
             "// generated by tutti idl from paper-figure2.ddf
 // domain multiuav_uav1, set PUBLISH
 // DDS topic rt/multiuav_uav1/publish, type paper_figure2_msgs::msg::dds_::MultiuavUav1Publish_
+// ROS 2 type hash RIHS01_2a73821045b3fd05022bdd1d1143e95e0cea190be90714b1fa4dee7bdb3b935c
 // generated code does not contain a copyright notice
 
 module paper_figure2_msgs {
@@ -501,6 +559,39 @@ module paper_figure2_msgs {
         let dds = file(&f, "paper_figure2_msgs/msg/dds_/MultiuavUav1Subscribe_.idl");
         assert!(dds.contains("module paper_figure2_msgs {\n  module msg {\n    module dds_ {\n      struct MultiuavUav1Subscribe_ {\n"), "{dds}");
         assert!(dds.ends_with("      double elevation;\n      };\n    };\n  };\n};\n"), "{dds}");
+    }
+
+    #[test]
+    fn type_hashes_are_those_of_the_generated_messages() {
+        let model = parse_str(PRODUCT, "ddf/product-sample.ddf").unwrap();
+        let hashes = type_hashes(&model, "product_sample_msgs").unwrap();
+        // As ROS 2's rosidl computes them from the generated package (tests/cli/ros2_typehash.rs
+        // runs rosidl itself on it).
+        assert_eq!(
+            hashes.get("product_sample_msgs/msg/GridFeederPublish").map(|h| h.to_string()).as_deref(),
+            Some("RIHS01_d60c8e6bde94bfc79e43e1dedefdd3e7a9c99fdc6685ef140e8359f39f57017d")
+        );
+        assert_eq!(
+            hashes.get("product_sample_msgs/msg/GridFeederPublishMeter").map(|h| h.to_string()).as_deref(),
+            Some("RIHS01_2c282cec40697e791a8687e59aad935575a9bb4811e127a4275c33edc442d316")
+        );
+        let set = type_descriptions(&model, "product_sample_msgs")
+            .unwrap()
+            .into_iter()
+            .find(|d| d.type_description.type_name == "product_sample_msgs/msg/GridFeederPublish")
+            .unwrap();
+        let names: Vec<&str> = set.referenced_type_descriptions.iter().map(|t| t.type_name.as_str()).collect();
+        assert_eq!(names, ["product_sample_msgs/msg/GridFeederPublishMeter"]);
+        // Every generated file names its type's hash, which the defaults do not change.
+        let f = files(PRODUCT, "ddf/product-sample.ddf");
+        for (path, ty) in [
+            ("product_sample_msgs/msg/GridFeederPublish.msg", "GridFeederPublish"),
+            ("product_sample_msgs/msg/GridFeederPublishMeter.idl", "GridFeederPublishMeter"),
+            ("product_sample_msgs/msg/dds_/GridFeederSubscribe_.idl", "GridFeederSubscribe"),
+        ] {
+            let hash = hashes[&format!("product_sample_msgs/msg/{ty}")];
+            assert!(file(&f, path).contains(&format!(" ROS 2 type hash {hash}\n")), "{path}");
+        }
     }
 
     #[test]

@@ -16,3 +16,4 @@ pub mod parse;
 pub mod shm;
 pub mod show;
 pub mod sync;
+pub mod typehash;

@@ -27,7 +27,7 @@ use tutti_core::shm::{DomainHost, Framework, FrameworkOptions};
 
 use crate::cdr::SetCodec;
 use crate::config::{self, PlannedSet};
-use crate::engine::{self, Decode, Engine, Guid};
+use crate::engine::{self, Decode, Engine, Guid, TopicType};
 use crate::routes::from_dds::{self, Destination, Direct, RemoteWriter, Sample, Target};
 use crate::routes::from_step::{self, StepRoute};
 use crate::routes::mirror::{self, MirrorCounters};
@@ -383,7 +383,7 @@ impl Manager {
             Role::Publish => None,
             Role::Subscribe => {
                 let decode = Decode::Set(Arc::new(SetCodec::new(&d.subscribe.layout)));
-                self.inbound(di, si, &p.topic, &p.dds_type, decode, None)?;
+                self.inbound(di, si, &p.topic, &p.topic_type(), decode, None)?;
                 Some(self.domains[di].own_commits.clone())
             }
         };
@@ -407,7 +407,7 @@ impl Manager {
             Role::Subscribe => {
                 for t in &items {
                     let Some(leaf) = d.subscribe.layout.leaf(&t.path) else { continue };
-                    self.inbound(di, si, &t.topic, &t.dds_type, per_item::decoder(leaf), None)?;
+                    self.inbound(di, si, &t.topic, &TopicType::stock(&t.dds_type), per_item::decoder(leaf), None)?;
                 }
                 Some(self.domains[di].own_commits.clone())
             }
@@ -442,7 +442,7 @@ impl Manager {
             self.topics += 1;
             let p = self.plan[si].clone();
             let decode = Decode::Set(Arc::new(SetCodec::new(&d.publish.layout)));
-            self.inbound(di, si, &p.topic, &p.dds_type, decode, Some(tx))?;
+            self.inbound(di, si, &p.topic, &p.topic_type(), decode, Some(tx))?;
         }
         Ok(())
     }
@@ -466,7 +466,7 @@ impl Manager {
         }
     }
 
-    /// A DDS -> shared-memory route of planned set `set` over `topic` (DDS type `dds_type`,
+    /// A DDS -> shared-memory route of planned set `set` over `topic` (of type `ty`,
     /// samples read by `decode`): its reader, whose sink decodes and commits the samples on
     /// the engine's receive path (or, with `mirror`, hands them to the mirror's thread).
     fn inbound(
@@ -474,7 +474,7 @@ impl Manager {
         domain: usize,
         set: usize,
         topic: &str,
-        dds_type: &str,
+        ty: &TopicType,
         decode: Decode,
         mirror: Option<std_mpsc::Sender<crate::cdr::TypedSample>>,
     ) -> Result<(), GatewayError> {
@@ -489,7 +489,7 @@ impl Manager {
         self.routes.push(Route::In { domain, set, topic: topic.to_string(), direct });
         let to = Destination { route, events: self.events_tx.clone(), target };
         let rq = self.plan[set].reader_qos;
-        from_dds::reader(&*self.dds, topic, dds_type, &rq, decode, to, self.stats.clone())
+        from_dds::reader(&*self.dds, topic, ty, &rq, decode, to, self.stats.clone())
     }
 
     /// DDS readers, over all domains (each set's once).

@@ -19,7 +19,9 @@ use std::time::{Duration, Instant};
 use tutti_core::ddf::{parse_str, Leaf, SetLayout};
 use tutti_core::mapping::{Durability, History, Ownership, Qos, Reliability};
 use tutti_gateway::cdr::{stock, CdrError, Payload, SetCodec, TypedSample, HEADER_LE};
-use tutti_gateway::engine::{self, Decode, EndpointQos, Engine, EngineConfig, EngineKind, Guid, Sink, Writer};
+use tutti_gateway::engine::{
+    self, Decode, EndpointQos, Engine, EngineConfig, EngineKind, Guid, Sink, TopicType, Writer,
+};
 use tutti_gateway::routes::from_dds::{self, Destination, Direct, Target};
 use tutti_gateway::routes::Event;
 use tutti_gateway::Stats;
@@ -75,8 +77,8 @@ fn raw_cdr_round_trips_in_both_byte_orders(c: &Case) {
 
     let topic = c.topic("set");
     let inbox = Inbox::new(Decode::Set(codec.clone()));
-    reader.reader(&topic, SET_TYPE, &q, Decode::Set(codec.clone()), inbox.sink()).unwrap();
-    let mut le = writer.writer(&topic, SET_TYPE, &q).unwrap();
+    reader.reader(&topic, &TopicType::plain(SET_TYPE), &q, Decode::Set(codec.clone()), inbox.sink()).unwrap();
+    let mut le = writer.writer(&topic, &TopicType::plain(SET_TYPE), &q).unwrap();
     let a = sample(&codec, &layout, 1);
     let mut body = Vec::new();
     codec.encode(a.step, a.sim_time, &a.data, &mut body);
@@ -86,7 +88,7 @@ fn raw_cdr_round_trips_in_both_byte_orders(c: &Case) {
     let b = sample(&codec, &layout, 2);
     codec.encode(b.step, b.sim_time, &b.data, &mut body);
     let be = [&[0u8, 0, 0, 0][..], &big_endian(&codec, &body)].concat();
-    let mut bw = cyclone.writer(&topic, SET_TYPE, &q).unwrap();
+    let mut bw = cyclone.writer(&topic, &TopicType::plain(SET_TYPE), &q).unwrap();
     inbox.until_payload("the big-endian sample", &mut *bw, &Payload::Set(b), |w| w.write_serialized(&be));
 
     // Per item: a double as std_msgs/Float64, and a double array as Float64MultiArray.
@@ -96,18 +98,18 @@ fn raw_cdr_round_trips_in_both_byte_orders(c: &Case) {
         let ty = tutti_core::mapping::per_item_type(leaf.ty, leaf.length);
         let decode = Decode::Item(leaf.clone(), Arc::from(path));
         let inbox = Inbox::new(decode.clone());
-        reader.reader(&topic, ty, &q, decode, inbox.sink()).unwrap();
+        reader.reader(&topic, &TopicType::stock(ty), &q, decode, inbox.sink()).unwrap();
         let want = Payload::Item { path: Arc::from(path), bytes: value.iter().flat_map(|v| v.to_ne_bytes()).collect() };
         let mut body = Vec::new();
         match stock::Stock::of(&leaf) {
             stock::Stock::Float64 => stock::encode_float64(value[0], &mut body),
             _ => stock::encode_float64_array(value.iter().copied(), &mut body),
         }
-        let mut w = writer.writer(&topic, ty, &q).unwrap();
+        let mut w = writer.writer(&topic, &TopicType::stock(ty), &q).unwrap();
         inbox.until_payload("a little-endian stock sample", &mut *w, &want, |w| w.write(&body));
         let be = [&[0u8, 0, 0, 0][..], &stock_big_endian(&value, leaf.length > 1)].concat();
         assert_eq!(stock::decode(&leaf, &be).map(|b| b.len()), Ok(8 * value.len()), "the test's own big-endian form");
-        let mut w = cyclone.writer(&topic, ty, &q).unwrap();
+        let mut w = cyclone.writer(&topic, &TopicType::stock(ty), &q).unwrap();
         inbox.until_payload("a big-endian stock sample", &mut *w, &want, |w| w.write_serialized(&be));
     }
 }
@@ -133,9 +135,9 @@ fn own_samples_are_known_by_their_prefix_and_dropped(c: &Case) {
         lock(&tap).push(g);
         route(g, data)
     });
-    gateway.reader(&topic, SET_TYPE, &q, Decode::Set(codec.clone()), sink).unwrap();
-    let mut own = gateway.writer(&topic, SET_TYPE, &q).unwrap();
-    let mut theirs = other.writer(&topic, SET_TYPE, &q).unwrap();
+    gateway.reader(&topic, &TopicType::plain(SET_TYPE), &q, Decode::Set(codec.clone()), sink).unwrap();
+    let mut own = gateway.writer(&topic, &TopicType::plain(SET_TYPE), &q).unwrap();
+    let mut theirs = other.writer(&topic, &TopicType::plain(SET_TYPE), &q).unwrap();
 
     let (mine, their) = (sample(&codec, &layout, 10), sample(&codec, &layout, 20));
     let (mut mine_body, mut their_body) = (Vec::new(), Vec::new());
@@ -194,8 +196,8 @@ fn discovery_lists_remote_endpoints_with_their_qos(c: &Case) {
         ownership: Ownership::Exclusive { strength: 7 },
     };
     let requested = qos(Reliability::BestEffort, History::KeepLast(4), false, Ownership::Shared);
-    let _w = announcer.writer(&wt, SET_TYPE, &offered).unwrap();
-    announcer.reader(&rt, SET_TYPE, &requested, Decode::Set(codec), Arc::new(|_, _| {})).unwrap();
+    let _w = announcer.writer(&wt, &TopicType::plain(SET_TYPE), &offered).unwrap();
+    announcer.reader(&rt, &TopicType::plain(SET_TYPE), &requested, Decode::Set(codec), Arc::new(|_, _| {})).unwrap();
 
     let mine = |g: &Guid| g.prefix() == announcer.own_prefix();
     let remote = until_some("the writer and the reader in discovery", || {
@@ -249,11 +251,13 @@ fn qos_matching_and_refusal(c: &Case) {
             .iter()
             .map(|(_, rq)| {
                 let inbox = Inbox::new(Decode::Set(codec.clone()));
-                reader.reader(&topic, SET_TYPE, rq, Decode::Set(codec.clone()), inbox.sink()).unwrap();
+                reader
+                    .reader(&topic, &TopicType::plain(SET_TYPE), rq, Decode::Set(codec.clone()), inbox.sink())
+                    .unwrap();
                 inbox
             })
             .collect();
-        let mut w = writer.writer(&topic, SET_TYPE, &offered).unwrap();
+        let mut w = writer.writer(&topic, &TopicType::plain(SET_TYPE), &offered).unwrap();
         let mut body = Vec::new();
         let mut step = 0;
         let mut write = |w: &mut Box<dyn Writer>| {
@@ -291,9 +295,11 @@ fn exclusive_ownership_goes_by_strength(c: &Case) {
     let topic = c.topic("owned");
     let exclusive = |strength| qos(Reliability::Reliable, History::KeepAll, false, Ownership::Exclusive { strength });
     let inbox = Inbox::new(Decode::Set(codec.clone()));
-    reader.reader(&topic, SET_TYPE, &exclusive(0), Decode::Set(codec.clone()), inbox.sink()).unwrap();
-    let mut weak = weak_p.writer(&topic, SET_TYPE, &exclusive(1)).unwrap();
-    let mut strong = strong_p.writer(&topic, SET_TYPE, &exclusive(5)).unwrap();
+    reader
+        .reader(&topic, &TopicType::plain(SET_TYPE), &exclusive(0), Decode::Set(codec.clone()), inbox.sink())
+        .unwrap();
+    let mut weak = weak_p.writer(&topic, &TopicType::plain(SET_TYPE), &exclusive(1)).unwrap();
+    let mut strong = strong_p.writer(&topic, &TopicType::plain(SET_TYPE), &exclusive(5)).unwrap();
     let mut body = Vec::new();
     let mut send = |w: &mut Box<dyn Writer>, step: u64| {
         let s = sample(&codec, &layout, step);
@@ -353,8 +359,8 @@ fn a_sample_that_cannot_be_decoded_is_reported(c: &Case) {
     let q = qos(Reliability::Reliable, History::KeepAll, false, Ownership::Shared);
     let topic = c.topic("bad");
     let inbox = Inbox::new(Decode::Set(codec.clone()));
-    reader.reader(&topic, SET_TYPE, &q, Decode::Set(codec.clone()), inbox.sink()).unwrap();
-    let mut w = cyclone.writer(&topic, SET_TYPE, &q).unwrap();
+    reader.reader(&topic, &TopicType::plain(SET_TYPE), &q, Decode::Set(codec.clone()), inbox.sink()).unwrap();
+    let mut w = cyclone.writer(&topic, &TopicType::plain(SET_TYPE), &q).unwrap();
     let good = sample(&codec, &layout, 3);
     let mut body = Vec::new();
     codec.encode(good.step, good.sim_time, &good.data, &mut body);
@@ -390,8 +396,8 @@ fn the_node_is_announced_on_ros_discovery_info(c: &Case) {
     let observer = c.peer_cyclone("graph");
     let (wt, rt) = (c.topic("node_out"), c.topic("node_in"));
     let q = qos(Reliability::Reliable, History::KeepLast(1), false, Ownership::Shared);
-    let _w = node.writer(&wt, SET_TYPE, &q).unwrap();
-    node.reader(&rt, SET_TYPE, &q, Decode::Set(codec.clone()), Arc::new(|_, _| {})).unwrap();
+    let _w = node.writer(&wt, &TopicType::plain(SET_TYPE), &q).unwrap();
+    node.reader(&rt, &TopicType::plain(SET_TYPE), &q, Decode::Set(codec.clone()), Arc::new(|_, _| {})).unwrap();
     node.announce().unwrap();
 
     let infos = Arc::new(Mutex::new(Vec::<Vec<u8>>::new()));
@@ -407,7 +413,9 @@ fn the_node_is_announced_on_ros_discovery_info(c: &Case) {
             lock(&into).push(raw.to_vec());
         }
     });
-    observer.reader("ros_discovery_info", DISCOVERY_TYPE, &latched, Decode::Set(codec), sink).unwrap();
+    observer
+        .reader("ros_discovery_info", &TopicType::stock(DISCOVERY_TYPE), &latched, Decode::Set(codec), sink)
+        .unwrap();
 
     let mine = |g: &Guid| g.prefix() == node.own_prefix();
     let (w, r) = until_some("the node's endpoints in discovery", || {

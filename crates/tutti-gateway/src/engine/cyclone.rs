@@ -29,6 +29,9 @@
 //!   Cyclone refuse the domain ("the same interface may not be selected twice"): then the domain is
 //!   made again with the peers only, keeping the environment's interfaces (with a warning).
 //!   The domain then also outlives the participant in Cyclone, so it is deleted after it.
+//! * Type hashes: every reader and writer carries its type's ROS 2 hash as USER_DATA
+//!   (`dds_qset_userdata`: `typehash=RIHS01_…;`, [`TopicType`]), as rmw_cyclonedds does, so that a
+//!   ROS 2 Jazzy peer finds the hash it looks for in discovery.
 //! * Lease: the participant announces [`EngineConfig::participant_lease`] as its automatic
 //!   liveliness (participant QoS), so that the other participants drop a killed gateway's
 //!   endpoints after it rather than after Cyclone's default 10 s.
@@ -52,7 +55,7 @@ use cyclors::{
     dds_liveliness_kind_DDS_LIVELINESS_AUTOMATIC, dds_lset_data_available, dds_ownership_kind_DDS_OWNERSHIP_EXCLUSIVE,
     dds_ownership_kind_DDS_OWNERSHIP_SHARED, dds_qget_durability, dds_qget_ownership, dds_qget_ownership_strength,
     dds_qget_reliability, dds_qos_t, dds_qset_durability, dds_qset_durability_service, dds_qset_history,
-    dds_qset_liveliness, dds_qset_ownership, dds_qset_ownership_strength, dds_qset_reliability,
+    dds_qset_liveliness, dds_qset_ownership, dds_qset_ownership_strength, dds_qset_reliability, dds_qset_userdata,
     dds_qset_writer_batching, dds_reliability_kind_DDS_RELIABILITY_BEST_EFFORT,
     dds_reliability_kind_DDS_RELIABILITY_RELIABLE, dds_return_loan, dds_return_t, dds_sample_info_t, dds_strretcode,
     dds_take, dds_takecdr, dds_write_flush, dds_writecdr, ddsi_serdata, ddsi_serdata_from_ser_iov,
@@ -62,7 +65,9 @@ use cyclors::{
 };
 use tutti_core::mapping::{Durability, History, Ownership, Qos, Reliability};
 
-use super::{Data, Decode, EndpointQos, Engine, EngineConfig, EngineKind, Guid, Remote, Sink, Writer, PREFIX_LEN};
+use super::{
+    Data, Decode, EndpointQos, Engine, EngineConfig, EngineKind, Guid, Remote, Sink, TopicType, Writer, PREFIX_LEN,
+};
 use crate::cdr::HEADER_LE;
 use crate::GatewayError;
 
@@ -179,7 +184,8 @@ fn create_domain(id: u32, conf: &str) -> Result<dds_entity_t, GatewayError> {
 struct NativeQos(*mut dds_qos_t);
 
 impl NativeQos {
-    fn new(q: &Qos, batching: bool) -> Result<NativeQos, GatewayError> {
+    /// The QoS `q` of an endpoint of type `ty` (whose hash goes into its USER_DATA).
+    fn new(q: &Qos, ty: &TopicType, batching: bool) -> Result<NativeQos, GatewayError> {
         // SAFETY: plain allocation; null on failure.
         let p = unsafe { dds_create_qos() };
         if p.is_null() {
@@ -218,6 +224,10 @@ impl NativeQos {
             }
             if batching {
                 dds_qset_writer_batching(p, true);
+            }
+            if let Some(user_data) = ty.user_data() {
+                // Cyclone copies the bytes.
+                dds_qset_userdata(p, user_data.as_ptr().cast(), user_data.len());
             }
         }
         Ok(qos)
@@ -644,12 +654,12 @@ impl Cyclone {
     fn create_writer(
         &self,
         topic: &str,
-        type_name: &str,
+        ty: &TopicType,
         q: &Qos,
         batching: bool,
     ) -> Result<(dds_entity_t, dds_entity_t, *const ddsi_sertype), GatewayError> {
-        let t = blob_topic(self.inner.participant, topic, type_name)?;
-        let qos = NativeQos::new(q, batching)?;
+        let t = blob_topic(self.inner.participant, topic, &ty.name)?;
+        let qos = NativeQos::new(q, ty, batching).inspect_err(|_| delete_entity(t))?;
         // SAFETY: live participant and topic, a valid QoS, no listener.
         let w = unsafe { dds_create_writer(self.inner.participant, t, qos.0, ptr::null()) };
         if w < 0 {
@@ -685,8 +695,8 @@ impl Engine for Cyclone {
         self.guid.prefix()
     }
 
-    fn writer(&self, topic: &str, type_name: &str, q: &Qos) -> Result<Box<dyn Writer>, GatewayError> {
-        let (t, w, sertype) = self.create_writer(topic, type_name, q, true)?;
+    fn writer(&self, topic: &str, ty: &TopicType, q: &Qos) -> Result<Box<dyn Writer>, GatewayError> {
+        let (t, w, sertype) = self.create_writer(topic, ty, q, true)?;
         let guid = match entity_guid(w) {
             Ok(g) => g,
             Err(r) => {
@@ -699,13 +709,13 @@ impl Engine for Cyclone {
         Ok(Box::new(CycloneWriter { inner: self.inner.clone(), topic: t, writer: w, sertype, guid }))
     }
 
-    fn reader(&self, topic: &str, type_name: &str, q: &Qos, _decode: Decode, sink: Sink) -> Result<(), GatewayError> {
-        let t = blob_topic(self.inner.participant, topic, type_name)?;
+    fn reader(&self, topic: &str, ty: &TopicType, q: &Qos, _decode: Decode, sink: Sink) -> Result<(), GatewayError> {
+        let t = blob_topic(self.inner.participant, topic, &ty.name)?;
         let fail = |what: String, detail: String| {
             delete_entity(t);
             GatewayError::dds(what, detail)
         };
-        let qos = NativeQos::new(q, false).map_err(|e| fail(format!("a reader on {topic}"), e.to_string()))?;
+        let qos = NativeQos::new(q, ty, false).map_err(|e| fail(format!("a reader on {topic}"), e.to_string()))?;
         let ctx = Arc::new(ReaderCtx { sink, writers: Mutex::new(HashMap::new()) });
         // SAFETY: the argument stays valid for the reader's life (kept in `contexts` below).
         let listener = unsafe { dds_create_listener(Arc::as_ptr(&ctx) as *mut c_void) };
@@ -769,7 +779,8 @@ impl Engine for Cyclone {
                 durability: Durability::TransientLocal { depth: 1 },
                 ownership: Ownership::Shared,
             };
-            let (_, writer, sertype) = self.create_writer(DISCOVERY_TOPIC, DISCOVERY_TYPE, &q, false)?;
+            let (_, writer, sertype) =
+                self.create_writer(DISCOVERY_TOPIC, &TopicType::stock(DISCOVERY_TYPE), &q, false)?;
             *announcer = Some(Announcer { writer, sertype });
         }
         let a = announcer.as_ref().expect("created above");

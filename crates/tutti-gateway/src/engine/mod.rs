@@ -15,6 +15,7 @@ use std::time::Duration;
 
 use tutti_core::ddf::Leaf;
 use tutti_core::mapping::{Ownership, Qos, Reliability};
+use tutti_core::typehash::{self, TypeHash};
 
 use crate::cdr::{stock, CdrError, Payload, SetCodec};
 pub use crate::error::UnknownEngine;
@@ -101,6 +102,40 @@ impl std::str::FromStr for EngineKind {
 impl fmt::Display for EngineKind {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         f.write_str(self.name())
+    }
+}
+
+/// The type of a topic's endpoints: its DDS name and, for a ROS 2 type, the type hash every
+/// endpoint of it announces in its USER_DATA (`typehash=RIHS01_…;`, docs/gateway.md "Type
+/// hashes"), as ROS 2 Jazzy's endpoints do.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct TopicType {
+    /// The DDS type name (`PKG::msg::dds_::TYPE_`).
+    pub name: String,
+    /// None: a plain DDS type, announced without USER_DATA.
+    pub hash: Option<TypeHash>,
+}
+
+impl TopicType {
+    /// A ROS 2 type with its hash (a set's type: `tutti_core::idl::type_hashes`).
+    pub fn ros2(name: &str, hash: TypeHash) -> TopicType {
+        TopicType { name: name.to_string(), hash: Some(hash) }
+    }
+
+    /// A stock ROS 2 type (`std_msgs`, `rosgraph_msgs/Clock`, …), with the hash ROS 2 gives
+    /// it when `tutti_core::typehash::stock` describes it.
+    pub fn stock(name: &str) -> TopicType {
+        TopicType { name: name.to_string(), hash: typehash::stock::hash_of_dds_type(name) }
+    }
+
+    /// A type ROS 2 does not know: no type hash.
+    pub fn plain(name: &str) -> TopicType {
+        TopicType { name: name.to_string(), hash: None }
+    }
+
+    /// The USER_DATA its endpoints announce (`typehash=RIHS01_…;`), if any.
+    pub fn user_data(&self) -> Option<String> {
+        self.hash.map(|h| h.user_data())
     }
 }
 
@@ -226,11 +261,12 @@ pub trait Engine: Send + Sync {
     fn domain_id(&self) -> u16;
     /// The GUID prefix of its participant: endpoints with it are our own.
     fn own_prefix(&self) -> [u8; PREFIX_LEN];
-    /// A writer on `topic` (DDS type `type_name`) with QoS `q`.
-    fn writer(&self, topic: &str, type_name: &str, q: &Qos) -> Result<Box<dyn Writer>, GatewayError>;
-    /// A reader on `topic` with QoS `q`; its samples go to `sink` for as long as the engine
-    /// lives. `decode` is used by engines that decode as they read.
-    fn reader(&self, topic: &str, type_name: &str, q: &Qos, decode: Decode, sink: Sink) -> Result<(), GatewayError>;
+    /// A writer on `topic` (of type `ty`, whose hash it announces) with QoS `q`.
+    fn writer(&self, topic: &str, ty: &TopicType, q: &Qos) -> Result<Box<dyn Writer>, GatewayError>;
+    /// A reader on `topic` (of type `ty`, whose hash it announces) with QoS `q`; its samples
+    /// go to `sink` for as long as the engine lives. `decode` is used by engines that decode
+    /// as they read.
+    fn reader(&self, topic: &str, ty: &TopicType, q: &Qos, decode: Decode, sink: Sink) -> Result<(), GatewayError>;
     /// The remote endpoints discovered so far (our own participant's left out).
     fn remote(&self) -> Remote;
     /// Announces (again) the node with every endpoint created so far on `ros_discovery_info`.

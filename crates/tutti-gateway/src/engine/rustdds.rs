@@ -11,11 +11,18 @@
 //! datagram and two thread hops per sample; no unicast peers (`--peer` is refused);
 //! EXCLUSIVE ownership is not matched with Cyclone's readers; matching is read from the
 //! discovery database, since rustdds 0.15 has no working matched-endpoint queries.
+//!
+//! Type hashes: every endpoint announces its type's ROS 2 hash as USER_DATA
+//! (`typehash=RIHS01_…;`), ros2-client's own (`ros_discovery_info`, `/parameter_events`)
+//! included: the participant is told the USER_DATA of each type before any endpoint of it
+//! is made (`set_user_data_of_type`, a patch of the vendored rustdds:
+//! vendor/rustdds/TUTTI-PATCHES.md).
 
 use std::collections::HashMap;
 use std::sync::{Arc, Mutex, PoisonError};
 
 use futures::{Stream, StreamExt};
+use ros2_client::builtin_topics::{parameter_events, ros_discovery};
 use ros2_client::dds::rustdds::{policy, QosPolicies};
 use ros2_client::dds::rustdds::{DomainParticipant, DomainParticipantBuilder, RTPSEntity, Topic, TopicKind};
 use ros2_client::dds::{Publisher, Subscription};
@@ -25,7 +32,9 @@ use serde::Serialize;
 use tutti_core::ddf::{Leaf, Value};
 use tutti_core::mapping::{Ownership, Qos, Reliability};
 
-use super::{Data, Decode, EndpointQos, Engine, EngineConfig, EngineKind, Guid, Remote, Sink, Writer, PREFIX_LEN};
+use super::{
+    Data, Decode, EndpointQos, Engine, EngineConfig, EngineKind, Guid, Remote, Sink, TopicType, Writer, PREFIX_LEN,
+};
 use crate::cdr::stock::{self, Stock};
 use crate::cdr::{split_header, Bool, CdrError, Float64, Float64MultiArray, Payload, PreEncoded, SetSeed};
 use crate::{qos, GatewayError};
@@ -69,6 +78,10 @@ impl Rustdds {
         }
         let participant =
             b.build().map_err(|e| GatewayError::dds(format!("a participant in DDS domain {}", cfg.domain_id), e))?;
+        // The endpoints ros2-client makes itself: the node's announcement and its parameter events.
+        for ty in [ros_discovery::TYPE_NAME, parameter_events::TYPE_NAME] {
+            announce_type_hash(&participant, &TopicType::stock(ty))?;
+        }
         let context = Context::from_domain_participant(participant.clone())
             .map_err(|e| GatewayError::dds("the ROS 2 context", e))?;
         let node = context
@@ -91,22 +104,25 @@ impl Rustdds {
         })
     }
 
-    fn topic(&self, name: &str, type_name: &str, q: &Qos) -> Result<Topic, GatewayError> {
+    /// Topic `name` of type `ty`, made once; the endpoints made on it after this call announce
+    /// `ty`'s hash.
+    fn topic(&self, name: &str, ty: &TopicType, q: &Qos) -> Result<Topic, GatewayError> {
+        announce_type_hash(&self.participant, ty)?;
         let mut topics = self.topics.lock().unwrap_or_else(PoisonError::into_inner);
         if let Some(t) = topics.get(name) {
             return Ok(t.clone());
         }
         let t = self
             .participant
-            .create_topic(name.to_string(), type_name.to_string(), &qos::topic_qos(q), TopicKind::NoKey)
+            .create_topic(name.to_string(), ty.name.clone(), &qos::topic_qos(q), TopicKind::NoKey)
             .map_err(|e| GatewayError::dds(format!("topic {name}"), e))?;
         topics.insert(name.to_string(), t.clone());
         Ok(t)
     }
 
-    /// A node publisher on `topic` (type `type_name`) with the writer QoS `q`.
-    fn publisher<M: Serialize>(&self, topic: &str, type_name: &str, q: &Qos) -> Result<Publisher<M>, GatewayError> {
-        let t = self.topic(topic, type_name, q)?;
+    /// A node publisher on `topic` (type `ty`) with the writer QoS `q`.
+    fn publisher<M: Serialize>(&self, topic: &str, ty: &TopicType, q: &Qos) -> Result<Publisher<M>, GatewayError> {
+        let t = self.topic(topic, ty, q)?;
         self.node
             .lock()
             .unwrap_or_else(PoisonError::into_inner)
@@ -114,9 +130,9 @@ impl Rustdds {
             .map_err(|e| GatewayError::dds(format!("a writer on {topic}"), e))
     }
 
-    /// A node subscription on `topic` (type `type_name`) with the reader QoS `q`.
-    fn subscription<M: 'static>(&self, topic: &str, type_name: &str, q: &Qos) -> Result<Subscription<M>, GatewayError> {
-        let t = self.topic(topic, type_name, q)?;
+    /// A node subscription on `topic` (type `ty`) with the reader QoS `q`.
+    fn subscription<M: 'static>(&self, topic: &str, ty: &TopicType, q: &Qos) -> Result<Subscription<M>, GatewayError> {
+        let t = self.topic(topic, ty, q)?;
         self.node
             .lock()
             .unwrap_or_else(PoisonError::into_inner)
@@ -127,7 +143,7 @@ impl Rustdds {
     fn item_reader<M>(
         &self,
         topic: &str,
-        type_name: &str,
+        ty: &TopicType,
         q: &Qos,
         leaf: Arc<Leaf>,
         sink: Sink,
@@ -135,7 +151,7 @@ impl Rustdds {
     where
         M: DeserializeOwned + IntoLeaf + Send + Sync + 'static,
     {
-        let sub: Subscription<M> = self.subscription(topic, type_name, q)?;
+        let sub: Subscription<M> = self.subscription(topic, ty, q)?;
         let path: Arc<str> = Arc::from(leaf.path.as_str());
         let to_payload = move |m: M| m.into_leaf(&leaf).map(|bytes| Payload::Item { path: path.clone(), bytes });
         if let Some(rt) = &self.rt {
@@ -143,6 +159,14 @@ impl Rustdds {
         }
         Ok(())
     }
+}
+
+/// Tells `participant` the USER_DATA of the endpoints of type `ty` (none without a hash).
+fn announce_type_hash(participant: &DomainParticipant, ty: &TopicType) -> Result<(), GatewayError> {
+    let user_data = ty.user_data().map(String::into_bytes).unwrap_or_default();
+    participant
+        .set_user_data_of_type(&ty.name, user_data)
+        .map_err(|e| GatewayError::dds(format!("the type hash of {}", ty.name), e))
 }
 
 impl Drop for Rustdds {
@@ -210,14 +234,14 @@ impl Engine for Rustdds {
         self.own_prefix
     }
 
-    fn writer(&self, topic: &str, type_name: &str, q: &Qos) -> Result<Box<dyn Writer>, GatewayError> {
-        Ok(Box::new(RustddsWriter(self.publisher::<PreEncoded>(topic, type_name, q)?)))
+    fn writer(&self, topic: &str, ty: &TopicType, q: &Qos) -> Result<Box<dyn Writer>, GatewayError> {
+        Ok(Box::new(RustddsWriter(self.publisher::<PreEncoded>(topic, ty, q)?)))
     }
 
-    fn reader(&self, topic: &str, type_name: &str, q: &Qos, decode: Decode, sink: Sink) -> Result<(), GatewayError> {
+    fn reader(&self, topic: &str, ty: &TopicType, q: &Qos, decode: Decode, sink: Sink) -> Result<(), GatewayError> {
         match decode {
             Decode::Set(codec) => {
-                let sub = self.subscription(topic, type_name, q)?;
+                let sub = self.subscription(topic, ty, q)?;
                 if let Some(rt) = &self.rt {
                     rt.spawn(async move {
                         pump(sub.async_stream_seed(SetSeed(codec)), |s| Ok(Payload::Set(s)), sink).await;
@@ -225,9 +249,9 @@ impl Engine for Rustdds {
                 }
             }
             Decode::Item(leaf, _) => match Stock::of(&leaf) {
-                Stock::Float64 => self.item_reader::<Float64>(topic, type_name, q, leaf, sink)?,
-                Stock::Bool => self.item_reader::<Bool>(topic, type_name, q, leaf, sink)?,
-                Stock::Array => self.item_reader::<Float64MultiArray>(topic, type_name, q, leaf, sink)?,
+                Stock::Float64 => self.item_reader::<Float64>(topic, ty, q, leaf, sink)?,
+                Stock::Bool => self.item_reader::<Bool>(topic, ty, q, leaf, sink)?,
+                Stock::Array => self.item_reader::<Float64MultiArray>(topic, ty, q, leaf, sink)?,
             },
         }
         Ok(())

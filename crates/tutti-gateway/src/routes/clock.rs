@@ -19,7 +19,7 @@ use tutti_core::shm::observer::Observer;
 use super::to_dds::{look, Activation, Outgoing, Polled, ServedBy};
 use super::ShmConfig;
 use crate::config;
-use crate::engine::{Engine, Writer};
+use crate::engine::{Engine, TopicType, Writer};
 use crate::stats::Stats;
 use crate::GatewayError;
 
@@ -27,7 +27,7 @@ use crate::GatewayError;
 /// watched by the poller, at most `rate` samples a second (None: one per step).
 pub fn route(dds: &dyn Engine, domain: &str, ns: &str, rate: Option<f64>) -> Result<Outgoing, GatewayError> {
     let topic = config::dds_topic(ns, "clock");
-    let writer = dds.writer(&topic, TYPE, &qos())?;
+    let writer = dds.writer(&topic, &TopicType::stock(TYPE), &qos())?;
     let activation = Arc::new(Activation::default());
     let pump = ClockPump::new(domain.to_string(), writer, activation.clone(), rate);
     Ok(Outgoing { topics: vec![topic], activation, served_by: ServedBy::Poller(Box::new(pump)) })

@@ -33,7 +33,7 @@ use tutti_core::shm::{Participant, ShmError};
 
 use super::{Counters, Event, Inbound, ShmConfig};
 use crate::cdr::{CdrError, Payload, SetCodec, TypedSample};
-use crate::engine::{Data, Decode, Engine, Guid, Sink, PREFIX_LEN};
+use crate::engine::{Data, Decode, Engine, Guid, Sink, TopicType, PREFIX_LEN};
 use crate::stats::{LogLimit, SetStats, Stats};
 use crate::GatewayError;
 
@@ -129,20 +129,20 @@ pub fn sink(decode: Decode, to: Destination, stats: Arc<Stats>, own: [u8; PREFIX
     })
 }
 
-/// The reader of a DDS -> shared-memory route on `topic` (DDS type `dds_type`, reader QoS
+/// The reader of a DDS -> shared-memory route on `topic` (of type `ty`, reader QoS
 /// `rq`, samples read by `decode`): its sink decodes each sample on the engine's receive
 /// path and delivers it to `to` (see [`sink`]).
 pub fn reader(
     dds: &dyn Engine,
     topic: &str,
-    dds_type: &str,
+    ty: &TopicType,
     rq: &Qos,
     decode: Decode,
     to: Destination,
     stats: Arc<Stats>,
 ) -> Result<(), GatewayError> {
     let sink = sink(decode.clone(), to, stats, dds.own_prefix());
-    dds.reader(topic, dds_type, rq, decode, sink)
+    dds.reader(topic, ty, rq, decode, sink)
 }
 
 /// The shared-memory connection of one remote DDS writer.

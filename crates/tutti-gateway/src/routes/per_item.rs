@@ -9,7 +9,7 @@ use tutti_core::ddf::{Leaf, SetLayout, Value};
 use tutti_core::mapping::{ItemTopic, Qos};
 
 use crate::cdr::stock::{self, Stock};
-use crate::engine::{Decode, Engine, Writer};
+use crate::engine::{Decode, Engine, TopicType, Writer};
 use crate::GatewayError;
 
 struct ItemWriter {
@@ -47,7 +47,7 @@ impl ItemWriters {
         let mut items = Vec::with_capacity(topics.len());
         for t in topics {
             let Some(leaf) = layout.leaf(&t.path) else { continue };
-            let writer = dds.writer(&t.topic, &t.dds_type, q)?;
+            let writer = dds.writer(&t.topic, &TopicType::stock(&t.dds_type), q)?;
             items.push(ItemWriter { leaf: leaf.clone(), stock: Stock::of(leaf), writer, last: None });
         }
         Ok(ItemWriters { items, body: Vec::new() })

@@ -109,7 +109,7 @@ pub fn items(
 /// The typed DDS writer of planned set `p` of domain `d`.
 pub fn set_writer(dds: &dyn Engine, d: &Domain, p: &PlannedSet) -> Result<Outbound, GatewayError> {
     let codec = Arc::new(SetCodec::new(&d.set(p.role).layout));
-    let writer = dds.writer(&p.topic, &p.dds_type, &p.writer_qos)?;
+    let writer = dds.writer(&p.topic, &p.topic_type(), &p.writer_qos)?;
     Ok(Outbound::Set(Box::new(SetWriter::new(codec, writer).named(&d.name, &p.topic))))
 }
 

@@ -541,6 +541,39 @@ impl DomainParticipant {
     self.dpi.lock().ok().and_then(|g| g.only_networks())
   }
 
+  // tutti: USER_DATA of local endpoints, by type name (TUTTI-PATCHES.md, 3).
+  /// Every reader and writer of DDS type `type_name` that this participant
+  /// creates from now on announces `user_data` as its USER_DATA QoS in
+  /// discovery (empty: none, the default). ROS 2 puts its type hash there
+  /// (`typehash=RIHS01_…;`), which depends on the type alone.
+  pub fn set_user_data_of_type(&self, type_name: &str, user_data: Vec<u8>) -> CreateResult<()> {
+    let mut dpi = self.dpi.lock()?;
+    if user_data.is_empty() {
+      dpi.type_user_data.remove(type_name);
+    } else {
+      dpi.type_user_data.insert(type_name.to_string(), user_data);
+    }
+    Ok(())
+  }
+
+  // tutti: the USER_DATA parameter value of a local endpoint of `type_name`
+  // (a CDR sequence<octet>, little-endian as rustdds sends its discovery data;
+  // empty for none), as `DiscoveredWriterData`/`DiscoveredReaderData` keep it.
+  pub(crate) fn user_data_parameter_of_type(&self, type_name: &str) -> Vec<u8> {
+    let dpi = match self.dpi.lock() {
+      Ok(g) => g,
+      Err(_) => return Vec::new(),
+    };
+    match dpi.type_user_data.get(type_name) {
+      Some(data) => {
+        let mut value = (data.len() as u32).to_le_bytes().to_vec();
+        value.extend_from_slice(data);
+        value
+      }
+      None => Vec::new(),
+    }
+  }
+
   /// Gets all DiscoveredTopics from DDS network
   ///
   /// # Examples
@@ -958,6 +991,8 @@ pub(crate) struct DomainParticipantDisc {
   discovery_join_handle: std::sync::mpsc::Receiver<JoinHandle<()>>,
   // This allows deterministic generation of EntityIds for DataReader, DataWriter, etc.
   entity_id_generator: atomic::AtomicU32,
+  // tutti: USER_DATA of local endpoints, by type name (TUTTI-PATCHES.md, 3).
+  type_user_data: HashMap<String, Vec<u8>>,
 }
 
 impl DomainParticipantDisc {
@@ -1003,6 +1038,7 @@ impl DomainParticipantDisc {
       discovery_command_sender,
       discovery_join_handle,
       entity_id_generator: atomic::AtomicU32::new(0),
+      type_user_data: HashMap::new(), // tutti: none until set
     })
   }
 

@@ -670,7 +670,8 @@ impl DiscoveryDB {
       reader_proxy: ReaderProxy::from(reader_proxy),
       subscription_topic_data: subscription_data,
       content_filter,
-      user_data: Vec::new(),
+      // tutti: the USER_DATA set for the type (TUTTI-PATCHES.md, 3)
+      user_data: domain_participant.user_data_parameter_of_type(topic.get_type().name()),
     }
   }
 

@@ -503,7 +503,7 @@ impl ParameterListable for DiscoveredReaderData {
           security_info,
         },
       content_filter,
-      user_data: _,
+      user_data, // tutti: announced when set (TUTTI-PATCHES.md, 3)
     } = self;
 
     let mut pl = ParameterList::new();
@@ -557,6 +557,10 @@ impl ParameterListable for DiscoveredReaderData {
     emit!(PID_TOPIC_NAME, &topic_name.clone().into(), StringWithNul);
     emit!(PID_TYPE_NAME, &type_name.clone().into(), StringWithNul);
     pl.parameters.append(&mut qos.to_parameter_list(ctx)?);
+    // tutti: the endpoint's USER_DATA, when it has one (TUTTI-PATCHES.md, 3)
+    if !user_data.is_empty() {
+      pl.push(Parameter::new(ParameterId::PID_USER_DATA, user_data.clone()));
+    }
     emit_option!(
       PID_SERVICE_INSTANCE_NAME,
       &service_instance_name.clone().map(|e| e.into()),
@@ -818,8 +822,9 @@ impl DiscoveredWriterData {
     Self {
       last_updated: Instant::now(),
       writer_proxy,
+      // tutti: the USER_DATA set for the type (TUTTI-PATCHES.md, 3)
+      user_data: dp.user_data_parameter_of_type(topic.get_type().name()),
       publication_topic_data,
-      user_data: Vec::new(),
     }
   }
 }
@@ -966,7 +971,7 @@ impl ParameterListable for DiscoveredWriterData {
           #[cfg(feature = "security")]
           security_info,
         },
-      user_data: _,
+      user_data, // tutti: announced when set (TUTTI-PATCHES.md, 3)
     } = self;
 
     let mut pl = ParameterList::new();
@@ -1020,6 +1025,10 @@ impl ParameterListable for DiscoveredWriterData {
     emit!(PID_TOPIC_NAME, &topic_name.clone().into(), StringWithNul);
     emit!(PID_TYPE_NAME, &type_name.clone().into(), StringWithNul);
     pl.parameters.append(&mut qos.to_parameter_list(ctx)?);
+    // tutti: the endpoint's USER_DATA, when it has one (TUTTI-PATCHES.md, 3)
+    if !user_data.is_empty() {
+      pl.push(Parameter::new(ParameterId::PID_USER_DATA, user_data.clone()));
+    }
     emit_option!(
       PID_SERVICE_INSTANCE_NAME,
       &service_instance_name.clone().map(|e| e.into()),
