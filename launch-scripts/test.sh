@@ -16,9 +16,13 @@ step() { printf '\n== %s\n' "$*"; }
 # build needs (cmake, libclang for bindgen), C toolchain, valgrind, iproute2 for the
 # network-namespace tests, procps for `kill` (the tests stop their children with SIGINT), the
 # font the UAV demo draws its figures with, headless Chromium and its WebDriver for the
-# studio's browser tests, Node.js and npm for the Foxglove WebSocket client.
+# studio's browser tests.
 ensure_debian_packages cyclonedds-tools cyclonedds-dev fastddsgen libfastrtps-dev fastdds-tools valgrind gcc g++ make \
-    cmake libclang-dev iproute2 procps python3-venv fonts-dejavu-core pkgconf chromium chromium-driver nodejs npm
+    cmake libclang-dev iproute2 procps python3-venv fonts-dejavu-core pkgconf chromium chromium-driver
+# Node.js and npm for the Foxglove WebSocket client: Debian's, unless the machine has a Node.js
+# with its own npm already (NodeSource's nodejs package carries npm, and Debian's npm package
+# cannot be installed beside it).
+command -v npm >/dev/null || ensure_debian_packages nodejs npm
 
 # --- Python: a local venv with the Cyclone DDS binding (the stand-in for rclpy nodes) and the
 # MCAP readers.
