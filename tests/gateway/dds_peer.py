@@ -29,6 +29,12 @@ Every mode prints JSON lines on stdout and exits 0 on success, 3 on timeout.
          of node NS/NAME (on ros_discovery_info) announces (DCPSParticipant)
   clock  [--timeout S]: prints every rosgraph_msgs/msg/Clock sample on rt/clock (as rclcpp's
          ClockQoS subscription reads it: best effort, keep last 1) until the timeout
+  service --calls '[["get_simulation_state"], ["step_simulation", 3], ...]' [--ros-namespace NS]:
+         a simulation_interfaces client in rmw_cyclonedds's layout (rq/NS/NAMERequest and
+         rr/NS/NAMEReply, each body starting with the 16-byte request header, rmw's services QoS);
+         each request is checked byte for byte against the layout packed by hand before it is
+         sent; waits, as rmw_service_server_is_available, for the service's reader and writer,
+         then makes the calls in order, printing {"call": NAME, ...the response's fields}
 """
 import argparse
 import json
@@ -350,9 +356,126 @@ def cmd_lease(dp, a):
     return 3
 
 
+# simulation_interfaces, as rmw_cyclonedds serializes a service's samples: the request header
+# (the client's writer id, the sequence number), then the message's fields.
+@dataclass
+class SimulationState(IdlStruct, typename="simulation_interfaces::msg::dds_::SimulationState_"):
+    state: T.uint8
+
+
+@dataclass
+class SimResult(IdlStruct, typename="simulation_interfaces::msg::dds_::Result_"):
+    result: T.uint8
+    error_message: str
+
+
+@dataclass
+class SimulatorFeatures(IdlStruct, typename="simulation_interfaces::msg::dds_::SimulatorFeatures_"):
+    features: T.sequence[T.uint16]
+    spawn_formats: T.sequence[str]
+    custom_info: str
+
+
+def srv_types(srv, request_fields, response_fields):
+    req = {"client_guid": T.uint64, "sequence_number": T.int64, **request_fields}
+    rsp = {"client_guid": T.uint64, "sequence_number": T.int64, **response_fields}
+
+    def make(suffix, ann):
+        name = f"simulation_interfaces::srv::dds_::{srv}_{suffix}_"
+        cls = types.new_class("S_" + srv + suffix, (IdlStruct,), {"typename": name},
+                              lambda ns: ns.__setitem__("__annotations__", ann))
+        return dataclass(cls)
+    return make("Request", req), make("Response", rsp)
+
+
+# name: (srv, request fields, response fields, how the request's own fields are packed)
+SERVICES = {
+    "get_simulator_features": ("GetSimulatorFeatures", {"structure_needs_at_least_one_member": T.uint8},
+                               {"features": SimulatorFeatures}, "B"),
+    "get_simulation_state": ("GetSimulationState", {"structure_needs_at_least_one_member": T.uint8},
+                             {"state": SimulationState, "result": SimResult}, "B"),
+    "set_simulation_state": ("SetSimulationState", {"state": SimulationState}, {"result": SimResult}, "B"),
+    "step_simulation": ("StepSimulation", {"steps": T.uint64}, {"result": SimResult}, "Q"),
+    "reset_simulation": ("ResetSimulation", {"scope": T.uint8}, {"result": SimResult}, "B"),
+}
+
+
+def service_qos():
+    # rmw_qos_profile_services_default
+    return Qos(Policy.Reliability.Reliable(duration(milliseconds=100)), Policy.History.KeepLast(10),
+               Policy.Durability.Volatile)
+
+
+def ros_topic(prefix, ns, name, suffix):
+    return f"{prefix}/{ns + '/' if ns else ''}{name}{suffix}"
+
+
+class ServiceClient:
+    """One service's client: a request writer and a reply reader, as rmw_cyclonedds makes them."""
+
+    def __init__(self, dp, ns, name):
+        srv, fields, _, self.pack = SERVICES[name]
+        self.name, self.fields = name, fields
+        self.req, self.rsp = srv_types(srv, fields, SERVICES[name][2])
+        self.w = DataWriter(dp, Topic(dp, ros_topic("rq", ns, name, "Request"), self.req), qos=service_qos())
+        self.r = DataReader(dp, Topic(dp, ros_topic("rr", ns, name, "Reply"), self.rsp), qos=service_qos())
+        self.guid = int.from_bytes(os.urandom(8), "little") >> 1
+        self.seq = 0
+
+    def available(self):
+        return bool(self.w.get_matched_subscriptions()) and bool(self.r.get_matched_publications())
+
+    def call(self, arg, timeout):
+        import struct
+        self.seq += 1
+        fields = {}
+        if self.name == "set_simulation_state":
+            fields["state"], raw_arg = SimulationState(state=arg), arg
+        elif self.name == "step_simulation":
+            fields["steps"], raw_arg = arg, arg
+        elif self.name == "reset_simulation":
+            fields["scope"], raw_arg = arg, arg
+        else:
+            fields["structure_needs_at_least_one_member"], raw_arg = 0, 0
+        sample = self.req(client_guid=self.guid, sequence_number=self.seq, **fields)
+        by_hand = b"\x00\x01\x00\x00" + struct.pack("<Qq" + self.pack, self.guid, self.seq, raw_arg)
+        got = sample.serialize()
+        if got[:len(by_hand)] != by_hand or len(got.rstrip(b"\x00")) > len(by_hand):
+            emit({"error": "not rmw_cyclonedds's layout", "got": got.hex(), "want": by_hand.hex()})
+            return None
+        self.w.write(sample)
+        end = time.time() + timeout
+        while time.time() < end:
+            for s in self.r.take(N=10):
+                if s.sample_info.valid_data and s.client_guid == self.guid and s.sequence_number == self.seq:
+                    return plain(s)
+            time.sleep(0.005)
+        return None
+
+
+def cmd_service(dp, a):
+    calls = json.loads(a.calls)
+    clients = {name: ServiceClient(dp, a.ros_namespace, name) for name in {c[0] for c in calls}}
+    end = time.time() + a.timeout
+    while not all(c.available() for c in clients.values()):
+        if time.time() > end:
+            emit({"error": "no service", "missing": [n for n, c in clients.items() if not c.available()]})
+            return 3
+        time.sleep(0.05)
+    for c in calls:
+        reply = clients[c[0]].call(c[1] if len(c) > 1 else None, a.timeout)
+        if reply is None:
+            emit({"error": "no reply", "call": c[0]})
+            return 3
+        reply.pop("client_guid")
+        reply.pop("sequence_number")
+        emit({"call": c[0], "arg": c[1] if len(c) > 1 else None, **reply})
+    return 0
+
+
 def main():
     p = argparse.ArgumentParser()
-    p.add_argument("mode", choices=["sub", "pub", "answer", "steps", "qos", "nodes", "clock", "lease"])
+    p.add_argument("mode", choices=["sub", "pub", "answer", "steps", "qos", "nodes", "clock", "lease", "service"])
     p.add_argument("--domain", type=int, required=True)
     p.add_argument("--topic")
     p.add_argument("--type")
@@ -376,10 +499,13 @@ def main():
     p.add_argument("--strength", type=int, default=5)
     p.add_argument("--max-samples", type=int, default=0)
     p.add_argument("--pause-ms", type=float, default=1.0)
+    p.add_argument("--calls", default="[]")
+    p.add_argument("--ros-namespace", default="")
     a = p.parse_args()
     dp = DomainParticipant(a.domain)
     sys.exit({"sub": cmd_sub, "pub": cmd_pub, "answer": cmd_answer, "steps": cmd_steps, "qos": cmd_qos,
-              "nodes": cmd_nodes, "clock": cmd_clock, "lease": cmd_lease}[a.mode](dp, a))
+              "nodes": cmd_nodes, "clock": cmd_clock, "lease": cmd_lease,
+              "service": cmd_service}[a.mode](dp, a))
 
 
 if __name__ == "__main__":

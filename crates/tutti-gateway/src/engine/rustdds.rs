@@ -229,6 +229,9 @@ impl Engine for Rustdds {
                 Stock::Bool => self.item_reader::<Bool>(topic, type_name, q, leaf, sink)?,
                 Stock::Array => self.item_reader::<Float64MultiArray>(topic, type_name, q, leaf, sink)?,
             },
+            Decode::Raw => {
+                return Err(GatewayError::dds(format!("a reader on {topic}"), "rustdds readers decode what they read"))
+            }
         }
         Ok(())
     }
