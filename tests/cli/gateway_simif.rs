@@ -2,8 +2,10 @@
 //! peer (`dds_peer.py service`) in rmw_cyclonedds's request and reply layout, each request
 //! checked byte for byte against that layout: against `tutti host --gateway` with a
 //! synchronous domain (every service, the exact steps, the refusals and repeated
-//! transitions) and with asynchronous domains only (stepping refused, with the reason); a
-//! passive gateway offers none. Each test has its own namespace and DDS domain (40-42).
+//! transitions) and with asynchronous domains only (stepping refused, with the reason); the
+//! action `simulate_steps` (`dds_peer.py action`: feedback after each step, cancel, the
+//! refusals); a passive gateway offers none. Each test has its own namespace and DDS domain
+//! (40-44).
 
 use crate::gateway;
 
@@ -141,4 +143,86 @@ fn a_passive_gateway_offers_no_simulation_services() {
         peer(&py, "simulation client", dom, "service", &["--calls", r#"[["get_simulation_state"]]"#, "--timeout", "5"]);
     assert_eq!(p.wait(SECS(60)), Some(3), "a passive gateway answered\n{}", p.dump());
     assert!(p.stdout().contains("no service"), "{}", p.dump());
+}
+
+/// The action client (`dds_peer.py action`) for `steps` steps, canceling after `cancel_after`
+/// feedback samples (0: never): its output lines.
+fn simulate_steps(py: &std::path::Path, dom: u16, steps: u64, cancel_after: u64) -> Vec<Value> {
+    let (steps, cancel) = (steps.to_string(), cancel_after.to_string());
+    let args = ["--steps", steps.as_str(), "--cancel-after", cancel.as_str(), "--timeout", "60"];
+    let mut p = peer(py, "action client", dom, "action", &args);
+    assert_eq!(p.wait(SECS(100)), Some(0), "the action client failed\n{}", p.dump());
+    p.lines().iter().filter_map(|l| serde_json::from_str::<Value>(l).ok()).collect()
+}
+
+fn feedback(lines: &[Value]) -> Vec<(u64, u64)> {
+    lines
+        .iter()
+        .filter_map(|l| l["feedback"].as_array().map(|f| (f[0].as_u64().unwrap_or(0), f[1].as_u64().unwrap_or(0))))
+        .collect()
+}
+
+fn line<'a>(lines: &'a [Value], key: &str) -> &'a Value {
+    lines.iter().find(|l| l.get(key).is_some()).unwrap_or_else(|| panic!("no {key} in {lines:?}"))
+}
+
+const SUCCEEDED: u64 = 4;
+const CANCELED: u64 = 5;
+const ABORTED: u64 = 6;
+
+#[test]
+fn the_simulate_steps_action_gives_feedback_after_each_step_and_cancels() {
+    let Some(py) = python() else { return };
+    let (dom, ns) = (43, namespace("simif43_"));
+    let (_host, _segments) = host_with_gateway(Eng::CYCLONE, DDF, dom, &ns, &[]);
+
+    // Playing: the goal is accepted and aborted with the call's result.
+    let lines = simulate_steps(&py, dom, 3, 0);
+    assert_eq!(line(&lines, "accepted")["accepted"], true);
+    let end = line(&lines, "status");
+    assert_eq!((end["status"].as_u64(), end["result"]["result"].as_u64()), (Some(ABORTED), Some(4)), "{end}");
+    assert!(end["result"]["error_message"].as_str().unwrap_or("").contains("playing"), "{end}");
+    assert!(feedback(&lines).is_empty());
+
+    let r = calls(&py, dom, r#"[["get_simulator_features"], ["set_simulation_state", 2]]"#);
+    let features = &r[0]["features"]["features"];
+    assert!(features.as_array().is_some_and(|f| f.contains(&Value::from(33))), "STEP_SIMULATION_ACTION: {features}");
+    let at = ctl_state(&ns)["step"].as_u64().expect("a step");
+
+    let lines = simulate_steps(&py, dom, 4, 0);
+    assert_eq!(feedback(&lines), vec![(1, 3), (2, 2), (3, 1), (4, 0)], "feedback after each step");
+    let end = line(&lines, "status");
+    assert_eq!((end["status"].as_u64(), end["result"]["result"].as_u64()), (Some(SUCCEEDED), Some(OK)), "{end}");
+    assert_eq!(end["last_status"].as_u64(), Some(SUCCEEDED), "the status topic: {end}");
+    assert_eq!(ctl_state(&ns)["step"].as_u64(), Some(at + 4), "exactly 4 steps");
+
+    // Canceled after the second feedback: the goal ends between two steps, well before its 100000.
+    let at = at + 4;
+    let lines = simulate_steps(&py, dom, 100_000, 2);
+    let c = line(&lines, "cancel");
+    assert_eq!((c["cancel"].as_u64(), c["canceling"].as_u64()), (Some(0), Some(1)), "ERROR_NONE, one goal: {c}");
+    let end = line(&lines, "status");
+    assert_eq!(end["status"].as_u64(), Some(CANCELED), "{end}");
+    assert_eq!(end["last_status"].as_u64(), Some(CANCELED), "{end}");
+    let made = ctl_state(&ns)["step"].as_u64().expect("a step") - at;
+    let fb = feedback(&lines);
+    assert!((2..100_000).contains(&made), "{made} steps");
+    assert_eq!(fb.last().map(|f| f.0), Some(made), "the last feedback is the last step made: {fb:?}");
+    assert!(fb.iter().enumerate().all(|(i, f)| *f == (i as u64 + 1, 100_000 - i as u64 - 1)), "{fb:?}");
+    let why = end["result"]["error_message"].as_str().unwrap_or("");
+    assert_eq!(why, format!("canceled after {made} of 100000 steps"));
+}
+
+#[test]
+fn the_action_refuses_to_step_a_run_of_asynchronous_domains() {
+    let Some(py) = python() else { return };
+    let (dom, ns) = (44, namespace("simif44_"));
+    let (_host, _segments) = host_with_gateway(Eng::CYCLONE, "tests/gateway/async-only.ddf", dom, &ns, &[]);
+    let r = calls(&py, dom, r#"[["set_simulation_state", 2]]"#);
+    assert_eq!(result(&r[0]).0, OK);
+    let lines = simulate_steps(&py, dom, 2, 0);
+    let end = line(&lines, "status");
+    assert_eq!((end["status"].as_u64(), end["result"]["result"].as_u64()), (Some(ABORTED), Some(FEATURE_UNSUPPORTED)));
+    assert!(end["result"]["error_message"].as_str().unwrap_or("").contains("asynchronous (simif_async)"), "{end}");
+    assert!(feedback(&lines).is_empty());
 }

@@ -18,35 +18,91 @@ pub enum Kind {
     SetState,
     Step,
     Reset,
+    /// The action `simulate_steps`'s three services.
+    SendGoal,
+    GetResult,
+    CancelGoal,
 }
 
-/// A service: its relative ROS name and its type.
+/// A service: its relative ROS name and its DDS types (the package's type, `::dds_::`, the
+/// `_Request_` or `_Response_` suffix).
 #[derive(Debug)]
 pub struct Service {
     pub name: &'static str,
-    /// `simulation_interfaces/srv/NAME`'s last part.
-    pub srv: &'static str,
+    /// `PKG::srv::dds_::SRV` (or `PKG::action::dds_::ACTION_SendGoal`, …).
+    pub dds_type: &'static str,
     pub kind: Kind,
 }
 
 impl Service {
     pub fn request_type(&self) -> String {
-        format!("simulation_interfaces::srv::dds_::{}_Request_", self.srv)
+        format!("{}_Request_", self.dds_type)
     }
 
     pub fn response_type(&self) -> String {
-        format!("simulation_interfaces::srv::dds_::{}_Response_", self.srv)
+        format!("{}_Response_", self.dds_type)
     }
 }
 
-/// The services, in the order the gateway creates them.
+/// The action's relative name; its services and topics are under `NAME/_action/`.
+pub const ACTION: &str = "simulate_steps";
+
+/// The services, in the order the gateway creates them: the five, then the action's.
 pub const SERVICES: &[Service] = &[
-    Service { name: "get_simulator_features", srv: "GetSimulatorFeatures", kind: Kind::GetFeatures },
-    Service { name: "get_simulation_state", srv: "GetSimulationState", kind: Kind::GetState },
-    Service { name: "set_simulation_state", srv: "SetSimulationState", kind: Kind::SetState },
-    Service { name: "step_simulation", srv: "StepSimulation", kind: Kind::Step },
-    Service { name: "reset_simulation", srv: "ResetSimulation", kind: Kind::Reset },
+    Service {
+        name: "get_simulator_features",
+        dds_type: "simulation_interfaces::srv::dds_::GetSimulatorFeatures",
+        kind: Kind::GetFeatures,
+    },
+    Service {
+        name: "get_simulation_state",
+        dds_type: "simulation_interfaces::srv::dds_::GetSimulationState",
+        kind: Kind::GetState,
+    },
+    Service {
+        name: "set_simulation_state",
+        dds_type: "simulation_interfaces::srv::dds_::SetSimulationState",
+        kind: Kind::SetState,
+    },
+    Service { name: "step_simulation", dds_type: "simulation_interfaces::srv::dds_::StepSimulation", kind: Kind::Step },
+    Service {
+        name: "reset_simulation",
+        dds_type: "simulation_interfaces::srv::dds_::ResetSimulation",
+        kind: Kind::Reset,
+    },
+    Service {
+        name: "simulate_steps/_action/send_goal",
+        dds_type: "simulation_interfaces::action::dds_::SimulateSteps_SendGoal",
+        kind: Kind::SendGoal,
+    },
+    Service {
+        name: "simulate_steps/_action/get_result",
+        dds_type: "simulation_interfaces::action::dds_::SimulateSteps_GetResult",
+        kind: Kind::GetResult,
+    },
+    Service {
+        name: "simulate_steps/_action/cancel_goal",
+        dds_type: "action_msgs::srv::dds_::CancelGoal",
+        kind: Kind::CancelGoal,
+    },
 ];
+
+/// The action's feedback topic and type.
+pub const FEEDBACK: (&str, &str) =
+    ("simulate_steps/_action/feedback", "simulation_interfaces::action::dds_::SimulateSteps_FeedbackMessage_");
+/// The action's status topic and type.
+pub const STATUS: (&str, &str) = ("simulate_steps/_action/status", "action_msgs::msg::dds_::GoalStatusArray_");
+
+/// rcl_action's status QoS: reliable, transient local, keep last 1 (a late client gets the
+/// goals' last statuses).
+pub fn status_qos() -> Qos {
+    Qos {
+        reliability: Reliability::Reliable,
+        history: History::KeepLast(1),
+        durability: Durability::TransientLocal { depth: 1 },
+        ownership: Ownership::Shared,
+    }
+}
 
 fn topic(prefix: &str, ns: &str, name: &str, suffix: &str) -> String {
     if ns.is_empty() {
@@ -107,6 +163,8 @@ mod tests {
         assert_eq!(reply_topic("sim/a", "step_simulation"), "rr/sim/a/step_simulationReply");
         assert_eq!(SERVICES[2].request_type(), "simulation_interfaces::srv::dds_::SetSimulationState_Request_");
         assert_eq!(SERVICES[3].response_type(), "simulation_interfaces::srv::dds_::StepSimulation_Response_");
+        assert_eq!(request_topic("", SERVICES[5].name), "rq/simulate_steps/_action/send_goalRequest");
+        assert_eq!(SERVICES[7].request_type(), "action_msgs::srv::dds_::CancelGoal_Request_");
     }
 
     #[test]
