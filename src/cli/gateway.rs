@@ -65,6 +65,10 @@ pub struct Args {
     /// never hold a domain back, and a step the framework outruns them on is skipped).
     #[arg(long)]
     every_step: bool,
+    /// Offer no simulation_interfaces services (docs/ros2.md): bridge data only, never
+    /// control the run.
+    #[arg(long)]
+    passive: bool,
     /// Address of a network interface DDS may use (repeatable; default: all interfaces).
     #[arg(long = "interface", value_name = "ADDR")]
     interfaces: Vec<IpAddr>,
@@ -169,6 +173,7 @@ impl Args {
             hosted_only: self.all_domains.then_some(false),
             lease: self.lease,
             every_step: self.every_step.then_some(true),
+            passive: self.passive.then_some(true),
             http: self.http,
             foxglove: self.foxglove,
             allow: None,

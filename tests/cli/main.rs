@@ -31,6 +31,7 @@ mod gateway_in_process;
 mod gateway_interop;
 mod gateway_mirror;
 mod gateway_reliable;
+mod gateway_simif;
 mod host_cli;
 mod hostile_files;
 mod idl_generated;

@@ -32,6 +32,17 @@ Every mode prints JSON lines on stdout and exits 0 on success, 3 on timeout.
          of node NS/NAME (on ros_discovery_info) announces (DCPSParticipant)
   clock  [--timeout S]: prints every rosgraph_msgs/msg/Clock sample on rt/clock (as rclcpp's
          ClockQoS subscription reads it: best effort, keep last 1) until the timeout
+  service --calls '[["get_simulation_state"], ["step_simulation", 3], ...]' [--ros-namespace NS]:
+         a simulation_interfaces client in rmw_cyclonedds's layout (rq/NS/NAMERequest and
+         rr/NS/NAMEReply, each body starting with the 16-byte request header, rmw's services QoS);
+         each request is checked byte for byte against the layout packed by hand before it is
+         sent; waits, as rmw_service_server_is_available, for the service's reader and writer,
+         then makes the calls in order, printing {"call": NAME, ...the response's fields}
+  action --steps N [--cancel-after K] [--ros-namespace NS]: a client of the action simulate_steps in the
+         same layout, as rclpy's ActionClient: send_goal, then get_result; prints {"accepted": ...},
+         {"feedback": [completed, remaining]} for each feedback sample, with --cancel-after K a cancel_goal
+         after the K-th feedback ({"cancel": return_code, "canceling": n}), then {"status": S, "result": ...}
+         and the goal's last status seen on the status topic ({"last_status": S})
 """
 import argparse
 import json
@@ -375,9 +386,249 @@ def cmd_lease(dp, a):
     return 3
 
 
+# simulation_interfaces, as rmw_cyclonedds serializes a service's samples: the request header
+# (the client's writer id, the sequence number), then the message's fields.
+@dataclass
+class SimulationState(IdlStruct, typename="simulation_interfaces::msg::dds_::SimulationState_"):
+    state: T.uint8
+
+
+@dataclass
+class SimResult(IdlStruct, typename="simulation_interfaces::msg::dds_::Result_"):
+    result: T.uint8
+    error_message: str
+
+
+@dataclass
+class SimulatorFeatures(IdlStruct, typename="simulation_interfaces::msg::dds_::SimulatorFeatures_"):
+    features: T.sequence[T.uint16]
+    spawn_formats: T.sequence[str]
+    custom_info: str
+
+
+def srv_types(srv, request_fields, response_fields):
+    req = {"client_guid": T.uint64, "sequence_number": T.int64, **request_fields}
+    rsp = {"client_guid": T.uint64, "sequence_number": T.int64, **response_fields}
+
+    def make(suffix, ann):
+        name = f"simulation_interfaces::srv::dds_::{srv}_{suffix}_"
+        cls = types.new_class("S_" + srv + suffix, (IdlStruct,), {"typename": name},
+                              lambda ns: ns.__setitem__("__annotations__", ann))
+        return dataclass(cls)
+    return make("Request", req), make("Response", rsp)
+
+
+# name: (srv, request fields, response fields, how the request's own fields are packed)
+SERVICES = {
+    "get_simulator_features": ("GetSimulatorFeatures", {"structure_needs_at_least_one_member": T.uint8},
+                               {"features": SimulatorFeatures}, "B"),
+    "get_simulation_state": ("GetSimulationState", {"structure_needs_at_least_one_member": T.uint8},
+                             {"state": SimulationState, "result": SimResult}, "B"),
+    "set_simulation_state": ("SetSimulationState", {"state": SimulationState}, {"result": SimResult}, "B"),
+    "step_simulation": ("StepSimulation", {"steps": T.uint64}, {"result": SimResult}, "Q"),
+    "reset_simulation": ("ResetSimulation", {"scope": T.uint8}, {"result": SimResult}, "B"),
+}
+
+
+def service_qos():
+    # rmw_qos_profile_services_default
+    return Qos(Policy.Reliability.Reliable(duration(milliseconds=100)), Policy.History.KeepLast(10),
+               Policy.Durability.Volatile)
+
+
+def ros_topic(prefix, ns, name, suffix):
+    return f"{prefix}/{ns + '/' if ns else ''}{name}{suffix}"
+
+
+class ServiceClient:
+    """One service's client: a request writer and a reply reader, as rmw_cyclonedds makes them."""
+
+    def __init__(self, dp, ns, name):
+        srv, fields, _, self.pack = SERVICES[name]
+        self.name, self.fields = name, fields
+        self.req, self.rsp = srv_types(srv, fields, SERVICES[name][2])
+        self.w = DataWriter(dp, Topic(dp, ros_topic("rq", ns, name, "Request"), self.req), qos=service_qos())
+        self.r = DataReader(dp, Topic(dp, ros_topic("rr", ns, name, "Reply"), self.rsp), qos=service_qos())
+        self.guid = int.from_bytes(os.urandom(8), "little") >> 1
+        self.seq = 0
+
+    def available(self):
+        return bool(self.w.get_matched_subscriptions()) and bool(self.r.get_matched_publications())
+
+    def call(self, arg, timeout):
+        import struct
+        self.seq += 1
+        fields = {}
+        if self.name == "set_simulation_state":
+            fields["state"], raw_arg = SimulationState(state=arg), arg
+        elif self.name == "step_simulation":
+            fields["steps"], raw_arg = arg, arg
+        elif self.name == "reset_simulation":
+            fields["scope"], raw_arg = arg, arg
+        else:
+            fields["structure_needs_at_least_one_member"], raw_arg = 0, 0
+        sample = self.req(client_guid=self.guid, sequence_number=self.seq, **fields)
+        by_hand = b"\x00\x01\x00\x00" + struct.pack("<Qq" + self.pack, self.guid, self.seq, raw_arg)
+        got = sample.serialize()
+        if got[:len(by_hand)] != by_hand or len(got.rstrip(b"\x00")) > len(by_hand):
+            emit({"error": "not rmw_cyclonedds's layout", "got": got.hex(), "want": by_hand.hex()})
+            return None
+        self.w.write(sample)
+        end = time.time() + timeout
+        while time.time() < end:
+            for s in self.r.take(N=10):
+                if s.sample_info.valid_data and s.client_guid == self.guid and s.sequence_number == self.seq:
+                    return plain(s)
+            time.sleep(0.005)
+        return None
+
+
+def action_types():
+    """The action's types, as rmw_cyclonedds serializes them (services with the request header)."""
+    def struct(name, ann):
+        return dataclass(types.new_class("A_" + name.split("::")[-1], (IdlStruct,), {"typename": name},
+                                         lambda ns: ns.__setitem__("__annotations__", ann)))
+    hdr = {"client_guid": T.uint64, "sequence_number": T.int64}
+    uuid = T.array[T.uint8, 16]
+    Time = struct("builtin_interfaces::msg::dds_::Time_", {"sec": T.int32, "nanosec": T.uint32})
+    GoalInfo = struct("action_msgs::msg::dds_::GoalInfo_", {"goal_id": uuid, "stamp": Time})
+    GoalStatus = struct("action_msgs::msg::dds_::GoalStatus_", {"goal_info": GoalInfo, "status": T.int8})
+    A = "simulation_interfaces::action::dds_::SimulateSteps_"
+    return types.SimpleNamespace(
+        Time=Time, GoalInfo=GoalInfo,
+        SendReq=struct(A + "SendGoal_Request_", {**hdr, "goal_id": uuid, "steps": T.uint64}),
+        SendRsp=struct(A + "SendGoal_Response_", {**hdr, "accepted": bool, "stamp": Time}),
+        ResultReq=struct(A + "GetResult_Request_", {**hdr, "goal_id": uuid}),
+        ResultRsp=struct(A + "GetResult_Response_", {**hdr, "status": T.int8, "result": SimResult}),
+        CancelReq=struct("action_msgs::srv::dds_::CancelGoal_Request_", {**hdr, "goal_info": GoalInfo}),
+        CancelRsp=struct("action_msgs::srv::dds_::CancelGoal_Response_",
+                         {**hdr, "return_code": T.int8, "goals_canceling": T.sequence[GoalInfo]}),
+        Feedback=struct(A + "FeedbackMessage_", {"goal_id": uuid, "completed_steps": T.uint64,
+                                                 "remaining_steps": T.uint64}),
+        Status=struct("action_msgs::msg::dds_::GoalStatusArray_", {"status_list": T.sequence[GoalStatus]}),
+    )
+
+
+def cmd_action(dp, a):
+    import struct as st
+    t = action_types()
+    base = "simulate_steps/_action/"
+    guid, seq = int.from_bytes(os.urandom(8), "little") >> 1, [0]
+
+    def pair(name, req, rsp):
+        return (DataWriter(dp, Topic(dp, ros_topic("rq", a.ros_namespace, base + name, "Request"), req), qos=service_qos()),
+                DataReader(dp, Topic(dp, ros_topic("rr", a.ros_namespace, base + name, "Reply"), rsp), qos=service_qos()))
+    send, result, cancel = pair("send_goal", t.SendReq, t.SendRsp), pair("get_result", t.ResultReq, t.ResultRsp), \
+        pair("cancel_goal", t.CancelReq, t.CancelRsp)
+    # Keep-all, unlike rclpy's keep-last 10, so that every feedback sample is seen.
+    fb = DataReader(dp, Topic(dp, ros_topic("rt", a.ros_namespace, base + "feedback", ""), t.Feedback),
+                    qos=Qos(Policy.Reliability.Reliable(duration(milliseconds=100)), Policy.History.KeepAll,
+                            Policy.Durability.Volatile))
+    status = DataReader(dp, Topic(dp, ros_topic("rt", a.ros_namespace, base + "status", ""), t.Status),
+                        qos=Qos(Policy.Reliability.Reliable(duration(milliseconds=100)), Policy.History.KeepLast(1),
+                                Policy.Durability.TransientLocal))
+    end = time.time() + a.timeout
+    while not all(w.get_matched_subscriptions() and r.get_matched_publications() for w, r in (send, result, cancel)) \
+            or not fb.get_matched_publications():
+        if time.time() > end:
+            emit({"error": "no action server"})
+            return 3
+        time.sleep(0.05)
+
+    def request(p, sample, check=None):
+        if check is not None:
+            got = sample.serialize()
+            if got[:len(check)] != check:
+                emit({"error": "not rmw_cyclonedds's layout", "got": got.hex(), "want": check.hex()})
+                return False
+        p[0].write(sample)
+        return True
+
+    def reply(p, s):
+        while time.time() < end:
+            for r in p[1].take(N=10):
+                if r.sample_info.valid_data and r.client_guid == guid and r.sequence_number == s:
+                    return r
+            time.sleep(0.005)
+        return None
+
+    goal = list(os.urandom(16))
+    seq[0] += 1
+    by_hand = b"\x00\x01\x00\x00" + st.pack("<Qq16BQ", guid, seq[0], *goal, a.steps)
+    if not request(send, t.SendReq(client_guid=guid, sequence_number=seq[0], goal_id=goal, steps=a.steps), by_hand):
+        return 3
+    r = reply(send, seq[0])
+    if r is None:
+        emit({"error": "no send_goal reply"})
+        return 3
+    emit({"accepted": r.accepted})
+    if not r.accepted:
+        return 0
+    seq[0] += 1
+    result_seq = seq[0]
+    request(result, t.ResultReq(client_guid=guid, sequence_number=result_seq, goal_id=goal))
+    feedbacks, got = 0, None
+    while time.time() < end and got is None:
+        for s in fb.take(N=100):
+            if s.sample_info.valid_data and list(s.goal_id) == goal:
+                feedbacks += 1
+                emit({"feedback": [s.completed_steps, s.remaining_steps]})
+                if a.cancel_after and feedbacks == a.cancel_after:
+                    seq[0] += 1
+                    info = t.GoalInfo(goal_id=goal, stamp=t.Time(sec=0, nanosec=0))
+                    request(cancel, t.CancelReq(client_guid=guid, sequence_number=seq[0], goal_info=info))
+                    c = reply(cancel, seq[0])
+                    emit({"cancel": None if c is None else c.return_code,
+                          "canceling": None if c is None else len(c.goals_canceling)})
+        for r in result[1].take(N=10):
+            if r.sample_info.valid_data and r.client_guid == guid and r.sequence_number == result_seq:
+                got = r
+        time.sleep(0.002)
+    if got is None:
+        emit({"error": "no result"})
+        return 3
+    # Feedback written before the result may arrive after it (another writer).
+    time.sleep(0.3)
+    for s in fb.take(N=100):
+        if s.sample_info.valid_data and list(s.goal_id) == goal:
+            emit({"feedback": [s.completed_steps, s.remaining_steps]})
+    last = None
+    for _ in range(100):
+        for s in status.take(N=10):
+            if s.sample_info.valid_data:
+                mine = [g.status for g in s.status_list if list(g.goal_info.goal_id) == goal]
+                last = mine[0] if mine else last
+        if last is not None and last >= 4:
+            break
+        time.sleep(0.02)
+    emit({"status": got.status, "result": plain(got.result), "last_status": last})
+    return 0
+
+
+def cmd_service(dp, a):
+    calls = json.loads(a.calls)
+    clients = {name: ServiceClient(dp, a.ros_namespace, name) for name in {c[0] for c in calls}}
+    end = time.time() + a.timeout
+    while not all(c.available() for c in clients.values()):
+        if time.time() > end:
+            emit({"error": "no service", "missing": [n for n, c in clients.items() if not c.available()]})
+            return 3
+        time.sleep(0.05)
+    for c in calls:
+        reply = clients[c[0]].call(c[1] if len(c) > 1 else None, a.timeout)
+        if reply is None:
+            emit({"error": "no reply", "call": c[0]})
+            return 3
+        reply.pop("client_guid")
+        reply.pop("sequence_number")
+        emit({"call": c[0], "arg": c[1] if len(c) > 1 else None, **reply})
+    return 0
+
+
 def main():
     p = argparse.ArgumentParser()
-    p.add_argument("mode", choices=["sub", "pub", "answer", "steps", "qos", "endpoints", "nodes", "clock", "lease"])
+    p.add_argument("mode", choices=["sub", "pub", "answer", "steps", "qos", "endpoints", "nodes", "clock", "lease",
+                                    "service", "action"])
     p.add_argument("--domain", type=int, required=True)
     p.add_argument("--topic")
     p.add_argument("--type")
@@ -401,10 +652,15 @@ def main():
     p.add_argument("--strength", type=int, default=5)
     p.add_argument("--max-samples", type=int, default=0)
     p.add_argument("--pause-ms", type=float, default=1.0)
+    p.add_argument("--calls", default="[]")
+    p.add_argument("--steps", type=int, default=1)
+    p.add_argument("--cancel-after", type=int, default=0)
+    p.add_argument("--ros-namespace", default="")
     a = p.parse_args()
     dp = DomainParticipant(a.domain)
     sys.exit({"sub": cmd_sub, "pub": cmd_pub, "answer": cmd_answer, "steps": cmd_steps, "qos": cmd_qos,
-              "endpoints": cmd_endpoints, "nodes": cmd_nodes, "clock": cmd_clock, "lease": cmd_lease}[a.mode](dp, a))
+              "endpoints": cmd_endpoints, "nodes": cmd_nodes, "clock": cmd_clock, "lease": cmd_lease,
+              "service": cmd_service, "action": cmd_action}[a.mode](dp, a))
 
 
 if __name__ == "__main__":

@@ -105,6 +105,9 @@ pub struct GatewayOptions {
     pub http: Option<SocketAddr>,
     /// Serve the bridged sets over the Foxglove WebSocket protocol (`crate::foxglove`).
     pub foxglove: Option<SocketAddr>,
+    /// Offer no `simulation_interfaces` services (`crate::services`): the gateway bridges
+    /// data and never controls the run.
+    pub passive: bool,
     /// Which sets are bridged, and per-topic QoS, rate and name (the config file's
     /// `allow`, `deny` and `topics`).
     pub rules: TopicRules,
@@ -146,6 +149,7 @@ impl GatewayOptions {
             hosted_only: true,
             lease: Duration::from_secs(1),
             every_step: false,
+            passive: false,
             http: None,
             foxglove: None,
             rules: TopicRules::default(),
@@ -608,6 +612,8 @@ pub struct ConfigFile {
     pub lease: Option<Duration>,
     /// DDS readers of synchronous PUBLISH sets get every step (`--every-step`).
     pub every_step: Option<bool>,
+    /// Offer no `simulation_interfaces` services (`--passive`).
+    pub passive: Option<bool>,
     pub http: Option<SocketAddr>,
     /// The Foxglove WebSocket server's address (`--foxglove`).
     pub foxglove: Option<SocketAddr>,
@@ -801,6 +807,7 @@ impl ConfigFile {
             hosted_only: self.hosted_only.or(lower.hosted_only),
             lease: self.lease.or(lower.lease),
             every_step: self.every_step.or(lower.every_step),
+            passive: self.passive.or(lower.passive),
             http: self.http.or(lower.http),
             foxglove: self.foxglove.or(lower.foxglove),
             allow: self.allow.or(lower.allow),
@@ -842,6 +849,7 @@ impl ConfigFile {
         set(&mut opts.hosted_only, &self.hosted_only);
         set(&mut opts.lease, &self.lease);
         set(&mut opts.every_step, &self.every_step);
+        set(&mut opts.passive, &self.passive);
         if self.http.is_some() {
             opts.http = self.http;
         }
@@ -1250,6 +1258,7 @@ pub const KEYS: &[&str] = &[
     "hosted_only",
     "lease",
     "every_step",
+    "passive",
     "http",
     "foxglove",
     "allow",

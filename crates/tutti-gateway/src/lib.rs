@@ -15,7 +15,8 @@
 //! to a mirror's thread (no waiting call runs on the async runtime). [`in_process`] runs
 //! the same gateway inside the framework's process, where the framework's own PUBLISH sets
 //! go to DDS from its step (a `tutti_host::StepSink`). [`foxglove`] serves the same sets
-//! over the Foxglove WebSocket protocol. `qos` turns the QoS table into rustdds QoS.
+//! over the Foxglove WebSocket protocol; [`services`] offers ROS 2's `simulation_interfaces`
+//! services over the run's control plane. `qos` turns the QoS table into rustdds QoS.
 
 #![deny(unsafe_op_in_unsafe_fn)]
 
@@ -30,6 +31,7 @@ pub mod manager;
 #[cfg(feature = "rustdds")]
 pub mod qos;
 pub mod routes;
+pub mod services;
 pub mod stats;
 
 pub use config::{ClockSource, GatewayOptions, TypeMode};

@@ -145,7 +145,7 @@ pub(crate) struct Manager {
     /// The counters of each planned set (same order).
     set_stats: Vec<Arc<SetStats>>,
     clock_domain: Option<usize>,
-    dds: Box<dyn Engine>,
+    dds: Arc<dyn Engine>,
     cfg: ShmConfig,
     stats: Arc<Stats>,
     routes: Vec<Route>,
@@ -179,7 +179,7 @@ impl Manager {
             return Err(GatewayError::InProcessMirror);
         }
         let clock_domain = opts.clock_domain()?;
-        let dds = engine::open(opts.engine, &opts.engine_config())?;
+        let dds: Arc<dyn Engine> = Arc::from(engine::open(opts.engine, &opts.engine_config())?);
         let (events_tx, events) = mpsc::unbounded_channel();
         let (poller, added) = std_mpsc::channel();
         let poll_thread =
@@ -231,8 +231,30 @@ impl Manager {
                 m.bridge(di, host)?;
             }
         }
+        m.offer_services()?;
         m.dds.announce()?;
         Ok(m)
+    }
+
+    /// The `simulation_interfaces` services (docs/ros2.md), unless the gateway is a mirror
+    /// (the framework it would control is its own, fed from DDS) or passive.
+    fn offer_services(&mut self) -> Result<(), GatewayError> {
+        if self.opts.mirror || self.opts.passive {
+            return Ok(());
+        }
+        if self.dds.kind() != engine::EngineKind::Cyclone {
+            info!("the simulation_interfaces services are offered on the cyclone engine only (docs/ros2.md)");
+            return Ok(());
+        }
+        let thread = crate::services::start(
+            self.dds.clone(),
+            &self.opts.ros_namespace,
+            &self.cfg.namespace,
+            &self.opts.model,
+            self.cfg.stop.clone(),
+        )?;
+        self.threads.push(thread);
+        Ok(())
     }
 
     /// The routes of the framework's own PUBLISH sets (per domain; None: not bridged), for

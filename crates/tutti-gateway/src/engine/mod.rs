@@ -167,6 +167,9 @@ pub enum Decode {
     Set(Arc<SetCodec>),
     /// One item of per-item mode: its leaf and its path.
     Item(Arc<Leaf>, Arc<str>),
+    /// None: the sink takes the serialized sample as it is ([`Data::Raw`]); engines that
+    /// decode as they read refuse such a reader.
+    Raw,
 }
 
 /// One sample as a reader delivers it.
@@ -189,6 +192,7 @@ impl Data<'_> {
                 Decode::Item(leaf, path) => {
                     stock::decode(leaf, raw).map(|bytes| Payload::Item { path: path.clone(), bytes })
                 }
+                Decode::Raw => Err(CdrError::Unexpected("a raw sample is no set nor item")),
             },
         }
     }

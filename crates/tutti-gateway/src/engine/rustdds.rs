@@ -253,6 +253,9 @@ impl Engine for Rustdds {
                 Stock::Bool => self.item_reader::<Bool>(topic, ty, q, leaf, sink)?,
                 Stock::Array => self.item_reader::<Float64MultiArray>(topic, ty, q, leaf, sink)?,
             },
+            Decode::Raw => {
+                return Err(GatewayError::dds(format!("a reader on {topic}"), "rustdds readers decode what they read"))
+            }
         }
         Ok(())
     }

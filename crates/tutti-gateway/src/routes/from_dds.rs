@@ -105,7 +105,7 @@ pub fn sink(decode: Decode, to: Destination, stats: Arc<Stats>, own: [u8; PREFIX
             Data::Raw(raw) => match &decode {
                 // Checked here, decoded straight into shared memory by the commit.
                 Decode::Set(codec) => codec.check(raw).map(|(le, body)| Sample::Encoded { codec, le, body }),
-                Decode::Item(..) => Data::Raw(raw).into_payload(&decode).map(Sample::Owned),
+                Decode::Item(..) | Decode::Raw => Data::Raw(raw).into_payload(&decode).map(Sample::Owned),
             },
         };
         let ev = match (sample, &target) {

@@ -1,0 +1,183 @@
+//! How a ROS 2 service travels over DDS in rmw_cyclonedds's layout (docs/ros2.md, "Wire
+//! forms"): service `NAME` under namespace `NS` is the request topic `rq/NS/NAMERequest` and
+//! the reply topic `rr/NS/NAMEReply`, with the types `PKG::srv::dds_::SRV_Request_` and
+//! `…_Response_`, and the QoS of rmw's services default. Each sample's body starts with
+//! the request header: the client's 64-bit writer id and the request's sequence number,
+//! which the reply echoes and by which the client pairs the reply with its request.
+
+use tutti_core::cdr::CdrError;
+use tutti_core::mapping::{Durability, History, Ownership, Qos, Reliability};
+
+use super::messages::{Body, Out};
+
+/// What a service does.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Kind {
+    GetFeatures,
+    GetState,
+    SetState,
+    Step,
+    Reset,
+    /// The action `simulate_steps`'s three services.
+    SendGoal,
+    GetResult,
+    CancelGoal,
+}
+
+/// A service: its relative ROS name and its DDS types (the package's type, `::dds_::`, the
+/// `_Request_` or `_Response_` suffix).
+#[derive(Debug)]
+pub struct Service {
+    pub name: &'static str,
+    /// `PKG::srv::dds_::SRV` (or `PKG::action::dds_::ACTION_SendGoal`, …).
+    pub dds_type: &'static str,
+    pub kind: Kind,
+}
+
+impl Service {
+    pub fn request_type(&self) -> String {
+        format!("{}_Request_", self.dds_type)
+    }
+
+    pub fn response_type(&self) -> String {
+        format!("{}_Response_", self.dds_type)
+    }
+}
+
+/// The action's relative name; its services and topics are under `NAME/_action/`.
+pub const ACTION: &str = "simulate_steps";
+
+/// The services, in the order the gateway creates them: the five, then the action's.
+pub const SERVICES: &[Service] = &[
+    Service {
+        name: "get_simulator_features",
+        dds_type: "simulation_interfaces::srv::dds_::GetSimulatorFeatures",
+        kind: Kind::GetFeatures,
+    },
+    Service {
+        name: "get_simulation_state",
+        dds_type: "simulation_interfaces::srv::dds_::GetSimulationState",
+        kind: Kind::GetState,
+    },
+    Service {
+        name: "set_simulation_state",
+        dds_type: "simulation_interfaces::srv::dds_::SetSimulationState",
+        kind: Kind::SetState,
+    },
+    Service { name: "step_simulation", dds_type: "simulation_interfaces::srv::dds_::StepSimulation", kind: Kind::Step },
+    Service {
+        name: "reset_simulation",
+        dds_type: "simulation_interfaces::srv::dds_::ResetSimulation",
+        kind: Kind::Reset,
+    },
+    Service {
+        name: "simulate_steps/_action/send_goal",
+        dds_type: "simulation_interfaces::action::dds_::SimulateSteps_SendGoal",
+        kind: Kind::SendGoal,
+    },
+    Service {
+        name: "simulate_steps/_action/get_result",
+        dds_type: "simulation_interfaces::action::dds_::SimulateSteps_GetResult",
+        kind: Kind::GetResult,
+    },
+    Service {
+        name: "simulate_steps/_action/cancel_goal",
+        dds_type: "action_msgs::srv::dds_::CancelGoal",
+        kind: Kind::CancelGoal,
+    },
+];
+
+/// The action's feedback topic and type.
+pub const FEEDBACK: (&str, &str) =
+    ("simulate_steps/_action/feedback", "simulation_interfaces::action::dds_::SimulateSteps_FeedbackMessage_");
+/// The action's status topic and type.
+pub const STATUS: (&str, &str) = ("simulate_steps/_action/status", "action_msgs::msg::dds_::GoalStatusArray_");
+
+/// rcl_action's status QoS: reliable, transient local, keep last 1 (a late client gets the
+/// goals' last statuses).
+pub fn status_qos() -> Qos {
+    Qos {
+        reliability: Reliability::Reliable,
+        history: History::KeepLast(1),
+        durability: Durability::TransientLocal { depth: 1 },
+        ownership: Ownership::Shared,
+    }
+}
+
+fn topic(prefix: &str, ns: &str, name: &str, suffix: &str) -> String {
+    if ns.is_empty() {
+        format!("{prefix}/{name}{suffix}")
+    } else {
+        format!("{prefix}/{ns}/{name}{suffix}")
+    }
+}
+
+/// `rq/NS/NAMERequest` (`rq/NAMERequest` without a namespace).
+pub fn request_topic(ns: &str, name: &str) -> String {
+    topic("rq", ns, name, "Request")
+}
+
+/// `rr/NS/NAMEReply`.
+pub fn reply_topic(ns: &str, name: &str) -> String {
+    topic("rr", ns, name, "Reply")
+}
+
+/// rmw's services default: reliable, volatile, keep last 10.
+pub fn qos() -> Qos {
+    Qos {
+        reliability: Reliability::Reliable,
+        history: History::KeepLast(10),
+        durability: Durability::Volatile,
+        ownership: Ownership::Shared,
+    }
+}
+
+/// The request header at the start of a body.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct RequestHeader {
+    /// The client's request writer, as rmw_cyclonedds names it (its instance handle).
+    pub client: u64,
+    pub sequence: i64,
+}
+
+impl RequestHeader {
+    /// Its size: the request's own fields start here.
+    pub const LEN: usize = 16;
+
+    pub fn read(b: Body<'_>) -> Result<RequestHeader, CdrError> {
+        Ok(RequestHeader { client: b.u64(0)?, sequence: b.u64(8)? as i64 })
+    }
+
+    pub fn write(&self, out: &mut Out) {
+        out.u64(self.client).i64(self.sequence);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn names_as_rmw_cyclonedds_makes_them() {
+        assert_eq!(request_topic("", "get_simulation_state"), "rq/get_simulation_stateRequest");
+        assert_eq!(reply_topic("sim/a", "step_simulation"), "rr/sim/a/step_simulationReply");
+        assert_eq!(SERVICES[2].request_type(), "simulation_interfaces::srv::dds_::SetSimulationState_Request_");
+        assert_eq!(SERVICES[3].response_type(), "simulation_interfaces::srv::dds_::StepSimulation_Response_");
+        assert_eq!(request_topic("", SERVICES[5].name), "rq/simulate_steps/_action/send_goalRequest");
+        assert_eq!(SERVICES[7].request_type(), "action_msgs::srv::dds_::CancelGoal_Request_");
+    }
+
+    #[test]
+    fn the_header_is_echoed_in_little_endian_whatever_the_request_order() {
+        let mut be = Vec::new();
+        be.extend_from_slice(&0x0102_0304_0506_0708u64.to_be_bytes());
+        be.extend_from_slice(&9i64.to_be_bytes());
+        let h = RequestHeader::read(Body { le: false, bytes: &be }).unwrap();
+        assert_eq!(h, RequestHeader { client: 0x0102_0304_0506_0708, sequence: 9 });
+        let mut out = Out::default();
+        h.write(&mut out);
+        assert_eq!(&out.0[..8], &0x0102_0304_0506_0708u64.to_le_bytes());
+        assert_eq!(&out.0[8..], &9i64.to_le_bytes());
+        assert!(RequestHeader::read(Body { le: true, bytes: &be[..12] }).is_err());
+    }
+}
