@@ -54,6 +54,12 @@ fn wait_steps(p: &Proc, n: usize, also: &Proc) {
     }
 }
 
+/// How many steps the connection of process `pid` in `gw_sync` has read.
+fn reads_of(ns: &str, pid: u32) -> usize {
+    let status = tutti_core::shm::Segment::open(ns, "gw_sync").map(|s| s.status()).expect("gw_sync is there");
+    status.connections.iter().find(|c| c.pid == pid).map_or(0, |c| c.reads as usize)
+}
+
 /// The step numbers the DDS reader has received.
 fn dds_steps(reader: &Proc) -> Vec<u64> {
     json_lines(reader, "step").iter().filter_map(|v| v["step"].as_u64()).collect()
@@ -95,6 +101,9 @@ fn a_paused_run_steps_exactly_as_asked_and_no_participant_times_out() {
     let paused = ctl(&ns, &["pause"]);
     assert_eq!(paused["state"], "paused", "{paused}");
     let at = paused["step"].as_u64().unwrap();
+    // Every step the participant read before the pause (its connection counts them before
+    // the framework may go on) is printed by now or soon: wait for the lines to catch up.
+    wait_steps(&part, reads_of(&ns, part.id()), &host);
     let seen = steps_seen(&part);
     thread::sleep(Duration::from_millis(10_500));
     assert_eq!(steps_seen(&part), seen, "a step was made while paused\n{}", part.dump());
