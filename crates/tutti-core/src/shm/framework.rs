@@ -3,7 +3,9 @@
 
 use std::time::{Duration, Instant};
 
-use super::handshake::{item_bit, CONN_EVENT, CONN_SYNC_READER, CONN_WAKE, CONN_WRITER, MASK_WORDS};
+use super::handshake::{
+    item_bit, load_mask, reads_any, CONN_EVENT, CONN_SYNC_READER, CONN_WAKE, CONN_WRITER, MASK_WORDS,
+};
 use super::segment::{
     self, namespace_from_env, DomainInfo, DomainStatus, Segment, WaitMode, Waited, Waiter, STATE_STOPPED,
 };
@@ -280,17 +282,11 @@ impl DomainHost {
         for i in 0..seg.scan_len() {
             let Some(conn) = seg.conn_ctl(i) else { break };
             let flags = conn.flags.load(Ordering::Acquire);
-            // As `ConnCtl::owes`: only active connections that read in lock-step or write,
-            // from their first step.
-            if conn.active.load(Ordering::Acquire) == 0
-                || flags & (CONN_SYNC_READER | CONN_WRITER) == 0
-                || conn.first_step.load(Ordering::Acquire) > k
-            {
+            // Only connections that take part and read in lock-step or write.
+            if !conn.takes_part(k) || flags & (CONN_SYNC_READER | CONN_WRITER) == 0 {
                 continue;
             }
-            let reads: [u64; MASK_WORDS] = std::array::from_fn(|w| conn.read_items[w].load(Ordering::Acquire));
-            let woken = changed.iter().zip(&reads).any(|(&c, &r)| c & r != 0)
-                || (reads == [0; MASK_WORDS] && changed != [0; MASK_WORDS]);
+            let woken = reads_any(&load_mask(conn.read_items), &changed);
             if flags & CONN_EVENT == 0 || (flags & CONN_WAKE != 0 && woken) {
                 return Some(0);
             }

@@ -171,26 +171,31 @@ impl StepCtl<'_> {
 
 /// Whether a connection reading the items of `reads` (none: all) reads one of `changed`.
 fn reads_changed(reads: &[AtomicU64; MASK_WORDS], changed: &[AtomicU64; MASK_WORDS]) -> bool {
-    let reads: [u64; MASK_WORDS] = std::array::from_fn(|i| reads[i].load(Ordering::Acquire));
+    reads_any(&load_mask(reads), &load_mask(changed))
+}
+
+/// An item mask as it stands.
+pub fn load_mask(mask: &[AtomicU64; MASK_WORDS]) -> [u64; MASK_WORDS] {
+    std::array::from_fn(|i| mask[i].load(Ordering::Acquire))
+}
+
+/// Whether a connection reading the items of `reads` (none: all) reads one of `changed`.
+pub fn reads_any(reads: &[u64; MASK_WORDS], changed: &[u64; MASK_WORDS]) -> bool {
     let all = reads.iter().all(|&w| w == 0);
-    reads.iter().zip(changed).any(|(&r, c)| {
-        let c = c.load(Ordering::Acquire);
-        if all {
-            c != 0
-        } else {
-            r & c != 0
-        }
-    })
+    reads.iter().zip(changed).any(|(&r, &c)| if all { c != 0 } else { r & c != 0 })
 }
 
 impl ConnCtl<'_> {
+    /// Whether the connection is in use and takes part in step `k` (its first step is not
+    /// after it).
+    pub fn takes_part(&self, k: u64) -> bool {
+        self.active.load(Ordering::Acquire) != 0 && self.first_step.load(Ordering::Acquire) <= k
+    }
+
     /// Whether this connection still owes the framework something for step `k` (`step`: the
     /// domain's counters, for an event-driven connection's due steps).
     pub fn owes(&self, step: &StepCtl<'_>, k: u64) -> bool {
-        if self.active.load(Ordering::Acquire) == 0 {
-            return false;
-        }
-        if self.first_step.load(Ordering::Acquire) > k {
+        if !self.takes_part(k) {
             return false;
         }
         let flags = self.flags.load(Ordering::Acquire);
