@@ -26,7 +26,7 @@ use std::time::{Duration, Instant};
 use tutti_core::cdr::split_header;
 use tutti_core::ddf::Model;
 
-use crate::engine::{Data, Decode, Engine, Guid, TopicType, Writer, PREFIX_LEN};
+use crate::engine::{Data, Decode, Engine, Guid, Writer, PREFIX_LEN};
 use crate::GatewayError;
 use lifecycle::{Control, Lifecycle, RunControl};
 use messages::{Body, Out, Outcome};
@@ -96,17 +96,17 @@ pub fn start(
     let (tx, rx) = mpsc::sync_channel::<Msg>(QUEUE);
     let topic = |(name, _): (&str, &str)| crate::config::dds_topic(ros_ns, name);
     let shared = action::Shared::new(
-        engine.writer(&topic(wire::STATUS), &TopicType::plain(wire::STATUS.1), &wire::status_qos())?,
-        engine.writer(&topic(wire::FEEDBACK), &TopicType::plain(wire::FEEDBACK.1), &wire::qos())?,
+        engine.writer(&topic(wire::STATUS), &wire::action_topic_type(wire::STATUS), &wire::status_qos())?,
+        engine.writer(&topic(wire::FEEDBACK), &wire::action_topic_type(wire::FEEDBACK), &wire::qos())?,
     );
     let mut servers = Vec::new();
     for (i, s) in SERVICES.iter().enumerate() {
         let (rq, rr) = (wire::request_topic(ros_ns, s.name), wire::reply_topic(ros_ns, s.name));
-        let writer = engine.writer(&rr, &TopicType::plain(&s.response_type()), &wire::qos())?;
+        let writer = engine.writer(&rr, &s.response_topic_type(), &wire::qos())?;
         servers.push(Server { service: s, reply_topic: rr, writer, matched: HashSet::new() });
         let tx = tx.clone();
         let sink = Arc::new(move |client: Guid, data: Data<'_>| request(i, client, data, &tx));
-        engine.reader(&rq, &TopicType::plain(&s.request_type()), &wire::qos(), Decode::Raw, sink)?;
+        engine.reader(&rq, &s.request_topic_type(), &wire::qos(), Decode::Raw, sink)?;
     }
     let ctl = RunControl { namespace: namespace.to_string(), timeout: CONTROL_TIMEOUT };
     let life = Lifecycle::new(no_stepping(model));
