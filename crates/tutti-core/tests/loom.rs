@@ -8,7 +8,7 @@
 
 use loom::sync::Arc;
 use loom::thread;
-use tutti_core::shm::bucket::{Bucket, SLOTS};
+use tutti_core::shm::bucket::{Bucket, Stamp, SLOTS};
 use tutti_core::shm::handshake::{ConnCtl, StepCtl, CONN_EVENT, CONN_SYNC_READER, CONN_WRITER, MASK_WORDS};
 use tutti_core::sync::{AtomicU32, AtomicU64, Ordering};
 
@@ -17,6 +17,7 @@ struct Mem {
     seq: [AtomicU64; SLOTS],
     gens: [AtomicU64; SLOTS],
     current: AtomicU64,
+    stamps: [[AtomicU64; 2]; SLOTS],
     slots: [[AtomicU64; 2]; SLOTS],
 }
 
@@ -26,6 +27,7 @@ impl Mem {
         Mem {
             seq: std::array::from_fn(|_| z()),
             gens: std::array::from_fn(|_| z()),
+            stamps: std::array::from_fn(|_| [z(), z()]),
             current: z(),
             slots: std::array::from_fn(|_| [z(), z()]),
         }
@@ -34,6 +36,7 @@ impl Mem {
         Bucket {
             seq: &self.seq,
             gens: &self.gens,
+            stamps: &self.stamps,
             current: &self.current,
             slots: std::array::from_fn(|i| self.slots[i].as_slice()),
         }
@@ -45,6 +48,11 @@ fn value(v: u64) -> [u8; 16] {
     b[..8].copy_from_slice(&v.to_ne_bytes());
     b[8..].copy_from_slice(&v.to_ne_bytes());
     b
+}
+
+/// The stamp the writers give value `v`.
+fn stamp(v: u64) -> Stamp {
+    Stamp { step: v, sim_time: v as f64 / 4.0 }
 }
 
 fn words(b: &[u8; 16]) -> (u64, u64) {
@@ -65,9 +73,9 @@ fn spawn_writer(mem: &Arc<Mem>, give_up: bool) -> thread::JoinHandle<()> {
     let w = mem.clone();
     thread::spawn(move || {
         for v in 1..=SLOTS as u64 + 1 {
-            w.bucket().write(&value(v));
+            w.bucket().write(&value(v), stamp(v));
             if give_up && v == 2 {
-                assert_eq!(w.bucket().try_write_with(|_, _| false), None);
+                assert_eq!(w.bucket().try_write_with(|_, _| None), None);
             }
         }
     })
@@ -80,10 +88,11 @@ fn bucket_reads_are_never_torn() {
         let writer = spawn_writer(&mem, false);
         let mut out = [0u8; 16];
         for _ in 0..2 {
-            if let Some(generation) = mem.bucket().try_read(&mut out) {
+            if let Some((generation, st)) = mem.bucket().try_read_stamped_at(0, &mut out) {
                 let (a, b) = words(&out);
                 assert_eq!(a, b, "torn read");
                 assert_eq!(a, generation, "value and generation disagree");
+                assert_eq!(st, stamp(a), "value and stamp disagree");
             }
         }
         writer.join().unwrap();
@@ -99,14 +108,15 @@ fn values_read_in_place_are_kept_only_when_whole() {
         let mem = Arc::new(Mem::new());
         let writer = spawn_writer(&mem, true);
         let seen = mem.bucket().read_in_place(|b| words(b.try_into().unwrap()), 16, 2);
-        if let Some((generation, (a, b))) = seen {
+        if let Some((generation, st, (a, b))) = seen {
             assert_eq!(a, b, "torn value kept");
             assert_eq!(a, generation, "value and generation disagree");
+            assert_eq!(st, stamp(a), "value and stamp disagree");
         }
         writer.join().unwrap();
-        let (g, (a, b)) = mem.bucket().read_in_place(|b| words(b.try_into().unwrap()), 16, 1).unwrap();
+        let (g, st, (a, b)) = mem.bucket().read_in_place(|b| words(b.try_into().unwrap()), 16, 1).unwrap();
         let last = SLOTS as u64 + 1;
-        assert_eq!((g, a, b), (last, last, last));
+        assert_eq!((g, st, a, b), (last, stamp(last), last, last));
     });
 }
 
@@ -212,14 +222,14 @@ fn lock_step_handshake_reads_each_step_once_and_sees_each_answer() {
                 assert_eq!(g, k, "read another step's data");
                 assert_eq!(words(&out), (k, k));
                 p.step_ctl().ack_read(&p.conn(), k);
-                p.subscribe.bucket().write(&value(10 * k));
+                p.subscribe.bucket().write(&value(10 * k), stamp(k));
                 p.step_ctl().ack_commit(&p.conn(), k);
                 last = k;
             }
         });
         let mut out = [0u8; 16];
         for k in 1..=STEPS {
-            s.publish.bucket().write(&value(k));
+            s.publish.bucket().write(&value(k), stamp(k));
             s.step_ctl().publish(k, k, &[0; MASK_WORDS]);
             while s.conn().owes(&s.step_ctl(), k) {
                 thread::yield_now();
@@ -260,7 +270,7 @@ fn event_handshake_reads_exactly_the_due_steps() {
                     thread::yield_now();
                 };
                 assert_eq!(words(&out), (k, k), "read another step's data (generation {g})");
-                p.subscribe.bucket().write(&value(10 * k));
+                p.subscribe.bucket().write(&value(10 * k), stamp(k));
                 read.push(k);
                 p.step_ctl().answer(&p.conn(), k, next, &[0; MASK_WORDS]);
                 answered = k;
@@ -269,7 +279,7 @@ fn event_handshake_reads_exactly_the_due_steps() {
         });
         let mut out = [0u8; 16];
         for k in 1..=STEPS {
-            s.publish.bucket().write(&value(k));
+            s.publish.bucket().write(&value(k), stamp(k));
             s.step_ctl().publish(k, k, &[0; MASK_WORDS]);
             // The framework tells it where it is due (here once, after the publish).
             s.step_ctl().mark_due(&s.conn(), k);

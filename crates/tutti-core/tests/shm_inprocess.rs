@@ -538,3 +538,58 @@ fn the_framework_skips_exactly_the_steps_nobody_is_due_at() {
         "steps made besides the due ones"
     );
 }
+
+#[test]
+fn each_value_is_read_with_the_step_it_belongs_to() {
+    use tutti_core::ddf::Role;
+    use tutti_core::shm::segment::Segment;
+    let mut fw = Framework::create(&model(true, false, false), &fopts("stamp")).unwrap();
+    let mut p = Participant::connect("d", copts("stamp")).unwrap();
+    const STEPS: u64 = 300;
+    let answers = std::thread::spawn(move || {
+        for _ in 0..STEPS {
+            let step = p.subscribe_lock().unwrap();
+            p.publish_lock().unwrap();
+            p.stage("a", &(step as f64 * 10.0).to_ne_bytes()).unwrap();
+            p.commit().unwrap();
+        }
+    });
+    // A reader that labels what it reads, as the gateway does, while the framework steps:
+    // the framework's latest step may be ahead of the answer it reads, never the label.
+    let done = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
+    let reader = {
+        let (done, ns) = (done.clone(), ns("stamp"));
+        std::thread::spawn(move || {
+            let seg = Segment::open(&ns, "d").unwrap();
+            let (mut pbuf, mut sbuf) = (vec![0u8; 8], vec![0u8; 16]);
+            let mut reads = 0u64;
+            while !done.load(std::sync::atomic::Ordering::Acquire) {
+                if let Some((_, s)) = seg.try_read_set_stamped(Role::Publish, &mut pbuf, 100) {
+                    let x = f64::from_ne_bytes(pbuf[..8].try_into().unwrap());
+                    assert_eq!((x, s.sim_time), (s.step as f64, s.step as f64 * 0.25), "PUBLISH {s:?}");
+                }
+                if let Some((_, s)) = seg.try_read_set_stamped(Role::Subscribe, &mut sbuf, 100) {
+                    let a = f64::from_ne_bytes(sbuf[..8].try_into().unwrap());
+                    if s.step > 0 {
+                        assert_eq!((a, s.sim_time), (s.step as f64 * 10.0, s.step as f64 * 0.25), "SUBSCRIBE {s:?}");
+                        reads += 1;
+                    }
+                }
+            }
+            reads
+        })
+    };
+    let host = &mut fw.domains[0];
+    for k in 1..=STEPS {
+        host.step(&(k as f64).to_ne_bytes(), k as f64 * 0.25).unwrap();
+    }
+    answers.join().unwrap();
+    done.store(true, std::sync::atomic::Ordering::Release);
+    assert!(reader.join().unwrap() > 0, "the reader never saw an answer");
+    // After the last answer, the framework publishes once more: the answer keeps its step.
+    host.step(&0.0f64.to_ne_bytes(), 1e9).unwrap_or_else(|e| panic!("{e}"));
+    let seg = Segment::open(&ns("stamp"), "d").unwrap();
+    let (mut buf, step) = (vec![0u8; 16], seg.step());
+    let (_, s) = seg.try_read_set_stamped(Role::Subscribe, &mut buf, 100).unwrap();
+    assert_eq!((step, s.step, s.sim_time), (STEPS + 1, STEPS, STEPS as f64 * 0.25));
+}

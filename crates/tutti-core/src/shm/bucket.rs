@@ -16,6 +16,17 @@ use crate::sync::{fence, spin_hint, AtomicU64, Ordering};
 /// Slots per bucket (a power of two: the generation's low bits name the current slot).
 pub const SLOTS: usize = 4;
 
+/// What a value belongs to: the framework's step and that step's simulated time (seconds),
+/// kept with the value inside its slot's seqlock, so that a reader gets the value and the
+/// step it belongs to as one (docs/architecture.md, "Stamps"). A PUBLISH value is stamped
+/// with the step it publishes; a SUBSCRIBE value with the step its commit answers (in a
+/// synchronous domain) or the step the framework had published when it was committed.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct Stamp {
+    pub step: u64,
+    pub sim_time: f64,
+}
+
 /// A view of one bucket in memory: the slots' sequence numbers, the generation counter (its
 /// low bits name the current slot) and the slots' words.
 #[derive(Debug, Clone, Copy)]
@@ -24,6 +35,9 @@ pub struct Bucket<'a> {
     /// The generation each slot holds, written and read inside its seqlock, so that a
     /// reader lapped between loading `current` and its copy still reports the right one.
     pub gens: &'a [AtomicU64; SLOTS],
+    /// Each slot's [`Stamp`] (step, simulated time's bits), written and read inside its
+    /// seqlock as `gens` is.
+    pub stamps: &'a [[AtomicU64; 2]; SLOTS],
     pub current: &'a AtomicU64,
     pub slots: [&'a [AtomicU64]; SLOTS],
 }
@@ -192,20 +206,22 @@ pub fn copy_words(dst: &[AtomicU64], src: &[AtomicU64]) {
 }
 
 impl Bucket<'_> {
-    /// Writes a new value: `fill(previous, next)` is called with the current slot's words and
-    /// the slot being written; it typically copies the previous value and overlays changes.
-    /// Returns the new generation. The caller guarantees there is one writer at a time.
-    pub fn write_with(&self, fill: impl FnOnce(&[AtomicU64], &[AtomicU64])) -> u64 {
+    /// Writes a new value stamped `stamp`: `fill(previous, next)` is called with the current
+    /// slot's words and the slot being written; it typically copies the previous value and
+    /// overlays changes. Returns the new generation. The caller guarantees there is one
+    /// writer at a time.
+    pub fn write_with(&self, stamp: Stamp, fill: impl FnOnce(&[AtomicU64], &[AtomicU64])) -> u64 {
         let generation = self.try_write_with(|prev, next| {
             fill(prev, next);
-            true
+            Some(stamp)
         });
         generation.unwrap_or_else(|| self.current.load(Ordering::Relaxed))
     }
 
-    /// [`write_with`](Self::write_with) whose `fill` may give up (returns `false`): the slot
-    /// is then abandoned, not made current, and `None` is returned.
-    pub fn try_write_with(&self, fill: impl FnOnce(&[AtomicU64], &[AtomicU64]) -> bool) -> Option<u64> {
+    /// [`write_with`](Self::write_with) whose `fill` may give up (returns `None`) or else
+    /// names the value's stamp once it has filled the slot: given up, the slot is abandoned,
+    /// not made current, and `None` is returned.
+    pub fn try_write_with(&self, fill: impl FnOnce(&[AtomicU64], &[AtomicU64]) -> Option<Stamp>) -> Option<u64> {
         let generation = self.current.load(Ordering::Relaxed);
         let cur = generation as usize % SLOTS;
         let next = (cur + 1) % SLOTS;
@@ -217,18 +233,22 @@ impl Bucket<'_> {
         fence(Ordering::Release);
         self.gens[next].store(generation.wrapping_add(1), Ordering::Relaxed);
         let filled = fill(self.slots[cur], self.slots[next]);
-        seq.store(writing.wrapping_add(1), Ordering::Release);
-        if !filled {
-            // Not current, so no reader takes it; its sequence is even again for the next writer.
-            return None;
+        if let Some(stamp) = filled {
+            self.stamps[next][0].store(stamp.step, Ordering::Relaxed);
+            self.stamps[next][1].store(stamp.sim_time.to_bits(), Ordering::Relaxed);
         }
+        seq.store(writing.wrapping_add(1), Ordering::Release);
+        // Not current when given up, so no reader takes it; its sequence is even again for
+        // the next writer.
+        filled?;
         self.current.store(generation.wrapping_add(1), Ordering::Release);
         Some(generation.wrapping_add(1))
     }
 
-    /// Writes `src` as the new value (bytes past `src.len()` keep the previous value).
-    pub fn write(&self, src: &[u8]) -> u64 {
-        self.write_with(|prev, next| {
+    /// Writes `src` as the new value stamped `stamp` (bytes past `src.len()` keep the
+    /// previous value).
+    pub fn write(&self, src: &[u8], stamp: Stamp) -> u64 {
+        self.write_with(stamp, |prev, next| {
             if src.len() < next.len() * 8 {
                 copy_words(next, prev);
             }
@@ -244,6 +264,11 @@ impl Bucket<'_> {
     /// One attempt at a consistent copy of the `dst.len()` bytes at byte `offset` of the
     /// latest value (one item rather than the whole set).
     pub fn try_read_at(&self, offset: usize, dst: &mut [u8]) -> Option<u64> {
+        self.try_read_stamped_at(offset, dst).map(|(generation, _)| generation)
+    }
+
+    /// [`try_read_at`](Self::try_read_at), with the value's [`Stamp`].
+    pub fn try_read_stamped_at(&self, offset: usize, dst: &mut [u8]) -> Option<(u64, Stamp)> {
         let read = self.try_with(|words| {
             if offset == 0 {
                 load_bytes(words, dst);
@@ -251,13 +276,13 @@ impl Bucket<'_> {
                 load_range(words, offset, dst);
             }
         });
-        read.map(|(generation, ())| generation)
+        read.map(|(generation, stamp, ())| (generation, stamp))
     }
 
     /// The seqlock read, once: `f` runs on the current slot's words, and its result comes
     /// back with the slot's generation only if the slot's sequence number was even and
-    /// unchanged across the call (otherwise whatever `f` saw may be torn).
-    fn try_with<R>(&self, f: impl FnOnce(&[AtomicU64]) -> R) -> Option<(u64, R)> {
+    /// unchanged across the call (otherwise whatever `f` saw may be torn), and the slot's stamp.
+    fn try_with<R>(&self, f: impl FnOnce(&[AtomicU64]) -> R) -> Option<(u64, Stamp, R)> {
         let generation = self.current.load(Ordering::Acquire);
         let slot = generation as usize % SLOTS;
         let s1 = self.seq[slot].load(Ordering::Acquire);
@@ -265,10 +290,14 @@ impl Bucket<'_> {
             return None;
         }
         let held = self.gens[slot].load(Ordering::Relaxed);
+        let stamp = Stamp {
+            step: self.stamps[slot][0].load(Ordering::Relaxed),
+            sim_time: f64::from_bits(self.stamps[slot][1].load(Ordering::Relaxed)),
+        };
         let r = f(self.slots[slot]);
         fence(Ordering::Acquire);
         let s2 = self.seq[slot].load(Ordering::Relaxed);
-        (s1 == s2).then_some((held, r))
+        (s1 == s2).then_some((held, stamp, r))
     }
 
     /// A consistent copy of the latest value; returns its generation. Retries while a
@@ -280,9 +309,14 @@ impl Bucket<'_> {
 
     /// [`read`](Self::read) of the `dst.len()` bytes at byte `offset` only.
     pub fn read_at(&self, offset: usize, dst: &mut [u8], max_tries: u32) -> Option<u64> {
+        self.read_stamped_at(offset, dst, max_tries).map(|(generation, _)| generation)
+    }
+
+    /// [`read_at`](Self::read_at), with the value's [`Stamp`].
+    pub fn read_stamped_at(&self, offset: usize, dst: &mut [u8], max_tries: u32) -> Option<(u64, Stamp)> {
         for _ in 0..max_tries {
-            if let Some(g) = self.try_read_at(offset, dst) {
-                return Some(g);
+            if let Some(read) = self.try_read_stamped_at(offset, dst) {
+                return Some(read);
             }
             spin_hint();
         }
@@ -293,8 +327,14 @@ impl Bucket<'_> {
     /// generation with `f`'s result once the slot's sequence number shows that the value did
     /// not change while `f` ran. Otherwise `f` runs again on the newer value, so it may see
     /// a torn value first and must only compute from the bytes (copy, convert, serialise),
-    /// never trust them. `None` after `max_tries` attempts, as for [`read`](Self::read).
-    pub fn read_in_place<R>(&self, mut f: impl FnMut(&[u8]) -> R, len: usize, max_tries: u32) -> Option<(u64, R)> {
+    /// never trust them. `None` after `max_tries` attempts, as for [`read`](Self::read). The
+    /// value's [`Stamp`] comes with it.
+    pub fn read_in_place<R>(
+        &self,
+        mut f: impl FnMut(&[u8]) -> R,
+        len: usize,
+        max_tries: u32,
+    ) -> Option<(u64, Stamp, R)> {
         for _ in 0..max_tries {
             if let Some(read) = self.try_with(|words| with_bytes(words, len, &mut f)) {
                 return Some(read);
@@ -360,16 +400,33 @@ mod tests {
     fn writes_alternate_slots_and_reads_see_the_latest() {
         let seq: [AtomicU64; SLOTS] = std::array::from_fn(|_| AtomicU64::new(0));
         let gens: [AtomicU64; SLOTS] = std::array::from_fn(|_| AtomicU64::new(0));
+        let stamps: [[AtomicU64; 2]; SLOTS] = std::array::from_fn(|_| [AtomicU64::new(0), AtomicU64::new(0)]);
         let current = AtomicU64::new(0);
         let w: Vec<Vec<AtomicU64>> = (0..SLOTS).map(|_| words(1)).collect();
-        let bucket =
-            Bucket { seq: &seq, gens: &gens, current: &current, slots: std::array::from_fn(|i| w[i].as_slice()) };
+        let bucket = Bucket {
+            seq: &seq,
+            gens: &gens,
+            stamps: &stamps,
+            current: &current,
+            slots: std::array::from_fn(|i| w[i].as_slice()),
+        };
         let mut out = [0u8; 8];
-        assert_eq!(bucket.write(&7u64.to_ne_bytes()), 1);
+        let at = |step| Stamp { step, sim_time: step as f64 * 0.5 };
+        assert_eq!(bucket.write(&7u64.to_ne_bytes(), at(3)), 1);
         assert_eq!(bucket.read(&mut out, 10), Some(1));
         assert_eq!(u64::from_ne_bytes(out), 7);
-        bucket.write(&9u64.to_ne_bytes());
-        assert_eq!(bucket.read(&mut out, 10), Some(2));
+        bucket.write(&9u64.to_ne_bytes(), at(4));
+        assert_eq!(bucket.read_stamped_at(0, &mut out, 10), Some((2, at(4))), "the value comes with its own stamp");
+        assert_eq!(u64::from_ne_bytes(out), 9);
+        // A write given up leaves the value and its stamp as they were.
+        assert_eq!(
+            bucket.try_write_with(|_, next| {
+                store_bytes(next, &[1; 8]);
+                None
+            }),
+            None
+        );
+        assert_eq!(bucket.read_stamped_at(0, &mut out, 10), Some((2, at(4))));
         assert_eq!(u64::from_ne_bytes(out), 9);
         // A writer that died mid-write: the next slot stays odd until recovered.
         seq[3].store(5, Ordering::Relaxed);

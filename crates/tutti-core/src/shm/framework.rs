@@ -3,6 +3,7 @@
 
 use std::time::{Duration, Instant};
 
+use super::bucket::Stamp;
 use super::handshake::{
     item_bit, load_mask, reads_any, CONN_EVENT, CONN_SYNC_READER, CONN_WAKE, CONN_WRITER, MASK_WORDS,
 };
@@ -206,7 +207,7 @@ impl DomainHost {
         let changed = self.note_publish(publish);
         let h = self.seg.header();
         let k = self.step + 1;
-        self.seg.bucket(Role::Publish).write(publish);
+        self.seg.bucket(Role::Publish).write(publish, Stamp { step: k, sim_time });
         h.sim_time_bits.store(sim_time.to_bits(), Ordering::Relaxed);
         h.heartbeat_ns.store(os::now_ns(), Ordering::Relaxed);
         h.steps.fetch_add(1, Ordering::Relaxed);

@@ -29,6 +29,7 @@ mod participant;
 #[cfg(not(tutti_loom))]
 pub mod segment;
 
+pub use bucket::Stamp;
 #[cfg(not(tutti_loom))]
 pub use error::ShmError;
 #[cfg(not(tutti_loom))]

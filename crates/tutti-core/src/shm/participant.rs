@@ -4,7 +4,7 @@
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
-use super::bucket::{copy_words, store_bytes, store_range, with_bytes_mut};
+use super::bucket::{copy_words, store_bytes, store_range, with_bytes_mut, Stamp};
 use super::handshake::{item_bit, CONN_EVENT, CONN_SYNC_READER, CONN_WAKE, CONN_WRITER, MASK_WORDS};
 use super::segment::{
     self, namespace_from_env, ConnKind, DomainInfo, Segment, WaitMode, Waited, Waiter, MAX_READ_TRIES, STATE_RUNNING,
@@ -632,15 +632,16 @@ impl Participant {
         let (pub_size, sub_size) = (seg.info.publish.size as usize, seg.info.subscribe.size as usize);
         let publish = seg.bucket(Role::Publish);
         let mut read = None;
+        // The answer is stamped with the step it answers: the one read.
         seg.bucket(Role::Subscribe).try_write_with(|_, next| {
             with_bytes_mut(next, |out| {
                 let out = &mut out[..sub_size];
-                read = publish.read_in_place(|bytes| f(bytes, out), pub_size, MAX_READ_TRIES).map(|(g, ())| g);
+                read = publish.read_in_place(|bytes| f(bytes, out), pub_size, MAX_READ_TRIES);
             });
-            read.is_some()
+            read.map(|(_, stamp, ())| stamp)
         });
         drop(lock);
-        let generation = read.ok_or_else(|| seg.never_settles(Role::Publish))?;
+        let generation = read.ok_or_else(|| seg.never_settles(Role::Publish))?.0;
         let step = self.finish_read(generation);
         if self.seg.info.flags.synchronous {
             // The step answered is the one read; the commit's acknowledgement wakes the
@@ -890,11 +891,12 @@ impl Participant {
     /// The write of [`commit`](Self::commit): the byte ranges `changed` of staging replace
     /// those of the SUBSCRIBE set, the rest is carried over.
     fn write_changed(&mut self, changed: &[(usize, usize)]) -> Result<(), ShmError> {
+        let stamp = self.commit_stamp();
         let lock = self.lock_writers()?;
         let seg = &self.seg;
         let staging = &self.staging;
         let whole = changed.len() == seg.info.subscribe.leaves.len();
-        seg.bucket(Role::Subscribe).write_with(|prev, next| {
+        seg.bucket(Role::Subscribe).write_with(stamp, |prev, next| {
             if whole {
                 // Every item changes: no need to carry the previous value over.
                 store_bytes(next, staging);
@@ -930,11 +932,13 @@ impl Participant {
     pub fn commit_all_with(&mut self, f: impl FnOnce(&[u8], &mut [u8])) -> Result<(), ShmError> {
         self.check()?;
         self.claim_writer()?;
+        let stamp = self.commit_stamp();
         let lock = self.lock_writers()?;
         let seg = &self.seg;
         let size = seg.info.subscribe.size as usize;
         let snapshot = &self.snapshot;
-        seg.bucket(Role::Subscribe).write_with(|_, next| with_bytes_mut(next, |out| f(snapshot, &mut out[..size])));
+        seg.bucket(Role::Subscribe)
+            .write_with(stamp, |_, next| with_bytes_mut(next, |out| f(snapshot, &mut out[..size])));
         drop(lock);
         // Written into pages another process cut away: nobody will read it.
         seg.intact()?;
@@ -943,6 +947,17 @@ impl Participant {
         self.reset_after_commit();
         self.answer_if_on_commit();
         Ok(())
+    }
+
+    /// The [`Stamp`] of this connection's next commit: in a synchronous domain the step it
+    /// answers, at the simulated time of that step; in an asynchronous one the step the
+    /// framework published last (a commit there answers no step).
+    fn commit_stamp(&self) -> Stamp {
+        if self.seg.info.flags.synchronous {
+            Stamp { step: self.locked_step, sim_time: self.read_sim }
+        } else {
+            self.seg.stamp(Role::Publish, MAX_READ_TRIES).unwrap_or_default()
+        }
     }
 
     /// Takes the lock of SUBSCRIBE writers (one commit at a time; a holder that dies is

@@ -26,7 +26,7 @@ use std::time::{Duration, Instant};
 
 use serde::Serialize;
 
-use super::bucket::{load_bytes, Bucket, SLOTS};
+use super::bucket::{load_bytes, Bucket, Stamp, SLOTS};
 use super::handshake::{ConnCtl, StepCtl, CONN_OBSERVER, CONN_REMOTE, CONN_SYNC_READER, CONN_WRITER, MASK_WORDS};
 use super::os::{self, ProcessId};
 use super::ShmError;
@@ -38,7 +38,7 @@ use crate::sync::{AtomicU32, AtomicU64, Ordering};
 pub(crate) const MAGIC: u64 = u64::from_le_bytes(*b"TUTTISHM");
 /// Segment format version (2: header fields grouped by writer on separate cache lines; 3:
 /// DDS writers and observers counted apart from participants, 192-byte connection slots).
-pub const VERSION: u32 = 5;
+pub const VERSION: u32 = 6;
 /// Bytes reserved for the header.
 pub(crate) const HEADER_BYTES: usize = 1024;
 /// Connection slots per domain.
@@ -119,6 +119,8 @@ pub(crate) struct SetHeader {
     pub gens: [AtomicU64; SLOTS],
     pub current: AtomicU64,
     pub commits: AtomicU64,
+    /// Each slot's stamp (step, simulated time's bits): see [`Stamp`].
+    pub stamps: [[AtomicU64; 2]; SLOTS],
 }
 
 #[repr(C)]
@@ -696,7 +698,7 @@ impl Segment {
                 std::slice::from_raw_parts(self.map.as_mut_ptr().add(off + i * words * 8).cast::<AtomicU64>(), words)
             }
         });
-        Bucket { seq: &sh.seq, gens: &sh.gens, current: &sh.current, slots }
+        Bucket { seq: &sh.seq, gens: &sh.gens, stamps: &sh.stamps, current: &sh.current, slots }
     }
 
     /// A consistent copy of `out.len()` bytes of set `role` from byte `offset` (the caller
@@ -802,7 +804,20 @@ impl Segment {
     /// writer committing without pause can exhaust them); returns its generation. For a
     /// poller that would rather look again later than wait for a busy set to settle.
     pub fn try_read_set(&self, role: Role, out: &mut [u8], tries: u32) -> Option<u64> {
-        self.bucket(role).read(out, tries).filter(|_| !self.map.truncated())
+        self.try_read_set_stamped(role, out, tries).map(|(generation, _)| generation)
+    }
+
+    /// [`try_read_set`](Self::try_read_set), with the step the copy belongs to and that step's
+    /// simulated time, read with it as one ([`Stamp`]): what a reader that labels values with
+    /// their step uses, rather than the framework's latest step, which may have moved on.
+    pub fn try_read_set_stamped(&self, role: Role, out: &mut [u8], tries: u32) -> Option<(u64, Stamp)> {
+        self.bucket(role).read_stamped_at(0, out, tries).filter(|_| !self.map.truncated())
+    }
+
+    /// The stamp of set `role`'s latest value (without copying it), or `None` if it never
+    /// holds still for `tries` attempts.
+    pub fn stamp(&self, role: Role, tries: u32) -> Option<Stamp> {
+        self.bucket(role).read_stamped_at(0, &mut [], tries).map(|(_, stamp)| stamp)
     }
 
     pub(crate) fn framework_id(&self) -> ProcessId {

@@ -143,27 +143,17 @@ fn run(sh: &Shared, out: &broadcast::Sender<Out>, graph: &watch::Sender<Graph>, 
 
 impl Followed {
     /// The set's value if it changed since the last one sent, with its step and simulated
-    /// time; None if it did not, or if the framework moved on while it was read (it is read
+    /// time; None if it did not, or if it never held still while it was read (it is read
     /// again at the next turn).
     fn read(&mut self, seg: &Segment) -> Option<Out> {
         let generation = seg.generation(self.role);
         if self.last == Some(generation) {
             return None;
         }
-        let step = seg.step();
-        let got = seg.try_read_set(self.role, &mut self.buf, 1 << 10)?;
-        let sim = seg.sim_time();
-        // The framework writes a step's PUBLISH set, then its time, then its number: the
-        // PUBLISH generation is the step, so a set read whole with the step already
-        // published, and no newer set begun after its time was read, has that time. A
-        // SUBSCRIBE set is what the framework reads at the current step.
-        let consistent = match self.role {
-            Role::Publish => got == step && seg.generation(Role::Publish) == got,
-            Role::Subscribe => seg.step() == step,
-        };
-        if !consistent {
-            return None;
-        }
+        // Labelled with the step the value belongs to, read with it (a SUBSCRIBE set: the
+        // step its commit answered).
+        let (got, stamp) = seg.try_read_set_stamped(self.role, &mut self.buf, 1 << 10)?;
+        let (step, sim) = (stamp.step, stamp.sim_time);
         self.last = Some(got);
         self.codec.encode(step, sim, &self.buf, &mut self.body);
         let mut data = Vec::with_capacity(HEADER_LE.len() + self.body.len());

@@ -553,10 +553,12 @@ impl Watched {
                 self.last_local = local;
             }
         }
-        if seg.try_read_set(self.role, &mut self.buf, 1 << 16).is_none() {
+        // Labelled with the step the value belongs to (the one a commit answered), read with
+        // it: the framework may have moved on since.
+        let Some((_, stamp)) = seg.try_read_set_stamped(self.role, &mut self.buf, 1 << 16) else {
             return false;
-        }
-        let sent = self.out.write(seg.step(), seg.sim_time(), &self.buf, stats, self.set.as_deref()) > 0;
+        };
+        let sent = self.out.write(stamp.step, stamp.sim_time, &self.buf, stats, self.set.as_deref()) > 0;
         self.resend &= !sent;
         sent
     }
@@ -673,7 +675,7 @@ pub fn spawn_sync_pump(
                     continue;
                 }
                 // The PUBLISH generation counts the framework's steps.
-                let Some(step) = seg.try_read_set(Role::Publish, &mut buf, 1 << 16) else { continue };
+                let Some((step, stamp)) = seg.try_read_set_stamped(Role::Publish, &mut buf, 1 << 16) else { continue };
                 if step <= last {
                     continue;
                 }
@@ -688,7 +690,7 @@ pub fn spawn_sync_pump(
                     }
                 }
                 last = step;
-                out.send_step(step, seg.sim_time(), &buf, &stats, Some(&set), &patience);
+                out.send_step(step, stamp.sim_time, &buf, &stats, Some(&set), &patience);
             }
         })
 }
@@ -738,7 +740,7 @@ pub fn spawn_lockstep_pump(
                     // The step is acknowledged once copied; a write that waits for DDS keeps
                     // this reader from acknowledging the next one, which holds the framework.
                     Ok(step) => {
-                        out.send_step(step, part.sim_time(), part.snapshot(), &stats, Some(&set), &patience);
+                        out.send_step(step, part.simulation_time(), part.snapshot(), &stats, Some(&set), &patience);
                     }
                     Err(ShmError::Timeout { .. }) => {}
                     Err(e) => {
