@@ -41,6 +41,7 @@ mod record_mcap;
 mod replay;
 mod ros2_typehash;
 mod run;
+mod simif_client;
 mod ssp;
 mod studio_browser;
 mod uav_demo;
