@@ -8,7 +8,8 @@
 //! the refusals and repeated transitions) and with asynchronous domains only (stepping
 //! refused, with the reason), the action `simulate_steps` (feedback after each step, cancel,
 //! the refusals), and that a passive gateway offers none. Each run has its own namespace
-//! and DDS domain (40-44 Cyclone, 90-94 rustdds, 45-49 Fast DDS's form).
+//! and DDS domain (40-44 Cyclone, 90-94 rustdds, 45-49 Fast DDS's form); a Fast DDS client in rmw_fastrtps's
+//! manner (`fastdds_requester.cpp`) is answered on the rustdds engine (50).
 
 use crate::gateway;
 use crate::simif_client;
@@ -348,3 +349,22 @@ per_way!(
     the_simulate_steps_action_gives_feedback_after_each_step_and_cancels,
     the_action_refuses_to_step_a_run_of_asynchronous_domains,
 );
+
+/// A Fast DDS client that sends and takes requests and replies exactly as rmw_fastrtps does
+/// (`tests/gateway/fastdds_requester.cpp`: each request carries a related sample identity
+/// naming its reply reader, the sequence number unknown) is answered by the rustdds engine in
+/// its form: each reply's related sample identity names that reader and the request's
+/// sequence number (DDS domain 50).
+#[test]
+fn a_client_in_rmw_fastrtps_manner_is_answered_on_the_rustdds_engine() {
+    let idl = tutti_test_support::repo_root().join("tests/gateway/GetSimulationState_.idl");
+    let Some((_scratch, bin)) = crate::gateway_fastdds::build_fastdds("fastdds_requester", &idl) else { return };
+    let Some(c) = Way::ENHANCED.client(45) else { return };
+    let _run = c.start(DDF);
+    let mut cmd = std::process::Command::new(&bin);
+    cmd.args([c.dom.to_string().as_str(), "3", "60"]);
+    let mut p = Proc::spawn("fastdds_requester", cmd, SECS(100));
+    assert_eq!(p.wait(SECS(90)), Some(0), "{}", p.dump());
+    let replies: Vec<String> = p.lines().into_iter().filter(|l| l.starts_with("state=")).collect();
+    assert_eq!(replies, vec!["state=1 result=1 related=reader"; 3], "{}", p.dump());
+}
