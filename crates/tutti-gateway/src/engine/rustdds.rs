@@ -403,7 +403,13 @@ impl Engine for Rustdds {
                 let stream = reader.as_async_stream();
                 futures::pin_mut!(stream);
                 while let Some(r) = stream.next().await {
-                    let Ok(dcc) = r else { continue };
+                    let dcc = match r {
+                        Ok(dcc) => dcc,
+                        Err(e) => {
+                            tracing::debug!("a sample of an identified reader lost: {e:?}");
+                            continue;
+                        }
+                    };
                     let related = dcc.related_sample_identity().map(|r| SampleIdentity {
                         writer: rustdds_guid(r.writer_guid),
                         sequence: i64::from(r.sequence_number),
