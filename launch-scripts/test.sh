@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # The whole test suite, from a fresh Debian machine with the Rust toolchain, Python 3 and apt:
-# installs what the tests need (Debian packages, a local Python venv), then runs the lints,
+# installs what the tests need (Debian packages, a local Python venv, npm packages, a ROS 2
+# Jazzy built from the sources in tests/ros2/jazzy), then runs the lints,
 # the docs build, every test of the workspace and the loom model checks.
 #
 # The tests install nothing themselves: everything they need is installed here. A test that
@@ -16,9 +17,11 @@ step() { printf '\n== %s\n' "$*"; }
 # build needs (cmake, libclang for bindgen), C toolchain, valgrind, iproute2 for the
 # network-namespace tests, procps for `kill` (the tests stop their children with SIGINT), the
 # font the UAV demo draws its figures with, headless Chromium and its WebDriver for the
-# studio's browser tests.
+# studio's browser tests, and what the ROS 2 build below compiles with (python3-dev, spdlog,
+# libyaml).
 ensure_debian_packages cyclonedds-tools cyclonedds-dev fastddsgen libfastrtps-dev fastdds-tools valgrind gcc g++ make \
-    cmake libclang-dev iproute2 procps python3-venv fonts-dejavu-core pkgconf chromium chromium-driver
+    cmake libclang-dev iproute2 procps python3-venv fonts-dejavu-core pkgconf chromium chromium-driver \
+    python3-dev libspdlog-dev libyaml-dev
 # Node.js and npm for the Foxglove WebSocket client: Debian's, unless the machine has a Node.js
 # with its own npm already (NodeSource's nodejs package carries npm, and Debian's npm package
 # cannot be installed beside it).
@@ -73,6 +76,20 @@ if ! [ -d tests/foxglove/node_modules/@foxglove/ws-protocol ]; then
     step "installing the Foxglove WebSocket client into tests/foxglove/node_modules"
     (cd tests/foxglove && npm ci --no-audit --no-fund --loglevel=error)
 fi
+# --- A real ROS 2 Jazzy (rclpy, rmw_cyclonedds, ros2cli, simulation_interfaces), built with
+# colcon from the sources in tests/ros2/jazzy (see its README.md): about 8 minutes the first
+# time; the workspace under ~/.cache/tutti is reused while those sources are unchanged. The
+# ROS 2 tests (tests/cli/ros2_real.rs) find it in TUTTI_ROS2_WS.
+step "ROS 2 Jazzy for the ROS 2 tests (tests/ros2/jazzy)"
+mkdir -p target
+if ! TUTTI_ROS2_WS=$(tests/ros2/jazzy/build.sh 2>target/ros2-build.log); then
+    tail -n 60 target/ros2-build.log >&2
+    echo "the ROS 2 build failed: target/ros2-build.log has its output" >&2
+    exit 1
+fi
+export TUTTI_ROS2_WS
+echo "ROS 2 workspace: $TUTTI_ROS2_WS"
+
 export PATH="$PWD/.venv/bin:$PATH"
 
 segments_before=$(ls /dev/shm 2>/dev/null | grep '^tutti\.' || true)

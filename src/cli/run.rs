@@ -66,6 +66,11 @@ pub fn run(args: Args) -> CliResult {
         );
         return Ok(());
     }
+    if launch.gateway.is_some() {
+        // The gateway's own log (its Foxglove and HTTP addresses, DDS trouble), as with
+        // `tutti host --gateway`.
+        super::gateway::init_logging();
+    }
     let stop = super::stop_flag()?;
     let tutti_exe = std::env::current_exe().context("locating the tutti executable")?;
     let opts = RunOptions {

@@ -1,10 +1,11 @@
 //! The gateway's Foxglove WebSocket server (`foxglove` key, `--foxglove ADDR`): a client of
 //! the protocol from npm (`@foxglove/ws-protocol`, `tests/foxglove/client.mjs`) against
-//! `tutti host --gateway` with a recording (its messages are the recording's, step for
+//! `tutti host --gateway`, `tutti run` and a separate `tutti gateway --foxglove` beside a
+//! recording `tutti host` (its messages are the recording's, step for
 //! step; what it publishes into a SUBSCRIBE set is read by the framework; the step service
 //! makes exactly the steps asked for), and the WebSocket handshake of a separate
 //! `tutti gateway` (both names of the protocol accepted, any other refused). Each test has
-//! its own namespace and DDS domain (61-76); the servers listen on a port the system
+//! its own namespace and DDS domain (61-76, 148-150); the servers listen on a port the system
 //! chooses (`127.0.0.1:0`), read back from their log.
 
 use std::collections::BTreeMap;
@@ -67,31 +68,91 @@ fn codec(role: Role, domain: &str) -> SetCodec {
     SetCodec::new(&d.set(role).layout)
 }
 
+/// What runs the gateway with the Foxglove server: `tutti host --gateway CONFIG`, `tutti
+/// run` of a launch file with a `gateway` section, or `tutti gateway --foxglove` beside
+/// `tutti host`.
+#[derive(Debug, Clone, Copy)]
+enum Runner {
+    Host,
+    Run,
+    Separate,
+}
+
 #[test]
 fn a_foxglove_client_sees_the_recorded_values_writes_a_subscribe_set_and_steps_the_run() {
+    foxglove_client_against(Runner::Host, "fgx61_", 61..=68);
+}
+
+#[test]
+fn a_foxglove_client_does_the_same_against_the_gateway_of_a_launch_file() {
+    foxglove_client_against(Runner::Run, "fgxrun_", 148..=149);
+}
+
+#[test]
+fn a_foxglove_client_does_the_same_against_a_separate_gateway() {
+    foxglove_client_against(Runner::Separate, "fgxsep_", 150..=150);
+}
+
+/// A recorded run with the gateway's Foxglove server, started by `runner`: its address, the
+/// run's process, a separate gateway's, and the recording. Each steps every 5 ms and copies
+/// the simulated time into gw_sync/publish/x and gw_async/subscribe/y into gw_async/publish/x.
+fn start_run(runner: Runner, ns: &str, dom: u16, dir: &Path) -> (SocketAddr, Proc, Option<Proc>, std::path::PathBuf) {
+    let mcap = dir.join("run.mcap");
+    const CONNECT: [&str; 2] = ["@sim_time -> gw_sync/publish/x", "gw_async/subscribe/y -> gw_async/publish/x"];
+    let mut cmd = tutti_test_support::tutti_command();
+    match runner {
+        Runner::Host | Runner::Separate => {
+            cmd.args(["host", DDF, "--step", "5ms", "--record"]).arg(&mcap);
+            if let Runner::Host = runner {
+                cmd.arg("--gateway").arg(config(dir, r#"{ foxglove: "127.0.0.1:0", clock: "gw_sync" }"#));
+            }
+            for c in CONNECT {
+                cmd.args(["--connect", c]);
+            }
+        }
+        Runner::Run => {
+            let ddf = tutti_test_support::repo_root().join(DDF);
+            let launch = serde_json::json!({
+                "ddf": ddf,
+                "framework": { "step": "5ms", "record": ["run.mcap"] },
+                "connections": CONNECT,
+                "components": [],
+                "gateway": { "foxglove": "127.0.0.1:0", "clock": "gw_sync" },
+            });
+            let file = dir.join("run.json5");
+            std::fs::write(&file, launch.to_string()).expect("the launch file");
+            cmd.arg("run").arg(&file);
+        }
+    }
+    cmd.env("TUTTI_NAMESPACE", ns)
+        .env("ROS_DOMAIN_ID", dom.to_string())
+        .env("TUTTI_GATEWAY_INTERFACE", "127.0.0.1")
+        .env("RUST_LOG", "info,rustdds=off,ros2_client=off");
+    let host = Proc::spawn(&format!("{runner:?} with the Foxglove server"), cmd, SECS(240));
+    if let Runner::Separate = runner {
+        let mut gw = tutti_test_support::tutti_command();
+        gw.args(["gateway", DDF, "--foxglove", "127.0.0.1:0", "--clock", "gw_sync", "--interface", "127.0.0.1"])
+            .args(["--ros-domain-id", &dom.to_string()])
+            .env("TUTTI_NAMESPACE", ns)
+            .env("RUST_LOG", "info,rustdds=off,ros2_client=off");
+        let gw = Proc::spawn("tutti gateway --foxglove", gw, SECS(240));
+        return (foxglove_addr(&gw), host, Some(gw), mcap);
+    }
+    (foxglove_addr(&host), host, None, mcap)
+}
+
+fn foxglove_client_against(runner: Runner, tag: &str, doms: std::ops::RangeInclusive<u16>) {
     let Some(node) = require_tool("node", "nodejs") else { return };
     let modules = tutti_test_support::repo_root().join("tests/foxglove/node_modules/@foxglove/ws-protocol");
     let found = if modules.is_dir() { Ok(()) } else { Err(format!("no {}", modules.display())) };
     if require("the npm packages of tests/foxglove (npm ci there)", found).is_none() {
         return;
     }
-    let ns = namespace("fgx61_");
+    let ns = namespace(tag);
     let _segments = RemoveSegments(ns.clone());
-    let dom = dds_domain_in(61..=68);
+    let dom = dds_domain_in(doms);
     let dir = tempfile::tempdir().expect("a temporary directory");
-    let mcap = dir.path().join("run.mcap");
-    let cfg = config(dir.path(), r#"{ foxglove: "127.0.0.1:0", clock: "gw_sync" }"#);
-    let mut cmd = tutti_test_support::tutti_command();
-    cmd.args(["host", DDF, "--step", "5ms", "--gateway", &cfg, "--record"])
-        .arg(&mcap)
-        .args(["--connect", "@sim_time -> gw_sync/publish/x"])
-        .args(["--connect", "gw_async/subscribe/y -> gw_async/publish/x"])
-        .env("TUTTI_NAMESPACE", &ns)
-        .env("ROS_DOMAIN_ID", dom.to_string())
-        .env("TUTTI_GATEWAY_INTERFACE", "127.0.0.1")
-        .env("RUST_LOG", "info,rustdds=off,ros2_client=off");
-    let mut host = Proc::spawn("host --gateway (foxglove)", cmd, SECS(240));
-    let addr = foxglove_addr(&host);
+    let (addr, mut host, gateway, mcap) = start_run(runner, &ns, dom, dir.path());
 
     // The sample the client publishes into gw_async's SUBSCRIBE set: y = 4.75, n = 7.
     let sub = codec(Role::Subscribe, "gw_async");
@@ -125,6 +186,9 @@ fn a_foxglove_client_sees_the_recorded_values_writes_a_subscribe_set_and_steps_t
     assert_eq!(rc, Some(0), "the client failed\n{}\n{}", client.dump(), host.dump());
     let lines: Vec<Value> = client.stdout().lines().filter_map(|l| serde_json::from_str(l).ok()).collect();
     let of = |kind: &str| lines.iter().filter(|v| v["kind"] == kind).cloned().collect::<Vec<_>>();
+    if let Some(mut gw) = gateway {
+        assert_eq!(gw.interrupt(SECS(60)), Some(0), "{}", gw.dump());
+    }
     assert_eq!(host.interrupt(SECS(60)), Some(0), "{}", host.dump());
 
     // The channels: one per set, on its ROS 2 topic, in CDR, with the recording's schema.

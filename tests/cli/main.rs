@@ -39,6 +39,7 @@ mod idl_tools;
 mod install;
 mod record_mcap;
 mod replay;
+mod ros2_real;
 mod ros2_typehash;
 mod run;
 mod simif_client;

@@ -1,10 +1,15 @@
 //! ROS 2 type hashes (docs/gateway.md, "Type hashes"), checked against ROS 2's own code:
 //! rosidl's type-description generator (tests/ros2/rosidl/, run by tests/ros2/typehash.py)
 //! hashes the package `tutti idl` writes, and must find the hashes tutti computes and names in
-//! the generated files; then, on both engines, every endpoint a gateway announces (typed
-//! sets, per-item topics, `/clock`, `ros_discovery_info`, ros2-client's `/parameter_events`)
-//! must carry `typehash=RIHS01_…;` in its USER_DATA with that same hash, as a Cyclone DDS peer
-//! (as rmw_cyclonedds) reads it in discovery. DDS domains 78-81, namespaces `typehash*`.
+//! the generated files; the same generator (run by tests/ros2/interface_hashes.py) hashes the
+//! real interface files of ROS 2 Jazzy's `simulation_interfaces`, `action_msgs`, … (from
+//! tests/ros2/jazzy/jazzy-src.tar.xz), and must find tutti's hashes of every message of the
+//! simulation services and action. Then, on both engines, every endpoint a gateway announces
+//! (typed sets, per-item topics, `/clock`, `ros_discovery_info`, ros2-client's
+//! `/parameter_events`, the simulation services' request and reply topics and the action's
+//! services and topics) must carry `typehash=RIHS01_…;` in its USER_DATA with that same hash,
+//! as a Cyclone DDS peer (as rmw_cyclonedds) reads it in discovery. DDS domains 78-81,
+//! namespaces `typehash*`.
 //!
 //! The Python needs `lark` (rosidl's parser; launch-scripts/test.sh installs it into .venv)
 //! and `cyclonedds`: without them the tests are skipped, and fail under CI=true.
@@ -72,6 +77,30 @@ const STOCK: &[(&str, &str)] = &[
     ),
 ];
 
+/// The interface packages of the simulation services and action, in
+/// tests/ros2/jazzy/jazzy-src.tar.xz, each after those it depends on.
+const INTERFACE_PACKAGES: &[&str] = &[
+    "ros2/rcl_interfaces/builtin_interfaces",
+    "ros2/unique_identifier_msgs",
+    "ros2/rcl_interfaces/service_msgs",
+    "ros2/rcl_interfaces/action_msgs",
+    "ros2/common_interfaces/std_msgs",
+    "ros2/common_interfaces/geometry_msgs",
+    "ros-simulation/simulation_interfaces",
+];
+
+/// The services the gateway offers (docs/ros2.md), the action's three included.
+const SERVICES: &[&str] = &[
+    "get_simulator_features",
+    "get_simulation_state",
+    "set_simulation_state",
+    "step_simulation",
+    "reset_simulation",
+    "simulate_steps/_action/send_goal",
+    "simulate_steps/_action/get_result",
+    "simulate_steps/_action/cancel_goal",
+];
+
 /// The Python with rosidl's parser's one dependency.
 fn rosidl_python() -> Option<PathBuf> {
     tutti_test_support::python(&["lark"])
@@ -102,6 +131,45 @@ fn rosidl_hashes(py: &Path, ddf: &Path, tmp: &Path) -> BTreeMap<String, String> 
         .collect();
     assert!(!hashes.is_empty(), "no hash from rosidl:\n{}", p.dump());
     hashes
+}
+
+/// rosidl's hash of every type of [`INTERFACE_PACKAGES`] (the implicit types of each
+/// service and action included), by ROS 2 name (`PKG/srv/NAME_Request`).
+fn rosidl_interface_hashes(py: &Path) -> BTreeMap<String, String> {
+    let root = tutti_test_support::repo_root();
+    let mut cmd = Command::new(py);
+    cmd.arg(root.join("tests/ros2/interface_hashes.py"))
+        .arg(root.join("tests/ros2/jazzy/jazzy-src.tar.xz"))
+        .args(INTERFACE_PACKAGES);
+    let mut p = Proc::spawn("rosidl interface hashes", cmd, SECS(120));
+    assert_eq!(p.wait(SECS(120)), Some(0), "rosidl could not hash the interfaces:\n{}", p.dump());
+    let hashes: BTreeMap<String, String> = p
+        .stdout()
+        .lines()
+        .filter_map(|l| l.split_once(' '))
+        .map(|(name, hash)| (name.to_string(), hash.to_string()))
+        .collect();
+    assert!(hashes.contains_key("simulation_interfaces/srv/StepSimulation_Request"), "{}", p.dump());
+    hashes
+}
+
+#[test]
+fn rosidl_hashes_the_simulation_interfaces_as_tutti_does() {
+    let Some(py) = rosidl_python() else { return };
+    let theirs = rosidl_interface_hashes(&py);
+    let described = tutti_core::typehash::stock::simulation_types();
+    assert!(described.len() > 20, "{described:?}");
+    for t in described {
+        let ours = tutti_core::typehash::stock::description(&t.type_name)
+            .unwrap_or_else(|| panic!("{} is not described", t.type_name));
+        assert_eq!(
+            Some(ours.hash().to_string()).as_ref(),
+            theirs.get(&t.type_name),
+            "{}: {}",
+            t.type_name,
+            ours.canonical_json()
+        );
+    }
 }
 
 #[test]
@@ -147,19 +215,17 @@ fn endpoints(py: &Path, gw: &Proc, dom: u16, count: usize) -> Vec<(String, Strin
 }
 
 /// Asserts that each of `eps` announces `typehash=HASH;` with the hash of its type: a set's
-/// as rosidl computes it (`sets`, by ROS 2 name), a stock type's as ROS 2 gives it; and that
-/// every one of `expected` (kind, topic) is among them. The endpoints of the simulation
-/// services and action (`rq/`, `rr/`, `…/_action/…`) announce none yet (docs/ros2.md).
+/// or a service's message's as rosidl computes it (`rosidl`, by ROS 2 name), a stock type's
+/// as ROS 2 gives it; and that every one of `expected` (kind, topic) is among them.
 fn assert_hashes(
     eps: &[(String, String, String, Option<String>)],
-    sets: &BTreeMap<String, String>,
+    rosidl: &BTreeMap<String, String>,
     expected: &[(&str, String)],
     gw: &Proc,
 ) {
     let stock: BTreeMap<&str, &str> = STOCK.iter().copied().collect();
-    let service = |topic: &str| topic.starts_with("rq/") || topic.starts_with("rr/") || topic.contains("/_action/");
-    for (kind, topic, ty, user_data) in eps.iter().filter(|(_, topic, _, _)| !service(topic)) {
-        let want = match tutti_core::typehash::ros2_type_name(ty).and_then(|n| sets.get(&n)) {
+    for (kind, topic, ty, user_data) in eps {
+        let want = match tutti_core::typehash::ros2_type_name(ty).and_then(|n| rosidl.get(&n)) {
             Some(h) => h.as_str(),
             None => stock.get(ty.as_str()).copied().unwrap_or_else(|| panic!("{kind} on {topic}: unknown type {ty}")),
         };
@@ -179,11 +245,30 @@ fn assert_hashes(
     }
 }
 
+/// The endpoints of the simulation services and action that `gw` offers: each service's
+/// request reader and reply writer, the action's feedback and status writers. None on an
+/// engine that offers no services yet (the gateway says so as it starts; docs/ros2.md).
+fn service_endpoints(gw: &Proc, e: Eng) -> Vec<(&'static str, String)> {
+    let offers_none = gw.lines().iter().any(|l| l.contains("services are offered on the cyclone engine only"));
+    assert!(!(offers_none && e.name == "cyclone"), "the cyclone engine offers the services\n{}", gw.dump());
+    if offers_none {
+        return Vec::new();
+    }
+    let mut eps: Vec<(&str, String)> = SERVICES
+        .iter()
+        .flat_map(|s| [("reader", format!("rq/{s}Request")), ("writer", format!("rr/{s}Reply"))])
+        .collect();
+    eps.push(("writer", "rt/simulate_steps/_action/feedback".to_string()));
+    eps.push(("writer", "rt/simulate_steps/_action/status".to_string()));
+    eps
+}
+
 fn every_endpoint_of_the_gateway_announces_its_type_hash(e: Eng) {
     let Some(py) = python() else { return };
     let Some(rosidl) = rosidl_python() else { return };
     let out = tempfile::tempdir().expect("temporary directory");
-    let sets = rosidl_hashes(&rosidl, &tutti_test_support::repo_root().join(DDF), out.path());
+    let mut hashes = rosidl_hashes(&rosidl, &tutti_test_support::repo_root().join(DDF), out.path());
+    hashes.extend(rosidl_interface_hashes(&rosidl));
     let dom = 78 + if e.name == "rustdds" { 2 } else { 0 };
     let mut discovery = vec![("writer", "ros_discovery_info".to_string()), ("writer", "rt/clock".to_string())];
     if e.name == "rustdds" {
@@ -194,17 +279,19 @@ fn every_endpoint_of_the_gateway_announces_its_type_hash(e: Eng) {
     // Typed: a writer per PUBLISH set, a reader per SUBSCRIBE set.
     let gw = e.gateway(DDF, dom, &e.ns("typehash"), &["--all-domains"]);
     let mut expected = discovery.clone();
+    expected.extend(service_endpoints(&gw, e));
     for d in ["gw_async", "gw_sync", "gw_states"] {
         expected.push(("writer", format!("rt/{d}/publish")));
         expected.push(("reader", format!("rt/{d}/subscribe")));
     }
     let eps = endpoints(&py, &gw, dom, expected.len());
-    assert_hashes(&eps, &sets, &expected, &gw);
+    assert_hashes(&eps, &hashes, &expected, &gw);
     drop(gw);
 
     // Per item: std_msgs Float64, Bool and Float64MultiArray.
     let gw = e.gateway(DDF, dom + 1, &e.ns("typehashi"), &["--all-domains", "--ros2-types", "per-item"]);
     let mut expected = discovery;
+    expected.extend(service_endpoints(&gw, e));
     expected.extend(
         [
             ("writer", "rt/gw_async/publish/x"),
@@ -218,7 +305,7 @@ fn every_endpoint_of_the_gateway_announces_its_type_hash(e: Eng) {
         .map(|(k, t)| (k, t.to_string())),
     );
     let eps = endpoints(&py, &gw, dom + 1, expected.len());
-    assert_hashes(&eps, &sets, &expected, &gw);
+    assert_hashes(&eps, &hashes, &expected, &gw);
 }
 
 per_engine!(every_endpoint_of_the_gateway_announces_its_type_hash);

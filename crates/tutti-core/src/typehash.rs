@@ -285,9 +285,20 @@ pub fn ros2_type_name(dds_type: &str) -> Option<String> {
 
 /// The stock ROS 2 types the gateway announces besides its sets, as ROS 2 Jazzy defines them:
 /// the per-item `std_msgs` types, `/clock`'s `rosgraph_msgs/msg/Clock`,
-/// `ros_discovery_info`'s `rmw_dds_common/msg/ParticipantEntitiesInfo`, and the
+/// `ros_discovery_info`'s `rmw_dds_common/msg/ParticipantEntitiesInfo`, the
 /// `rcl_interfaces/msg/ParameterEvent` of `/parameter_events` (which ros2-client's node
-/// announces on the rustdds engine).
+/// announces on the rustdds engine), and the messages of the `simulation_interfaces` services
+/// and of the action `simulate_steps` ([`stock::simulation_types`]).
+///
+/// A service or an action is no type of its own on DDS: rosidl makes messages of it, and
+/// each of its topics carries one of those, hashed as any message. Service `PKG/srv/NAME` is
+/// the messages `PKG/srv/NAME_Request` (its request topic) and `…_Response` (its reply
+/// topic); action `PKG/action/NAME` is the services `NAME_SendGoal` (request: `goal_id` and
+/// the `NAME_Goal`; response: `accepted` and a `stamp`) and `NAME_GetResult` (request:
+/// `goal_id`; response: `status` and the `NAME_Result`), `action_msgs/srv/CancelGoal`, the
+/// feedback topic's `NAME_FeedbackMessage` (`goal_id` and the `NAME_Feedback`) and the status
+/// topic's `action_msgs/msg/GoalStatusArray`. A message without fields gets the one field
+/// `uint8 structure_needs_at_least_one_member`, as rosidl gives it; constants are no fields.
 pub mod stock {
     use super::type_id::*;
     use super::{Field, FieldType, IndividualType, TypeDescription, TypeHash};
@@ -373,9 +384,78 @@ pub mod stock {
         ]
     }
 
-    /// The description of stock type `name` (`PKG/msg/TYPE`), if it is one of [`types`].
+    /// The messages of the `simulation_interfaces` services (`PKG/srv/NAME_Request` and
+    /// `…_Response`) and of its action `SimulateSteps` (`PKG/action/SimulateSteps_…`, with
+    /// `action_msgs`' `CancelGoal` and `GoalStatusArray`), and the types they refer to, as
+    /// ROS 2 Jazzy's `simulation_interfaces`, `action_msgs` and `unique_identifier_msgs`
+    /// define them.
+    pub fn simulation_types() -> Vec<IndividualType> {
+        const SI: &str = "simulation_interfaces";
+        let result = "simulation_interfaces/msg/Result";
+        let state = "simulation_interfaces/msg/SimulationState";
+        let (uuid, time) = ("unique_identifier_msgs/msg/UUID", "builtin_interfaces/msg/Time");
+        let goal_info = "action_msgs/msg/GoalInfo";
+        // A message without fields, as rosidl makes it.
+        let empty = || vec![f("structure_needs_at_least_one_member", UINT8)];
+        let srv = |name: &str, request: Vec<Field>, response: Vec<Field>| {
+            [t(&format!("{SI}/srv/{name}_Request"), request), t(&format!("{SI}/srv/{name}_Response"), response)]
+        };
+        let action = |suffix: &str, fields: Vec<Field>| t(&format!("{SI}/action/SimulateSteps_{suffix}"), fields);
+        let mut all = vec![
+            t(result, vec![f("result", UINT8), f("error_message", STRING)]),
+            t(state, vec![f("state", UINT8)]),
+            t(
+                "simulation_interfaces/msg/SimulatorFeatures",
+                vec![
+                    f("features", UINT16 + UNBOUNDED_SEQUENCE),
+                    f("spawn_formats", STRING + UNBOUNDED_SEQUENCE),
+                    f("custom_info", STRING),
+                ],
+            ),
+            t(uuid, vec![Field::new("uuid", FieldType::scalar(UINT8, 16))]),
+            t(goal_info, vec![n("goal_id", uuid), n("stamp", time)]),
+            t("action_msgs/msg/GoalStatus", vec![n("goal_info", goal_info), f("status", INT8)]),
+            t("action_msgs/msg/GoalStatusArray", vec![seq_of("status_list", "action_msgs/msg/GoalStatus")]),
+            t("action_msgs/srv/CancelGoal_Request", vec![n("goal_info", goal_info)]),
+            t(
+                "action_msgs/srv/CancelGoal_Response",
+                vec![f("return_code", INT8), seq_of("goals_canceling", goal_info)],
+            ),
+            action("Goal", vec![f("steps", UINT64)]),
+            action("Result", vec![n("result", result)]),
+            action("Feedback", vec![f("completed_steps", UINT64), f("remaining_steps", UINT64)]),
+            action(
+                "SendGoal_Request",
+                vec![n("goal_id", uuid), n("goal", "simulation_interfaces/action/SimulateSteps_Goal")],
+            ),
+            action("SendGoal_Response", vec![f("accepted", BOOLEAN), n("stamp", time)]),
+            action("GetResult_Request", vec![n("goal_id", uuid)]),
+            action(
+                "GetResult_Response",
+                vec![f("status", INT8), n("result", "simulation_interfaces/action/SimulateSteps_Result")],
+            ),
+            action(
+                "FeedbackMessage",
+                vec![n("goal_id", uuid), n("feedback", "simulation_interfaces/action/SimulateSteps_Feedback")],
+            ),
+        ];
+        all.extend(srv(
+            "GetSimulatorFeatures",
+            empty(),
+            vec![n("features", "simulation_interfaces/msg/SimulatorFeatures")],
+        ));
+        all.extend(srv("GetSimulationState", empty(), vec![n("state", state), n("result", result)]));
+        all.extend(srv("SetSimulationState", vec![n("state", state)], vec![n("result", result)]));
+        all.extend(srv("StepSimulation", vec![f("steps", UINT64)], vec![n("result", result)]));
+        all.extend(srv("ResetSimulation", vec![f("scope", UINT8)], vec![n("result", result)]));
+        all
+    }
+
+    /// The description of stock type `name` (`PKG/msg/TYPE`, `PKG/srv/NAME_Request`, …), if
+    /// it is one of [`types`] or [`simulation_types`].
     pub fn description(name: &str) -> Option<TypeDescription> {
-        let all = types();
+        let mut all = types();
+        all.extend(simulation_types());
         let top = all.iter().find(|t| t.type_name == name)?;
         TypeDescription::of(top, &all).ok()
     }
@@ -407,6 +487,66 @@ mod tests {
             "RIHS01_043e627780fcad87a22d225bc2a037361dba713fca6a6b9f4b869a5aa0393204",
         ),
     ];
+
+    /// What rosidl's type-description generator (`rosidl_generator_type_description`, run by
+    /// tests/ros2/interface_hashes.py over ROS 2 Jazzy's `simulation_interfaces`,
+    /// `action_msgs` and `unique_identifier_msgs`) writes for these messages of the
+    /// services and the action.
+    const JAZZY_SIMULATION: &[(&str, &str)] = &[
+        (
+            "simulation_interfaces/srv/GetSimulatorFeatures_Request",
+            "RIHS01_982b8c1adef1d556f6ecdc019d1269fc39413626a9222d73b4fc874bd798b7db",
+        ),
+        (
+            "simulation_interfaces/srv/GetSimulatorFeatures_Response",
+            "RIHS01_ede4dc8227cbb2f86a24612c999dcaa67d17dab21dab566cefdc233e7a2a65d1",
+        ),
+        (
+            "simulation_interfaces/srv/GetSimulationState_Response",
+            "RIHS01_dc80ce852a5ab04c2b23cdd47910cee1bcc46e0f1931cac85825e6916b15517f",
+        ),
+        (
+            "simulation_interfaces/srv/StepSimulation_Request",
+            "RIHS01_cda33f6887815f3dce0f90e61fd8efd39bda13ae264ddede15c33fbad890630e",
+        ),
+        (
+            "simulation_interfaces/srv/ResetSimulation_Request",
+            "RIHS01_2c766d09c3aa30f01fadc55a42fd760b63db358c7d1d3b6a64ea9978225ffbc7",
+        ),
+        (
+            "simulation_interfaces/action/SimulateSteps_SendGoal_Request",
+            "RIHS01_275e6fd2fafc5d33dcdc83bdea6de5cf29f30b9df74a3b9514a8c5d501fd0fe3",
+        ),
+        (
+            "simulation_interfaces/action/SimulateSteps_GetResult_Response",
+            "RIHS01_5658172e771cb145a986a8ef4c2b80b5407b741038453b8539e35bed5ff23207",
+        ),
+        (
+            "simulation_interfaces/action/SimulateSteps_FeedbackMessage",
+            "RIHS01_a30dee7ee7380769e616406ec5067b238aa2b27e1dbd7a5957fba1d908d7754d",
+        ),
+        (
+            "action_msgs/srv/CancelGoal_Response",
+            "RIHS01_35e682cf3f510e83c70a82a4aac888496dedee56773bf9d8e5e0aa81f9e1c960",
+        ),
+        ("action_msgs/msg/GoalStatusArray", "RIHS01_6c1684b00f177d37438febe6e709fc4e2b0d4248dca4854946f9ed8b30cda83e"),
+    ];
+
+    #[test]
+    fn the_simulation_services_messages_hash_as_ros2_jazzy_hashes_them() {
+        for (name, expected) in JAZZY_SIMULATION {
+            let d = stock::description(name).unwrap_or_else(|| panic!("{name} is not described"));
+            assert_eq!(d.hash().to_string(), *expected, "{name}: {}", d.canonical_json());
+        }
+        // Every type refers only to described ones.
+        for t in stock::simulation_types() {
+            assert!(stock::description(&t.type_name).is_some(), "{} refers to an undescribed type", t.type_name);
+        }
+        assert_eq!(
+            stock::hash_of_dds_type("simulation_interfaces::srv::dds_::StepSimulation_Request_").map(|h| h.to_string()),
+            Some(JAZZY_SIMULATION[3].1.to_string())
+        );
+    }
 
     #[test]
     fn stock_types_hash_as_ros2_jazzy_hashes_them() {

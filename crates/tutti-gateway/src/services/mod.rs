@@ -28,7 +28,7 @@ use std::time::{Duration, Instant};
 use tutti_core::cdr::split_header;
 use tutti_core::ddf::Model;
 
-use crate::engine::{Engine, Guid, Identified, TopicType, Writer, PREFIX_LEN};
+use crate::engine::{Engine, Guid, Identified, Writer, PREFIX_LEN};
 use crate::GatewayError;
 use lifecycle::{Control, Lifecycle, RunControl};
 use messages::{Body, Out, Outcome};
@@ -99,17 +99,17 @@ pub fn start(
     let (tx, rx) = mpsc::sync_channel::<Msg>(QUEUE);
     let topic = |(name, _): (&str, &str)| crate::config::dds_topic(ros_ns, name);
     let shared = action::Shared::new(
-        engine.writer(&topic(wire::STATUS), &TopicType::plain(wire::STATUS.1), &wire::status_qos())?,
-        engine.writer(&topic(wire::FEEDBACK), &TopicType::plain(wire::FEEDBACK.1), &wire::qos())?,
+        engine.writer(&topic(wire::STATUS), &wire::action_topic_type(wire::STATUS), &wire::status_qos())?,
+        engine.writer(&topic(wire::FEEDBACK), &wire::action_topic_type(wire::FEEDBACK), &wire::qos())?,
     );
     let mut servers = Vec::new();
     for (i, s) in SERVICES.iter().enumerate() {
         let (rq, rr) = (wire::request_topic(ros_ns, s.name), wire::reply_topic(ros_ns, s.name));
-        let writer = engine.related_writer(&rr, &TopicType::plain(&s.response_type()), &wire::qos())?;
+        let writer = engine.related_writer(&rr, &s.response_topic_type(), &wire::qos())?;
         servers.push(Server { service: s, reply_topic: rr, writer, matched: HashSet::new() });
         let tx = tx.clone();
         let sink = Arc::new(move |sample: Identified<'_>| request(i, sample, &tx));
-        engine.identified_reader(&rq, &TopicType::plain(&s.request_type()), &wire::qos(), sink)?;
+        engine.identified_reader(&rq, &s.request_topic_type(), &wire::qos(), sink)?;
     }
     let ctl = RunControl { namespace: namespace.to_string(), timeout: CONTROL_TIMEOUT };
     let life = Lifecycle::new(no_stepping(model));

@@ -14,7 +14,7 @@ use tutti_core::cdr::CdrError;
 use tutti_core::mapping::{Durability, History, Ownership, Qos, Reliability};
 
 use super::messages::{Body, Out};
-use crate::engine::{Guid, Identified, SampleIdentity};
+use crate::engine::{Guid, Identified, SampleIdentity, TopicType};
 
 /// What a service does.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -48,6 +48,23 @@ impl Service {
     pub fn response_type(&self) -> String {
         format!("{}_Response_", self.dds_type)
     }
+
+    /// The type of the request topic's endpoints: the request message, with its ROS 2 type
+    /// hash (`PKG/srv/SRV_Request`'s, as rmw_cyclonedds announces it; docs/gateway.md, "Type
+    /// hashes").
+    pub fn request_topic_type(&self) -> TopicType {
+        TopicType::stock(&self.request_type())
+    }
+
+    /// The type of the reply topic's endpoints: the response message, with its hash.
+    pub fn response_topic_type(&self) -> TopicType {
+        TopicType::stock(&self.response_type())
+    }
+}
+
+/// The type of a topic of the action ([`FEEDBACK`], [`STATUS`]), with its hash.
+pub fn action_topic_type((_, dds_type): (&str, &str)) -> TopicType {
+    TopicType::stock(dds_type)
 }
 
 /// The action's relative name; its services and topics are under `NAME/_action/`.
@@ -222,6 +239,23 @@ mod tests {
         assert_eq!(SERVICES[3].response_type(), "simulation_interfaces::srv::dds_::StepSimulation_Response_");
         assert_eq!(request_topic("", SERVICES[5].name), "rq/simulate_steps/_action/send_goalRequest");
         assert_eq!(SERVICES[7].request_type(), "action_msgs::srv::dds_::CancelGoal_Request_");
+    }
+
+    #[test]
+    fn every_endpoint_announces_its_messages_type_hash() {
+        for s in SERVICES {
+            for ty in [s.request_topic_type(), s.response_topic_type()] {
+                assert!(ty.hash.is_some(), "{} has no type hash", ty.name);
+            }
+        }
+        for topic in [FEEDBACK, STATUS] {
+            assert!(action_topic_type(topic).hash.is_some(), "{} has no type hash", topic.1);
+        }
+        // As rosidl's generator hashes it (the unit tests of tutti_core::typehash pin more).
+        assert_eq!(
+            SERVICES[3].request_topic_type().user_data().as_deref(),
+            Some("typehash=RIHS01_cda33f6887815f3dce0f90e61fd8efd39bda13ae264ddede15c33fbad890630e;")
+        );
     }
 
     #[test]

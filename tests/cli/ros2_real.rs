@@ -1,0 +1,460 @@
+//! The gateway against a real ROS 2 Jazzy: rclpy, rmw_cyclonedds and ros2cli, built from the
+//! sources in `tests/ros2/jazzy` by `launch-scripts/test.sh`, which names the workspace in
+//! `TUTTI_ROS2_WS` (docs/ros2.md, "Tested against ROS 2"):
+//! * rclpy's own service and action clients, and `ros2 service call` / `ros2 action
+//!   send_goal`, drive every simulation service and the action (feedback, cancel, refusals);
+//! * `launch-scripts/ros2_uav_listener.py` receives the UAV states, which agree with the run's
+//!   recording step by step, per engine;
+//! * an rclpy node with `use_sim_time` takes its time from the gateway's `/clock`, per engine;
+//! * and none of them prints a warning or an error (before type hashes, rmw_cyclonedds
+//!   warned once per endpoint).
+//!
+//! Every ROS 2 process runs on loopback (`CYCLONEDDS_URI`), in a DDS domain of its test
+//! (142-149), with its logs in the test's temporary directory, and without the ros2cli daemon.
+
+use crate::gateway;
+
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+use std::process::Command;
+use std::time::Duration;
+
+use gateway::*;
+use serde_json::Value;
+use tutti_test_support::{namespace, run_output, workspace_bin};
+
+/// Cyclone on loopback only, as the suite's other DDS peers.
+const LOOPBACK: &str = concat!(
+    r#"<CycloneDDS xmlns="https://cdds.io/config"><Domain id="any"><General><Interfaces>"#,
+    r#"<NetworkInterface name="lo"/></Interfaces><AllowMulticast>false</AllowMulticast></General>"#,
+    r#"<Discovery><Peers><Peer address="127.0.0.1"/></Peers><ParticipantIndex>auto</ParticipantIndex>"#,
+    r#"<MaxAutoParticipantIndex>40</MaxAutoParticipantIndex></Discovery></Domain></CycloneDDS>"#
+);
+
+/// The ROS 2 workspace, and a home for the logs of the ROS 2 processes of one test.
+struct Ros2 {
+    ws: PathBuf,
+    home: tempfile::TempDir,
+    /// Interface packages built by the test, sourced after the workspace.
+    overlays: Vec<PathBuf>,
+}
+
+impl Ros2 {
+    /// The workspace `TUTTI_ROS2_WS` names, as the suite's policy for tools has it.
+    fn get() -> Option<Ros2> {
+        let found = std::env::var("TUTTI_ROS2_WS")
+            .map_err(|_| "TUTTI_ROS2_WS is not set (launch-scripts/test.sh builds tests/ros2/jazzy and sets it)".into())
+            .and_then(|ws| {
+                let ws = PathBuf::from(ws);
+                if ws.join("install/setup.bash").is_file() {
+                    Ok(ws)
+                } else {
+                    Err(format!("{} has no install/setup.bash", ws.display()))
+                }
+            });
+        let ws = tutti_test_support::require::<_, String>("a ROS 2 Jazzy workspace", found)?;
+        Some(Ros2 { ws, home: tempfile::tempdir().expect("a temporary directory"), overlays: Vec::new() })
+    }
+
+    /// `program` in the ROS 2 environment, in DDS domain `dom`, on loopback.
+    fn command(&self, dom: u16, program: &[&str]) -> Command {
+        let mut sources = format!(r#"source "{}/install/setup.bash""#, self.ws.display());
+        for o in &self.overlays {
+            sources += &format!(r#" && source "{}/local_setup.bash""#, o.display());
+        }
+        let mut c = Command::new("bash");
+        c.arg("-c").arg(format!(r#"{sources} && exec "$@""#)).arg("ros2-env").args(program);
+        c.env("RMW_IMPLEMENTATION", "rmw_cyclonedds_cpp")
+            .env("ROS_DOMAIN_ID", dom.to_string())
+            .env_remove("ROS_LOCALHOST_ONLY")
+            .env_remove("ROS_AUTOMATIC_DISCOVERY_RANGE")
+            .env("CYCLONEDDS_URI", LOOPBACK)
+            .env("ROS_HOME", self.home.path())
+            .env("ROS_LOG_DIR", self.home.path().join("log"))
+            .env("PYTHONUNBUFFERED", "1")
+            .env_remove("ROS_NAMESPACE");
+        c
+    }
+
+    /// The workspace's Python (the venv that has rclpy's dependencies) running `script`.
+    fn python(&self, dom: u16, script: &str, args: &[&str]) -> Command {
+        let py = std::fs::read_to_string(self.ws.join("install/PYTHON")).expect("the workspace's install/PYTHON");
+        let mut program = vec![py.trim(), script];
+        program.extend_from_slice(args);
+        self.command(dom, &program)
+    }
+
+    /// Builds the interface package in `src` (a `tutti idl` output directory) with colcon
+    /// and the workspace's Python into the test's home, and sources it from then on.
+    fn build_interfaces(&mut self, src: &Path) {
+        let base = self.home.path().join("interfaces");
+        let colcon = self.ws.join("venv/bin/colcon");
+        let (build, install) = (base.join("build"), base.join("install"));
+        let mut cmd = self.command(0, &[colcon.to_str().expect("a UTF-8 path")]);
+        let venv = self.ws.join("venv/bin");
+        let path = format!("{}:{}", venv.display(), std::env::var("PATH").unwrap_or_default());
+        cmd.args(["build", "--merge-install", "--base-paths"])
+            .arg(src)
+            .arg("--build-base")
+            .arg(&build)
+            .arg("--install-base")
+            .arg(&install)
+            .arg("--cmake-args")
+            .arg("-DBUILD_TESTING=OFF")
+            .arg(format!("-DPython3_EXECUTABLE={}/python3", venv.display()))
+            .env("PATH", path)
+            .env("MAKEFLAGS", "-j2")
+            .current_dir(&base);
+        std::fs::create_dir_all(&base).expect("the build directory");
+        let out = run_output(cmd, SECS(600));
+        assert!(
+            out.status.success(),
+            "colcon build of {}:\n{}\n{}",
+            src.display(),
+            String::from_utf8_lossy(&out.stdout),
+            String::from_utf8_lossy(&out.stderr)
+        );
+        self.overlays.push(install);
+    }
+}
+
+/// The lines of `lines` in which ROS 2 complains: a warning or an error of a node or of
+/// rmw_cyclonedds, or a Python traceback.
+fn complaints(lines: &[String]) -> Vec<&String> {
+    lines
+        .iter()
+        .filter(|l| {
+            ["[WARN]", "[ERROR]", "[FATAL]", "Failed to parse", "Traceback", "Warning:"].iter().any(|k| l.contains(k))
+        })
+        .collect()
+}
+
+/// Runs `cmd` to its end (within `limit`) and returns its output lines (stderr's prefixed),
+/// asserting that it succeeded and complained of nothing.
+fn run_quietly(name: &str, cmd: Command, limit: Duration) -> Vec<String> {
+    let mut p = Proc::spawn(name, cmd, limit + SECS(10));
+    let code = p.wait(limit);
+    assert_eq!(code, Some(0), "{name} failed\n{}", p.dump());
+    let lines = p.lines();
+    let bad = complaints(&lines);
+    assert!(bad.is_empty(), "{name} complained:\n{bad:#?}\n{}", p.dump());
+    lines
+}
+
+/// `tutti ctl state --json` of namespace `ns`: (state, step).
+fn ctl_state(ns: &str) -> (String, u64) {
+    let mut cmd = tutti_test_support::tutti_command();
+    cmd.args(["ctl", "state", "--json"]).env("TUTTI_NAMESPACE", ns);
+    let (status, out, err) = tutti_test_support::run_with_timeout(cmd, SECS(60));
+    assert!(status.success(), "tutti ctl state: {err}");
+    let v: Value = serde_json::from_str(out.trim()).unwrap_or_else(|e| panic!("tutti ctl state: {e}: {out}"));
+    (v["state"].as_str().unwrap_or("").to_string(), v["step"].as_u64().expect("a step"))
+}
+
+/// rclpy's clients making `calls` (`tests/ros2/simif_rclpy.py`): one JSON value per call.
+fn rclpy_calls(ros: &Ros2, dom: u16, calls: &str) -> Vec<Value> {
+    let cmd = ros.python(dom, "tests/ros2/simif_rclpy.py", &[calls, "--timeout", "60"]);
+    let lines = run_quietly("rclpy simulation client", cmd, SECS(200));
+    let out: Vec<Value> = lines.iter().filter_map(|l| serde_json::from_str(l).ok()).collect();
+    assert_eq!(out.len(), serde_json::from_str::<Vec<Value>>(calls).expect("JSON calls").len(), "{lines:#?}");
+    out
+}
+
+/// A call's (result code, error message).
+fn result(v: &Value) -> (u64, &str) {
+    (v["result"].as_u64().unwrap_or(999), v["error_message"].as_str().unwrap_or(""))
+}
+
+/// `ros2 ARGS...` (ros2cli, without its daemon): its output lines.
+fn ros2(ros: &Ros2, dom: u16, args: &[&str]) -> Vec<String> {
+    let mut program = vec!["ros2"];
+    program.extend_from_slice(args);
+    run_quietly(&format!("ros2 {}", args[..2].join(" ")), ros.command(dom, &program), SECS(120))
+}
+
+const OK: u64 = 1;
+const FEATURE_UNSUPPORTED: u64 = 0;
+const INCORRECT_STATE: u64 = 4;
+const ALREADY_IN_TARGET_STATE: u64 = 101;
+const SUCCEEDED: u64 = 4;
+const CANCELED: u64 = 5;
+
+/// Every service and the action of a synchronous run, through rclpy's clients and ros2cli,
+/// against the gateway of `tutti host --gateway` on engine `e`.
+fn services_drive_a_synchronous_run(e: Eng, dom: u16) {
+    let Some(ros) = Ros2::get() else { return };
+    let ns = namespace(&format!("ros2srv{dom}_"));
+    let (mut host, _segments) = host_with_gateway(e, DDF, dom, &ns, &[]);
+
+    let r = rclpy_calls(
+        &ros,
+        dom,
+        r#"[["get_simulator_features"], ["get_simulation_state"], ["set_simulation_state", 2]]"#,
+    );
+    let features: Vec<u64> = r[0]["features"].as_array().expect("features").iter().filter_map(Value::as_u64).collect();
+    assert_eq!(features, vec![20, 21, 24, 25, 26, 31, 32, 33], "{:?}", r[0]);
+    assert_eq!((r[1]["state"].as_u64(), result(&r[1]).0), (Some(1), OK), "PLAYING: {:?}", r[1]);
+    assert_eq!(result(&r[2]).0, OK, "{:?}", r[2]);
+    let (state, at) = ctl_state(&ns);
+    assert_eq!(state, "paused");
+
+    let r = rclpy_calls(
+        &ros,
+        dom,
+        r#"[["step_simulation", 3], ["get_simulation_state"], ["simulate_steps", 4, 0], ["simulate_steps", 100000, 2]]"#,
+    );
+    assert_eq!(result(&r[0]).0, OK, "{:?}", r[0]);
+    assert_eq!(r[1]["state"].as_u64(), Some(2), "PAUSED: {:?}", r[1]);
+    let fb = |v: &Value| -> Vec<(u64, u64)> {
+        v["feedback"]
+            .as_array()
+            .expect("feedback")
+            .iter()
+            .map(|f| (f[0].as_u64().unwrap(), f[1].as_u64().unwrap()))
+            .collect()
+    };
+    // rclpy's feedback reader keeps the last 10 samples (rmw's default profile) and drops
+    // feedback that comes after the goal's result: what it shows of the feedback after each
+    // step (tests/cli/gateway_simif.rs checks every sample) is in order and ends at most at
+    // the last step made.
+    let in_order = |fb: &[(u64, u64)], total: u64, made: u64| {
+        !fb.is_empty()
+            && fb.windows(2).all(|w| w[0].0 < w[1].0)
+            && fb.iter().all(|&(done, left)| done >= 1 && done <= made && done + left == total)
+    };
+    assert_eq!(r[2]["accepted"], true);
+    assert!(in_order(&fb(&r[2]), 4, 4), "feedback: {:?}", r[2]);
+    assert_eq!((r[2]["status"].as_u64(), result(&r[2]).0), (Some(SUCCEEDED), OK), "{:?}", r[2]);
+    assert_eq!(r[3]["status"].as_u64(), Some(CANCELED), "{:?}", r[3]);
+    assert_eq!(r[3]["cancel_return_code"].as_u64(), Some(0), "ERROR_NONE: {:?}", r[3]);
+    let (state, now) = ctl_state(&ns);
+    let made = now - at - 3 - 4;
+    assert_eq!(state, "paused");
+    assert!((2..100_000).contains(&made), "the canceled goal made {made} steps");
+    assert_eq!(result(&r[3]).1, format!("canceled after {made} of 100000 steps"));
+    assert!(in_order(&fb(&r[3]), 100_000, made), "feedback of {made} steps: {:?}", r[3]);
+
+    let r = rclpy_calls(
+        &ros,
+        dom,
+        r#"[["reset_simulation", 1], ["reset_simulation", 3], ["set_simulation_state", 1], ["set_simulation_state", 1],
+            ["step_simulation", 1], ["set_simulation_state", 2]]"#,
+    );
+    assert_eq!(result(&r[0]).0, OK, "SCOPE_TIME: {:?}", r[0]);
+    let (code, why) = result(&r[1]);
+    assert!(code == FEATURE_UNSUPPORTED && why.contains("only SCOPE_DEFAULT and SCOPE_TIME"), "{:?}", r[1]);
+    assert_eq!(result(&r[2]).0, OK);
+    assert_eq!(result(&r[3]), (ALREADY_IN_TARGET_STATE, "already playing"));
+    let (code, why) = result(&r[4]);
+    assert!(code == INCORRECT_STATE && why.contains("playing"), "stepping a playing run: {:?}", r[4]);
+    assert_eq!(result(&r[5]).0, OK);
+    let (_, at) = ctl_state(&ns);
+
+    // ros2cli, as docs/ros2.md shows it.
+    let out = ros2(&ros, dom, &["service", "list", "--no-daemon", "-t"]).join("\n");
+    for s in [
+        "get_simulator_features",
+        "get_simulation_state",
+        "set_simulation_state",
+        "step_simulation",
+        "reset_simulation",
+    ] {
+        assert!(out.contains(&format!("/{s} [simulation_interfaces/srv/")), "{s} missing:\n{out}");
+    }
+    let out = ros2(
+        &ros,
+        dom,
+        &["service", "call", "/step_simulation", "simulation_interfaces/srv/StepSimulation", "{steps: 5}"],
+    );
+    assert!(out.join("\n").contains("result=1"), "{out:#?}");
+    assert_eq!(ctl_state(&ns), ("paused".to_string(), at + 5), "exactly 5 steps");
+    let out = ros2(
+        &ros,
+        dom,
+        &[
+            "action",
+            "send_goal",
+            "--feedback",
+            "/simulate_steps",
+            "simulation_interfaces/action/SimulateSteps",
+            "{steps: 2}",
+        ],
+    )
+    .join("\n");
+    assert!(out.contains("completed_steps: 2") && out.contains("Goal finished with status: SUCCEEDED"), "{out}");
+    assert_eq!(ctl_state(&ns), ("paused".to_string(), at + 7), "exactly 2 more steps");
+    let out = ros2(
+        &ros,
+        dom,
+        &[
+            "service",
+            "call",
+            "/set_simulation_state",
+            "simulation_interfaces/srv/SetSimulationState",
+            "{state: {state: 3}}",
+        ],
+    );
+    assert!(out.join("\n").contains("result=1"), "QUITTING: {out:#?}");
+    assert!(host.wait(SECS(60)).is_some(), "QUITTING did not end the run\n{}", host.dump());
+}
+
+#[test]
+fn rclpy_and_ros2cli_drive_the_simulation_services_cyclone() {
+    services_drive_a_synchronous_run(Eng::CYCLONE, 142);
+}
+
+#[test]
+fn rclpy_is_told_why_a_run_of_asynchronous_domains_does_not_step() {
+    let Some(ros) = Ros2::get() else { return };
+    let (dom, ns) = (143, namespace("ros2async143_"));
+    let (_host, _segments) = host_with_gateway(Eng::CYCLONE, "tests/gateway/async-only.ddf", dom, &ns, &[]);
+    let r =
+        rclpy_calls(&ros, dom, r#"[["set_simulation_state", 2], ["step_simulation", 1], ["simulate_steps", 2, 0]]"#);
+    assert_eq!(result(&r[0]).0, OK);
+    let (code, why) = result(&r[1]);
+    assert!(code == FEATURE_UNSUPPORTED && why.contains("asynchronous (simif_async)"), "{:?}", r[1]);
+    let (code, why) = result(&r[2]);
+    assert!(code == FEATURE_UNSUPPORTED && why.contains("asynchronous (simif_async)"), "{:?}", r[2]);
+    assert_eq!(r[2]["status"].as_u64(), Some(6), "ABORTED: {:?}", r[2]);
+}
+
+/// The values of each UAV's SUBSCRIBE set by step, from `tutti host --record` CSVs in `dir`
+/// (`rec-multiuav_uavN.csv`): uav -> step -> (latitude, longitude, elevation, simulated time).
+fn recorded_uavs(dir: &Path, uavs: &[u32]) -> BTreeMap<u32, BTreeMap<u64, [f64; 4]>> {
+    let mut all = BTreeMap::new();
+    for &n in uavs {
+        let csv = dir.join(format!("rec-multiuav_uav{n}.csv"));
+        let text = std::fs::read_to_string(&csv).unwrap_or_else(|e| panic!("{}: {e}", csv.display()));
+        let mut lines = text.lines();
+        let head: Vec<&str> = lines.next().expect("a header").split(',').collect();
+        let col = |name: &str| head.iter().position(|h| *h == name).unwrap_or_else(|| panic!("no column {name}"));
+        let cols = [
+            col("step"),
+            col("subscribe.Latitude"),
+            col("subscribe.Longitude"),
+            col("subscribe.Elevation"),
+            col("sim_time"),
+        ];
+        let rows = lines
+            .map(|l| {
+                let f: Vec<f64> = l.split(',').map(|v| v.parse().unwrap_or(f64::NAN)).collect();
+                (f[cols[0]] as u64, [f[cols[1]], f[cols[2]], f[cols[3]], f[cols[4]]])
+            })
+            .collect();
+        all.insert(n, rows);
+    }
+    all
+}
+
+/// `launch-scripts/ros2_uav_listener.py`, with the interface package `tutti idl` makes of the
+/// DDF (`idl/multiuav_msgs`) built by colcon, receives UAV 1's and 2's states from the
+/// gateway on engine `e`, and each state it prints is the one the run recorded at its step.
+fn the_uav_listener_prints_the_recorded_states(e: Eng, dom: u16) {
+    let Some(mut ros) = Ros2::get() else { return };
+    ros.build_interfaces(&tutti_test_support::repo_root().join("idl/multiuav_msgs"));
+    let ns = namespace(&format!("ros2uav{dom}_"));
+    let dir = tempfile::tempdir().expect("a temporary directory");
+    let rec = dir.path().join("rec.csv");
+    // The UAVs fly the formation (as in examples/uav/uav-demo.json5), to the step's time.
+    let mut args = vec!["--record".to_string(), rec.display().to_string()];
+    for (n, y) in [(1, 0), (2, -60)] {
+        args.extend(["--connect".into(), format!("@sim_time -> multiuav_uav{n}/publish/Time")]);
+        for set in ["Autopilot=1", "X=0", &format!("Y={y}"), "Z=0", "Airspeed=25"] {
+            args.extend(["--set".into(), format!("multiuav_uav{n}/{set}")]);
+        }
+    }
+    let args: Vec<&str> = args.iter().map(String::as_str).collect();
+    let (mut host, _segments) = host_with_gateway(e, "ddf/multiuav.ddf", dom, &ns, &args);
+    let mut uavs = Vec::new();
+    for n in [1, 2] {
+        let mut cmd = Command::new(workspace_bin("tutti-uav-demo", "tutti-demo"));
+        cmd.args(["uav-node", "--index", &n.to_string(), "--speed", "1", "--out"])
+            .arg(dir.path().join(format!("uav{n}.csv")))
+            .env("TUTTI_NAMESPACE", &ns);
+        uavs.push(Proc::spawn(&format!("uav{n}"), cmd, SECS(180)));
+    }
+    let listener = ros.python(dom, "launch-scripts/ros2_uav_listener.py", &["--ros-args", "-p", "uavs:=[1,2]"]);
+    let mut listener = Proc::spawn("ros2_uav_listener", listener, SECS(180));
+    let enough =
+        |p: &Proc| (1..=2).all(|n| p.lines().iter().filter(|l| l.contains(&format!("uav{n} step "))).count() >= 100);
+    let end = std::time::Instant::now() + SECS(90);
+    while !enough(&listener) && std::time::Instant::now() < end && listener.exited().is_none() {
+        std::thread::sleep(Duration::from_millis(100));
+    }
+    assert!(enough(&listener), "the listener got too few states\n{}", listener.dump());
+    listener.interrupt(SECS(20));
+    drop(uavs);
+    host.interrupt(SECS(30));
+
+    let recorded = recorded_uavs(dir.path(), &[1, 2]);
+    let lines = listener.lines();
+    let bad = complaints(&lines);
+    assert!(bad.is_empty(), "the listener complained:\n{bad:#?}");
+    let (mut checked, mut places) = (0, std::collections::BTreeSet::new());
+    for l in lines.iter().filter(|l| l.contains(" step ")) {
+        // "[INFO] [..] [uav_listener]: uav1 step 12 t=0.120s lat=45.123456 lon=-73.123456 elev=100.0 m ..."
+        let after = |key: &str| -> f64 {
+            let rest = l.split(key).nth(1).unwrap_or_else(|| panic!("no {key} in {l}"));
+            rest.split(|c: char| c == ' ' || c == 's' && key == " t=").next().unwrap().parse().unwrap()
+        };
+        let n: u32 = l.split("uav").nth(2).and_then(|r| r.split(' ').next()).and_then(|r| r.parse().ok()).expect(l);
+        let step = after(" step ") as u64;
+        let Some(row) = recorded[&n].get(&step) else { continue };
+        let (lat, lon, elev) = (after(" lat="), after(" lon="), after(" elev="));
+        assert!(
+            (lat - row[0]).abs() < 2e-6 && (lon - row[1]).abs() < 2e-6 && (elev - row[2]).abs() < 0.06,
+            "uav{n} step {step}: the listener printed {lat} {lon} {elev}, the recording has {row:?}"
+        );
+        assert!((after(" t=") - row[3]).abs() < 1e-3, "uav{n} step {step}: not the recorded time {}: {l}", row[3]);
+        checked += 1;
+        places.insert(format!("{lat:.6} {lon:.6}"));
+    }
+    assert!(places.len() > 10, "the UAVs do not fly: {places:?}");
+    assert!(checked >= 100, "only {checked} of the listener's states were recorded\n{lines:#?}");
+}
+
+#[test]
+fn the_ros2_uav_listener_prints_the_recorded_states_cyclone() {
+    the_uav_listener_prints_the_recorded_states(Eng::CYCLONE, 144);
+}
+
+#[test]
+fn the_ros2_uav_listener_prints_the_recorded_states_rustdds() {
+    the_uav_listener_prints_the_recorded_states(Eng::RUSTDDS, 145);
+}
+
+/// An rclpy node with `use_sim_time` beside the gateway on engine `e`: its clock reads the
+/// simulated times `/clock` carries (multiples of the 5 ms step), not the wall clock.
+fn a_node_on_sim_time_follows_clock(e: Eng, dom: u16) {
+    let Some(ros) = Ros2::get() else { return };
+    let ns = namespace(&format!("ros2clock{dom}_"));
+    let (_host, _segments) = host_with_gateway(e, DDF, dom, &ns, &[]);
+    let lines = run_quietly("rclpy on sim time", ros.python(dom, "tests/ros2/sim_time.py", &["200"]), SECS(120));
+    let values =
+        |key: &str| -> Vec<u64> { lines.iter().filter_map(|l| l.strip_prefix(key)?.trim().parse().ok()).collect() };
+    let (clocks, nows, wall) = (values("clock "), values("now "), values("wall ")[0]);
+    assert!(clocks.len() >= 200, "{lines:#?}");
+    assert!(clocks.iter().all(|c| c % 5_000_000 == 0) && clocks.windows(2).all(|w| w[0] < w[1]), "{clocks:?}");
+    assert!(lines.contains(&"active true".to_string()), "ROS time is not overridden by /clock: {lines:#?}");
+    // The node's time source has a /clock reader of its own, which may have matched the
+    // gateway's writer a sample before this one, or kept a sample this one did not (the
+    // writer keeps the last): each reading is a step's time, never ahead of /clock, never
+    // back, and most are times this reader got too.
+    let set: std::collections::BTreeSet<u64> = clocks.iter().copied().collect();
+    let last = *clocks.last().unwrap();
+    assert!(nows.iter().all(|&n| n % 5_000_000 == 0 && n <= last), "a reading off /clock: {nows:?} (clock {clocks:?})");
+    assert!(nows.windows(2).all(|w| w[0] < w[1]), "the node's clock went back: {nows:?}");
+    let on_clock = nows.iter().filter(|n| set.contains(n)).count();
+    assert!(on_clock >= 20 && on_clock * 2 > nows.len(), "the node's clock took few /clock times: {nows:?}");
+    assert!(nows.iter().all(|&n| n < wall / 2), "the node reads the wall clock: {nows:?}");
+}
+
+#[test]
+fn an_rclpy_node_on_sim_time_follows_the_gateway_clock_cyclone() {
+    a_node_on_sim_time_follows_clock(Eng::CYCLONE, 146);
+}
+
+#[test]
+fn an_rclpy_node_on_sim_time_follows_the_gateway_clock_rustdds() {
+    a_node_on_sim_time_follows_clock(Eng::RUSTDDS, 147);
+}
