@@ -9,10 +9,12 @@ use std::time::Duration;
 
 use gateway::*;
 
-/// Builds the subscriber in a scratch directory of its own (the runs of the engines go in
-/// parallel), removed when the returned guard drops, even on failure; None (skipped, a
-/// failure under CI=true) when fastddsgen, g++ or the Fast DDS headers are missing.
-fn build_subscriber() -> Option<(tempfile::TempDir, PathBuf)> {
+/// Builds the Fast DDS program `tests/gateway/PROGRAM.cpp` with the type support fastddsgen
+/// generates from `idl` (whose stem names the generated sources) in a scratch directory of its
+/// own (the runs of the engines go in parallel), removed when the returned guard drops, even
+/// on failure; None (skipped, a failure under CI=true) when fastddsgen, g++ or the Fast DDS
+/// headers are missing.
+pub fn build_fastdds(program: &str, idl: &std::path::Path) -> Option<(tempfile::TempDir, PathBuf)> {
     tutti_test_support::require_tool("fastddsgen", "fastddsgen")?;
     tutti_test_support::require_tool("g++", "g++")?;
     let headers = std::path::Path::new("/usr/include/fastdds/dds/domain/DomainParticipant.hpp");
@@ -24,29 +26,31 @@ fn build_subscriber() -> Option<(tempfile::TempDir, PathBuf)> {
             Err(format!("no {} (apt-get install libfastrtps-dev)", headers.display()))
         },
     )?;
-    let scratch = tempfile::Builder::new().prefix("gateway-fastdds").tempdir_in(env!("CARGO_TARGET_TMPDIR")).unwrap();
+    let scratch = tempfile::Builder::new().prefix(program).tempdir_in(env!("CARGO_TARGET_TMPDIR")).unwrap();
     let dir = scratch.path().to_path_buf();
-    let idl = tutti_test_support::repo_root().join("idl/multiuav_msgs/msg/dds_/MultiuavUav1Publish_.idl");
-    std::fs::copy(&idl, dir.join("MultiuavUav1Publish_.idl")).unwrap();
-    std::fs::copy(tutti_test_support::repo_root().join("tests/gateway/fastdds_sub.cpp"), dir.join("fastdds_sub.cpp"))
-        .unwrap();
+    let idl_name = idl.file_name().and_then(|n| n.to_str()).expect("an IDL file name");
+    let stem = idl_name.trim_end_matches(".idl");
+    std::fs::copy(idl, dir.join(idl_name)).unwrap();
+    let cpp = format!("{program}.cpp");
+    std::fs::copy(tutti_test_support::repo_root().join("tests/gateway").join(&cpp), dir.join(&cpp)).unwrap();
     let hint = "install them with `apt-get install -y libfastrtps-dev fastddsgen`";
     // -t: fastddsgen's preprocessed copies go to the scratch directory, not to /tmp.
-    let gen =
-        Command::new("fastddsgen").args(["-replace", "-t", ".", "MultiuavUav1Publish_.idl"]).current_dir(&dir).output();
+    let gen = Command::new("fastddsgen").args(["-replace", "-t", ".", idl_name]).current_dir(&dir).output();
     assert!(gen.as_ref().is_ok_and(|o| o.status.success()), "fastddsgen failed ({gen:?}): {hint}");
     let out = Command::new("g++")
-        .args(["-std=c++11", "-O1", "-o", "fastdds_sub", "fastdds_sub.cpp", "MultiuavUav1Publish_.cxx"])
-        .args(["MultiuavUav1Publish_PubSubTypes.cxx", "-lfastrtps", "-lfastcdr"])
+        .args(["-std=c++11", "-O1", "-o", program, &cpp, &format!("{stem}.cxx")])
+        .args([format!("{stem}PubSubTypes.cxx").as_str(), "-lfastrtps", "-lfastcdr"])
         .current_dir(&dir)
         .output()
         .expect("g++");
-    assert!(
-        out.status.success(),
-        "building the Fast DDS subscriber failed: {hint}\n{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    Some((scratch, dir.join("fastdds_sub")))
+    assert!(out.status.success(), "building {program} failed: {hint}\n{}", String::from_utf8_lossy(&out.stderr));
+    Some((scratch, dir.join(program)))
+}
+
+/// The Fast DDS subscriber of multiuav_uav1's PUBLISH set (`tests/gateway/fastdds_sub.cpp`).
+fn build_subscriber() -> Option<(tempfile::TempDir, PathBuf)> {
+    let idl = tutti_test_support::repo_root().join("idl/multiuav_msgs/msg/dds_/MultiuavUav1Publish_.idl");
+    build_fastdds("fastdds_sub", &idl)
 }
 
 fn a_fast_dds_subscriber_receives_typed_samples(e: Eng) {

@@ -1,19 +1,165 @@
-//! ROS 2 `simulation_interfaces` services on the gateway (docs/ros2.md), driven by the Cyclone
-//! peer (`dds_peer.py service`) in rmw_cyclonedds's request and reply layout, each request
-//! checked byte for byte against that layout: against `tutti host --gateway` with a
-//! synchronous domain (every service, the exact steps, the refusals and repeated
-//! transitions) and with asynchronous domains only (stepping refused, with the reason); the
-//! action `simulate_steps` (`dds_peer.py action`: feedback after each step, cancel, the
-//! refusals); a passive gateway offers none. Each test has its own namespace and DDS domain
-//! (40-44).
+//! ROS 2 `simulation_interfaces` services on the gateway (docs/ros2.md), driven in both wire
+//! forms, one suite over three ways of reaching them ([`Way`]): the Cyclone peer
+//! (`dds_peer.py service` and `action`, rmw_cyclonedds's request and reply layout, each request
+//! checked byte for byte against it) against the gateway in the framework's process on either
+//! engine, and ros2-client's own `Client` and `ActionClient` in Fast DDS's form
+//! (`ServiceMapping::Enhanced`, [`crate::simif_client`]) against `tutti gateway --dds rustdds`
+//! beside a framework. Each checks every service with a synchronous domain (the exact steps,
+//! the refusals and repeated transitions) and with asynchronous domains only (stepping
+//! refused, with the reason), the action `simulate_steps` (feedback after each step, cancel,
+//! the refusals), and that a passive gateway offers none. Each run has its own namespace
+//! and DDS domain (40-44 Cyclone, 90-94 rustdds, 45-49 Fast DDS's form); a Fast DDS client in rmw_fastrtps's
+//! manner (`fastdds_requester.cpp`) is answered on the rustdds engine (50).
 
 use crate::gateway;
+use crate::simif_client;
 
-use std::time::Duration;
+use std::path::PathBuf;
+use std::time::{Duration, Instant};
 
 use gateway::*;
 use serde_json::Value;
 use tutti_test_support::{namespace, RemoveSegments};
+
+/// The wire form of a test's client.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Form {
+    /// rmw_cyclonedds's: the Cyclone peer, in the framework's process.
+    Cyclone,
+    /// Fast DDS's: ros2-client's clients, against a gateway beside the framework.
+    Enhanced,
+}
+
+/// One way of reaching the services: the gateway's engine, the client's wire form, and the
+/// DDS domains of its runs (the test's base number plus `offset`).
+#[derive(Debug, Clone, Copy)]
+pub struct Way {
+    eng: Eng,
+    form: Form,
+    offset: u16,
+}
+
+impl Way {
+    pub const CYCLONE: Way = Way { eng: Eng::CYCLONE, form: Form::Cyclone, offset: 0 };
+    pub const RUSTDDS: Way = Way { eng: Eng::RUSTDDS, form: Form::Cyclone, offset: 50 };
+    pub const ENHANCED: Way = Way { eng: Eng::RUSTDDS, form: Form::Enhanced, offset: 5 };
+
+    /// The test numbered `base`'s client and run names, None when its client is missing
+    /// (skipped; a failure under CI=true).
+    fn client(self, base: u16) -> Option<Caller> {
+        let dom = base + self.offset;
+        let py = match self.form {
+            Form::Cyclone => Some(python()?),
+            Form::Enhanced => None,
+        };
+        Some(Caller { way: self, py, dom, ns: namespace(&format!("simif{dom}_")) })
+    }
+}
+
+/// Turns each named `fn NAME(w: Way)` into three tests, `NAME::cyclone`, `NAME::rustdds` and
+/// `NAME::rustdds_enhanced`.
+macro_rules! per_way {
+    ($($name:ident),* $(,)?) => {$(
+        mod $name {
+            #[test]
+            fn cyclone() {
+                super::$name(super::Way::CYCLONE)
+            }
+            #[test]
+            fn rustdds() {
+                super::$name(super::Way::RUSTDDS)
+            }
+            #[test]
+            fn rustdds_enhanced() {
+                super::$name(super::Way::ENHANCED)
+            }
+        }
+    )*};
+}
+
+/// A test's client, its DDS domain and namespace.
+struct Caller {
+    way: Way,
+    /// The Cyclone peer's Python (rmw_cyclonedds's form).
+    py: Option<PathBuf>,
+    dom: u16,
+    ns: String,
+}
+
+/// A run: the framework, the gateway beside it (Fast DDS's form) and its segments.
+struct Run {
+    host: Proc,
+    _gateway: Option<Proc>,
+    _segments: RemoveSegments,
+}
+
+impl Caller {
+    /// A run of `ddf`: `tutti host --gateway` (rmw_cyclonedds's form), or `tutti host` and
+    /// `tutti gateway --dds rustdds` beside it (Fast DDS's form).
+    fn start(&self, ddf: &str) -> Run {
+        if self.way.form == Form::Cyclone {
+            let (host, segments) = host_with_gateway(self.way.eng, ddf, self.dom, &self.ns, &[]);
+            return Run { host, _gateway: None, _segments: segments };
+        }
+        let segments = RemoveSegments(self.ns.clone());
+        let mut cmd = tutti_test_support::tutti_command();
+        cmd.args(["host", ddf, "--step", "5ms", "-q"]).env("TUTTI_NAMESPACE", &self.ns);
+        let host = Proc::spawn(&format!("host {}", self.ns), cmd, SECS(180));
+        let socket = tutti_host::control::socket_path(&self.ns);
+        let end = Instant::now() + SECS(30);
+        while !socket.exists() {
+            assert!(Instant::now() < end, "no control socket\n{}", host.dump());
+            std::thread::sleep(Duration::from_millis(20));
+        }
+        let gw = self.way.eng.gateway(ddf, self.dom, &self.ns, &[]);
+        Run { host, _gateway: Some(gw), _segments: segments }
+    }
+
+    /// Makes `calls` (JSON: `[["NAME", ARG], ...]`); each call's response.
+    fn calls(&self, calls: &str) -> Vec<Value> {
+        match &self.py {
+            Some(py) => {
+                let mut p = peer(py, "simulation client", self.dom, "service", &["--calls", calls, "--timeout", "60"]);
+                assert_eq!(p.wait(SECS(100)), Some(0), "the client failed\n{}", p.dump());
+                json_lines(&p, "call")
+            }
+            None => simif_client::calls(self.dom, calls).unwrap_or_else(|e| panic!("the ros2-client client: {e}")),
+        }
+    }
+
+    /// Whether the client finds the services within a few seconds.
+    fn finds_services(&self) -> bool {
+        match &self.py {
+            Some(py) => {
+                let args = ["--calls", r#"[["get_simulation_state"]]"#, "--timeout", "5"];
+                let mut p = peer(py, "simulation client", self.dom, "service", &args);
+                match p.wait(SECS(60)) {
+                    Some(0) => true,
+                    Some(3) if p.stdout().contains("no service") => false,
+                    other => panic!("the client ended with {other:?}\n{}", p.dump()),
+                }
+            }
+            None => simif_client::finds_services(self.dom, SECS(5))
+                .unwrap_or_else(|e| panic!("the ros2-client client: {e}")),
+        }
+    }
+
+    /// A goal of `steps` steps of the action, canceled after `cancel_after` feedback samples
+    /// (0: never): the client's output lines.
+    fn simulate_steps(&self, steps: u64, cancel_after: u64) -> Vec<Value> {
+        match &self.py {
+            Some(py) => {
+                let (steps, cancel) = (steps.to_string(), cancel_after.to_string());
+                let args = ["--steps", steps.as_str(), "--cancel-after", cancel.as_str(), "--timeout", "60"];
+                let mut p = peer(py, "action client", self.dom, "action", &args);
+                assert_eq!(p.wait(SECS(100)), Some(0), "the action client failed\n{}", p.dump());
+                p.lines().iter().filter_map(|l| serde_json::from_str::<Value>(l).ok()).collect()
+            }
+            None => simif_client::simulate_steps(self.dom, steps, cancel_after)
+                .unwrap_or_else(|e| panic!("the ros2-client action client: {e}")),
+        }
+    }
+}
 
 /// `tutti ctl state --json` in namespace `ns`.
 fn ctl_state(ns: &str) -> Value {
@@ -22,13 +168,6 @@ fn ctl_state(ns: &str) -> Value {
     let (status, out, err) = tutti_test_support::run_with_timeout(cmd, Duration::from_secs(60));
     assert!(status.success(), "tutti ctl state: {err}");
     serde_json::from_str(out.trim()).unwrap_or_else(|e| panic!("tutti ctl state: {e}: {out}"))
-}
-
-/// Makes `calls` (JSON: `[["NAME", ARG], ...]`) with the Cyclone client; each call's response.
-fn calls(py: &std::path::Path, dom: u16, calls: &str) -> Vec<Value> {
-    let mut p = peer(py, "simulation client", dom, "service", &["--calls", calls, "--timeout", "60"]);
-    assert_eq!(p.wait(SECS(100)), Some(0), "the client failed\n{}", p.dump());
-    json_lines(&p, "call")
 }
 
 /// A response's (result code, error message).
@@ -45,13 +184,12 @@ const FEATURE_UNSUPPORTED: u64 = 0;
 const ALREADY_IN_TARGET_STATE: u64 = 101;
 const INCORRECT_TRANSITION: u64 = 103;
 
-#[test]
-fn the_simulation_services_drive_the_run_and_refuse_with_the_standard_codes() {
-    let Some(py) = python() else { return };
-    let (dom, ns) = (40, namespace("simif40_"));
-    let (mut host, _segments) = host_with_gateway(Eng::CYCLONE, DDF, dom, &ns, &[]);
+fn the_simulation_services_drive_the_run_and_refuse_with_the_standard_codes(w: Way) {
+    let Some(c) = w.client(40) else { return };
+    let ns = c.ns.as_str();
+    let mut run = c.start(DDF);
 
-    let r = calls(&py, dom, r#"[["get_simulator_features"], ["get_simulation_state"], ["set_simulation_state", 2]]"#);
+    let r = c.calls(r#"[["get_simulator_features"], ["get_simulation_state"], ["set_simulation_state", 2]]"#);
     assert_eq!(r.len(), 3, "{r:?}");
     let features: Vec<u64> =
         r[0]["features"]["features"].as_array().expect("features").iter().filter_map(Value::as_u64).collect();
@@ -62,20 +200,18 @@ fn the_simulation_services_drive_the_run_and_refuse_with_the_standard_codes() {
     assert_eq!(r[1]["state"]["state"].as_u64(), Some(STATE_PLAYING), "{:?}", r[1]);
     assert_eq!(result(&r[1]).0, OK);
     assert_eq!(result(&r[2]).0, OK, "{:?}", r[2]);
-    let paused = ctl_state(&ns);
+    let paused = ctl_state(ns);
     assert_eq!(paused["state"], "paused");
     let at = paused["step"].as_u64().expect("a step");
 
-    let r = calls(&py, dom, r#"[["step_simulation", 3], ["get_simulation_state"], ["set_simulation_state", 2]]"#);
+    let r = c.calls(r#"[["step_simulation", 3], ["get_simulation_state"], ["set_simulation_state", 2]]"#);
     assert_eq!(result(&r[0]).0, OK, "{:?}", r[0]);
-    let after = ctl_state(&ns);
+    let after = ctl_state(ns);
     assert_eq!((after["state"].as_str(), after["step"].as_u64()), (Some("paused"), Some(at + 3)), "exactly 3 steps");
     assert_eq!(r[1]["state"]["state"].as_u64(), Some(STATE_PAUSED));
     assert_eq!(result(&r[2]), (ALREADY_IN_TARGET_STATE, "already paused".to_string()));
 
-    let r = calls(
-        &py,
-        dom,
+    let r = c.calls(
         r#"[["set_simulation_state", 1], ["set_simulation_state", 1], ["step_simulation", 2],
             ["reset_simulation", 1], ["reset_simulation", 0], ["reset_simulation", 2], ["reset_simulation", 255],
             ["set_simulation_state", 0], ["get_simulation_state"], ["set_simulation_state", 2],
@@ -99,22 +235,18 @@ fn the_simulation_services_drive_the_run_and_refuse_with_the_standard_codes() {
     assert_eq!(result(&r[10]).0, FEATURE_UNSUPPORTED, "NO_WORLD: {:?}", r[10]);
     assert_eq!(result(&r[11]).0, OK);
     assert_eq!(r[12]["state"]["state"].as_u64(), Some(STATE_PLAYING));
-    assert_eq!(ctl_state(&ns)["state"], "playing");
+    assert_eq!(ctl_state(ns)["state"], "playing");
 
     // QUITTING ends the run.
-    let r = calls(&py, dom, r#"[["set_simulation_state", 3]]"#);
+    let r = c.calls(r#"[["set_simulation_state", 3]]"#);
     assert_eq!(result(&r[0]).0, OK, "{:?}", r[0]);
-    assert!(host.wait(SECS(60)).is_some(), "the run did not end\n{}", host.dump());
+    assert!(run.host.wait(SECS(60)).is_some(), "the run did not end\n{}", run.host.dump());
 }
 
-#[test]
-fn stepping_a_run_of_asynchronous_domains_is_refused_with_the_reason() {
-    let Some(py) = python() else { return };
-    let (dom, ns) = (41, namespace("simif41_"));
-    let (_host, _segments) = host_with_gateway(Eng::CYCLONE, "tests/gateway/async-only.ddf", dom, &ns, &[]);
-    let r = calls(
-        &py,
-        dom,
+fn stepping_a_run_of_asynchronous_domains_is_refused_with_the_reason(w: Way) {
+    let Some(c) = w.client(41) else { return };
+    let _run = c.start("tests/gateway/async-only.ddf");
+    let r = c.calls(
         r#"[["get_simulator_features"], ["set_simulation_state", 2], ["step_simulation", 1], ["step_simulation", 5],
             ["set_simulation_state", 1]]"#,
     );
@@ -129,30 +261,15 @@ fn stepping_a_run_of_asynchronous_domains_is_refused_with_the_reason() {
         assert!(why.contains("asynchronous (simif_async)") && why.contains("no step to count"), "{why}");
     }
     assert_eq!(result(&r[4]).0, OK);
-    assert_eq!(ctl_state(&ns)["state"], "playing");
+    assert_eq!(ctl_state(&c.ns)["state"], "playing");
 }
 
-#[test]
-fn a_passive_gateway_offers_no_simulation_services() {
-    let Some(py) = python() else { return };
-    let (dom, ns) = (42, namespace("simif42_"));
-    let _segments = RemoveSegments(ns.clone());
-    let _host = Host::start(&ns, "gw_sync", Duration::from_millis(10), |_| vec![0; 8]);
-    let _gw = gateway(DDF, dom, &ns, &["--passive"]);
-    let mut p =
-        peer(&py, "simulation client", dom, "service", &["--calls", r#"[["get_simulation_state"]]"#, "--timeout", "5"]);
-    assert_eq!(p.wait(SECS(60)), Some(3), "a passive gateway answered\n{}", p.dump());
-    assert!(p.stdout().contains("no service"), "{}", p.dump());
-}
-
-/// The action client (`dds_peer.py action`) for `steps` steps, canceling after `cancel_after`
-/// feedback samples (0: never): its output lines.
-fn simulate_steps(py: &std::path::Path, dom: u16, steps: u64, cancel_after: u64) -> Vec<Value> {
-    let (steps, cancel) = (steps.to_string(), cancel_after.to_string());
-    let args = ["--steps", steps.as_str(), "--cancel-after", cancel.as_str(), "--timeout", "60"];
-    let mut p = peer(py, "action client", dom, "action", &args);
-    assert_eq!(p.wait(SECS(100)), Some(0), "the action client failed\n{}", p.dump());
-    p.lines().iter().filter_map(|l| serde_json::from_str::<Value>(l).ok()).collect()
+fn a_passive_gateway_offers_no_simulation_services(w: Way) {
+    let Some(c) = w.client(42) else { return };
+    let _segments = RemoveSegments(c.ns.clone());
+    let _host = Host::start(&c.ns, "gw_sync", Duration::from_millis(10), |_| vec![0; 8]);
+    let gw = w.eng.gateway(DDF, c.dom, &c.ns, &["--passive"]);
+    assert!(!c.finds_services(), "a passive gateway offers the services\n{}", gw.dump());
 }
 
 fn feedback(lines: &[Value]) -> Vec<(u64, u64)> {
@@ -170,41 +287,41 @@ const SUCCEEDED: u64 = 4;
 const CANCELED: u64 = 5;
 const ABORTED: u64 = 6;
 
-#[test]
-fn the_simulate_steps_action_gives_feedback_after_each_step_and_cancels() {
-    let Some(py) = python() else { return };
-    let (dom, ns) = (43, namespace("simif43_"));
-    let (_host, _segments) = host_with_gateway(Eng::CYCLONE, DDF, dom, &ns, &[]);
+fn the_simulate_steps_action_gives_feedback_after_each_step_and_cancels(w: Way) {
+    let Some(c) = w.client(43) else { return };
+    let ns = c.ns.as_str();
+    let _run = c.start(DDF);
 
     // Playing: the goal is accepted and aborted with the call's result.
-    let lines = simulate_steps(&py, dom, 3, 0);
+    let lines = c.simulate_steps(3, 0);
     assert_eq!(line(&lines, "accepted")["accepted"], true);
     let end = line(&lines, "status");
     assert_eq!((end["status"].as_u64(), end["result"]["result"].as_u64()), (Some(ABORTED), Some(4)), "{end}");
     assert!(end["result"]["error_message"].as_str().unwrap_or("").contains("playing"), "{end}");
     assert!(feedback(&lines).is_empty());
 
-    let r = calls(&py, dom, r#"[["get_simulator_features"], ["set_simulation_state", 2]]"#);
+    let r = c.calls(r#"[["get_simulator_features"], ["set_simulation_state", 2]]"#);
     let features = &r[0]["features"]["features"];
     assert!(features.as_array().is_some_and(|f| f.contains(&Value::from(33))), "STEP_SIMULATION_ACTION: {features}");
-    let at = ctl_state(&ns)["step"].as_u64().expect("a step");
+    let at = ctl_state(ns)["step"].as_u64().expect("a step");
 
-    let lines = simulate_steps(&py, dom, 4, 0);
+    let lines = c.simulate_steps(4, 0);
     assert_eq!(feedback(&lines), vec![(1, 3), (2, 2), (3, 1), (4, 0)], "feedback after each step");
     let end = line(&lines, "status");
     assert_eq!((end["status"].as_u64(), end["result"]["result"].as_u64()), (Some(SUCCEEDED), Some(OK)), "{end}");
     assert_eq!(end["last_status"].as_u64(), Some(SUCCEEDED), "the status topic: {end}");
-    assert_eq!(ctl_state(&ns)["step"].as_u64(), Some(at + 4), "exactly 4 steps");
+    assert_eq!(ctl_state(ns)["step"].as_u64(), Some(at + 4), "exactly 4 steps");
 
     // Canceled after the second feedback: the goal ends between two steps, well before its 100000.
     let at = at + 4;
-    let lines = simulate_steps(&py, dom, 100_000, 2);
-    let c = line(&lines, "cancel");
-    assert_eq!((c["cancel"].as_u64(), c["canceling"].as_u64()), (Some(0), Some(1)), "ERROR_NONE, one goal: {c}");
+    let lines = c.simulate_steps(100_000, 2);
+    let cancel = line(&lines, "cancel");
+    let canceling = (cancel["cancel"].as_u64(), cancel["canceling"].as_u64());
+    assert_eq!(canceling, (Some(0), Some(1)), "ERROR_NONE, one goal: {cancel}");
     let end = line(&lines, "status");
     assert_eq!(end["status"].as_u64(), Some(CANCELED), "{end}");
     assert_eq!(end["last_status"].as_u64(), Some(CANCELED), "{end}");
-    let made = ctl_state(&ns)["step"].as_u64().expect("a step") - at;
+    let made = ctl_state(ns)["step"].as_u64().expect("a step") - at;
     let fb = feedback(&lines);
     assert!((2..100_000).contains(&made), "{made} steps");
     assert_eq!(fb.last().map(|f| f.0), Some(made), "the last feedback is the last step made: {fb:?}");
@@ -213,16 +330,41 @@ fn the_simulate_steps_action_gives_feedback_after_each_step_and_cancels() {
     assert_eq!(why, format!("canceled after {made} of 100000 steps"));
 }
 
-#[test]
-fn the_action_refuses_to_step_a_run_of_asynchronous_domains() {
-    let Some(py) = python() else { return };
-    let (dom, ns) = (44, namespace("simif44_"));
-    let (_host, _segments) = host_with_gateway(Eng::CYCLONE, "tests/gateway/async-only.ddf", dom, &ns, &[]);
-    let r = calls(&py, dom, r#"[["set_simulation_state", 2]]"#);
+fn the_action_refuses_to_step_a_run_of_asynchronous_domains(w: Way) {
+    let Some(c) = w.client(44) else { return };
+    let _run = c.start("tests/gateway/async-only.ddf");
+    let r = c.calls(r#"[["set_simulation_state", 2]]"#);
     assert_eq!(result(&r[0]).0, OK);
-    let lines = simulate_steps(&py, dom, 2, 0);
+    let lines = c.simulate_steps(2, 0);
     let end = line(&lines, "status");
     assert_eq!((end["status"].as_u64(), end["result"]["result"].as_u64()), (Some(ABORTED), Some(FEATURE_UNSUPPORTED)));
     assert!(end["result"]["error_message"].as_str().unwrap_or("").contains("asynchronous (simif_async)"), "{end}");
     assert!(feedback(&lines).is_empty());
+}
+
+per_way!(
+    the_simulation_services_drive_the_run_and_refuse_with_the_standard_codes,
+    stepping_a_run_of_asynchronous_domains_is_refused_with_the_reason,
+    a_passive_gateway_offers_no_simulation_services,
+    the_simulate_steps_action_gives_feedback_after_each_step_and_cancels,
+    the_action_refuses_to_step_a_run_of_asynchronous_domains,
+);
+
+/// A Fast DDS client that sends and takes requests and replies exactly as rmw_fastrtps does
+/// (`tests/gateway/fastdds_requester.cpp`: each request carries a related sample identity
+/// naming its reply reader, the sequence number unknown) is answered by the rustdds engine in
+/// its form: each reply's related sample identity names that reader and the request's
+/// sequence number (DDS domain 50).
+#[test]
+fn a_client_in_rmw_fastrtps_manner_is_answered_on_the_rustdds_engine() {
+    let idl = tutti_test_support::repo_root().join("tests/gateway/GetSimulationState_.idl");
+    let Some((_scratch, bin)) = crate::gateway_fastdds::build_fastdds("fastdds_requester", &idl) else { return };
+    let Some(c) = Way::ENHANCED.client(45) else { return };
+    let _run = c.start(DDF);
+    let mut cmd = std::process::Command::new(&bin);
+    cmd.args([c.dom.to_string().as_str(), "3", "60"]);
+    let mut p = Proc::spawn("fastdds_requester", cmd, SECS(100));
+    assert_eq!(p.wait(SECS(90)), Some(0), "{}", p.dump());
+    let replies: Vec<String> = p.lines().into_iter().filter(|l| l.starts_with("state=")).collect();
+    assert_eq!(replies, vec!["state=1 result=1 related=reader"; 3], "{}", p.dump());
 }

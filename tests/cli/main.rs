@@ -42,6 +42,7 @@ mod replay;
 mod ros2_real;
 mod ros2_typehash;
 mod run;
+mod simif_client;
 mod ssp;
 mod studio_browser;
 mod uav_demo;

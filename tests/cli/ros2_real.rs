@@ -10,7 +10,8 @@
 //!   warned once per endpoint).
 //!
 //! Every ROS 2 process runs on loopback (`CYCLONEDDS_URI`), in a DDS domain of its test
-//! (142-149), with its logs in the test's temporary directory, and without the ros2cli daemon.
+//! (142-149; 51 for the services on the rustdds engine), with its logs in the test's temporary
+//! directory, and without the ros2cli daemon.
 
 use crate::gateway;
 
@@ -301,6 +302,13 @@ fn services_drive_a_synchronous_run(e: Eng, dom: u16) {
 #[test]
 fn rclpy_and_ros2cli_drive_the_simulation_services_cyclone() {
     services_drive_a_synchronous_run(Eng::CYCLONE, 142);
+}
+
+/// rmw_cyclonedds's form on the rustdds engine, which tells it from Fast DDS's request by
+/// request (docs/ros2.md, "Wire forms").
+#[test]
+fn rclpy_and_ros2cli_drive_the_simulation_services_rustdds() {
+    services_drive_a_synchronous_run(Eng::RUSTDDS, 51);
 }
 
 #[test]

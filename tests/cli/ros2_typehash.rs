@@ -245,15 +245,10 @@ fn assert_hashes(
     }
 }
 
-/// The endpoints of the simulation services and action that `gw` offers: each service's
-/// request reader and reply writer, the action's feedback and status writers. None on an
-/// engine that offers no services yet (the gateway says so as it starts; docs/ros2.md).
-fn service_endpoints(gw: &Proc, e: Eng) -> Vec<(&'static str, String)> {
-    let offers_none = gw.lines().iter().any(|l| l.contains("services are offered on the cyclone engine only"));
-    assert!(!(offers_none && e.name == "cyclone"), "the cyclone engine offers the services\n{}", gw.dump());
-    if offers_none {
-        return Vec::new();
-    }
+/// The endpoints of the simulation services and action that a gateway offers on either
+/// engine: each service's request reader and reply writer, the action's feedback and status
+/// writers.
+fn service_endpoints() -> Vec<(&'static str, String)> {
     let mut eps: Vec<(&str, String)> = SERVICES
         .iter()
         .flat_map(|s| [("reader", format!("rq/{s}Request")), ("writer", format!("rr/{s}Reply"))])
@@ -279,7 +274,7 @@ fn every_endpoint_of_the_gateway_announces_its_type_hash(e: Eng) {
     // Typed: a writer per PUBLISH set, a reader per SUBSCRIBE set.
     let gw = e.gateway(DDF, dom, &e.ns("typehash"), &["--all-domains"]);
     let mut expected = discovery.clone();
-    expected.extend(service_endpoints(&gw, e));
+    expected.extend(service_endpoints());
     for d in ["gw_async", "gw_sync", "gw_states"] {
         expected.push(("writer", format!("rt/{d}/publish")));
         expected.push(("reader", format!("rt/{d}/subscribe")));
@@ -291,7 +286,7 @@ fn every_endpoint_of_the_gateway_announces_its_type_hash(e: Eng) {
     // Per item: std_msgs Float64, Bool and Float64MultiArray.
     let gw = e.gateway(DDF, dom + 1, &e.ns("typehashi"), &["--all-domains", "--ros2-types", "per-item"]);
     let mut expected = discovery;
-    expected.extend(service_endpoints(&gw, e));
+    expected.extend(service_endpoints());
     expected.extend(
         [
             ("writer", "rt/gw_async/publish/x"),

@@ -242,10 +242,6 @@ impl Manager {
         if self.opts.mirror || self.opts.passive {
             return Ok(());
         }
-        if self.dds.kind() != engine::EngineKind::Cyclone {
-            info!("the simulation_interfaces services are offered on the cyclone engine only (docs/ros2.md)");
-            return Ok(());
-        }
         let thread = crate::services::start(
             self.dds.clone(),
             &self.opts.ros_namespace,

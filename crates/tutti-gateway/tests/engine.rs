@@ -3,7 +3,8 @@
 //! byte orders (typed sets and per-item stock messages), the gateway's own samples known by
 //! their GUID prefix and dropped by the route's sink, discovery of remote endpoints with the
 //! QoS they announced, QoS matching and its refusal, exclusive ownership, the node
-//! announcement on `ros_discovery_info`, and samples that cannot be decoded reported as such.
+//! announcement on `ros_discovery_info`, samples that cannot be decoded reported as such, and
+//! the identities a ROS 2 service's request and reply carry (docs/ros2.md, "Wire forms").
 //!
 //! Everything runs in this process, on loopback, with no Python and no gateway binary. Each
 //! scenario has a DDS domain of its own (60-79 for cyclone, 80-99 for rustdds) so that all run
@@ -20,7 +21,8 @@ use tutti_core::ddf::{parse_str, Leaf, SetLayout};
 use tutti_core::mapping::{Durability, History, Ownership, Qos, Reliability};
 use tutti_gateway::cdr::{stock, CdrError, Payload, SetCodec, TypedSample, HEADER_LE};
 use tutti_gateway::engine::{
-    self, Decode, EndpointQos, Engine, EngineConfig, EngineKind, Guid, Sink, TopicType, Writer,
+    self, Decode, EndpointQos, Engine, EngineConfig, EngineKind, Guid, Identified, SampleIdentity, Sink, TopicType,
+    Writer,
 };
 use tutti_gateway::routes::from_dds::{self, Destination, Direct, Target};
 use tutti_gateway::routes::Event;
@@ -55,6 +57,7 @@ conformance! {
     4 => exclusive_ownership_goes_by_strength,
     5 => the_node_is_announced_on_ros_discovery_info,
     6 => a_sample_that_cannot_be_decoded_is_reported,
+    7 => identified_samples_carry_their_identity_where_the_engine_reads_it,
 }
 
 #[test]
@@ -434,6 +437,69 @@ fn the_node_is_announced_on_ros_discovery_info(c: &Case) {
     });
     let n = info.nodes.iter().find(|n| n.name == want).unwrap();
     assert_eq!(n.namespace, "/conformance");
+}
+
+/// What an identified reader saw of one sample.
+#[derive(Debug, Clone, PartialEq)]
+struct Seen {
+    writer: Guid,
+    sequence: Option<i64>,
+    related: Option<SampleIdentity>,
+    raw: Vec<u8>,
+}
+
+/// An identified reader hands each sample with its writer's GUID; where the engine reads
+/// identities (rustdds) also its sequence number, increasing, and the related sample identity
+/// a related writer put on it, and none on a plain write; where it does not (Cyclone), none,
+/// and its related writer refuses to write one. A Cyclone DDS writer's GUID starts with
+/// Cyclone's vendor id, which the services read a request's form by.
+fn identified_samples_carry_their_identity_where_the_engine_reads_it(c: &Case) {
+    let reader = c.open("reader");
+    let writer = c.open("writer");
+    let cyclone = c.peer_cyclone("cyclone_writer");
+    let q = qos(Reliability::Reliable, History::KeepLast(10), false, Ownership::Shared);
+    let topic = c.topic("identified");
+    let ty = TopicType::plain(SET_TYPE);
+    let seen = Arc::new(Mutex::new(Vec::<Seen>::new()));
+    let tap = seen.clone();
+    let sink = Arc::new(move |s: Identified<'_>| {
+        lock(&tap).push(Seen { writer: s.writer, sequence: s.sequence, related: s.related, raw: s.raw.to_vec() })
+    });
+    reader.identified_reader(&topic, &ty, &q, sink).unwrap();
+    let mut w = writer.related_writer(&topic, &ty, &q).unwrap();
+    let mut peer = cyclone.writer(&topic, &ty, &q).unwrap();
+    let reads = c.engine == EngineKind::Rustdds;
+    let related = SampleIdentity { writer: Guid([9; 16]), sequence: 42 };
+    let (plain, answer, theirs) = (vec![1u8, 0, 0, 0], vec![2u8, 0, 0, 0], vec![3u8, 0, 0, 0]);
+    until("a plain, a related and a Cyclone sample", || {
+        assert!(w.write(&plain));
+        assert_eq!(w.write_related(&answer, related), reads, "a related writer writes a related identity where it can");
+        w.flush();
+        assert!(peer.write(&theirs));
+        peer.flush();
+        let got = lock(&seen);
+        let has = |body: &[u8]| got.iter().any(|s| s.raw[4..] == *body);
+        has(&plain) && (!reads || has(&answer)) && has(&theirs)
+    });
+    let got = lock(&seen).clone();
+    for s in &got {
+        assert_eq!(s.raw[..4], HEADER_LE, "{s:?}");
+        let body = &s.raw[4..];
+        let from_peer = body == theirs.as_slice();
+        let prefix = if from_peer { cyclone.own_prefix() } else { writer.own_prefix() };
+        assert_eq!(s.writer.prefix(), prefix, "{s:?}");
+        if from_peer {
+            assert_eq!(s.writer.0[..2], [0x01, 0x10], "Cyclone's vendor id heads its GUIDs: {s:?}");
+        }
+        assert_eq!(s.sequence.is_some(), reads, "{s:?}");
+        let want = (reads && body == answer.as_slice()).then_some(related);
+        assert_eq!(s.related, want, "{s:?}");
+    }
+    if reads {
+        let ours: Vec<i64> =
+            got.iter().filter(|s| s.writer.prefix() == writer.own_prefix()).filter_map(|s| s.sequence).collect();
+        assert!(ours.windows(2).all(|p| p[0] < p[1]), "a writer's sequence numbers increase: {ours:?}");
+    }
 }
 
 // ---------------------------------------------------------------------------------------

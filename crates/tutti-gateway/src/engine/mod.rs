@@ -202,6 +202,34 @@ impl Data<'_> {
 /// It must not block for long: on Cyclone it runs on the receive thread.
 pub type Sink = Arc<dyn Fn(Guid, Data<'_>) + Send + Sync>;
 
+/// A sample's identity on the wire: the GUID of its writer and the writer's sequence number
+/// for it. A reply of a service in Fast DDS's form carries its request's as its *related
+/// sample identity* (docs/ros2.md, "Wire forms").
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct SampleIdentity {
+    pub writer: Guid,
+    pub sequence: i64,
+}
+
+/// One sample of a reader made by [`Engine::identified_reader`]: its serialized form and what
+/// the wire says of it beyond its writer.
+#[derive(Debug)]
+pub struct Identified<'a> {
+    /// The writer's GUID.
+    pub writer: Guid,
+    /// The writer's sequence number for the sample; None where the engine does not read
+    /// it (Cyclone).
+    pub sequence: Option<i64>,
+    /// The related sample identity the sample carries (an inline QoS parameter), if any; always
+    /// None where the engine does not read it (Cyclone).
+    pub related: Option<SampleIdentity>,
+    /// The serialized sample, encapsulation header included.
+    pub raw: &'a [u8],
+}
+
+/// Where an identified reader's samples go; as a [`Sink`], it must not block for long.
+pub type IdentifiedSink = Arc<dyn Fn(Identified<'_>) + Send + Sync>;
+
 /// A writer of pre-encoded samples.
 pub trait Writer: Send {
     /// Writes one sample whose CDR body (little-endian, no encapsulation header) is `body`;
@@ -211,6 +239,13 @@ pub trait Writer: Send {
     /// either byte order); false when DDS refused it, or when the engine writes only
     /// little-endian samples (rustdds).
     fn write_serialized(&mut self, raw: &[u8]) -> bool;
+    /// Writes one sample whose CDR body (little-endian, no encapsulation header) is `body`,
+    /// carrying `related` as its related sample identity; false when DDS refused it, or when
+    /// the engine cannot write one (Cyclone; only [`Engine::related_writer`]'s writers can).
+    fn write_related(&mut self, body: &[u8], related: SampleIdentity) -> bool {
+        let _ = (body, related);
+        false
+    }
     /// Sends what batching held back (a no-op where writes are not batched).
     fn flush(&mut self) {}
     /// A flush that another thread may call while this writer writes (None: the engine does
@@ -271,6 +306,28 @@ pub trait Engine: Send + Sync {
     /// go to `sink` for as long as the engine lives. `decode` is used by engines that decode
     /// as they read.
     fn reader(&self, topic: &str, ty: &TopicType, q: &Qos, decode: Decode, sink: Sink) -> Result<(), GatewayError>;
+    /// A reader on `topic` (as [`Engine::reader`], raw) whose samples go to `sink` with
+    /// their identity and related sample identity, where the engine reads them. By default a
+    /// raw reader that reads neither (Cyclone DDS offers neither: docs/ros2.md, "Wire forms").
+    fn identified_reader(
+        &self,
+        topic: &str,
+        ty: &TopicType,
+        q: &Qos,
+        sink: IdentifiedSink,
+    ) -> Result<(), GatewayError> {
+        let raw: Sink = Arc::new(move |writer: Guid, data: Data<'_>| {
+            if let Data::Raw(raw) = data {
+                sink(Identified { writer, sequence: None, related: None, raw });
+            }
+        });
+        self.reader(topic, ty, q, Decode::Raw, raw)
+    }
+    /// A writer on `topic` (as [`Engine::writer`]) whose [`Writer::write_related`] works where
+    /// the engine can write a related sample identity. By default [`Engine::writer`]'s.
+    fn related_writer(&self, topic: &str, ty: &TopicType, q: &Qos) -> Result<Box<dyn Writer>, GatewayError> {
+        self.writer(topic, ty, q)
+    }
     /// The remote endpoints discovered so far (our own participant's left out).
     fn remote(&self) -> Remote;
     /// Announces (again) the node with every endpoint created so far on `ros_discovery_info`.

@@ -17,14 +17,23 @@
 //! included: the participant is told the USER_DATA of each type before any endpoint of it
 //! is made (`set_user_data_of_type`, a patch of the vendored rustdds:
 //! vendor/rustdds/TUTTI-PATCHES.md).
+//!
+//! The services' endpoints ([`Engine::identified_reader`], [`Engine::related_writer`]) are
+//! plain rustdds endpoints instead: ros2-client's node endpoints neither hand over a sample's
+//! encoding nor write a related sample identity, and its `Node` adds no endpoint it did not make
+//! to its announcement, so these are not listed under the node on `ros_discovery_info`
+//! (docs/ros2.md, "Wire forms").
 
 use std::collections::HashMap;
+use std::convert::Infallible;
 use std::sync::{Arc, Mutex, PoisonError};
 
 use futures::{Stream, StreamExt};
 use ros2_client::builtin_topics::{parameter_events, ros_discovery};
+use ros2_client::dds::rustdds::{bytes::Bytes, no_key, RepresentationIdentifier};
 use ros2_client::dds::rustdds::{policy, QosPolicies};
 use ros2_client::dds::rustdds::{DomainParticipant, DomainParticipantBuilder, RTPSEntity, Topic, TopicKind};
+use ros2_client::dds::rustdds::{SequenceNumber, Timestamp, WriteOptionsBuilder, GUID};
 use ros2_client::dds::{Publisher, Subscription};
 use ros2_client::{Context, Gid, MessageInfo, Node, NodeName, NodeOptions};
 use serde::de::DeserializeOwned;
@@ -33,7 +42,8 @@ use tutti_core::ddf::{Leaf, Value};
 use tutti_core::mapping::{Ownership, Qos, Reliability};
 
 use super::{
-    Data, Decode, EndpointQos, Engine, EngineConfig, EngineKind, Guid, Remote, Sink, TopicType, Writer, PREFIX_LEN,
+    Data, Decode, EndpointQos, Engine, EngineConfig, EngineKind, Guid, Identified, IdentifiedSink, Remote,
+    SampleIdentity, Sink, TopicType, Writer, PREFIX_LEN,
 };
 use crate::cdr::stock::{self, Stock};
 use crate::cdr::{split_header, Bool, CdrError, Float64, Float64MultiArray, Payload, PreEncoded, SetSeed};
@@ -45,6 +55,8 @@ pub struct Rustdds {
     node: Mutex<Node>,
     own_prefix: [u8; PREFIX_LEN],
     topics: Mutex<HashMap<String, Topic>>,
+    /// The publisher and subscriber of the plain rustdds endpoints, made on first use.
+    plain: Mutex<Option<(ros2_client::dds::rustdds::Publisher, ros2_client::dds::rustdds::Subscriber)>>,
     rt: Option<tokio::runtime::Runtime>,
     // Last, so that the node goes before the context.
     _context: Context,
@@ -99,6 +111,7 @@ impl Rustdds {
             node: Mutex::new(node),
             own_prefix,
             topics: Mutex::new(HashMap::new()),
+            plain: Mutex::new(None),
             rt: Some(rt),
             _context: context,
         })
@@ -158,6 +171,119 @@ impl Rustdds {
             rt.spawn(async move { pump(sub.async_stream(), to_payload, sink).await });
         }
         Ok(())
+    }
+}
+
+impl Rustdds {
+    /// The publisher and subscriber of the plain rustdds endpoints.
+    fn plain(
+        &self,
+    ) -> Result<(ros2_client::dds::rustdds::Publisher, ros2_client::dds::rustdds::Subscriber), GatewayError> {
+        let mut plain = self.plain.lock().unwrap_or_else(PoisonError::into_inner);
+        if let Some(p) = plain.as_ref() {
+            return Ok(p.clone());
+        }
+        let q = ros2_client::dds::rustdds::QosPolicies::default();
+        let p = self.participant.create_publisher(&q).map_err(|e| GatewayError::dds("a DDS publisher", e))?;
+        let s = self.participant.create_subscriber(&q).map_err(|e| GatewayError::dds("a DDS subscriber", e))?;
+        *plain = Some((p.clone(), s.clone()));
+        Ok((p, s))
+    }
+}
+
+fn rustdds_guid(g: GUID) -> Guid {
+    Guid(g.to_bytes())
+}
+
+/// A serialized sample as a plain rustdds reader hands it: its body and its byte order.
+struct RawSample {
+    le: bool,
+    body: Vec<u8>,
+}
+
+/// Reads a sample's body as it is, in either byte order of plain CDR.
+#[derive(Clone)]
+struct RawAdapter;
+
+impl no_key::DeserializerAdapter<RawSample> for RawAdapter {
+    type Error = Infallible;
+    type Decoded = RawSample;
+
+    fn supported_encodings() -> &'static [RepresentationIdentifier] {
+        &[RepresentationIdentifier::CDR_LE, RepresentationIdentifier::CDR_BE]
+    }
+
+    fn transform_decoded(decoded: RawSample) -> RawSample {
+        decoded
+    }
+}
+
+impl no_key::DefaultDecoder<RawSample> for RawAdapter {
+    type Decoder = RawAdapter;
+    const DECODER: RawAdapter = RawAdapter;
+}
+
+impl<'de> no_key::Decode<'de, RawSample> for RawAdapter {
+    type Error = Infallible;
+
+    fn decode_bytes(self, bytes: &'de [u8], encoding: RepresentationIdentifier) -> Result<RawSample, Infallible> {
+        Ok(RawSample { le: encoding == RepresentationIdentifier::CDR_LE, body: bytes.to_vec() })
+    }
+}
+
+/// Writes a little-endian body as it is.
+#[derive(Debug)]
+struct RawBody(Vec<u8>);
+
+impl no_key::SerializerAdapter<RawBody> for RawAdapter {
+    type Error = Infallible;
+
+    fn output_encoding() -> RepresentationIdentifier {
+        RepresentationIdentifier::CDR_LE
+    }
+
+    fn to_bytes(value: &RawBody) -> Result<Bytes, Infallible> {
+        Ok(Bytes::copy_from_slice(&value.0))
+    }
+}
+
+/// A plain rustdds writer, which can write a related sample identity.
+struct RelatedWriter(no_key::DataWriter<RawBody, RawAdapter>);
+
+impl RelatedWriter {
+    fn write_with(&mut self, body: &[u8], related: Option<SampleIdentity>) -> bool {
+        let options = WriteOptionsBuilder::new().source_timestamp(Timestamp::now());
+        let options = match related {
+            Some(r) => options.related_sample_identity(ros2_client::dds::rustdds::SampleIdentity {
+                writer_guid: GUID::from_bytes(r.writer.0),
+                sequence_number: SequenceNumber::from(r.sequence),
+            }),
+            None => options,
+        };
+        match self.0.write_with_options(RawBody(body.to_vec()), options.build()) {
+            Ok(_) => true,
+            Err(e) => {
+                tracing::debug!("DDS write failed: {e:?}");
+                false
+            }
+        }
+    }
+}
+
+impl Writer for RelatedWriter {
+    fn write(&mut self, body: &[u8]) -> bool {
+        self.write_with(body, None)
+    }
+
+    fn write_serialized(&mut self, raw: &[u8]) -> bool {
+        match split_header(raw) {
+            Ok((true, body)) => self.write(body),
+            _ => false,
+        }
+    }
+
+    fn write_related(&mut self, body: &[u8], related: SampleIdentity) -> bool {
+        self.write_with(body, Some(related))
     }
 }
 
@@ -258,6 +384,54 @@ impl Engine for Rustdds {
             }
         }
         Ok(())
+    }
+
+    fn identified_reader(
+        &self,
+        topic: &str,
+        ty: &TopicType,
+        q: &Qos,
+        sink: IdentifiedSink,
+    ) -> Result<(), GatewayError> {
+        let t = self.topic(topic, ty, q)?;
+        let (_, subscriber) = self.plain()?;
+        let reader = subscriber
+            .create_simple_datareader_no_key::<RawSample, RawAdapter>(&t, Some(qos::profile(q).into()))
+            .map_err(|e| GatewayError::dds(format!("a reader on {topic}"), e))?;
+        if let Some(rt) = &self.rt {
+            rt.spawn(async move {
+                let stream = reader.as_async_stream();
+                futures::pin_mut!(stream);
+                while let Some(r) = stream.next().await {
+                    let dcc = match r {
+                        Ok(dcc) => dcc,
+                        Err(e) => {
+                            tracing::debug!("a sample of an identified reader lost: {e:?}");
+                            continue;
+                        }
+                    };
+                    let related = dcc.related_sample_identity().map(|r| SampleIdentity {
+                        writer: rustdds_guid(r.writer_guid),
+                        sequence: i64::from(r.sequence_number),
+                    });
+                    let (writer, sequence) = (rustdds_guid(dcc.writer_guid), i64::from(dcc.sequence_number));
+                    let sample = dcc.into_value();
+                    let header = if sample.le { [0, 1, 0, 0] } else { [0, 0, 0, 0] };
+                    let raw = [&header[..], &sample.body].concat();
+                    sink(Identified { writer, sequence: Some(sequence), related, raw: &raw });
+                }
+            });
+        }
+        Ok(())
+    }
+
+    fn related_writer(&self, topic: &str, ty: &TopicType, q: &Qos) -> Result<Box<dyn Writer>, GatewayError> {
+        let t = self.topic(topic, ty, q)?;
+        let (publisher, _) = self.plain()?;
+        let writer = publisher
+            .create_datawriter_no_key::<RawBody, RawAdapter>(&t, Some(qos::profile(q).into()))
+            .map_err(|e| GatewayError::dds(format!("a writer on {topic}"), e))?;
+        Ok(Box::new(RelatedWriter(writer)))
     }
 
     fn remote(&self) -> Remote {

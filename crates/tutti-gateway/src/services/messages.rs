@@ -1,7 +1,8 @@
 //! The `simulation_interfaces` 1.x types the gateway serves (docs/ros2.md), as plain CDR
-//! bodies: their constants, the requests decoded and the responses encoded. A body starts at
-//! the 16-byte request header of the service wire (`wire`), so alignment is counted from
-//! the start of the body, header included.
+//! bodies: their constants, the requests decoded and the responses encoded. In
+//! rmw_cyclonedds's form a body starts with the 16-byte request header (`wire`), and alignment
+//! is counted from the start of the body, header included; in Fast DDS's form there is no
+//! header, and since 16 is a multiple of every alignment each field keeps its alignment.
 
 use tutti_core::cdr::CdrError;
 
@@ -66,7 +67,7 @@ impl Outcome {
     }
 }
 
-/// Reads the fixed-size fields of a request body (header included) in the sample's byte
+/// Reads the fixed-size fields of a request body (header included, if any) in the sample's byte
 /// order; every field the gateway reads lies at an offset aligned for its size.
 #[derive(Debug, Clone, Copy)]
 pub struct Body<'a> {

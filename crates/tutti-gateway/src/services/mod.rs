@@ -4,9 +4,11 @@
 //! each call carried out on the run's control plane ([`lifecycle`]) as `tutti ctl` would. Offered by a gateway in or beside a framework, not by
 //! a mirror nor a passive gateway (`--passive`).
 //!
-//! The wire is rmw_cyclonedds's ([`wire`]): a service is a request topic and a reply topic,
-//! each sample's body starting with a 16-byte request header that the reply echoes. It is
-//! built over the engine layer's raw readers and writers: a reader's sink only checks a
+//! A service is a request topic and a reply topic ([`wire`]), in either of two forms: rmw_cyclonedds's,
+//! each sample's body starting with a 16-byte request header that the reply echoes, and Fast
+//! DDS's, where the reply carries the request's sample identity as its related sample identity
+//! (the rustdds engine serves both, choosing per request; Cyclone's, the first only). It is
+//! built over the engine layer's identified readers and related writers: a reader's sink only checks a
 //! request and hands it to the services' thread (`tutti-gw-simif`), which makes the control
 //! calls (they block: never on the engine's receive path nor on the manager's loop), encodes
 //! the response and writes it.
@@ -26,11 +28,11 @@ use std::time::{Duration, Instant};
 use tutti_core::cdr::split_header;
 use tutti_core::ddf::Model;
 
-use crate::engine::{Data, Decode, Engine, Guid, Writer, PREFIX_LEN};
+use crate::engine::{Engine, Guid, Identified, Writer, PREFIX_LEN};
 use crate::GatewayError;
 use lifecycle::{Control, Lifecycle, RunControl};
 use messages::{Body, Out, Outcome};
-use wire::{RequestHeader, Service, SERVICES};
+use wire::{ReplyTo, Service, SERVICES};
 
 /// Requests waiting for the services' thread; more are dropped (a client that floods the
 /// services gets no answer to the excess, the gateway keeps its memory).
@@ -55,9 +57,10 @@ pub struct Call {
     service: usize,
     /// The request writer's GUID: its prefix is the client's participant.
     client: Guid,
-    header: RequestHeader,
+    /// How the reply names the request (the wire form).
+    reply_to: ReplyTo,
     le: bool,
-    /// The body, request header included.
+    /// The body, request header included in rmw_cyclonedds's form.
     body: Vec<u8>,
 }
 
@@ -102,11 +105,11 @@ pub fn start(
     let mut servers = Vec::new();
     for (i, s) in SERVICES.iter().enumerate() {
         let (rq, rr) = (wire::request_topic(ros_ns, s.name), wire::reply_topic(ros_ns, s.name));
-        let writer = engine.writer(&rr, &s.response_topic_type(), &wire::qos())?;
+        let writer = engine.related_writer(&rr, &s.response_topic_type(), &wire::qos())?;
         servers.push(Server { service: s, reply_topic: rr, writer, matched: HashSet::new() });
         let tx = tx.clone();
-        let sink = Arc::new(move |client: Guid, data: Data<'_>| request(i, client, data, &tx));
-        engine.reader(&rq, &s.request_topic_type(), &wire::qos(), Decode::Raw, sink)?;
+        let sink = Arc::new(move |sample: Identified<'_>| request(i, sample, &tx));
+        engine.identified_reader(&rq, &s.request_topic_type(), &wire::qos(), sink)?;
     }
     let ctl = RunControl { namespace: namespace.to_string(), timeout: CONTROL_TIMEOUT };
     let life = Lifecycle::new(no_stepping(model));
@@ -118,18 +121,17 @@ pub fn start(
         .map_err(|e| GatewayError::dds("the services' thread", e))
 }
 
-/// A reader's sink: a request with its header goes to the services' thread.
-fn request(service: usize, client: Guid, data: Data<'_>, tx: &SyncSender<Msg>) {
-    let Data::Raw(raw) = data else { return };
-    let Ok((le, body)) = split_header(raw) else {
+/// A reader's sink: a request in either form goes to the services' thread.
+fn request(service: usize, sample: Identified<'_>, tx: &SyncSender<Msg>) {
+    let Ok((le, body)) = split_header(sample.raw) else {
         tracing::debug!("simulation services: a request that is not plain CDR dropped");
         return;
     };
-    let Ok(header) = RequestHeader::read(Body { le, bytes: body }) else {
+    let Ok(reply_to) = ReplyTo::of(&sample, Body { le, bytes: body }) else {
         tracing::debug!("simulation services: a request without its header dropped");
         return;
     };
-    let call = Call { service, client, header, le, body: body.to_vec() };
+    let call = Call { service, client: sample.writer, reply_to, le, body: body.to_vec() };
     if let Err(TrySendError::Full(_)) = tx.try_send(Msg::Call(call)) {
         tracing::warn!("simulation services: {QUEUE} requests wait already; one dropped");
     }
@@ -182,9 +184,9 @@ impl State {
     fn call(&mut self, call: Call) {
         let Some(kind) = self.servers.get(call.service).map(|s| s.service.kind) else { return };
         let mut out = Out::default();
-        call.header.write(&mut out);
+        call.reply_to.start(&mut out);
         let body = Body { le: call.le, bytes: &call.body };
-        let at = RequestHeader::LEN;
+        let at = call.reply_to.fields_at();
         let mut start_goal = None;
         let client = call.client;
         let answered = match kind {
@@ -201,12 +203,12 @@ impl State {
                 self.shared.cancel_goal(&id, stamp, &mut out);
                 Ok(true)
             }),
-            _ => answer(kind, body, &mut self.life, &mut self.ctl, &mut out).map(|()| true),
+            _ => answer(kind, body, at, &mut self.life, &mut self.ctl, &mut out).map(|()| true),
         };
         let server = &mut self.servers[call.service];
         match answered {
             Err(e) => tracing::warn!("simulation services: a {} request: {e}", server.service.name),
-            Ok(true) => reply(self.engine.as_ref(), server, call.client, &out.0, &self.stop),
+            Ok(true) => reply(self.engine.as_ref(), server, &call, &out.0, &self.stop),
             Ok(false) => {
                 if let Ok(id) = body.octets16(at) {
                     self.waiting.push((id, call));
@@ -221,16 +223,17 @@ impl State {
     }
 }
 
-/// The response body (after the header already in `out`) to a request of `kind`.
+/// The response body (after the header already in `out`, if any) to a request of `kind`,
+/// whose fields start at `at` of its body.
 fn answer(
     kind: wire::Kind,
     req: Body<'_>,
+    at: usize,
     life: &mut Lifecycle,
     ctl: &mut dyn Control,
     out: &mut Out,
 ) -> Result<(), tutti_core::cdr::CdrError> {
     use wire::Kind::*;
-    let at = RequestHeader::LEN;
     match kind {
         GetFeatures => {
             let info = format!("tutti {}: docs/ros2.md", env!("CARGO_PKG_VERSION"));
@@ -273,9 +276,10 @@ pub(crate) fn wait_for_reader(engine: &dyn Engine, topic: &str, prefix: [u8; PRE
     }
 }
 
-/// Writes `body` on the server's reply topic once the client's reply reader is known (or
-/// after [`READER_WAIT`]).
-fn reply(engine: &dyn Engine, server: &mut Server, client: Guid, body: &[u8], stop: &AtomicBool) {
+/// Writes `body` on the server's reply topic, in the form of the request `call`, once the
+/// client's reply reader is known (or after [`READER_WAIT`]).
+fn reply(engine: &dyn Engine, server: &mut Server, call: &Call, body: &[u8], stop: &AtomicBool) {
+    let client = call.client;
     let prefix = client.prefix();
     if !server.matched.contains(&prefix) {
         if wait_for_reader(engine, &server.reply_topic, prefix, stop) {
@@ -284,7 +288,11 @@ fn reply(engine: &dyn Engine, server: &mut Server, client: Guid, body: &[u8], st
             tracing::debug!("simulation services: no reply reader of {client:?} on {} yet", server.reply_topic);
         }
     }
-    if !server.writer.write(body) {
+    let written = match call.reply_to {
+        ReplyTo::Header(_) => server.writer.write(body),
+        ReplyTo::Related(related) => server.writer.write_related(body, related),
+    };
+    if !written {
         tracing::warn!("simulation services: DDS refused a reply on {}", server.reply_topic);
     }
     server.writer.flush();
