@@ -7,7 +7,7 @@
 //! beside a framework. Each checks every service with a synchronous domain (the exact steps,
 //! the refusals and repeated transitions) and with asynchronous domains only (stepping
 //! refused, with the reason), the action `simulate_steps` (feedback after each step, cancel,
-//! the refusals), and that a passive gateway offers none. Each run has its own namespace
+//! the refusals), and that a passive gateway and a mirror offer none. Each run has its own namespace
 //! and DDS domain (40-44 Cyclone, 90-94 rustdds, 45-49 Fast DDS's form); a Fast DDS client in rmw_fastrtps's
 //! manner (`fastdds_requester.cpp`) is answered on the rustdds engine (50).
 
@@ -270,6 +270,12 @@ fn a_passive_gateway_offers_no_simulation_services(w: Way) {
     let _host = Host::start(&c.ns, "gw_sync", Duration::from_millis(10), |_| vec![0; 8]);
     let gw = w.eng.gateway(DDF, c.dom, &c.ns, &["--passive"]);
     assert!(!c.finds_services(), "a passive gateway offers the services\n{}", gw.dump());
+    drop(gw);
+    // Nor does a mirror: the framework it would control is its own, fed from DDS.
+    let away = format!("{}m", c.ns);
+    let _away_segments = RemoveSegments(away.clone());
+    let mirror = w.eng.gateway(DDF, c.dom, &away, &["--mirror"]);
+    assert!(!c.finds_services(), "a mirror offers the services\n{}", mirror.dump());
 }
 
 fn feedback(lines: &[Value]) -> Vec<(u64, u64)> {
