@@ -25,7 +25,7 @@ def main():
     clocks = []
     node.create_subscription(
         Clock, '/clock', lambda m: clocks.append(m.clock.sec * 10**9 + m.clock.nanosec),
-        QoSProfile(depth=10, reliability=ReliabilityPolicy.BEST_EFFORT))
+        QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE))
     print(f'wall {time.time_ns()}', flush=True)
     seen, last = 0, None
     end = time.monotonic() + 60
