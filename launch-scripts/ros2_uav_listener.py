@@ -17,6 +17,7 @@ import importlib
 import sys
 
 import rclpy
+from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from rclpy.qos import QoSProfile, ReliabilityPolicy, HistoryPolicy, DurabilityPolicy
 
@@ -45,7 +46,8 @@ def main():
     node = UavListener()
     try:
         rclpy.spin(node)
-    except KeyboardInterrupt:
+    except (KeyboardInterrupt, ExternalShutdownException):
+        # Ctrl-C: rclpy's own SIGINT handler shuts the context down under the spin.
         pass
     finally:
         node.destroy_node()

@@ -4,9 +4,9 @@ Usage: sim_time.py SAMPLES
 
 Subscribes to /clock itself, and reads the node's clock (which rclpy's time source sets from
 /clock when use_sim_time is true) after each spin. Prints `clock NS` for each /clock message,
-`now NS` for each distinct reading of the node's clock, `active BOOL` (whether ROS time is
-overridden by /clock) and `wall NS` once, and exits after SAMPLES /clock messages; exits 1
-when they do not come within 60 s.
+`now NS` for each distinct reading of the node's clock, and once `active BOOL` (whether ROS
+time is overridden by /clock), `publishers N` (the /clock writers it sees) and `wall NS`;
+exits after SAMPLES /clock messages, or with 1 when they do not come within 60 s.
 """
 import sys
 import time
@@ -40,6 +40,7 @@ def main():
                 print(f'now {now}', flush=True)
                 last = now
         print(f'active {str(node.get_clock().ros_time_is_active).lower()}', flush=True)
+        print(f'publishers {node.count_publishers("/clock")}', flush=True)
         # The /clock messages the time source had and this subscription not yet.
         end = time.monotonic() + 0.5
         while time.monotonic() < end:

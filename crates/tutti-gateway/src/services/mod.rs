@@ -39,9 +39,15 @@ use wire::{ReplyTo, Service, SERVICES};
 const QUEUE: usize = 256;
 /// The longest wait for an answer of the run (`step N` is answered after its N steps).
 const CONTROL_TIMEOUT: Duration = Duration::from_secs(300);
-/// How long a reply waits for discovery to show the client's reply reader: a reliable,
-/// volatile writer gives a reader it has not matched yet nothing.
+/// How long a goal's feedback waits for discovery to show the client's feedback reader: a
+/// reliable, volatile writer gives a reader it has not matched yet nothing.
 const READER_WAIT: Duration = Duration::from_secs(2);
+/// How long a reply is kept for a client whose reply reader discovery has not shown yet (a
+/// client finds the service once it has discovered the gateway's endpoints, which may be
+/// before the gateway has discovered the client's: seconds on a loaded machine). Meanwhile
+/// the services' thread answers other requests; the reply goes as soon as the reader shows,
+/// or, after this long, is written anyway.
+const REPLY_WAIT: Duration = Duration::from_secs(30);
 
 /// What the services' thread is handed.
 #[derive(Debug)]
@@ -114,7 +120,18 @@ pub fn start(
     let ctl = RunControl { namespace: namespace.to_string(), timeout: CONTROL_TIMEOUT };
     let life = Lifecycle::new(no_stepping(model));
     let feedback_topic = topic(wire::FEEDBACK);
-    let mut state = State { engine, servers, shared, done: tx, ctl, life, stop, waiting: Vec::new(), feedback_topic };
+    let mut state = State {
+        engine,
+        servers,
+        shared,
+        done: tx,
+        ctl,
+        life,
+        stop,
+        waiting: Vec::new(),
+        held: Vec::new(),
+        feedback_topic,
+    };
     std::thread::Builder::new()
         .name("tutti-gw-simif".into())
         .spawn(move || state.serve(rx))
@@ -149,7 +166,17 @@ struct State {
     stop: Arc<AtomicBool>,
     /// `get_result` requests of running goals: (goal, the request).
     waiting: Vec<(action::GoalId, Call)>,
+    /// Replies waiting for their client's reply reader (at most [`QUEUE`]).
+    held: Vec<Held>,
     feedback_topic: String,
+}
+
+/// A reply kept until discovery shows its client's reply reader.
+struct Held {
+    service: usize,
+    call: Call,
+    body: Vec<u8>,
+    until: Instant,
 }
 
 /// Where a goal's feedback goes: the client whose feedback reader it waits for.
@@ -168,7 +195,9 @@ impl std::fmt::Debug for Feedback {
 impl State {
     fn serve(&mut self, rx: Receiver<Msg>) {
         while !self.stop.load(Ordering::Acquire) {
-            match rx.recv_timeout(Duration::from_millis(100)) {
+            self.send_held();
+            let turn = if self.held.is_empty() { Duration::from_millis(100) } else { Duration::from_millis(5) };
+            match rx.recv_timeout(turn) {
                 Ok(Msg::Call(call)) => self.call(call),
                 Ok(Msg::Done(id)) => {
                     let (ready, still): (Vec<_>, Vec<_>) = self.waiting.drain(..).partition(|(g, _)| *g == id);
@@ -208,7 +237,11 @@ impl State {
         let server = &mut self.servers[call.service];
         match answered {
             Err(e) => tracing::warn!("simulation services: a {} request: {e}", server.service.name),
-            Ok(true) => reply(self.engine.as_ref(), server, &call, &out.0, &self.stop),
+            Ok(true) => {
+                if !reply(self.engine.as_ref(), server, &call, &out.0, false) {
+                    self.hold(call, out.0);
+                }
+            }
             Ok(false) => {
                 if let Ok(id) = body.octets16(at) {
                     self.waiting.push((id, call));
@@ -219,6 +252,31 @@ impl State {
             let (ctl, life) = (self.ctl.clone(), self.life.clone());
             let feedback = Feedback { engine: self.engine.clone(), topic: self.feedback_topic.clone(), client };
             action::spawn(self.shared.clone(), id, steps, ctl, life, feedback, self.done.clone(), self.stop.clone());
+        }
+    }
+
+    /// Keeps the reply `body` to `call` until its client's reply reader shows.
+    fn hold(&mut self, call: Call, body: Vec<u8>) {
+        if self.held.len() >= QUEUE {
+            tracing::warn!("simulation services: {QUEUE} replies wait for their clients already; one dropped");
+            return;
+        }
+        let service = call.service;
+        self.held.push(Held { service, call, body, until: Instant::now() + REPLY_WAIT });
+    }
+
+    /// Sends the held replies whose client's reader has shown, or whose wait is over.
+    fn send_held(&mut self) {
+        if self.held.is_empty() {
+            return;
+        }
+        let now = Instant::now();
+        let held = std::mem::take(&mut self.held);
+        for h in held {
+            let server = &mut self.servers[h.service];
+            if !reply(self.engine.as_ref(), server, &h.call, &h.body, now >= h.until) {
+                self.held.push(h);
+            }
         }
     }
 }
@@ -276,16 +334,21 @@ pub(crate) fn wait_for_reader(engine: &dyn Engine, topic: &str, prefix: [u8; PRE
     }
 }
 
-/// Writes `body` on the server's reply topic, in the form of the request `call`, once the
-/// client's reply reader is known (or after [`READER_WAIT`]).
-fn reply(engine: &dyn Engine, server: &mut Server, call: &Call, body: &[u8], stop: &AtomicBool) {
+/// Writes `body` on the server's reply topic, in the form of the request `call`, if the
+/// client's reply reader is known (or `anyway`); whether it was written.
+fn reply(engine: &dyn Engine, server: &mut Server, call: &Call, body: &[u8], anyway: bool) -> bool {
     let client = call.client;
     let prefix = client.prefix();
     if !server.matched.contains(&prefix) {
-        if wait_for_reader(engine, &server.reply_topic, prefix, stop) {
+        if engine.remote().readers_on(std::slice::from_ref(&server.reply_topic)).iter().any(|g| g.prefix() == prefix) {
             server.matched.insert(prefix);
+        } else if anyway {
+            tracing::debug!(
+                "simulation services: no reply reader of {client:?} on {}; replied anyway",
+                server.reply_topic
+            );
         } else {
-            tracing::debug!("simulation services: no reply reader of {client:?} on {} yet", server.reply_topic);
+            return false;
         }
     }
     let written = match call.reply_to {
@@ -296,4 +359,5 @@ fn reply(engine: &dyn Engine, server: &mut Server, call: &Call, body: &[u8], sto
         tracing::warn!("simulation services: DDS refused a reply on {}", server.reply_topic);
     }
     server.writer.flush();
+    true
 }
