@@ -246,6 +246,15 @@ pub trait Writer: Send {
         let _ = (body, related);
         false
     }
+    /// How many readers of the participant whose GUID prefix is `prefix` this writer has
+    /// matched (a sample written now reaches those); None where the engine cannot say
+    /// (then discovery decides). Discovery may show a reader before the writer has matched
+    /// it (rustdds), and a reliable, volatile writer gives a reader it has not matched
+    /// nothing: the services' replies ask this first (docs/ros2.md, "Wire forms").
+    fn matched_readers_of(&mut self, prefix: [u8; PREFIX_LEN]) -> Option<usize> {
+        let _ = prefix;
+        None
+    }
     /// Sends what batching held back (a no-op where writes are not batched).
     fn flush(&mut self) {}
     /// A flush that another thread may call while this writer writes (None: the engine does

@@ -32,8 +32,10 @@ use futures::{Stream, StreamExt};
 use ros2_client::builtin_topics::{parameter_events, ros_discovery};
 use ros2_client::dds::rustdds::{bytes::Bytes, no_key, RepresentationIdentifier};
 use ros2_client::dds::rustdds::{policy, QosPolicies};
+use ros2_client::dds::rustdds::{
+    DataWriterStatus, SequenceNumber, StatusEvented, Timestamp, WriteOptionsBuilder, GUID,
+};
 use ros2_client::dds::rustdds::{DomainParticipant, DomainParticipantBuilder, RTPSEntity, Topic, TopicKind};
-use ros2_client::dds::rustdds::{SequenceNumber, Timestamp, WriteOptionsBuilder, GUID};
 use ros2_client::dds::{Publisher, Subscription};
 use ros2_client::{Context, Gid, MessageInfo, Node, NodeName, NodeOptions};
 use serde::de::DeserializeOwned;
@@ -247,10 +249,35 @@ impl no_key::SerializerAdapter<RawBody> for RawAdapter {
     }
 }
 
-/// A plain rustdds writer, which can write a related sample identity.
-struct RelatedWriter(no_key::DataWriter<RawBody, RawAdapter>);
+/// A plain rustdds writer, which can write a related sample identity, and follows the
+/// readers it has matched (its publication-matched statuses: rustdds 0.15 answers no query
+/// of them) by their participants' GUID prefixes, with how many of each.
+struct RelatedWriter {
+    writer: no_key::DataWriter<RawBody, RawAdapter>,
+    matched: HashMap<[u8; PREFIX_LEN], u32>,
+}
 
 impl RelatedWriter {
+    /// Takes the statuses the writer has queued (its channel holds a few and drops the
+    /// rest, so this runs at every question).
+    fn take_statuses(&mut self) {
+        while let Some(status) = self.writer.try_recv_status() {
+            if let DataWriterStatus::PublicationMatched { current, reader, .. } = status {
+                let mut prefix = [0u8; PREFIX_LEN];
+                prefix.copy_from_slice(&reader.to_bytes()[..PREFIX_LEN]);
+                let n = self.matched.entry(prefix).or_default();
+                if current.count_change() > 0 {
+                    *n += 1;
+                } else {
+                    *n = n.saturating_sub(1);
+                    if *n == 0 {
+                        self.matched.remove(&prefix);
+                    }
+                }
+            }
+        }
+    }
+
     fn write_with(&mut self, body: &[u8], related: Option<SampleIdentity>) -> bool {
         let options = WriteOptionsBuilder::new().source_timestamp(Timestamp::now());
         let options = match related {
@@ -260,7 +287,7 @@ impl RelatedWriter {
             }),
             None => options,
         };
-        match self.0.write_with_options(RawBody(body.to_vec()), options.build()) {
+        match self.writer.write_with_options(RawBody(body.to_vec()), options.build()) {
             Ok(_) => true,
             Err(e) => {
                 tracing::debug!("DDS write failed: {e:?}");
@@ -284,6 +311,11 @@ impl Writer for RelatedWriter {
 
     fn write_related(&mut self, body: &[u8], related: SampleIdentity) -> bool {
         self.write_with(body, Some(related))
+    }
+
+    fn matched_readers_of(&mut self, prefix: [u8; PREFIX_LEN]) -> Option<usize> {
+        self.take_statuses();
+        Some(self.matched.get(&prefix).map_or(0, |&n| n as usize))
     }
 }
 
@@ -431,7 +463,7 @@ impl Engine for Rustdds {
         let writer = publisher
             .create_datawriter_no_key::<RawBody, RawAdapter>(&t, Some(qos::profile(q).into()))
             .map_err(|e| GatewayError::dds(format!("a writer on {topic}"), e))?;
-        Ok(Box::new(RelatedWriter(writer)))
+        Ok(Box::new(RelatedWriter { writer, matched: HashMap::new() }))
     }
 
     fn remote(&self) -> Remote {

@@ -18,7 +18,6 @@ pub mod lifecycle;
 pub mod messages;
 pub mod wire;
 
-use std::collections::HashSet;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::mpsc::{self, Receiver, RecvTimeoutError, SyncSender, TrySendError};
 use std::sync::Arc;
@@ -73,10 +72,9 @@ pub struct Call {
 /// The reply side of one service.
 struct Server {
     service: &'static Service,
+    request_topic: String,
     reply_topic: String,
     writer: Box<dyn Writer>,
-    /// Client participants whose reply reader discovery has shown.
-    matched: HashSet<[u8; PREFIX_LEN]>,
 }
 
 /// Why stepping cannot apply to a run of `model`: every domain is asynchronous.
@@ -112,7 +110,7 @@ pub fn start(
     for (i, s) in SERVICES.iter().enumerate() {
         let (rq, rr) = (wire::request_topic(ros_ns, s.name), wire::reply_topic(ros_ns, s.name));
         let writer = engine.related_writer(&rr, &s.response_topic_type(), &wire::qos())?;
-        servers.push(Server { service: s, reply_topic: rr, writer, matched: HashSet::new() });
+        servers.push(Server { service: s, request_topic: rq.clone(), reply_topic: rr, writer });
         let tx = tx.clone();
         let sink = Arc::new(move |sample: Identified<'_>| request(i, sample, &tx));
         engine.identified_reader(&rq, &s.request_topic_type(), &wire::qos(), sink)?;
@@ -195,6 +193,11 @@ impl std::fmt::Debug for Feedback {
 impl State {
     fn serve(&mut self, rx: Receiver<Msg>) {
         while !self.stop.load(Ordering::Acquire) {
+            // Keeps each reply writer's count of matched readers up to date between
+            // replies (rustdds queues only a few match statuses).
+            for server in &mut self.servers {
+                let _ = server.writer.matched_readers_of([0; PREFIX_LEN]);
+            }
             self.send_held();
             let turn = if self.held.is_empty() { Duration::from_millis(100) } else { Duration::from_millis(5) };
             match rx.recv_timeout(turn) {
@@ -334,22 +337,31 @@ pub(crate) fn wait_for_reader(engine: &dyn Engine, topic: &str, prefix: [u8; PRE
     }
 }
 
-/// Writes `body` on the server's reply topic, in the form of the request `call`, if the
-/// client's reply reader is known (or `anyway`); whether it was written.
+/// Whether a reply written now reaches every client of the server in the participant
+/// `prefix`: each client (a request writer there) has its reply reader, which the reply
+/// writer has matched (or, where the engine cannot say, discovery shows). A node may make a
+/// new client of the same service at any time, so this is counted afresh for every reply.
+fn reaches(engine: &dyn Engine, server: &mut Server, prefix: [u8; PREFIX_LEN]) -> bool {
+    let remote = engine.remote();
+    let clients = remote.writers_on(&server.request_topic).filter(|g| g.prefix() == prefix).count().max(1);
+    let readers = match server.writer.matched_readers_of(prefix) {
+        Some(n) => n,
+        None => {
+            remote.readers_on(std::slice::from_ref(&server.reply_topic)).iter().filter(|g| g.prefix() == prefix).count()
+        }
+    };
+    readers >= clients
+}
+
+/// Writes `body` on the server's reply topic, in the form of the request `call`, if it
+/// reaches the client (or `anyway`); whether it was written.
 fn reply(engine: &dyn Engine, server: &mut Server, call: &Call, body: &[u8], anyway: bool) -> bool {
     let client = call.client;
-    let prefix = client.prefix();
-    if !server.matched.contains(&prefix) {
-        if engine.remote().readers_on(std::slice::from_ref(&server.reply_topic)).iter().any(|g| g.prefix() == prefix) {
-            server.matched.insert(prefix);
-        } else if anyway {
-            tracing::debug!(
-                "simulation services: no reply reader of {client:?} on {}; replied anyway",
-                server.reply_topic
-            );
-        } else {
+    if !reaches(engine, server, client.prefix()) {
+        if !anyway {
             return false;
         }
+        tracing::debug!("simulation services: no reply reader of {client:?} on {}; replied anyway", server.reply_topic);
     }
     let written = match call.reply_to {
         ReplyTo::Header(_) => server.writer.write(body),
