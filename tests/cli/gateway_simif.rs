@@ -176,12 +176,15 @@ fn result(v: &Value) -> (u64, String) {
     (r["result"].as_u64().unwrap_or(999), r["error_message"].as_str().unwrap_or("").to_string())
 }
 
+// The constants of simulation_interfaces (`SimulationState`, `Result`) and action_msgs
+// (`GoalStatus`) the tests compare with; `tests/cli/ros2_real.rs` uses them too.
 const STATE_STOPPED: u64 = 0;
 const STATE_PLAYING: u64 = 1;
 const STATE_PAUSED: u64 = 2;
-const OK: u64 = 1;
-const FEATURE_UNSUPPORTED: u64 = 0;
-const ALREADY_IN_TARGET_STATE: u64 = 101;
+pub(crate) const OK: u64 = 1;
+pub(crate) const FEATURE_UNSUPPORTED: u64 = 0;
+pub(crate) const INCORRECT_STATE: u64 = 4;
+pub(crate) const ALREADY_IN_TARGET_STATE: u64 = 101;
 const INCORRECT_TRANSITION: u64 = 103;
 
 fn the_simulation_services_drive_the_run_and_refuse_with_the_standard_codes(w: Way) {
@@ -221,7 +224,10 @@ fn the_simulation_services_drive_the_run_and_refuse_with_the_standard_codes(w: W
     assert_eq!(result(&r[0]).0, OK);
     assert_eq!(result(&r[1]), (ALREADY_IN_TARGET_STATE, "already playing".to_string()));
     let (code, why) = result(&r[2]);
-    assert!(code == 4 && why.contains("playing") && why.contains("paused"), "stepping a playing run: {code} {why}");
+    assert!(
+        code == INCORRECT_STATE && why.contains("playing") && why.contains("paused"),
+        "stepping a playing run: {code} {why}"
+    );
     assert_eq!(result(&r[3]).0, OK, "SCOPE_TIME: {:?}", r[3]);
     assert_eq!(result(&r[4]).0, OK, "SCOPE_DEFAULT: {:?}", r[4]);
     for unsupported in &r[5..7] {
@@ -289,9 +295,9 @@ fn line<'a>(lines: &'a [Value], key: &str) -> &'a Value {
     lines.iter().find(|l| l.get(key).is_some()).unwrap_or_else(|| panic!("no {key} in {lines:?}"))
 }
 
-const SUCCEEDED: u64 = 4;
-const CANCELED: u64 = 5;
-const ABORTED: u64 = 6;
+pub(crate) const SUCCEEDED: u64 = 4;
+pub(crate) const CANCELED: u64 = 5;
+pub(crate) const ABORTED: u64 = 6;
 
 fn the_simulate_steps_action_gives_feedback_after_each_step_and_cancels(w: Way) {
     let Some(c) = w.client(43) else { return };

@@ -20,6 +20,9 @@ use std::path::{Path, PathBuf};
 use std::process::Command;
 use std::time::Duration;
 
+use crate::gateway_simif::{
+    ABORTED, ALREADY_IN_TARGET_STATE, CANCELED, FEATURE_UNSUPPORTED, INCORRECT_STATE, OK, SUCCEEDED,
+};
 use gateway::*;
 use serde_json::Value;
 use tutti_test_support::{namespace, run_output, workspace_bin};
@@ -173,13 +176,6 @@ fn ros2(ros: &Ros2, dom: u16, args: &[&str]) -> Vec<String> {
     run_quietly(&format!("ros2 {}", args[..2].join(" ")), ros.command(dom, &program), SECS(120))
 }
 
-const OK: u64 = 1;
-const FEATURE_UNSUPPORTED: u64 = 0;
-const INCORRECT_STATE: u64 = 4;
-const ALREADY_IN_TARGET_STATE: u64 = 101;
-const SUCCEEDED: u64 = 4;
-const CANCELED: u64 = 5;
-
 /// Every service and the action of a synchronous run, through rclpy's clients and ros2cli,
 /// against the gateway of `tutti host --gateway` on engine `e`.
 fn services_drive_a_synchronous_run(e: Eng, dom: u16) {
@@ -327,7 +323,7 @@ fn rclpy_is_told_why_a_run_of_asynchronous_domains_does_not_step() {
     assert!(code == FEATURE_UNSUPPORTED && why.contains("asynchronous (simif_async)"), "{:?}", r[1]);
     let (code, why) = result(&r[2]);
     assert!(code == FEATURE_UNSUPPORTED && why.contains("asynchronous (simif_async)"), "{:?}", r[2]);
-    assert_eq!(r[2]["status"].as_u64(), Some(6), "ABORTED: {:?}", r[2]);
+    assert_eq!(r[2]["status"].as_u64(), Some(ABORTED), "{:?}", r[2]);
 }
 
 /// The values of each UAV's SUBSCRIBE set by step, from `tutti host --record` CSVs in `dir`
