@@ -93,7 +93,15 @@ pub struct FmuParticipant {
     framework_stopped: bool,
     /// The last framework step read and its simulated time.
     last_seen: Option<(u64, f64)>,
+    /// The connection's timeout (commits, locks); waits for a step are sliced ([`WAIT_SLICE`]).
+    timeout: Duration,
 }
+
+/// How long one wait for the framework's next step lasts before the run loop looks at its
+/// stop flag again: a Ctrl-C or SIGTERM ends the run within this, not after the whole step
+/// timeout, by which a supervisor's grace may be over (a component SIGKILLed at a launch
+/// file's teardown left its FMU's unpacked directory behind).
+const WAIT_SLICE: Duration = Duration::from_millis(200);
 
 /// The step size of a synchronous step: the framework's period, unless its simulated time
 /// advances by something else per step (a framework running faster or slower than real
@@ -151,6 +159,7 @@ impl FmuParticipant {
     ) -> Result<FmuParticipant, RunError> {
         set_params(md, &mut instance, &opts.params)?;
         let name = domain.name.clone();
+        let timeout = opts.connect.timeout;
         let participant = Participant::connect_checked(domain, opts.connect)
             .map_err(|source| RunError::Domain { domain: name.clone(), source })?;
         let mode =
@@ -167,6 +176,7 @@ impl FmuParticipant {
             max_steps: opts.max_steps,
             framework_stopped: false,
             last_seen: None,
+            timeout,
         })
     }
 
@@ -249,11 +259,19 @@ impl FmuParticipant {
         Ok(())
     }
 
-    /// One step. Synchronous: waits for the framework's next step, answers it. Asynchronous:
-    /// reads the latest inputs, advances the FMU by the step and commits (the caller paces).
+    /// One step. Synchronous: waits for the framework's next step (at most [`WAIT_SLICE`]: a
+    /// `Timeout` means none came yet, wait again) and answers it. Asynchronous: reads the
+    /// latest inputs, advances the FMU by the step and commits (the caller paces).
     pub fn step(&mut self) -> Result<(), RunError> {
+        let (sync, timeout) = (self.mode == StepMode::Synchronous, self.timeout);
         let p = self.participant();
-        let step = p.subscribe_lock().map_err(|e| self.shm(e))?;
+        if sync {
+            // A timed-out slice is waited again by the run loop, unless it is told to stop.
+            p.set_timeout(WAIT_SLICE.min(timeout));
+        }
+        let read = p.subscribe_lock();
+        p.set_timeout(timeout);
+        let step = read.map_err(|e| self.shm(e))?;
         let (start, h) = match self.mode {
             StepMode::Synchronous => {
                 let p = self.participant();
