@@ -65,6 +65,9 @@ fn run_tutti_with(py: &Path, ssp: &Path, dir: &Path, tag: &str, flags: &[&str]) 
     let _segments = common::RemoveSegments(ns.clone());
     let out = dir.join(format!("{tag}-out"));
     let csv = dir.join(format!("{tag}.csv"));
+    // The run's temporary directory: the FMU components unpack their archives there.
+    let tmp = dir.join(format!("{tag}-tmp"));
+    std::fs::create_dir_all(&tmp).unwrap();
     let mut cmd = common::tutti_command();
     cmd.arg("run")
         .arg(ssp)
@@ -75,10 +78,14 @@ fn run_tutti_with(py: &Path, ssp: &Path, dir: &Path, tag: &str, flags: &[&str]) 
         .args(["--step", "10ms", "-q"])
         .args(flags)
         .env("TUTTI_NAMESPACE", &ns)
-        .env("TUTTI_FMU_PRELOAD", libpython(py));
+        .env("TUTTI_FMU_PRELOAD", libpython(py))
+        .env("TMPDIR", &tmp);
     let (status, stdout, stderr) = run_with_timeout(cmd, Duration::from_secs(120));
     assert!(status.success(), "tutti run {}:\n{stdout}\n{stderr}", ssp.display());
     assert!(common::segments_of(&ns).is_empty(), "the run left segments");
+    // Each component ended at the teardown's SIGTERM and removed its unpacked FMU.
+    let left: Vec<_> = std::fs::read_dir(&tmp).unwrap().map(|e| e.unwrap().file_name()).collect();
+    assert!(left.is_empty(), "the run left temporary files: {left:?}\n{stderr}");
     let mut files = BTreeMap::new();
     for e in std::fs::read_dir(dir).unwrap() {
         let p = e.unwrap().path();
