@@ -259,7 +259,7 @@ impl FmuParticipant {
         Ok(())
     }
 
-    /// One step. Synchronous: waits for the framework's next step (at most [`WAIT_SLICE`]: a
+    /// One step. Synchronous: waits for the framework's next step (at most `WAIT_SLICE`, 200 ms: a
     /// `Timeout` means none came yet, wait again) and answers it. Asynchronous: reads the
     /// latest inputs, advances the FMU by the step and commits (the caller paces).
     pub fn step(&mut self) -> Result<(), RunError> {
