@@ -8,16 +8,14 @@
 
 use loom::sync::Arc;
 use loom::thread;
-use tutti_core::shm::bucket::{Bucket, Stamp, SLOTS};
+use tutti_core::shm::bucket::{Bucket, SlotWords, Stamp, SLOTS};
 use tutti_core::shm::handshake::{ConnCtl, StepCtl, CONN_EVENT, CONN_SYNC_READER, CONN_WRITER, MASK_WORDS};
 use tutti_core::sync::{AtomicU32, AtomicU64, Ordering};
 
 /// The bucket's slots, two words each: enough to see a torn value (the words differ).
 struct Mem {
-    seq: [AtomicU64; SLOTS],
-    gens: [AtomicU64; SLOTS],
+    meta: [SlotWords; SLOTS],
     current: AtomicU64,
-    stamps: [[AtomicU64; 2]; SLOTS],
     slots: [[AtomicU64; 2]; SLOTS],
 }
 
@@ -25,21 +23,13 @@ impl Mem {
     fn new() -> Self {
         let z = || AtomicU64::new(0);
         Mem {
-            seq: std::array::from_fn(|_| z()),
-            gens: std::array::from_fn(|_| z()),
-            stamps: std::array::from_fn(|_| [z(), z()]),
+            meta: std::array::from_fn(|_| SlotWords::new()),
             current: z(),
             slots: std::array::from_fn(|_| [z(), z()]),
         }
     }
     fn bucket(&self) -> Bucket<'_> {
-        Bucket {
-            seq: &self.seq,
-            gens: &self.gens,
-            stamps: &self.stamps,
-            current: &self.current,
-            slots: std::array::from_fn(|i| self.slots[i].as_slice()),
-        }
+        Bucket { meta: &self.meta, current: &self.current, slots: std::array::from_fn(|i| self.slots[i].as_slice()) }
     }
 }
 

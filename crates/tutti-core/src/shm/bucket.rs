@@ -27,17 +27,40 @@ pub struct Stamp {
     pub sim_time: f64,
 }
 
-/// A view of one bucket in memory: the slots' sequence numbers, the generation counter (its
-/// low bits name the current slot) and the slots' words.
+/// One slot's words beside its value, 32 bytes of their own (a cache line holds two slots'
+/// words, so a reader or writer of a slot touches one line besides `current`): its sequence
+/// number, the generation it holds and its [`Stamp`], all written and read inside the
+/// slot's seqlock.
+#[repr(C, align(32))]
+#[derive(Debug)]
+pub struct SlotWords {
+    pub seq: AtomicU64,
+    /// The generation the slot holds, so that a reader lapped between loading `current` and
+    /// its copy still reports the right one.
+    pub gen: AtomicU64,
+    pub step: AtomicU64,
+    /// The simulated time's bits.
+    pub time: AtomicU64,
+}
+
+impl SlotWords {
+    /// Zeroed words (in shared memory they are zero as mapped).
+    pub fn new() -> SlotWords {
+        SlotWords { seq: AtomicU64::new(0), gen: AtomicU64::new(0), step: AtomicU64::new(0), time: AtomicU64::new(0) }
+    }
+}
+
+impl Default for SlotWords {
+    fn default() -> Self {
+        SlotWords::new()
+    }
+}
+
+/// A view of one bucket in memory: the slots' words ([`SlotWords`]), the generation counter
+/// (its low bits name the current slot) and the slots' values.
 #[derive(Debug, Clone, Copy)]
 pub struct Bucket<'a> {
-    pub seq: &'a [AtomicU64; SLOTS],
-    /// The generation each slot holds, written and read inside its seqlock, so that a
-    /// reader lapped between loading `current` and its copy still reports the right one.
-    pub gens: &'a [AtomicU64; SLOTS],
-    /// Each slot's [`Stamp`] (step, simulated time's bits), written and read inside its
-    /// seqlock as `gens` is.
-    pub stamps: &'a [[AtomicU64; 2]; SLOTS],
+    pub meta: &'a [SlotWords; SLOTS],
     pub current: &'a AtomicU64,
     pub slots: [&'a [AtomicU64]; SLOTS],
 }
@@ -225,17 +248,17 @@ impl Bucket<'_> {
         let generation = self.current.load(Ordering::Relaxed);
         let cur = generation as usize % SLOTS;
         let next = (cur + 1) % SLOTS;
-        let seq = &self.seq[next];
+        let seq = &self.meta[next].seq;
         let s = seq.load(Ordering::Relaxed);
         // Odd: writing. (A writer that died mid-write left it odd; start from the next odd.)
         let writing = if s & 1 == 1 { s.wrapping_add(2) } else { s.wrapping_add(1) };
         seq.store(writing, Ordering::Relaxed);
         fence(Ordering::Release);
-        self.gens[next].store(generation.wrapping_add(1), Ordering::Relaxed);
+        self.meta[next].gen.store(generation.wrapping_add(1), Ordering::Relaxed);
         let filled = fill(self.slots[cur], self.slots[next]);
         if let Some(stamp) = filled {
-            self.stamps[next][0].store(stamp.step, Ordering::Relaxed);
-            self.stamps[next][1].store(stamp.sim_time.to_bits(), Ordering::Relaxed);
+            self.meta[next].step.store(stamp.step, Ordering::Relaxed);
+            self.meta[next].time.store(stamp.sim_time.to_bits(), Ordering::Relaxed);
         }
         seq.store(writing.wrapping_add(1), Ordering::Release);
         // Not current when given up, so no reader takes it; its sequence is even again for
@@ -285,18 +308,19 @@ impl Bucket<'_> {
     fn try_with<R>(&self, f: impl FnOnce(&[AtomicU64]) -> R) -> Option<(u64, Stamp, R)> {
         let generation = self.current.load(Ordering::Acquire);
         let slot = generation as usize % SLOTS;
-        let s1 = self.seq[slot].load(Ordering::Acquire);
+        let meta = &self.meta[slot];
+        let s1 = meta.seq.load(Ordering::Acquire);
         if s1 & 1 == 1 {
             return None;
         }
-        let held = self.gens[slot].load(Ordering::Relaxed);
+        let held = meta.gen.load(Ordering::Relaxed);
         let stamp = Stamp {
-            step: self.stamps[slot][0].load(Ordering::Relaxed),
-            sim_time: f64::from_bits(self.stamps[slot][1].load(Ordering::Relaxed)),
+            step: meta.step.load(Ordering::Relaxed),
+            sim_time: f64::from_bits(meta.time.load(Ordering::Relaxed)),
         };
         let r = f(self.slots[slot]);
         fence(Ordering::Acquire);
-        let s2 = self.seq[slot].load(Ordering::Relaxed);
+        let s2 = meta.seq.load(Ordering::Relaxed);
         (s1 == s2).then_some((held, stamp, r))
     }
 
@@ -347,7 +371,7 @@ impl Bucket<'_> {
     /// After the writer died mid-write: make the abandoned slot's sequence even again. The
     /// slot was not current, so no reader trusted its contents.
     pub fn recover(&self) {
-        for seq in self.seq {
+        for seq in self.meta.iter().map(|m| &m.seq) {
             let s = seq.load(Ordering::Relaxed);
             if s & 1 == 1 {
                 seq.store(s.wrapping_add(1), Ordering::Release);
@@ -398,18 +422,10 @@ mod tests {
 
     #[test]
     fn writes_alternate_slots_and_reads_see_the_latest() {
-        let seq: [AtomicU64; SLOTS] = std::array::from_fn(|_| AtomicU64::new(0));
-        let gens: [AtomicU64; SLOTS] = std::array::from_fn(|_| AtomicU64::new(0));
-        let stamps: [[AtomicU64; 2]; SLOTS] = std::array::from_fn(|_| [AtomicU64::new(0), AtomicU64::new(0)]);
+        let meta: [SlotWords; SLOTS] = std::array::from_fn(|_| SlotWords::new());
         let current = AtomicU64::new(0);
         let w: Vec<Vec<AtomicU64>> = (0..SLOTS).map(|_| words(1)).collect();
-        let bucket = Bucket {
-            seq: &seq,
-            gens: &gens,
-            stamps: &stamps,
-            current: &current,
-            slots: std::array::from_fn(|i| w[i].as_slice()),
-        };
+        let bucket = Bucket { meta: &meta, current: &current, slots: std::array::from_fn(|i| w[i].as_slice()) };
         let mut out = [0u8; 8];
         let at = |step| Stamp { step, sim_time: step as f64 * 0.5 };
         assert_eq!(bucket.write(&7u64.to_ne_bytes(), at(3)), 1);
@@ -429,7 +445,7 @@ mod tests {
         assert_eq!(bucket.read_stamped_at(0, &mut out, 10), Some((2, at(4))));
         assert_eq!(u64::from_ne_bytes(out), 9);
         // A writer that died mid-write: the next slot stays odd until recovered.
-        seq[3].store(5, Ordering::Relaxed);
+        meta[3].seq.store(5, Ordering::Relaxed);
         current.store(3, Ordering::Relaxed);
         assert_eq!(bucket.try_read(&mut out), None);
         bucket.recover();

@@ -26,7 +26,7 @@ use std::time::{Duration, Instant};
 
 use serde::Serialize;
 
-use super::bucket::{load_bytes, Bucket, Stamp, SLOTS};
+use super::bucket::{load_bytes, Bucket, SlotWords, Stamp, SLOTS};
 use super::handshake::{ConnCtl, StepCtl, CONN_OBSERVER, CONN_REMOTE, CONN_SYNC_READER, CONN_WRITER, MASK_WORDS};
 use super::os::{self, ProcessId};
 use super::ShmError;
@@ -115,12 +115,11 @@ pub(crate) struct SetHeader {
     pub words: AtomicU32,
     pub _pad: AtomicU32,
     pub slots_off: AtomicU64,
-    pub seq: [AtomicU64; SLOTS],
-    pub gens: [AtomicU64; SLOTS],
     pub current: AtomicU64,
     pub commits: AtomicU64,
-    /// Each slot's stamp (step, simulated time's bits): see [`Stamp`].
-    pub stamps: [[AtomicU64; 2]; SLOTS],
+    /// Each slot's sequence number, generation and [`Stamp`](super::bucket::Stamp), on the
+    /// next lines (two slots a line).
+    pub meta: [SlotWords; SLOTS],
 }
 
 #[repr(C)]
@@ -698,7 +697,7 @@ impl Segment {
                 std::slice::from_raw_parts(self.map.as_mut_ptr().add(off + i * words * 8).cast::<AtomicU64>(), words)
             }
         });
-        Bucket { seq: &sh.seq, gens: &sh.gens, stamps: &sh.stamps, current: &sh.current, slots }
+        Bucket { meta: &sh.meta, current: &sh.current, slots }
     }
 
     /// A consistent copy of `out.len()` bytes of set `role` from byte `offset` (the caller
