@@ -115,21 +115,28 @@ fn tutti_idl(ddf: &Path, out: &Path) -> String {
     tutti_core::mapping::package_name(ddf)
 }
 
+/// Runs a rosidl hashing script (`cmd`, named `what` in messages; it prints `NAME HASH`
+/// lines) to its end: its hashes by name, and its output for failure messages.
+fn script_hashes(what: &str, cmd: Command) -> (BTreeMap<String, String>, String) {
+    let mut p = Proc::spawn(what, cmd, SECS(120));
+    assert_eq!(p.wait(SECS(120)), Some(0), "{what} failed:\n{}", p.dump());
+    let hashes = p
+        .stdout()
+        .lines()
+        .filter_map(|l| l.split_once(' '))
+        .map(|(name, hash)| (name.to_string(), hash.to_string()))
+        .collect();
+    (hashes, p.dump())
+}
+
 /// rosidl's hash of every type of the package `tutti idl` writes for `ddf` (tmp: where it
 /// writes it), by ROS 2 name (`PKG/msg/TYPE`).
 fn rosidl_hashes(py: &Path, ddf: &Path, tmp: &Path) -> BTreeMap<String, String> {
     let pkg = tutti_idl(ddf, tmp);
     let mut cmd = Command::new(py);
     cmd.arg(tutti_test_support::repo_root().join("tests/ros2/typehash.py")).arg(tmp).arg(&pkg);
-    let mut p = Proc::spawn("rosidl type hashes", cmd, SECS(120));
-    assert_eq!(p.wait(SECS(120)), Some(0), "rosidl found the .msg and .idl files apart:\n{}", p.dump());
-    let hashes: BTreeMap<String, String> = p
-        .stdout()
-        .lines()
-        .filter_map(|l| l.split_once(' '))
-        .map(|(name, hash)| (name.to_string(), hash.to_string()))
-        .collect();
-    assert!(!hashes.is_empty(), "no hash from rosidl:\n{}", p.dump());
+    let (hashes, out) = script_hashes("rosidl type hashes (the .msg and .idl files must agree)", cmd);
+    assert!(!hashes.is_empty(), "no hash from rosidl:\n{out}");
     hashes
 }
 
@@ -141,15 +148,8 @@ fn rosidl_interface_hashes(py: &Path) -> BTreeMap<String, String> {
     cmd.arg(root.join("tests/ros2/interface_hashes.py"))
         .arg(root.join("tests/ros2/jazzy/jazzy-src.tar.xz"))
         .args(INTERFACE_PACKAGES);
-    let mut p = Proc::spawn("rosidl interface hashes", cmd, SECS(120));
-    assert_eq!(p.wait(SECS(120)), Some(0), "rosidl could not hash the interfaces:\n{}", p.dump());
-    let hashes: BTreeMap<String, String> = p
-        .stdout()
-        .lines()
-        .filter_map(|l| l.split_once(' '))
-        .map(|(name, hash)| (name.to_string(), hash.to_string()))
-        .collect();
-    assert!(hashes.contains_key("simulation_interfaces/srv/StepSimulation_Request"), "{}", p.dump());
+    let (hashes, out) = script_hashes("rosidl interface hashes", cmd);
+    assert!(hashes.contains_key("simulation_interfaces/srv/StepSimulation_Request"), "{out}");
     hashes
 }
 
