@@ -488,8 +488,48 @@ fn the_simulated_time_goes_out_on_clock(e: Eng) {
     let _ = clock.interrupt(SECS(10));
 }
 
+/// A reset (`tutti ctl reset`, docs/run.md) takes `/clock` back with the run's simulated
+/// time: once, to the first steps after it (made with `tutti ctl step 3`), and on from there
+/// when the run resumes; each time one of the 5 ms steps, and each step's own time (a time
+/// read apart from its step once went out twice).
+fn clock_goes_back_once_with_a_reset(e: Eng) {
+    let Some(py) = python() else { return };
+    let (dom, ns) = (e.dom_beside(53), e.ns("gwtest53"));
+    let (mut host, _segments) = host_with_gateway(e, DDF, dom, &ns, &[]);
+    let clock = peer(&py, "clock", dom, "clock", &["--timeout", "90"]);
+    let times = || -> Vec<f64> { json_lines(&clock, "clock").iter().map(|v| v["clock"].as_f64().unwrap()).collect() };
+    let wait_for = |what: &str, done: &dyn Fn(&[f64]) -> bool| {
+        let end = Instant::now() + SECS(60);
+        while !done(&times()) {
+            assert!(Instant::now() < end, "/clock: {what}: {:?}\n{}\n{}", times(), clock.dump(), host.dump());
+            thread::sleep(Duration::from_millis(20));
+        }
+    };
+    let ctl = |args: &[&str]| {
+        let mut cmd = tutti_test_support::tutti_command();
+        cmd.arg("ctl").args(args).env("TUTTI_NAMESPACE", &ns);
+        let (status, out, err) = tutti_test_support::run_with_timeout(cmd, SECS(60));
+        assert!(status.success(), "tutti ctl {args:?}: {out}{err}");
+    };
+    wait_for("half a second of the run", &|t| t.iter().any(|&t| t >= 0.5));
+    ctl(&["pause"]);
+    ctl(&["reset"]);
+    ctl(&["step", "3"]);
+    let back = |t: &[f64]| t.windows(2).position(|w| w[1] < w[0]).map(|i| i + 1);
+    wait_for("the third step after the reset", &|t| back(t).is_some_and(|i| t[i..].iter().any(|&t| t > 0.009)));
+    ctl(&["resume"]);
+    wait_for("0.1 s after the reset", &|t| back(t).is_some_and(|i| t[i..].iter().any(|&t| t >= 0.1)));
+    assert_eq!(host.interrupt(SECS(30)), Some(0), "{}", host.dump());
+    let t = times();
+    let i = back(&t).unwrap();
+    assert!(t[..i].windows(2).all(|w| w[0] < w[1]) && t[i..].windows(2).all(|w| w[0] < w[1]), "{t:?}");
+    assert!(t[i - 1] >= 0.5 && t[i] <= 0.010 + 1e-9, "not back to the reset's first steps: {t:?}");
+    assert!(t.iter().all(|t| (t / 0.005 - (t / 0.005).round()).abs() < 1e-6), "a time that is no step's: {t:?}");
+}
+
 per_engine!(
     the_simulated_time_goes_out_on_clock,
+    clock_goes_back_once_with_a_reset,
     shared_memory_values_reach_a_cyclone_reader_as_typed_samples,
     per_item_mode_uses_stock_types_both_ways,
     a_reader_joining_one_item_late_in_per_item_mode_gets_items_that_never_change,

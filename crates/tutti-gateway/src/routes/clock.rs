@@ -3,9 +3,10 @@
 //!
 //! The poller thread reads the domain's header as a passive observer (no connection, so the
 //! clock never paces or stalls the domain): each new step's simulated time is written once,
-//! at most every `1 / --clock-rate` seconds (the latest time goes out when the cap allows),
-//! never going back while one framework runs. When the framework pauses or stops, nothing is
-//! written, so ROS 2 time stops too. The writer is RELIABLE, KEEP_LAST 1, VOLATILE: it
+//! at most every `1 / --clock-rate` seconds (the latest time goes out when the cap allows).
+//! Each time is its step's, read with it from the stamp of the framework's PUBLISH set; it
+//! goes back only when the run is reset (docs/run.md, "reset"). When the framework pauses or
+//! stops, nothing is written, so ROS 2 time stops too. The writer is RELIABLE, KEEP_LAST 1, VOLATILE: it
 //! matches rclcpp's `ClockQoS` subscriptions (BEST_EFFORT, KEEP_LAST 1) and reliable ones.
 
 use std::sync::Arc;
@@ -14,7 +15,9 @@ use std::time::{Duration, Instant};
 use tracing::info;
 use tutti_core::mapping::{Durability, History, Ownership, Qos, Reliability};
 
+use tutti_core::ddf::Role;
 use tutti_core::shm::observer::Observer;
+use tutti_core::shm::Stamp;
 
 use super::to_dds::{look, Activation, Outgoing, Polled, ServedBy};
 use super::ShmConfig;
@@ -32,6 +35,9 @@ pub fn route(dds: &dyn Engine, domain: &str, ns: &str, rate: Option<f64>) -> Res
     let pump = ClockPump::new(domain.to_string(), writer, activation.clone(), rate);
     Ok(Outgoing { topics: vec![topic], activation, served_by: ServedBy::Poller(Box::new(pump)) })
 }
+
+/// Attempts at a consistent read of the PUBLISH set's stamp before the poll looks again later.
+const STAMP_TRIES: u32 = 8;
 
 /// The DDS topic of ROS 2's `/clock`.
 pub const TOPIC: &str = "rt/clock";
@@ -112,7 +118,10 @@ impl Polled for ClockPump {
             self.last_step = None;
             self.last_time = f64::NEG_INFINITY;
         }
-        let step = seg.step();
+        // The step and its time, read as one: the framework's latest step and latest time
+        // are two words, and a step published between the two loads paired a step with the
+        // next one's time (and that time went out twice).
+        let Some(Stamp { step, sim_time: t }) = seg.stamp(Role::Publish, STAMP_TRIES) else { return false };
         if step == 0 || self.last_step == Some(step) {
             return false;
         }
@@ -121,9 +130,8 @@ impl Polled for ClockPump {
             return false;
         }
         self.last_step = Some(step);
-        let t = seg.sim_time();
         if t < self.last_time {
-            return false;
+            info!(domain = %self.live.domain, "/clock goes back to {t} s with its run's reset");
         }
         let mut body = [0u8; 8];
         encode(t, &mut body);
