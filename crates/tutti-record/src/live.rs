@@ -18,6 +18,9 @@ use tutti_core::shm::observer::{Look, Observer};
 
 use crate::{now_ns, RecordError, Recorder, Step};
 
+/// Attempts at a consistent copy of the PUBLISH set before the step is left to the next look.
+const READ_TRIES: u32 = 64;
+
 /// One domain as the recorder follows it.
 #[derive(Debug)]
 struct Followed {
@@ -173,10 +176,13 @@ fn follow(f: &mut Followed, i: usize, recorder: &mut dyn Recorder, start: Instan
             f.missed += step.saturating_sub(k + 1);
         }
     }
-    let sim = seg.sim_time();
-    // Still step `step` after the copy: else it is caught at the next look.
-    if seg.read_set(Role::Publish, &mut f.publish).is_ok() && seg.step() == step {
-        f.pending = Some((step, sim));
+    // The PUBLISH set with its step and that step's time, read as one (the framework's latest
+    // time, read apart, may already be the next step's); still step `step`, else it is caught
+    // at the next look.
+    if let Some((_, stamp)) = seg.try_read_set_stamped(Role::Publish, &mut f.publish, READ_TRIES) {
+        if stamp.step == step {
+            f.pending = Some((step, stamp.sim_time));
+        }
     }
     Ok(())
 }
