@@ -438,11 +438,12 @@ fn a_node_on_sim_time_follows_clock(e: Eng, dom: u16) {
     let ns = namespace(&format!("ros2clock{dom}_"));
     let (_host, _segments) = host_with_gateway(e, DDF, dom, &ns, &[]);
     let lines = run_quietly("rclpy on sim time", ros.python(dom, "tests/ros2/sim_time.py", &["200"]), SECS(120));
-    let values =
-        |key: &str| -> Vec<u64> { lines.iter().filter_map(|l| l.strip_prefix(key)?.trim().parse().ok()).collect() };
+    let values = |key: &str| -> Vec<u64> {
+        lines.iter().filter_map(|l| l.strip_prefix(key)?.split(' ').next()?.parse().ok()).collect()
+    };
     let (clocks, nows, wall) = (values("clock "), values("now "), values("wall ")[0]);
     assert!(clocks.len() >= 200, "{lines:#?}");
-    assert!(clocks.iter().all(|c| c % 5_000_000 == 0) && clocks.windows(2).all(|w| w[0] < w[1]), "{clocks:?}");
+    assert!(clocks.iter().all(|c| c % 5_000_000 == 0) && clocks.windows(2).all(|w| w[0] < w[1]), "{lines:#?}");
     assert!(lines.contains(&"active true".to_string()), "ROS time is not overridden by /clock: {lines:#?}");
     assert!(lines.contains(&"publishers 1".to_string()), "one /clock writer, the gateway's: {lines:#?}");
     // The node's time source has a /clock reader of its own, which may have matched the

@@ -3,7 +3,8 @@
 Usage: sim_time.py SAMPLES
 
 Subscribes to /clock itself, and reads the node's clock (which rclpy's time source sets from
-/clock when use_sim_time is true) after each spin. Prints `clock NS` for each /clock message,
+/clock when use_sim_time is true) after each spin. Prints `clock NS SOURCE RECEIVED` for each /clock message (with the
+writer's source timestamp and the reception time, in ns),
 `now NS` for each distinct reading of the node's clock, and once `active BOOL` (whether ROS
 time is overridden by /clock), `publishers N` (the /clock writers it sees) and `wall NS`;
 exits after SAMPLES /clock messages, or with 1 when they do not come within 60 s.
@@ -24,7 +25,9 @@ def main():
     node = Node('tutti_sim_time', parameter_overrides=[Parameter('use_sim_time', Parameter.Type.BOOL, True)])
     clocks = []
     node.create_subscription(
-        Clock, '/clock', lambda m: clocks.append(m.clock.sec * 10**9 + m.clock.nanosec),
+        Clock, '/clock',
+        lambda m, info: clocks.append(
+            f'{m.clock.sec * 10**9 + m.clock.nanosec} {info["source_timestamp"]} {info["received_timestamp"]}'),
         QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE))
     print(f'wall {time.time_ns()}', flush=True)
     seen, last = 0, None
