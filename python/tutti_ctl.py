@@ -22,6 +22,7 @@ describes the protocol. Standard library only.
 import json
 import os
 import socket
+import struct
 
 __all__ = ["ControlError", "NoRun", "Run", "connect", "socket_path"]
 
@@ -52,6 +53,14 @@ class Run:
         except (FileNotFoundError, ConnectionRefusedError) as e:
             self._sock.close()
             raise NoRun("no run in namespace %r (no control socket %s)" % (namespace, self.path)) from e
+        # The socket directory is everyone's: a socket of this name that another user made is
+        # not this user's run, and is told nothing.
+        creds = self._sock.getsockopt(socket.SOL_SOCKET, socket.SO_PEERCRED, struct.calcsize("3i"))
+        uid = struct.unpack("3i", creds)[1]
+        if uid != os.getuid():
+            self._sock.close()
+            raise ControlError("the control socket %s of namespace %r is served by another user (uid %d), not by a run "
+                               "of yours" % (self.path, self.path.split("tutti-ctl.", 1)[1], uid))
         self._file = self._sock.makefile("rb")
 
     def close(self):

@@ -184,8 +184,10 @@ fn an_asynchronous_run_pauses_and_refuses_to_step() {
     // Run as root (as the test command is), the test can be another user too.
     let uid = std::os::unix::fs::MetadataExt::uid(&std::fs::metadata("/proc/self").unwrap());
     let root = if uid == 0 { Ok(()) } else { Err(format!("running as uid {uid}")) };
+    let Some(py) = python() else { return };
     if tutti_test_support::require("root (to act as another user)", root).is_some() {
-        another_user_is_refused(&ns, &socket);
+        another_user_is_refused(&ns, &socket, &py);
+        another_users_socket_is_not_told_anything(&py);
     }
 
     // Every call from Python, on this run.
@@ -196,7 +198,6 @@ fn an_asynchronous_run_pauses_and_refuses_to_step() {
         out += [run.reset()['step'], run.resume()['state']]\n\
         try:\n    run.restart('x')\nexcept tutti_ctl.ControlError as e:\n    out.append(str(e))\n\
         print(json.dumps(out))";
-    let Some(py) = python() else { return };
     let mut cmd = Command::new(&py);
     cmd.args(["-c", script, &ns]).env("PYTHONPATH", common::repo_root().join("python"));
     let (status, out, err) = common::run_with_timeout(cmd, Duration::from_secs(60));
@@ -229,23 +230,88 @@ fn an_asynchronous_run_pauses_and_refuses_to_step() {
     assert!(!socket.exists());
 }
 
+/// `program` as user `nobody` (uid 65534): its exit code and output.
+fn as_nobody(program: &Path, args: &[&str]) -> (Option<i32>, String, String) {
+    let mut cmd = Command::new("setpriv");
+    cmd.args(["--reuid=65534", "--regid=65534", "--clear-groups"]).arg(program).args(args);
+    cmd.env("PYTHONPATH", common::repo_root().join("python"));
+    let (status, out, err) = common::run_with_timeout(cmd, Duration::from_secs(60));
+    (status.code(), out, err)
+}
+
 /// Another user cannot use the run's control plane: the socket is the owner's (mode 0600),
-/// and were it opened to all, the run closes another user's connection unanswered.
-fn another_user_is_refused(ns: &str, socket: &Path) {
-    let as_nobody = || {
-        let mut cmd = Command::new("setpriv");
-        cmd.args(["--reuid=65534", "--regid=65534", "--clear-groups"]).arg(common::tutti_exe());
-        cmd.args(["ctl", "state", "--namespace", ns, "--timeout", "10s"]);
-        let (status, out, err) = common::run_with_timeout(cmd, Duration::from_secs(60));
-        (status.code(), out, err)
-    };
-    let (code, out, err) = as_nobody();
+/// and were it opened to all, the run closes another user's connection unanswered (and
+/// `tutti ctl` would not talk to a run that is not its user's).
+fn another_user_is_refused(ns: &str, socket: &Path, py: &Path) {
+    let ctl = ["ctl", "state", "--namespace", ns, "--timeout", "10s"];
+    let (code, out, err) = as_nobody(&common::tutti_exe(), &ctl);
     assert_eq!(code, Some(1), "another user reached the run: {out}{err}");
     assert!(err.contains("ermission denied"), "{err}");
     use std::os::unix::fs::PermissionsExt;
     std::fs::set_permissions(socket, std::fs::Permissions::from_mode(0o666)).unwrap();
-    let (code, out, err) = as_nobody();
+    let (code, out, err) = as_nobody(&common::tutti_exe(), &ctl);
+    // A raw client that sends a request anyway (closed with the request unread, the
+    // connection may be reset rather than ended).
+    let raw = "import socket, sys\n\
+        s = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)\n\
+        s.settimeout(10)\n\
+        s.connect(sys.argv[1])\n\
+        try:\n    s.sendall(b'{\"op\": \"state\"}\\n')\nexcept OSError:\n    pass\n\
+        try:\n    data = s.recv(4096)\nexcept ConnectionResetError:\n    data = b''\n\
+        print('answered' if data else 'closed')";
+    let socket_str = socket.to_str().unwrap();
+    let (raw_code, raw_out, raw_err) = as_nobody(py, &["-c", raw, socket_str]);
     std::fs::set_permissions(socket, std::fs::Permissions::from_mode(0o600)).unwrap();
     assert_eq!(code, Some(1), "another user was answered: {out}{err}");
-    assert!(err.contains("closed the connection"), "{err}");
+    assert!(err.contains("served by another user (uid 0)"), "{err}");
+    assert_eq!((raw_code, raw_out.trim()), (Some(0), "closed"), "the run answered another user: {raw_err}");
+}
+
+/// A control socket of the namespace that another user serves is not this user's run:
+/// `tutti ctl` and the Python module refuse it, saying whose it is, and send it nothing.
+fn another_users_socket_is_not_told_anything(py: &Path) {
+    let ns = format!("ctlforeign{}", std::process::id());
+    let socket = tutti_host::control::socket_path(&ns);
+    struct Remove(PathBuf);
+    impl Drop for Remove {
+        fn drop(&mut self) {
+            let _ = std::fs::remove_file(&self.0);
+        }
+    }
+    let _remove = Remove(socket.clone());
+    // The stranger's server prints what it was sent, and answers nothing.
+    let server = "import os, socket, sys\n\
+        s = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)\n\
+        s.bind(sys.argv[1])\n\
+        os.chmod(sys.argv[1], 0o666)\n\
+        s.listen(4)\n\
+        print('listening', flush=True)\n\
+        while True:\n    c, _ = s.accept()\n    c.settimeout(2)\n    \
+        try:\n        print('got', repr(c.recv(4096)), flush=True)\n    except OSError:\n        pass\n    c.close()";
+    let mut cmd = Command::new("setpriv");
+    cmd.args(["--reuid=65534", "--regid=65534", "--clear-groups"]).arg(py).args(["-c", server]).arg(&socket);
+    let stranger = Proc::spawn("another user's server", cmd, WATCHDOG);
+    assert!(stranger.wait_line("listening", Duration::from_secs(30)).is_some(), "{}", stranger.dump());
+    let (code, out, err) = tutti(&ns, &["ctl", "pause"]);
+    assert_eq!(code, 1, "{out}{err}");
+    assert!(
+        err.contains(&format!(
+            "control socket {} of namespace '{ns}' is served by another user (uid 65534)",
+            socket.display()
+        )),
+        "{err}"
+    );
+    let script = "import sys, tutti_ctl\n\
+        try:\n    tutti_ctl.connect(sys.argv[1]).pause()\nexcept tutti_ctl.ControlError as e:\n    print(e)";
+    let mut cmd = Command::new(py);
+    cmd.args(["-c", script, &ns]).env("PYTHONPATH", common::repo_root().join("python"));
+    let (status, out, err) = common::run_with_timeout(cmd, Duration::from_secs(60));
+    assert!(status.success(), "{out}{err}");
+    assert!(out.contains("is served by another user (uid 65534)"), "{out}{err}");
+    thread::sleep(Duration::from_millis(300));
+    assert!(
+        stranger.lines().iter().all(|l| l == "listening" || l == "got b''"),
+        "a request reached the stranger: {}",
+        stranger.dump()
+    );
 }

@@ -166,6 +166,9 @@ pub enum ControlError {
         "no run in namespace '{namespace}' (no control socket {path}): is a `tutti host` or `tutti run` running there?"
     )]
     NoRun { namespace: String, path: String },
+    /// The namespace's control socket is served by a process of another user.
+    #[error("the control socket {path} of namespace '{namespace}' is served by another user (uid {uid}), not by a run of yours")]
+    NotOurs { namespace: String, path: String, uid: u32 },
     /// Another run already serves the namespace.
     #[error("namespace '{namespace}' already has a running framework (its control socket {path} answers)")]
     Taken { namespace: String, path: String },
@@ -414,6 +417,17 @@ impl ControlClient {
             _ => ControlError::Io { what: "connecting to", path: path.display().to_string(), source },
         })?;
         let io = |source| ControlError::Io { what: "setting up", path: path.display().to_string(), source };
+        // The socket directory is everyone's: a socket of this name that another user made
+        // is not this user's run, and is not told anything.
+        let me = rustix::process::getuid();
+        let owner = rustix::net::sockopt::socket_peercred(&stream).map_err(|e| io(e.into()))?.uid;
+        if owner != me {
+            return Err(ControlError::NotOurs {
+                namespace: ns.to_string(),
+                path: path.display().to_string(),
+                uid: owner.as_raw(),
+            });
+        }
         stream.set_read_timeout(Some(timeout)).map_err(io)?;
         Ok(ControlClient { stream: BufReader::new(stream), timeout })
     }
