@@ -19,10 +19,11 @@
 //!   the engine).
 //! * Discovery: DCPSPublication / DCPSSubscription built-in readers, drained into incremental
 //!   maps whenever [`Engine::remote`] is called.
-//! * Config: with interfaces or peers set, the participant's domain is created explicitly with
-//!   `dds_create_domain`, whose configuration is `$CYCLONEDDS_URI` (when set: an explicit config
-//!   replaces the environment, so it goes first) followed by a fragment without the
-//!   `<CycloneDDS><Domain>` wrapper, which Cyclone accepts in XML strings. Checked against Cyclone
+//! * Config: the participant's domain is created explicitly with `dds_create_domain`, whose
+//!   configuration is `$CYCLONEDDS_URI` (when set: an explicit config replaces the environment,
+//!   so it goes first) followed by a fragment without the `<CycloneDDS><Domain>` wrapper, which
+//!   Cyclone accepts in XML strings: one receive thread per socket (`RECEIVE_THREADS`, unless
+//!   the environment's config sets it), the interfaces and the peers. Checked against Cyclone
 //!   11.0.1's config trace: the fragment applies on top of the environment's config; list elements
 //!   add up (`Peer`s of both are used), single values are overridden by the fragment
 //!   (`MaxAutoParticipantIndex` 50). An interface that `CYCLONEDDS_URI` selects already makes
@@ -115,10 +116,14 @@ fn xml_attr(s: &str) -> String {
 /// The configuration for `dds_create_domain`, or None when there is nothing to add to
 /// `CYCLONEDDS_URI` (`env`): its value first, then the fragment for `interfaces` and `cfg.peers`.
 fn domain_config(cfg: &EngineConfig, interfaces: &[IpAddr], env: Option<&str>) -> Option<String> {
-    if interfaces.is_empty() && cfg.peers.is_empty() {
+    let threads = !env.is_some_and(sets_receive_threads);
+    if interfaces.is_empty() && cfg.peers.is_empty() && !threads {
         return None;
     }
     let mut fragment = String::new();
+    if threads {
+        fragment.push_str(RECEIVE_THREADS);
+    }
     if !interfaces.is_empty() {
         fragment.push_str("<General><Interfaces>");
         for ip in interfaces {
@@ -147,6 +152,26 @@ fn domain_config(cfg: &EngineConfig, interfaces: &[IpAddr], env: Option<&str>) -
     Some(match env {
         Some(e) => format!("{e},{fragment}"),
         None => fragment,
+    })
+}
+
+/// One receive thread per socket, blocking in `recvmsg` (Cyclone 0.10's default, and what
+/// `ddsperf` from Debian's cyclonedds-tools runs with), rather than Cyclone 11's one thread
+/// multiplexing every socket with `epoll_wait` + `recvmsg`: one system call less per packet,
+/// 0.6-0.8 µs of a one-core round trip (docs/benchmarks.md, "Where a one-core round trip
+/// goes"). Cyclone wakes such threads at shutdown with a datagram to their own socket, which
+/// a host firewall must let through; `CYCLONEDDS_URI` may set `MultipleReceiveThreads` itself.
+const RECEIVE_THREADS: &str = "<Internal><MultipleReceiveThreads>true</MultipleReceiveThreads></Internal>";
+
+/// Whether `CYCLONEDDS_URI` (inline XML and `file://` entries, comma-separated) sets
+/// `MultipleReceiveThreads` itself: then it stands.
+fn sets_receive_threads(env: &str) -> bool {
+    env.split(',').any(|part| {
+        let part = part.trim();
+        match part.strip_prefix("file://") {
+            Some(path) => std::fs::read_to_string(path).is_ok_and(|t| t.contains("MultipleReceiveThreads")),
+            None => part.contains("MultipleReceiveThreads"),
+        }
     })
 }
 
@@ -609,9 +634,13 @@ impl Cyclone {
             }
             if d == DDS_RETCODE_PRECONDITION_NOT_MET {
                 // Another participant of this process made the domain already: its config stands.
-                tracing::warn!(
-                    "cyclone: domain {domain_id} already exists in this process; interfaces/peers not applied"
-                );
+                if cfg.interfaces.is_empty() && cfg.peers.is_empty() {
+                    tracing::debug!("cyclone: domain {domain_id} already exists in this process; its config stands");
+                } else {
+                    tracing::warn!(
+                        "cyclone: domain {domain_id} already exists in this process; interfaces/peers not applied"
+                    );
+                }
             } else if d < 0 {
                 let conf = conf.unwrap_or_default();
                 return Err(GatewayError::dds(format!("domain {domain_id} with config {conf}"), retcode(d)));
@@ -895,11 +924,21 @@ mod tests {
     #[test]
     fn config_fragment() {
         let mut cfg = EngineConfig::default();
-        assert_eq!(domain_config(&cfg, &[], Some("<x/>")), None);
+        // One receive thread per socket, unless the environment's config says.
+        assert_eq!(domain_config(&cfg, &[], Some("<x/>")).as_deref(), Some(&*format!("<x/>,{RECEIVE_THREADS}")));
+        assert_eq!(domain_config(&cfg, &[], None).as_deref(), Some(RECEIVE_THREADS));
+        let own = "<Internal><MultipleReceiveThreads>false</MultipleReceiveThreads></Internal>";
+        assert_eq!(domain_config(&cfg, &[], Some(own)), None);
+        let dir = tempfile::tempdir().unwrap();
+        let file = dir.path().join("c.xml");
+        std::fs::write(&file, format!("<CycloneDDS><Domain>{own}</Domain></CycloneDDS>")).unwrap();
+        assert_eq!(domain_config(&cfg, &[], Some(&format!("<y/>, file://{}", file.display()))), None);
         cfg.interfaces = vec!["127.0.0.1".parse().unwrap()];
         cfg.peers = vec!["host\"a".into()];
         let c = domain_config(&cfg, &cfg.interfaces, Some("file:///etc/c.xml")).unwrap();
-        assert!(c.starts_with("file:///etc/c.xml,<General><Interfaces><NetworkInterface address=\"127.0.0.1\"/>"));
+        assert!(c.starts_with(&format!(
+            "file:///etc/c.xml,{RECEIVE_THREADS}<General><Interfaces><NetworkInterface address=\"127.0.0.1\"/>"
+        )));
         assert!(c.contains("<Peer address=\"host&quot;a\"/>"));
         assert!(c.ends_with("<MaxAutoParticipantIndex>50</MaxAutoParticipantIndex></Discovery>"));
         assert!(!domain_config(&cfg, &cfg.interfaces, None).unwrap().contains(','));
