@@ -298,6 +298,8 @@ struct EngineRun {
     rtt: Fig<Rtt>,
     paced: Fig<Rtt>,
     ping: Fig<Rtt>,
+    /// The engine ping answered on the receive thread, as ddsperf's.
+    ping_rx: Fig<Rtt>,
     to_dds: Fig<f64>,
     from_dds: Fig<f64>,
     alone: Fig<f64>,
@@ -310,6 +312,9 @@ struct EngineRun {
 struct Peers {
     ddsperf: Fig<Rtt>,
     ddsperf_paced: Fig<Rtt>,
+    /// ddsperf's ping waiting for each pong on a thread of its own (`ping waitset`): the
+    /// shape of a framework awaiting an answer.
+    ddsperf_waitset: Fig<Rtt>,
     fastdds: Fig<Rtt>,
 }
 
@@ -480,11 +485,13 @@ impl Bench<'_> {
         }
         step("gateway round trip");
         let rtt = noted(self.round_trip(e, cpus, mode), &at("round trip"));
-        let ping = if process {
+        let (ping, ping_rx) = if process {
             step("ping -> echo without the gateway");
-            noted(self.engine_ping(e, cpus), &at("ping"))
+            let ping = noted(self.engine_ping(e, cpus, false), &at("ping"));
+            step("ping -> echo without the gateway, answered on the receive thread");
+            (ping, noted(self.engine_ping(e, cpus, true), &at("ping on the receive thread")))
         } else {
-            skipped()
+            (skipped(), skipped())
         };
         step("async set shm -> DDS");
         let to_dds = noted(self.outbound(e, cpus, false, mode).map(|r| rate(&r)), &at("shm -> DDS"));
@@ -504,7 +511,7 @@ impl Bench<'_> {
             Ok((hot, paced)) => (Ok(hot), Ok(paced)),
             Err(why) => (Err(why.clone()), Err(why)),
         };
-        EngineRun { engine: e, mode, rtt, paced, ping, to_dds, from_dds, alone, sync, lock }
+        EngineRun { engine: e, mode, rtt, paced, ping, ping_rx, to_dds, from_dds, alone, sync, lock }
     }
 
     fn ddf(&self, synchronous: bool) -> &Path {
@@ -666,14 +673,19 @@ impl Bench<'_> {
 
     /// The echo pinged by a participant of the same engine in this process (where the
     /// gateway was), with no gateway and no shared memory: what the engine itself costs on
-    /// this path.
-    fn engine_ping(&mut self, e: EngineKind, cpus: Cpus) -> anyhow::Result<Rtt> {
+    /// this path. `in_listener`: each ping is written on the receive thread as the last one's
+    /// answer arrives (as ddsperf pings), rather than by a thread that waits for the answer.
+    fn engine_ping(&mut self, e: EngineKind, cpus: Cpus, in_listener: bool) -> anyhow::Result<Rtt> {
         let slot = self.slot();
         let _echo = self.echo_peer(e, &slot, false, cpus.peer)?;
         let (mut opts, d) = peer_opts(&self.async_ddf, slot.dom, e)?;
         opts.node_name = "tutti_bench_ping".into();
         pin_self(cpus.gw);
-        let t = crate::peers::ping(&opts, &d, self.args.samples, PATIENCE);
+        let t = if in_listener {
+            crate::peers::ping_in_listener(&opts, &d, self.args.samples, PATIENCE)
+        } else {
+            crate::peers::ping(&opts, &d, self.args.samples, PATIENCE)
+        };
         pin_self(cpus.fw);
         let t = t?;
         let lost = self.args.samples.saturating_sub(t.len() as u32);
@@ -818,25 +830,29 @@ impl Bench<'_> {
     /// ddsperf (back to back and paced) and Fast DDS on the placement's cores.
     fn peers(&mut self, cpus: Cpus, fastdds: &Fig<PathBuf>) -> Peers {
         let at = |what: &str| format!("{}: {what}", cpus.key);
-        let ddsperf = noted(self.ddsperf(cpus, None), &at("ddsperf"));
-        let ddsperf_paced = noted(self.ddsperf(cpus, Some("1kHz")), &at("ddsperf 1kHz"));
+        let ddsperf = noted(self.ddsperf(cpus, None, false), &at("ddsperf"));
+        let ddsperf_paced = noted(self.ddsperf(cpus, Some("1kHz"), false), &at("ddsperf 1kHz"));
+        let ddsperf_waitset = noted(self.ddsperf(cpus, None, true), &at("ddsperf ping waitset"));
         let fastdds = match fastdds {
             Ok(bin) => noted(self.fastdds(bin, cpus), &at("fastdds")),
             Err(why) => Err(why.clone()),
         };
-        Peers { ddsperf, ddsperf_paced, fastdds }
+        Peers { ddsperf, ddsperf_paced, ddsperf_waitset, fastdds }
     }
 
     /// ddsperf ping-pong, back to back (`rate` None: a ping as soon as the pong is in) or at
     /// a rate ("1kHz"), with samples of the gateway's size (`size 80`: the 16 header bytes and
-    /// the 8 doubles); it prints half the round trip.
-    fn ddsperf(&mut self, cpus: Cpus, rate: Option<&str>) -> anyhow::Result<Rtt> {
+    /// the 8 doubles); it prints half the round trip. `waitset`: the ping waits for each pong
+    /// on a thread of its own (ddsperf's `ping waitset`) rather than writing the next ping from
+    /// the pong's data-available listener, on the receive thread (its default).
+    fn ddsperf(&mut self, cpus: Cpus, rate: Option<&str>, waitset: bool) -> anyhow::Result<Rtt> {
         let dom = self.slot().dom.to_string();
         let mut pong = Command::new("ddsperf");
         pong.args(["-i", &dom, "-D8", "pong"]).env("CYCLONEDDS_URI", LOOPBACK).stdout(Stdio::null());
         let mut ping = Command::new("ddsperf");
         ping.args(["-i", &dom, "-D5", "-Qminmatch:1", "-Qinitwait:5", "ping"])
             .args(rate)
+            .args(waitset.then_some("waitset"))
             .args(["size", "80"])
             .env("CYCLONEDDS_URI", LOOPBACK);
         let out = ping_pong("ddsperf", pong, ping, cpus).context("apt-get install -y cyclonedds-tools")?;
@@ -993,6 +1009,7 @@ impl EngineRun {
             rtt: no(why),
             paced: no(why),
             ping: no(why),
+            ping_rx: no(why),
             to_dds: no(why),
             from_dds: no(why),
             alone: no(why),
@@ -1147,10 +1164,11 @@ fn print_tables(runs: &[PlacementRun], large: &[(EngineKind, LargeFig)], large_d
             }),
         );
         let each = |label: &str, get: &dyn Fn(&EngineRun) -> String| row(label, engines.iter().map(get));
-        let rtt_rows: [(&str, Get<Rtt>); 3] = [
+        let rtt_rows: [(&str, Get<Rtt>); 4] = [
             ("gateway round trip, back to back", |r| &r.rtt),
             ("gateway round trip, paced at 1 kHz", |r| &r.paced),
             ("engine ping -> echo, no gateway, back to back", |r| &r.ping),
+            ("engine ping -> echo, answered on the receive thread", |r| &r.ping_rx),
         ];
         for (label, get) in rtt_rows {
             each(&format!("{label}, p50 µs"), &|r| cell(get(r), |t| t.p50, 1, None));
@@ -1161,6 +1179,7 @@ fn print_tables(runs: &[PlacementRun], large: &[(EngineKind, LargeFig)], large_d
         for (label, f) in [
             ("ddsperf ping-pong (80 B), back to back", &peers.ddsperf),
             ("ddsperf ping-pong (80 B), ping 1kHz", &peers.ddsperf_paced),
+            ("ddsperf ping-pong (80 B), ping waits on a waitset", &peers.ddsperf_waitset),
             ("Fast DDS ping-pong (UDP, 80 B), back to back", &peers.fastdds),
         ] {
             match f {
@@ -1173,6 +1192,9 @@ fn print_tables(runs: &[PlacementRun], large: &[(EngineKind, LargeFig)], large_d
         let met_rtt: fn(f64) -> bool = |x| x <= TARGET_RTT_RATIO;
         each(&format!("ratio gateway / ddsperf p50, back to back (cyclone <= {TARGET_RTT_RATIO})"), &|r| {
             cell(&ratio(&r.rtt, &peers.ddsperf), |x| *x, 2, Some((r.engine, met_rtt)))
+        });
+        each("ratio gateway / ddsperf ping on a waitset p50, back to back", &|r| {
+            cell(&ratio(&r.rtt, &peers.ddsperf_waitset), |x| *x, 2, None)
         });
         each("ratio gateway / ddsperf p50, paced at 1 kHz", &|r| {
             cell(&ratio(&r.paced, &peers.ddsperf_paced), |x| *x, 2, None)
@@ -1245,7 +1267,11 @@ struct JsonRun {
     sync_steps_per_s: Option<f64>,
     rtt_paced_p50_us: Option<f64>,
     ddsperf_rtt_paced_p50_us: Option<f64>,
+    /// ddsperf's `ping waitset` (its ping waits on a thread of its own).
+    ddsperf_waitset_rtt_p50_us: Option<f64>,
     engine_rtt_p50_us: Option<f64>,
+    /// The engine ping answered on the receive thread (as ddsperf's ping is).
+    engine_rtt_in_listener_p50_us: Option<f64>,
     engine_alone_per_s: Option<f64>,
     sync_shm_to_dds_per_s: Option<f64>,
     sync_in_order: Option<bool>,
@@ -1298,7 +1324,9 @@ fn to_json(runs: &[PlacementRun], large: &[(EngineKind, LargeFig)]) -> Json {
                 sync_steps_per_s: r.lock.as_ref().ok().map(|l| l.per_s.round()),
                 rtt_paced_p50_us: p50(&r.paced),
                 ddsperf_rtt_paced_p50_us: p50(&run.peers.ddsperf_paced),
+                ddsperf_waitset_rtt_p50_us: p50(&run.peers.ddsperf_waitset),
                 engine_rtt_p50_us: p50(&r.ping),
+                engine_rtt_in_listener_p50_us: p50(&r.ping_rx),
                 engine_alone_per_s: r.alone.as_ref().ok().map(|x| x.round()),
                 sync_shm_to_dds_per_s: r.sync.as_ref().ok().map(|s| rate(s).round()),
                 sync_in_order: r.sync.as_ref().ok().map(|s| s.lost == 0 && s.misordered == 0),

@@ -3,7 +3,8 @@
 //! domain and writes each back, unchanged, as a SUBSCRIBE sample (the two sets must have the
 //! same layout); the sink ([`sink`]) counts the samples it receives on one of the two
 //! topics, and can check that steps arrive once and in order; the source ([`source`])
-//! writes SUBSCRIBE samples as fast as it can; the ping ([`ping`]) measures round trips
+//! writes SUBSCRIBE samples as fast as it can; the ping ([`ping`], and
+//! [`ping_in_listener`] answered on the receive thread as ddsperf's) measures round trips
 //! through the echo without the gateway.
 
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
@@ -269,6 +270,88 @@ pub fn ping(
         }
     }
     drop(ep);
+    Ok(times)
+}
+
+/// The same pings as [`ping`], each written on the engine's receive thread as the answer to
+/// the last one arrives, as ddsperf's ping does: no other thread waits for an answer, so each
+/// round trip has one thread switch fewer than [`ping`]'s (and than any round trip whose answer
+/// is awaited by a thread of its own, as a framework's is). Returns the round trips (µs) of
+/// `samples` pings after the first answer; a ping lost on the way (best effort) is sent again
+/// from this thread after 100 ms and not counted. Gives up after `patience` without an answer.
+pub fn ping_in_listener(
+    opts: &GatewayOptions,
+    domain: &Domain,
+    samples: u32,
+    patience: Duration,
+) -> Result<Vec<f64>, GatewayError> {
+    struct Chain {
+        writer: Box<dyn Writer>,
+        body: Vec<u8>,
+        shm: Vec<u8>,
+        /// The ping in flight and when it was written; None once `samples` came back.
+        sent: Option<(u64, Instant)>,
+        times: Vec<f64>,
+    }
+    impl Chain {
+        fn send(&mut self, codec: &SetCodec, step: u64) {
+            codec.encode(step, 0.0, &self.shm, &mut self.body);
+            self.sent = Some((step, Instant::now()));
+            if self.writer.write(&self.body) {
+                self.writer.flush();
+            }
+        }
+    }
+    let Endpoints { writer, dds, codec, reads, rq } = Endpoints::open(opts, domain, Role::Subscribe)?;
+    let want = samples as usize + 1;
+    let chain = Arc::new(Mutex::new(Chain {
+        writer,
+        body: Vec::new(),
+        shm: vec![0u8; codec.shm_size()],
+        sent: None,
+        times: Vec::with_capacity(want),
+    }));
+    let (c, cd) = (chain.clone(), codec.clone());
+    let sink = typed_sink(codec.clone(), dds.own_prefix(), move |s| {
+        let mut ch = c.lock().unwrap_or_else(PoisonError::into_inner);
+        let Some((step, t)) = ch.sent else { return };
+        if s.step != step {
+            return;
+        }
+        let us = t.elapsed().as_secs_f64() * 1e6;
+        ch.times.push(us);
+        if ch.times.len() >= want {
+            ch.sent = None;
+        } else {
+            ch.send(&cd, step + 1);
+        }
+    });
+    dds.reader(&reads.topic, &TopicType::plain(&reads.dds_type), &rq, Decode::Set(codec.clone()), sink)?;
+    let end = Instant::now() + patience;
+    let mut last = (0usize, Instant::now());
+    loop {
+        std::thread::sleep(Duration::from_millis(20));
+        let mut ch = chain.lock().unwrap_or_else(PoisonError::into_inner);
+        let n = ch.times.len();
+        if n >= want {
+            break;
+        }
+        if n == 0 && Instant::now() > end {
+            return Err(GatewayError::NoEcho);
+        }
+        if n != last.0 {
+            last = (n, Instant::now());
+        } else if last.1.elapsed() >= Duration::from_millis(100) || ch.sent.is_none() {
+            // Not started, or a ping (or its answer) was lost: the chain starts again.
+            let step = ch.sent.map_or(1, |(k, _)| k + 1_000_000);
+            ch.send(&codec, step);
+            last.1 = Instant::now();
+        }
+    }
+    let mut times = std::mem::take(&mut chain.lock().unwrap_or_else(PoisonError::into_inner).times);
+    drop(dds);
+    // The first answer waited for discovery.
+    times.remove(0);
     Ok(times)
 }
 
