@@ -255,6 +255,10 @@ pub trait Writer: Send {
         let _ = prefix;
         None
     }
+    /// Takes in the match statuses the engine has queued for this writer, so that
+    /// [`matched_readers_of`](Self::matched_readers_of) stays right between questions where
+    /// the engine queues only a few and drops the rest (rustdds); a no-op elsewhere.
+    fn take_match_statuses(&mut self) {}
     /// Sends what batching held back (a no-op where writes are not batched).
     fn flush(&mut self) {}
     /// A flush that another thread may call while this writer writes (None: the engine does

@@ -317,6 +317,10 @@ impl Writer for RelatedWriter {
         self.take_statuses();
         Some(self.matched.get(&prefix).map_or(0, |&n| n as usize))
     }
+
+    fn take_match_statuses(&mut self) {
+        self.take_statuses();
+    }
 }
 
 /// Tells `participant` the USER_DATA of the endpoints of type `ty` (none without a hash).

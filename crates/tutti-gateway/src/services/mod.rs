@@ -27,7 +27,7 @@ use std::time::{Duration, Instant};
 use tutti_core::cdr::split_header;
 use tutti_core::ddf::Model;
 
-use crate::engine::{Engine, Guid, Identified, Writer, PREFIX_LEN};
+use crate::engine::{Engine, Guid, Identified, Remote, Writer, PREFIX_LEN};
 use crate::GatewayError;
 use lifecycle::{Control, Lifecycle, RunControl};
 use messages::{Body, Out, Outcome};
@@ -196,7 +196,7 @@ impl State {
             // Keeps each reply writer's count of matched readers up to date between
             // replies (rustdds queues only a few match statuses).
             for server in &mut self.servers {
-                let _ = server.writer.matched_readers_of([0; PREFIX_LEN]);
+                server.writer.take_match_statuses();
             }
             self.send_held();
             let turn = if self.held.is_empty() { Duration::from_millis(100) } else { Duration::from_millis(5) };
@@ -241,7 +241,7 @@ impl State {
         match answered {
             Err(e) => tracing::warn!("simulation services: a {} request: {e}", server.service.name),
             Ok(true) => {
-                if !reply(self.engine.as_ref(), server, &call, &out.0, false) {
+                if !reply(&self.engine.remote(), server, &call, &out.0, false) {
                     self.hold(call, out.0);
                 }
             }
@@ -274,10 +274,12 @@ impl State {
             return;
         }
         let now = Instant::now();
+        // One look at discovery for them all.
+        let remote = self.engine.remote();
         let held = std::mem::take(&mut self.held);
         for h in held {
             let server = &mut self.servers[h.service];
-            if !reply(self.engine.as_ref(), server, &h.call, &h.body, now >= h.until) {
+            if !reply(&remote, server, &h.call, &h.body, now >= h.until) {
                 self.held.push(h);
             }
         }
@@ -341,8 +343,8 @@ pub(crate) fn wait_for_reader(engine: &dyn Engine, topic: &str, prefix: [u8; PRE
 /// `prefix`: each client (a request writer there) has its reply reader, which the reply
 /// writer has matched (or, where the engine cannot say, discovery shows). A node may make a
 /// new client of the same service at any time, so this is counted afresh for every reply.
-fn reaches(engine: &dyn Engine, server: &mut Server, prefix: [u8; PREFIX_LEN]) -> bool {
-    let remote = engine.remote();
+/// `remote` is what discovery shows.
+fn reaches(remote: &Remote, server: &mut Server, prefix: [u8; PREFIX_LEN]) -> bool {
     let clients = remote.writers_on(&server.request_topic).filter(|g| g.prefix() == prefix).count().max(1);
     let readers = match server.writer.matched_readers_of(prefix) {
         Some(n) => n,
@@ -354,10 +356,11 @@ fn reaches(engine: &dyn Engine, server: &mut Server, prefix: [u8; PREFIX_LEN]) -
 }
 
 /// Writes `body` on the server's reply topic, in the form of the request `call`, if it
-/// reaches the client (or `anyway`); whether it was written.
-fn reply(engine: &dyn Engine, server: &mut Server, call: &Call, body: &[u8], anyway: bool) -> bool {
+/// reaches the client as `remote` (discovery) and the writer's matches show (or `anyway`);
+/// whether it was written.
+fn reply(remote: &Remote, server: &mut Server, call: &Call, body: &[u8], anyway: bool) -> bool {
     let client = call.client;
-    if !reaches(engine, server, client.prefix()) {
+    if !reaches(remote, server, client.prefix()) {
         if !anyway {
             return false;
         }
