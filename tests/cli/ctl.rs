@@ -230,12 +230,17 @@ fn an_asynchronous_run_pauses_and_refuses_to_step() {
     assert!(!socket.exists());
 }
 
-/// `program` as user `nobody` (uid 65534): its exit code and output.
-fn as_nobody(program: &Path, args: &[&str]) -> (Option<i32>, String, String) {
+/// `program ARGS` as user `nobody` (uid 65534).
+fn nobody(program: &Path, args: &[&str]) -> Command {
     let mut cmd = Command::new("setpriv");
     cmd.args(["--reuid=65534", "--regid=65534", "--clear-groups"]).arg(program).args(args);
     cmd.env("PYTHONPATH", common::repo_root().join("python"));
-    let (status, out, err) = common::run_with_timeout(cmd, Duration::from_secs(60));
+    cmd
+}
+
+/// `program ARGS` as user `nobody`, to its end: its exit code and output.
+fn as_nobody(program: &Path, args: &[&str]) -> (Option<i32>, String, String) {
+    let (status, out, err) = common::run_with_timeout(nobody(program, args), Duration::from_secs(60));
     (status.code(), out, err)
 }
 
@@ -271,14 +276,8 @@ fn another_user_is_refused(ns: &str, socket: &Path, py: &Path) {
 /// `tutti ctl` and the Python module refuse it, saying whose it is, and send it nothing.
 fn another_users_socket_is_not_told_anything(py: &Path) {
     let ns = format!("ctlforeign{}", std::process::id());
-    let socket = tutti_host::control::socket_path(&ns);
-    struct Remove(PathBuf);
-    impl Drop for Remove {
-        fn drop(&mut self) {
-            let _ = std::fs::remove_file(&self.0);
-        }
-    }
-    let _remove = Remove(socket.clone());
+    // Removed however the test ends.
+    let socket = tempfile::TempPath::try_from_path(tutti_host::control::socket_path(&ns)).unwrap();
     // The stranger's server prints what it was sent, and answers nothing.
     let server = "import os, socket, sys\n\
         s = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)\n\
@@ -288,9 +287,8 @@ fn another_users_socket_is_not_told_anything(py: &Path) {
         print('listening', flush=True)\n\
         while True:\n    c, _ = s.accept()\n    c.settimeout(2)\n    \
         try:\n        print('got', repr(c.recv(4096)), flush=True)\n    except OSError:\n        pass\n    c.close()";
-    let mut cmd = Command::new("setpriv");
-    cmd.args(["--reuid=65534", "--regid=65534", "--clear-groups"]).arg(py).args(["-c", server]).arg(&socket);
-    let stranger = Proc::spawn("another user's server", cmd, WATCHDOG);
+    let stranger =
+        Proc::spawn("another user's server", nobody(py, &["-c", server, socket.to_str().unwrap()]), WATCHDOG);
     assert!(stranger.wait_line("listening", Duration::from_secs(30)).is_some(), "{}", stranger.dump());
     let (code, out, err) = tutti(&ns, &["ctl", "pause"]);
     assert_eq!(code, 1, "{out}{err}");
