@@ -93,8 +93,6 @@ pub struct FmuParticipant {
     framework_stopped: bool,
     /// The last framework step read and its simulated time.
     last_seen: Option<(u64, f64)>,
-    /// The connection's timeout (commits, locks); waits for a step are sliced ([`WAIT_SLICE`]).
-    timeout: Duration,
 }
 
 /// How long one wait for the framework's next step lasts before the run loop looks at its
@@ -159,7 +157,6 @@ impl FmuParticipant {
     ) -> Result<FmuParticipant, RunError> {
         set_params(md, &mut instance, &opts.params)?;
         let name = domain.name.clone();
-        let timeout = opts.connect.timeout;
         let participant = Participant::connect_checked(domain, opts.connect)
             .map_err(|source| RunError::Domain { domain: name.clone(), source })?;
         let mode =
@@ -176,7 +173,6 @@ impl FmuParticipant {
             max_steps: opts.max_steps,
             framework_stopped: false,
             last_seen: None,
-            timeout,
         })
     }
 
@@ -263,8 +259,10 @@ impl FmuParticipant {
     /// `Timeout` means none came yet, wait again) and answers it. Asynchronous: reads the
     /// latest inputs, advances the FMU by the step and commits (the caller paces).
     pub fn step(&mut self) -> Result<(), RunError> {
-        let (sync, timeout) = (self.mode == StepMode::Synchronous, self.timeout);
+        let sync = self.mode == StepMode::Synchronous;
         let p = self.participant();
+        // The connection's timeout (commits, locks); a wait for a step is sliced.
+        let timeout = p.wait_timeout();
         if sync {
             // A timed-out slice is waited again by the run loop, unless it is told to stop.
             p.set_timeout(WAIT_SLICE.min(timeout));

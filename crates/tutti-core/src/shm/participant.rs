@@ -216,6 +216,12 @@ impl Participant {
         self.opts.timeout = timeout;
     }
 
+    /// The longest wait of this connection (for a step, a commit's step, a lock): what
+    /// [`set_timeout`](Self::set_timeout) set.
+    pub fn wait_timeout(&self) -> Duration {
+        self.opts.timeout
+    }
+
     /// A pointer to the framework's state word (0 while it initialises, 1 running, 2
     /// stopped): the live status the RTAPI hands to C. Valid while this participant lives;
     /// another process writes it, so read it as `volatile`.
