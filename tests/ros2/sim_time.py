@@ -3,8 +3,8 @@
 Usage: sim_time.py SAMPLES
 
 Subscribes to /clock itself, and reads the node's clock (which rclpy's time source sets from
-/clock when use_sim_time is true) after each spin. Prints `clock NS SOURCE RECEIVED` for each /clock message (with the
-writer's source timestamp and the reception time, in ns),
+/clock when use_sim_time is true) after each spin. Prints `clock NS SOURCE RECEIVED` for
+each /clock message (its time, the writer's source timestamp and the reception time, in ns),
 `now NS` for each distinct reading of the node's clock, and once `active BOOL` (whether ROS
 time is overridden by /clock), `publishers N` (the /clock writers it sees) and `wall NS`;
 exits after SAMPLES /clock messages, or with 1 when they do not come within 60 s.
