@@ -6,8 +6,9 @@
 //! at most every `1 / --clock-rate` seconds (the latest time goes out when the cap allows).
 //! Each time is its step's, read with it from the stamp of the framework's PUBLISH set; it
 //! goes back only when the run is reset (docs/run.md, "reset"). When the framework pauses or
-//! stops, nothing is written, so ROS 2 time stops too. The writer is RELIABLE, KEEP_LAST 1, VOLATILE: it
-//! matches rclcpp's `ClockQoS` subscriptions (BEST_EFFORT, KEEP_LAST 1) and reliable ones.
+//! stops, nothing is written, so ROS 2 time stops too. The writer is RELIABLE, KEEP_LAST 1,
+//! VOLATILE: it matches rclcpp's `ClockQoS` subscriptions (BEST_EFFORT, KEEP_LAST 1) and
+//! reliable ones.
 
 use std::sync::Arc;
 use std::time::{Duration, Instant};
