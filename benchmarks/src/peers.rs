@@ -15,19 +15,13 @@ use tutti_core::ddf::{Domain, Role};
 use tutti_core::mapping::{self, Endpoint, History, Reliability};
 
 use tutti_gateway::cdr::{SetCodec, TypedSample};
-use tutti_gateway::engine::{self, Data, Decode, Engine, Guid, Sink, TopicType, Writer};
+use tutti_gateway::engine::{self, Data, Decode, EndpointId, Engine, Sink, TopicType, Writer};
 use tutti_gateway::{GatewayError, GatewayOptions};
 
-/// A sink that decodes typed samples of other participants and hands them to `f`.
-fn typed_sink(
-    codec: Arc<SetCodec>,
-    own: [u8; engine::PREFIX_LEN],
-    f: impl Fn(TypedSample) + Send + Sync + 'static,
-) -> Sink {
-    Arc::new(move |writer: Guid, data: Data<'_>| {
-        if writer.prefix() == own {
-            return;
-        }
+/// A sink that decodes typed samples (of other participants: the engine drops its own) and
+/// hands them to `f`.
+fn typed_sink(codec: Arc<SetCodec>, f: impl Fn(TypedSample) + Send + Sync + 'static) -> Sink {
+    Arc::new(move |_: EndpointId, data: Data<'_>| {
         let s = match data {
             Data::Raw(raw) => codec.decode(raw),
             Data::Decoded(r) => r.and_then(|p| match p {
@@ -50,7 +44,7 @@ pub fn run(opts: &GatewayOptions, domain: &Domain, stop: Arc<AtomicBool>) -> Res
     let n = Arc::new(AtomicU64::new(0));
     let (codec, writer, count) = (ep.codec.clone(), Mutex::new(ep.writer), n.clone());
     let body = Mutex::new(Vec::new());
-    let sink = typed_sink(ep.codec.clone(), ep.dds.own_prefix(), move |s| {
+    let sink = typed_sink(ep.codec.clone(), move |s| {
         let mut body = body.lock().unwrap_or_else(PoisonError::into_inner);
         codec.encode(s.step, s.sim_time, &s.data, &mut body);
         let mut w = writer.lock().unwrap_or_else(PoisonError::into_inner);
@@ -60,7 +54,7 @@ pub fn run(opts: &GatewayOptions, domain: &Domain, stop: Arc<AtomicBool>) -> Res
         w.flush();
     });
     ep.dds.reader(
-        &ep.reads.topic,
+        &ep.reads.ros2_topic,
         &TopicType::plain(&ep.reads.dds_type),
         &ep.rq,
         Decode::Set(ep.codec.clone()),
@@ -128,7 +122,7 @@ pub fn sink(
     // (its first gap, while joining, was seen).
     let state = Arc::new(Mutex::new((None::<Instant>, Received::default(), None::<u64>, false)));
     let st = state.clone();
-    let counter = typed_sink(codec.clone(), dds.own_prefix(), move |s| {
+    let counter = typed_sink(codec.clone(), move |s| {
         let mut guard = st.lock().unwrap_or_else(PoisonError::into_inner);
         let (first, got, last, started) = &mut *guard;
         match *first {
@@ -149,7 +143,7 @@ pub fn sink(
             *last = Some(last.map_or(s.step, |prev| prev.max(s.step)));
         }
     });
-    dds.reader(&names.topic, &TopicType::plain(&names.dds_type), &rq, Decode::Set(codec), counter)?;
+    dds.reader(&names.ros2_topic, &TopicType::plain(&names.dds_type), &rq, Decode::Set(codec), counter)?;
     let start = Instant::now();
     loop {
         std::thread::sleep(Duration::from_millis(20));
@@ -181,7 +175,7 @@ pub fn source(
     let wq = mapping::qos(domain.flags, opts.profile, Endpoint::Writer, 0);
     let layout = &domain.subscribe.layout;
     let codec = SetCodec::new(layout);
-    let mut w = dds.writer(&names.topic, &TopicType::plain(&names.dds_type), &wq)?;
+    let mut w = dds.writer(&names.ros2_topic, &TopicType::plain(&names.dds_type), &wq)?;
     std::thread::sleep(settle);
     let mut shm = vec![0u8; layout.size as usize];
     let mut body = Vec::new();
@@ -220,9 +214,9 @@ pub fn ping(
     let mut ep = Endpoints::open(opts, domain, Role::Subscribe)?;
     let back = Arc::new(AtomicU64::new(0));
     let b = back.clone();
-    let sink = typed_sink(ep.codec.clone(), ep.dds.own_prefix(), move |s| b.store(s.step, Ordering::Release));
+    let sink = typed_sink(ep.codec.clone(), move |s| b.store(s.step, Ordering::Release));
     ep.dds.reader(
-        &ep.reads.topic,
+        &ep.reads.ros2_topic,
         &TopicType::plain(&ep.reads.dds_type),
         &ep.rq,
         Decode::Set(ep.codec.clone()),
@@ -312,7 +306,7 @@ pub fn ping_in_listener(
         times: Vec::with_capacity(want),
     }));
     let (c, cd) = (chain.clone(), codec.clone());
-    let sink = typed_sink(codec.clone(), dds.own_prefix(), move |s| {
+    let sink = typed_sink(codec.clone(), move |s| {
         let mut ch = c.lock().unwrap_or_else(PoisonError::into_inner);
         let Some((step, t)) = ch.sent else { return };
         if s.step != step {
@@ -326,7 +320,7 @@ pub fn ping_in_listener(
             ch.send(&cd, step + 1);
         }
     });
-    dds.reader(&reads.topic, &TopicType::plain(&reads.dds_type), &rq, Decode::Set(codec.clone()), sink)?;
+    dds.reader(&reads.ros2_topic, &TopicType::plain(&reads.dds_type), &rq, Decode::Set(codec.clone()), sink)?;
     let end = Instant::now() + patience;
     let mut last = (0usize, Instant::now());
     loop {
@@ -379,7 +373,7 @@ impl Endpoints {
         let rq = mapping::qos(domain.flags, opts.profile, Endpoint::Reader, 0);
         let wq = mapping::qos(domain.flags, opts.profile, Endpoint::Writer, 0);
         let codec = Arc::new(SetCodec::new(&domain.publish.layout));
-        let writer = dds.writer(&wn.topic, &TopicType::plain(&wn.dds_type), &wq)?;
+        let writer = dds.writer(&wn.ros2_topic, &TopicType::plain(&wn.dds_type), &wq)?;
         Ok(Endpoints { writer, dds, codec, reads: rn, rq })
     }
 }

@@ -32,8 +32,9 @@ pub struct Args {
     /// QoS profile to show (as `tutti gateway --qos-profile`; default ros2).
     #[arg(long, value_enum)]
     qos_profile: Option<ProfileArg>,
-    /// DDS engine to show (as `tutti gateway --dds`; default: TUTTI_DDS, else cyclone).
-    #[arg(long = "dds", value_name = "ENGINE")]
+    /// Engine to show (as `tutti gateway --engine`; `--dds` is an alias; default: TUTTI_DDS,
+    /// else cyclone).
+    #[arg(long = "engine", visible_alias = "dds", value_name = "ENGINE")]
     engine: Option<EngineKind>,
     /// Show the gateway's topics under this config file (as `tutti gateway --config`): which
     /// sets are bridged, their DDS and ROS 2 names, QoS and rate limits, and why a set is
@@ -209,10 +210,10 @@ struct LeftOutJson<'a> {
 
 /// The gateway's plan for the DDF under the config file `cfg`, the show flags given over it.
 fn show_plan(args: &Args, model: Model, cfg: &Path) -> CliResult {
-    let flags = ConfigFile { qos_profile: args.qos_profile.map(Into::into), dds: args.engine, ..Default::default() };
+    let flags = ConfigFile { qos_profile: args.qos_profile.map(Into::into), engine: args.engine, ..Default::default() };
     let keys = flags.layered(Some(cfg)).map_err(Failure::invalid)?;
     let mut opts = GatewayOptions::new(&args.file, model);
-    if keys.dds.is_none() {
+    if keys.engine.is_none() {
         opts.engine = config::env::engine().map_err(Failure::invalid)?;
     }
     keys.apply(&mut opts).map_err(Failure::invalid)?;

@@ -9,6 +9,7 @@ use std::sync::{Arc, Mutex};
 use std::thread;
 use std::time::{Duration, Instant};
 
+use tutti_engine::EngineKind;
 use tutti_test_support::{RemoveSegments, Worker};
 
 use tutti_core::ddf::{Model, Role};
@@ -146,28 +147,34 @@ impl Drop for NetnsPair {
     }
 }
 
-/// The DDS engine a gateway test runs against. Every interop test runs once per engine
-/// ([`per_engine!`]), each run with a DDS domain and namespace of its own, so that both
-/// runs go in parallel.
+/// The engine a gateway test runs against. Every interop test runs once per engine of the
+/// build ([`per_engine!`], over `tutti_engine::for_each_engine!`: the one list of engines),
+/// each run with a DDS domain and namespace of its own, so that the runs go in parallel.
 #[derive(Debug, Clone, Copy)]
 pub struct Eng {
     pub name: &'static str,
-    offset: u16,
+    /// Its place in the list of engines: it carves the DDS domain ids.
+    index: u16,
 }
 
 impl Eng {
-    pub const CYCLONE: Eng = Eng { name: "cyclone", offset: 0 };
-    pub const RUSTDDS: Eng = Eng { name: "rustdds", offset: 50 };
+    pub const CYCLONE: Eng = Eng::of(EngineKind::Cyclone);
+    pub const RUSTDDS: Eng = Eng::of(EngineKind::Rustdds);
 
-    /// The DDS domain id of this engine's run of a test numbered `base`.
-    pub fn dom(self, base: u16) -> u16 {
-        base + self.offset
+    /// The test runs of engine `kind`.
+    pub const fn of(kind: EngineKind) -> Eng {
+        Eng { name: kind.name(), index: kind.index() as u16 }
     }
 
-    /// The DDS domain of this engine's run of a test numbered `base` whose runs take two
-    /// neighbouring ids: `base` for Cyclone, `base + 1` for rustdds (where 50 above is taken).
+    /// The DDS domain id of this engine's run of a test numbered `base` (50 ids per engine).
+    pub fn dom(self, base: u16) -> u16 {
+        base + 50 * self.index
+    }
+
+    /// The DDS domain of this engine's run of a test numbered `base` whose runs take
+    /// neighbouring ids: `base` for the first engine, `base + 1` for the second.
     pub fn dom_beside(self, base: u16) -> u16 {
-        base + u16::from(self.offset != 0)
+        base + self.index
     }
 
     /// The shared-memory namespace of this engine's run of a test.
@@ -175,28 +182,35 @@ impl Eng {
         format!("{base}{}", &self.name[..2])
     }
 
-    /// `tutti gateway --dds ENGINE DDF` (see [`gateway`]).
+    /// `tutti gateway --engine ENGINE DDF` (see [`gateway`]).
     pub fn gateway(self, ddf: &str, domain_id: u16, ns: &str, extra: &[&str]) -> Proc {
-        let args: Vec<&str> = ["--dds", self.name].into_iter().chain(extra.iter().copied()).collect();
+        let args: Vec<&str> = ["--engine", self.name].into_iter().chain(extra.iter().copied()).collect();
         gateway(ddf, domain_id, ns, &args)
     }
 }
 
-/// Turns each named `fn NAME(e: Eng)` into two tests, `NAME::cyclone` and `NAME::rustdds`.
+/// Turns each named `fn NAME(e: Eng)` into one test per engine of the build: `NAME::cyclone`,
+/// `NAME::rustdds`.
 #[macro_export]
 macro_rules! per_engine {
     ($($name:ident),* $(,)?) => {$(
-        mod $name {
-            #[test]
-            fn cyclone() {
-                super::$name($crate::gateway::Eng::CYCLONE)
-            }
-            #[test]
-            fn rustdds() {
-                super::$name($crate::gateway::Eng::RUSTDDS)
-            }
-        }
+        tutti_engine::for_each_engine!(per_engine_tests, $name);
     )*};
+}
+
+/// [`per_engine!`]'s tests of one function, one per engine `for_each_engine!` lists.
+#[macro_export]
+macro_rules! per_engine_tests {
+    ($name:ident $($engine:ident: $kind:ident),* $(,)?) => {
+        mod $name {
+            $(
+                #[test]
+                fn $engine() {
+                    super::$name($crate::gateway::Eng::of(tutti_engine::EngineKind::$kind))
+                }
+            )*
+        }
+    };
 }
 
 /// The Cyclone peer in `mode`.

@@ -5,6 +5,7 @@
 
 use std::collections::HashSet;
 use std::path::Path;
+use std::time::Duration;
 
 use serde::Serialize;
 
@@ -409,13 +410,27 @@ pub enum Ownership {
     Exclusive { strength: i32 },
 }
 
-/// The QoS of one gateway reader or writer.
+/// The QoS of one gateway reader or writer, in tutti's own terms: each engine maps them to
+/// its middleware's (a DDS engine to the DDS policies of the same names).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
 pub struct Qos {
     pub reliability: Reliability,
     pub history: History,
     pub durability: Durability,
+    /// Exclusivity and its strength.
     pub ownership: Ownership,
+    /// How long a sample stays valid after it was written (None: for ever, the default);
+    /// an expired sample is no longer delivered nor kept for late joiners.
+    #[serde(skip_serializing_if = "Option::is_none", serialize_with = "seconds")]
+    pub lifespan: Option<Duration>,
+}
+
+/// A lifespan as seconds.
+fn seconds<S: serde::Serializer>(d: &Option<Duration>, s: S) -> Result<S::Ok, S::Error> {
+    match d {
+        Some(d) => s.serialize_f64(d.as_secs_f64()),
+        None => s.serialize_none(),
+    }
 }
 
 /// Whether the QoS is for a gateway writer or reader.
@@ -442,7 +457,7 @@ pub fn qos(flags: Flags, profile: Profile, endpoint: Endpoint, strength: i32) ->
         (false, Profile::Dds) => Ownership::Exclusive { strength },
         _ => Ownership::Shared,
     };
-    Qos { reliability, history, durability, ownership }
+    Qos { reliability, history, durability, ownership, lifespan: None }
 }
 
 #[cfg(test)]

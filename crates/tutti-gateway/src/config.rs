@@ -330,6 +330,16 @@ pub fn node_full_name(ns: &str, node: &str) -> String {
     }
 }
 
+/// The ROS 2 name of `name` (relative) under the canonical namespace `ns`: `/NS/NAME`, or
+/// `/NAME` without a namespace.
+pub fn ros_name(ns: &str, name: &str) -> String {
+    if ns.is_empty() {
+        format!("/{name}")
+    } else {
+        format!("/{ns}/{name}")
+    }
+}
+
 /// `rt/NS/NAME` (`rt/NAME` without a namespace) for the relative ROS name `name`.
 pub fn dds_topic(ns: &str, name: &str) -> String {
     if ns.is_empty() {
@@ -475,6 +485,12 @@ pub fn item_topics(opts: &GatewayOptions, set: &PlannedSet) -> Vec<ItemTopic> {
     mapping::item_topics_under(&opts.model.domains[set.domain], set.role, &set.topic)
 }
 
+/// The per-item topics of `set` by their ROS 2 names (`/NS/DOMAIN/publish/ITEM`), as the
+/// engine takes them.
+pub fn item_ros2_topics(opts: &GatewayOptions, set: &PlannedSet) -> Vec<ItemTopic> {
+    mapping::item_topics_under(&opts.model.domains[set.domain], set.role, &set.ros2_topic)
+}
+
 /// `DOMAIN/publish` or `DOMAIN/subscribe`.
 pub fn set_key(domain: &str, role: Role) -> String {
     format!("{domain}/{}", role.lower())
@@ -583,8 +599,9 @@ pub struct ConfigFile {
     pub mirror: Option<bool>,
     pub node_name: Option<String>,
     pub interface: Option<Vec<IpAddr>>,
-    #[serde(default, deserialize_with = "de_engine")]
-    pub dds: Option<EngineKind>,
+    /// The engine (`--engine`; `dds`, the key's old name, is taken too).
+    #[serde(default, alias = "dds", deserialize_with = "de_engine")]
+    pub engine: Option<EngineKind>,
     /// Checked where each stands ([`parse_peer`]).
     #[serde(default, deserialize_with = "de_peers")]
     pub peer: Option<Vec<String>>,
@@ -793,7 +810,7 @@ impl ConfigFile {
             mirror: self.mirror.or(lower.mirror),
             node_name: self.node_name.or(lower.node_name),
             interface: self.interface.or(lower.interface),
-            dds: self.dds.or(lower.dds),
+            engine: self.engine.or(lower.engine),
             peer: self.peer.or(lower.peer),
             clock: self.clock.or(lower.clock),
             clock_rate: self.clock_rate.or(lower.clock_rate),
@@ -831,7 +848,7 @@ impl ConfigFile {
         set(&mut opts.mirror, &self.mirror);
         set(&mut opts.node_name, &self.node_name);
         set(&mut opts.interfaces, &self.interface);
-        set(&mut opts.engine, &self.dds);
+        set(&mut opts.engine, &self.engine);
         set(&mut opts.peers, &self.peer);
         if let Some(c) = &self.clock {
             opts.clock = match c.as_str() {
@@ -952,7 +969,7 @@ impl GatewayOptions {
         if keys.ros_domain_id.is_none() {
             opts.ros_domain_id = env::domain_id()?.unwrap_or(0);
         }
-        if keys.dds.is_none() {
+        if keys.engine.is_none() {
             opts.engine = env::engine()?;
         }
         let range = env::discovery()?;
@@ -1244,6 +1261,7 @@ pub const KEYS: &[&str] = &[
     "mirror",
     "node_name",
     "interface",
+    "engine",
     "dds",
     "peer",
     "clock",
@@ -1304,7 +1322,7 @@ mod tests {
         .unwrap();
         assert_eq!(c.ros_domain_id, Some(7));
         assert_eq!(c.ros2_types, Some(TypeMode::PerItem));
-        assert_eq!(c.dds, Some(EngineKind::Rustdds));
+        assert_eq!(c.engine, Some(EngineKind::Rustdds));
         assert_eq!(c.wait, Some(WaitMode::Poll(Duration::from_micros(50))));
         assert_eq!(c.ros_namespace.as_deref(), Some("sim1"));
         assert_eq!(c.lease, Some(Duration::from_secs(3)));

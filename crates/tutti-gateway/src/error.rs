@@ -1,10 +1,11 @@
 //! Errors of the gateway, each with the domain, topic, address or setting involved: the
-//! gateway's own ([`GatewayError`]), its configuration's ([`ConfigError`]) and an unknown
-//! engine name ([`UnknownEngine`]). This module imports nothing of the gateway.
+//! gateway's own ([`GatewayError`], its engine's included) and its configuration's
+//! ([`ConfigError`]). This module imports nothing of the gateway.
 
 use std::net::SocketAddr;
 
 use tutti_core::shm::ShmError;
+use tutti_engine::{EngineError, UnknownEngine};
 
 #[derive(Debug, thiserror::Error)]
 #[non_exhaustive]
@@ -19,18 +20,10 @@ pub enum GatewayError {
     /// (exit status 2).
     #[error("a gateway in the framework's process cannot be a mirror: the mirror is the framework of its domains")]
     InProcessMirror,
-    /// The rustdds engine was given unicast peers (exit status 2).
-    #[error("the rustdds engine cannot be given unicast peers (--peer); use --dds cyclone")]
-    PeersUnsupported,
-    /// An engine this build does not contain (exit status 2).
-    #[error("the {engine} engine is not in this build of the gateway (built without its cargo feature)")]
-    EngineNotBuilt { engine: &'static str },
-    /// A node name ROS 2 refuses (exit status 2).
-    #[error("invalid ROS 2 node name '{name}': {detail}")]
-    NodeName { name: String, detail: String },
-    /// A name handed to DDS with a NUL byte in it (exit status 2).
-    #[error("{what} '{value}' contains a NUL byte")]
-    NulByte { what: &'static str, value: String },
+    /// The engine, or one of its entities, cannot be made (exit status 2 where the engine
+    /// says the input was bad).
+    #[error(transparent)]
+    Engine(#[from] EngineError),
     /// `--http` cannot listen on its address (exit status 2).
     #[error("--http {addr}: cannot listen there: {error}")]
     Listen { addr: SocketAddr, error: std::io::Error },
@@ -49,9 +42,9 @@ pub enum GatewayError {
     /// A mirrored domain whose local framework is missing.
     #[error("domain '{domain}' was not created")]
     NotCreated { domain: String },
-    /// DDS refused to create an entity.
-    #[error("DDS: cannot create {what}: {detail}")]
-    Dds { what: String, detail: String },
+    /// A thread of the gateway cannot be started.
+    #[error("cannot start {0}: {1}")]
+    Thread(&'static str, #[source] std::io::Error),
     /// The shared-memory layer failed (mirror: creating the local domains).
     #[error(transparent)]
     Shm(#[from] ShmError),
@@ -60,22 +53,17 @@ pub enum GatewayError {
 }
 
 impl GatewayError {
-    pub(crate) fn dds(what: impl Into<String>, detail: impl std::fmt::Display) -> Self {
-        GatewayError::Dds { what: what.into(), detail: detail.to_string() }
-    }
-
     /// Whether the error is bad input (exit status 2) rather than a runtime failure.
     pub fn is_invalid(&self) -> bool {
         use GatewayError::*;
+        if let Engine(e) = self {
+            return e.is_invalid();
+        }
         matches!(
             self,
             Config(_)
                 | MirrorNeedsTyped
                 | InProcessMirror
-                | PeersUnsupported
-                | EngineNotBuilt { .. }
-                | NodeName { .. }
-                | NulByte { .. }
                 | Listen { .. }
                 | FoxgloveListen { .. }
                 | EchoLayouts { .. }
@@ -157,11 +145,4 @@ pub enum ConfigError {
     /// A bad address in `TUTTI_GATEWAY_INTERFACE`.
     #[error("TUTTI_GATEWAY_INTERFACE: '{value}': {error}")]
     InterfaceVar { value: String, error: std::net::AddrParseError },
-}
-
-/// A name that is not one of the engines.
-#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
-#[error("unknown DDS engine '{name}' (expected cyclone or rustdds)")]
-pub struct UnknownEngine {
-    pub name: String,
 }

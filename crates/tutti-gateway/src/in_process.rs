@@ -173,7 +173,7 @@ pub fn start(
             }
             m.serve_until(rt, shutdown, status_every, &mut *on_status);
         })
-        .map_err(|e| GatewayError::dds("a thread", e))?;
+        .map_err(|e| GatewayError::Thread("a thread", e))?;
     let started = rx.recv();
     match started {
         Ok(Ok((routes, stats))) => {
@@ -183,7 +183,7 @@ pub fn start(
                 Err(e) => {
                     stop.store(true, Ordering::Release);
                     let _ = thread.join();
-                    return Err(GatewayError::dds("a thread", e));
+                    return Err(GatewayError::Thread("a thread", e));
                 }
             };
             if let Some(f) = &flusher {
@@ -199,7 +199,7 @@ pub fn start(
         }
         Err(_) => {
             let _ = thread.join();
-            Err(GatewayError::dds("the gateway", "its thread ended before it was up"))
+            Err(GatewayError::Thread("the gateway", std::io::Error::other("its thread ended before it was up")))
         }
     }
 }

@@ -27,7 +27,7 @@ use tutti_core::shm::{DomainHost, Framework, FrameworkOptions};
 
 use crate::cdr::SetCodec;
 use crate::config::{self, PlannedSet};
-use crate::engine::{self, Decode, Engine, Guid, TopicType};
+use crate::engine::{self, Decode, EndpointId, Engine, TopicType};
 use crate::routes::from_dds::{self, Destination, Direct, RemoteWriter, Sample, Target};
 use crate::routes::from_step::{self, StepRoute};
 use crate::routes::mirror::{self, MirrorCounters};
@@ -150,7 +150,7 @@ pub(crate) struct Manager {
     stats: Arc<Stats>,
     routes: Vec<Route>,
     domains: Vec<DomainState>,
-    writers: HashMap<(usize, Guid), WriterEntry>,
+    writers: HashMap<(usize, EndpointId), WriterEntry>,
     threads: Vec<JoinHandle<()>>,
     /// Routes for the poller thread, and the thread (woken when one is sent).
     poller: std_mpsc::Sender<Box<dyn Polled>>,
@@ -183,7 +183,7 @@ impl Manager {
         let (events_tx, events) = mpsc::unbounded_channel();
         let (poller, added) = std_mpsc::channel();
         let poll_thread =
-            to_dds::spawn_poller(added, cfg.clone(), stats.clone()).map_err(|e| GatewayError::dds("a thread", e))?;
+            to_dds::spawn_poller(added, cfg.clone(), stats.clone()).map_err(|e| GatewayError::Thread("a thread", e))?;
         let poller_thread = poll_thread.thread().clone();
         let mut hosts = mirror_hosts(&opts)?;
         let domains = opts
@@ -369,7 +369,7 @@ impl Manager {
         }
         if self.clock_domain == Some(di) {
             let out = clock::route(&*self.dds, &d.name, &self.opts.ros_namespace, self.opts.clock_rate)?;
-            info!(domain = %d.name, "/{}: the simulated time of {}", out.topics[0].trim_start_matches("rt/"), d.name);
+            info!(domain = %d.name, "{}: the simulated time of {}", out.topics[0], d.name);
             self.outgoing(di, None, out);
         }
         self.poller_thread.unpark();
@@ -401,7 +401,7 @@ impl Manager {
             Role::Publish => None,
             Role::Subscribe => {
                 let decode = Decode::Set(Arc::new(SetCodec::new(&d.subscribe.layout)));
-                self.inbound(di, si, &p.topic, &p.topic_type(), decode, None)?;
+                self.inbound(di, si, &p.ros2_topic, &p.topic_type(), decode, None)?;
                 Some(self.domains[di].own_commits.clone())
             }
         };
@@ -418,7 +418,7 @@ impl Manager {
     /// Per-item set `si`: a topic per item, as [`Manager::typed`] does for the whole set.
     fn per_item(&mut self, di: usize, d: &Domain, si: usize) -> Result<(), GatewayError> {
         let p = self.plan[si].clone();
-        let items = config::item_topics(&self.opts, &p);
+        let items = config::item_ros2_topics(&self.opts, &p);
         self.topics += items.len();
         let own_commits = match p.role {
             Role::Publish => None,
@@ -455,12 +455,12 @@ impl Manager {
         };
         let (tx, rx) = std_mpsc::channel();
         let thread = mirror::spawn(host, rx, out, self.cfg.clone(), counters);
-        self.threads.push(thread.map_err(|e| GatewayError::dds("a thread", e))?);
+        self.threads.push(thread.map_err(|e| GatewayError::Thread("a thread", e))?);
         if let Some(si) = publish {
             self.topics += 1;
             let p = self.plan[si].clone();
             let decode = Decode::Set(Arc::new(SetCodec::new(&d.publish.layout)));
-            self.inbound(di, si, &p.topic, &p.topic_type(), decode, Some(tx))?;
+            self.inbound(di, si, &p.ros2_topic, &p.topic_type(), decode, Some(tx))?;
         }
         Ok(())
     }
@@ -507,7 +507,7 @@ impl Manager {
         self.routes.push(Route::In { domain, set, topic: topic.to_string(), direct });
         let to = Destination { route, events: self.events_tx.clone(), target };
         let rq = self.plan[set].reader_qos;
-        from_dds::reader(&*self.dds, topic, ty, &rq, decode, to, self.stats.clone())
+        from_dds::reader(&*self.dds, topic, ty, &rq, decode, to)
     }
 
     /// DDS readers, over all domains (each set's once).
@@ -518,10 +518,10 @@ impl Manager {
     fn line(&self) -> String {
         let bridged = self.domains.iter().filter(|d| d.bridged).count();
         format!(
-            "{bridged} of {} domains bridged, {} topics, DDS domain {} ({}), DDS writers {}, DDS readers {} | {}",
+            "{bridged} of {} domains bridged, {} topics, {} ({}), DDS writers {}, DDS readers {} | {}",
             self.domains.len(),
             self.topics,
-            self.dds.domain_id(),
+            self.dds.location(),
             self.dds.kind(),
             self.writers.len(),
             self.dds_readers(),
@@ -582,7 +582,7 @@ impl Manager {
 
     /// Gives remote writer `key.1` of inbound route `key.0` its connection (committed by
     /// the route's sink where it needs no wait); false if it cannot be started.
-    fn add_writer(&mut self, key: (usize, Guid)) -> bool {
+    fn add_writer(&mut self, key: (usize, EndpointId)) -> bool {
         let Some(Route::In { domain, set, direct: Some(direct), .. }) = self.routes.get(key.0) else { return false };
         let d = &self.domains[*domain];
         let gid = key.1;
@@ -622,7 +622,7 @@ impl Manager {
             // Looked at every time: it keeps the presence connection across framework restarts.
             let hosted = self.hosted(di);
             if hosted && !self.domains[di].bridged {
-                match self.bridge(di, None).and_then(|()| self.dds.announce()) {
+                match self.bridge(di, None).and_then(|()| Ok(self.dds.announce()?)) {
                     Ok(()) => {
                         info!(domain = %self.domains[di].name, "hosted in namespace '{}': bridged", self.cfg.namespace)
                     }
@@ -639,8 +639,8 @@ impl Manager {
         self.bridge_hosted();
         let remote = self.dds.remote();
         let mut readers = vec![0usize; self.domains.len()];
-        let mut matched_writers: BTreeSet<(usize, Guid)> = BTreeSet::new();
-        let mut set_writers: Vec<BTreeSet<Guid>> = vec![BTreeSet::new(); self.plan.len()];
+        let mut matched_writers: BTreeSet<(usize, EndpointId)> = BTreeSet::new();
+        let mut set_writers: Vec<BTreeSet<EndpointId>> = vec![BTreeSet::new(); self.plan.len()];
         for (ri, route) in self.routes.iter().enumerate() {
             match route {
                 Route::Out { domain, topics, activation, set } => {
@@ -692,6 +692,8 @@ impl Manager {
             }
         }
         self.stats.remote_writers.store(self.writers.len() as u64, Ordering::Relaxed);
+        // Our own samples the engine dropped (echo suppression is the engine's).
+        self.stats.own_samples.store(self.dds.own_samples(), Ordering::Relaxed);
         self.stats.remote_readers.store(self.dds_readers() as u64, Ordering::Relaxed);
     }
 

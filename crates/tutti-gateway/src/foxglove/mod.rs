@@ -209,7 +209,7 @@ pub(crate) fn serve(
         graph,
     });
     let thread =
-        follow::spawn(shared.clone(), out, graph_tx, time_domain).map_err(|e| GatewayError::dds("a thread", e))?;
+        follow::spawn(shared.clone(), out, graph_tx, time_domain).map_err(|e| GatewayError::Thread("a thread", e))?;
     let app = axum::Router::new().route("/", any(upgrade)).with_state(shared);
     rt.spawn(async move {
         if let Err(e) = axum::serve(listener, app).await {

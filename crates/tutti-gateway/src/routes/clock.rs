@@ -22,7 +22,6 @@ use tutti_core::shm::Stamp;
 
 use super::to_dds::{look, Activation, Outgoing, Polled, ServedBy};
 use super::ShmConfig;
-use crate::config;
 use crate::engine::{Engine, TopicType, Writer};
 use crate::stats::Stats;
 use crate::GatewayError;
@@ -30,7 +29,7 @@ use crate::GatewayError;
 /// The `/clock` route of `domain` under the canonical ROS namespace `ns`: its writer,
 /// watched by the poller, at most `rate` samples a second (None: one per step).
 pub fn route(dds: &dyn Engine, domain: &str, ns: &str, rate: Option<f64>) -> Result<Outgoing, GatewayError> {
-    let topic = config::dds_topic(ns, "clock");
+    let topic = crate::config::ros_name(ns, "clock");
     let writer = dds.writer(&topic, &TopicType::stock(TYPE), &qos())?;
     let activation = Arc::new(Activation::default());
     let pump = ClockPump::new(domain.to_string(), writer, activation.clone(), rate);
@@ -52,6 +51,7 @@ pub fn qos() -> Qos {
         history: History::KeepLast(1),
         durability: Durability::Volatile,
         ownership: Ownership::Shared,
+        lifespan: None,
     }
 }
 

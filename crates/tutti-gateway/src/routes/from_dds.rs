@@ -33,7 +33,7 @@ use tutti_core::shm::{Participant, ShmError};
 
 use super::{Counters, Event, Inbound, ShmConfig};
 use crate::cdr::{CdrError, Payload, SetCodec, TypedSample};
-use crate::engine::{Data, Decode, Engine, Guid, Sink, TopicType, PREFIX_LEN};
+use crate::engine::{Data, Decode, EndpointId, Engine, Sink, TopicType};
 use crate::stats::{LogLimit, SetStats, Stats};
 use crate::GatewayError;
 
@@ -41,14 +41,14 @@ use crate::GatewayError;
 /// a synchronous domain, hands to the writer's thread); the manager adds and removes them
 /// as discovery changes.
 #[derive(Debug, Clone, Default)]
-pub struct Direct(Arc<Mutex<HashMap<Guid, RemoteWriter>>>);
+pub struct Direct(Arc<Mutex<HashMap<EndpointId, RemoteWriter>>>);
 
 impl Direct {
-    pub fn insert(&self, gid: Guid, w: RemoteWriter) {
+    pub fn insert(&self, gid: EndpointId, w: RemoteWriter) {
         self.0.lock().unwrap_or_else(PoisonError::into_inner).insert(gid, w);
     }
 
-    pub fn remove(&self, gid: &Guid) {
+    pub fn remove(&self, gid: &EndpointId) {
         self.0.lock().unwrap_or_else(PoisonError::into_inner).remove(gid);
     }
 
@@ -56,13 +56,13 @@ impl Direct {
         self.0.lock().unwrap_or_else(PoisonError::into_inner).clear();
     }
 
-    fn get(&self, gid: &Guid) -> Option<RemoteWriter> {
+    fn get(&self, gid: &EndpointId) -> Option<RemoteWriter> {
         self.0.lock().unwrap_or_else(PoisonError::into_inner).get(gid).cloned()
     }
 
     /// Commits `payload` of `writer` here (or hands it straight to the writer's thread in a
     /// synchronous domain) if the writer is known and working; else hands it back.
-    pub fn commit(&self, writer: &Guid, sample: Sample<'_>) -> Option<Payload> {
+    pub fn commit(&self, writer: &EndpointId, sample: Sample<'_>) -> Option<Payload> {
         match self.get(writer) {
             Some(w) => w.send(sample).err(),
             None => Some(sample.into_owned()),
@@ -88,18 +88,14 @@ pub enum Target {
     Mirror(Sender<TypedSample>),
 }
 
-/// The sink of every reader: a sample from a writer that is not the gateway's own becomes a
-/// payload (decoded here when the engine hands over raw bytes), committed right away for
+/// The sink of every reader: a sample (the engine hands over none of the gateway's own)
+/// becomes a payload (decoded here when the engine hands over raw bytes), committed right away for
 /// the writers in `to.target` (on the engine's receive path: no thread hop) or handed to
 /// the mirror's thread; a writer without a connection yet goes to the manager, and what
 /// cannot be decoded is reported to it.
-pub fn sink(decode: Decode, to: Destination, stats: Arc<Stats>, own: [u8; PREFIX_LEN]) -> Sink {
+pub fn sink(decode: Decode, to: Destination) -> Sink {
     let Destination { route, events, target } = to;
-    Arc::new(move |writer: Guid, data: Data<'_>| {
-        if writer.prefix() == own {
-            Stats::add(&stats.own_samples, 1);
-            return;
-        }
+    Arc::new(move |writer: EndpointId, data: Data<'_>| {
         let sample = match data {
             Data::Decoded(r) => r.map(Sample::Owned),
             Data::Raw(raw) => match &decode {
@@ -129,7 +125,7 @@ pub fn sink(decode: Decode, to: Destination, stats: Arc<Stats>, own: [u8; PREFIX
     })
 }
 
-/// The reader of a DDS -> shared-memory route on `topic` (of type `ty`, reader QoS
+/// The reader of a DDS -> shared-memory route on ROS 2 topic `topic` (of type `ty`, reader QoS
 /// `rq`, samples read by `decode`): its sink decodes each sample on the engine's receive
 /// path and delivers it to `to` (see [`sink`]).
 pub fn reader(
@@ -139,10 +135,9 @@ pub fn reader(
     rq: &Qos,
     decode: Decode,
     to: Destination,
-    stats: Arc<Stats>,
 ) -> Result<(), GatewayError> {
-    let sink = sink(decode.clone(), to, stats, dds.own_prefix());
-    dds.reader(topic, ty, rq, decode, sink)
+    let sink = sink(decode.clone(), to);
+    Ok(dds.reader(topic, ty, rq, decode, sink)?)
 }
 
 /// The shared-memory connection of one remote DDS writer.

@@ -136,7 +136,7 @@ pub fn typed(
     patience: Patience,
 ) -> Result<Outgoing, GatewayError> {
     let out = to_dds::set_writer(dds, d, p)?;
-    Ok(route(d, p, out, vec![p.topic.clone()], counters, patience))
+    Ok(route(d, p, out, vec![p.ros2_topic.clone()], counters, patience))
 }
 
 /// The per-item route of planned PUBLISH set `p` of domain `d` (a topic for each of `items`),

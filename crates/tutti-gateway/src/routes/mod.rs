@@ -24,7 +24,7 @@ use std::time::Duration;
 use tutti_core::shm::{ConnKind, ConnectOptions, WaitMode};
 
 use crate::cdr::{CdrError, Payload};
-use crate::engine::Guid;
+use crate::engine::EndpointId;
 use crate::stats::{SetStats, Stats};
 
 pub mod clock;
@@ -38,7 +38,7 @@ pub mod to_dds;
 #[derive(Debug)]
 pub struct Inbound {
     pub route: usize,
-    pub writer: Guid,
+    pub writer: EndpointId,
     pub payload: Payload,
 }
 

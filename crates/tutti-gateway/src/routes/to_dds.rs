@@ -35,7 +35,7 @@ use super::per_item::ItemWriters;
 use super::{Counters, Patience, ShmConfig};
 use crate::cdr::SetCodec;
 use crate::config::PlannedSet;
-use crate::engine::{Engine, Guid, Writer};
+use crate::engine::{EndpointId, Engine, Writer};
 use crate::stats::{LogLimit, SetStats, Stats};
 use crate::GatewayError;
 
@@ -81,11 +81,11 @@ pub fn typed(
             Some(reader) => spawn_lockstep_pump(name, out, a, cfg, counters, reader),
             None => spawn_sync_pump(name, out, a, cfg, counters),
         };
-        ServedBy::Thread(pump.map_err(|e| GatewayError::dds("a thread", e))?)
+        ServedBy::Thread(pump.map_err(|e| GatewayError::Thread("a thread", e))?)
     } else {
         ServedBy::Poller(watched(&d.name, p, out, activation.clone(), counters.set, own_commits))
     };
-    Ok(Outgoing { topics: vec![p.topic.clone()], activation, served_by })
+    Ok(Outgoing { topics: vec![p.ros2_topic.clone()], activation, served_by })
 }
 
 /// The per-item route of planned set `p` of domain `d` (shared memory -> DDS): a writer for
@@ -109,7 +109,7 @@ pub fn items(
 /// The typed DDS writer of planned set `p` of domain `d`.
 pub fn set_writer(dds: &dyn Engine, d: &Domain, p: &PlannedSet) -> Result<Outbound, GatewayError> {
     let codec = Arc::new(SetCodec::new(&d.set(p.role).layout));
-    let writer = dds.writer(&p.topic, &p.topic_type(), &p.writer_qos)?;
+    let writer = dds.writer(&p.ros2_topic, &p.topic_type(), &p.writer_qos)?;
     Ok(Outbound::Set(Box::new(SetWriter::new(codec, writer).named(&d.name, &p.topic))))
 }
 
@@ -333,7 +333,7 @@ const REJOIN_PASSES: u32 = 3;
 /// The remote readers of a route, and the passes left in which a join counts again.
 #[derive(Debug, Default)]
 struct KnownReaders {
-    readers: BTreeSet<Guid>,
+    readers: BTreeSet<EndpointId>,
     rejoins: u32,
 }
 
@@ -356,7 +356,7 @@ impl Activation {
     /// reader from discovery before that reader has necessarily learnt of the gateway's
     /// writer, and a volatile reader drops what arrives before it has, so the items sent
     /// once at the join may never reach it (seen on a loaded machine).
-    pub fn set_readers(&self, readers: &BTreeSet<Guid>) {
+    pub fn set_readers(&self, readers: &BTreeSet<EndpointId>) {
         let counts = {
             let mut known = self.known.lock().unwrap_or_else(|e| e.into_inner());
             let counts = if readers.difference(&known.readers).next().is_some() {

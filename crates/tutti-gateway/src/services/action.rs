@@ -14,7 +14,7 @@ use tutti_host::control::Request;
 use super::lifecycle::{Lifecycle, RunControl};
 use super::messages::{result, Out, Outcome};
 use super::{Feedback, Msg};
-use crate::engine::Writer;
+use tutti_engine::Writer;
 
 /// `action_msgs/msg/GoalStatus` values.
 pub mod status {
@@ -221,7 +221,7 @@ pub fn spawn(
     let run = move || {
         // The client's feedback reader first, or its first feedback samples are lost.
         let Feedback { engine, topic, client } = feedback;
-        if !super::wait_for_reader(engine.as_ref(), &topic, client.prefix(), &stop) {
+        if !super::wait_for_reader(engine.as_ref(), &topic, client.peer, &stop) {
             tracing::debug!("simulation services: no feedback reader of {client:?} on {topic}");
         }
         let (end, outcome) = execute(&shared, &id, steps, &mut ctl, &mut life, &stop);

@@ -4,14 +4,12 @@
 //! each call carried out on the run's control plane ([`lifecycle`]) as `tutti ctl` would. Offered by a gateway in or beside a framework, not by
 //! a mirror nor a passive gateway (`--passive`).
 //!
-//! A service is a request topic and a reply topic ([`wire`]), in either of two forms: rmw_cyclonedds's,
-//! each sample's body starting with a 16-byte request header that the reply echoes, and Fast
-//! DDS's, where the reply carries the request's sample identity as its related sample identity
-//! (the rustdds engine serves both, choosing per request; Cyclone's, the first only). It is
-//! built over the engine layer's identified readers and related writers: a reader's sink only checks a
-//! request and hands it to the services' thread (`tutti-gw-simif`), which makes the control
-//! calls (they block: never on the engine's receive path nor on the manager's loop), encodes
-//! the response and writes it.
+//! Each service is served by the engine ([`Engine::serve`]), which carries its requests and
+//! responses in its own wire form (a DDS engine as rmw_cyclonedds or Fast DDS do, chosen per
+//! request; docs/ros2.md, "Wire forms") and delivers a response once its client can receive
+//! it. A request's sink only hands it to the services' thread (`tutti-gw-simif`), which makes
+//! the control calls (they block: never on the engine's receive path nor on the manager's
+//! loop), encodes the response and hands it to the engine.
 
 pub mod action;
 pub mod lifecycle;
@@ -24,14 +22,13 @@ use std::sync::Arc;
 use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
-use tutti_core::cdr::split_header;
 use tutti_core::ddf::Model;
+use tutti_engine::{EndpointId, Engine, ReplyTo, Request, Responder, Service};
 
-use crate::engine::{Engine, Guid, Identified, Remote, Writer, PREFIX_LEN};
 use crate::GatewayError;
 use lifecycle::{Control, Lifecycle, RunControl};
 use messages::{Body, Out, Outcome};
-use wire::{ReplyTo, Service, SERVICES};
+use wire::SERVICES;
 
 /// Requests waiting for the services' thread; more are dropped (a client that floods the
 /// services gets no answer to the excess, the gateway keeps its memory).
@@ -41,12 +38,6 @@ const CONTROL_TIMEOUT: Duration = Duration::from_secs(300);
 /// How long a goal's feedback waits for discovery to show the client's feedback reader: a
 /// reliable, volatile writer gives a reader it has not matched yet nothing.
 const READER_WAIT: Duration = Duration::from_secs(2);
-/// How long a reply is kept for a client whose reply reader discovery has not shown yet (a
-/// client finds the service once it has discovered the gateway's endpoints, which may be
-/// before the gateway has discovered the client's: seconds on a loaded machine). Meanwhile
-/// the services' thread answers other requests; the reply goes as soon as the reader shows,
-/// or, after this long, is written anyway.
-const REPLY_WAIT: Duration = Duration::from_secs(30);
 
 /// What the services' thread is handed.
 #[derive(Debug)]
@@ -60,21 +51,13 @@ pub enum Msg {
 #[derive(Debug)]
 pub struct Call {
     service: usize,
-    /// The request writer's GUID: its prefix is the client's participant.
-    client: Guid,
-    /// How the reply names the request (the wire form).
+    /// The client's request writer: its peer is the client's node.
+    client: EndpointId,
+    /// Whom the response goes to (the engine's form).
     reply_to: ReplyTo,
     le: bool,
-    /// The body, request header included in rmw_cyclonedds's form.
+    /// The request's body: its first field at 0.
     body: Vec<u8>,
-}
-
-/// The reply side of one service.
-struct Server {
-    service: &'static Service,
-    request_topic: String,
-    reply_topic: String,
-    writer: Box<dyn Writer>,
 }
 
 /// Why stepping cannot apply to a run of `model`: every domain is asynchronous.
@@ -90,9 +73,8 @@ pub fn no_stepping(model: &Model) -> Option<String> {
     ))
 }
 
-/// Creates the services' readers and writers on `engine` under ROS namespace `ros_ns`
-/// (canonical) and starts their thread, which serves the run of shared-memory namespace
-/// `namespace` until `stop` is set.
+/// Serves the services on `engine` under ROS namespace `ros_ns` (canonical) and starts their
+/// thread, which serves the run of shared-memory namespace `namespace` until `stop` is set.
 pub fn start(
     engine: Arc<dyn Engine>,
     ros_ns: &str,
@@ -101,52 +83,32 @@ pub fn start(
     stop: Arc<AtomicBool>,
 ) -> Result<JoinHandle<()>, GatewayError> {
     let (tx, rx) = mpsc::sync_channel::<Msg>(QUEUE);
-    let topic = |(name, _): (&str, &str)| crate::config::dds_topic(ros_ns, name);
+    let topic = |(name, _): (&str, &str)| crate::config::ros_name(ros_ns, name);
     let shared = action::Shared::new(
         engine.writer(&topic(wire::STATUS), &wire::action_topic_type(wire::STATUS), &wire::status_qos())?,
         engine.writer(&topic(wire::FEEDBACK), &wire::action_topic_type(wire::FEEDBACK), &wire::qos())?,
     );
-    let mut servers = Vec::new();
+    let mut responders = Vec::new();
     for (i, s) in SERVICES.iter().enumerate() {
-        let (rq, rr) = (wire::request_topic(ros_ns, s.name), wire::reply_topic(ros_ns, s.name));
-        let writer = engine.related_writer(&rr, &s.response_topic_type(), &wire::qos())?;
-        servers.push(Server { service: s, request_topic: rq.clone(), reply_topic: rr, writer });
+        let (name, request, response) = (crate::config::ros_name(ros_ns, s.name), s.request_topic_type(), s.response_topic_type());
         let tx = tx.clone();
-        let sink = Arc::new(move |sample: Identified<'_>| request(i, sample, &tx));
-        engine.identified_reader(&rq, &s.request_topic_type(), &wire::qos(), sink)?;
+        let sink = Arc::new(move |r: Request<'_>| request_to(i, r, &tx));
+        responders.push(engine.serve(&Service { name: &name, request: &request, response: &response }, sink)?);
     }
     let ctl = RunControl { namespace: namespace.to_string(), timeout: CONTROL_TIMEOUT };
     let life = Lifecycle::new(no_stepping(model));
     let feedback_topic = topic(wire::FEEDBACK);
-    let mut state = State {
-        engine,
-        servers,
-        shared,
-        done: tx,
-        ctl,
-        life,
-        stop,
-        waiting: Vec::new(),
-        held: Vec::new(),
-        feedback_topic,
-    };
+    let mut state =
+        State { engine, responders, shared, done: tx, ctl, life, stop, waiting: Vec::new(), feedback_topic };
     std::thread::Builder::new()
         .name("tutti-gw-simif".into())
         .spawn(move || state.serve(rx))
-        .map_err(|e| GatewayError::dds("the services' thread", e))
+        .map_err(|e| GatewayError::Thread("the services' thread", e))
 }
 
-/// A reader's sink: a request in either form goes to the services' thread.
-fn request(service: usize, sample: Identified<'_>, tx: &SyncSender<Msg>) {
-    let Ok((le, body)) = split_header(sample.raw) else {
-        tracing::debug!("simulation services: a request that is not plain CDR dropped");
-        return;
-    };
-    let Ok(reply_to) = ReplyTo::of(&sample, Body { le, bytes: body }) else {
-        tracing::debug!("simulation services: a request without its header dropped");
-        return;
-    };
-    let call = Call { service, client: sample.writer, reply_to, le, body: body.to_vec() };
+/// A request's sink: to the services' thread.
+fn request_to(service: usize, r: Request<'_>, tx: &SyncSender<Msg>) {
+    let call = Call { service, client: r.client, reply_to: r.reply_to, le: r.little_endian, body: r.body.to_vec() };
     if let Err(TrySendError::Full(_)) = tx.try_send(Msg::Call(call)) {
         tracing::warn!("simulation services: {QUEUE} requests wait already; one dropped");
     }
@@ -155,7 +117,8 @@ fn request(service: usize, sample: Identified<'_>, tx: &SyncSender<Msg>) {
 /// The services' thread.
 struct State {
     engine: Arc<dyn Engine>,
-    servers: Vec<Server>,
+    /// Per service of [`SERVICES`], in order.
+    responders: Vec<Box<dyn Responder>>,
     shared: Arc<action::Shared>,
     /// For goal threads, to say they ended.
     done: SyncSender<Msg>,
@@ -164,24 +127,14 @@ struct State {
     stop: Arc<AtomicBool>,
     /// `get_result` requests of running goals: (goal, the request).
     waiting: Vec<(action::GoalId, Call)>,
-    /// Replies waiting for their client's reply reader (at most [`QUEUE`]).
-    held: Vec<Held>,
     feedback_topic: String,
-}
-
-/// A reply kept until discovery shows its client's reply reader.
-struct Held {
-    service: usize,
-    call: Call,
-    body: Vec<u8>,
-    until: Instant,
 }
 
 /// Where a goal's feedback goes: the client whose feedback reader it waits for.
 pub struct Feedback {
     pub engine: Arc<dyn Engine>,
     pub topic: String,
-    pub client: Guid,
+    pub client: EndpointId,
 }
 
 impl std::fmt::Debug for Feedback {
@@ -193,14 +146,7 @@ impl std::fmt::Debug for Feedback {
 impl State {
     fn serve(&mut self, rx: Receiver<Msg>) {
         while !self.stop.load(Ordering::Acquire) {
-            // Keeps each reply writer's count of matched readers up to date between
-            // replies (rustdds queues only a few match statuses).
-            for server in &mut self.servers {
-                server.writer.take_match_statuses();
-            }
-            self.send_held();
-            let turn = if self.held.is_empty() { Duration::from_millis(100) } else { Duration::from_millis(5) };
-            match rx.recv_timeout(turn) {
+            match rx.recv_timeout(Duration::from_millis(100)) {
                 Ok(Msg::Call(call)) => self.call(call),
                 Ok(Msg::Done(id)) => {
                     let (ready, still): (Vec<_>, Vec<_>) = self.waiting.drain(..).partition(|(g, _)| *g == id);
@@ -214,39 +160,32 @@ impl State {
     }
 
     fn call(&mut self, call: Call) {
-        let Some(kind) = self.servers.get(call.service).map(|s| s.service.kind) else { return };
+        let Some(kind) = SERVICES.get(call.service).map(|s| s.kind) else { return };
         let mut out = Out::default();
-        call.reply_to.start(&mut out);
         let body = Body { le: call.le, bytes: &call.body };
-        let at = call.reply_to.fields_at();
         let mut start_goal = None;
         let client = call.client;
         let answered = match kind {
-            wire::Kind::SendGoal => body.octets16(at).and_then(|id| {
-                let steps = body.u64(at + 16)?;
+            wire::Kind::SendGoal => body.octets16(0).and_then(|id| {
+                let steps = body.u64(16)?;
                 if self.shared.send_goal(id, &mut out) {
                     start_goal = Some((id, steps));
                 }
                 Ok(true)
             }),
-            wire::Kind::GetResult => body.octets16(at).map(|id| self.shared.get_result(&id, &mut out)),
-            wire::Kind::CancelGoal => body.octets16(at).and_then(|id| {
-                let stamp = action::Stamp { sec: body.i32(at + 16)?, nanosec: body.u32(at + 20)? };
+            wire::Kind::GetResult => body.octets16(0).map(|id| self.shared.get_result(&id, &mut out)),
+            wire::Kind::CancelGoal => body.octets16(0).and_then(|id| {
+                let stamp = action::Stamp { sec: body.i32(16)?, nanosec: body.u32(20)? };
                 self.shared.cancel_goal(&id, stamp, &mut out);
                 Ok(true)
             }),
-            _ => answer(kind, body, at, &mut self.life, &mut self.ctl, &mut out).map(|()| true),
+            _ => answer(kind, body, &mut self.life, &mut self.ctl, &mut out).map(|()| true),
         };
-        let server = &mut self.servers[call.service];
         match answered {
-            Err(e) => tracing::warn!("simulation services: a {} request: {e}", server.service.name),
-            Ok(true) => {
-                if !reply(&self.engine.remote(), server, &call, &out.0, false) {
-                    self.hold(call, out.0);
-                }
-            }
+            Err(e) => tracing::warn!("simulation services: a {} request: {e}", SERVICES[call.service].name),
+            Ok(true) => self.responders[call.service].respond(&call.reply_to, &out.0),
             Ok(false) => {
-                if let Ok(id) = body.octets16(at) {
+                if let Ok(id) = body.octets16(0) {
                     self.waiting.push((id, call));
                 }
             }
@@ -257,41 +196,12 @@ impl State {
             action::spawn(self.shared.clone(), id, steps, ctl, life, feedback, self.done.clone(), self.stop.clone());
         }
     }
-
-    /// Keeps the reply `body` to `call` until its client's reply reader shows.
-    fn hold(&mut self, call: Call, body: Vec<u8>) {
-        if self.held.len() >= QUEUE {
-            tracing::warn!("simulation services: {QUEUE} replies wait for their clients already; one dropped");
-            return;
-        }
-        let service = call.service;
-        self.held.push(Held { service, call, body, until: Instant::now() + REPLY_WAIT });
-    }
-
-    /// Sends the held replies whose client's reader has shown, or whose wait is over.
-    fn send_held(&mut self) {
-        if self.held.is_empty() {
-            return;
-        }
-        let now = Instant::now();
-        // One look at discovery for them all.
-        let remote = self.engine.remote();
-        let held = std::mem::take(&mut self.held);
-        for h in held {
-            let server = &mut self.servers[h.service];
-            if !reply(&remote, server, &h.call, &h.body, now >= h.until) {
-                self.held.push(h);
-            }
-        }
-    }
 }
 
-/// The response body (after the header already in `out`, if any) to a request of `kind`,
-/// whose fields start at `at` of its body.
+/// The response body to a request of `kind`.
 fn answer(
     kind: wire::Kind,
     req: Body<'_>,
-    at: usize,
     life: &mut Lifecycle,
     ctl: &mut dyn Control,
     out: &mut Out,
@@ -307,15 +217,15 @@ fn answer(
             out.u8(s).outcome(&o);
         }
         SetState => {
-            let o = life.set_state(ctl, req.u8(at)?);
+            let o = life.set_state(ctl, req.u8(0)?);
             out.outcome(&o);
         }
         Step => {
-            let o = life.step(ctl, req.u64(at)?);
+            let o = life.step(ctl, req.u64(0)?);
             out.outcome(&o);
         }
         Reset => {
-            let o: Outcome = life.reset(ctl, req.u8(at)?);
+            let o: Outcome = life.reset(ctl, req.u8(0)?);
             out.outcome(&o);
         }
         SendGoal | GetResult | CancelGoal => {}
@@ -323,13 +233,13 @@ fn answer(
     Ok(())
 }
 
-/// Waits (at most [`READER_WAIT`]) until discovery shows a reader on `topic` of the
-/// participant `prefix`: a reliable, volatile writer gives a reader it has not matched yet
+/// Waits (at most [`READER_WAIT`]) until discovery shows a reader on ROS 2 topic `topic` of
+/// the client's peer `peer`: a reliable, volatile writer gives a reader it has not matched yet
 /// nothing. Whether it came.
-pub(crate) fn wait_for_reader(engine: &dyn Engine, topic: &str, prefix: [u8; PREFIX_LEN], stop: &AtomicBool) -> bool {
+pub(crate) fn wait_for_reader(engine: &dyn Engine, topic: &str, peer: tutti_engine::PeerId, stop: &AtomicBool) -> bool {
     let end = Instant::now() + READER_WAIT;
     loop {
-        if engine.remote().readers_on(&[topic.to_string()]).iter().any(|g| g.prefix() == prefix) {
+        if engine.remote().readers_on(&[topic.to_string()]).iter().any(|g| g.peer == peer) {
             return true;
         }
         if Instant::now() >= end || stop.load(Ordering::Acquire) {
@@ -337,42 +247,4 @@ pub(crate) fn wait_for_reader(engine: &dyn Engine, topic: &str, prefix: [u8; PRE
         }
         std::thread::sleep(Duration::from_millis(5));
     }
-}
-
-/// Whether a reply written now reaches every client of the server in the participant
-/// `prefix`: each client (a request writer there) has its reply reader, which the reply
-/// writer has matched (or, where the engine cannot say, discovery shows). A node may make a
-/// new client of the same service at any time, so this is counted afresh for every reply.
-/// `remote` is what discovery shows.
-fn reaches(remote: &Remote, server: &mut Server, prefix: [u8; PREFIX_LEN]) -> bool {
-    let clients = remote.writers_on(&server.request_topic).filter(|g| g.prefix() == prefix).count().max(1);
-    let readers = match server.writer.matched_readers_of(prefix) {
-        Some(n) => n,
-        None => {
-            remote.readers_on(std::slice::from_ref(&server.reply_topic)).iter().filter(|g| g.prefix() == prefix).count()
-        }
-    };
-    readers >= clients
-}
-
-/// Writes `body` on the server's reply topic, in the form of the request `call`, if it
-/// reaches the client as `remote` (discovery) and the writer's matches show (or `anyway`);
-/// whether it was written.
-fn reply(remote: &Remote, server: &mut Server, call: &Call, body: &[u8], anyway: bool) -> bool {
-    let client = call.client;
-    if !reaches(remote, server, client.prefix()) {
-        if !anyway {
-            return false;
-        }
-        tracing::debug!("simulation services: no reply reader of {client:?} on {}; replied anyway", server.reply_topic);
-    }
-    let written = match call.reply_to {
-        ReplyTo::Header(_) => server.writer.write(body),
-        ReplyTo::Related(related) => server.writer.write_related(body, related),
-    };
-    if !written {
-        tracing::warn!("simulation services: DDS refused a reply on {}", server.reply_topic);
-    }
-    server.writer.flush();
-    true
 }

@@ -1,20 +1,9 @@
-//! How a ROS 2 service travels over DDS in rmw_cyclonedds's layout (docs/ros2.md, "Wire
-//! forms"): service `NAME` under namespace `NS` is the request topic `rq/NS/NAMERequest` and
-//! the reply topic `rr/NS/NAMEReply`, with the types `PKG::srv::dds_::SRV_Request_` and
-//! `…_Response_`, and the QoS of rmw's services default. Each sample's body starts with
-//! the request header: the client's 64-bit writer id and the request's sequence number,
-//! which the reply echoes and by which the client pairs the reply with its request.
-//!
-//! The same services in Fast DDS's form (rmw_fastrtps, ros2-client's `Enhanced` mapping) have
-//! the same names, types and QoS, but no header: the request is named by its own sample
-//! identity and the reply carries it as its related sample identity. [`ReplyTo::of`] tells
-//! the forms apart, request by request.
+//! The services and the action the gateway offers (docs/ros2.md): their ROS 2 names under the
+//! gateway's namespace, their message types, and the QoS of the action's topics. How a
+//! service travels on the wire is the engine's (`tutti_engine::Engine::serve`).
 
-use tutti_core::cdr::CdrError;
 use tutti_core::mapping::{Durability, History, Ownership, Qos, Reliability};
-
-use super::messages::{Body, Out};
-use crate::engine::{Guid, Identified, SampleIdentity, TopicType};
+use tutti_engine::TopicType;
 
 /// What a service does.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -124,25 +113,8 @@ pub fn status_qos() -> Qos {
         history: History::KeepLast(1),
         durability: Durability::TransientLocal { depth: 1 },
         ownership: Ownership::Shared,
+        lifespan: None,
     }
-}
-
-fn topic(prefix: &str, ns: &str, name: &str, suffix: &str) -> String {
-    if ns.is_empty() {
-        format!("{prefix}/{name}{suffix}")
-    } else {
-        format!("{prefix}/{ns}/{name}{suffix}")
-    }
-}
-
-/// `rq/NS/NAMERequest` (`rq/NAMERequest` without a namespace).
-pub fn request_topic(ns: &str, name: &str) -> String {
-    topic("rq", ns, name, "Request")
-}
-
-/// `rr/NS/NAMEReply`.
-pub fn reply_topic(ns: &str, name: &str) -> String {
-    topic("rr", ns, name, "Reply")
 }
 
 /// rmw's services default: reliable, volatile, keep last 10.
@@ -152,92 +124,22 @@ pub fn qos() -> Qos {
         history: History::KeepLast(10),
         durability: Durability::Volatile,
         ownership: Ownership::Shared,
-    }
-}
-
-/// The request header at the start of a body.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub struct RequestHeader {
-    /// The client's request writer, as rmw_cyclonedds names it (its instance handle).
-    pub client: u64,
-    pub sequence: i64,
-}
-
-impl RequestHeader {
-    /// Its size: the request's own fields start here.
-    pub const LEN: usize = 16;
-
-    pub fn read(b: Body<'_>) -> Result<RequestHeader, CdrError> {
-        Ok(RequestHeader { client: b.u64(0)?, sequence: b.u64(8)? as i64 })
-    }
-
-    pub fn write(&self, out: &mut Out) {
-        out.u64(self.client).i64(self.sequence);
-    }
-}
-
-/// The vendor id Cyclone DDS puts at the head of its GUID prefixes (as Fast DDS and rustdds put
-/// theirs).
-pub const CYCLONE_VENDOR: [u8; 2] = [0x01, 0x10];
-
-/// How a request names itself, and so how its reply names it back: the two wire forms
-/// (docs/ros2.md, "Wire forms").
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum ReplyTo {
-    /// rmw_cyclonedds's: the request header at the start of the body, echoed by the reply.
-    Header(RequestHeader),
-    /// Fast DDS's: no header; the reply carries this as its related sample identity.
-    Related(SampleIdentity),
-}
-
-impl ReplyTo {
-    /// The form of `sample` (whose body, after the encapsulation header, is `body`):
-    /// * an engine that reads no sample identity (Cyclone) serves rmw_cyclonedds's form only;
-    /// * a request that carries a related sample identity is in Fast DDS's form (rmw_fastrtps
-    ///   sets one on every request: the GUID of its reply reader), and its reply goes to that
-    ///   GUID (its own writer's if the identity names none) with the request's sequence number;
-    /// * otherwise a request written by a Cyclone DDS participant (its GUID prefix starts with
-    ///   Cyclone's vendor id) is in rmw_cyclonedds's form, and any other (ros2-client's
-    ///   `Enhanced` clients write no related identity) in Fast DDS's.
-    pub fn of(sample: &Identified<'_>, body: Body<'_>) -> Result<ReplyTo, CdrError> {
-        let Some(sequence) = sample.sequence else { return RequestHeader::read(body).map(ReplyTo::Header) };
-        match sample.related {
-            Some(r) => {
-                let writer = if r.writer == Guid::default() { sample.writer } else { r.writer };
-                Ok(ReplyTo::Related(SampleIdentity { writer, sequence }))
-            }
-            None if sample.writer.0[..2] == CYCLONE_VENDOR => RequestHeader::read(body).map(ReplyTo::Header),
-            None => Ok(ReplyTo::Related(SampleIdentity { writer: sample.writer, sequence })),
-        }
-    }
-
-    /// Where the request's own fields start in its body.
-    pub fn fields_at(&self) -> usize {
-        match self {
-            ReplyTo::Header(_) => RequestHeader::LEN,
-            ReplyTo::Related(_) => 0,
-        }
-    }
-
-    /// Starts a reply's body: the echoed header, or nothing.
-    pub fn start(&self, out: &mut Out) {
-        if let ReplyTo::Header(h) = self {
-            h.write(out);
-        }
+        lifespan: None,
     }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::config::ros_name;
 
     #[test]
     fn names_as_rmw_cyclonedds_makes_them() {
-        assert_eq!(request_topic("", "get_simulation_state"), "rq/get_simulation_stateRequest");
-        assert_eq!(reply_topic("sim/a", "step_simulation"), "rr/sim/a/step_simulationReply");
+        assert_eq!(ros_name("", "get_simulation_state"), "/get_simulation_state");
+        assert_eq!(ros_name("sim/a", "step_simulation"), "/sim/a/step_simulation");
         assert_eq!(SERVICES[2].request_type(), "simulation_interfaces::srv::dds_::SetSimulationState_Request_");
         assert_eq!(SERVICES[3].response_type(), "simulation_interfaces::srv::dds_::StepSimulation_Response_");
-        assert_eq!(request_topic("", SERVICES[5].name), "rq/simulate_steps/_action/send_goalRequest");
+        assert_eq!(ros_name("", SERVICES[5].name), "/simulate_steps/_action/send_goal");
         assert_eq!(SERVICES[7].request_type(), "action_msgs::srv::dds_::CancelGoal_Request_");
     }
 
@@ -256,59 +158,5 @@ mod tests {
             SERVICES[3].request_topic_type().user_data().as_deref(),
             Some("typehash=RIHS01_cda33f6887815f3dce0f90e61fd8efd39bda13ae264ddede15c33fbad890630e;")
         );
-    }
-
-    #[test]
-    fn the_header_is_echoed_in_little_endian_whatever_the_request_order() {
-        let mut be = Vec::new();
-        be.extend_from_slice(&0x0102_0304_0506_0708u64.to_be_bytes());
-        be.extend_from_slice(&9i64.to_be_bytes());
-        let h = RequestHeader::read(Body { le: false, bytes: &be }).unwrap();
-        assert_eq!(h, RequestHeader { client: 0x0102_0304_0506_0708, sequence: 9 });
-        let mut out = Out::default();
-        h.write(&mut out);
-        assert_eq!(&out.0[..8], &0x0102_0304_0506_0708u64.to_le_bytes());
-        assert_eq!(&out.0[8..], &9i64.to_le_bytes());
-        assert!(RequestHeader::read(Body { le: true, bytes: &be[..12] }).is_err());
-    }
-
-    fn sample(writer: [u8; 2], sequence: Option<i64>, related: Option<SampleIdentity>) -> Identified<'static> {
-        let mut g = [7u8; 16];
-        g[..2].copy_from_slice(&writer);
-        Identified { writer: Guid(g), sequence, related, raw: &[] }
-    }
-
-    #[test]
-    fn each_request_is_answered_in_its_own_form() {
-        let mut header = Vec::new();
-        header.extend_from_slice(&0x0102_0304_0506_0708u64.to_le_bytes());
-        header.extend_from_slice(&9i64.to_le_bytes());
-        let body = Body { le: true, bytes: &header };
-        let cyclone_header = ReplyTo::Header(RequestHeader { client: 0x0102_0304_0506_0708, sequence: 9 });
-        // The Cyclone engine reads no identity: rmw_cyclonedds's form whoever writes.
-        assert_eq!(ReplyTo::of(&sample([0x01, 0x0f], None, None), body).unwrap(), cyclone_header);
-        // A Cyclone DDS client, no related identity: rmw_cyclonedds's form.
-        assert_eq!(ReplyTo::of(&sample(CYCLONE_VENDOR, Some(3), None), body).unwrap(), cyclone_header);
-        assert_eq!(cyclone_header.fields_at(), 16);
-        // ros2-client's Enhanced client (rustdds): its own identity.
-        let s = sample([0x01, 0x12], Some(3), None);
-        assert_eq!(ReplyTo::of(&s, body).unwrap(), ReplyTo::Related(SampleIdentity { writer: s.writer, sequence: 3 }));
-        // rmw_fastrtps: the reply reader's GUID in the related identity, the sequence number unknown.
-        let reader = Guid([9; 16]);
-        let unknown = SampleIdentity { writer: reader, sequence: -(1 << 32) };
-        let s = sample([0x01, 0x0f], Some(5), Some(unknown));
-        let to = ReplyTo::of(&s, body).unwrap();
-        assert_eq!(to, ReplyTo::Related(SampleIdentity { writer: reader, sequence: 5 }));
-        assert_eq!(to.fields_at(), 0);
-        let mut out = Out::default();
-        to.start(&mut out);
-        assert!(out.0.is_empty(), "no header in Fast DDS's form");
-        // A related identity wins over the vendor; one that names no writer names the request's.
-        let none = SampleIdentity { writer: Guid::default(), sequence: 0 };
-        let s = sample(CYCLONE_VENDOR, Some(6), Some(none));
-        assert_eq!(ReplyTo::of(&s, body).unwrap(), ReplyTo::Related(SampleIdentity { writer: s.writer, sequence: 6 }));
-        // rmw_cyclonedds's form without its header is refused.
-        let short = Body { le: true, bytes: &header[..8] };
-        assert!(ReplyTo::of(&sample(CYCLONE_VENDOR, Some(1), None), short).is_err());
     }
 }

@@ -18,14 +18,15 @@
 //! is made (`set_user_data_of_type`, a patch of the vendored rustdds:
 //! vendor/rustdds/TUTTI-PATCHES.md).
 //!
-//! The services' endpoints ([`Engine::identified_reader`], [`Engine::related_writer`]) are
-//! plain rustdds endpoints instead: ros2-client's node endpoints neither hand over a sample's
-//! encoding nor write a related sample identity, and its `Node` adds no endpoint it did not make
-//! to its announcement, so these are not listed under the node on `ros_discovery_info`
-//! (docs/ros2.md, "Wire forms").
+//! The services' endpoints ([`Engine::serve`]) are plain rustdds endpoints instead: ros2-client's
+//! node endpoints neither hand over a sample's identity nor write a related sample identity, and
+//! its `Node` adds no endpoint it did not make to its announcement, so these are not listed under
+//! the node on `ros_discovery_info` (docs/ros2.md, "Wire forms"). They serve both wire forms,
+//! chosen request by request ([`crate::dds::rpc`]).
 
 use std::collections::HashMap;
 use std::convert::Infallible;
+use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::{Arc, Mutex, PoisonError};
 
 use futures::{Stream, StreamExt};
@@ -43,19 +44,26 @@ use serde::Serialize;
 use tutti_core::ddf::{Leaf, Value};
 use tutti_core::mapping::{Ownership, Qos, Reliability};
 
-use super::{
-    Data, Decode, EndpointQos, Engine, EngineConfig, EngineKind, Guid, Identified, IdentifiedSink, Remote,
-    SampleIdentity, Sink, TopicType, Writer, PREFIX_LEN,
-};
 use crate::cdr::stock::{self, Stock};
 use crate::cdr::{split_header, Bool, CdrError, Float64, Float64MultiArray, Payload, PreEncoded, SetSeed};
-use crate::{qos, GatewayError};
+use crate::cyclone::ros_remote;
+use crate::dds::rpc::{self, Replies, ReplyWriter, SampleIdentity};
+use crate::dds::{data_topic, endpoint, peer_of, reply_topic, request_topic};
+use crate::{
+    Data, Decode, EndpointId, EndpointQos, Engine, EngineConfig, EngineError, EngineKind, PeerId, Remote, RequestSink, Responder,
+    Service, Sink, TopicType, Writer,
+};
+
+mod qos;
 
 /// The participant, the node and the topics created so far.
 pub struct Rustdds {
     participant: DomainParticipant,
     node: Mutex<Node>,
-    own_prefix: [u8; PREFIX_LEN],
+    own: PeerId,
+    own_samples: Arc<AtomicU64>,
+    /// The services' responses (a thread of its own), made on the first service.
+    replies: Mutex<Option<Replies>>,
     topics: Mutex<HashMap<String, Topic>>,
     /// The publisher and subscriber of the plain rustdds endpoints, made on first use.
     plain: Mutex<Option<(ros2_client::dds::rustdds::Publisher, ros2_client::dds::rustdds::Subscriber)>>,
@@ -66,52 +74,54 @@ pub struct Rustdds {
 
 impl std::fmt::Debug for Rustdds {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.debug_struct("Rustdds").field("own_prefix", &self.own_prefix).finish()
+        f.debug_struct("Rustdds").field("own", &self.own).finish()
     }
 }
 
-fn guid(g: &Gid) -> Guid {
+fn guid(g: &Gid) -> [u8; 16] {
     let mut b = [0u8; 16];
     b.copy_from_slice(&g.as_bytes()[..16]);
-    Guid(b)
+    b
 }
 
 impl Rustdds {
     /// Joins DDS domain `cfg.domain_id` (restricted to `cfg.interfaces` when given) and
     /// announces the node `cfg.node_name`.
-    pub fn open(cfg: &EngineConfig) -> Result<Rustdds, GatewayError> {
+    pub fn open(cfg: &EngineConfig) -> Result<Rustdds, EngineError> {
         if !cfg.peers.is_empty() {
-            return Err(GatewayError::PeersUnsupported);
+            return Err(EngineError::PeersUnsupported);
         }
         let ns = if cfg.node_namespace.is_empty() { "/" } else { cfg.node_namespace.as_str() };
         let node_name = NodeName::new(ns, &cfg.node_name)
-            .map_err(|e| GatewayError::NodeName { name: cfg.node_name.clone(), detail: format!("{e:?}") })?;
+            .map_err(|e| EngineError::NodeName { name: cfg.node_name.clone(), detail: format!("{e:?}") })?;
         let mut b = DomainParticipantBuilder::new(cfg.domain_id);
         if !cfg.interfaces.is_empty() {
             b = b.with_only_networks(cfg.interfaces.clone());
         }
         let participant =
-            b.build().map_err(|e| GatewayError::dds(format!("a participant in DDS domain {}", cfg.domain_id), e))?;
+            b.build().map_err(|e| EngineError::dds(format!("a participant in DDS domain {}", cfg.domain_id), e))?;
         // The endpoints ros2-client makes itself: the node's announcement and its parameter events.
         for ty in [ros_discovery::TYPE_NAME, parameter_events::TYPE_NAME] {
             announce_type_hash(&participant, &TopicType::stock(ty))?;
         }
         let context = Context::from_domain_participant(participant.clone())
-            .map_err(|e| GatewayError::dds("the ROS 2 context", e))?;
+            .map_err(|e| EngineError::dds("the ROS 2 context", e))?;
         let node = context
             .new_node(node_name, NodeOptions::new().enable_rosout(false))
-            .map_err(|e| GatewayError::dds(format!("the ROS 2 node '{}'", cfg.node_name), format!("{e:?}")))?;
-        let own_prefix = guid(&Gid::from(participant.guid())).prefix();
+            .map_err(|e| EngineError::dds(format!("the ROS 2 node '{}'", cfg.node_name), format!("{e:?}")))?;
+        let own = peer_of(&guid(&Gid::from(participant.guid())));
         let rt = tokio::runtime::Builder::new_multi_thread()
             .worker_threads(1)
             .thread_name("tutti-rustdds")
             .enable_all()
             .build()
-            .map_err(GatewayError::Runtime)?;
+            .map_err(EngineError::Runtime)?;
         Ok(Rustdds {
             participant,
             node: Mutex::new(node),
-            own_prefix,
+            own,
+            own_samples: Arc::new(AtomicU64::new(0)),
+            replies: Mutex::new(None),
             topics: Mutex::new(HashMap::new()),
             plain: Mutex::new(None),
             rt: Some(rt),
@@ -121,7 +131,7 @@ impl Rustdds {
 
     /// Topic `name` of type `ty`, made once; the endpoints made on it after this call announce
     /// `ty`'s hash.
-    fn topic(&self, name: &str, ty: &TopicType, q: &Qos) -> Result<Topic, GatewayError> {
+    fn topic(&self, name: &str, ty: &TopicType, q: &Qos) -> Result<Topic, EngineError> {
         announce_type_hash(&self.participant, ty)?;
         let mut topics = self.topics.lock().unwrap_or_else(PoisonError::into_inner);
         if let Some(t) = topics.get(name) {
@@ -130,29 +140,29 @@ impl Rustdds {
         let t = self
             .participant
             .create_topic(name.to_string(), ty.name.clone(), &qos::topic_qos(q), TopicKind::NoKey)
-            .map_err(|e| GatewayError::dds(format!("topic {name}"), e))?;
+            .map_err(|e| EngineError::dds(format!("topic {name}"), e))?;
         topics.insert(name.to_string(), t.clone());
         Ok(t)
     }
 
     /// A node publisher on `topic` (type `ty`) with the writer QoS `q`.
-    fn publisher<M: Serialize>(&self, topic: &str, ty: &TopicType, q: &Qos) -> Result<Publisher<M>, GatewayError> {
+    fn publisher<M: Serialize>(&self, topic: &str, ty: &TopicType, q: &Qos) -> Result<Publisher<M>, EngineError> {
         let t = self.topic(topic, ty, q)?;
         self.node
             .lock()
             .unwrap_or_else(PoisonError::into_inner)
             .create_publisher::<M>(&t, Some(qos::profile(q)))
-            .map_err(|e| GatewayError::dds(format!("a writer on {topic}"), e))
+            .map_err(|e| EngineError::dds(format!("a writer on {topic}"), e))
     }
 
     /// A node subscription on `topic` (type `ty`) with the reader QoS `q`.
-    fn subscription<M: 'static>(&self, topic: &str, ty: &TopicType, q: &Qos) -> Result<Subscription<M>, GatewayError> {
+    fn subscription<M: 'static>(&self, topic: &str, ty: &TopicType, q: &Qos) -> Result<Subscription<M>, EngineError> {
         let t = self.topic(topic, ty, q)?;
         self.node
             .lock()
             .unwrap_or_else(PoisonError::into_inner)
             .create_subscription::<M>(&t, Some(qos::profile(q)))
-            .map_err(|e| GatewayError::dds(format!("a reader on {topic}"), e))
+            .map_err(|e| EngineError::dds(format!("a reader on {topic}"), e))
     }
 
     fn item_reader<M>(
@@ -162,15 +172,16 @@ impl Rustdds {
         q: &Qos,
         leaf: Arc<Leaf>,
         sink: Sink,
-    ) -> Result<(), GatewayError>
+    ) -> Result<(), EngineError>
     where
         M: DeserializeOwned + IntoLeaf + Send + Sync + 'static,
     {
         let sub: Subscription<M> = self.subscription(topic, ty, q)?;
         let path: Arc<str> = Arc::from(leaf.path.as_str());
         let to_payload = move |m: M| m.into_leaf(&leaf).map(|bytes| Payload::Item { path: path.clone(), bytes });
+        let own = (self.own, self.own_samples.clone());
         if let Some(rt) = &self.rt {
-            rt.spawn(async move { pump(sub.async_stream(), to_payload, sink).await });
+            rt.spawn(async move { pump(sub.async_stream(), to_payload, sink, own).await });
         }
         Ok(())
     }
@@ -180,21 +191,17 @@ impl Rustdds {
     /// The publisher and subscriber of the plain rustdds endpoints.
     fn plain(
         &self,
-    ) -> Result<(ros2_client::dds::rustdds::Publisher, ros2_client::dds::rustdds::Subscriber), GatewayError> {
+    ) -> Result<(ros2_client::dds::rustdds::Publisher, ros2_client::dds::rustdds::Subscriber), EngineError> {
         let mut plain = self.plain.lock().unwrap_or_else(PoisonError::into_inner);
         if let Some(p) = plain.as_ref() {
             return Ok(p.clone());
         }
         let q = ros2_client::dds::rustdds::QosPolicies::default();
-        let p = self.participant.create_publisher(&q).map_err(|e| GatewayError::dds("a DDS publisher", e))?;
-        let s = self.participant.create_subscriber(&q).map_err(|e| GatewayError::dds("a DDS subscriber", e))?;
+        let p = self.participant.create_publisher(&q).map_err(|e| EngineError::dds("a DDS publisher", e))?;
+        let s = self.participant.create_subscriber(&q).map_err(|e| EngineError::dds("a DDS subscriber", e))?;
         *plain = Some((p.clone(), s.clone()));
         Ok((p, s))
     }
-}
-
-fn rustdds_guid(g: GUID) -> Guid {
-    Guid(g.to_bytes())
 }
 
 /// A serialized sample as a plain rustdds reader hands it: its body and its byte order.
@@ -251,10 +258,10 @@ impl no_key::SerializerAdapter<RawBody> for RawAdapter {
 
 /// A plain rustdds writer, which can write a related sample identity, and follows the
 /// readers it has matched (its publication-matched statuses: rustdds 0.15 answers no query
-/// of them) by their participants' GUID prefixes, with how many of each.
+/// of them) by their participants, with how many of each.
 struct RelatedWriter {
     writer: no_key::DataWriter<RawBody, RawAdapter>,
-    matched: HashMap<[u8; PREFIX_LEN], u32>,
+    matched: HashMap<PeerId, u32>,
 }
 
 impl RelatedWriter {
@@ -263,15 +270,14 @@ impl RelatedWriter {
     fn take_statuses(&mut self) {
         while let Some(status) = self.writer.try_recv_status() {
             if let DataWriterStatus::PublicationMatched { current, reader, .. } = status {
-                let mut prefix = [0u8; PREFIX_LEN];
-                prefix.copy_from_slice(&reader.to_bytes()[..PREFIX_LEN]);
-                let n = self.matched.entry(prefix).or_default();
+                let peer = peer_of(&reader.to_bytes());
+                let n = self.matched.entry(peer).or_default();
                 if current.count_change() > 0 {
                     *n += 1;
                 } else {
                     *n = n.saturating_sub(1);
                     if *n == 0 {
-                        self.matched.remove(&prefix);
+                        self.matched.remove(&peer);
                     }
                 }
             }
@@ -282,7 +288,7 @@ impl RelatedWriter {
         let options = WriteOptionsBuilder::new().source_timestamp(Timestamp::now());
         let options = match related {
             Some(r) => options.related_sample_identity(ros2_client::dds::rustdds::SampleIdentity {
-                writer_guid: GUID::from_bytes(r.writer.0),
+                writer_guid: GUID::from_bytes(r.writer),
                 sequence_number: SequenceNumber::from(r.sequence),
             }),
             None => options,
@@ -297,42 +303,32 @@ impl RelatedWriter {
     }
 }
 
-impl Writer for RelatedWriter {
+impl ReplyWriter for RelatedWriter {
     fn write(&mut self, body: &[u8]) -> bool {
         self.write_with(body, None)
-    }
-
-    fn write_serialized(&mut self, raw: &[u8]) -> bool {
-        match split_header(raw) {
-            Ok((true, body)) => self.write(body),
-            _ => false,
-        }
     }
 
     fn write_related(&mut self, body: &[u8], related: SampleIdentity) -> bool {
         self.write_with(body, Some(related))
     }
 
-    fn matched_readers_of(&mut self, prefix: [u8; PREFIX_LEN]) -> Option<usize> {
+    fn matched_readers_of(&mut self, peer: PeerId) -> Option<usize> {
         self.take_statuses();
-        Some(self.matched.get(&prefix).map_or(0, |&n| n as usize))
-    }
-
-    fn take_match_statuses(&mut self) {
-        self.take_statuses();
+        Some(self.matched.get(&peer).map_or(0, |&n| n as usize))
     }
 }
 
 /// Tells `participant` the USER_DATA of the endpoints of type `ty` (none without a hash).
-fn announce_type_hash(participant: &DomainParticipant, ty: &TopicType) -> Result<(), GatewayError> {
+fn announce_type_hash(participant: &DomainParticipant, ty: &TopicType) -> Result<(), EngineError> {
     let user_data = ty.user_data().map(String::into_bytes).unwrap_or_default();
     participant
         .set_user_data_of_type(&ty.name, user_data)
-        .map_err(|e| GatewayError::dds(format!("the type hash of {}", ty.name), e))
+        .map_err(|e| EngineError::dds(format!("the type hash of {}", ty.name), e))
 }
 
 impl Drop for Rustdds {
     fn drop(&mut self) {
+        self.replies.lock().unwrap_or_else(PoisonError::into_inner).take();
         if let Some(rt) = self.rt.take() {
             rt.shutdown_background();
         }
@@ -340,16 +336,26 @@ impl Drop for Rustdds {
 }
 
 /// The task of one reader: every sample (or error) to the sink, decoded by `to_payload`.
+/// Our own participant's samples are dropped and counted (rustdds hands a participant none of
+/// them today; the check keeps echo suppression the engine's whatever it does).
 async fn pump<M, E: std::fmt::Debug>(
     stream: impl Stream<Item = Result<(M, MessageInfo), E>>,
     mut to_payload: impl FnMut(M) -> Result<Payload, CdrError>,
     sink: Sink,
+    (own, own_samples): (PeerId, Arc<AtomicU64>),
 ) {
     futures::pin_mut!(stream);
     while let Some(r) = stream.next().await {
         match r {
-            Ok((m, info)) => sink(guid(&info.publisher_gid()), Data::Decoded(to_payload(m))),
-            Err(e) => sink(Guid::default(), Data::Decoded(Err(CdrError::Engine(format!("{e:?}"))))),
+            Ok((m, info)) => {
+                let writer = endpoint(guid(&info.publisher_gid()));
+                if writer.peer == own {
+                    own_samples.fetch_add(1, Ordering::Relaxed);
+                } else {
+                    sink(writer, Data::Decoded(to_payload(m)));
+                }
+            }
+            Err(e) => sink(EndpointId::default(), Data::Decoded(Err(CdrError::Engine(format!("{e:?}"))))),
         }
     }
 }
@@ -379,34 +385,112 @@ impl Writer for RustddsWriter {
     }
 }
 
+impl Rustdds {
+    /// Every remote endpoint by its DDS topic (our own participant's left out).
+    fn raw_remote(participant: &DomainParticipant, own: PeerId) -> Remote {
+        let mut r = Remote::default();
+        for w in participant.discovered_writers() {
+            let id = endpoint(guid(&Gid::from(w.writer_proxy.remote_writer_guid)));
+            if id.peer != own {
+                r.writers.entry(w.publication_topic_data.topic_name.clone()).or_default().insert(id);
+                r.qos.insert(id, endpoint_qos(&w.publication_topic_data.qos(), true));
+            }
+        }
+        for rd in participant.discovered_readers() {
+            let id = endpoint(guid(&Gid::from(rd.reader_proxy.remote_reader_guid)));
+            if id.peer != own {
+                r.readers.entry(rd.subscription_topic_data.topic_name().clone()).or_default().insert(id);
+                r.qos.insert(id, endpoint_qos(&rd.subscription_topic_data.qos(), false));
+            }
+        }
+        r
+    }
+
+    /// A plain reader on DDS topic `topic` whose samples go to `sink` with their identity and
+    /// related sample identity, as a service's requests.
+    fn request_reader(&self, topic: &str, ty: &TopicType, sink: RequestSink) -> Result<(), EngineError> {
+        let q = rpc::qos();
+        let t = self.topic(topic, ty, &q)?;
+        let (_, subscriber) = self.plain()?;
+        let reader = subscriber
+            .create_simple_datareader_no_key::<RawSample, RawAdapter>(&t, Some(qos::profile(&q).into()))
+            .map_err(|e| EngineError::dds(format!("a reader on {topic}"), e))?;
+        let Some(rt) = &self.rt else { return Ok(()) };
+        rt.spawn(async move {
+            let stream = reader.as_async_stream();
+            futures::pin_mut!(stream);
+            while let Some(r) = stream.next().await {
+                let dcc = match r {
+                    Ok(dcc) => dcc,
+                    Err(e) => {
+                        tracing::debug!("a request lost: {e:?}");
+                        continue;
+                    }
+                };
+                let related = dcc.related_sample_identity().map(|r| SampleIdentity {
+                    writer: r.writer_guid.to_bytes(),
+                    sequence: i64::from(r.sequence_number),
+                });
+                let (writer, sequence) = (dcc.writer_guid.to_bytes(), i64::from(dcc.sequence_number));
+                let sample = dcc.into_value();
+                let header = if sample.le { [0, 1, 0, 0] } else { [0, 0, 0, 0] };
+                let raw = [&header[..], &sample.body].concat();
+                rpc::deliver(rpc::Incoming { writer, sequence: Some(sequence), related, raw: &raw }, &sink);
+            }
+        });
+        Ok(())
+    }
+
+    /// A plain writer on DDS topic `topic`, which writes related sample identities.
+    fn reply_writer(&self, topic: &str, ty: &TopicType) -> Result<RelatedWriter, EngineError> {
+        let q = rpc::qos();
+        let t = self.topic(topic, ty, &q)?;
+        let (publisher, _) = self.plain()?;
+        let writer = publisher
+            .create_datawriter_no_key::<RawBody, RawAdapter>(&t, Some(qos::profile(&q).into()))
+            .map_err(|e| EngineError::dds(format!("a writer on {topic}"), e))?;
+        Ok(RelatedWriter { writer, matched: HashMap::new() })
+    }
+}
+
 impl Engine for Rustdds {
     fn kind(&self) -> EngineKind {
         EngineKind::Rustdds
     }
 
-    fn arbitrates_ownership(&self) -> bool {
-        false
+    fn location(&self) -> String {
+        format!("DDS domain {}", self.participant.domain_id())
     }
 
     fn domain_id(&self) -> u16 {
         self.participant.domain_id()
     }
 
-    fn own_prefix(&self) -> [u8; PREFIX_LEN] {
-        self.own_prefix
+    fn own_peer(&self) -> PeerId {
+        self.own
     }
 
-    fn writer(&self, topic: &str, ty: &TopicType, q: &Qos) -> Result<Box<dyn Writer>, GatewayError> {
-        Ok(Box::new(RustddsWriter(self.publisher::<PreEncoded>(topic, ty, q)?)))
+    fn own_samples(&self) -> u64 {
+        self.own_samples.load(Ordering::Relaxed)
     }
 
-    fn reader(&self, topic: &str, ty: &TopicType, q: &Qos, decode: Decode, sink: Sink) -> Result<(), GatewayError> {
+    fn arbitrates_ownership(&self) -> bool {
+        false
+    }
+
+    fn writer(&self, topic: &str, ty: &TopicType, q: &Qos) -> Result<Box<dyn Writer>, EngineError> {
+        Ok(Box::new(RustddsWriter(self.publisher::<PreEncoded>(&data_topic(topic), ty, q)?)))
+    }
+
+    fn reader(&self, topic: &str, ty: &TopicType, q: &Qos, decode: Decode, sink: Sink) -> Result<(), EngineError> {
+        let topic = &data_topic(topic);
         match decode {
             Decode::Set(codec) => {
                 let sub = self.subscription(topic, ty, q)?;
+                let own = (self.own, self.own_samples.clone());
                 if let Some(rt) = &self.rt {
                     rt.spawn(async move {
-                        pump(sub.async_stream_seed(SetSeed(codec)), |s| Ok(Payload::Set(s)), sink).await;
+                        pump(sub.async_stream_seed(SetSeed(codec)), |s| Ok(Payload::Set(s)), sink, own).await;
                     });
                 }
             }
@@ -416,82 +500,36 @@ impl Engine for Rustdds {
                 Stock::Array => self.item_reader::<Float64MultiArray>(topic, ty, q, leaf, sink)?,
             },
             Decode::Raw => {
-                return Err(GatewayError::dds(format!("a reader on {topic}"), "rustdds readers decode what they read"))
+                return Err(EngineError::dds(format!("a reader on {topic}"), "rustdds readers decode what they read"))
             }
         }
         Ok(())
     }
 
-    fn identified_reader(
-        &self,
-        topic: &str,
-        ty: &TopicType,
-        q: &Qos,
-        sink: IdentifiedSink,
-    ) -> Result<(), GatewayError> {
-        let t = self.topic(topic, ty, q)?;
-        let (_, subscriber) = self.plain()?;
-        let reader = subscriber
-            .create_simple_datareader_no_key::<RawSample, RawAdapter>(&t, Some(qos::profile(q).into()))
-            .map_err(|e| GatewayError::dds(format!("a reader on {topic}"), e))?;
-        if let Some(rt) = &self.rt {
-            rt.spawn(async move {
-                let stream = reader.as_async_stream();
-                futures::pin_mut!(stream);
-                while let Some(r) = stream.next().await {
-                    let dcc = match r {
-                        Ok(dcc) => dcc,
-                        Err(e) => {
-                            tracing::debug!("a sample of an identified reader lost: {e:?}");
-                            continue;
-                        }
-                    };
-                    let related = dcc.related_sample_identity().map(|r| SampleIdentity {
-                        writer: rustdds_guid(r.writer_guid),
-                        sequence: i64::from(r.sequence_number),
-                    });
-                    let (writer, sequence) = (rustdds_guid(dcc.writer_guid), i64::from(dcc.sequence_number));
-                    let sample = dcc.into_value();
-                    let header = if sample.le { [0, 1, 0, 0] } else { [0, 0, 0, 0] };
-                    let raw = [&header[..], &sample.body].concat();
-                    sink(Identified { writer, sequence: Some(sequence), related, raw: &raw });
-                }
-            });
+    fn serve(&self, service: &Service<'_>, requests: RequestSink) -> Result<Box<dyn Responder>, EngineError> {
+        let (rq, rr) = (request_topic(service.name), reply_topic(service.name));
+        let writer = self.reply_writer(&rr, service.response)?;
+        let responder = {
+            let mut replies = self.replies.lock().unwrap_or_else(PoisonError::into_inner);
+            if replies.is_none() {
+                let (participant, own) = (self.participant.clone(), self.own);
+                *replies = Some(Replies::start(Arc::new(move || Rustdds::raw_remote(&participant, own)))?);
+            }
+            replies.as_ref().map(|r| r.responder(rq.clone(), rr, Box::new(writer)))
+        };
+        self.request_reader(&rq, service.request, requests)?;
+        match responder {
+            Some(r) => Ok(Box::new(r)),
+            None => Err(EngineError::dds("the services' replies", "no reply thread")),
         }
-        Ok(())
-    }
-
-    fn related_writer(&self, topic: &str, ty: &TopicType, q: &Qos) -> Result<Box<dyn Writer>, GatewayError> {
-        let t = self.topic(topic, ty, q)?;
-        let (publisher, _) = self.plain()?;
-        let writer = publisher
-            .create_datawriter_no_key::<RawBody, RawAdapter>(&t, Some(qos::profile(q).into()))
-            .map_err(|e| GatewayError::dds(format!("a writer on {topic}"), e))?;
-        Ok(Box::new(RelatedWriter { writer, matched: HashMap::new() }))
     }
 
     fn remote(&self) -> Remote {
-        let own = self.own_prefix;
-        let mut r = Remote::default();
-        for w in self.participant.discovered_writers() {
-            let g = guid(&Gid::from(w.writer_proxy.remote_writer_guid));
-            if g.prefix() != own {
-                r.writers.entry(w.publication_topic_data.topic_name.clone()).or_default().insert(g);
-                r.qos.insert(g, endpoint_qos(&w.publication_topic_data.qos(), true));
-            }
-        }
-        for rd in self.participant.discovered_readers() {
-            let g = guid(&Gid::from(rd.reader_proxy.remote_reader_guid));
-            if g.prefix() != own {
-                r.readers.entry(rd.subscription_topic_data.topic_name().clone()).or_default().insert(g);
-                r.qos.insert(g, endpoint_qos(&rd.subscription_topic_data.qos(), false));
-            }
-        }
-        r
+        ros_remote(Rustdds::raw_remote(&self.participant, self.own))
     }
 
     /// ros2-client announces the node and its endpoints as they are created.
-    fn announce(&self) -> Result<(), GatewayError> {
+    fn announce(&self) -> Result<(), EngineError> {
         Ok(())
     }
 }

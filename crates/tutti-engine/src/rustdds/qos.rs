@@ -38,6 +38,7 @@ pub fn profile(q: &Qos) -> QosProfile {
         (mapping::History::KeepLast(n), _) => History::KeepLast { depth: n.max(1) as usize },
         (mapping::History::KeepAll, _) => History::KeepAll,
     };
+    p.lifespan = q.lifespan;
     p
 }
 

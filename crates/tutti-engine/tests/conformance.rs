@@ -1,14 +1,15 @@
-//! The engine conformance suite: every engine this build has ([`EngineKind::built`]) goes
-//! through the same scenarios, written once against the [`Engine`] trait: raw CDR in both
-//! byte orders (typed sets and per-item stock messages), the gateway's own samples known by
-//! their GUID prefix and dropped by the route's sink, discovery of remote endpoints with the
-//! QoS they announced, QoS matching and its refusal, exclusive ownership, the node
-//! announcement on `ros_discovery_info`, samples that cannot be decoded reported as such, and
-//! the identities a ROS 2 service's request and reply carry (docs/ros2.md, "Wire forms").
+//! The engine conformance suite: every engine this build has ([`tutti_engine::for_each_engine!`],
+//! the one list of engines) goes through the same scenarios, written once against the [`Engine`]
+//! trait: raw CDR in both byte orders (typed sets and per-item stock messages), the engine's own
+//! samples known by their peer and dropped (echo suppression is the engine's), discovery of
+//! remote endpoints with the QoS they announced, QoS matching and its refusal, exclusive
+//! ownership, the node announcement on `ros_discovery_info`, samples that cannot be decoded
+//! reported as such, and a ROS 2 service answering each request in its client's wire form
+//! (docs/ros2.md, "Wire forms").
 //!
 //! Everything runs in this process, on loopback, with no Python and no gateway binary. Each
-//! scenario has a DDS domain of its own (60-79 for cyclone, 80-99 for rustdds) so that all run
-//! in parallel, and a watchdog; waits are for an event, bounded, and nothing asserts a duration.
+//! scenario has a DDS domain of its own (60-79 for the first engine of the list, 80-99 for the
+//! second: 20 per engine) so that all run in parallel, and a watchdog; waits are for an event, bounded, and nothing asserts a duration.
 //! Where a scenario needs what only Cyclone can do (write a big-endian sample, read samples of a
 //! type without decoding them), the peer is a Cyclone participant: for the rustdds engine that
 //! makes the scenario an interop test between the two engines as well.
@@ -19,46 +20,45 @@ use std::time::{Duration, Instant};
 
 use tutti_core::ddf::{parse_str, Leaf, SetLayout};
 use tutti_core::mapping::{Durability, History, Ownership, Qos, Reliability};
-use tutti_gateway::cdr::{stock, CdrError, Payload, SetCodec, TypedSample, HEADER_LE};
-use tutti_gateway::engine::{
-    self, Decode, EndpointQos, Engine, EngineConfig, EngineKind, Guid, Identified, SampleIdentity, Sink, TopicType,
-    Writer,
+use tutti_engine::cdr::{split_header, stock, CdrError, Payload, SetCodec, TypedSample, HEADER_LE};
+use tutti_engine::cyclone::Cyclone;
+use tutti_engine::{
+    self as engine, Decode, EndpointId, EndpointQos, Engine, EngineConfig, EngineKind, Request, Service, Sink,
+    TopicType, Writer,
 };
-use tutti_gateway::routes::from_dds::{self, Destination, Direct, Target};
-use tutti_gateway::routes::Event;
-use tutti_gateway::Stats;
 
 /// The longest wait for one expected event (discovery, a sample).
 const PATIENCE: Duration = Duration::from_secs(30);
 /// The longest a whole scenario may take before the test binary is stopped.
 const WATCHDOG: Duration = Duration::from_secs(150);
 
-/// One scenario on one engine: `NAME::cyclone`, `NAME::rustdds` (when built). The list of
-/// engines is checked against [`EngineKind::built`] by `every_engine_of_the_build_is_tested`.
-macro_rules! conformance {
-    ($($n:literal => $name:ident),* $(,)?) => {
-        mod cyclone {
-            $( #[test] fn $name() { super::run(super::EngineKind::Cyclone, $n, super::$name) } )*
+/// The scenarios of one engine: a module named after it (`NAME::cyclone`, `NAME::rustdds`).
+macro_rules! scenarios_for {
+    ($engine:ident, $kind:ident, [$($n:literal => $name:ident),* $(,)?]) => {
+        mod $engine {
+            $( #[test] fn $name() { super::run(super::EngineKind::$kind, $n, super::$name) } )*
         }
-        #[cfg(feature = "rustdds")]
-        mod rustdds {
-            $( #[test] fn $name() { super::run(super::EngineKind::Rustdds, $n, super::$name) } )*
-        }
-        const TESTED: &[EngineKind] =
-            &[EngineKind::Cyclone, #[cfg(feature = "rustdds")] EngineKind::Rustdds];
     };
 }
 
-conformance! {
+/// Every scenario on every engine of the build, as [`tutti_engine::for_each_engine!`] lists them.
+macro_rules! conformance {
+    ($scenarios:tt $($engine:ident: $kind:ident),* $(,)?) => {
+        $( scenarios_for!($engine, $kind, $scenarios); )*
+        const TESTED: &[EngineKind] = &[$(EngineKind::$kind),*];
+    };
+}
+
+tutti_engine::for_each_engine!(conformance, [
     0 => raw_cdr_round_trips_in_both_byte_orders,
-    1 => own_samples_are_known_by_their_prefix_and_dropped,
+    1 => own_samples_are_known_by_their_peer_and_dropped,
     2 => discovery_lists_remote_endpoints_with_their_qos,
     3 => qos_matching_and_refusal,
     4 => exclusive_ownership_goes_by_strength,
     5 => the_node_is_announced_on_ros_discovery_info,
     6 => a_sample_that_cannot_be_decoded_is_reported,
-    7 => identified_samples_carry_their_identity_where_the_engine_reads_it,
-}
+    7 => a_service_answers_each_request_in_its_clients_form,
+]);
 
 #[test]
 fn every_engine_of_the_build_is_tested() {
@@ -86,7 +86,7 @@ fn raw_cdr_round_trips_in_both_byte_orders(c: &Case) {
     let mut body = Vec::new();
     codec.encode(a.step, a.sim_time, &a.data, &mut body);
     let from = inbox.until_payload("the little-endian sample", &mut *le, &Payload::Set(a.clone()), |w| w.write(&body));
-    assert_eq!(from.prefix(), writer.own_prefix(), "the sample comes with its writer's GUID");
+    assert_eq!(from.peer, writer.own_peer(), "the sample comes with its writer's GUID");
 
     let b = sample(&codec, &layout, 2);
     codec.encode(b.step, b.sim_time, &b.data, &mut body);
@@ -117,28 +117,20 @@ fn raw_cdr_round_trips_in_both_byte_orders(c: &Case) {
     }
 }
 
-/// A participant's own samples, if its engine hands them to its readers, come with its own
-/// GUID prefix, which the route's sink drops (and counts); another participant's reach the
-/// route. Discovery leaves the participant's own endpoints out.
-fn own_samples_are_known_by_their_prefix_and_dropped(c: &Case) {
+/// A participant's own samples never reach its readers' sinks: an engine that hands them
+/// to its readers (Cyclone) knows them by its own peer, drops them and counts them; another
+/// participant's reach the sink, with its writer's peer. Discovery leaves the participant's
+/// own endpoints out.
+fn own_samples_are_known_by_their_peer_and_dropped(c: &Case) {
     let (codec, layout) = set_codec();
     let gateway = c.open("gateway");
     let other = c.open("other");
-    assert_ne!(gateway.own_prefix(), other.own_prefix());
+    assert_ne!(gateway.own_peer(), other.own_peer());
     let q = qos(Reliability::Reliable, History::KeepAll, false, Ownership::Shared);
     let topic = c.topic("echo");
 
-    let (events_tx, mut events) = tokio::sync::mpsc::unbounded_channel();
-    let stats = Arc::new(Stats::default());
-    let to = Destination { route: 7, events: events_tx, target: Target::Writers(Direct::default()) };
-    let seen = Arc::new(Mutex::new(Vec::<Guid>::new()));
-    let route = from_dds::sink(Decode::Set(codec.clone()), to, stats.clone(), gateway.own_prefix());
-    let tap = seen.clone();
-    let sink: Sink = Arc::new(move |g, data| {
-        lock(&tap).push(g);
-        route(g, data)
-    });
-    gateway.reader(&topic, &TopicType::plain(SET_TYPE), &q, Decode::Set(codec.clone()), sink).unwrap();
+    let inbox = Inbox::new(Decode::Set(codec.clone()));
+    gateway.reader(&topic, &TopicType::plain(SET_TYPE), &q, Decode::Set(codec.clone()), inbox.sink()).unwrap();
     let mut own = gateway.writer(&topic, &TopicType::plain(SET_TYPE), &q).unwrap();
     let mut theirs = other.writer(&topic, &TopicType::plain(SET_TYPE), &q).unwrap();
 
@@ -146,43 +138,29 @@ fn own_samples_are_known_by_their_prefix_and_dropped(c: &Case) {
     let (mut mine_body, mut their_body) = (Vec::new(), Vec::new());
     codec.encode(mine.step, mine.sim_time, &mine.data, &mut mine_body);
     codec.encode(their.step, their.sim_time, &their.data, &mut their_body);
-    // Cyclone hands a participant its own samples (with its prefix), rustdds does not: either
-    // way none may reach the route, and each one handed over is counted as dropped.
-    let mut routed = Vec::new();
-    until("ten samples of the other participant on the route", || {
+    until("ten samples of the other participant at the sink", || {
         own.write(&mine_body);
         own.flush();
         theirs.write(&their_body);
         theirs.flush();
-        while let Ok(ev) = events.try_recv() {
-            routed.push(ev);
-        }
-        routed.len() >= 10
+        inbox.len() >= 10
     });
-    for ev in &routed {
-        match ev {
-            Event::Sample(s) => {
-                assert_eq!(s.route, 7);
-                assert_eq!(s.writer.prefix(), other.own_prefix(), "only the other participant's samples are routed");
-                assert_eq!(s.payload, Payload::Set(their.clone()));
-            }
-            other => panic!("unexpected {other:?}"),
-        }
+    for (writer, payload) in lock(&inbox.got).iter() {
+        assert_eq!(writer.peer, other.own_peer(), "only the other participant's samples reach the sink");
+        assert_eq!(payload.as_ref(), Ok(&Payload::Set(their.clone())));
     }
-    let own_seen = lock(&seen).iter().filter(|g| g.prefix() == gateway.own_prefix()).count() as u64;
-    assert_eq!(stats.own_samples.load(Ordering::Relaxed), own_seen, "every own sample is counted as dropped");
     if c.engine == EngineKind::Cyclone {
-        // Cyclone hands them over: the drop path ran (else the check above is 0 == 0).
-        assert!(own_seen > 0, "Cyclone handed over none of the participant's own samples");
+        // Cyclone hands them over: the drop path ran, and counted what it dropped.
+        assert!(gateway.own_samples() > 0, "Cyclone handed over none of the participant's own samples");
     }
 
     let remote = until_some("the other participant's writer in discovery", || {
         let r = gateway.remote();
-        let listed = r.writers_on(&topic).any(|g| g.prefix() == other.own_prefix());
+        let listed = r.writers_on(&topic).any(|g| g.peer == other.own_peer());
         listed.then_some(r)
     });
-    assert!(remote.writers_on(&topic).all(|g| g.prefix() != gateway.own_prefix()), "our own writer is not remote");
-    assert!(remote.readers.values().flatten().all(|g| g.prefix() != gateway.own_prefix()));
+    assert!(remote.writers_on(&topic).all(|g| g.peer != gateway.own_peer()), "our own writer is not remote");
+    assert!(remote.readers.values().flatten().all(|g| g.peer != gateway.own_peer()));
 }
 
 /// A participant lists the other's writer and reader under their topics, each with the QoS
@@ -197,12 +175,13 @@ fn discovery_lists_remote_endpoints_with_their_qos(c: &Case) {
         history: History::KeepLast(1),
         durability: Durability::TransientLocal { depth: 1 },
         ownership: Ownership::Exclusive { strength: 7 },
+        lifespan: None,
     };
     let requested = qos(Reliability::BestEffort, History::KeepLast(4), false, Ownership::Shared);
     let _w = announcer.writer(&wt, &TopicType::plain(SET_TYPE), &offered).unwrap();
     announcer.reader(&rt, &TopicType::plain(SET_TYPE), &requested, Decode::Set(codec), Arc::new(|_, _| {})).unwrap();
 
-    let mine = |g: &Guid| g.prefix() == announcer.own_prefix();
+    let mine = |g: &EndpointId| g.peer == announcer.own_peer();
     let remote = until_some("the writer and the reader in discovery", || {
         let r = observer.remote();
         let listed = r.writers_on(&wt).any(|g| mine(&g)) && r.readers_on(std::slice::from_ref(&rt)).iter().any(mine);
@@ -396,7 +375,7 @@ fn a_sample_that_cannot_be_decoded_is_reported(c: &Case) {
 fn the_node_is_announced_on_ros_discovery_info(c: &Case) {
     let (codec, _) = set_codec();
     let node = c.open("announced_node");
-    let observer = c.peer_cyclone("graph");
+    let observer = c.raw_cyclone("graph");
     let (wt, rt) = (c.topic("node_out"), c.topic("node_in"));
     let q = qos(Reliability::Reliable, History::KeepLast(1), false, Ownership::Shared);
     let _w = node.writer(&wt, &TopicType::plain(SET_TYPE), &q).unwrap();
@@ -410,6 +389,7 @@ fn the_node_is_announced_on_ros_discovery_info(c: &Case) {
         history: History::KeepLast(1),
         durability: Durability::TransientLocal { depth: 1 },
         ownership: Ownership::Shared,
+        lifespan: None,
     };
     let sink: Sink = Arc::new(move |_, data| {
         if let engine::Data::Raw(raw) = data {
@@ -417,10 +397,10 @@ fn the_node_is_announced_on_ros_discovery_info(c: &Case) {
         }
     });
     observer
-        .reader("ros_discovery_info", &TopicType::stock(DISCOVERY_TYPE), &latched, Decode::Set(codec), sink)
+        .raw_reader("ros_discovery_info", &TopicType::stock(DISCOVERY_TYPE), &latched, sink)
         .unwrap();
 
-    let mine = |g: &Guid| g.prefix() == node.own_prefix();
+    let mine = |g: &EndpointId| g.peer == node.own_peer();
     let (w, r) = until_some("the node's endpoints in discovery", || {
         let rem = observer.remote();
         let w = rem.writers_on(&wt).find(|g| mine(g))?;
@@ -431,75 +411,77 @@ fn the_node_is_announced_on_ros_discovery_info(c: &Case) {
     let info = until_some("the node on ros_discovery_info", || {
         node.announce().unwrap();
         lock(&infos).iter().filter_map(|raw| ParticipantInfo::parse(raw)).find(|i| {
-            i.participant.prefix() == node.own_prefix()
-                && i.nodes.iter().any(|n| n.name == want && n.writers.contains(&w) && n.readers.contains(&r))
+            i.participant[..12] == node.own_peer().0[..12]
+                && i.nodes.iter().any(|n| n.name == want && n.writers.contains(&w.gid) && n.readers.contains(&r.gid))
         })
     });
     let n = info.nodes.iter().find(|n| n.name == want).unwrap();
     assert_eq!(n.namespace, "/conformance");
 }
 
-/// What an identified reader saw of one sample.
-#[derive(Debug, Clone, PartialEq)]
-struct Seen {
-    writer: Guid,
-    sequence: Option<i64>,
-    related: Option<SampleIdentity>,
-    raw: Vec<u8>,
-}
-
-/// An identified reader hands each sample with its writer's GUID; where the engine reads
-/// identities (rustdds) also its sequence number, increasing, and the related sample identity
-/// a related writer put on it, and none on a plain write; where it does not (Cyclone), none,
-/// and its related writer refuses to write one. A Cyclone DDS writer's GUID starts with
-/// Cyclone's vendor id, which the services read a request's form by.
-fn identified_samples_carry_their_identity_where_the_engine_reads_it(c: &Case) {
-    let reader = c.open("reader");
-    let writer = c.open("writer");
-    let cyclone = c.peer_cyclone("cyclone_writer");
-    let q = qos(Reliability::Reliable, History::KeepLast(10), false, Ownership::Shared);
-    let topic = c.topic("identified");
-    let ty = TopicType::plain(SET_TYPE);
-    let seen = Arc::new(Mutex::new(Vec::<Seen>::new()));
+/// A served service answers each request in its client's wire form (docs/ros2.md, "Wire
+/// forms"). A client in rmw_cyclonedds's form (a Cyclone participant writing
+/// `rq/NAMERequest` with the request header and reading `rr/NAMEReply`) gets the response
+/// with its header echoed, whatever the engine; the request reaches the engine's sink past its
+/// header, with its client's peer and byte order; and the response, held until the client's
+/// reply reader has matched, reaches the client.
+fn a_service_answers_each_request_in_its_clients_form(c: &Case) {
+    let server = c.open("server");
+    let client = c.raw_cyclone("client");
+    let name = c.topic("echo");
+    let (rq_ty, rr_ty) = (TopicType::plain(ECHO_REQUEST), TopicType::plain(ECHO_RESPONSE));
+    let seen = Arc::new(Mutex::new(Vec::<(EndpointId, bool, Vec<u8>)>::new()));
+    let (tx, rx) = std::sync::mpsc::channel::<engine::ReplyTo>();
     let tap = seen.clone();
-    let sink = Arc::new(move |s: Identified<'_>| {
-        lock(&tap).push(Seen { writer: s.writer, sequence: s.sequence, related: s.related, raw: s.raw.to_vec() })
+    let tx = Mutex::new(tx);
+    let sink = Arc::new(move |r: Request<'_>| {
+        lock(&tap).push((r.client, r.little_endian, r.body.to_vec()));
+        let _ = lock(&tx).send(r.reply_to);
     });
-    reader.identified_reader(&topic, &ty, &q, sink).unwrap();
-    let mut w = writer.related_writer(&topic, &ty, &q).unwrap();
-    let mut peer = cyclone.writer(&topic, &ty, &q).unwrap();
-    let reads = c.engine == EngineKind::Rustdds;
-    let related = SampleIdentity { writer: Guid([9; 16]), sequence: 42 };
-    let (plain, answer, theirs) = (vec![1u8, 0, 0, 0], vec![2u8, 0, 0, 0], vec![3u8, 0, 0, 0]);
-    until("a plain, a related and a Cyclone sample", || {
-        assert!(w.write(&plain));
-        assert_eq!(w.write_related(&answer, related), reads, "a related writer writes a related identity where it can");
-        w.flush();
-        assert!(peer.write(&theirs));
-        peer.flush();
-        let got = lock(&seen);
-        let has = |body: &[u8]| got.iter().any(|s| s.raw[4..] == *body);
-        has(&plain) && (!reads || has(&answer)) && has(&theirs)
-    });
-    let got = lock(&seen).clone();
-    for s in &got {
-        assert_eq!(s.raw[..4], HEADER_LE, "{s:?}");
-        let body = &s.raw[4..];
-        let from_peer = body == theirs.as_slice();
-        let prefix = if from_peer { cyclone.own_prefix() } else { writer.own_prefix() };
-        assert_eq!(s.writer.prefix(), prefix, "{s:?}");
-        if from_peer {
-            assert_eq!(s.writer.0[..2], [0x01, 0x10], "Cyclone's vendor id heads its GUIDs: {s:?}");
+    let service = Service { name: &name, request: &rq_ty, response: &rr_ty };
+    let mut responder = server.serve(&service, sink).unwrap();
+
+    let q = Qos {
+        reliability: Reliability::Reliable,
+        history: History::KeepLast(10),
+        durability: Durability::Volatile,
+        ownership: Ownership::Shared,
+        lifespan: None,
+    };
+    let replies = Arc::new(Mutex::new(Vec::<Vec<u8>>::new()));
+    let into = replies.clone();
+    let on_reply: Sink = Arc::new(move |_, data| {
+        if let engine::Data::Raw(raw) = data {
+            lock(&into).push(raw.to_vec());
         }
-        assert_eq!(s.sequence.is_some(), reads, "{s:?}");
-        let want = (reads && body == answer.as_slice()).then_some(related);
-        assert_eq!(s.related, want, "{s:?}");
-    }
-    if reads {
-        let ours: Vec<i64> =
-            got.iter().filter(|s| s.writer.prefix() == writer.own_prefix()).filter_map(|s| s.sequence).collect();
-        assert!(ours.windows(2).all(|p| p[0] < p[1]), "a writer's sequence numbers increase: {ours:?}");
-    }
+    });
+    let relative = name.trim_start_matches('/');
+    client.raw_reader(&format!("rr/{relative}Reply"), &rr_ty, &q, on_reply).unwrap();
+    let mut w = client.raw_writer(&format!("rq/{relative}Request"), &rq_ty, &q).unwrap();
+    let request = |sequence: i64| [&77u64.to_le_bytes()[..], &sequence.to_le_bytes(), &41u64.to_le_bytes()].concat();
+    // A request written before the server has matched the client's writer may reach nobody.
+    let mut sequence = 0;
+    let to = until_some("a request at the server", || {
+        sequence += 1;
+        assert!(w.write(&request(sequence)), "the client's writer refused a request");
+        w.flush();
+        rx.try_recv().ok()
+    });
+    let (from, le, body) = lock(&seen)[0].clone();
+    assert_eq!(from.peer, client.own_peer(), "the request comes with its client's peer");
+    assert_eq!(from.gid[..2], [0x01, 0x10], "Cyclone's vendor id heads its GUIDs: rmw_cyclonedds's form");
+    assert!(le, "the client wrote little-endian");
+    assert_eq!(body, 41u64.to_le_bytes(), "the request's body, past its header");
+
+    responder.respond(&to, &42u64.to_le_bytes());
+    let reply = until_some("the response at the client", || lock(&replies).first().cloned());
+    let (le, body) = split_header(&reply).unwrap();
+    assert!(le, "a response is little-endian");
+    assert_eq!(body.len(), 24, "the echoed header, then the response's body: {body:?}");
+    assert_eq!(body[..8], 77u64.to_le_bytes(), "the client's id echoed");
+    let answered = i64::from_le_bytes(body[8..16].try_into().unwrap());
+    assert!((1..=sequence).contains(&answered), "the request's sequence number echoed: {answered}");
+    assert_eq!(body[16..], 42u64.to_le_bytes());
 }
 
 // ---------------------------------------------------------------------------------------
@@ -507,6 +489,8 @@ fn identified_samples_carry_their_identity_where_the_engine_reads_it(c: &Case) {
 
 const SET_TYPE: &str = "conformance::msg::dds_::Set_";
 const DISCOVERY_TYPE: &str = "rmw_dds_common::msg::dds_::ParticipantEntitiesInfo_";
+const ECHO_REQUEST: &str = "conformance::srv::dds_::Echo_Request_";
+const ECHO_RESPONSE: &str = "conformance::srv::dds_::Echo_Response_";
 
 /// One scenario on one engine.
 struct Case {
@@ -526,16 +510,28 @@ impl Case {
         self.open_kind(EngineKind::Cyclone, node)
     }
 
-    fn open_kind(&self, kind: EngineKind, node: &str) -> Box<dyn Engine> {
-        let cfg = EngineConfig {
+    /// A Cyclone participant whose DDS topics the scenario names itself (`ros_discovery_info`,
+    /// a service's `rq/` and `rr/` topics).
+    fn raw_cyclone(&self, node: &str) -> Cyclone {
+        match Cyclone::open(&self.config(node)) {
+            Ok(e) => e,
+            Err(e) => panic!("cyclone participant in DDS domain {}: {e}", self.domain),
+        }
+    }
+
+    fn config(&self, node: &str) -> EngineConfig {
+        EngineConfig {
             domain_id: self.domain,
             interfaces: vec![[127, 0, 0, 1].into()],
             peers: Vec::new(),
             node_name: format!("conf_{}_{node}", self.number),
             node_namespace: "/conformance".into(),
             participant_lease: None,
-        };
-        match engine::open(kind, &cfg) {
+        }
+    }
+
+    fn open_kind(&self, kind: EngineKind, node: &str) -> Box<dyn Engine> {
+        match engine::open(kind, &self.config(node)) {
             Ok(e) => e,
             Err(e) => panic!("{kind} participant in DDS domain {}: {e}", self.domain),
         }
@@ -543,7 +539,7 @@ impl Case {
 
     /// A topic of this scenario.
     fn topic(&self, what: &str) -> String {
-        format!("rt/conformance/s{}/{what}", self.number)
+        format!("/conformance/s{}/{what}", self.number)
     }
 }
 
@@ -569,10 +565,8 @@ fn run(engine: EngineKind, n: u16, scenario: fn(&Case)) {
         }
     });
     let _done = Done(done);
-    let base = match engine {
-        EngineKind::Cyclone => 60,
-        EngineKind::Rustdds => 80,
-    };
+    // 20 domains per engine, by its place in the list of engines.
+    let base = 60 + 20 * engine.index() as u16;
     scenario(&Case { engine, number: n, domain: base + n });
 }
 
@@ -598,7 +592,7 @@ fn until_some<T>(what: &str, mut f: impl FnMut() -> Option<T>) -> T {
 
 fn qos(reliability: Reliability, history: History, transient_local: bool, ownership: Ownership) -> Qos {
     let durability = if transient_local { Durability::TransientLocal { depth: 1 } } else { Durability::Volatile };
-    Qos { reliability, history, durability, ownership }
+    Qos { reliability, history, durability, ownership, lifespan: None }
 }
 
 /// The codec and layout of the scenarios' set: elements of every alignment, an array.
@@ -664,7 +658,7 @@ fn stock_big_endian(values: &[f64], array: bool) -> Vec<u8> {
 /// What a reader received, decoded.
 struct Inbox {
     decode: Decode,
-    got: Mutex<Vec<(Guid, Result<Payload, CdrError>)>>,
+    got: Mutex<Vec<(EndpointId, Result<Payload, CdrError>)>>,
 }
 
 impl Inbox {
@@ -703,7 +697,7 @@ impl Inbox {
         w: &mut dyn Writer,
         want: &Payload,
         mut write: impl FnMut(&mut dyn Writer) -> bool,
-    ) -> Guid {
+    ) -> EndpointId {
         until_some(what, || {
             assert!(write(w), "{what}: the writer refused it");
             w.flush();
@@ -718,15 +712,15 @@ impl Inbox {
 
 /// `rmw_dds_common::msg::ParticipantEntitiesInfo` as ROS 2 Iron and later write it (16-byte gids).
 struct ParticipantInfo {
-    participant: Guid,
+    participant: [u8; 16],
     nodes: Vec<NodeInfo>,
 }
 
 struct NodeInfo {
     namespace: String,
     name: String,
-    readers: Vec<Guid>,
-    writers: Vec<Guid>,
+    readers: Vec<[u8; 16]>,
+    writers: Vec<[u8; 16]>,
 }
 
 /// A cursor over a CDR body.
@@ -755,11 +749,11 @@ impl<'a> Cursor<'a> {
         Some(String::from_utf8_lossy(s.strip_suffix(&[0]).unwrap_or(s)).into_owned())
     }
 
-    fn guid(&mut self) -> Option<Guid> {
-        Some(Guid(self.take(16, 1)?.try_into().ok()?))
+    fn guid(&mut self) -> Option<[u8; 16]> {
+        self.take(16, 1)?.try_into().ok()
     }
 
-    fn guids(&mut self) -> Option<Vec<Guid>> {
+    fn guids(&mut self) -> Option<Vec<[u8; 16]>> {
         let n = self.u32()?;
         (0..n.min(4096)).map(|_| self.guid()).collect()
     }
@@ -768,7 +762,7 @@ impl<'a> Cursor<'a> {
 impl ParticipantInfo {
     /// Reads a serialized sample (either byte order); None if it is not one.
     fn parse(raw: &[u8]) -> Option<ParticipantInfo> {
-        let (le, b) = tutti_gateway::cdr::split_header(raw).ok()?;
+        let (le, b) = split_header(raw).ok()?;
         let mut c = Cursor { b, pos: 0, le };
         let participant = c.guid()?;
         let n = c.u32()?;

@@ -1,0 +1,439 @@
+//! ROS 2 services over DDS (docs/ros2.md, "Wire forms"): service `/NS/NAME` is the request
+//! topic `rq/NS/NAMERequest` and the reply topic `rr/NS/NAMEReply`, with the types
+//! `PKG::srv::dds_::SRV_Request_` and `…_Response_` and rmw's services QoS, in either of two
+//! forms, chosen request by request:
+//!
+//! * rmw_cyclonedds's: each sample's body starts with a 16-byte request header (the client's
+//!   64-bit writer id and the request's sequence number), which the reply echoes;
+//! * Fast DDS's (rmw_fastrtps, ros2-client's `Enhanced` mapping): no header; the request is
+//!   named by its own sample identity, and the reply carries it as its related sample
+//!   identity (only an engine that reads and writes sample identities serves it: rustdds).
+//!
+//! A reliable, volatile writer gives a reader it has not matched nothing, and a client finds
+//! the service once *it* has discovered the server, which may be before the server has
+//! discovered the client's reply reader. So a response is written only once it reaches its
+//! client: the reply writer has matched as many readers of the client's participant as the
+//! participant has request writers (clients) of the service, where the engine can count its
+//! matches (rustdds), else as discovery shows them (Cyclone). Until then it is held, and the
+//! engine's reply thread (`tutti-dds-replies`) writes it as soon as it reaches, or after
+//! [`REPLY_WAIT`] anyway.
+
+use std::sync::{Arc, Condvar, Mutex, MutexGuard, PoisonError, Weak};
+use std::thread::JoinHandle;
+use std::time::{Duration, Instant};
+
+use tutti_core::cdr::{split_header, CdrError};
+use tutti_core::mapping::{Durability, History, Ownership, Qos, Reliability};
+
+use super::{endpoint, CYCLONE_VENDOR};
+use crate::{EndpointId, EngineError, PeerId, Remote, Request, RequestSink, Responder};
+
+/// How long a response is held for a client whose reply reader has not matched yet (a
+/// client finds the service once it has discovered the gateway's endpoints, which may be
+/// before the gateway has discovered the client's: seconds on a loaded machine); after this
+/// long it is written anyway.
+pub(crate) const REPLY_WAIT: Duration = Duration::from_secs(30);
+/// How often held responses are looked at while there are some.
+const RETRY_EVERY: Duration = Duration::from_millis(5);
+/// Responses held at once per service; more are dropped (a client that floods a service
+/// gets no answer to the excess, the gateway keeps its memory).
+const MAX_HELD: usize = 256;
+
+/// rmw's services default: reliable, volatile, keep last 10.
+pub(crate) fn qos() -> Qos {
+    Qos {
+        reliability: Reliability::Reliable,
+        history: History::KeepLast(10),
+        durability: Durability::Volatile,
+        ownership: Ownership::Shared,
+        lifespan: None,
+    }
+}
+
+/// A sample's identity on the wire: the GUID of its writer and the writer's sequence number
+/// for it.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub(crate) struct SampleIdentity {
+    pub writer: [u8; 16],
+    pub sequence: i64,
+}
+
+/// The request header at the start of a body in rmw_cyclonedds's form.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) struct RequestHeader {
+    /// The client's request writer, as rmw_cyclonedds names it (its instance handle).
+    pub client: u64,
+    pub sequence: i64,
+}
+
+impl RequestHeader {
+    /// Its size: the request's own fields start here (16 is a multiple of every CDR
+    /// alignment, so they keep theirs).
+    pub const LEN: usize = 16;
+
+    /// The header at the start of `body`, in the sample's byte order.
+    pub fn read(le: bool, body: &[u8]) -> Result<RequestHeader, CdrError> {
+        let word = |at: usize| -> Result<u64, CdrError> {
+            let b: [u8; 8] = body
+                .get(at..at + 8)
+                .and_then(|b| b.try_into().ok())
+                .ok_or(CdrError::Truncated { len: body.len() })?;
+            Ok(if le { u64::from_le_bytes(b) } else { u64::from_be_bytes(b) })
+        };
+        Ok(RequestHeader { client: word(0)?, sequence: word(8)? as i64 })
+    }
+
+    /// The header, little-endian (a reply's body is).
+    pub fn bytes(&self) -> [u8; Self::LEN] {
+        let mut b = [0u8; Self::LEN];
+        b[..8].copy_from_slice(&self.client.to_le_bytes());
+        b[8..].copy_from_slice(&self.sequence.to_le_bytes());
+        b
+    }
+}
+
+/// How a response names its request: the two wire forms.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum Form {
+    /// rmw_cyclonedds's: the request header, echoed at the start of the response's body.
+    Header(RequestHeader),
+    /// Fast DDS's: the response carries this as its related sample identity.
+    Related(SampleIdentity),
+}
+
+/// Whom a response goes to ([`crate::ReplyTo`] of a DDS engine).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) struct ReplyTo {
+    /// The client's request writer: its participant is the one whose reply reader must match.
+    pub client: EndpointId,
+    pub form: Form,
+}
+
+/// One request sample as a DDS engine reads it.
+#[derive(Debug)]
+pub(crate) struct Incoming<'a> {
+    /// The writer's GUID.
+    pub writer: [u8; 16],
+    /// The writer's sequence number for the sample; None where the engine does not read it
+    /// (Cyclone: then only rmw_cyclonedds's form is served).
+    pub sequence: Option<i64>,
+    /// The related sample identity it carries, if any (always None where the engine does not
+    /// read it).
+    pub related: Option<SampleIdentity>,
+    /// The serialized sample, encapsulation header included.
+    pub raw: &'a [u8],
+}
+
+impl Incoming<'_> {
+    /// The form of this request, whose body (after the encapsulation header) is `body`:
+    /// * an engine that reads no sample identity (Cyclone) serves rmw_cyclonedds's form only;
+    /// * a request that carries a related sample identity is in Fast DDS's form (rmw_fastrtps
+    ///   sets one on every request: the GUID of its reply reader), and its reply goes to that
+    ///   GUID (its own writer's if the identity names none) with the request's sequence number;
+    /// * otherwise a request written by a Cyclone DDS participant (its GUID prefix starts with
+    ///   Cyclone's vendor id) is in rmw_cyclonedds's form, and any other (ros2-client's
+    ///   `Enhanced` clients write no related identity) in Fast DDS's.
+    pub fn form(&self, le: bool, body: &[u8]) -> Result<Form, CdrError> {
+        let Some(sequence) = self.sequence else { return RequestHeader::read(le, body).map(Form::Header) };
+        match self.related {
+            Some(r) => {
+                let writer = if r.writer == [0; 16] { self.writer } else { r.writer };
+                Ok(Form::Related(SampleIdentity { writer, sequence }))
+            }
+            None if self.writer[..2] == CYCLONE_VENDOR => RequestHeader::read(le, body).map(Form::Header),
+            None => Ok(Form::Related(SampleIdentity { writer: self.writer, sequence })),
+        }
+    }
+}
+
+/// Hands a request sample to `sink` as a [`Request`]: its body past the header of its form.
+/// A sample that is not plain CDR, or lacks its header, is dropped.
+pub(crate) fn deliver(sample: Incoming<'_>, sink: &RequestSink) {
+    let Ok((le, body)) = split_header(sample.raw) else {
+        tracing::debug!("services: a request that is not plain CDR dropped");
+        return;
+    };
+    let Ok(form) = sample.form(le, body) else {
+        tracing::debug!("services: a request without its header dropped");
+        return;
+    };
+    let fields = match form {
+        Form::Header(_) => &body[RequestHeader::LEN..],
+        Form::Related(_) => body,
+    };
+    let reply_to = crate::ReplyTo(ReplyTo { client: endpoint(sample.writer), form });
+    sink(Request { client: endpoint(sample.writer), little_endian: le, body: fields, reply_to });
+}
+
+/// What a DDS engine's reply writer does for the responder.
+pub(crate) trait ReplyWriter: Send {
+    /// Writes a little-endian CDR body; false when DDS refused it.
+    fn write(&mut self, body: &[u8]) -> bool;
+    /// Writes a body carrying `related` as its related sample identity; false when refused or
+    /// when the engine cannot (Cyclone).
+    fn write_related(&mut self, body: &[u8], related: SampleIdentity) -> bool {
+        let _ = (body, related);
+        false
+    }
+    /// How many readers of `peer` this writer has matched (a sample written now reaches
+    /// those); None where the engine cannot say (then discovery decides).
+    fn matched_readers_of(&mut self, peer: PeerId) -> Option<usize> {
+        let _ = peer;
+        None
+    }
+    /// Sends what batching held back.
+    fn flush(&mut self) {}
+}
+
+/// The engine's discovery, by DDS topic name (services' `rq/` and `rr/` topics included).
+pub(crate) type Discovery = Arc<dyn Fn() -> Remote + Send + Sync>;
+
+/// A response waiting for its client's reply reader.
+struct Held {
+    to: ReplyTo,
+    body: Vec<u8>,
+    until: Instant,
+}
+
+/// One served service's response side.
+struct Server {
+    request_topic: String,
+    reply_topic: String,
+    writer: Box<dyn ReplyWriter>,
+    held: Vec<Held>,
+}
+
+impl Server {
+    /// Whether a response written now reaches every client of the service in participant
+    /// `peer`: each (a request writer there) has its reply reader, which the writer has
+    /// matched (or, where the engine cannot say, discovery shows). A node may make a new
+    /// client of the same service at any time, so this is counted afresh for every response.
+    fn reaches(&mut self, remote: &Remote, peer: PeerId) -> bool {
+        let clients = remote.writers_on(&self.request_topic).filter(|g| g.peer == peer).count().max(1);
+        let readers = match self.writer.matched_readers_of(peer) {
+            Some(n) => n,
+            None => remote.readers_on(std::slice::from_ref(&self.reply_topic)).iter().filter(|g| g.peer == peer).count(),
+        };
+        readers >= clients
+    }
+
+    /// Writes `body` in the form of `to` if it reaches its client (or `anyway`); whether it
+    /// was written.
+    fn send(&mut self, remote: &Remote, to: &ReplyTo, body: &[u8], anyway: bool) -> bool {
+        if !self.reaches(remote, to.client.peer) {
+            if !anyway {
+                return false;
+            }
+            tracing::debug!("services: no reply reader of {:?} on {}; replied anyway", to.client, self.reply_topic);
+        }
+        let written = match to.form {
+            Form::Header(h) => self.writer.write(&[&h.bytes()[..], body].concat()),
+            Form::Related(related) => self.writer.write_related(body, related),
+        };
+        if !written {
+            tracing::warn!("services: DDS refused a reply on {}", self.reply_topic);
+        }
+        self.writer.flush();
+        true
+    }
+
+    /// Sends the held responses that reach their client now, or whose wait is over.
+    fn send_held(&mut self, remote: &Remote, now: Instant) {
+        let held = std::mem::take(&mut self.held);
+        for h in held {
+            if !self.send(remote, &h.to, &h.body, now >= h.until) {
+                self.held.push(h);
+            }
+        }
+    }
+}
+
+fn lock<T>(m: &Mutex<T>) -> MutexGuard<'_, T> {
+    m.lock().unwrap_or_else(PoisonError::into_inner)
+}
+
+/// What the responders and the reply thread share.
+struct Shared {
+    discovery: Discovery,
+    /// Servers with held responses, looked at by the thread.
+    waiting: Mutex<Waiting>,
+    wake: Condvar,
+}
+
+#[derive(Default)]
+struct Waiting {
+    servers: Vec<Weak<Mutex<Server>>>,
+    stop: bool,
+}
+
+/// The response side of every service a DDS engine serves, and the thread that writes held
+/// responses: one per engine, stopped when it is dropped.
+pub(crate) struct Replies {
+    shared: Arc<Shared>,
+    thread: Option<JoinHandle<()>>,
+}
+
+impl std::fmt::Debug for Replies {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Replies").finish_non_exhaustive()
+    }
+}
+
+impl Replies {
+    /// Starts the reply thread over the engine's `discovery`.
+    pub fn start(discovery: Discovery) -> Result<Replies, EngineError> {
+        let shared = Arc::new(Shared { discovery, waiting: Mutex::default(), wake: Condvar::new() });
+        let s = shared.clone();
+        let thread = std::thread::Builder::new()
+            .name("tutti-dds-replies".into())
+            .spawn(move || retry(&s))
+            .map_err(EngineError::Runtime)?;
+        Ok(Replies { shared, thread: Some(thread) })
+    }
+
+    /// The responder of a service whose DDS request and reply topics are `request_topic` and
+    /// `reply_topic`, writing with `writer`.
+    pub fn responder(&self, request_topic: String, reply_topic: String, writer: Box<dyn ReplyWriter>) -> DdsResponder {
+        let server = Server { request_topic, reply_topic, writer, held: Vec::new() };
+        DdsResponder { server: Arc::new(Mutex::new(server)), shared: self.shared.clone() }
+    }
+}
+
+impl Drop for Replies {
+    fn drop(&mut self) {
+        lock(&self.shared.waiting).stop = true;
+        self.shared.wake.notify_all();
+        if let Some(t) = self.thread.take() {
+            let _ = t.join();
+        }
+    }
+}
+
+/// The reply thread: while some responses are held, looks at discovery once per round and
+/// sends those that reach their clients now.
+fn retry(shared: &Shared) {
+    loop {
+        let servers: Vec<Arc<Mutex<Server>>> = {
+            let mut w = lock(&shared.waiting);
+            loop {
+                if w.stop {
+                    return;
+                }
+                w.servers.retain(|s| s.upgrade().is_some_and(|s| !lock(&s).held.is_empty()));
+                if !w.servers.is_empty() {
+                    break;
+                }
+                w = shared.wake.wait(w).unwrap_or_else(PoisonError::into_inner);
+            }
+            w.servers.iter().filter_map(Weak::upgrade).collect()
+        };
+        // One look at discovery for them all.
+        let remote = (shared.discovery)();
+        let now = Instant::now();
+        for s in servers {
+            lock(&s).send_held(&remote, now);
+        }
+        std::thread::sleep(RETRY_EVERY);
+    }
+}
+
+/// A DDS engine's [`Responder`].
+pub(crate) struct DdsResponder {
+    server: Arc<Mutex<Server>>,
+    shared: Arc<Shared>,
+}
+
+impl Responder for DdsResponder {
+    fn respond(&mut self, to: &crate::ReplyTo, body: &[u8]) {
+        let to = to.0;
+        let remote = (self.shared.discovery)();
+        let mut server = lock(&self.server);
+        if server.send(&remote, &to, body, false) {
+            return;
+        }
+        if server.held.len() >= MAX_HELD {
+            tracing::warn!("services: {MAX_HELD} replies wait for their clients already; one dropped");
+            return;
+        }
+        server.held.push(Held { to, body: body.to_vec(), until: Instant::now() + REPLY_WAIT });
+        drop(server);
+        let mut w = lock(&self.shared.waiting);
+        if !w.servers.iter().any(|s| s.as_ptr() == Arc::as_ptr(&self.server)) {
+            w.servers.push(Arc::downgrade(&self.server));
+        }
+        self.shared.wake.notify_all();
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn sample(writer: [u8; 2], sequence: Option<i64>, related: Option<SampleIdentity>) -> Incoming<'static> {
+        let mut g = [7u8; 16];
+        g[..2].copy_from_slice(&writer);
+        Incoming { writer: g, sequence, related, raw: &[] }
+    }
+
+    #[test]
+    fn the_header_is_read_in_either_order_and_echoed_in_little_endian() {
+        let mut be = Vec::new();
+        be.extend_from_slice(&0x0102_0304_0506_0708u64.to_be_bytes());
+        be.extend_from_slice(&9i64.to_be_bytes());
+        let h = RequestHeader::read(false, &be).unwrap();
+        assert_eq!(h, RequestHeader { client: 0x0102_0304_0506_0708, sequence: 9 });
+        let out = h.bytes();
+        assert_eq!(&out[..8], &0x0102_0304_0506_0708u64.to_le_bytes());
+        assert_eq!(&out[8..], &9i64.to_le_bytes());
+        assert!(RequestHeader::read(true, &be[..12]).is_err());
+    }
+
+    #[test]
+    fn each_request_is_answered_in_its_own_form() {
+        let mut header = Vec::new();
+        header.extend_from_slice(&0x0102_0304_0506_0708u64.to_le_bytes());
+        header.extend_from_slice(&9i64.to_le_bytes());
+        let cyclone_header = Form::Header(RequestHeader { client: 0x0102_0304_0506_0708, sequence: 9 });
+        // The Cyclone engine reads no identity: rmw_cyclonedds's form whoever writes.
+        assert_eq!(sample([0x01, 0x0f], None, None).form(true, &header).unwrap(), cyclone_header);
+        // A Cyclone DDS client, no related identity: rmw_cyclonedds's form.
+        assert_eq!(sample(CYCLONE_VENDOR, Some(3), None).form(true, &header).unwrap(), cyclone_header);
+        // ros2-client's Enhanced client (rustdds): its own identity.
+        let s = sample([0x01, 0x12], Some(3), None);
+        assert_eq!(s.form(true, &header).unwrap(), Form::Related(SampleIdentity { writer: s.writer, sequence: 3 }));
+        // rmw_fastrtps: the reply reader's GUID in the related identity, the sequence number unknown.
+        let reader = [9u8; 16];
+        let unknown = SampleIdentity { writer: reader, sequence: -(1 << 32) };
+        let s = sample([0x01, 0x0f], Some(5), Some(unknown));
+        assert_eq!(s.form(true, &header).unwrap(), Form::Related(SampleIdentity { writer: reader, sequence: 5 }));
+        // A related identity wins over the vendor; one that names no writer names the request's.
+        let none = SampleIdentity { writer: [0; 16], sequence: 0 };
+        let s = sample(CYCLONE_VENDOR, Some(6), Some(none));
+        assert_eq!(s.form(true, &header).unwrap(), Form::Related(SampleIdentity { writer: s.writer, sequence: 6 }));
+        // rmw_cyclonedds's form without its header is refused.
+        assert!(sample(CYCLONE_VENDOR, Some(1), None).form(true, &header[..8]).is_err());
+    }
+
+    #[test]
+    fn a_request_reaches_the_sink_without_its_header() {
+        let got = Arc::new(Mutex::new(Vec::new()));
+        let g = got.clone();
+        let sink: RequestSink = Arc::new(move |r: Request<'_>| lock(&g).push((r.body.to_vec(), r.reply_to)));
+        let mut raw = vec![0, 1, 0, 0];
+        raw.extend_from_slice(&5u64.to_le_bytes());
+        raw.extend_from_slice(&2i64.to_le_bytes());
+        raw.extend_from_slice(&42u64.to_le_bytes());
+        let writer = {
+            let mut w = [3u8; 16];
+            w[..2].copy_from_slice(&CYCLONE_VENDOR);
+            w
+        };
+        deliver(Incoming { writer, sequence: None, related: None, raw: &raw }, &sink);
+        deliver(Incoming { writer, sequence: None, related: None, raw: &raw[..10] }, &sink);
+        let got = lock(&got);
+        assert_eq!(got.len(), 1, "the sample without its header is dropped");
+        assert_eq!(got[0].0, 42u64.to_le_bytes());
+        let form = Form::Header(RequestHeader { client: 5, sequence: 2 });
+        assert_eq!(got[0].1, crate::ReplyTo(ReplyTo { client: endpoint(writer), form }));
+    }
+}

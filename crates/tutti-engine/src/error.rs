@@ -1,0 +1,49 @@
+//! The engines' errors, each with the entity, name or setting involved.
+
+/// Why an engine, or one of its entities, cannot be made.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum EngineError {
+    /// The rustdds engine was given unicast peers (exit status 2).
+    #[error("the rustdds engine cannot be given unicast peers (--peer); use --engine cyclone")]
+    PeersUnsupported,
+    /// An engine this build does not contain (exit status 2).
+    #[error("the {engine} engine is not in this build of the gateway (built without its cargo feature)")]
+    NotBuilt { engine: &'static str },
+    /// A node name ROS 2 refuses (exit status 2).
+    #[error("invalid ROS 2 node name '{name}': {detail}")]
+    NodeName { name: String, detail: String },
+    /// A name handed to the middleware with a NUL byte in it (exit status 2).
+    #[error("{what} '{value}' contains a NUL byte")]
+    NulByte { what: &'static str, value: String },
+    /// The middleware refused to create an entity.
+    #[error("DDS: cannot create {what}: {detail}")]
+    Dds { what: String, detail: String },
+    /// The engine's own threads cannot be started.
+    #[error("cannot start the engine's runtime: {0}")]
+    Runtime(#[source] std::io::Error),
+}
+
+impl EngineError {
+    pub(crate) fn dds(what: impl Into<String>, detail: impl std::fmt::Display) -> Self {
+        EngineError::Dds { what: what.into(), detail: detail.to_string() }
+    }
+
+    /// Whether the error is bad input (exit status 2) rather than a runtime failure.
+    pub fn is_invalid(&self) -> bool {
+        matches!(
+            self,
+            EngineError::PeersUnsupported
+                | EngineError::NotBuilt { .. }
+                | EngineError::NodeName { .. }
+                | EngineError::NulByte { .. }
+        )
+    }
+}
+
+/// A name that is not one of the engines.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[error("unknown DDS engine '{name}' (expected cyclone or rustdds)")]
+pub struct UnknownEngine {
+    pub name: String,
+}
