@@ -34,7 +34,6 @@ impl Segment {
     }
 
     fn open_file(file: File, shm_name: &str, domain: &str) -> Result<Segment, ShmError> {
-        let corrupt = |detail: String| ShmError::Corrupt { domain: domain.to_string(), detail };
         let meta = file.metadata().map_err(|e| ShmError::io(format!("inspecting {shm_name}"), e))?;
         let len = meta.len() as usize;
         // Created but not sized yet: its framework is between `shm_open` and `ftruncate`,
@@ -44,12 +43,13 @@ impl Segment {
             if age < Duration::from_secs(1) {
                 return Err(ShmError::NotReady { domain: domain.to_string() });
             }
-            return Err(corrupt("the segment is 0 bytes: another process has truncated it".into()));
+            return Err(corrupt(domain, "the segment is 0 bytes: another process has truncated it".into()));
         }
         if len < HEADER_BYTES {
-            return Err(corrupt(format!(
-                "the segment is {len} bytes, smaller than a header: another process has truncated it"
-            )));
+            return Err(corrupt(
+                domain,
+                format!("the segment is {len} bytes, smaller than a header: another process has truncated it"),
+            ));
         }
         let map = os::map(&file).map_err(|e| ShmError::io(format!("mapping {}/{shm_name}", os::SHM_DIR), e))?;
         let placeholder = Arc::new(DomainInfo {
@@ -76,13 +76,16 @@ impl Segment {
             return Err(ShmError::VersionMismatch { domain: domain.to_string(), found: version, expected: VERSION });
         }
         if h.header_bytes.load(Ordering::Relaxed) as usize != HEADER_BYTES {
-            return Err(corrupt("header size field is wrong".into()));
+            return Err(corrupt(domain, "header size field is wrong".into()));
         }
         if h.total_size.load(Ordering::Relaxed) != len as u64 {
-            return Err(corrupt(format!(
-                "the segment is {len} bytes but its header says {}: another process has resized it",
-                h.total_size.load(Ordering::Relaxed)
-            )));
+            return Err(corrupt(
+                domain,
+                format!(
+                    "the segment is {len} bytes but its header says {}: another process has resized it",
+                    h.total_size.load(Ordering::Relaxed)
+                ),
+            ));
         }
         let (info, slots) = seg.decode_directory(domain)?;
         seg.info = Arc::new(info);
@@ -92,40 +95,64 @@ impl Segment {
 
     /// Reads the directory and string table, validating every offset, and re-derives the
     /// layout hash from them; also returns the sets' slot geometry, checked.
-    fn decode_directory(&self, domain: &str) -> Result<(DomainInfo, [(usize, usize); 2]), ShmError> {
-        let corrupt = |detail: String| ShmError::Corrupt { domain: domain.to_string(), detail };
+    fn decode_directory(&self, domain: &str) -> Result<(DomainInfo, SlotGeometry), ShmError> {
         let h = self.header();
-        let ld = |a: &AtomicU32| a.load(Ordering::Relaxed) as usize;
+        let (dir_off, dir_count) = self.check_tables(domain)?;
+        let strings = self.string_table(domain)?;
+        let name = strings.text(ld(&h.name_off), ld(&h.name_len), "domain name")?;
+        if name != domain {
+            return Err(corrupt(domain, format!("segment names domain '{name}'")));
+        }
+        let flags = flags_from_bits(h.flags.load(Ordering::Relaxed));
+        let (mut sets, slots) = self.decode_sets(domain)?;
+        self.decode_leaves(dir_off, dir_count, &strings, &mut sets)?;
+        let [publish, subscribe] = sets;
+        let hash = layout_hash(&name, flags, &publish, &subscribe);
+        let stored = h.layout_hash.load(Ordering::Relaxed);
+        if hash != stored {
+            return Err(corrupt(
+                domain,
+                format!("layout hash {stored:016x} does not match the directory ({hash:016x})"),
+            ));
+        }
+        Ok((DomainInfo { name, flags, layout_hash: hash, publish, subscribe }, slots))
+    }
+
+    /// Checks where the header puts the connection table and the directory; returns the
+    /// directory's offset and entry count.
+    fn check_tables(&self, domain: &str) -> Result<(usize, usize), ShmError> {
+        let h = self.header();
         let cap = h.conn_capacity.load(Ordering::Relaxed);
         if cap == 0 || cap > MAX_CONNECTIONS {
-            return Err(corrupt(format!("connection capacity {cap} out of range")));
+            return Err(corrupt(domain, format!("connection capacity {cap} out of range")));
         }
         if ld(&h.conn_off) != HEADER_BYTES {
-            return Err(corrupt("connection table offset is wrong".into()));
+            return Err(corrupt(domain, "connection table offset is wrong".into()));
         }
         self.check_range(HEADER_BYTES, cap as usize * CONN_BYTES, "connection table")?;
         let (dir_off, dir_count) = (ld(&h.dir_off), ld(&h.dir_count));
         if dir_off % 8 != 0 || dir_count > 2 * 65536 {
-            return Err(corrupt("directory position or size out of range".into()));
+            return Err(corrupt(domain, "directory position or size out of range".into()));
         }
         self.check_range(dir_off, dir_count * DIR_ENTRY_BYTES, "directory")?;
+        Ok((dir_off, dir_count))
+    }
+
+    /// A copy of the string table, its range checked.
+    fn string_table<'d>(&self, domain: &'d str) -> Result<StringTable<'d>, ShmError> {
+        let h = self.header();
         let (str_off, str_len) = (ld(&h.str_off), ld(&h.str_len));
         self.check_range(str_off, str_len, "string table")?;
         let base = str_off - str_off % 8;
-        let mut strings = vec![0u8; str_off % 8 + str_len];
-        load_bytes(self.words_at(base, strings.len().div_ceil(8))?, &mut strings);
-        let strings = &strings[str_off % 8..];
-        let text = |off: usize, len: usize, what: &str| -> Result<String, ShmError> {
-            let bytes = strings
-                .get(off..off.saturating_add(len))
-                .ok_or_else(|| corrupt(format!("{what} outside the string table")))?;
-            String::from_utf8(bytes.to_vec()).map_err(|_| corrupt(format!("{what} is not UTF-8")))
-        };
-        let name = text(ld(&h.name_off), ld(&h.name_len), "domain name")?;
-        if name != domain {
-            return Err(corrupt(format!("segment names domain '{name}'")));
-        }
-        let flags = flags_from_bits(h.flags.load(Ordering::Relaxed));
+        let mut bytes = vec![0u8; str_off % 8 + str_len];
+        load_bytes(self.words_at(base, bytes.len().div_ceil(8))?, &mut bytes);
+        Ok(StringTable { bytes, start: str_off % 8, domain })
+    }
+
+    /// Each set's size and alignment (its leaves still empty) and its slots' geometry, checked
+    /// against the mapping.
+    fn decode_sets(&self, domain: &str) -> Result<([SetLayout; 2], SlotGeometry), ShmError> {
+        let h = self.header();
         let mut sets = [SetLayout::default(), SetLayout::default()];
         let mut slots = [(0, 0); 2];
         for role in Role::ALL {
@@ -135,21 +162,34 @@ impl Segment {
             let words = sh.words.load(Ordering::Relaxed) as usize;
             let off = sh.slots_off.load(Ordering::Relaxed);
             if u64::from(size) > MAX_SET_BYTES || words * 8 < size as usize || !align.is_power_of_two() || align > 8 {
-                return Err(corrupt(format!("{role} set size fields are inconsistent")));
+                return Err(corrupt(domain, format!("{role} set size fields are inconsistent")));
             }
-            let off = usize::try_from(off).map_err(|_| corrupt(format!("{role} slots offset out of range")))?;
+            let off = usize::try_from(off).map_err(|_| corrupt(domain, format!("{role} slots offset out of range")))?;
             if off % ALIGN != 0 {
-                return Err(corrupt(format!("{role} slots are misaligned")));
+                return Err(corrupt(domain, format!("{role} slots are misaligned")));
             }
             self.check_range(off, SLOTS * words * 8, "set slots")?;
             sets[role as usize] = SetLayout { size, align, leaves: Vec::new() };
             slots[role as usize] = (off, words);
         }
+        Ok((sets, slots))
+    }
+
+    /// The `dir_count` directory entries at `dir_off`, each a leaf of one of `sets`, checked
+    /// to lie inside its set.
+    fn decode_leaves(
+        &self,
+        dir_off: usize,
+        dir_count: usize,
+        strings: &StringTable<'_>,
+        sets: &mut [SetLayout; 2],
+    ) -> Result<(), ShmError> {
+        let corrupt = |detail: String| corrupt(strings.domain, detail);
         let dir = self.words_at(dir_off, dir_count * 2)?;
         for i in 0..dir_count {
             let w0 = dir[2 * i].load(Ordering::Relaxed);
             let w1 = dir[2 * i + 1].load(Ordering::Relaxed);
-            let path = text((w0 & 0xffff_ffff) as usize, ((w0 >> 32) & 0xffff) as usize, "item path")?;
+            let path = strings.text((w0 & 0xffff_ffff) as usize, ((w0 >> 32) & 0xffff) as usize, "item path")?;
             let role = match (w0 >> 48) & 0xff {
                 0 => Role::Publish,
                 1 => Role::Subscribe,
@@ -167,12 +207,38 @@ impl Segment {
             }
             set.leaves.push(Leaf { path, ty, length, offset, size, default: None });
         }
-        let [publish, subscribe] = sets;
-        let hash = layout_hash(&name, flags, &publish, &subscribe);
-        let stored = h.layout_hash.load(Ordering::Relaxed);
-        if hash != stored {
-            return Err(corrupt(format!("layout hash {stored:016x} does not match the directory ({hash:016x})")));
-        }
-        Ok((DomainInfo { name, flags, layout_hash: hash, publish, subscribe }, slots))
+        Ok(())
+    }
+}
+
+/// Each set's slots: (byte offset, words per slot), as [`Segment`] keeps them.
+type SlotGeometry = [(usize, usize); 2];
+
+/// A header word that holds an offset or a length.
+fn ld(a: &AtomicU32) -> usize {
+    a.load(Ordering::Relaxed) as usize
+}
+
+/// The error of a segment of `domain` that fails a check.
+fn corrupt(domain: &str, detail: String) -> ShmError {
+    ShmError::Corrupt { domain: domain.to_string(), detail }
+}
+
+/// The string table of a segment of `domain`, copied out of it: the domain name and the
+/// item paths, each read by offset and length, checked.
+struct StringTable<'d> {
+    /// The table, after `start` bytes of the word it begins in.
+    bytes: Vec<u8>,
+    start: usize,
+    domain: &'d str,
+}
+
+impl StringTable<'_> {
+    /// The `len` bytes at `off` as text; `what` names them in the error.
+    fn text(&self, off: usize, len: usize, what: &str) -> Result<String, ShmError> {
+        let bytes = self.bytes[self.start..]
+            .get(off..off.saturating_add(len))
+            .ok_or_else(|| corrupt(self.domain, format!("{what} outside the string table")))?;
+        String::from_utf8(bytes.to_vec()).map_err(|_| corrupt(self.domain, format!("{what} is not UTF-8")))
     }
 }
