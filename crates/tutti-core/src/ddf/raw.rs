@@ -9,7 +9,7 @@
 use std::borrow::Cow;
 use std::cell::Cell;
 
-use quick_xml::events::Event;
+use quick_xml::events::{BytesRef, BytesStart, Event};
 use quick_xml::Reader;
 
 use super::Pos;
@@ -265,120 +265,153 @@ pub fn parse(src: &str) -> Result<Document<'_>, SyntaxError> {
         config.check_end_names = true;
         config.expand_empty_elements = false;
     }
-    // Sized up front: growing the vectors copied them several times. Every element starts
-    // with a `<` and every attribute has an `=`, so their counts bound the vectors (loosely:
-    // end tags count too), and capacity never written to costs only address space. A text
-    // full of `<` that is no document must still get its syntax error, hence `try_`.
-    // (Counted in byte-sized lanes, 255 bytes at a time, which the compiler vectorises; a
-    // plain count of matching bytes was not, and cost more than the copies it saved.)
-    let count = |needle: u8| -> usize {
-        let lane = |c: &[u8]| c.iter().fold(0u8, |n, &b| n + u8::from(b == needle));
-        src.as_bytes().chunks(255).map(|c| usize::from(lane(c))).sum()
-    };
-    let mut doc = Document { src, elements: Vec::new(), attrs: Vec::new() };
-    let _ = doc.elements.try_reserve_exact(count(b'<'));
-    let _ = doc.attrs.try_reserve_exact(count(b'='));
-    // Indices of the open elements, innermost last.
-    let mut open: Vec<usize> = Vec::new();
+    let mut tree = Tree { doc: Document::sized_for(src), open: Vec::new(), index: &index };
     loop {
         let before = reader.buffer_position() as usize;
         let event = match reader.read_event() {
+            Ok(Event::Eof) => break,
             Ok(e) => e,
             Err(e) => {
                 let at = index.pos(reader.error_position() as usize);
                 return Err(err(at, format!("malformed XML: {}", printable(&e.to_string(), 200))));
             }
         };
+        tree.add(event, before)?;
+    }
+    tree.finish()
+}
+
+impl<'a> Document<'a> {
+    /// An empty document of `src`, its vectors sized up front: growing them copied them
+    /// several times. Every element starts with a `<` and every attribute has an `=`, so
+    /// their counts bound the vectors (loosely: end tags count too), and capacity never
+    /// written to costs only address space. A text full of `<` that is no document must
+    /// still get its syntax error, hence `try_`. (Counted in byte-sized lanes, 255 bytes at a
+    /// time, which the compiler vectorises; a plain count of matching bytes was not, and cost
+    /// more than the copies it saved.)
+    fn sized_for(src: &'a str) -> Self {
+        let count = |needle: u8| -> usize {
+            let lane = |c: &[u8]| c.iter().fold(0u8, |n, &b| n + u8::from(b == needle));
+            src.as_bytes().chunks(255).map(|c| usize::from(lane(c))).sum()
+        };
+        let mut doc = Document { src, elements: Vec::new(), attrs: Vec::new() };
+        let _ = doc.elements.try_reserve_exact(count(b'<'));
+        let _ = doc.attrs.try_reserve_exact(count(b'='));
+        doc
+    }
+}
+
+/// A document being built from the reader's events.
+struct Tree<'a, 'i> {
+    doc: Document<'a>,
+    /// Indices of the open elements, innermost last.
+    open: Vec<usize>,
+    index: &'i LineIndex<'a>,
+}
+
+impl<'a> Tree<'a, '_> {
+    /// Adds what `event`, read from byte `before` on, says to the tree.
+    fn add(&mut self, event: Event<'a>, before: usize) -> Result<(), SyntaxError> {
+        let index = self.index;
         // Positions are computed only where needed: they cost more than the XML reading.
         let here = || index.pos(before);
         match event {
-            Event::Start(_) | Event::Empty(_) if !doc.elements.is_empty() && open.is_empty() => {
-                return Err(err(here(), "content after the root element: a DDF has one <orchestra> root"));
+            Event::Start(_) | Event::Empty(_) if !self.doc.elements.is_empty() && self.open.is_empty() => {
+                Err(err(here(), "content after the root element: a DDF has one <orchestra> root"))
             }
-            Event::Start(ref start) | Event::Empty(ref start) => {
-                let here = here();
-                if open.len() >= MAX_XML_DEPTH {
-                    return Err(err(here, format!("XML elements nested deeper than {MAX_XML_DEPTH} levels")));
-                }
-                let first_attr = doc.attrs.len();
-                for attr in start.attributes() {
-                    let attr = attr
-                        .map_err(|e| err(here, format!("malformed attribute: {}", printable(&e.to_string(), 200))))?;
-                    let value = attr.normalized_value(quick_xml::XmlVersion::Implicit1_0).map_err(|e| {
-                        err(here, format!("malformed attribute value: {}", printable(&e.to_string(), 200)))
-                    })?;
-                    doc.attrs.push(RawAttr { name: borrow(src, attr.key.as_ref()), value: borrow(src, &value) });
-                }
-                let at = doc.elements.len();
-                doc.elements.push(Node {
-                    name: borrow(src, start.name().as_ref()),
-                    offset: before,
-                    pos: here,
-                    text: Cow::Borrowed(""),
-                    text_offset: None,
-                    attrs: (first_attr, doc.attrs.len()),
-                    // An empty element ends here; an open one when its end tag comes.
-                    end: at + 1,
-                });
-                if matches!(event, Event::Start(_)) {
-                    open.push(at);
-                }
-            }
+            Event::Start(ref start) => self.element(start, before, true),
+            Event::Empty(ref start) => self.element(start, before, false),
             Event::End(_) => {
                 // check_end_names guarantees a matching open element.
-                if let Some(at) = open.pop() {
-                    doc.elements[at].end = doc.elements.len();
+                if let Some(at) = self.open.pop() {
+                    self.doc.elements[at].end = self.doc.elements.len();
                 }
+                Ok(())
             }
             Event::Text(text) => {
                 let content = text.xml_content(quick_xml::XmlVersion::Implicit1_0);
-                add_text(&mut doc, &open, content, &index, before)?;
+                add_text(&mut self.doc, &self.open, content, index, before)
             }
             Event::CData(data) => {
                 let content = data.xml_content(quick_xml::XmlVersion::Implicit1_0);
-                add_text(&mut doc, &open, content, &index, before)?;
+                add_text(&mut self.doc, &self.open, content, index, before)
             }
             Event::GeneralRef(reference) => {
-                let resolved = match reference.resolve_char_ref() {
-                    Ok(Some(c)) => c.to_string(),
-                    Ok(None) => match quick_xml::escape::resolve_predefined_entity(&reference) {
-                        Some(s) => s.to_string(),
-                        None => return Err(err(here(), format!("unknown entity '&{};'", printable(&reference, 40)))),
-                    },
-                    Err(e) => {
-                        return Err(err(
-                            here(),
-                            format!("malformed character reference: {}", printable(&e.to_string(), 200)),
-                        ))
-                    }
-                };
-                add_text(&mut doc, &open, Cow::Owned(resolved), &index, before)?;
+                let resolved = resolve(&reference).map_err(|message| err(here(), message))?;
+                add_text(&mut self.doc, &self.open, Cow::Owned(resolved), index, before)
             }
-            Event::DocType(_) => {
-                return Err(err(here(), "DOCTYPE declarations are not supported in a DDF"));
+            Event::DocType(_) => Err(err(here(), "DOCTYPE declarations are not supported in a DDF")),
+            Event::Decl(_) if self.doc.src.get(..before).is_some_and(|s| !s.trim().is_empty()) => {
+                Err(err(here(), "the XML declaration <?xml …?> must come first in the file"))
             }
-            Event::Decl(_) if src.get(..before).is_some_and(|s| !s.trim().is_empty()) => {
-                return Err(err(here(), "the XML declaration <?xml …?> must come first in the file"));
-            }
-            Event::Decl(_) | Event::PI(_) | Event::Comment(_) => {}
-            Event::Eof => break,
+            Event::Decl(_) | Event::PI(_) | Event::Comment(_) | Event::Eof => Ok(()),
         }
     }
-    if let Some(&innermost) = open.last() {
-        let at = index.pos(src.len());
-        let open = &doc.elements[innermost];
-        return Err(err(
-            at,
-            format!(
-                "unexpected end of file: <{}> opened at line {}, column {} is not closed",
-                open.name, open.pos.line, open.pos.col
-            ),
-        ));
+
+    /// An element with its attributes, from its start tag (`open`: its content and end tag
+    /// follow) or its empty-element tag, read from byte `before` on.
+    fn element(&mut self, start: &BytesStart<'a>, before: usize, open: bool) -> Result<(), SyntaxError> {
+        let (src, here) = (self.doc.src, self.index.pos(before));
+        if self.open.len() >= MAX_XML_DEPTH {
+            return Err(err(here, format!("XML elements nested deeper than {MAX_XML_DEPTH} levels")));
+        }
+        let first_attr = self.doc.attrs.len();
+        for attr in start.attributes() {
+            let attr =
+                attr.map_err(|e| err(here, format!("malformed attribute: {}", printable(&e.to_string(), 200))))?;
+            let value = attr
+                .normalized_value(quick_xml::XmlVersion::Implicit1_0)
+                .map_err(|e| err(here, format!("malformed attribute value: {}", printable(&e.to_string(), 200))))?;
+            self.doc.attrs.push(RawAttr { name: borrow(src, attr.key.as_ref()), value: borrow(src, &value) });
+        }
+        let at = self.doc.elements.len();
+        self.doc.elements.push(Node {
+            name: borrow(src, start.name().as_ref()),
+            offset: before,
+            pos: here,
+            text: Cow::Borrowed(""),
+            text_offset: None,
+            attrs: (first_attr, self.doc.attrs.len()),
+            // An empty element ends here; an open one when its end tag comes.
+            end: at + 1,
+        });
+        if open {
+            self.open.push(at);
+        }
+        Ok(())
     }
-    if doc.elements.is_empty() {
-        return Err(err(Pos { line: 1, col: 1 }, "no XML element found: expected an <orchestra> document"));
+
+    /// The document, once the input has ended: every element closed, and at least one.
+    fn finish(self) -> Result<Document<'a>, SyntaxError> {
+        let Tree { doc, open, index } = self;
+        if let Some(&innermost) = open.last() {
+            let at = index.pos(doc.src.len());
+            let open = &doc.elements[innermost];
+            return Err(err(
+                at,
+                format!(
+                    "unexpected end of file: <{}> opened at line {}, column {} is not closed",
+                    open.name, open.pos.line, open.pos.col
+                ),
+            ));
+        }
+        if doc.elements.is_empty() {
+            return Err(err(Pos { line: 1, col: 1 }, "no XML element found: expected an <orchestra> document"));
+        }
+        Ok(doc)
     }
-    Ok(doc)
+}
+
+/// The text an entity or character reference stands for, or what is wrong with it.
+fn resolve(reference: &BytesRef<'_>) -> Result<String, String> {
+    match reference.resolve_char_ref() {
+        Ok(Some(c)) => Ok(c.to_string()),
+        Ok(None) => match quick_xml::escape::resolve_predefined_entity(reference) {
+            Some(s) => Ok(s.to_string()),
+            None => Err(format!("unknown entity '&{};'", printable(reference, 40))),
+        },
+        Err(e) => Err(format!("malformed character reference: {}", printable(&e.to_string(), 200))),
+    }
 }
 
 /// `text` made fit for a one-line diagnostic: control characters (newlines included)

@@ -6,7 +6,9 @@ use std::collections::hash_map::Entry;
 use std::collections::HashMap;
 
 use super::layout::{self, SetLayout, MAX_SET_BYTES};
-use super::model::{join_path, Connection, ConnectionKind, Domain, Flags, Item, ItemKind, Model, Role, Set, TypeName};
+use super::model::{
+    join_path, Connection, ConnectionKind, Domain, Flags, Item, ItemKind, Model, Role, ScalarType, Set, TypeName, Value,
+};
 use super::raw::RawElement;
 use super::{Diagnostic, Pos};
 
@@ -512,14 +514,35 @@ fn item<'a>(
         Some(n) => Cow::Owned(join_path(prefix, n)),
         None => Cow::Owned(format!("{prefix}/?")),
     };
-    let mut ty_el = None;
-    let mut length_el = None;
-    let mut default_el = None;
+    let parts = item_parts(el, name, &label, d);
+    let ty = item_type(&parts, d)?;
+    let length = item_length(&parts, d);
+    match ty {
+        TypeName::Bus => bus_item(&parts, length, role, domain, depth, d),
+        TypeName::Scalar(ty) => scalar_item(&parts, ty, length, d),
+    }
+}
+
+/// An `<item>` element as read so far: its name as written, its path for messages, and its
+/// `<type>`, `<length>` and `<default>` children (nested items are read apart).
+struct ItemParts<'a, 'l> {
+    el: RawElement<'a>,
+    name: Option<&'a str>,
+    label: &'l str,
+    ty: Option<RawElement<'a>>,
+    length: Option<RawElement<'a>>,
+    default: Option<RawElement<'a>>,
+}
+
+/// The children of item `el` that describe it, each at most once; unknown and repeated
+/// children are reported.
+fn item_parts<'a, 'l>(el: RawElement<'a>, name: Option<&'a str>, label: &'l str, d: &mut Diags) -> ItemParts<'a, 'l> {
+    let mut parts = ItemParts { el, name, label, ty: None, length: None, default: None };
     for child in el.children() {
         let slot = match child.name() {
-            "type" => &mut ty_el,
-            "length" => &mut length_el,
-            "default" => &mut default_el,
+            "type" => &mut parts.ty,
+            "length" => &mut parts.length,
+            "default" => &mut parts.default,
             "item" => continue,
             other => {
                 d.at(
@@ -536,8 +559,14 @@ fn item<'a>(
         leaf_element(child, d);
         *slot = Some(child);
     }
-    let Some(ty_el) = ty_el else {
-        d.at(el.pos(), format!("item '{label}' has no <type>"));
+    parts
+}
+
+/// The item's `<type>`; `None` (reported) when it has none or an unknown one.
+fn item_type(parts: &ItemParts<'_, '_>, d: &mut Diags) -> Option<TypeName> {
+    let label = parts.label;
+    let Some(ty_el) = parts.ty else {
+        d.at(parts.el.pos(), format!("item '{label}' has no <type>"));
         return None;
     };
     let Some(ty) = TypeName::parse(ty_el.text()) else {
@@ -550,7 +579,13 @@ fn item<'a>(
         );
         return None;
     };
-    let length = match length_el {
+    Some(ty)
+}
+
+/// The item's `<length>` (1 without one); `None` (reported) when it is out of range.
+fn item_length(parts: &ItemParts<'_, '_>, d: &mut Diags) -> Option<u16> {
+    let label = parts.label;
+    match parts.length {
         None => Some(1u16),
         Some(l) => match l.text().parse::<u64>() {
             Ok(n) if (1..=u64::from(MAX_LENGTH)).contains(&n) => Some(n as u16),
@@ -565,68 +600,78 @@ fn item<'a>(
                 None
             }
         },
-    };
-    let mut nested = el.children().filter(|c| c.name() == "item").peekable();
-    match ty {
-        TypeName::Bus => {
-            if let Some(def) = default_el {
-                d.at(def.pos(), format!("bus item '{label}' cannot have a <default>; give defaults to its members"));
-            }
-            if length.is_some_and(|l| l != 1) {
-                d.at(
-                    length_el.map_or(el.pos(), |l| l.pos()),
-                    format!("bus item '{label}' must have length 1; arrays of buses are not supported"),
-                );
-            }
-            if nested.peek().is_none() {
-                d.at(el.pos(), format!("bus item '{label}' has no nested <item>"));
-                return None;
-            }
-            if depth + 1 > MAX_BUS_DEPTH {
-                d.at(el.pos(), format!("bus item '{label}' is nested deeper than {MAX_BUS_DEPTH} levels"));
-                return None;
-            }
-            let mut items = Vec::with_capacity(el.children().count());
-            item_list(el, role, domain, &label, depth + 1, &mut items, d);
-            let name = name?;
-            Some((name, Item { name: name.to_string(), kind: ItemKind::Bus { items }, pos: el.pos() }))
-        }
-        TypeName::Scalar(ty) => {
-            for n in nested {
-                d.at(
-                    n.pos(),
-                    format!("item '{label}' has type {} and cannot contain items; only a bus can", ty.canonical()),
-                );
-            }
-            let default = match default_el {
-                None => None,
-                Some(def) => match ty.parse_value(def.text()) {
-                    Some(v) => Some(v),
-                    None => {
-                        let expected = if ty == super::model::ScalarType::Boolean {
-                            "yes or no".to_string()
-                        } else {
-                            format!("a value of type {}", ty.canonical())
-                        };
-                        d.at(
-                            def.text_pos().unwrap_or(def.pos()),
-                            format!(
-                                "default '{}' of item '{label}' does not fit its type: expected {expected}",
-                                shorten(def.text())
-                            ),
-                        );
-                        None
-                    }
-                },
-            };
-            if default_el.is_some() && default.is_none() {
-                return None;
-            }
-            let name = name?;
-            let kind = ItemKind::Scalar { ty, length: length?, default };
-            Some((name, Item { name: name.to_string(), kind, pos: el.pos() }))
-        }
     }
+}
+
+/// A bus item: no default, length 1, and nested items (read as a list of their own, one
+/// level deeper).
+fn bus_item<'a>(
+    parts: &ItemParts<'a, '_>,
+    length: Option<u16>,
+    role: Role,
+    domain: &str,
+    depth: usize,
+    d: &mut Diags,
+) -> Option<(&'a str, Item)> {
+    let (el, label) = (parts.el, parts.label);
+    if let Some(def) = parts.default {
+        d.at(def.pos(), format!("bus item '{label}' cannot have a <default>; give defaults to its members"));
+    }
+    if length.is_some_and(|l| l != 1) {
+        d.at(
+            parts.length.map_or(el.pos(), |l| l.pos()),
+            format!("bus item '{label}' must have length 1; arrays of buses are not supported"),
+        );
+    }
+    if !el.children().any(|c| c.name() == "item") {
+        d.at(el.pos(), format!("bus item '{label}' has no nested <item>"));
+        return None;
+    }
+    if depth + 1 > MAX_BUS_DEPTH {
+        d.at(el.pos(), format!("bus item '{label}' is nested deeper than {MAX_BUS_DEPTH} levels"));
+        return None;
+    }
+    let mut items = Vec::with_capacity(el.children().count());
+    item_list(el, role, domain, label, depth + 1, &mut items, d);
+    let name = parts.name?;
+    Some((name, Item { name: name.to_string(), kind: ItemKind::Bus { items }, pos: el.pos() }))
+}
+
+/// A scalar item: no nested items, and a default (if any) that fits its type.
+fn scalar_item<'a>(
+    parts: &ItemParts<'a, '_>,
+    ty: ScalarType,
+    length: Option<u16>,
+    d: &mut Diags,
+) -> Option<(&'a str, Item)> {
+    let (el, label) = (parts.el, parts.label);
+    for n in el.children().filter(|c| c.name() == "item") {
+        d.at(n.pos(), format!("item '{label}' has type {} and cannot contain items; only a bus can", ty.canonical()));
+    }
+    let default = scalar_default(parts, ty, d)?;
+    let name = parts.name?;
+    let kind = ItemKind::Scalar { ty, length: length?, default };
+    Some((name, Item { name: name.to_string(), kind, pos: el.pos() }))
+}
+
+/// The `<default>` of a scalar item of type `ty` (`Some(None)` without one); `None`
+/// (reported) when it does not fit the type.
+fn scalar_default(parts: &ItemParts<'_, '_>, ty: ScalarType, d: &mut Diags) -> Option<Option<Value>> {
+    let Some(def) = parts.default else { return Some(None) };
+    if let Some(v) = ty.parse_value(def.text()) {
+        return Some(Some(v));
+    }
+    let expected =
+        if ty == ScalarType::Boolean { "yes or no".to_string() } else { format!("a value of type {}", ty.canonical()) };
+    d.at(
+        def.text_pos().unwrap_or(def.pos()),
+        format!(
+            "default '{}' of item '{}' does not fit its type: expected {expected}",
+            shorten(def.text()),
+            parts.label
+        ),
+    );
+    None
 }
 
 #[cfg(test)]
