@@ -67,6 +67,15 @@ pub struct SetCodec {
     cdr_size: usize,
 }
 
+/// What a sample from outside (DDS, a Foxglove client) carries into shared memory.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Payload {
+    /// A whole set (typed mode).
+    Set(TypedSample),
+    /// One item (per-item mode): its path and its bytes in shared-memory layout.
+    Item { path: std::sync::Arc<str>, bytes: Vec<u8> },
+}
+
 /// A decoded typed sample: the header fields and the set in shared-memory layout.
 #[derive(Debug, Clone, PartialEq)]
 pub struct TypedSample {

@@ -13,17 +13,8 @@ use std::sync::Arc;
 use serde::de::{DeserializeSeed, SeqAccess, Visitor};
 use serde::ser::SerializeTuple;
 use serde::{Deserialize, Serialize};
-pub use tutti_core::cdr::{split_header, CdrError, SetCodec, TypedSample, HEADER_LE};
+pub use tutti_core::cdr::{split_header, CdrError, Payload, SetCodec, TypedSample, HEADER_LE};
 use tutti_core::ddf::ScalarType;
-
-/// What a DDS sample carries into shared memory.
-#[derive(Debug, Clone, PartialEq)]
-pub enum Payload {
-    /// A whole set (typed mode).
-    Set(TypedSample),
-    /// One item (per-item mode): its path and its bytes in shared-memory layout.
-    Item { path: Arc<str>, bytes: Vec<u8> },
-}
 
 /// A cursor over a CDR body that refuses to read past its end.
 struct Reader<'a> {

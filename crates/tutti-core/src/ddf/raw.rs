@@ -337,7 +337,7 @@ impl<'a> Tree<'a, '_> {
                 add_text(&mut self.doc, &self.open, content, index, before)
             }
             Event::GeneralRef(reference) => {
-                let resolved = resolve(&reference).map_err(|message| err(here(), message))?;
+                let resolved = resolve(&reference, here())?;
                 add_text(&mut self.doc, &self.open, Cow::Owned(resolved), index, before)
             }
             Event::DocType(_) => Err(err(here(), "DOCTYPE declarations are not supported in a DDF")),
@@ -402,15 +402,15 @@ impl<'a> Tree<'a, '_> {
     }
 }
 
-/// The text an entity or character reference stands for, or what is wrong with it.
-fn resolve(reference: &BytesRef<'_>) -> Result<String, String> {
+/// The text an entity or character reference (at `at`) stands for, or what is wrong with it.
+fn resolve(reference: &BytesRef<'_>, at: Pos) -> Result<String, SyntaxError> {
     match reference.resolve_char_ref() {
         Ok(Some(c)) => Ok(c.to_string()),
         Ok(None) => match quick_xml::escape::resolve_predefined_entity(reference) {
             Some(s) => Ok(s.to_string()),
-            None => Err(format!("unknown entity '&{};'", printable(reference, 40))),
+            None => Err(err(at, format!("unknown entity '&{};'", printable(reference, 40)))),
         },
-        Err(e) => Err(format!("malformed character reference: {}", printable(&e.to_string(), 200))),
+        Err(e) => Err(err(at, format!("malformed character reference: {}", printable(&e.to_string(), 200)))),
     }
 }
 

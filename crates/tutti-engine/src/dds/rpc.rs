@@ -35,6 +35,9 @@ use crate::{EndpointId, EngineError, PeerId, Remote, Request, RequestSink, Respo
 pub(crate) const REPLY_WAIT: Duration = Duration::from_secs(30);
 /// How often held responses are looked at while there are some.
 const RETRY_EVERY: Duration = Duration::from_millis(5);
+/// How often the reply writers are looked at otherwise: they take in their match statuses
+/// (rustdds queues only a few and drops the rest).
+const TICK_EVERY: Duration = Duration::from_millis(100);
 /// Responses held at once per service; more are dropped (a client that floods a service
 /// gets no answer to the excess, the gateway keeps its memory).
 const MAX_HELD: usize = 256;
@@ -183,6 +186,9 @@ pub(crate) trait ReplyWriter: Send {
     }
     /// Sends what batching held back.
     fn flush(&mut self) {}
+    /// Called on the reply thread every [`TICK_EVERY`] or so: keeps what the writer tracks
+    /// of its matches up to date between responses.
+    fn tick(&mut self) {}
 }
 
 /// The engine's discovery, by DDS topic name (services' `rq/` and `rr/` topics included).
@@ -255,7 +261,7 @@ fn lock<T>(m: &Mutex<T>) -> MutexGuard<'_, T> {
 /// What the responders and the reply thread share.
 struct Shared {
     discovery: Discovery,
-    /// Servers with held responses, looked at by the thread.
+    /// Every responder's server, looked at by the thread.
     waiting: Mutex<Waiting>,
     wake: Condvar,
 }
@@ -263,6 +269,8 @@ struct Shared {
 #[derive(Default)]
 struct Waiting {
     servers: Vec<Weak<Mutex<Server>>>,
+    /// Some responses are held.
+    held: bool,
     stop: bool,
 }
 
@@ -294,8 +302,9 @@ impl Replies {
     /// The responder of a service whose DDS request and reply topics are `request_topic` and
     /// `reply_topic`, writing with `writer`.
     pub fn responder(&self, request_topic: String, reply_topic: String, writer: Box<dyn ReplyWriter>) -> DdsResponder {
-        let server = Server { request_topic, reply_topic, writer, held: Vec::new() };
-        DdsResponder { server: Arc::new(Mutex::new(server)), shared: self.shared.clone() }
+        let server = Arc::new(Mutex::new(Server { request_topic, reply_topic, writer, held: Vec::new() }));
+        lock(&self.shared.waiting).servers.push(Arc::downgrade(&server));
+        DdsResponder { server, shared: self.shared.clone() }
     }
 }
 
@@ -309,31 +318,37 @@ impl Drop for Replies {
     }
 }
 
-/// The reply thread: while some responses are held, looks at discovery once per round and
-/// sends those that reach their clients now.
+/// The reply thread: ticks every reply writer, and while some responses are held, looks at
+/// discovery once per round and sends those that reach their clients now.
 fn retry(shared: &Shared) {
     loop {
         let servers: Vec<Arc<Mutex<Server>>> = {
             let mut w = lock(&shared.waiting);
-            loop {
-                if w.stop {
-                    return;
-                }
-                w.servers.retain(|s| s.upgrade().is_some_and(|s| !lock(&s).held.is_empty()));
-                if !w.servers.is_empty() {
-                    break;
-                }
-                w = shared.wake.wait(w).unwrap_or_else(PoisonError::into_inner);
+            if w.stop {
+                return;
             }
+            let every = if w.held { RETRY_EVERY } else { TICK_EVERY };
+            w = shared.wake.wait_timeout(w, every).map_or_else(|e| e.into_inner().0, |(w, _)| w);
+            if w.stop {
+                return;
+            }
+            w.servers.retain(|s| s.strong_count() > 0);
             w.servers.iter().filter_map(Weak::upgrade).collect()
         };
-        // One look at discovery for them all.
-        let remote = (shared.discovery)();
+        let mut remote = None;
+        let mut held = false;
         let now = Instant::now();
         for s in servers {
-            lock(&s).send_held(&remote, now);
+            let mut s = lock(&s);
+            s.writer.tick();
+            if !s.held.is_empty() {
+                // One look at discovery for them all.
+                let remote = remote.get_or_insert_with(|| (shared.discovery)());
+                s.send_held(remote, now);
+                held |= !s.held.is_empty();
+            }
         }
-        std::thread::sleep(RETRY_EVERY);
+        lock(&shared.waiting).held = held;
     }
 }
 
@@ -357,10 +372,7 @@ impl Responder for DdsResponder {
         }
         server.held.push(Held { to, body: body.to_vec(), until: Instant::now() + REPLY_WAIT });
         drop(server);
-        let mut w = lock(&self.shared.waiting);
-        if !w.servers.iter().any(|s| s.as_ptr() == Arc::as_ptr(&self.server)) {
-            w.servers.push(Arc::downgrade(&self.server));
-        }
+        lock(&self.shared.waiting).held = true;
         self.shared.wake.notify_all();
     }
 }

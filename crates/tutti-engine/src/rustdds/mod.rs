@@ -316,6 +316,10 @@ impl ReplyWriter for RelatedWriter {
         self.take_statuses();
         Some(self.matched.get(&peer).map_or(0, |&n| n as usize))
     }
+
+    fn tick(&mut self) {
+        self.take_statuses();
+    }
 }
 
 /// Tells `participant` the USER_DATA of the endpoints of type `ty` (none without a hash).

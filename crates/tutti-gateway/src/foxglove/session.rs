@@ -158,7 +158,7 @@ impl Session {
                         Ok(p) => {
                             self.publishing.insert(c.id, p);
                         }
-                        Err(e) => problems.push(e),
+                        Err(e) => problems.push(e.to_string()),
                     }
                 }
             }
@@ -183,16 +183,17 @@ impl Session {
 
     /// A channel the client advertises: it must be a SUBSCRIBE set's topic, in CDR. It
     /// gets a shared-memory connection of its own, as a DDS writer does.
-    fn advertised(&self, c: &protocol::ClientChannel) -> Result<Publishing, String> {
+    fn advertised(&self, c: &protocol::ClientChannel) -> Result<Publishing, Refused> {
+        let topic = || c.topic.clone();
         let Some(index) = self.sh.channels.iter().position(|ch| ch.topic == c.topic) else {
-            return Err(format!("'{}' is not a topic of the run (see the advertised channels)", c.topic));
+            return Err(Refused::NoSuchTopic { topic: topic() });
         };
         let ch = &self.sh.channels[index];
         if ch.role != Role::Subscribe {
-            return Err(format!("'{}' is a PUBLISH set: only its framework writes it", c.topic));
+            return Err(Refused::PublishSet { topic: topic() });
         }
         if c.encoding != "cdr" {
-            return Err(format!("'{}': publish in cdr encoding (given: {})", c.topic, c.encoding));
+            return Err(Refused::Encoding { topic: topic(), given: c.encoding.clone() });
         }
         let d = &self.sh.domains[ch.domain];
         let name = format!("foxglove client {}", self.number);
@@ -205,7 +206,7 @@ impl Session {
             // Not the gateway's DDS commits: the set goes on to DDS as a component's would.
             Arc::new(AtomicU64::new(0)),
         )
-        .map_err(|e| format!("cannot start a thread: {e}"))?;
+        .map_err(Refused::Thread)?;
         info!(domain = %d.name, "Foxglove client {} writes {} ({})", self.number, c.topic, ch.schema_name);
         Ok(Publishing { channel: index, writer })
     }
@@ -244,7 +245,8 @@ impl Session {
                         });
                         return true;
                     }
-                    Err(message) => {
+                    Err(refused) => {
+                        let message = refused.to_string();
                         let m = ServerMessage::ServiceCallFailure { service_id, call_id, message: &message };
                         return send_text(ws, m.to_text()).await;
                     }
@@ -311,6 +313,28 @@ fn op_of(text: &str) -> String {
         .unwrap_or_else(|| "?".into())
 }
 
+/// Why a client's channel or service call is refused; the text goes back to the client as a
+/// status or a call failure.
+#[derive(Debug, thiserror::Error)]
+pub(crate) enum Refused {
+    #[error("'{topic}' is not a topic of the run (see the advertised channels)")]
+    NoSuchTopic { topic: String },
+    #[error("'{topic}' is a PUBLISH set: only its framework writes it")]
+    PublishSet { topic: String },
+    #[error("'{topic}': publish in cdr encoding (given: {given})")]
+    Encoding { topic: String, given: String },
+    #[error("cannot start a thread: {0}")]
+    Thread(#[source] std::io::Error),
+    #[error("the services take json requests (given: {given})")]
+    CallEncoding { given: String },
+    #[error("the request is not JSON: {0}")]
+    NotJson(#[source] serde_json::Error),
+    #[error("n must be a whole number of steps, 1 or more (given: {given})")]
+    Steps { given: serde_json::Value },
+    #[error("no service {0}")]
+    NoService(u32),
+}
+
 /// What a service call asks the run.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 enum Call {
@@ -321,14 +345,14 @@ enum Call {
 }
 
 /// The call service `service` makes with request `data` (JSON; an empty request is `{}`).
-fn call(service: u32, encoding: &str, data: &[u8]) -> Result<Call, String> {
+fn call(service: u32, encoding: &str, data: &[u8]) -> Result<Call, Refused> {
     if encoding != "json" {
-        return Err(format!("the services take json requests (given: {encoding})"));
+        return Err(Refused::CallEncoding { given: encoding.to_string() });
     }
     let request: serde_json::Value = if data.iter().all(u8::is_ascii_whitespace) {
         serde_json::Value::Object(Default::default())
     } else {
-        serde_json::from_slice(data).map_err(|e| format!("the request is not JSON: {e}"))?
+        serde_json::from_slice(data).map_err(Refused::NotJson)?
     };
     match service {
         1 => Ok(Call::Pause),
@@ -337,11 +361,11 @@ fn call(service: u32, encoding: &str, data: &[u8]) -> Result<Call, String> {
             None | Some(serde_json::Value::Null) => Ok(Call::Step(1)),
             Some(n) => match n.as_u64() {
                 Some(n) if n >= 1 => Ok(Call::Step(n)),
-                _ => Err(format!("n must be a whole number of steps, 1 or more (given: {n})")),
+                _ => Err(Refused::Steps { given: n.clone() }),
             },
         },
         4 => Ok(Call::State),
-        other => Err(format!("no service {other}")),
+        other => Err(Refused::NoService(other)),
     }
 }
 
@@ -363,12 +387,16 @@ mod tests {
 
     #[test]
     fn service_requests() {
-        assert_eq!(call(3, "json", br#"{"n": 4}"#), Ok(Call::Step(4)));
-        assert_eq!(call(3, "json", b""), Ok(Call::Step(1)));
+        assert_eq!(call(3, "json", br#"{"n": 4}"#).ok(), Some(Call::Step(4)));
+        assert_eq!(call(3, "json", b"").ok(), Some(Call::Step(1)));
         assert!(call(3, "json", br#"{"n": 0}"#).is_err());
         assert!(call(3, "json", br#"{"n": -2}"#).is_err());
         assert!(call(3, "cdr", b"").is_err());
-        assert_eq!(call(1, "json", b"{}"), Ok(Call::Pause));
+        assert_eq!(call(1, "json", b"{}").ok(), Some(Call::Pause));
+        assert_eq!(
+            call(3, "json", br#"{"n": 0}"#).unwrap_err().to_string(),
+            "n must be a whole number of steps, 1 or more (given: 0)"
+        );
         assert!(call(9, "json", b"{}").is_err());
         assert!(call(1, "json", b"{").is_err());
     }
