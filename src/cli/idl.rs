@@ -1,11 +1,12 @@
 //! `tutti idl DDF --out DIR`: writes the typed DDS / ROS 2 interface of a DDF
 //! (`docs/gateway.md`): OMG IDL 4 for every set, and a ROS 2 interface package. The files themselves come from
-//! `tutti_core::idl`; this module only writes them.
+//! `tutti_ros2::idl`; this module only writes them.
 
 use std::path::PathBuf;
 
 use anyhow::Context as _;
-use tutti_core::{idl, mapping};
+use tutti_core::mapping;
+use tutti_ros2::idl;
 
 use super::{load_ddf, CliResult, Failure};
 

@@ -157,18 +157,21 @@ fn rosidl_interface_hashes(py: &Path) -> BTreeMap<String, String> {
 fn rosidl_hashes_the_simulation_interfaces_as_tutti_does() {
     let Some(py) = rosidl_python() else { return };
     let theirs = rosidl_interface_hashes(&py);
-    let described = tutti_core::typehash::stock::simulation_types();
+    // Every message of the services and the action the gateway offers, and every type of the
+    // packages they come from (tutti-ros2's own tests compare every type it holds).
+    let registry = tutti_ros2::registry();
+    let described: Vec<&str> = registry
+        .type_names()
+        .into_iter()
+        .filter(|n| n.starts_with("simulation_interfaces/") || n.starts_with("action_msgs/"))
+        .collect();
     assert!(described.len() > 20, "{described:?}");
-    for t in described {
-        let ours = tutti_core::typehash::stock::description(&t.type_name)
-            .unwrap_or_else(|| panic!("{} is not described", t.type_name));
-        assert_eq!(
-            Some(ours.hash().to_string()).as_ref(),
-            theirs.get(&t.type_name),
-            "{}: {}",
-            t.type_name,
-            ours.canonical_json()
-        );
+    for name in described {
+        let ours = registry.description(name).unwrap_or_else(|| panic!("{name} is not described"));
+        assert_eq!(Some(ours.hash().to_string()).as_ref(), theirs.get(name), "{name}: {}", ours.canonical_json());
+    }
+    for (name, hash) in &theirs {
+        assert_eq!(registry.hash(name).map(|h| h.to_string()).as_ref(), Some(hash), "{name}");
     }
 }
 
@@ -184,7 +187,7 @@ fn rosidl_hashes_every_generated_message_as_tutti_does() {
         let theirs = rosidl_hashes(&py, &ddf, out.path());
         let model = tutti_core::ddf::load(&ddf).unwrap_or_else(|e| panic!("{}: {e}", ddf.display()));
         let pkg = tutti_core::mapping::package_name(&ddf);
-        let ours: BTreeMap<String, String> = tutti_core::idl::type_hashes(&model, &pkg)
+        let ours: BTreeMap<String, String> = tutti_ros2::idl::type_hashes(&model, &pkg)
             .expect("every type is described")
             .into_iter()
             .map(|(name, h)| (name, h.to_string()))
@@ -225,7 +228,7 @@ fn assert_hashes(
 ) {
     let stock: BTreeMap<&str, &str> = STOCK.iter().copied().collect();
     for (kind, topic, ty, user_data) in eps {
-        let want = match tutti_core::typehash::ros2_type_name(ty).and_then(|n| rosidl.get(&n)) {
+        let want = match tutti_ros2::typehash::ros2_type_name(ty).and_then(|n| rosidl.get(&n)) {
             Some(h) => h.as_str(),
             None => stock.get(ty.as_str()).copied().unwrap_or_else(|| panic!("{kind} on {topic}: unknown type {ty}")),
         };

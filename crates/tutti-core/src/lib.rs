@@ -7,7 +7,6 @@
 
 pub mod cdr;
 pub mod ddf;
-pub mod idl;
 pub mod mapping;
 // The loom build models the bucket and the handshake only; the parsers name a segment's
 // wait modes, which it leaves out.
@@ -16,4 +15,3 @@ pub mod parse;
 pub mod shm;
 pub mod show;
 pub mod sync;
-pub mod typehash;

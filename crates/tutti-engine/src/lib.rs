@@ -34,7 +34,7 @@ use std::time::Duration;
 
 use tutti_core::ddf::Leaf;
 pub use tutti_core::mapping::{Durability, History, Ownership, Qos, Reliability};
-use tutti_core::typehash::{self, TypeHash};
+use tutti_ros2::TypeHash;
 
 use crate::cdr::{stock, CdrError, Payload, SetCodec};
 
@@ -187,15 +187,15 @@ pub struct TopicType {
 }
 
 impl TopicType {
-    /// A ROS 2 type with its hash (a set's type: `tutti_core::idl::type_hashes`).
+    /// A ROS 2 type with its hash (a set's type: `tutti_ros2::idl::type_hashes`).
     pub fn ros2(name: &str, hash: TypeHash) -> TopicType {
         TopicType { name: name.to_string(), hash: Some(hash) }
     }
 
     /// A stock ROS 2 type (`std_msgs`, `rosgraph_msgs/Clock`, …), with the hash ROS 2 gives
-    /// it when `tutti_core::typehash::stock` describes it.
+    /// it when `tutti_ros2::registry` holds it.
     pub fn stock(name: &str) -> TopicType {
-        TopicType { name: name.to_string(), hash: typehash::stock::hash_of_dds_type(name) }
+        TopicType { name: name.to_string(), hash: tutti_ros2::registry().hash_of_dds_type(name) }
     }
 
     /// A type ROS 2 does not know: no type hash.

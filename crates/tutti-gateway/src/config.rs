@@ -20,11 +20,10 @@ use std::time::Duration;
 use serde::de::{self, DeserializeSeed, Deserializer, SeqAccess, Visitor};
 use serde::{Deserialize, Serialize};
 use tutti_core::ddf::{Domain, Model, Role};
-use tutti_core::idl;
 use tutti_core::mapping::{self, Durability, Endpoint, History, ItemTopic, Profile, Qos, Reliability};
 use tutti_core::parse::{parse_duration, parse_wait};
 use tutti_core::shm::WaitMode;
-use tutti_core::typehash::TypeHash;
+use tutti_ros2::TypeHash;
 
 use crate::engine::TopicType;
 
@@ -239,7 +238,7 @@ pub struct PlannedSet {
     pub ros2_topic: String,
     /// DDS type of the typed struct.
     pub dds_type: String,
-    /// Its ROS 2 type hash, which its endpoints announce (`tutti_core::idl::type_hashes`;
+    /// Its ROS 2 type hash, which its endpoints announce (`tutti_ros2::idl::type_hashes`;
     /// None only for types that cannot be described, which a valid model never has).
     pub type_hash: Option<TypeHash>,
     pub writer_qos: Qos,
@@ -362,7 +361,7 @@ pub fn resolve(opts: &GatewayOptions) -> Result<Plan, ConfigError> {
     let rules = &opts.rules;
     let at = |key: &str| in_source(&rules.source, key);
     let pkg = mapping::package_name(&opts.ddf_path);
-    let hashes = idl::type_hashes(&opts.model, &pkg).unwrap_or_default();
+    let hashes = tutti_ros2::idl::type_hashes(&opts.model, &pkg).unwrap_or_default();
     let ns = ros_namespace(&opts.ros_namespace)?;
     let keys: Vec<String> = opts.model.domains.iter().flat_map(|d| Role::ALL.map(|r| set_key(&d.name, r))).collect();
     if let Some(k) = rules.topics.keys().find(|k| !keys.contains(k)) {

@@ -32,7 +32,7 @@ pub enum GatewayError {
     FoxgloveListen { addr: SocketAddr, error: std::io::Error },
     /// A set's `ros2msg` schema cannot be written (for the Foxglove server's channels).
     #[error("the Foxglove server's schemas: {0}")]
-    Schema(#[from] tutti_core::idl::ros2msg::SchemaError),
+    Schema(#[from] tutti_ros2::idl::ros2msg::SchemaError),
     /// A benchmark peer's domain cannot be echoed (exit status 2).
     #[error("domain '{domain}': the echo needs equal PUBLISH and SUBSCRIBE layouts")]
     EchoLayouts { domain: String },

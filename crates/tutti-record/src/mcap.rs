@@ -5,7 +5,7 @@
 //!   little-endian, encapsulation header first: `step`, `sim_time`, then the items);
 //! * its schema is `ros2msg`, named `PKG/msg/TYPE`: the `.msg` that `tutti idl` writes, with
 //!   the `.msg` of every nested bus type appended after a `MSG: PKG/msg/BUS` separator line
-//!   (`tutti_core::idl::ros2msg`, which the gateway's Foxglove server uses too);
+//!   (`tutti_ros2::idl::ros2msg`, which the gateway's Foxglove server uses too);
 //! * log time = wall-clock time, publish time = simulated time (nanoseconds);
 //! * `/tutti/events` (JSON): a `start` message at a domain's first recorded step (its
 //!   connections and exclusive owner then), then one whenever its connection count
@@ -23,8 +23,8 @@ use ::mcap::records::MessageHeader;
 use ::mcap::{Compression, WriteOptions, Writer};
 use tutti_core::cdr::{SetCodec, HEADER_LE};
 use tutti_core::ddf::{Model, Role};
-use tutti_core::idl::ros2msg::{self, SchemaError};
 use tutti_core::mapping;
+use tutti_ros2::idl::ros2msg::{self, SchemaError};
 
 use super::{create_parent, io_error, RecordError, Recorder, Step};
 

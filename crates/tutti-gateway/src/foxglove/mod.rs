@@ -3,7 +3,7 @@
 //! WebSocket protocol.
 //!
 //! * one channel per bridged set, on its ROS 2 topic name, `cdr` encoding, with the
-//!   `ros2msg` schema of the MCAP recordings (`tutti_core::idl::ros2msg`); messages and the
+//!   `ros2msg` schema of the MCAP recordings (`tutti_ros2::idl::ros2msg`); messages and the
 //!   server's `time` carry simulated time;
 //! * the connection graph lists each domain's framework and participants;
 //! * a client that advertises a SUBSCRIBE set's topic writes it through a shared-memory
@@ -33,8 +33,8 @@ use tokio::sync::{broadcast, watch};
 use tracing::warn;
 use tutti_core::cdr::SetCodec;
 use tutti_core::ddf::Role;
-use tutti_core::idl::ros2msg;
 use tutti_core::mapping;
+use tutti_ros2::idl::ros2msg;
 
 use crate::config::PlannedSet;
 use crate::routes::{Counters, ShmConfig};

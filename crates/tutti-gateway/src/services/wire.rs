@@ -153,7 +153,7 @@ mod tests {
         for topic in [FEEDBACK, STATUS] {
             assert!(action_topic_type(topic).hash.is_some(), "{} has no type hash", topic.1);
         }
-        // As rosidl's generator hashes it (the unit tests of tutti_core::typehash pin more).
+        // As rosidl's generator hashes it (the tests of tutti-ros2 pin more).
         assert_eq!(
             SERVICES[3].request_topic_type().user_data().as_deref(),
             Some("typehash=RIHS01_cda33f6887815f3dce0f90e61fd8efd39bda13ae264ddede15c33fbad890630e;")

@@ -6,9 +6,10 @@
 
 use std::collections::HashMap;
 
+use tutti_core::ddf::{Model, Role};
+use tutti_core::mapping;
+
 use super::IdlError;
-use crate::ddf::{Model, Role};
-use crate::mapping;
 
 /// The separator of the message definitions in a `ros2msg` schema.
 const SEPARATOR: &str = "================================================================================";
@@ -97,7 +98,7 @@ mod tests {
     #[test]
     fn schemas_carry_the_nested_bus_types_once() {
         let ddf = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../ddf/product-sample.ddf");
-        let m = crate::ddf::load(&ddf).unwrap();
+        let m = tutti_core::ddf::load(&ddf).unwrap();
         let defs = message_definitions(&m, "product_sample_msgs").unwrap();
         let s = ros2msg_schema(&defs, "product_sample_msgs", "GridFeederPublish").unwrap();
         assert!(s.starts_with(&defs["GridFeederPublish"]));
