@@ -5,12 +5,11 @@
 
 use std::path::Path;
 use std::process::Command;
-use std::thread;
-use std::time::{Duration, Instant};
+use std::time::Duration;
 
 use tutti_core::ddf::Role;
 use tutti_core::shm::{ConnectOptions, Participant, Segment};
-use tutti_test_support::{self as common, Proc};
+use tutti_test_support::{self as common, lazy, wait_until, Proc};
 
 const DDF: &str = "tests/gateway/gw.ddf";
 const WATCHDOG: Duration = Duration::from_secs(120);
@@ -26,11 +25,8 @@ fn host(ns: &str, connects: &[&str]) -> Proc {
 
 /// Waits until domain `domain` of `ns` exists.
 fn wait_domain(ns: &str, domain: &str, host: &Proc) {
-    let end = Instant::now() + Duration::from_secs(30);
-    while Segment::open(ns, domain).is_err() {
-        assert!(Instant::now() < end, "no domain {domain}\n{}", host.dump());
-        thread::sleep(Duration::from_millis(10));
-    }
+    let no_domain = lazy(|| format!("no domain {domain}\n{}", host.dump()));
+    wait_until(no_domain, Duration::from_secs(30), || Segment::open(ns, domain).is_ok());
 }
 
 /// In a synchronous domain, `y` (what the C participant answers: its step count n) comes
@@ -94,11 +90,8 @@ fn an_asynchronous_output_reaches_another_domain_converted() {
         p.publish_lock().unwrap();
         p.stage("n", &n.to_ne_bytes()).unwrap();
         p.commit().unwrap();
-        let end = Instant::now() + Duration::from_secs(30);
-        while x(&target) != f64::from(n) - 0.5 {
-            assert!(Instant::now() < end, "x = {} never became {n} - 0.5\n{}", x(&target), fw.dump());
-            thread::sleep(Duration::from_millis(5));
-        }
+        let never = lazy(|| format!("x = {} never became {n} - 0.5\n{}", x(&target), fw.dump()));
+        wait_until(never, Duration::from_secs(30), || x(&target) == f64::from(n) - 0.5);
     }
     drop(p);
     assert_eq!(fw.interrupt(Duration::from_secs(30)), Some(0), "{}", fw.dump());

@@ -5,10 +5,10 @@
 use std::path::{Path, PathBuf};
 use std::process::Command;
 use std::thread;
-use std::time::{Duration, Instant};
+use std::time::Duration;
 
 use tutti_host::control::{ControlClient, RunState};
-use tutti_test_support::{self as common, Proc};
+use tutti_test_support::{self as common, lazy, wait_until, Proc};
 
 use super::gateway::{json_lines, python, Eng, PEER};
 
@@ -47,11 +47,8 @@ fn steps_seen(p: &Proc) -> usize {
 
 /// Waits until `p` has printed `n` steps; fails with what it printed.
 fn wait_steps(p: &Proc, n: usize, also: &Proc) {
-    let end = Instant::now() + Duration::from_secs(60);
-    while steps_seen(p) < n {
-        assert!(Instant::now() < end, "{} of {n} steps seen\n{}\n{}", steps_seen(p), p.dump(), also.dump());
-        thread::sleep(Duration::from_millis(10));
-    }
+    let seen = lazy(|| format!("{} of {n} steps seen\n{}\n{}", steps_seen(p), p.dump(), also.dump()));
+    wait_until(seen, Duration::from_secs(60), || steps_seen(p) >= n);
 }
 
 /// How many steps the connection of process `pid` in `gw_sync` has read.
@@ -90,11 +87,8 @@ fn a_paused_run_steps_exactly_as_asked_and_no_participant_times_out() {
     cmd.args(["--fields", SYNC_PUB, "--count", "1000000", "--timeout", "170"]);
     let reader = Proc::spawn("dds reader", cmd, WATCHDOG);
     wait_steps(&part, 20, &host);
-    let end = Instant::now() + Duration::from_secs(90);
-    while dds_steps(&reader).len() < 5 {
-        assert!(Instant::now() < end, "the DDS reader got no step\n{}\n{}", reader.dump(), gw.dump());
-        thread::sleep(Duration::from_millis(20));
-    }
+    let no_step = lazy(|| format!("the DDS reader got no step\n{}\n{}", reader.dump(), gw.dump()));
+    wait_until(no_step, Duration::from_secs(90), || dds_steps(&reader).len() >= 5);
 
     // Pause, for ten times the participant's lock timeout (1 s) and far more than the
     // framework's step timeout: no step, no timeout.
@@ -105,6 +99,10 @@ fn a_paused_run_steps_exactly_as_asked_and_no_participant_times_out() {
     // the framework may go on) is printed by now or soon: wait for the lines to catch up.
     wait_steps(&part, reads_of(&ns, part.id()), &host);
     let seen = steps_seen(&part);
+    // A window, not a wait: what is checked is that nothing happens. The participant's lock
+    // waits time out after 1 s and are armed again while paused, so 10.5 s is ten such
+    // timeouts the pause must cost nothing (and 35 of the framework's 300 ms step timeout);
+    // a step made while paused would be printed within one 5 ms period.
     thread::sleep(Duration::from_millis(10_500));
     assert_eq!(steps_seen(&part), seen, "a step was made while paused\n{}", part.dump());
     assert!(part.exited().is_none(), "the participant ended while paused\n{}", part.dump());
@@ -120,11 +118,11 @@ fn a_paused_run_steps_exactly_as_asked_and_no_participant_times_out() {
     let stepped: serde_json::Value = serde_json::from_str(out.trim()).unwrap();
     assert_eq!((stepped["state"].as_str(), stepped["step"].as_u64()), (Some("paused"), Some(at + 7)), "{stepped}");
     wait_steps(&part, seen + 7, &host);
-    let end = Instant::now() + Duration::from_secs(30);
-    while dds_steps(&reader).last() < Some(&(before + 7)) {
-        assert!(Instant::now() < end, "the DDS reader did not get the 7 steps\n{}", reader.dump());
-        thread::sleep(Duration::from_millis(20));
-    }
+    let got_7 = lazy(|| format!("the DDS reader did not get the 7 steps\n{}", reader.dump()));
+    wait_until(got_7, Duration::from_secs(30), || dds_steps(&reader).last() >= Some(&(before + 7)));
+    // A window for an eighth step to show, which the run must not make: it would follow the
+    // seventh within one 5 ms period and be printed before it is answered; 300 ms is sixty
+    // periods.
     thread::sleep(Duration::from_millis(300));
     assert_eq!(steps_seen(&part), seen + 7, "the participant saw other than 7 steps\n{}", part.dump());
     let after: Vec<u64> = dds_steps(&reader).into_iter().filter(|&s| s > before).collect();
@@ -173,11 +171,7 @@ fn an_asynchronous_run_pauses_and_refuses_to_step() {
     host.arg("host").arg(&ddf).args(["--step", "5ms", "-q"]).env("TUTTI_NAMESPACE", &ns);
     let mut host = Proc::spawn("tutti host", host, WATCHDOG);
     let socket = tutti_host::control::socket_path(&ns);
-    let end = Instant::now() + Duration::from_secs(30);
-    while !socket.exists() {
-        assert!(Instant::now() < end, "no control socket\n{}", host.dump());
-        thread::sleep(Duration::from_millis(20));
-    }
+    wait_until(lazy(|| format!("no control socket\n{}", host.dump())), Duration::from_secs(30), || socket.exists());
     use std::os::unix::fs::PermissionsExt;
     assert_eq!(std::fs::metadata(&socket).unwrap().permissions().mode() & 0o777, 0o600);
 
@@ -215,6 +209,8 @@ fn an_asynchronous_run_pauses_and_refuses_to_step() {
     assert_eq!(ctl(&ns, &["reset"])["step"], 0);
     let steps = |d: &str| tutti_core::shm::Segment::open(&ns, d).unwrap().status().steps;
     let before = steps("gw_async");
+    // A window for a step the paused run must not make: the domain steps every 5 ms when it
+    // runs, so 200 ms is forty steps it did not make.
     thread::sleep(Duration::from_millis(200));
     assert_eq!(steps("gw_async"), before, "the framework published while paused");
     let (code, _, err) = tutti(&ns, &["ctl", "step", "3"]);
@@ -306,9 +302,16 @@ fn another_users_socket_is_not_told_anything(py: &Path) {
     let (status, out, err) = common::run_with_timeout(cmd, Duration::from_secs(60));
     assert!(status.success(), "{out}{err}");
     assert!(out.contains("is served by another user (uid 65534)"), "{out}{err}");
-    thread::sleep(Duration::from_millis(300));
+    // The server takes its connections one by one, in order: once it has printed what a
+    // last connection of the test's own sent, it has printed all that came before.
+    let mut last = std::os::unix::net::UnixStream::connect(&socket).expect("connecting to the stranger's server");
+    std::io::Write::write_all(&mut last, b"the end").unwrap();
+    drop(last);
+    let the_end = "got b'the end'";
+    let never = lazy(|| format!("the stranger's server never read the last connection\n{}", stranger.dump()));
+    wait_until(never, Duration::from_secs(30), || stranger.lines().iter().any(|l| l == the_end));
     assert!(
-        stranger.lines().iter().all(|l| l == "listening" || l == "got b''"),
+        stranger.lines().iter().all(|l| l == "listening" || l == "got b''" || l == the_end),
         "a request reached the stranger: {}",
         stranger.dump()
     );

@@ -126,11 +126,8 @@ impl Host {
 
     /// Waits (at most 60 s) until `cond` holds for the steps so far.
     fn wait_for(&self, what: &str, cond: impl Fn(&[Step]) -> bool) {
-        let deadline = Instant::now() + Duration::from_secs(60);
-        while !cond(&self.steps()) {
-            assert!(Instant::now() < deadline, "timed out waiting for {what}; last steps: {:?}", self.steps().last());
-            thread::sleep(Duration::from_millis(20));
-        }
+        let timed_out = common::lazy(|| format!("timed out waiting for {what}; last steps: {:?}", self.steps().last()));
+        common::wait_until(timed_out, Duration::from_secs(60), || cond(&self.steps()));
     }
 }
 

@@ -7,7 +7,7 @@ use std::process::Command;
 use std::sync::atomic::Ordering;
 use std::sync::{Arc, Mutex};
 use std::thread;
-use std::time::{Duration, Instant};
+use std::time::Duration;
 
 use tutti_engine::EngineKind;
 use tutti_test_support::{RemoveSegments, Worker};
@@ -308,14 +308,9 @@ impl Host {
 
     /// Waits until some step's SUBSCRIBE set satisfies `f`; returns that step.
     pub fn wait_for(&self, timeout: Duration, f: impl Fn(u64, &[u8]) -> bool) -> Option<u64> {
-        let end = Instant::now() + timeout;
-        while Instant::now() < end {
-            if let Some((k, _)) = self.seen.lock().unwrap().iter().find(|(k, b)| f(*k, b)) {
-                return Some(*k);
-            }
-            thread::sleep(Duration::from_millis(20));
-        }
-        None
+        tutti_test_support::poll_for(timeout, || {
+            self.seen.lock().unwrap().iter().find(|(k, b)| f(*k, b)).map(|(k, _)| *k)
+        })
     }
 }
 

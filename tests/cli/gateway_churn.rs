@@ -11,10 +11,11 @@ use crate::gateway;
 
 use std::path::Path;
 use std::thread;
-use std::time::{Duration, Instant};
+use std::time::Duration;
 
 use gateway::*;
 use tutti_core::ddf::Role;
+use tutti_test_support::{lazy, wait_until};
 
 const CHURN: &str = "tests/gateway/churn_peer.py";
 
@@ -67,15 +68,8 @@ fn counts(addr: &str, ns: &str) -> Counts {
 /// Waits until the counts are `want` (a watchdog of 30 s, not a timing); panics with what
 /// they were.
 fn wait_counts(addr: &str, ns: &str, want: Counts, what: &str, dump: &dyn Fn() -> String) {
-    let end = Instant::now() + SECS(30);
-    loop {
-        let now = counts(addr, ns);
-        if now == want {
-            return;
-        }
-        assert!(Instant::now() < end, "{what}: counts {now:?}, expected {want:?}\n{}", dump());
-        thread::sleep(Duration::from_millis(10));
-    }
+    let failed = lazy(|| format!("{what}: counts {:?}, expected {want:?}\n{}", counts(addr, ns), dump()));
+    wait_until(failed, SECS(30), || counts(addr, ns) == want);
 }
 
 /// `churn_peer.py` on DDS domain `dom`, with a watchdog of `watchdog`.
@@ -212,12 +206,10 @@ fn is_answer(k: u64, b: &[u8]) -> bool {
 
 /// Waits until `n` steps after step `after` were answered (a watchdog, not a timing).
 fn answered_more(host: &Host, after: u64, n: usize, dump: &dyn Fn() -> String) {
-    let end = Instant::now() + SECS(90);
     let count = || host.seen.lock().unwrap().iter().filter(|(k, b)| *k > after && is_answer(*k, b)).count();
-    while count() < n {
-        assert!(Instant::now() < end, "{} steps after step {after} answered\n{}", count(), dump());
-        thread::sleep(Duration::from_millis(20));
-    }
+    wait_until(lazy(|| format!("{} steps after step {after} answered\n{}", count(), dump())), SECS(90), || {
+        count() >= n
+    });
 }
 
 fn last_step(host: &Host) -> u64 {
@@ -252,12 +244,8 @@ fn a_gateway_restarted_after_kill_9_takes_its_dds_writer_back(e: Eng) {
 
     gw.kill9();
     let killed_at = last_step(&host);
-    let end = Instant::now() + SECS(60);
-    while last_step(&host) < killed_at + 200 || status(ns, "gw_sync").dds_writers != 0 {
-        let s = status(ns, "gw_sync");
-        assert!(Instant::now() < end, "the framework did not go on without the gateway: {s:?}");
-        thread::sleep(Duration::from_millis(20));
-    }
+    let failed = lazy(|| format!("the framework did not go on without the gateway: {:?}", status(ns, "gw_sync")));
+    wait_until(failed, SECS(60), || last_step(&host) >= killed_at + 200 && status(ns, "gw_sync").dds_writers == 0);
 
     let gw2 = e.gateway(DDF, 232, ns, &gw_args);
     let restarted_at = last_step(&host);

@@ -8,10 +8,11 @@
 use crate::gateway;
 
 use std::thread;
-use std::time::{Duration, Instant};
+use std::time::Duration;
 
 use gateway::*;
 use tutti_core::ddf::Role;
+use tutti_test_support::{lazy, wait_until};
 
 /// An asynchronous PUBLISH set whose `x` is `x`.
 fn async_publish(x: f64) -> impl Fn(u64) -> Vec<u8> + Send + 'static {
@@ -39,10 +40,12 @@ fn a_dds_reader_of_a_synchronous_domain_is_an_observer_not_a_participant(e: Eng)
     let host = Host::start(ns, "gw_sync", Duration::from_millis(5), |k| (k as f64).to_ne_bytes().to_vec());
     let gw = e.gateway(DDF, dom, ns, &[]);
     let mut reader = sub(&py, dom, "rt/gw_sync/publish", "gw_msgs::msg::dds_::GwSyncPublish_", SYNC_PUB, 400);
-    let end = Instant::now() + SECS(90);
     let (mut looks, mut readers_seen, mut cli_checked) = (0u32, 0u64, false);
-    while json_lines(&reader, "step").len() < 400 {
-        assert!(Instant::now() < end, "the reader got too few samples\n{}\n{}", reader.dump(), gw.dump());
+    let too_few = lazy(|| format!("the reader got too few samples\n{}\n{}", reader.dump(), gw.dump()));
+    wait_until(too_few, SECS(90), || {
+        if json_lines(&reader, "step").len() >= 400 {
+            return true;
+        }
         let s = status(ns, "gw_sync");
         assert_eq!(s.connection_count, 0, "a DDS reader counted as a participant: {:?}", s.connections);
         assert!(
@@ -65,8 +68,8 @@ fn a_dds_reader_of_a_synchronous_domain_is_an_observer_not_a_participant(e: Eng)
             assert_eq!(d["dds_readers"], 1, "{d}\n{}", gw.dump());
             cli_checked = true;
         }
-        thread::sleep(Duration::from_millis(20));
-    }
+        false
+    });
     assert_eq!(reader.wait(SECS(30)), Some(0), "{}", reader.dump());
     assert!(looks > 0 && readers_seen == 1, "the observer never showed the DDS reader ({readers_seen})\n{}", gw.dump());
     assert!(cli_checked, "tutti status never showed the DDS reader");
@@ -162,11 +165,8 @@ fn answered_domain(
     let answered = |k: u64, b: &[u8]| f64_at(b, 0) == k as f64 * 10.0 + 1.0;
     let first = host.wait_for(SECS(75), answered);
     assert!(first.is_some(), "no step was answered\n{}\n{}", answer.dump(), gw.dump());
-    let end = Instant::now() + SECS(60);
     let count = || host.seen.lock().unwrap().iter().filter(|(k, b)| answered(*k, b)).count();
-    while count() < 20 && Instant::now() < end {
-        thread::sleep(Duration::from_millis(20));
-    }
+    tutti_test_support::poll_for(SECS(60), || (count() >= 20).then_some(()));
     assert!(count() >= 20, "only {} steps answered\n{}\n{}", count(), answer.dump(), gw.dump());
     (host, gw, answer)
 }
@@ -174,11 +174,7 @@ fn answered_domain(
 /// Waits until the host has made `n` more steps (a watchdog, not a timing).
 fn steps_on(host: &Host, n: usize, why: &str) {
     let start = host.seen.lock().unwrap().len();
-    let end = Instant::now() + SECS(90);
-    while host.seen.lock().unwrap().len() < start + n {
-        assert!(Instant::now() < end, "the domain stopped stepping {why}");
-        thread::sleep(Duration::from_millis(20));
-    }
+    wait_until(format!("the domain stopped stepping {why}"), SECS(90), || host.seen.lock().unwrap().len() >= start + n);
 }
 
 /// A DDS writer that answers 40 steps and exits cleanly: its connection goes as discovery
@@ -227,15 +223,17 @@ fn with_every_step_a_dds_reader_gets_every_step(e: Eng) {
     let host = Host::start(ns, "gw_sync", Duration::from_millis(1), |k| (k as f64).to_ne_bytes().to_vec());
     let gw = e.gateway(DDF, dom, ns, &["--every-step"]);
     let mut reader = sub(&py, dom, "rt/gw_sync/publish", "gw_msgs::msg::dds_::GwSyncPublish_", SYNC_PUB, 500);
-    let end = Instant::now() + SECS(90);
     let mut observed = false;
-    while json_lines(&reader, "step").len() < 500 {
-        assert!(Instant::now() < end, "too few samples\n{}\n{}", reader.dump(), gw.dump());
+    let too_few = lazy(|| format!("too few samples\n{}\n{}", reader.dump(), gw.dump()));
+    wait_until(too_few, SECS(90), || {
+        if json_lines(&reader, "step").len() >= 500 {
+            return true;
+        }
         let s = status(ns, "gw_sync");
         assert_eq!(s.connection_count, 0, "{:?}", s.connections);
         observed |= s.connections.iter().any(|c| c.observer && c.sync_reader);
-        thread::sleep(Duration::from_millis(20));
-    }
+        false
+    });
     assert_eq!(reader.wait(SECS(30)), Some(0), "{}", reader.dump());
     assert!(observed, "no lock-step observer connection was seen");
     let steps: Vec<u64> = json_lines(&reader, "step").iter().map(|v| v["step"].as_u64().unwrap()).collect();
@@ -338,6 +336,10 @@ fn a_segment_shrunk_under_the_gateway_leaves_it_running(e: Eng) {
     let mut gw = e.gateway(DDF, dom, ns, &[]);
     tutti_test_support::shrink_segment(ns, "gw_sync", 0);
     assert!(gw.wait_line("shrank", SECS(30)).is_some(), "the gateway never said the segment was shrunk\n{}", gw.dump());
+    // A window for a late death, not a wait: the gateway's threads look at a bridged domain
+    // at every step (5 ms here) or after their longest pause, 200 ms, so 500 ms gives each
+    // two looks at the shrunk segment had the gateway not let go of it (a death later still
+    // fails the clean stop below).
     thread::sleep(Duration::from_millis(500));
     assert!(gw.exited().is_none(), "the gateway died\n{}", gw.dump());
     assert_eq!(gw.interrupt(SECS(30)), Some(0), "{}", gw.dump());

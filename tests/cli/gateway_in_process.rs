@@ -9,7 +9,7 @@ use crate::gateway;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 use std::thread;
-use std::time::{Duration, Instant};
+use std::time::Duration;
 
 use gateway::*;
 use tutti_core::ddf::Role;
@@ -76,14 +76,12 @@ fn a_dds_writers_samples_reach_the_subscribe_set(e: Eng) {
     let seg = Segment::open(&ns, "gw_async").expect("the host's segment");
     let (y_at, n_at) = (leaf_offset("gw_async", Role::Subscribe, "y"), leaf_offset("gw_async", Role::Subscribe, "n"));
     let mut set = vec![0u8; seg.info.subscribe.size as usize];
-    let end = Instant::now() + SECS(60);
-    let mut seen = None;
-    while Instant::now() < end && seen.is_none() {
+    let seen = tutti_test_support::poll_for(SECS(60), || {
         if seg.try_read_set(Role::Subscribe, &mut set, 1 << 16).is_some() && f64_at(&set, y_at) == 3.25 {
-            seen = Some(i32::from_ne_bytes(set[n_at..n_at + 4].try_into().unwrap()));
+            return Some(i32::from_ne_bytes(set[n_at..n_at + 4].try_into().unwrap()));
         }
-        thread::sleep(Duration::from_millis(10));
-    }
+        None
+    });
     let rc = writer.wait(SECS(60));
     assert!(
         seen.is_some_and(|n| (11..=13).contains(&n)),

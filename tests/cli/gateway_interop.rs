@@ -7,10 +7,11 @@ use crate::gateway;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 use std::thread;
-use std::time::{Duration, Instant};
+use std::time::Duration;
 
 use gateway::*;
 use tutti_core::ddf::Role;
+use tutti_test_support::{lazy, wait_until};
 
 /// A component commits SUBSCRIBE values through shared memory (repeatedly, until stopped).
 fn keep_committing(ns: &str, y: f64, n: i32) -> (Arc<AtomicBool>, thread::JoinHandle<()>) {
@@ -314,7 +315,11 @@ fn bad_samples_and_a_second_writer_are_dropped_and_counted(e: Eng) {
         peer(&py, "second writer", dom, "pub", &[&a[..], &["--values", &v2, "--period-ms", "100"]].concat());
     assert_eq!(second.wait(SECS(60)), Some(0), "{}", second.dump());
     assert_eq!(first.wait(SECS(60)), Some(0), "{}", first.dump());
-    thread::sleep(Duration::from_millis(700));
+    // A window for a late sample of the second writer, counted in the framework's reads of
+    // the set rather than in time: each of the next 70 steps (0.7 s of 10 ms steps) would
+    // show it.
+    let at = host.seen.lock().unwrap().last().map_or(0, |(k, _)| *k);
+    assert!(host.wait_for(SECS(60), |k, _| k >= at + 70).is_some(), "the framework stopped stepping");
     assert!(host.seen.lock().unwrap().iter().all(|(_, b)| f64_at(b, 0) != 2.0), "the second writer got through");
     let rejected = tutti_core::shm::segment::Segment::open(ns, "gw_async").unwrap().status().rejected;
     assert_eq!(gw.interrupt(SECS(30)), Some(0), "{}", gw.dump());
@@ -357,7 +362,8 @@ fn a_dds_writer_takes_part_in_lock_step_through_the_gateway(e: Eng) {
     let answered = |k: u64, b: &[u8]| f64_at(b, 0) == k as f64 * 10.0 + 1.0;
     let first = host.wait_for(SECS(75), answered);
     assert!(first.is_some(), "no step was answered in lock-step\n{}\n{}", answer.dump(), gw.dump());
-    thread::sleep(Duration::from_millis(500));
+    // Lock-step is judged over the 100 steps (0.5 s) after the first answered one.
+    assert!(host.wait_for(SECS(60), |k, _| k >= first.unwrap() + 100).is_some(), "the framework stopped stepping");
     let seen = host.seen.lock().unwrap().clone();
     assert_lock_step(&seen, first.unwrap(), answered);
     crate::gateway_reliable::assert_no_step_lost(&gw, false);
@@ -463,16 +469,16 @@ fn the_simulated_time_goes_out_on_clock(e: Eng) {
     let host = Host::start(ns, "gw_sync", Duration::from_millis(10), |k| (k as f64).to_ne_bytes().to_vec());
     let gw = e.gateway(DDF, dom, ns, &[]);
     let mut clock = peer(&py, "clock", dom, "clock", &["--timeout", "90"]);
-    let end = Instant::now() + SECS(75);
-    while json_lines(&clock, "clock").len() < 30 && Instant::now() < end {
-        thread::sleep(Duration::from_millis(50));
-    }
-    assert!(json_lines(&clock, "clock").len() >= 30, "too few /clock samples\n{}\n{}", clock.dump(), gw.dump());
+    let too_few = lazy(|| format!("too few /clock samples\n{}\n{}", clock.dump(), gw.dump()));
+    wait_until(too_few, SECS(75), || json_lines(&clock, "clock").len() >= 30);
     let seen = host.seen.clone();
     drop(host);
     // The last step the framework made before it stopped: no /clock time may go past it,
     // however late the reader prints what it got.
     let last = seen.lock().unwrap().iter().map(|(k, _)| *k).max().unwrap();
+    // A window, not a wait: a time past the last step would be written by the gateway's
+    // poller, which looks at the domain at least every 200 ms, and printed by the reader
+    // within a millisecond of its arrival; 1.5 s is seven such looks.
     thread::sleep(Duration::from_millis(1500));
     let times: Vec<f64> = json_lines(&clock, "clock").iter().map(|v| v["clock"].as_f64().unwrap()).collect();
     let end = last as f64 * 0.01 + 1e-6;
@@ -499,11 +505,8 @@ fn clock_goes_back_once_with_a_reset(e: Eng) {
     let clock = peer(&py, "clock", dom, "clock", &["--timeout", "90"]);
     let times = || -> Vec<f64> { json_lines(&clock, "clock").iter().map(|v| v["clock"].as_f64().unwrap()).collect() };
     let wait_for = |what: &str, done: &dyn Fn(&[f64]) -> bool| {
-        let end = Instant::now() + SECS(60);
-        while !done(&times()) {
-            assert!(Instant::now() < end, "/clock: {what}: {:?}\n{}\n{}", times(), clock.dump(), host.dump());
-            thread::sleep(Duration::from_millis(20));
-        }
+        let failed = lazy(|| format!("/clock: {what}: {:?}\n{}\n{}", times(), clock.dump(), host.dump()));
+        wait_until(failed, SECS(60), || done(&times()));
     };
     let ctl = |args: &[&str]| {
         let mut cmd = tutti_test_support::tutti_command();

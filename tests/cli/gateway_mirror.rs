@@ -8,7 +8,7 @@ use crate::gateway;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 use std::thread;
-use std::time::{Duration, Instant};
+use std::time::Duration;
 
 use gateway::*;
 
@@ -70,13 +70,12 @@ fn mirror_async(home: &str, away: &str, gateways: impl FnOnce() -> (Proc, Proc))
     let away_ns = away.to_string();
     let component = thread::spawn(move || {
         let mut p = connect(&away_ns, "gw_async");
-        let end = Instant::now() + SECS(60);
         let mut x = 0.0;
-        while Instant::now() < end && x != 4.5 {
+        tutti_test_support::poll_for(SECS(60), || {
             p.subscribe_lock().unwrap();
             x = f64_at(p.snapshot(), 0);
-            thread::sleep(Duration::from_millis(10));
-        }
+            (x == 4.5).then_some(())
+        });
         while !s.load(Ordering::Acquire) {
             p.stage("y", &(x + 4.0).to_ne_bytes()).unwrap();
             p.commit().unwrap();
@@ -120,7 +119,10 @@ fn a_component_on_the_mirror_side_takes_part_in_lock_step(e: Eng) {
     // In lock-step, the SUBSCRIBE set read at the end of step k answers step k's PUBLISH set.
     let answered = |k: u64, b: &[u8]| f64_at(b, 0) == k as f64 * 10.0 + 1.0;
     let first = host.wait_for(SECS(75), answered);
-    thread::sleep(Duration::from_millis(700));
+    // Lock-step is judged over the 140 steps (0.7 s) after the first answered one.
+    if let Some(first) = first {
+        host.wait_for(SECS(60), |k, _| k >= first + 140);
+    }
     stop.store(true, Ordering::Release);
     let seen = host.seen.lock().unwrap().clone();
     drop(host);

@@ -12,7 +12,7 @@ use crate::gateway;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex};
 use std::thread;
-use std::time::{Duration, Instant};
+use std::time::Duration;
 
 use gateway::*;
 use tutti_core::shm::{Framework, FrameworkOptions};
@@ -109,11 +109,10 @@ fn every_step_arrives(dom: u16, fw: Framework, sink: Option<GatewaySink>, others
     let first = reader.wait_line("\"first\"", SECS(90));
     assert!(first.is_some(), "the reader got no step\n{}\n{}", reader.dump(), others());
     go.store(true, Ordering::Release);
-    let end = Instant::now() + SECS(240);
-    while json_lines(&reader, "summary").is_empty() && reader.exited().is_none() {
-        assert!(Instant::now() < end, "the reader never got the last step\n{}\n{}", reader.dump(), others());
-        thread::sleep(Duration::from_millis(50));
-    }
+    let ended = tutti_test_support::poll_for(SECS(240), || {
+        (!json_lines(&reader, "summary").is_empty() || reader.exited().is_some()).then_some(())
+    });
+    assert!(ended.is_some(), "the reader never got the last step\n{}\n{}", reader.dump(), others());
     assert_eq!(reader.wait(SECS(30)), Some(0), "{}\n{}", reader.dump(), others());
     let s = json_lines(&reader, "summary").remove(0);
     assert_eq!(s["ended"], true, "{s}");

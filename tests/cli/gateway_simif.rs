@@ -15,11 +15,11 @@ use crate::gateway;
 use crate::simif_client;
 
 use std::path::PathBuf;
-use std::time::{Duration, Instant};
+use std::time::Duration;
 
 use gateway::*;
 use serde_json::Value;
-use tutti_test_support::{namespace, RemoveSegments};
+use tutti_test_support::{lazy, namespace, wait_until, RemoveSegments};
 
 /// The wire form of a test's client.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -106,11 +106,7 @@ impl Caller {
         cmd.args(["host", ddf, "--step", "5ms", "-q"]).env("TUTTI_NAMESPACE", &self.ns);
         let host = Proc::spawn(&format!("host {}", self.ns), cmd, SECS(180));
         let socket = tutti_host::control::socket_path(&self.ns);
-        let end = Instant::now() + SECS(30);
-        while !socket.exists() {
-            assert!(Instant::now() < end, "no control socket\n{}", host.dump());
-            std::thread::sleep(Duration::from_millis(20));
-        }
+        wait_until(lazy(|| format!("no control socket\n{}", host.dump())), SECS(30), || socket.exists());
         let gw = self.way.eng.gateway(ddf, self.dom, &self.ns, &[]);
         Run { host, _gateway: Some(gw), _segments: segments }
     }

@@ -3,10 +3,10 @@
 //! removes every segment.
 
 use std::process::Command;
-use std::time::{Duration, Instant};
+use std::time::Duration;
 
 use tutti_core::shm::os;
-use tutti_test_support::{tutti_command, Proc, RemoveSegments, Spawn};
+use tutti_test_support::{lazy, tutti_command, wait_until, Proc, RemoveSegments, Spawn};
 
 /// `tutti host` in namespace `ns`, with what a failed test may have left of it removed when
 /// dropped (after the host).
@@ -43,11 +43,8 @@ fn host_creates_every_segment_of_the_large_ddf_and_removes_them_on_ctrl_c() {
     host.args(["host", "ddf/large-1000.ddf", "--step", "20ms", "--timeout", "100ms", "--quiet"])
         .env("TUTTI_NAMESPACE", &ns);
     let mut g = Guard::spawn(host, &ns);
-    let deadline = Instant::now() + Duration::from_secs(60);
-    while segments(&ns) < 1000 {
-        assert!(Instant::now() < deadline, "only {} of 1000 segments appeared", segments(&ns));
-        std::thread::sleep(Duration::from_millis(20));
-    }
+    let only = lazy(|| format!("only {} of 1000 segments appeared", segments(&ns)));
+    wait_until(only, Duration::from_secs(60), || segments(&ns) >= 1000);
     let out = tutti().args(["status", "--json"]).env("TUTTI_NAMESPACE", &ns).output().unwrap();
     assert!(out.status.success());
     let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
@@ -69,11 +66,7 @@ fn host_records_both_sets_and_status_shows_connections() {
         .arg(&csv)
         .env("TUTTI_NAMESPACE", &ns);
     let mut g = Guard::spawn(host, &ns);
-    let deadline = Instant::now() + Duration::from_secs(60);
-    while segments(&ns) < 2 {
-        assert!(Instant::now() < deadline, "segments never appeared");
-        std::thread::sleep(Duration::from_millis(20));
-    }
+    wait_until("segments never appeared", Duration::from_secs(60), || segments(&ns) >= 2);
     // A participant of the core library, connected while the host runs, shows in status.
     let opts = tutti_core::shm::ConnectOptions { namespace: ns.clone(), name: "probe".into(), ..Default::default() };
     let mut p = tutti_core::shm::Participant::connect("grid_feeder", opts).unwrap();
@@ -84,8 +77,11 @@ fn host_records_both_sets_and_status_shows_connections() {
     let text = String::from_utf8_lossy(&out.stdout);
     assert!(text.contains("grid_feeder [async,states]"), "{text}");
     assert!(text.contains("probe") && text.contains("writer"), "{text}");
-    // Let the host step past the commit, then stop it.
-    std::thread::sleep(Duration::from_millis(100));
+    // Stop the host once it has stepped past the commit: the step after the one under way
+    // now reads the committed value, and is recorded once the host has gone on to the next.
+    let step = || tutti_core::shm::Segment::open(&ns, "grid_feeder").map_or(0, |s| s.status().step);
+    let committed_at = step();
+    wait_until("the host never stepped past the commit", Duration::from_secs(30), || step() >= committed_at + 2);
     drop(p);
     let status = interrupt_and_wait(&mut g);
     assert!(status.success());
@@ -154,11 +150,7 @@ fn a_segment_shrunk_under_the_host_ends_it_with_a_clean_error() {
         .env("TUTTI_NAMESPACE", &ns);
     let mut g = Guard::spawn(host, &ns);
     let path = tutti_core::shm::segment::segment_path(&ns, "multiuav_uav1");
-    let deadline = Instant::now() + Duration::from_secs(30);
-    while !path.exists() {
-        assert!(Instant::now() < deadline, "{} did not appear", path.display());
-        std::thread::sleep(Duration::from_millis(10));
-    }
+    wait_until(format!("{} did not appear", path.display()), Duration::from_secs(30), || path.exists());
     tutti_test_support::shrink_segment(&ns, "multiuav_uav1", 0);
     let status = g.host.wait_status(Duration::from_secs(30)).expect("the host went on over a shrunk segment");
     assert_eq!(status.signal(), None, "the host was killed by a signal: {status}\n{}", g.host.dump());

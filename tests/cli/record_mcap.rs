@@ -9,7 +9,7 @@ use std::process::Command;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 use std::thread;
-use std::time::{Duration, Instant};
+use std::time::Duration;
 
 use tutti_core::shm::{ConnectOptions, Participant};
 
@@ -33,22 +33,22 @@ fn an_mcap_recording_reads_back_with_ros_tools_and_equals_the_csv_of_the_same_ru
         .args(["--set", "grid_feeder/voltage_abc=230.5", "--set", "grid_feeder/meter/samples=7"])
         .current_dir(env!("CARGO_MANIFEST_DIR"))
         .env("TUTTI_NAMESPACE", &ns);
-    // A component that writes a changing SUBSCRIBE value for part of the run, so that the
-    // recording has values that move and connection events.
+    // A component that writes a changing SUBSCRIBE value for part of the run (its first 140
+    // steps of 300), so that the recording has values that move and connection events.
     let stop = Arc::new(AtomicBool::new(false));
     let (s, ns2) = (stop.clone(), ns.clone());
     let component = thread::spawn(move || {
         let opts = ConnectOptions {
-            namespace: ns2,
+            namespace: ns2.clone(),
             name: "recorded-component".into(),
             connect_timeout: Duration::from_secs(20),
             skip_wait_to_go: true,
             ..Default::default()
         };
         let mut p = Participant::connect("grid_feeder", opts).map_err(|e| e.to_string())?;
-        let end = Instant::now() + Duration::from_millis(700);
+        let domain = tutti_core::shm::Segment::open(&ns2, "grid_feeder").map_err(|e| e.to_string())?;
         let (mut n, mut commits) = (0u32, 0u32);
-        while Instant::now() < end && !s.load(Ordering::Acquire) {
+        while domain.status().step < 140 && !s.load(Ordering::Acquire) {
             n += 1;
             p.stage("setpoint_kw", &(f64::from(n) * 0.25).to_ne_bytes()).map_err(|e| e.to_string())?;
             p.stage("mode", &[(n % 3) as u8]).map_err(|e| e.to_string())?;

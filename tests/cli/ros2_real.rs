@@ -385,10 +385,7 @@ fn the_uav_listener_prints_the_recorded_states(e: Eng, dom: u16) {
     let mut listener = Proc::spawn("ros2_uav_listener", listener, SECS(180));
     let enough =
         |p: &Proc| (1..=2).all(|n| p.lines().iter().filter(|l| l.contains(&format!("uav{n} step "))).count() >= 100);
-    let end = std::time::Instant::now() + SECS(90);
-    while !enough(&listener) && std::time::Instant::now() < end && listener.exited().is_none() {
-        std::thread::sleep(Duration::from_millis(100));
-    }
+    tutti_test_support::poll_for(SECS(90), || (enough(&listener) || listener.exited().is_some()).then_some(()));
     assert!(enough(&listener), "the listener got too few states\n{}", listener.dump());
     assert_eq!(listener.interrupt(SECS(20)), Some(0), "Ctrl-C of the listener\n{}", listener.dump());
     drop(uavs);

@@ -9,7 +9,7 @@ use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 use std::time::Duration;
 
-use common::{Proc, RemoveSegments};
+use common::{lazy, wait_until, Proc, RemoveSegments};
 
 const LIMIT: Duration = Duration::from_secs(120);
 const WAIT: Duration = Duration::from_secs(60);
@@ -58,18 +58,14 @@ fn step_of(ns: &str) -> u64 {
 
 /// Waits until the connection of `pid` in `lock` has read at least `reads` steps.
 fn wait_reads(ns: &str, pid: u32, reads: u64, run: &Proc) {
-    let end = std::time::Instant::now() + WAIT;
-    loop {
-        let seen = tutti_core::shm::Segment::open(ns, "lock")
+    let seen = || {
+        tutti_core::shm::Segment::open(ns, "lock")
             .ok()
             .and_then(|s| s.status().connections.into_iter().find(|c| c.pid == pid))
-            .map_or(0, |c| c.reads);
-        if seen >= reads {
-            return;
-        }
-        assert!(std::time::Instant::now() < end, "pid {pid} read {seen} steps, not {reads}\n{}", run.dump());
-        std::thread::sleep(Duration::from_millis(10));
-    }
+            .map_or(0, |c| c.reads)
+    };
+    let not_yet = lazy(|| format!("pid {pid} read {} steps, not {reads}\n{}", seen(), run.dump()));
+    wait_until(not_yet, WAIT, || seen() >= reads);
 }
 
 /// The CSV recording's rows: step -> (a, b).

@@ -8,6 +8,7 @@
 
 use tutti_test_support as common;
 
+use std::future::Future;
 use std::net::TcpListener;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
@@ -97,15 +98,17 @@ impl World {
         });
         let Value::Object(caps) = caps else { unreachable!() };
         let webdriver = format!("http://127.0.0.1:{port}");
-        let deadline = Instant::now() + WAIT;
-        let client = loop {
-            let connector = hyper_util::client::legacy::connect::HttpConnector::new();
-            match ClientBuilder::new(connector).capabilities(caps.clone()).connect(&webdriver).await {
-                Ok(c) => break c,
-                Err(e) if Instant::now() > deadline => panic!("no WebDriver session on {webdriver}: {e}"),
-                Err(_) => tokio::time::sleep(Duration::from_millis(200)).await,
-            }
-        };
+        let (caps, at) = (&caps, webdriver.as_str());
+        let client = retry(
+            Duration::from_millis(200),
+            |_| true,
+            || async move {
+                let connector = hyper_util::client::legacy::connect::HttpConnector::new();
+                ClientBuilder::new(connector).capabilities(caps.clone()).connect(at).await
+            },
+        )
+        .await
+        .unwrap_or_else(|e| panic!("no WebDriver session on {webdriver}: {e}"));
         client.goto(&url).await.expect("open the studio");
         Some(World {
             client: Some(client),
@@ -137,53 +140,52 @@ impl World {
     /// the server arrives (validation, layout), which can replace the element between finding
     /// and clicking it: a stale element is found again (within the wait), never clicked blind.
     async fn click(&self, css: &str) {
-        let deadline = Instant::now() + WAIT;
-        loop {
-            match self.find(css).await.click().await {
-                Ok(()) => return,
-                Err(e) if is_stale(&e) && Instant::now() < deadline => continue,
-                Err(e) => panic!("click {css}: {e}"),
-            }
-        }
+        retry(Duration::ZERO, is_stale, || async move { self.find(css).await.click().await })
+            .await
+            .unwrap_or_else(|e| panic!("click {css}: {e}"));
     }
 
     /// Clears the field `css` finds and types `text` into it (found again if re-rendered).
     async fn type_into(&self, css: &str, text: &str) {
-        let deadline = Instant::now() + WAIT;
-        loop {
+        retry(Duration::ZERO, is_stale, || async move {
             let e = self.find(css).await;
-            let r = match e.clear().await {
+            match e.clear().await {
                 Ok(()) => e.send_keys(text).await,
                 Err(err) => Err(err),
-            };
-            match r {
-                Ok(()) => return,
-                Err(err) if is_stale(&err) && Instant::now() < deadline => continue,
-                Err(err) => panic!("type into {css}: {err}"),
             }
-        }
+        })
+        .await
+        .unwrap_or_else(|err| panic!("type into {css}: {err}"));
     }
 
     /// Waits until `script` (a JS expression) is truthy; returns its value.
     async fn until(&self, what: &str, script: &str) -> Value {
-        let deadline = Instant::now() + WAIT;
-        loop {
-            let v = self.c().execute(&format!("return ({script});"), vec![]).await.unwrap_or(Value::Null);
-            let truthy = match &v {
-                Value::Null => false,
-                Value::Bool(b) => *b,
-                Value::String(s) => !s.is_empty(),
-                Value::Number(n) => n.as_f64() != Some(0.0),
-                _ => true,
-            };
-            if truthy {
-                return v;
-            }
-            if Instant::now() > deadline {
+        let truthy = retry(
+            Duration::from_millis(100),
+            |_| true,
+            || async move {
+                let v = self.c().execute(&format!("return ({script});"), vec![]).await.unwrap_or(Value::Null);
+                let truthy = match &v {
+                    Value::Null => false,
+                    Value::Bool(b) => *b,
+                    Value::String(s) => !s.is_empty(),
+                    Value::Number(n) => n.as_f64() != Some(0.0),
+                    _ => true,
+                };
+                if truthy {
+                    Ok(v)
+                } else {
+                    Err(())
+                }
+            },
+        )
+        .await;
+        match truthy {
+            Ok(v) => v,
+            Err(()) => {
                 let msg = self.text("#message").await;
                 panic!("waited {WAIT:?} for {what} ({script}); page message: {msg}");
             }
-            tokio::time::sleep(Duration::from_millis(100)).await;
         }
     }
 
@@ -387,14 +389,10 @@ async fn monitor_follows_a_host_started_from_the_page_and_a_c_component() {
         let key = "multiuav_uav1#SUBSCRIBE#Elevation";
         w.until("the item in the plot menu", &format!("document.querySelector(\"#plot-item option[value='{key}']\")")).await;
         // The menu is rebuilt as the monitor's events arrive: select in the current one.
-        let deadline = Instant::now() + WAIT;
-        loop {
-            match w.find("#plot-item").await.select_by_value(key).await {
-                Ok(()) => break,
-                Err(e) if is_stale(&e) && Instant::now() < deadline => continue,
-                Err(e) => panic!("select the item: {e}"),
-            }
-        }
+        let world = &w;
+        retry(Duration::ZERO, is_stale, || async move { world.find("#plot-item").await.select_by_value(key).await })
+            .await
+            .unwrap_or_else(|e| panic!("select the item: {e}"));
         w.click("#plot-add").await;
         w.until("the item plotted", &format!("document.querySelector(\"[data-series='{key}']\")")).await;
 
@@ -432,14 +430,39 @@ async fn monitor_follows_a_host_started_from_the_page_and_a_c_component() {
 
         w.click("#stop-host").await;
         w.message_contains("stopped tutti host").await;
-        let deadline = Instant::now() + WAIT;
-        while !common::segments_of(&w.namespace).is_empty() {
-            assert!(Instant::now() < deadline, "segments left: {:?}", common::segments_of(&w.namespace));
-            tokio::time::sleep(Duration::from_millis(100)).await;
-        }
+        let ns = w.namespace.as_str();
+        let segments = || async move {
+            let left = common::segments_of(ns);
+            if left.is_empty() {
+                Ok(())
+            } else {
+                Err(left)
+            }
+        };
+        retry(Duration::from_millis(100), |_| true, segments).await.unwrap_or_else(|left| panic!("segments left: {left:?}"));
         w.close().await;
     })
     .await;
+}
+
+/// Tries `attempt` until it succeeds: an error that `again` accepts is tried again after
+/// `pause` for as long as [`WAIT`] allows, any other (or the last) is returned.
+///
+/// Written out, not one of `tutti_test_support`'s waits: those block the thread they run
+/// on, which the browser's async session needs.
+async fn retry<T, E, F: Future<Output = Result<T, E>>>(
+    pause: Duration,
+    again: impl Fn(&E) -> bool,
+    mut attempt: impl FnMut() -> F,
+) -> Result<T, E> {
+    let deadline = Instant::now() + WAIT;
+    loop {
+        match attempt().await {
+            Ok(v) => return Ok(v),
+            Err(e) if again(&e) && Instant::now() < deadline => tokio::time::sleep(pause).await,
+            Err(e) => return Err(e),
+        }
+    }
 }
 
 /// Whether a WebDriver error says the element was replaced since it was found.

@@ -12,7 +12,7 @@ use tutti_test_support as common;
 
 use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
-use std::time::{Duration, Instant};
+use std::time::Duration;
 
 /// `program` (on PATH), or None (skipped; a failure under CI=true).
 fn have(program: &str, package: &str) -> Option<PathBuf> {
@@ -49,35 +49,21 @@ fn the_short_uav_demo_reproduces_figures_5_and_6() {
     let dds_domain = common::dds_domain_in(180..=198).to_string();
     let listened = tmp.path().join("listener.jsonl");
     let _listener = Listener::start(&dds_domain, &listened);
-    let mut child = Command::new(common::workspace_bin("tutti-uav-demo", "tutti-demo"))
-        .args(["uav", "--scenario", "short", "--duration", "40", "--speed", "8"])
+    let mut cmd = Command::new(common::workspace_bin("tutti-uav-demo", "tutti-demo"));
+    cmd.args(["uav", "--scenario", "short", "--duration", "40", "--speed", "8"])
         .arg("--out")
         .arg(&out)
         // A DDS domain of its own, on loopback (the demo restricts the gateway to it).
         .args(["--ros-domain-id", &dds_domain])
         .env("TUTTI_NAMESPACE", &ns)
         .env("TUTTI_PYTHON", &python)
-        .current_dir(tmp.path())
-        .stdin(Stdio::null())
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .expect("starting tutti-demo uav");
-    // Watchdog: the run takes ~10 s; kill it (its children die with it) if it hangs.
-    let deadline = Instant::now() + Duration::from_secs(150);
-    let status = loop {
-        if let Some(st) = child.try_wait().unwrap() {
-            break st;
-        }
-        if Instant::now() > deadline {
-            let _ = child.kill();
-            let _ = child.wait();
-            panic!("tutti-demo uav did not finish within 150 s");
-        }
-        std::thread::sleep(Duration::from_millis(50));
-    };
-    let output = child.wait_with_output().unwrap();
-    let stderr = String::from_utf8_lossy(&output.stderr).into_owned();
+        .current_dir(tmp.path());
+    // Watchdog: the run takes ~10 s; it is killed (its children die with it) if it hangs.
+    let mut demo = common::Proc::spawn("tutti-demo uav", cmd, Duration::from_secs(180));
+    let status = demo
+        .wait_status(Duration::from_secs(150))
+        .unwrap_or_else(|| panic!("tutti-demo uav did not finish within 150 s"));
+    let stderr = demo.stderr();
     assert!(status.success(), "tutti-demo uav failed ({status}):\n{stderr}");
     assert!(stderr.contains("0 failed"), "{stderr}");
     if let Some(l) = &_listener {

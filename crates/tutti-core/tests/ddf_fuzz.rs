@@ -10,6 +10,7 @@ use std::time::Duration;
 
 use proptest::prelude::*;
 use tutti_core::ddf::{self, DdfError, Model};
+use tutti_test_support::mutate::{apply_all, Mutation};
 
 const SAMPLES: [&[u8]; 3] = [
     include_bytes!("../../../ddf/paper-figure2.ddf"),
@@ -90,17 +91,6 @@ fn check(bytes: &[u8], result: &Result<Model, DdfError>) {
     }
 }
 
-/// One edit of a byte string.
-#[derive(Debug, Clone)]
-enum Mutation {
-    Flip { at: usize, mask: u8 },
-    Set { at: usize, byte: u8 },
-    Truncate { at: usize },
-    Delete { at: usize, len: usize },
-    Duplicate { at: usize, len: usize },
-    Splice { at: usize, token: usize },
-}
-
 fn mutation() -> impl Strategy<Value = Mutation> {
     let at = any::<usize>();
     prop_oneof![
@@ -109,33 +99,8 @@ fn mutation() -> impl Strategy<Value = Mutation> {
         at.prop_map(|at| Mutation::Truncate { at }),
         (at, 1..200usize).prop_map(|(at, len)| Mutation::Delete { at, len }),
         (at, 1..400usize).prop_map(|(at, len)| Mutation::Duplicate { at, len }),
-        (at, 0..TOKENS.len()).prop_map(|(at, token)| Mutation::Splice { at, token }),
+        (at, 0..TOKENS.len()).prop_map(|(at, token)| Mutation::Insert { at, bytes: TOKENS[token].into() }),
     ]
-}
-
-fn apply(bytes: &mut Vec<u8>, m: &Mutation) {
-    let n = bytes.len();
-    if n == 0 {
-        return;
-    }
-    match *m {
-        Mutation::Flip { at, mask } => bytes[at % n] ^= mask,
-        Mutation::Set { at, byte } => bytes[at % n] = byte,
-        Mutation::Truncate { at } => bytes.truncate(at % n),
-        Mutation::Delete { at, len } => {
-            let at = at % n;
-            bytes.drain(at..(at + len).min(n));
-        }
-        Mutation::Duplicate { at, len } => {
-            let at = at % n;
-            let slice = bytes[at..(at + len).min(n)].to_vec();
-            bytes.splice(at..at, slice);
-        }
-        Mutation::Splice { at, token } => {
-            let at = at % (n + 1);
-            bytes.splice(at..at, TOKENS[token].bytes());
-        }
-    }
 }
 
 proptest! {
@@ -157,9 +122,7 @@ proptest! {
         edits in proptest::collection::vec(mutation(), 1..8),
     ) {
         let mut bytes = SAMPLES[sample].to_vec();
-        for m in &edits {
-            apply(&mut bytes, m);
-        }
+        apply_all(&mut bytes, &edits);
         let _ = parse_with_watchdog(bytes);
     }
 
@@ -170,9 +133,7 @@ proptest! {
         edits in proptest::collection::vec(mutation(), 1..6),
     ) {
         let mut bytes = ddf::synth::large_ddf(domains, items).into_bytes();
-        for m in &edits {
-            apply(&mut bytes, m);
-        }
+        apply_all(&mut bytes, &edits);
         let _ = parse_with_watchdog(bytes);
     }
 

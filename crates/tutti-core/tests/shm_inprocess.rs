@@ -7,6 +7,7 @@ mod common;
 use tutti_core::ddf::Model;
 use tutti_core::shm::segment::segment_path;
 use tutti_core::shm::{ConnKind, ConnectOptions, Framework, FrameworkOptions, Participant, ShmError, WaitMode};
+use tutti_test_support::wait_until;
 
 fn model(sync: bool, mpa: bool, states: bool) -> Model {
     common::domain(
@@ -356,9 +357,9 @@ fn a_participant_held_in_wait_to_go_is_not_waited_for_until_released() {
     host.set_hold(true);
     let connecting =
         std::thread::spawn(|| Participant::connect("d", ConnectOptions { name: "held".into(), ..copts("held") }));
-    while host.status().connections.is_empty() {
-        std::thread::sleep(Duration::from_millis(1));
-    }
+    wait_until("the held participant never connected", Duration::from_secs(60), || {
+        !host.status().connections.is_empty()
+    });
     for k in 1..=3 {
         let r = host.step(&(k as f64).to_ne_bytes(), 0.0).unwrap();
         assert_eq!(r.timed_out, 0, "step {k} waited for a participant it holds");
@@ -392,11 +393,9 @@ fn a_segment_created_but_not_yet_sized_is_waited_for_not_refused() {
     let patient = ConnectOptions { connect_timeout: Duration::from_secs(60), ..copts(tag) };
     let waiting = std::thread::spawn(move || Participant::connect("d", patient));
     let fw = Framework::create(&model(true, false, false), &FrameworkOptions { hold: true, ..fopts(tag) }).unwrap();
-    let watchdog = std::time::Instant::now() + Duration::from_secs(60);
-    while fw.domains[0].connection_count() == 0 {
-        assert!(std::time::Instant::now() < watchdog, "the waiting participant never connected");
-        std::thread::sleep(Duration::from_millis(5));
-    }
+    wait_until("the waiting participant never connected", Duration::from_secs(60), || {
+        fw.domains[0].connection_count() != 0
+    });
     assert!(!waiting.is_finished(), "a participant passed a hold set from the start");
     fw.domains[0].set_hold(false);
     let p = waiting.join().unwrap().unwrap();

@@ -13,7 +13,7 @@ use std::time::{Duration, Instant};
 use tutti_core::ddf::Model;
 use tutti_core::shm::segment::segment_path;
 use tutti_core::shm::{ConnectOptions, Framework, FrameworkOptions, Participant, ShmError, WaitMode};
-use tutti_test_support::{Proc, Spawn};
+use tutti_test_support::{wait_for, wait_until, Proc, Spawn};
 
 const WORDS: usize = 128; // 1 KiB PUBLISH set: 127 copies of a value and a checksum
 
@@ -222,7 +222,9 @@ fn child_main() {
         }
         "seed" => {
             let mut p = Participant::connect("d", copts(&namespace)).unwrap();
-            // Seed a little later than the framework's first step starts to wait for it.
+            // Seed a little later than the framework's first step starts to wait for it: the
+            // test calls that step right after starting this process, so it waits long before
+            // this process has connected; the 300 ms only make sure of it.
             std::thread::sleep(Duration::from_millis(300));
             p.publish_lock().unwrap();
             p.stage("a", &42f64.to_ne_bytes()).unwrap();
@@ -262,6 +264,9 @@ fn a_million_snapshots_under_a_concurrent_writer_are_never_torn() {
     let mut fw = Framework::create(&model(false, true, false), &fopts("torn", Duration::from_secs(5))).unwrap();
     let mut child = Guard::spawn("snapshots:1000000", &ns("torn"));
     let host = &mut fw.domains[0];
+    // Written out, not `wait_for`: the framework steps as fast as it can between its looks
+    // at the reader's result, so that every snapshot may meet a write (a pause between looks
+    // would leave the reader nothing to tear).
     let deadline = Instant::now() + Duration::from_secs(120);
     let mut v = 0u64;
     let result = loop {
@@ -296,6 +301,7 @@ fn echo_under_a_racing_framework(mode: &str) {
     let mut fw = Framework::create(&echo_model(), &fopts(&tag, Duration::from_secs(5))).unwrap();
     let _child = Guard::spawn(&format!("echo_all:{mode}"), &ns(&tag));
     let host = &mut fw.domains[0];
+    // Not a wait but a watchdog over a fixed amount of work, done back to back (see below).
     let deadline = Instant::now() + Duration::from_secs(120);
     let (mut whole, mut changes, mut last, mut v) = (0u64, 0u64, 0u64, 0u64);
     let mut tail = [0u8; 16];
@@ -337,11 +343,7 @@ fn every_sync_reader_reads_each_of_100000_steps_exactly_once() {
     let mut readers: Vec<Guard> = (0..2).map(|_| Guard::spawn(&format!("sync_reader:{STEPS}"), &ns("steps"))).collect();
     // Start stepping once both readers are connected, so that they see step 1.
     let host = &mut fw.domains[0];
-    let deadline = Instant::now() + Duration::from_secs(30);
-    while host.connection_count() < 2 {
-        assert!(Instant::now() < deadline, "readers did not connect");
-        std::thread::sleep(Duration::from_millis(2));
-    }
+    wait_until("readers did not connect", Duration::from_secs(30), || host.connection_count() >= 2);
     for k in 1..=STEPS {
         let r = host.step(&payload(k), k as f64).unwrap();
         assert_eq!(r.timed_out, 0, "step {k} timed out");
@@ -357,12 +359,14 @@ fn second_writer_on_exclusive_domain_gets_the_error_and_death_releases_ownership
     let mut fw = Framework::create(&model(true, false, false), &fopts("excl", Duration::from_secs(5))).unwrap();
     let mut child = Guard::spawn("writer_loop", &ns("excl"));
     let host = &mut fw.domains[0];
-    let deadline = Instant::now() + Duration::from_secs(30);
     // Step until the child has committed (it owns the SUBSCRIBE set from its first commit).
-    while f64::from_ne_bytes(host.subscribe()[0..8].try_into().unwrap()) < 1.0 {
-        assert!(Instant::now() < deadline, "child never committed");
+    wait_until("child never committed", Duration::from_secs(30), || {
+        if f64::from_ne_bytes(host.subscribe()[0..8].try_into().unwrap()) >= 1.0 {
+            return true;
+        }
         host.step(&payload(host.current_step() + 1), 0.0).unwrap();
-    }
+        false
+    });
     let mut me =
         Participant::connect("d", ConnectOptions { timeout: Duration::from_secs(5), ..copts(&ns("excl")) }).unwrap();
     match me.publish_lock() {
@@ -377,10 +381,13 @@ fn second_writer_on_exclusive_domain_gets_the_error_and_death_releases_ownership
         me.stage("b", &7i64.to_ne_bytes())?;
         me.commit().map(|()| me)
     });
-    while !t.is_finished() {
-        assert!(Instant::now() < deadline, "the new writer never got the set");
+    wait_until("the new writer never got the set", Duration::from_secs(30), || {
+        if t.is_finished() {
+            return true;
+        }
         host.step(&payload(host.current_step() + 1), 0.0).unwrap();
-    }
+        false
+    });
     let me = t.join().unwrap().unwrap();
     assert_eq!(host.connection_count(), 1);
     drop(me);
@@ -406,6 +413,9 @@ fn killing_a_participant_at_random_points_never_stalls_the_framework() {
     let mut rng = 0x9e37_79b9_7f4a_7c15u64 ^ u64::from(std::process::id());
     for run in 0..100 {
         let mut child = Guard::spawn("writer_loop", &ns("kill"));
+        // Written out: one deadline for the whole run's three phases, in which the framework
+        // steps between its looks as fast as the child answers (the kill must fall anywhere
+        // in a step, which pauses between the looks would make rare).
         let deadline = Instant::now() + Duration::from_secs(30);
         while host.connection_count() == 0 {
             assert!(Instant::now() < deadline, "run {run}: child did not connect");
@@ -478,16 +488,9 @@ fn a_framework_killed_outright_is_reported_to_its_participants() {
     let mut p = Participant::connect("d", opts).unwrap();
     p.subscribe_lock().unwrap();
     child.kill9();
-    let deadline = Instant::now() + Duration::from_secs(30);
-    let err = loop {
-        match p.subscribe_lock().and_then(|_| p.publish_lock()).and_then(|_| p.commit()) {
-            Err(e) => break e,
-            Ok(()) => {
-                assert!(Instant::now() < deadline, "the dead framework was never noticed");
-                std::thread::sleep(Duration::from_millis(5));
-            }
-        }
-    };
+    let err = wait_for("the dead framework was never noticed", Duration::from_secs(30), || {
+        p.subscribe_lock().and_then(|_| p.publish_lock()).and_then(|_| p.commit()).err()
+    });
     assert!(matches!(err, ShmError::FrameworkStopped { .. }), "{err}");
     drop(p);
     // The dead framework's segment is reclaimed by the next one.
@@ -510,6 +513,8 @@ fn killing_the_framework_at_random_points(sync: bool) {
     assert_eq!(child.result(Duration::from_secs(30)), "created");
     let mut p = Participant::connect("d", opts()).unwrap();
     for round in 0..25 {
+        // Written out: the participant exchanges with the framework as fast as it can until
+        // the kill (see above), with no pause between its tries.
         let deadline = Instant::now() + Duration::from_secs(30);
         let delay = Duration::from_micros(xorshift(&mut rng) % 30_000);
         let pid = child.id();

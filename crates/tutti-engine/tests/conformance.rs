@@ -16,7 +16,7 @@
 
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex, PoisonError};
-use std::time::{Duration, Instant};
+use std::time::Duration;
 
 use tutti_core::ddf::{parse_str, Leaf, SetLayout};
 use tutti_core::mapping::{Durability, History, Ownership, Qos, Reliability};
@@ -555,13 +555,9 @@ fn run(engine: EngineKind, n: u16, scenario: fn(&Case)) {
     let done = Arc::new(AtomicBool::new(false));
     let flag = done.clone();
     std::thread::spawn(move || {
-        let start = Instant::now();
-        while !flag.load(Ordering::Acquire) {
-            if start.elapsed() > WATCHDOG {
-                eprintln!("watchdog: the {engine} scenario {n} hangs; stopping the conformance suite");
-                std::process::abort();
-            }
-            std::thread::sleep(Duration::from_millis(100));
+        if tutti_test_support::poll_for(WATCHDOG, || flag.load(Ordering::Acquire).then_some(())).is_none() {
+            eprintln!("watchdog: the {engine} scenario {n} hangs; stopping the conformance suite");
+            std::process::abort();
         }
     });
     let _done = Done(done);
@@ -574,20 +570,13 @@ fn lock<T>(m: &Mutex<T>) -> std::sync::MutexGuard<'_, T> {
     m.lock().unwrap_or_else(PoisonError::into_inner)
 }
 
-/// Calls `f` every 20 ms until it is true; fails naming `what` after [`PATIENCE`].
+/// Calls `f` until it is true; fails naming `what` after [`PATIENCE`].
 fn until(what: &str, mut f: impl FnMut() -> bool) {
     until_some(what, || f().then_some(()))
 }
 
-fn until_some<T>(what: &str, mut f: impl FnMut() -> Option<T>) -> T {
-    let start = Instant::now();
-    loop {
-        if let Some(v) = f() {
-            return v;
-        }
-        assert!(start.elapsed() < PATIENCE, "gave up waiting for {what}");
-        std::thread::sleep(Duration::from_millis(20));
-    }
+fn until_some<T>(what: &str, f: impl FnMut() -> Option<T>) -> T {
+    tutti_test_support::wait_for(format_args!("gave up waiting for {what}"), PATIENCE, f)
 }
 
 fn qos(reliability: Reliability, history: History, transient_local: bool, ownership: Ownership) -> Qos {

@@ -388,13 +388,9 @@ mod tests {
             .unwrap();
         child.stdin.take().unwrap().write_all(prometheus(&report()).as_bytes()).unwrap();
         // Watchdog: a parser that hangs is killed, and the test fails.
-        let deadline = std::time::Instant::now() + std::time::Duration::from_secs(60);
-        while child.try_wait().unwrap().is_none() {
-            if std::time::Instant::now() > deadline {
-                let _ = child.kill();
-                panic!("the Python parser did not finish");
-            }
-            std::thread::sleep(std::time::Duration::from_millis(20));
+        if tutti_test_support::poll_for(std::time::Duration::from_secs(60), || child.try_wait().unwrap()).is_none() {
+            let _ = child.kill();
+            panic!("the Python parser did not finish");
         }
         let out = child.wait_with_output().unwrap();
         assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));

@@ -16,6 +16,7 @@ use std::time::Duration;
 
 use proptest::prelude::*;
 use tutti_gateway::config::{self, GatewayOptions};
+use tutti_test_support::mutate::{apply_all, Mutation};
 
 /// Longest any single case may take, including a debug build on a loaded machine.
 const CASE_TIMEOUT: Duration = Duration::from_secs(20);
@@ -129,15 +130,6 @@ fn random_config() -> impl Strategy<Value = String> {
     )
 }
 
-#[derive(Debug, Clone)]
-enum Mutation {
-    Flip { at: usize, mask: u8 },
-    Truncate { at: usize },
-    Delete { at: usize, len: usize },
-    Duplicate { at: usize, len: usize },
-    Splice { at: usize, text: &'static str },
-}
-
 const SPLICES: [&str; 10] = ["{", "}", "[", "]", "\"", "'", "/*", "//", ":", "\\"];
 
 fn mutation() -> impl Strategy<Value = Mutation> {
@@ -147,33 +139,8 @@ fn mutation() -> impl Strategy<Value = Mutation> {
         at.prop_map(|at| Mutation::Truncate { at }),
         (at, 1..200usize).prop_map(|(at, len)| Mutation::Delete { at, len }),
         (at, 1..400usize).prop_map(|(at, len)| Mutation::Duplicate { at, len }),
-        (at, 0..SPLICES.len()).prop_map(|(at, i)| Mutation::Splice { at, text: SPLICES[i] }),
+        (at, 0..SPLICES.len()).prop_map(|(at, i)| Mutation::Insert { at, bytes: SPLICES[i].into() }),
     ]
-}
-
-/// Applied to bytes; the result is read back as UTF-8, lossily (the reader takes text).
-fn apply(bytes: &mut Vec<u8>, m: &Mutation) {
-    let n = bytes.len();
-    if n == 0 {
-        return;
-    }
-    match *m {
-        Mutation::Flip { at, mask } => bytes[at % n] ^= mask,
-        Mutation::Truncate { at } => bytes.truncate(at % n),
-        Mutation::Delete { at, len } => {
-            let at = at % n;
-            bytes.drain(at..(at + len).min(n));
-        }
-        Mutation::Duplicate { at, len } => {
-            let at = at % n;
-            let slice = bytes[at..(at + len).min(n)].to_vec();
-            bytes.splice(at..at, slice);
-        }
-        Mutation::Splice { at, text } => {
-            let at = at % (n + 1);
-            bytes.splice(at..at, text.bytes());
-        }
-    }
 }
 
 proptest! {
@@ -187,9 +154,7 @@ proptest! {
     #[test]
     fn the_mutated_example_reads_or_fails_naming_the_file(edits in proptest::collection::vec(mutation(), 1..6)) {
         let mut bytes = example().into_bytes();
-        for m in &edits {
-            apply(&mut bytes, m);
-        }
+        apply_all(&mut bytes, &edits);
         let text = String::from_utf8_lossy(&bytes).into_owned();
         // A flip could turn another key into `peer` with a host name: not here (DNS).
         prop_assume!(!text.contains("peer"));

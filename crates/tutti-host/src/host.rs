@@ -768,22 +768,12 @@ fn apply_sets(sets: &[String], domains: &[Domain], buffers: &mut [Vec<u8>]) -> R
 #[cfg(test)]
 mod tests {
     use super::*;
+    use tutti_test_support::wait_until;
 
-    const DDF: &str = r#"<?xml version="1.0" encoding="UTF-8"?>
-<orchestra>
-  <domain name="probe">
-    <synchronous>no</synchronous>
-    <multiplePublishAllowed>yes</multiplePublishAllowed>
-    <states>no</states>
-    <set name="PUBLISH">
-      <item name="tick"><type>int32</type><length>1</length></item>
-    </set>
-    <set name="SUBSCRIBE">
-      <item name="value"><type>float64</type><length>1</length></item>
-    </set>
-  </domain>
-</orchestra>
-"#;
+    /// The probe's DDF: one asynchronous domain, an int32 out and a float64 in.
+    fn probe_ddf() -> String {
+        tutti_test_support::ddf::one_domain("probe").publish("tick", "int32").subscribe("value", "float64").text()
+    }
 
     /// Counts the steps it is given, published and done, and keeps the last PUBLISH set.
     struct Count(std::rc::Rc<std::cell::RefCell<(u64, Vec<u8>, u64)>>);
@@ -824,7 +814,7 @@ mod tests {
 
     #[test]
     fn a_host_is_a_value_driven_in_process_and_its_sinks_see_every_step() {
-        let model = tutti_core::ddf::parse_str(DDF, "probe.ddf").unwrap();
+        let model = tutti_core::ddf::parse_str(&probe_ddf(), "probe.ddf").unwrap();
         let ns = format!("hostlib{}", std::process::id());
         let mut host = Host::new(&model, options(&ns)).unwrap();
         assert_eq!(host.namespace(), ns);
@@ -843,7 +833,7 @@ mod tests {
 
     #[test]
     fn held_until_start_participants_wait_to_go_until_the_host_starts() {
-        let model = tutti_core::ddf::parse_str(DDF, "probe.ddf").unwrap();
+        let model = tutti_core::ddf::parse_str(&probe_ddf(), "probe.ddf").unwrap();
         let ns = format!("hostlibh{}", std::process::id());
         let mut host = Host::new(&model, HostOptions { hold_until_start: true, ..options(&ns) }).unwrap();
         let seg = tutti_core::shm::Segment::open(&ns, "probe").unwrap();
@@ -854,7 +844,7 @@ mod tests {
 
     #[test]
     fn settings_are_checked_without_creating_anything() {
-        let model = tutti_core::ddf::parse_str(DDF, "probe.ddf").unwrap();
+        let model = tutti_core::ddf::parse_str(&probe_ddf(), "probe.ddf").unwrap();
         assert!(Host::check_sets(&model, &["probe/tick=3".into()]).is_ok());
         let e = Host::check_sets(&model, &["probe/tick=x".into()]).unwrap_err();
         assert!(e.is_invalid() && e.to_string().contains("'x' is not a int32"), "{e}");
@@ -862,7 +852,7 @@ mod tests {
 
     #[test]
     fn a_run_with_a_step_limit_makes_exactly_that_many_steps() {
-        let model = tutti_core::ddf::parse_str(DDF, "probe.ddf").unwrap();
+        let model = tutti_core::ddf::parse_str(&probe_ddf(), "probe.ddf").unwrap();
         let ns = format!("hostlibn{}", std::process::id());
         let opts = HostOptions { duration: None, steps: Some(25), ..options(&ns) };
         let host = Host::new(&model, opts).unwrap();
@@ -877,7 +867,7 @@ mod tests {
 
     #[test]
     fn a_caller_paced_step_publishes_its_own_set_and_time_and_is_counted() {
-        let model = tutti_core::ddf::parse_str(DDF, "probe.ddf").unwrap();
+        let model = tutti_core::ddf::parse_str(&probe_ddf(), "probe.ddf").unwrap();
         let ns = format!("hostlibd{}", std::process::id());
         let mut host = Host::new(&model, HostOptions { sets: Vec::new(), ..options(&ns) }).unwrap();
         assert!(host.start(&AtomicBool::new(false), &mut |_| {}).unwrap());
@@ -898,7 +888,7 @@ mod tests {
     #[test]
     fn a_run_is_paused_stepped_reset_and_stopped_through_its_control_plane() {
         use crate::control::{ControlClient, ControlError, RunState};
-        let model = tutti_core::ddf::parse_str(DDF, "probe.ddf").unwrap();
+        let model = tutti_core::ddf::parse_str(&probe_ddf(), "probe.ddf").unwrap();
         let ns = format!("hostlibc{}", std::process::id());
         let stop = Arc::new(AtomicBool::new(false));
         let runner = std::thread::spawn({
@@ -909,16 +899,13 @@ mod tests {
                 host.run(&stop, |_| {})
             }
         });
-        let end = Instant::now() + Duration::from_secs(30);
-        while !crate::control::socket_path(&ns).exists() {
-            assert!(Instant::now() < end && !runner.is_finished(), "the run never served its control plane");
-            std::thread::sleep(Duration::from_millis(1));
-        }
+        let serving = || {
+            assert!(!runner.is_finished(), "the run never served its control plane");
+            crate::control::socket_path(&ns).exists()
+        };
+        wait_until("the run never served its control plane", Duration::from_secs(30), serving);
         let mut c = ControlClient::connect(&ns, Duration::from_secs(30)).unwrap();
-        while c.state().unwrap().state != RunState::Playing {
-            assert!(Instant::now() < end, "the run never started");
-            std::thread::sleep(Duration::from_millis(1));
-        }
+        wait_until("the run never started", Duration::from_secs(30), || c.state().unwrap().state == RunState::Playing);
         // Every domain of the probe is asynchronous: stepping is refused with the reason.
         let refused = |r: Result<_, ControlError>| matches!(r, Err(ControlError::Refused(_)));
         assert!(refused(c.step(1)), "step while playing");
@@ -943,7 +930,7 @@ mod tests {
 
     #[test]
     fn options_that_cannot_apply_are_refused_before_anything_is_created() {
-        let model = tutti_core::ddf::parse_str(DDF, "probe.ddf").unwrap();
+        let model = tutti_core::ddf::parse_str(&probe_ddf(), "probe.ddf").unwrap();
         let ns = format!("hostlibx{}", std::process::id());
         let bad = |opts: HostOptions| Host::new(&model, opts).unwrap_err();
         assert!(bad(HostOptions { step: Duration::ZERO, ..options(&ns) }).is_invalid());

@@ -767,26 +767,19 @@ impl<'de, A: MapAccess<'de>> MapAccess<'de> for Intercept<'_, A> {
 mod tests {
     use super::*;
 
-    const DDF: &str = r#"<?xml version="1.0" encoding="UTF-8"?>
-<orchestra>
-  <domain name="plant">
-    <synchronous>yes</synchronous>
-    <multiplePublishAllowed>yes</multiplePublishAllowed>
-    <states>no</states>
-    <set name="PUBLISH">
-      <item name="x"><type>float64</type><length>1</length></item>
-    </set>
-    <set name="SUBSCRIBE">
-      <item name="y"><type>float64</type><length>1</length></item>
-    </set>
-  </domain>
-</orchestra>
-"#;
+    /// `cosim.ddf`: one synchronous domain, `plant`, a float64 out and a float64 in.
+    fn cosim_ddf() -> String {
+        tutti_test_support::ddf::one_domain("plant")
+            .synchronous()
+            .publish("x", "float64")
+            .subscribe("y", "float64")
+            .text()
+    }
 
     /// A launch file `text` in a directory with the DDF `cosim.ddf`.
     fn check(text: &str) -> (tempfile::TempDir, Result<Launch, LaunchError>) {
         let dir = tempfile::tempdir().unwrap();
-        std::fs::write(dir.path().join("cosim.ddf"), DDF).unwrap();
+        std::fs::write(dir.path().join("cosim.ddf"), cosim_ddf()).unwrap();
         let path = dir.path().join("run.json5");
         std::fs::write(&path, text).unwrap();
         let r = load(&path);
@@ -899,7 +892,7 @@ mod tests {
     #[test]
     fn a_gateway_config_file_is_read_relative_to_the_launch_file() {
         let dir = tempfile::tempdir().unwrap();
-        std::fs::write(dir.path().join("cosim.ddf"), DDF).unwrap();
+        std::fs::write(dir.path().join("cosim.ddf"), cosim_ddf()).unwrap();
         std::fs::write(dir.path().join("gw.json5"), "{ ros_domain_id: 9,\n  tiemout: \"1s\" }").unwrap();
         let path = dir.path().join("run.json5");
         std::fs::write(&path, "{ ddf: \"cosim.ddf\", gateway: { config: \"gw.json5\" } }").unwrap();

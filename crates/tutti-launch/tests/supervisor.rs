@@ -5,7 +5,7 @@
 use std::path::PathBuf;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{mpsc, Arc};
-use std::time::{Duration, Instant};
+use std::time::Duration;
 
 use tutti_launch::{ComponentState, RunOptions, SupervisorError};
 use tutti_test_support as common;
@@ -20,12 +20,8 @@ fn reads(ns: &str, pid: u32) -> u64 {
         .map_or(0, |c| c.reads)
 }
 
-fn wait_until(what: &str, mut ok: impl FnMut() -> bool) {
-    let end = Instant::now() + WAIT;
-    while !ok() {
-        assert!(Instant::now() < end, "waited {WAIT:?} for {what}");
-        std::thread::sleep(Duration::from_millis(10));
-    }
+fn wait_until(what: &str, ok: impl FnMut() -> bool) {
+    common::wait_until(format_args!("waiting for {what}"), WAIT, ok);
 }
 
 #[test]

@@ -15,6 +15,7 @@ use std::time::Duration;
 use proptest::prelude::*;
 use tutti_record::replay::Recording;
 use tutti_record::RecordError;
+use tutti_test_support::mutate::{apply_all, Mutation};
 
 /// Longest any single case may take, including a debug build on a loaded machine.
 const CASE_TIMEOUT: Duration = Duration::from_secs(20);
@@ -86,39 +87,6 @@ fn read_with_watchdog(bytes: Vec<u8>) {
     }
 }
 
-/// One edit of the recording.
-#[derive(Debug, Clone)]
-enum Mutation {
-    Flip {
-        at: usize,
-        mask: u8,
-    },
-    Set {
-        at: usize,
-        byte: u8,
-    },
-    Truncate {
-        at: usize,
-    },
-    /// A little-endian u64 written at `at` (a record, chunk, string or data length).
-    U64 {
-        at: usize,
-        value: u64,
-    },
-    U32 {
-        at: usize,
-        value: u32,
-    },
-    Delete {
-        at: usize,
-        len: usize,
-    },
-    Duplicate {
-        at: usize,
-        len: usize,
-    },
-}
-
 fn huge_u64() -> impl Strategy<Value = u64> {
     prop_oneof![
         Just(u64::MAX),
@@ -139,40 +107,13 @@ fn mutation() -> impl Strategy<Value = Mutation> {
         (at, 1..=255u8).prop_map(|(at, mask)| Mutation::Flip { at, mask }),
         (at, any::<u8>()).prop_map(|(at, byte)| Mutation::Set { at, byte }),
         at.prop_map(|at| Mutation::Truncate { at }),
-        (at, huge_u64()).prop_map(|(at, value)| Mutation::U64 { at, value }),
+        // A little-endian u64 or u32 written at `at` (a record, chunk, string or data length).
+        (at, huge_u64()).prop_map(|(at, value)| Mutation::Overwrite { at, bytes: value.to_le_bytes().into() }),
         (at, prop_oneof![Just(u32::MAX), Just(1 << 31), any::<u32>()])
-            .prop_map(|(at, value)| Mutation::U32 { at, value }),
+            .prop_map(|(at, value)| Mutation::Overwrite { at, bytes: value.to_le_bytes().into() }),
         (at, 1..64usize).prop_map(|(at, len)| Mutation::Delete { at, len }),
         (at, 1..128usize).prop_map(|(at, len)| Mutation::Duplicate { at, len }),
     ]
-}
-
-fn apply(bytes: &mut Vec<u8>, m: &Mutation) {
-    let n = bytes.len();
-    if n == 0 {
-        return;
-    }
-    let put = |bytes: &mut Vec<u8>, at: usize, v: &[u8]| {
-        let at = at % n;
-        let end = (at + v.len()).min(n);
-        bytes[at..end].copy_from_slice(&v[..end - at]);
-    };
-    match *m {
-        Mutation::Flip { at, mask } => bytes[at % n] ^= mask,
-        Mutation::Set { at, byte } => bytes[at % n] = byte,
-        Mutation::Truncate { at } => bytes.truncate(at % n),
-        Mutation::U64 { at, value } => put(bytes, at, &value.to_le_bytes()),
-        Mutation::U32 { at, value } => put(bytes, at, &value.to_le_bytes()),
-        Mutation::Delete { at, len } => {
-            let at = at % n;
-            bytes.drain(at..(at + len).min(n));
-        }
-        Mutation::Duplicate { at, len } => {
-            let at = at % n;
-            let slice = bytes[at..(at + len).min(n)].to_vec();
-            bytes.splice(at..at, slice);
-        }
-    }
 }
 
 proptest! {
@@ -181,9 +122,7 @@ proptest! {
     #[test]
     fn a_mutated_recording_reads_or_fails_cleanly(edits in proptest::collection::vec(mutation(), 1..6)) {
         let mut bytes = sample().to_vec();
-        for m in &edits {
-            apply(&mut bytes, m);
-        }
+        apply_all(&mut bytes, &edits);
         read_with_watchdog(bytes);
     }
 
@@ -191,7 +130,7 @@ proptest! {
     #[test]
     fn a_huge_value_at_any_offset_is_refused_cleanly(at in any::<usize>(), value in huge_u64()) {
         let mut bytes = sample().to_vec();
-        apply(&mut bytes, &Mutation::U64 { at, value });
+        Mutation::Overwrite { at, bytes: value.to_le_bytes().into() }.apply(&mut bytes);
         read_with_watchdog(bytes);
     }
 

@@ -10,22 +10,14 @@ use tutti_host::{Host, HostOptions, Summary};
 use tutti_record::replay::Recording;
 use tutti_record::{create, RecordingSink};
 
-const DDF: &str = r#"<?xml version="1.0" encoding="UTF-8"?>
-<orchestra>
-  <domain name="rec">
-    <synchronous>no</synchronous>
-    <multiplePublishAllowed>yes</multiplePublishAllowed>
-    <states>no</states>
-    <set name="PUBLISH">
-      <item name="x"><type>float64</type><length>1</length></item>
-      <item name="n"><type>int32</type><length>1</length></item>
-    </set>
-    <set name="SUBSCRIBE">
-      <item name="y"><type>float64</type><length>1</length></item>
-    </set>
-  </domain>
-</orchestra>
-"#;
+/// The recorded DDF: one asynchronous domain, `rec`, two items out and one in.
+fn rec_ddf() -> String {
+    tutti_test_support::ddf::one_domain("rec")
+        .publish("x", "float64")
+        .publish("n", "int32")
+        .subscribe("y", "float64")
+        .text()
+}
 
 /// The recording formats, as the file's extension chooses them.
 #[derive(Debug, Clone, Copy)]
@@ -46,7 +38,7 @@ impl Format {
 /// Runs a framework of `rec` for a short while with `x = 2.5`, `n = 7` published, recording
 /// into `dir` in `format`; returns the run's summary.
 fn record(format: Format, dir: &Path) -> Summary {
-    let model = tutti_core::ddf::parse_str(DDF, "rec.ddf").unwrap();
+    let model = tutti_core::ddf::parse_str(&rec_ddf(), "rec.ddf").unwrap();
     let ns = format!("reclib{}{format:?}", std::process::id()).to_lowercase();
     let opts = HostOptions {
         step: Duration::from_millis(2),
@@ -60,7 +52,7 @@ fn record(format: Format, dir: &Path) -> Summary {
     let mut host = Host::new(&model, opts).unwrap();
     // The MCAP recording carries its DDF inside, read from the file.
     let ddf = dir.join("rec.ddf");
-    std::fs::write(&ddf, DDF).unwrap();
+    std::fs::write(&ddf, rec_ddf()).unwrap();
     let recorder = create(&dir.join(format.file()), &model, &ddf).unwrap();
     host.add_sink(Box::new(RecordingSink(recorder)));
     let summary = host.run(&AtomicBool::new(false), |_| {}).unwrap();

@@ -182,11 +182,12 @@ fn c_example_runs_against_a_live_tutti_host() {
     let mut host = spawn(host);
     // The C program gives the framework 5 s to appear; a loaded machine can take longer to
     // start the host, so the program starts once the domain is there (60 s watchdog).
-    let deadline = std::time::Instant::now() + Duration::from_secs(60);
-    while !shm_path(&ns, "multiuav_uav2").exists() {
-        assert!(std::time::Instant::now() < deadline, "tutti host did not create its domains within 60 s");
-        std::thread::sleep(Duration::from_millis(20));
-    }
+    let domains = || shm_path(&ns, "multiuav_uav2").exists();
+    tutti_test_support::wait_until(
+        "tutti host did not create its domains within 60 s",
+        Duration::from_secs(60),
+        domains,
+    );
     let ddf = root().join("ddf/multiuav.ddf");
     let mut cmd = Command::new(&program);
     cmd.env("TUTTI_NAMESPACE", &ns).arg(&ddf).args(["multiuav_uav2", "Z", "Elevation", "50", "2"]);

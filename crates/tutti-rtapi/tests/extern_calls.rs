@@ -18,6 +18,7 @@ use rtapi::*;
 use tutti_core::ddf::{self, Model};
 use tutti_core::shm::segment::VERSION;
 use tutti_core::shm::{Framework, FrameworkOptions};
+use tutti_test_support::ShmFile;
 
 static SERIAL: Mutex<()> = Mutex::new(());
 static NAMESPACE: Once = Once::new();

@@ -8,6 +8,7 @@ mod bad_requests;
 
 use serde_json::{json, Value};
 use tutti_studio::{Config, Running};
+use tutti_test_support::{lazy, wait_for, ShmFile};
 
 struct Studio {
     running: Running,
@@ -253,15 +254,6 @@ fn a_token_is_required_when_set() {
     assert_eq!(status, 401);
 }
 
-/// A file in /dev/shm, removed when dropped.
-struct ShmFile(std::path::PathBuf);
-
-impl Drop for ShmFile {
-    fn drop(&mut self) {
-        let _ = std::fs::remove_file(&self.0);
-    }
-}
-
 /// The first event of the monitor's stream.
 fn first_event(s: &Studio, query: &str) -> Value {
     use std::io::BufRead;
@@ -281,8 +273,8 @@ fn first_event(s: &Studio, query: &str) -> Value {
 fn the_monitor_reports_a_corrupted_segment_and_keeps_running() {
     let s = studio(None, false);
     let ns = format!("studiobad{}", std::process::id());
-    let junk = ShmFile(format!("/dev/shm/tutti.{ns}.broken").into());
-    std::fs::write(&junk.0, vec![0xa5u8; 4096]).unwrap();
+    let junk = ShmFile::segment(&ns, "broken");
+    std::fs::write(junk.path(), vec![0xa5u8; 4096]).unwrap();
     for _ in 0..2 {
         let ev = first_event(&s, &format!("namespace={ns}&items=broken%23PUBLISH%23x,gone%23SUBSCRIBE%23y"));
         assert_eq!(ev["namespace"], ns.as_str());
@@ -312,13 +304,10 @@ fn run_control_refuses_what_it_must_and_keeps_the_log() {
     assert_eq!(status, 200, "{body}");
     // The framework runs on a thread of the studio: the log holds its first line (with the
     // step it was given) once that thread has written it (poll, with a watchdog).
-    let deadline = std::time::Instant::now() + std::time::Duration::from_secs(30);
-    let mut ev = first_event(&s, "");
-    while !ev["runs"]["host"]["log"].to_string().contains("step 10ms") {
-        assert!(std::time::Instant::now() < deadline, "the host's output never reached the log: {ev}");
-        std::thread::sleep(std::time::Duration::from_millis(20));
-        ev = first_event(&s, "");
-    }
+    let never = lazy(|| format!("the host's output never reached the log: {}", first_event(&s, "")));
+    let ev = wait_for(never, std::time::Duration::from_secs(30), || {
+        Some(first_event(&s, "")).filter(|ev| ev["runs"]["host"]["log"].to_string().contains("step 10ms"))
+    });
     assert!(ev["runs"]["host"]["log"].to_string().contains("host"), "{ev}");
 
     // The framework is paused, stepped, reset and resumed through its control plane.
@@ -386,15 +375,8 @@ fn a_non_loopback_address_needs_a_token() {
 
 /// The first event of the stream whose JSON passes `ok`, within 10 s.
 fn event_where(s: &Studio, query: &str, ok: impl Fn(&Value) -> bool) -> Value {
-    let deadline = std::time::Instant::now() + std::time::Duration::from_secs(10);
-    loop {
-        let ev = first_event(s, query);
-        if ok(&ev) {
-            return ev;
-        }
-        assert!(std::time::Instant::now() < deadline, "no such event; last: {ev}");
-        std::thread::sleep(std::time::Duration::from_millis(100));
-    }
+    let none = lazy(|| format!("no such event; last: {}", first_event(s, query)));
+    wait_for(none, std::time::Duration::from_secs(10), || Some(first_event(s, query)).filter(|ev| ok(ev)))
 }
 
 #[test]

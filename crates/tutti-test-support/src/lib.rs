@@ -11,21 +11,29 @@
 //!   when it is missing the test is skipped with a message, and under `CI=true` it fails.
 //! * [`Worker`]: a thread that loops until it is dropped (an in-process framework);
 //!   [`within`]: a call on a thread of its own, failing the test if it hangs or panics.
+//! * [`wait_until`], [`wait_for`], [`poll_for`]: a wait for something to happen, polled, under
+//!   a deadline that fails the test naming what never happened ([`lazy`]: a message built
+//!   only then).
 //! * [`RemoveSegments`], [`segments_of`], [`shrink_segment`]: the shared-memory segments of a
-//!   namespace.
+//!   namespace; [`ShmFile`]: one crafted by hand.
+//! * [`ddf::one_domain`]: a small DDF of one domain.
+//! * [`mutate`]: the byte mutator of the fuzz tests.
 //! * [`compile_c`], [`rtapi_lib_dir`]: C programs built against this build's librtapi.
 //! * `fmu` (feature `fmu`): FMUs built for the FMU tests.
 //!
 //! Nothing here asserts a duration: every limit is a watchdog that fails a test which hangs.
 
 mod c;
+pub mod ddf;
 #[cfg(feature = "fmu")]
 pub mod fmu;
+pub mod mutate;
 mod names;
 mod policy;
 mod proc;
 mod run;
 mod segments;
+mod wait;
 mod worker;
 
 pub use c::{compile_c, rtapi_lib_dir};
@@ -33,7 +41,8 @@ pub use names::{dds_domain_in, namespace};
 pub use policy::{ci, python, require, require_tool, which};
 pub use proc::{Proc, Spawn};
 pub use run::{run_output, run_with_timeout, tutti, tutti_command, tutti_exe, workspace_bin, TIMEOUT};
-pub use segments::{segments_of, shrink_segment, RemoveSegments};
+pub use segments::{segments_of, shrink_segment, RemoveSegments, ShmFile};
+pub use wait::{lazy, poll_for, wait_for, wait_until, Lazy, POLL};
 pub use worker::{within, Worker};
 
 use std::path::{Path, PathBuf};

@@ -103,14 +103,7 @@ impl Proc {
         {
             let (child, done, name, limit) = (child.clone(), done.clone(), name.to_string(), opts.watchdog);
             thread::spawn(move || {
-                let end = Instant::now() + limit;
-                while Instant::now() < end {
-                    if done.load(Ordering::Acquire) {
-                        return;
-                    }
-                    thread::sleep(Duration::from_millis(50));
-                }
-                if !done.load(Ordering::Acquire) {
+                if crate::poll_for(limit, || done.load(Ordering::Acquire).then_some(())).is_none() {
                     eprintln!("watchdog: killing {name} after {limit:?}");
                     let _ = lock(&child).kill();
                 }
@@ -148,18 +141,11 @@ impl Proc {
     /// Waits until a line from index `*from` on contains `pat`; returns it and moves `*from`
     /// past it. A zero `timeout` looks once.
     pub fn next_line(&self, from: &mut usize, pat: &str, timeout: Duration) -> Option<String> {
-        let end = Instant::now() + timeout;
-        loop {
-            let lines = self.lines();
-            if let Some((i, l)) = lines.iter().enumerate().skip(*from).find(|(_, l)| l.contains(pat)) {
-                *from = i + 1;
-                return Some(l.clone());
-            }
-            if Instant::now() >= end {
-                return None;
-            }
-            thread::sleep(Duration::from_millis(5));
-        }
+        let (i, l) = crate::poll_for(timeout, || {
+            self.lines().into_iter().enumerate().skip(*from).find(|(_, l)| l.contains(pat))
+        })?;
+        *from = i + 1;
+        Some(l)
     }
 
     /// Whether it has exited (its status is then kept).

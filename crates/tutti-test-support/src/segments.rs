@@ -1,5 +1,7 @@
 //! The shared-memory segments a test leaves in /dev/shm.
 
+use std::path::{Path, PathBuf};
+
 /// The shared-memory segments of namespace `ns` now in /dev/shm (their file names).
 pub fn segments_of(ns: &str) -> Vec<String> {
     let prefix = format!("tutti.{ns}.");
@@ -22,6 +24,33 @@ impl Drop for RemoveSegments {
         for name in segments_of(&self.0) {
             let _ = std::fs::remove_file(format!("/dev/shm/{name}"));
         }
+    }
+}
+
+/// A file of /dev/shm removed when dropped: a segment a test crafts by hand (damaged,
+/// foreign, a directory in its place), which no framework will remove. [`RemoveSegments`]
+/// removes a whole namespace's instead.
+#[derive(Debug)]
+pub struct ShmFile(pub PathBuf);
+
+impl ShmFile {
+    /// The segment of `domain` in namespace `ns` (`/dev/shm/tutti.NS.DOMAIN`); nothing is
+    /// created.
+    pub fn segment(ns: &str, domain: &str) -> ShmFile {
+        ShmFile(PathBuf::from(format!("/dev/shm/tutti.{ns}.{domain}")))
+    }
+
+    /// Its path.
+    pub fn path(&self) -> &Path {
+        &self.0
+    }
+}
+
+impl Drop for ShmFile {
+    fn drop(&mut self) {
+        // A file, or a directory a test made in its place.
+        let _ = std::fs::remove_file(&self.0);
+        let _ = std::fs::remove_dir(&self.0);
     }
 }
 

@@ -94,15 +94,13 @@ impl Host {
     /// `timeout`): a client that exits right after its last commit can be faster than the
     /// framework completing the step that commit answers, above all on a loaded machine.
     pub fn seen_through(&self, until: &[(&str, u64)], timeout: Duration) -> Vec<Seen> {
-        let end = std::time::Instant::now() + timeout;
-        loop {
+        let through = || {
             let seen = self.seen();
             let done = |&(d, k): &(&str, u64)| seen.iter().any(|s| s.domain == d && s.step >= k);
-            if until.iter().all(done) || std::time::Instant::now() > end {
-                return seen;
-            }
-            std::thread::sleep(Duration::from_millis(5));
-        }
+            until.iter().all(done).then_some(seen)
+        };
+        // A test judges what was seen either way: a wait that runs out is no failure here.
+        tutti_test_support::poll_for(timeout, through).unwrap_or_else(|| self.seen())
     }
 }
 
@@ -151,16 +149,6 @@ pub fn compile_with(source: &Path, out_dir: &Path, extra: &[&str]) -> PathBuf {
         String::from_utf8_lossy(&output.stderr)
     );
     out
-}
-
-/// A file in /dev/shm removed when dropped (crafted segments).
-pub struct ShmFile(pub PathBuf);
-
-impl Drop for ShmFile {
-    fn drop(&mut self) {
-        let _ = std::fs::remove_file(&self.0);
-        let _ = std::fs::remove_dir(&self.0);
-    }
 }
 
 /// Path of the segment of `domain` in namespace `ns`.
