@@ -1,9 +1,9 @@
-//! Plain CDR of the DDS types: the typed struct of a set ([`SetCodec`], in the core, shared
-//! with the recordings), its serde forms for the rustdds engine ([`PreEncoded`] writes an
-//! encoded body verbatim, [`SetSeed`] reads one through rustdds' CDR deserializer, either
-//! byte order), the stock `std_msgs` types of per-item mode ([`stock`], raw CDR both ways,
-//! their serde forms, and the bytes of an item's leaf made from them), and [`Payload`],
-//! what a DDS sample carries into shared memory once decoded.
+//! Plain CDR of the topics' types: the typed struct of a set ([`SetCodec`], in the core,
+//! shared with the recordings), its serde forms for the rustdds engine ([`PreEncoded`] writes
+//! an encoded body verbatim, [`SetSeed`] reads one through rustdds' CDR deserializer, either
+//! byte order), the stock `std_msgs` messages of per-item mode ([`stock`], by their interface
+//! files' codec, and the bytes of an item's leaf made from them), and [`Payload`], what a
+//! sample carries into shared memory once decoded.
 //!
 //! This is the bottom of the gateway, with the engines: it imports nothing of the routes.
 
@@ -16,39 +16,15 @@ use serde::{Deserialize, Serialize};
 pub use tutti_core::cdr::{split_header, CdrError, Payload, SetCodec, TypedSample, HEADER_LE};
 use tutti_core::ddf::ScalarType;
 
-/// A cursor over a CDR body that refuses to read past its end.
-struct Reader<'a> {
-    b: &'a [u8],
-    pos: usize,
-    le: bool,
-}
-
-impl<'a> Reader<'a> {
-    fn take(&mut self, n: usize, align: usize) -> Result<&'a [u8], CdrError> {
-        let at = self.pos.next_multiple_of(align);
-        let s = self.b.get(at..at + n).ok_or(CdrError::Truncated { len: self.b.len() })?;
-        self.pos = at + n;
-        Ok(s)
-    }
-
-    fn u32(&mut self) -> Result<u32, CdrError> {
-        let a: [u8; 4] = self.take(4, 4)?.try_into().unwrap_or_default();
-        Ok(if self.le { u32::from_le_bytes(a) } else { u32::from_be_bytes(a) })
-    }
-
-    fn f64(&mut self) -> Result<f64, CdrError> {
-        let a: [u8; 8] = self.take(8, 8)?.try_into().unwrap_or_default();
-        Ok(f64::from_bits(if self.le { u64::from_le_bytes(a) } else { u64::from_be_bytes(a) }))
-    }
-}
-
-/// The stock messages of per-item mode, read from and written as raw CDR, and the bytes of
-/// an item's leaf made from them.
+/// The stock messages of per-item mode (`std_msgs/msg/Float64`, `Bool`, `Float64MultiArray`),
+/// read and written by their interfaces' codec (`tutti_ros2`), and the bytes of an item's leaf
+/// made from them.
 pub mod stock {
     use tutti_core::ddf::{Leaf, ScalarType, Value};
     use tutti_core::mapping;
+    use tutti_ros2::{registry, Message, Struct, Value as Field};
 
-    use super::{split_header, CdrError, Reader};
+    use super::{split_header, CdrError};
 
     /// The stock type of a leaf.
     #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -66,62 +42,95 @@ pub mod stock {
                 _ => Stock::Array,
             }
         }
+
+        /// Its message, from the registry.
+        pub fn message(self) -> Message<'static> {
+            let name = match self {
+                Stock::Float64 => "std_msgs/msg/Float64",
+                Stock::Bool => "std_msgs/msg/Bool",
+                Stock::Array => "std_msgs/msg/Float64MultiArray",
+            };
+            match registry().message(name) {
+                Some(m) => m,
+                None => unreachable!("{name} is an embedded interface"),
+            }
+        }
+    }
+
+    /// A codec error as the gateway's.
+    fn cdr(e: tutti_ros2::CdrError) -> CdrError {
+        CdrError::Engine(e.to_string())
+    }
+
+    /// A serialized stock sample as its message's value.
+    fn value(stock: Stock, raw: &[u8]) -> Result<Field, CdrError> {
+        let (le, body) = split_header(raw)?;
+        stock.message().decode(body, le).map_err(cdr)
+    }
+
+    /// The `data` of a stock message's value.
+    fn data(v: &Field) -> Result<&Field, CdrError> {
+        v.get("data").ok_or(CdrError::Unexpected("a stock message without its data"))
+    }
+
+    fn as_f64(v: &Field) -> Result<f64, CdrError> {
+        v.as_f64().ok_or(CdrError::Unexpected("a double that is no number"))
+    }
+
+    /// The data of a `std_msgs/msg/Float64MultiArray` value (its layout is read past, not used).
+    fn doubles(v: &Field) -> Result<Vec<f64>, CdrError> {
+        let elements = data(v)?.as_array().ok_or(CdrError::Unexpected("a Float64MultiArray without data"))?;
+        elements.iter().map(as_f64).collect()
     }
 
     /// `std_msgs/msg/Float64` from a serialized sample.
     pub fn float64(raw: &[u8]) -> Result<f64, CdrError> {
-        let (le, b) = split_header(raw)?;
-        Reader { b, pos: 0, le }.f64()
+        as_f64(data(&value(Stock::Float64, raw)?)?)
     }
 
     /// `std_msgs/msg/Bool` from a serialized sample.
     pub fn boolean(raw: &[u8]) -> Result<bool, CdrError> {
-        let (_, b) = split_header(raw)?;
-        b.first().map(|&v| v != 0).ok_or(CdrError::Truncated { len: 0 })
+        data(&value(Stock::Bool, raw)?)?.as_bool().ok_or(CdrError::Unexpected("a Bool that is no boolean"))
     }
 
-    /// The data of a `std_msgs/msg/Float64MultiArray` from a serialized sample (its layout
-    /// is read past, not used).
+    /// The data of a `std_msgs/msg/Float64MultiArray` from a serialized sample.
     pub fn float64_array(raw: &[u8]) -> Result<Vec<f64>, CdrError> {
-        let (le, b) = split_header(raw)?;
-        let mut r = Reader { b, pos: 0, le };
-        let dims = r.u32()?;
-        for _ in 0..dims {
-            let label = r.u32()? as usize;
-            r.take(label, 1)?;
-            r.u32()?;
-            r.u32()?;
+        doubles(&value(Stock::Array, raw)?)
+    }
+
+    /// The bytes of `leaf` from its stock message's value (as an engine that decodes as it
+    /// reads hands it over).
+    pub fn leaf_of(leaf: &Leaf, v: &Field) -> Result<Vec<u8>, CdrError> {
+        match Stock::of(leaf) {
+            Stock::Float64 => Ok(leaf_bytes(leaf.ty, std::iter::once(Value::Float(as_f64(data(v)?)?)), 1)),
+            Stock::Bool => {
+                let b = data(v)?.as_bool().ok_or(CdrError::Unexpected("a Bool that is no boolean"))?;
+                Ok(leaf_bytes(leaf.ty, std::iter::once(Value::Bool(b)), 1))
+            }
+            Stock::Array => array_leaf(leaf, doubles(v)?),
         }
-        r.u32()?;
-        let n = r.u32()? as usize;
-        if n > b.len() / 8 {
-            return Err(CdrError::Sequence { count: n, len: b.len() });
-        }
-        (0..n).map(|_| r.f64()).collect()
+    }
+
+    /// Writes the little-endian CDR body of `stock` with `data` into `out` (cleared first).
+    fn encode(stock: Stock, data: Field, out: &mut Vec<u8>) {
+        out.clear();
+        // `data` has the field's type: nothing in it can fail to encode.
+        let _ = stock.message().encode_into(&Struct::new().with("data", data).into(), out);
     }
 
     /// The little-endian CDR body of a `Float64`.
     pub fn encode_float64(v: f64, out: &mut Vec<u8>) {
-        out.clear();
-        out.extend_from_slice(&v.to_le_bytes());
+        encode(Stock::Float64, Field::Float(v), out);
     }
 
     /// The body of a `Bool`.
     pub fn encode_bool(v: bool, out: &mut Vec<u8>) {
-        out.clear();
-        out.push(u8::from(v));
+        encode(Stock::Bool, Field::Bool(v), out);
     }
 
     /// The body of a `Float64MultiArray` with an empty layout.
     pub fn encode_float64_array(v: impl ExactSizeIterator<Item = f64>, out: &mut Vec<u8>) {
-        out.clear();
-        out.extend_from_slice(&0u32.to_le_bytes()); // no dimensions
-        out.extend_from_slice(&0u32.to_le_bytes()); // data_offset
-        out.extend_from_slice(&(v.len() as u32).to_le_bytes());
-        out.extend_from_slice(&[0; 4]); // the doubles are aligned to 8
-        for x in v {
-            out.extend_from_slice(&x.to_le_bytes());
-        }
+        encode(Stock::Array, Field::Array(v.map(Field::Float).collect()), out);
     }
 
     /// `n` values of type `ty`, in shared-memory layout.
@@ -145,11 +154,7 @@ pub mod stock {
 
     /// The bytes of `leaf` from a serialized stock sample.
     pub fn decode(leaf: &Leaf, raw: &[u8]) -> Result<Vec<u8>, CdrError> {
-        match Stock::of(leaf) {
-            Stock::Float64 => Ok(leaf_bytes(leaf.ty, std::iter::once(Value::Float(float64(raw)?)), 1)),
-            Stock::Bool => Ok(leaf_bytes(leaf.ty, std::iter::once(Value::Bool(boolean(raw)?)), 1)),
-            Stock::Array => array_leaf(leaf, float64_array(raw)?),
-        }
+        leaf_of(leaf, &value(Stock::of(leaf), raw)?)
     }
 }
 
@@ -219,44 +224,10 @@ impl<'de> Visitor<'de> for SetSeed {
     }
 }
 
-/// `std_msgs/msg/Float64`.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
-pub struct Float64 {
-    pub data: f64,
-}
-
-/// `std_msgs/msg/Bool`.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
-pub struct Bool {
-    pub data: bool,
-}
-
-/// `std_msgs/msg/MultiArrayDimension`.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-pub struct MultiArrayDimension {
-    pub label: String,
-    pub size: u32,
-    pub stride: u32,
-}
-
-/// `std_msgs/msg/MultiArrayLayout`.
-#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
-pub struct MultiArrayLayout {
-    pub dim: Vec<MultiArrayDimension>,
-    pub data_offset: u32,
-}
-
-/// `std_msgs/msg/Float64MultiArray` (sent with an empty layout: a flat array).
-#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
-pub struct Float64MultiArray {
-    pub layout: MultiArrayLayout,
-    pub data: Vec<f64>,
-}
-
 #[cfg(all(test, feature = "rustdds"))]
 mod tests {
     use super::*;
-    use ros2_client::dds::rustdds::cdr_encoding::{from_bytes, to_vec};
+    use ros2_client::dds::rustdds::cdr_encoding::to_vec;
     use ros2_client::dds::rustdds::{CdrDeserializer, RepresentationIdentifier};
     use tutti_core::ddf::{parse_str, SetLayout};
 
@@ -384,30 +355,28 @@ mod tests {
     }
 
     #[test]
-    fn stock_messages_round_trip_through_the_raw_codec() {
+    fn stock_messages_round_trip_through_their_interfaces_codec() {
         let mut b = Vec::new();
         stock::encode_float64_array([1.0, -2.5].into_iter(), &mut b);
-        let want = to_vec::<_, byteorder::LittleEndian>(&Float64MultiArray {
-            layout: Default::default(),
-            data: vec![1.0, -2.5],
-        })
-        .unwrap();
+        // dim length 0, data_offset 0, data length 2, pad, two doubles.
+        let mut want = vec![0, 0, 0, 0, 0, 0, 0, 0, 2, 0, 0, 0, 0, 0, 0, 0];
+        want.extend_from_slice(&1.0f64.to_le_bytes());
+        want.extend_from_slice(&(-2.5f64).to_le_bytes());
         assert_eq!(b, want);
         assert_eq!(stock::float64_array(&[&HEADER_LE[..], &b].concat()).unwrap(), vec![1.0, -2.5]);
-        // A layout with a labelled dimension is read past.
-        let labelled = to_vec::<_, byteorder::BigEndian>(&Float64MultiArray {
-            layout: MultiArrayLayout {
-                dim: vec![MultiArrayDimension { label: "xyz".into(), size: 3, stride: 3 }],
-                data_offset: 0,
-            },
-            data: vec![4.0, 5.0, 6.0],
-        })
-        .unwrap();
+        // A layout with a labelled dimension is read past, big-endian too.
+        let mut labelled = vec![0, 0, 0, 1, 0, 0, 0, 4, b'x', b'y', b'z', 0, 0, 0, 0, 3, 0, 0, 0, 3];
+        labelled.extend_from_slice(&[0, 0, 0, 0, 0, 0, 0, 3, 0, 0, 0, 0]);
+        for v in [4.0f64, 5.0, 6.0] {
+            labelled.extend_from_slice(&v.to_be_bytes());
+        }
         assert_eq!(stock::float64_array(&[&[0u8, 0, 0, 0][..], &labelled].concat()).unwrap(), vec![4.0, 5.0, 6.0]);
         assert!(stock::float64_array(&[&HEADER_LE[..], &b[..b.len() - 1]].concat()).is_err());
         stock::encode_float64(0.25, &mut b);
+        assert_eq!(b, 0.25f64.to_le_bytes());
         assert_eq!(stock::float64(&[&HEADER_LE[..], &b].concat()).unwrap(), 0.25);
         stock::encode_bool(true, &mut b);
+        assert_eq!(b, [1]);
         assert!(stock::boolean(&[&HEADER_LE[..], &b].concat()).unwrap());
         assert!(stock::boolean(&HEADER_LE).is_err());
     }
@@ -422,20 +391,5 @@ mod tests {
             let r = seed.clone().deserialize(&mut CdrDeserializer::<byteorder::LittleEndian>::new(&body[..n]));
             assert!(r.is_err(), "{n} bytes accepted");
         }
-    }
-
-    #[test]
-    fn std_msgs_layouts() {
-        let b = to_vec::<_, byteorder::LittleEndian>(&Float64MultiArray {
-            layout: Default::default(),
-            data: vec![1.0, 2.0],
-        })
-        .unwrap();
-        // dim length 0, data_offset 0, data length 2, pad, two doubles.
-        assert_eq!(&b[..12], &[0, 0, 0, 0, 0, 0, 0, 0, 2, 0, 0, 0]);
-        assert_eq!(b.len(), 32);
-        let back: Float64MultiArray = from_bytes::<Float64MultiArray, byteorder::LittleEndian>(&b).unwrap().0;
-        assert_eq!(back.data, vec![1.0, 2.0]);
-        assert_eq!(to_vec::<_, byteorder::LittleEndian>(&Bool { data: true }).unwrap(), vec![1]);
     }
 }

@@ -26,12 +26,17 @@
 //! assert_eq!(ok, Some(Value::UInt(1)));
 //! ```
 //!
-//! Pure computation: no DDS crate, no async runtime.
+//! [`simulation`] is ROS 2's `simulation_interfaces` services and action as a tutti run serves
+//! them, over these messages.
+//!
+//! No DDS crate, no async runtime: the engines (`tutti-engine`) stand on this crate.
 
 pub mod cdr;
+pub mod clock;
 pub mod idl;
 pub mod parse;
 pub mod registry;
+pub mod simulation;
 pub mod spec;
 pub mod typehash;
 pub mod value;

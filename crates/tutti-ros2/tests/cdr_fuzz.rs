@@ -15,7 +15,9 @@ proptest! {
         for msg in registry().messages() {
             if let Ok(v) = msg.decode(&bytes, le) {
                 let again = msg.encode(&v).expect("a decoded value encodes");
-                prop_assert_eq!(msg.decode(&again, true), Ok(v));
+                // Compared as printed: a NaN decoded is a NaN again, but never equal to itself.
+                let back = msg.decode(&again, true).map(|b| format!("{b:?}"));
+                prop_assert_eq!(back, Ok(format!("{v:?}")));
             }
         }
     }

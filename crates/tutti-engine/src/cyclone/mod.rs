@@ -43,6 +43,7 @@ use std::sync::{Arc, Mutex};
 use cyclors::{dds_create_writer, dds_entity_t, dds_get_children, dds_get_entity_sertype, dds_write_flush, ddsi_sertype};
 use tutti_core::cdr::HEADER_LE;
 use tutti_core::mapping::{Durability, History, Ownership, Qos, Reliability};
+use tutti_ros2::{Struct, Value};
 
 use self::discovery::Discovery;
 use self::native::{blob_topic, delete_entity, entity_guid, lock, retcode, write_pieces, NativeQos};
@@ -64,6 +65,7 @@ mod writer;
 /// ROS 2's graph topic and its type.
 const DISCOVERY_TOPIC: &str = "ros_discovery_info";
 const DISCOVERY_TYPE: &str = "rmw_dds_common::msg::dds_::ParticipantEntitiesInfo_";
+const DISCOVERY_MESSAGE: &str = "rmw_dds_common/msg/ParticipantEntitiesInfo";
 
 /// The entities this engine created, for `ros_discovery_info`.
 #[derive(Default)]
@@ -355,8 +357,8 @@ pub(crate) fn ros_remote(raw: Remote) -> Remote {
     remote
 }
 
-/// `rmw_dds_common::msg::ParticipantEntitiesInfo` with one node, as plain little-endian CDR
-/// (no encapsulation header; alignment relative to the start of `out`).
+/// `rmw_dds_common/msg/ParticipantEntitiesInfo` with one node, as plain little-endian CDR
+/// (no encapsulation header), encoded by its interface's codec.
 fn encode_participant_info(
     out: &mut Vec<u8>,
     participant: &[u8; 16],
@@ -365,31 +367,21 @@ fn encode_participant_info(
     readers: &[[u8; 16]],
     writers: &[[u8; 16]],
 ) {
-    fn align4(out: &mut Vec<u8>) {
-        out.resize(out.len().next_multiple_of(4), 0);
-    }
-    fn u32_(out: &mut Vec<u8>, v: usize) {
-        align4(out);
-        out.extend_from_slice(&(v as u32).to_le_bytes());
-    }
-    fn string(out: &mut Vec<u8>, s: &str) {
-        u32_(out, s.len() + 1);
-        out.extend_from_slice(s.as_bytes());
-        out.push(0);
-    }
-    fn gids(out: &mut Vec<u8>, gs: &[[u8; 16]]) {
-        u32_(out, gs.len());
-        for g in gs {
-            out.extend_from_slice(g);
-        }
-    }
+    let gid = |g: &[u8; 16]| Value::from(Struct::new().with("data", g.iter().map(|b| Value::from(*b)).collect::<Vec<_>>()));
+    let gids = |gs: &[[u8; 16]]| gs.iter().map(gid).collect::<Vec<_>>();
+    let node = Struct::new()
+        .with("node_namespace", namespace)
+        .with("node_name", name)
+        .with("reader_gid_seq", gids(readers))
+        .with("writer_gid_seq", gids(writers));
+    let info = Struct::new().with("gid", gid(participant)).with("node_entities_info_seq", vec![Value::from(node)]);
     out.clear();
-    out.extend_from_slice(participant);
-    u32_(out, 1);
-    string(out, namespace);
-    string(out, name);
-    gids(out, readers);
-    gids(out, writers);
+    let Some(m) = tutti_ros2::registry().message(DISCOVERY_MESSAGE) else { return };
+    if let Err(e) = m.encode_into(&info.into(), out) {
+        // A name longer than the message's bound (256) is the only way here.
+        tracing::warn!("cyclone: the node's announcement: {e}");
+        out.clear();
+    }
 }
 
 #[cfg(test)]

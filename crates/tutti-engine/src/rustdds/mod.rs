@@ -39,13 +39,12 @@ use ros2_client::dds::rustdds::{
 use ros2_client::dds::rustdds::{DomainParticipant, DomainParticipantBuilder, RTPSEntity, Topic, TopicKind};
 use ros2_client::dds::{Publisher, Subscription};
 use ros2_client::{Context, Gid, MessageInfo, Node, NodeName, NodeOptions};
-use serde::de::DeserializeOwned;
 use serde::Serialize;
-use tutti_core::ddf::{Leaf, Value};
+use tutti_core::ddf::Leaf;
 use tutti_core::mapping::{Ownership, Qos, Reliability};
 
 use crate::cdr::stock::{self, Stock};
-use crate::cdr::{split_header, Bool, CdrError, Float64, Float64MultiArray, Payload, PreEncoded, SetSeed};
+use crate::cdr::{split_header, CdrError, Payload, PreEncoded, SetSeed};
 use crate::cyclone::ros_remote;
 use crate::dds::rpc::{self, Replies, ReplyWriter, SampleIdentity};
 use crate::dds::{data_topic, endpoint, peer_of, reply_topic, request_topic};
@@ -55,6 +54,7 @@ use crate::{
 };
 
 mod qos;
+mod seed;
 
 /// The participant, the node and the topics created so far.
 pub struct Rustdds {
@@ -165,23 +165,18 @@ impl Rustdds {
             .map_err(|e| EngineError::dds(format!("a reader on {topic}"), e))
     }
 
-    fn item_reader<M>(
-        &self,
-        topic: &str,
-        ty: &TopicType,
-        q: &Qos,
-        leaf: Arc<Leaf>,
-        sink: Sink,
-    ) -> Result<(), EngineError>
-    where
-        M: DeserializeOwned + IntoLeaf + Send + Sync + 'static,
-    {
-        let sub: Subscription<M> = self.subscription(topic, ty, q)?;
+    /// A reader of per-item topic `topic`: each stock message is read through its interface's
+    /// spec ([`seed::ValueSeed`]) and made the bytes of `leaf`.
+    fn item_reader(&self, topic: &str, ty: &TopicType, q: &Qos, leaf: Arc<Leaf>, sink: Sink) -> Result<(), EngineError> {
+        let sub: Subscription<tutti_ros2::Value> = self.subscription(topic, ty, q)?;
         let path: Arc<str> = Arc::from(leaf.path.as_str());
-        let to_payload = move |m: M| m.into_leaf(&leaf).map(|bytes| Payload::Item { path: path.clone(), bytes });
+        let message = Stock::of(&leaf).message();
+        let to_payload = move |v: tutti_ros2::Value| {
+            stock::leaf_of(&leaf, &v).map(|bytes| Payload::Item { path: path.clone(), bytes })
+        };
         let own = (self.own, self.own_samples.clone());
         if let Some(rt) = &self.rt {
-            rt.spawn(async move { pump(sub.async_stream(), to_payload, sink, own).await });
+            rt.spawn(async move { pump(sub.async_stream_seed(seed::ValueSeed(message)), to_payload, sink, own).await });
         }
         Ok(())
     }
@@ -498,11 +493,7 @@ impl Engine for Rustdds {
                     });
                 }
             }
-            Decode::Item(leaf, _) => match Stock::of(&leaf) {
-                Stock::Float64 => self.item_reader::<Float64>(topic, ty, q, leaf, sink)?,
-                Stock::Bool => self.item_reader::<Bool>(topic, ty, q, leaf, sink)?,
-                Stock::Array => self.item_reader::<Float64MultiArray>(topic, ty, q, leaf, sink)?,
-            },
+            Decode::Item(leaf, _) => self.item_reader(topic, ty, q, leaf, sink)?,
             Decode::Raw => {
                 return Err(EngineError::dds(format!("a reader on {topic}"), "rustdds readers decode what they read"))
             }
@@ -556,27 +547,4 @@ fn endpoint_qos(q: &QosPolicies, writer: bool) -> EndpointQos {
         _ => Ownership::Shared,
     };
     EndpointQos { reliability, transient_local, ownership }
-}
-
-/// A stock message turned into the bytes of its leaf.
-pub(crate) trait IntoLeaf {
-    fn into_leaf(self, leaf: &Leaf) -> Result<Vec<u8>, CdrError>;
-}
-
-impl IntoLeaf for Float64 {
-    fn into_leaf(self, leaf: &Leaf) -> Result<Vec<u8>, CdrError> {
-        Ok(stock::leaf_bytes(leaf.ty, std::iter::once(Value::Float(self.data)), 1))
-    }
-}
-
-impl IntoLeaf for Bool {
-    fn into_leaf(self, leaf: &Leaf) -> Result<Vec<u8>, CdrError> {
-        Ok(stock::leaf_bytes(leaf.ty, std::iter::once(Value::Bool(self.data)), 1))
-    }
-}
-
-impl IntoLeaf for Float64MultiArray {
-    fn into_leaf(self, leaf: &Leaf) -> Result<Vec<u8>, CdrError> {
-        stock::array_leaf(leaf, self.data)
-    }
 }

@@ -14,11 +14,11 @@ use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 use tracing::info;
-use tutti_core::mapping::{Durability, History, Ownership, Qos, Reliability};
 
 use tutti_core::ddf::Role;
 use tutti_core::shm::observer::Observer;
 use tutti_core::shm::Stamp;
+use tutti_ros2::clock;
 
 use super::to_dds::{look, Activation, Outgoing, Polled, ServedBy};
 use super::ShmConfig;
@@ -29,8 +29,9 @@ use crate::GatewayError;
 /// The `/clock` route of `domain` under the canonical ROS namespace `ns`: its writer,
 /// watched by the poller, at most `rate` samples a second (None: one per step).
 pub fn route(dds: &dyn Engine, domain: &str, ns: &str, rate: Option<f64>) -> Result<Outgoing, GatewayError> {
-    let topic = crate::config::ros_name(ns, "clock");
-    let writer = dds.writer(&topic, &TopicType::stock(TYPE), &qos())?;
+    let topic = crate::config::ros_name(ns, clock::TOPIC);
+    let m = clock::message();
+    let writer = dds.writer(&topic, &TopicType::ros2(&m.name().dds(), m.hash()), &clock::qos())?;
     let activation = Arc::new(Activation::default());
     let pump = ClockPump::new(domain.to_string(), writer, activation.clone(), rate);
     Ok(Outgoing { topics: vec![topic], activation, served_by: ServedBy::Poller(Box::new(pump)) })
@@ -39,36 +40,10 @@ pub fn route(dds: &dyn Engine, domain: &str, ns: &str, rate: Option<f64>) -> Res
 /// Attempts at a consistent read of the PUBLISH set's stamp before the poll looks again later.
 const STAMP_TRIES: u32 = 8;
 
-/// The DDS topic of ROS 2's `/clock`.
-pub const TOPIC: &str = "rt/clock";
-/// The DDS type name of `rosgraph_msgs/msg/Clock`.
-pub const TYPE: &str = "rosgraph_msgs::msg::dds_::Clock_";
-
-/// The writer's QoS.
-pub fn qos() -> Qos {
-    Qos {
-        reliability: Reliability::Reliable,
-        history: History::KeepLast(1),
-        durability: Durability::Volatile,
-        ownership: Ownership::Shared,
-        lifespan: None,
-    }
-}
-
-/// The CDR body of a `Clock`: `builtin_interfaces/Time clock` = `int32 sec; uint32 nanosec`
-/// (rounded to the nanosecond; negative times clamp to zero).
-pub fn encode(sim_time: f64, out: &mut [u8; 8]) {
-    let ns = (sim_time.max(0.0) * 1e9).round();
-    let ns = if ns.is_finite() { ns as u128 } else { 0 };
-    let sec = i32::try_from(ns / 1_000_000_000).unwrap_or(i32::MAX);
-    let nanosec = (ns % 1_000_000_000) as u32;
-    out[..4].copy_from_slice(&sec.to_le_bytes());
-    out[4..].copy_from_slice(&nanosec.to_le_bytes());
-}
-
 /// The `/clock` publisher of one domain.
 pub struct ClockPump {
     live: Observer,
+    message: tutti_ros2::Message<'static>,
     writer: Box<dyn Writer>,
     activation: Arc<Activation>,
     /// Shortest time between two samples (zero: one per step).
@@ -91,6 +66,7 @@ impl ClockPump {
         let min_interval = super::to_dds::min_interval(rate);
         ClockPump {
             live: Observer::new(domain),
+            message: clock::message(),
             writer,
             activation,
             min_interval,
@@ -134,8 +110,7 @@ impl Polled for ClockPump {
         if t < self.last_time {
             info!(domain = %self.live.domain, "/clock goes back to {t} s with its run's reset");
         }
-        let mut body = [0u8; 8];
-        encode(t, &mut body);
+        let body = clock::encode(&self.message, t);
         let ok = self.writer.write(&body);
         self.writer.flush();
         if ok {
@@ -146,26 +121,5 @@ impl Polled for ClockPump {
             Stats::add(&stats.errors, 1);
         }
         ok
-    }
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn times_become_seconds_and_nanoseconds() {
-        let mut b = [0u8; 8];
-        let decode = |b: &[u8; 8]| {
-            (i32::from_le_bytes(b[..4].try_into().unwrap()), u32::from_le_bytes(b[4..].try_into().unwrap()))
-        };
-        encode(12.25, &mut b);
-        assert_eq!(decode(&b), (12, 250_000_000));
-        encode(0.01 * 3.0, &mut b);
-        assert_eq!(decode(&b), (0, 30_000_000), "rounded to the nanosecond");
-        encode(-1.0, &mut b);
-        assert_eq!(decode(&b), (0, 0));
-        encode(f64::NAN, &mut b);
-        assert_eq!(decode(&b), (0, 0));
     }
 }

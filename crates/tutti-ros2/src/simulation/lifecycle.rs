@@ -12,7 +12,30 @@ use std::time::Duration;
 
 use tutti_host::control::{ControlClient, ControlError, Request, RunState, RunStatus};
 
-use super::messages::{feature, result, scope, state, Outcome};
+use super::{feature, result, scope, state};
+use crate::{Struct, Value};
+
+/// A `simulation_interfaces/msg/Result`: a code of [`result`] and a message.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Outcome {
+    pub code: u8,
+    pub message: String,
+}
+
+impl Outcome {
+    pub fn ok() -> Outcome {
+        Outcome { code: result::OK, message: String::new() }
+    }
+
+    pub fn new(code: u8, message: impl Into<String>) -> Outcome {
+        Outcome { code, message: message.into() }
+    }
+
+    /// As the message's value.
+    pub fn value(&self) -> Value {
+        Struct::new().with("result", self.code).with("error_message", self.message.as_str()).into()
+    }
+}
 
 /// The run's control plane, as the calls use it (a trait so the mapping is tested without a run).
 pub trait Control {
