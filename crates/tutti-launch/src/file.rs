@@ -82,7 +82,7 @@ impl Default for Framework {
         Framework {
             step: Duration::from_millis(10),
             speed: 1.0,
-            timeout: Duration::from_secs(1),
+            timeout: tutti_core::defaults::STEP_TIMEOUT,
             hold: false,
             duration: None,
             steps: None,

@@ -34,7 +34,7 @@ impl Default for PlanOptions {
             step: Duration::from_millis(10),
             steps: None,
             record: Vec::new(),
-            timeout: Duration::from_secs(10),
+            timeout: tutti_core::defaults::SSP_STEP_TIMEOUT,
             ordering: StepOrder::Delayed,
         }
     }
