@@ -48,7 +48,7 @@ pub struct Args {
     #[arg(long)]
     catch_up: bool,
     /// Longest wait for the participants of a synchronous step, and for a seed.
-    #[arg(long, default_value = "1s", value_parser = parse_duration)]
+    #[arg(long, default_value = tutti_core::defaults::STEP_TIMEOUT_TEXT, value_parser = parse_duration)]
     timeout: Duration,
     /// How the framework waits for participants: block, spin, or poll:DURATION.
     #[arg(long, default_value = "block", value_parser = parse_wait)]

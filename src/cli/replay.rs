@@ -40,7 +40,7 @@ pub struct Args {
     #[arg(long = "wait-for", value_name = "DOMAIN=N", value_parser = tutti_host::parse_wait_for)]
     wait_for: Vec<(String, usize)>,
     /// Longest wait for the participants of a synchronous step.
-    #[arg(long, default_value = "1s", value_parser = parse_duration)]
+    #[arg(long, default_value = tutti_core::defaults::STEP_TIMEOUT_TEXT, value_parser = parse_duration)]
     timeout: Duration,
     /// How the framework waits for participants: block, spin, or poll:DURATION.
     #[arg(long, default_value = "block", value_parser = parse_wait)]

@@ -61,7 +61,7 @@ pub struct PlanArgs {
     #[arg(long, value_name = "FILE")]
     pub record: Vec<PathBuf>,
     /// The framework's wait for a step's answers.
-    #[arg(long, value_parser = parse_duration, default_value = "10s")]
+    #[arg(long, value_parser = parse_duration, default_value = tutti_core::defaults::SSP_STEP_TIMEOUT_TEXT)]
     pub timeout: Duration,
     /// How the connections are applied within a step: 'delayed' (libcosim's ordering) or
     /// 'feedthrough' (OMSimulator's: direct-feedthrough outputs evaluated again after the

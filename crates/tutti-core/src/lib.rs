@@ -7,6 +7,7 @@
 
 pub mod cdr;
 pub mod ddf;
+pub mod defaults;
 pub mod mapping;
 // The loom build models the bucket and the handshake only; the parsers name a segment's
 // wait modes, which it leaves out.

@@ -55,36 +55,46 @@ pub struct CallError {
     pub log: String,
 }
 
+/// Why the libpython a PythonFMU model needs could not be found or loaded.
+#[derive(Debug, thiserror::Error)]
+enum LibPythonError {
+    #[error("running python3: {0}")]
+    Run(std::io::Error),
+    #[error("python3 failed: {stderr}")]
+    Failed { stderr: String },
+    #[error("python3 names {}, which is not a file (a Python built without a shared libpython?)", .0.display())]
+    NotAFile(PathBuf),
+    #[error(transparent)]
+    Load(libloading::Error),
+}
+
 /// Loads `lib` globally (its symbols resolve the FMU's), for the life of the process.
-fn load_global(lib: &Path) -> Result<(), String> {
+fn load_global(lib: &Path) -> Result<(), libloading::Error> {
     use libloading::os::unix::{Library, RTLD_GLOBAL, RTLD_NOW};
     // SAFETY: loading a library runs its initialisers; the user asked for exactly this
     // library to be loaded into this process (as `LD_PRELOAD` would), or it is the libpython
     // a PythonFMU model needs.
-    let lib = unsafe { Library::open(Some(lib), RTLD_NOW | RTLD_GLOBAL) }.map_err(|e| e.to_string())?;
+    let lib = unsafe { Library::open(Some(lib), RTLD_NOW | RTLD_GLOBAL) }?;
     // Kept: the FMU resolves symbols in it.
     std::mem::forget(lib);
     Ok(())
 }
 
 /// The shared libpython of the `python3` on PATH, as `sysconfig` names it.
-fn libpython() -> Result<PathBuf, String> {
+fn libpython() -> Result<PathBuf, LibPythonError> {
     const WHERE: &str = "import sysconfig, os; \
         print(os.path.join(sysconfig.get_config_var('LIBDIR') or '', sysconfig.get_config_var('LDLIBRARY') or ''))";
     let out = std::process::Command::new("python3")
         .args(["-c", WHERE])
         .stdin(std::process::Stdio::null())
         .output()
-        .map_err(|e| format!("running python3: {e}"))?;
+        .map_err(LibPythonError::Run)?;
     if !out.status.success() {
-        return Err(format!("python3 failed: {}", String::from_utf8_lossy(&out.stderr).trim()));
+        return Err(LibPythonError::Failed { stderr: String::from_utf8_lossy(&out.stderr).trim().to_string() });
     }
     let lib = PathBuf::from(String::from_utf8_lossy(&out.stdout).trim());
     if !lib.is_file() {
-        return Err(format!(
-            "python3 names {}, which is not a file (a Python built without a shared libpython?)",
-            lib.display()
-        ));
+        return Err(LibPythonError::NotAFile(lib));
     }
     Ok(lib)
 }
@@ -212,10 +222,10 @@ impl Fmu {
     pub fn instantiate(&self, instance_name: &str, preload: &[PathBuf]) -> Result<Instance, LoadError> {
         let entry = self.binary_entry()?;
         for lib in preload {
-            load_global(lib).map_err(|message| LoadError::Preload {
+            load_global(lib).map_err(|e| LoadError::Preload {
                 path: self.path.clone(),
                 library: lib.display().to_string(),
-                message,
+                message: e.to_string(),
             })?;
         }
         let import_err = |e: fmi::Error| LoadError::Import { path: self.path.clone(), message: e.to_string() };
@@ -270,7 +280,7 @@ impl Fmu {
             // `python3` on PATH (the interpreter the model's embedded Python also finds), load
             // it and try again (docs/fmu.md, PythonFMU models).
             Err(e) if python && e.to_string().contains("undefined symbol") => {
-                match libpython().and_then(|lib| load_global(&lib).map(|()| lib)) {
+                match libpython().and_then(|lib| load_global(&lib).map(|()| lib).map_err(LibPythonError::Load)) {
                     Ok(libpython) => open().map_err(|e| {
                         let hint = format!(
                             "\nhint: tutti loaded {} (the libpython of the python3 on PATH) for this PythonFMU model; \

@@ -17,8 +17,9 @@ use std::net::{IpAddr, SocketAddr};
 use std::path::{Path, PathBuf};
 use std::time::Duration;
 
-use serde::de::{self, DeserializeSeed, Deserializer, SeqAccess, Visitor};
+use serde::de::{Deserializer, SeqAccess, Visitor};
 use serde::{Deserialize, Serialize};
+use tutti_config::de::{Number, Parsed};
 use tutti_core::ddf::{Domain, Model, Role};
 use tutti_core::mapping::{self, Durability, Endpoint, History, ItemTopic, Profile, Qos, Reliability};
 use tutti_core::parse::{parse_duration, parse_wait};
@@ -689,105 +690,26 @@ pub enum DurabilityKey {
     TransientLocal,
 }
 
+/// What a gateway config file is, for the reader's messages.
+const GATEWAY_CONFIG: tutti_config::Kind = tutti_config::Kind { name: "gateway config", levels: 4 };
+
 /// Reads a config file; errors name the file, and the line, column and key where they can.
 pub fn load(path: &Path) -> Result<ConfigFile, ConfigError> {
-    let shown = path.display().to_string();
-    let text = std::fs::read_to_string(path).map_err(|error| ConfigError::Read { file: shown.clone(), error })?;
-    parse(&text, &shown)
+    let mut c: ConfigFile = tutti_config::load(path, GATEWAY_CONFIG)?;
+    c.source = Some(path.display().to_string());
+    Ok(c)
 }
 
 /// A config file's text, read from `source` (named in errors).
 pub fn parse(text: &str, source: &str) -> Result<ConfigFile, ConfigError> {
-    // The parser recurses once per level: a file nested thousands deep would overflow the
-    // stack, so the depth is checked first, by a scan that recurses nowhere.
-    if let Some((line, column)) = too_deep(text) {
-        return Err(ConfigError::File {
-            file: source.to_string(),
-            position: Some((line, column)),
-            message: format!("nested more than {MAX_NESTING} deep (a gateway config needs 4 levels)"),
-        });
-    }
-    match json5::from_str::<ConfigFile>(text) {
-        Ok(mut c) => {
-            c.source = Some(source.to_string());
-            Ok(c)
-        }
-        Err(json5::Error::Message { msg, location }) => {
-            // A syntax error's message is pest's drawing of the line; its last line says
-            // what was expected, the position is ours.
-            let msg = match (msg.lines().rev().find_map(|l| l.trim().strip_prefix("= ")), &location) {
-                (Some(expected), Some(l)) => {
-                    let line = text.lines().nth(l.line.saturating_sub(1)).unwrap_or_default();
-                    format!("syntax error ({expected}) here:\n  {line}\n  {:>col$}", "^", col = l.column)
-                }
-                (Some(expected), None) => format!("syntax error: {expected}"),
-                (None, _) => msg,
-            };
-            Err(ConfigError::File {
-                file: source.to_string(),
-                position: location.map(|l| (l.line, l.column)),
-                message: msg,
-            })
-        }
-    }
+    let mut c: ConfigFile = tutti_config::from_str(text, source, GATEWAY_CONFIG)?;
+    c.source = Some(source.to_string());
+    Ok(c)
 }
 
-/// The deepest nesting of objects and arrays a config file may have.
-pub const MAX_NESTING: usize = 32;
-
-/// The line and column (1-based, in characters) of the first `{` or `[` that opens a level
-/// deeper than [`MAX_NESTING`], if there is one. Strings and comments are skipped as JSON5
-/// writes them; what is not JSON5 is left to the parser.
-fn too_deep(text: &str) -> Option<(usize, usize)> {
-    #[derive(Clone, Copy, PartialEq)]
-    enum In {
-        Code,
-        Str(char),
-        Escape(char),
-        LineComment,
-        BlockComment,
-    }
-    let (mut state, mut depth, mut line, mut col) = (In::Code, 0usize, 1usize, 0usize);
-    let mut chars = text.chars().peekable();
-    while let Some(c) = chars.next() {
-        if c == '\n' {
-            (line, col) = (line + 1, 0);
-        } else {
-            col += 1;
-        }
-        state = match (state, c) {
-            (In::Code, '"' | '\'') => In::Str(c),
-            (In::Code, '/') if chars.peek() == Some(&'/') => In::LineComment,
-            (In::Code, '/') if chars.peek() == Some(&'*') => {
-                chars.next();
-                col += 1;
-                In::BlockComment
-            }
-            (In::Code, '{' | '[') => {
-                depth += 1;
-                if depth > MAX_NESTING {
-                    return Some((line, col));
-                }
-                In::Code
-            }
-            (In::Code, '}' | ']') => {
-                depth = depth.saturating_sub(1);
-                In::Code
-            }
-            (In::Str(q), '\\') => In::Escape(q),
-            (In::Str(q), c) if c == q => In::Code,
-            (In::Escape(q), _) => In::Str(q),
-            (In::LineComment, '\n') => In::Code,
-            (In::BlockComment, '*') if chars.peek() == Some(&'/') => {
-                chars.next();
-                col += 1;
-                In::Code
-            }
-            (s, _) => s,
-        };
-    }
-    None
-}
+/// The deepest nesting of objects and arrays a config file may have (the parser recurses
+/// once per level, so a deeper file is refused before it is parsed).
+pub use tutti_config::MAX_NESTING;
 
 impl ConfigFile {
     /// `self` (the flags) laid over the keys of the config file `config`, if there is one.
@@ -1126,55 +1048,6 @@ pub fn parse_namespace(s: &str) -> Result<String, ConfigError> {
 
 fn parse_pattern(s: &str) -> Result<String, ConfigError> {
     anchored(s).map(|_| s.to_string())
-}
-
-/// Parses a string where it stands, so that json5 gives its error the value's position.
-struct Parsed<T, P> {
-    expecting: &'static str,
-    parse: fn(&str) -> Result<T, P>,
-}
-
-impl<'de, T, P: fmt::Display> Visitor<'de> for Parsed<T, P> {
-    type Value = T;
-    fn expecting(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        f.write_str(self.expecting)
-    }
-    fn visit_str<E: de::Error>(self, v: &str) -> Result<T, E> {
-        (self.parse)(v).map_err(E::custom)
-    }
-}
-
-impl<'de, T, P: fmt::Display> DeserializeSeed<'de> for Parsed<T, P> {
-    type Value = T;
-    fn deserialize<D: Deserializer<'de>>(self, d: D) -> Result<T, D::Error> {
-        d.deserialize_any(self)
-    }
-}
-
-/// A number checked where it stands (json5 reads integers as i64, others as f64).
-struct Number {
-    expecting: &'static str,
-    ok: fn(f64) -> bool,
-}
-
-impl Visitor<'_> for Number {
-    type Value = f64;
-    fn expecting(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        f.write_str(self.expecting)
-    }
-    fn visit_f64<E: de::Error>(self, v: f64) -> Result<f64, E> {
-        if v.is_finite() && (self.ok)(v) {
-            Ok(v)
-        } else {
-            Err(E::custom(format!("{v} is not {}", self.expecting)))
-        }
-    }
-    fn visit_i64<E: de::Error>(self, v: i64) -> Result<f64, E> {
-        self.visit_f64(v as f64)
-    }
-    fn visit_u64<E: de::Error>(self, v: u64) -> Result<f64, E> {
-        self.visit_f64(v as f64)
-    }
 }
 
 macro_rules! parsed {

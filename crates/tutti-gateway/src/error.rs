@@ -79,12 +79,10 @@ impl GatewayError {
 #[derive(Debug, thiserror::Error)]
 #[non_exhaustive]
 pub enum ConfigError {
-    /// The config file cannot be read.
-    #[error("{file}: cannot read the gateway config: {error}")]
-    Read { file: String, error: std::io::Error },
-    /// JSON5 syntax, an unknown key or a bad value, where it stands in the file.
-    #[error("{file}{}: {message}", position.map(|(l, c)| format!(":{l}:{c}")).unwrap_or_default())]
-    File { file: String, position: Option<(usize, usize)>, message: String },
+    /// The config file cannot be read, or has a mistake where it stands: JSON5 syntax,
+    /// nesting too deep, an unknown key or a bad value.
+    #[error(transparent)]
+    File(#[from] tutti_config::Error),
     /// A `topics` key that names no set of the DDF.
     #[error("{at}: the DDF has no set '{set}' (sets: {sets})")]
     NoSuchSet { at: String, set: String, sets: String },

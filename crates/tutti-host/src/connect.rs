@@ -66,13 +66,20 @@ impl StepOrder {
     }
 }
 
+/// A name that is not one of the [`StepOrder`]s.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[error("'{given}': expected 'delayed' (the default) or 'feedthrough'")]
+pub struct UnknownOrder {
+    pub given: String,
+}
+
 impl std::str::FromStr for StepOrder {
-    type Err = String;
-    fn from_str(s: &str) -> Result<StepOrder, String> {
+    type Err = UnknownOrder;
+    fn from_str(s: &str) -> Result<StepOrder, UnknownOrder> {
         match s {
             "delayed" => Ok(StepOrder::Delayed),
             "feedthrough" => Ok(StepOrder::Feedthrough),
-            _ => Err(format!("'{s}': expected 'delayed' (the default) or 'feedthrough'")),
+            _ => Err(UnknownOrder { given: s.to_string() }),
         }
     }
 }
@@ -159,26 +166,21 @@ impl fmt::Display for Unit {
 }
 
 /// Parses the inside of `[NAME]` (a base unit) or `[NAME: kg=E m=E … factor=F offset=O]`.
-pub fn parse_unit(s: &str) -> Result<Unit, String> {
+pub fn parse_unit(s: &str) -> Result<Unit, UnitError> {
     let (name, terms) = match s.split_once(':') {
         Some((n, t)) => (n.trim(), Some(t)),
         None => (s.trim(), None),
     };
     if name.is_empty() || name.contains(char::is_whitespace) {
-        return Err(format!("'[{s}]' is not a unit: expected [NAME] or [NAME: m=1 s=-1 factor=F offset=O]"));
+        return Err(UnitError::Form(s.to_string()));
     }
     let Some(terms) = terms else {
-        return Unit::base(name).ok_or_else(|| {
-            format!(
-                "unit '{name}' is not a base unit ({}): define it, like [{name}: m=1 factor=1000]",
-                BASE_UNITS.join(" ")
-            )
-        });
+        return Unit::base(name).ok_or_else(|| UnitError::NotBase(name.to_string()));
     };
     let mut unit = Unit { name: name.to_string(), exponents: [0; 8], factor: 1.0, offset: 0.0 };
     for term in terms.split_whitespace() {
         let (key, value) = term.split_once('=').unwrap_or((term, "1"));
-        let bad = || format!("unit '{name}': '{term}' is not KEY=NUMBER");
+        let bad = || UnitError::Term { name: name.to_string(), term: term.to_string() };
         if let Some(i) = BASE_UNITS.iter().position(|b| *b == key) {
             unit.exponents[i] = value.parse().map_err(|_| bad())?;
             continue;
@@ -186,14 +188,9 @@ pub fn parse_unit(s: &str) -> Result<Unit, String> {
         let v: f64 = value.parse().ok().filter(|v: &f64| v.is_finite()).ok_or_else(bad)?;
         match key {
             "factor" if v != 0.0 => unit.factor = v,
-            "factor" => return Err(format!("unit '{name}': factor 0 converts nothing")),
+            "factor" => return Err(UnitError::ZeroFactor(name.to_string())),
             "offset" => unit.offset = v,
-            _ => {
-                return Err(format!(
-                    "unit '{name}': unknown term '{key}' (the base units {}, factor, offset)",
-                    BASE_UNITS.join(" ")
-                ))
-            }
+            _ => return Err(UnitError::UnknownTerm { name: name.to_string(), key: key.to_string() }),
         }
     }
     Ok(unit)
@@ -266,22 +263,41 @@ pub enum ConnectError {
     #[error("'{given}': '{value}' is not a number")]
     Number { given: String, value: String },
     #[error("'{given}': {reason}")]
-    Unit { given: String, reason: String },
+    Unit { given: String, reason: UnitError },
     #[error("{connection}: {reason}")]
     Refused { connection: String, reason: String },
+}
+
+/// A unit that does not parse, or units given at one end only.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+pub enum UnitError {
+    #[error("'[{0}]' is not a unit: expected [NAME] or [NAME: m=1 s=-1 factor=F offset=O]")]
+    Form(String),
+    #[error("unit '{0}' is not a base unit ({base}): define it, like [{0}: m=1 factor=1000]", base = BASE_UNITS.join(" "))]
+    NotBase(String),
+    #[error("unit '{name}': '{term}' is not KEY=NUMBER")]
+    Term { name: String, term: String },
+    #[error("unit '{0}': factor 0 converts nothing")]
+    ZeroFactor(String),
+    #[error("unit '{name}': unknown term '{key}' (the base units {base}, factor, offset)", base = BASE_UNITS.join(" "))]
+    UnknownTerm { name: String, key: String },
+    #[error("a '[' without its ']'")]
+    Unclosed,
+    #[error("give a unit at both ends or at neither")]
+    OneEnd,
 }
 
 /// Parses `FROM -> TO [* GAIN] [+ OFFSET]` (`- OFFSET` too); FROM is an item or `@sim_time`.
 pub fn parse_connection(s: &str) -> Result<ConnectionSpec, ConnectError> {
     let (from, rest) = split_arrow(s).ok_or_else(|| ConnectError::Form(s.to_string()))?;
-    let unit_err = |reason: String| ConnectError::Unit { given: s.to_string(), reason };
+    let unit_err = |reason: UnitError| ConnectError::Unit { given: s.to_string(), reason };
     let (from, from_unit) = take_unit(from).map_err(unit_err)?;
     let rest = rest.trim_start();
     let to_end = rest.find(char::is_whitespace).unwrap_or(rest.len());
     let (to, after) = rest.split_at(to_end);
     let (to_unit, after) = match after.trim_start().strip_prefix('[') {
         Some(inner) => {
-            let (u, tail) = inner.split_once(']').ok_or_else(|| unit_err("a '[' without its ']'".into()))?;
+            let (u, tail) = inner.split_once(']').ok_or_else(|| unit_err(UnitError::Unclosed))?;
             (Some(parse_unit(u).map_err(unit_err)?), tail)
         }
         None => (None, after),
@@ -289,7 +305,7 @@ pub fn parse_connection(s: &str) -> Result<ConnectionSpec, ConnectError> {
     let units = match (from_unit, to_unit) {
         (Some(a), Some(b)) => Some((a, b)),
         (None, None) => None,
-        _ => return Err(unit_err("give a unit at both ends or at neither".into())),
+        _ => return Err(unit_err(UnitError::OneEnd)),
     };
     if to.is_empty() {
         return Err(ConnectError::Form(s.to_string()));
@@ -350,7 +366,7 @@ fn split_arrow(s: &str) -> Option<(&str, &str)> {
 }
 
 /// `END [UNIT]` → the end and its unit.
-fn take_unit(s: &str) -> Result<(&str, Option<Unit>), String> {
+fn take_unit(s: &str) -> Result<(&str, Option<Unit>), UnitError> {
     let s = s.trim();
     match s.strip_suffix(']').and_then(|r| r.split_once('[')) {
         Some((end, u)) => Ok((end.trim(), Some(parse_unit(u)?))),
@@ -395,7 +411,7 @@ impl Connections {
         let mut inputs: Vec<(End, &ConnectionSpec)> = Vec::new();
         for spec in specs {
             let refused = |reason: String| ConnectError::Refused { connection: spec.to_string(), reason };
-            let to = end(model, &spec.to, Role::Publish).map_err(refused)?;
+            let to = end(model, &spec.to, Role::Publish).map_err(|e| refused(e.to_string()))?;
             if let Some((_, other)) = inputs.iter().find(|(e, _)| e.domain == to.domain && overlap(&e.leaf, &to.leaf)) {
                 return Err(refused(format!("{} already has a source: {other}", spec.to)));
             }
@@ -430,7 +446,7 @@ impl Connections {
                     clocks.push((to, gain, offset));
                     continue;
                 }
-                Source::Item(r) => end(model, r, Role::Subscribe).map_err(refused)?,
+                Source::Item(r) => end(model, r, Role::Subscribe).map_err(|e| refused(e.to_string()))?,
             };
             let (a, b) = (&from.leaf, &to.leaf);
             if a.length != b.length {
@@ -545,25 +561,43 @@ impl Connections {
     }
 }
 
+/// Why an end of a connection names no item of the right role.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+enum EndError {
+    #[error("no domain '{0}' in the DDF")]
+    NoDomain(String),
+    #[error("no item '{item}' in the {set} set of domain '{domain}'", item = .0.item, set = set_name(.0.role), domain = .0.domain)]
+    NoItem(ItemRef),
+    #[error("{0} must be {what}", what = role_text(*.1))]
+    Role(ItemRef, Role),
+}
+
+fn set_name(role: Role) -> &'static str {
+    match role {
+        Role::Publish => "PUBLISH",
+        Role::Subscribe => "SUBSCRIBE",
+    }
+}
+
+/// What an end of role `want` must be.
+fn role_text(want: Role) -> &'static str {
+    match want {
+        Role::Subscribe => "an output: a SUBSCRIBE item (what participants write)",
+        Role::Publish => "an input: a PUBLISH item (what participants read)",
+    }
+}
+
 /// The leaf `r` names, which must have role `want`.
-fn end(model: &Model, r: &ItemRef, want: Role) -> Result<End, String> {
+fn end(model: &Model, r: &ItemRef, want: Role) -> Result<End, EndError> {
     let (domain, d) = model
         .domains
         .iter()
         .enumerate()
         .find(|(_, d)| d.name == r.domain)
-        .ok_or_else(|| format!("no domain '{}' in the DDF", r.domain))?;
-    let leaf = d.set(r.role).layout.leaf(&r.item).ok_or_else(|| {
-        let role = if r.role == Role::Publish { "PUBLISH" } else { "SUBSCRIBE" };
-        format!("no item '{}' in the {role} set of domain '{}'", r.item, r.domain)
-    })?;
+        .ok_or_else(|| EndError::NoDomain(r.domain.clone()))?;
+    let leaf = d.set(r.role).layout.leaf(&r.item).ok_or_else(|| EndError::NoItem(r.clone()))?;
     if r.role != want {
-        let what = if want == Role::Subscribe {
-            "an output: a SUBSCRIBE item (what participants write)"
-        } else {
-            "an input: a PUBLISH item (what participants read)"
-        };
-        return Err(format!("{r} must be {what}"));
+        return Err(EndError::Role(r.clone(), want));
     }
     Ok(End { domain, leaf: leaf.clone() })
 }
@@ -669,7 +703,7 @@ mod tests {
         assert_eq!("feedthrough".parse::<StepOrder>(), Ok(StepOrder::Feedthrough));
         assert_eq!("delayed".parse::<StepOrder>(), Ok(StepOrder::Delayed));
         assert_eq!(StepOrder::default(), StepOrder::Delayed);
-        let e = "gauss-seidel".parse::<StepOrder>().unwrap_err();
+        let e = "gauss-seidel".parse::<StepOrder>().unwrap_err().to_string();
         assert!(e.contains("'gauss-seidel'") && e.contains("feedthrough"), "{e}");
     }
 

@@ -62,7 +62,7 @@ impl Default for HostOptions {
             duration: None,
             steps: None,
             catch_up: false,
-            timeout: Duration::from_secs(1),
+            timeout: tutti_core::defaults::STEP_TIMEOUT,
             wait: WaitMode::Block,
             namespace: None,
             sets: Vec::new(),

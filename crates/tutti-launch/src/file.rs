@@ -1,34 +1,30 @@
 //! The launch file: what it holds once checked ([`Launch`]), and how it is read ([`load`]).
 //!
-//! It is JSON5, as the gateway's config file is, read with serde into types that refuse
-//! unknown keys. Every check is made where its value stands, inside the deserialisation, so
-//! json5 gives each error its line and column: an unknown key, a wrong type, a bad duration,
-//! a command that cannot be found, a domain the DDF lacks, an FMU that does not fit its
-//! domain, two components of one name. The file is read twice: once for its shape and its
-//! `ddf`, then, with the DDF loaded, again with the checks that need the DDF (a file's keys
-//! come in any order, so the DDF may follow the components that name its domains).
+//! It is JSON5, as the gateway's config file is, read by the same reader (`tutti_config`)
+//! into its keys ([`LaunchKeys`](crate::keys::LaunchKeys)), which refuse unknown keys and
+//! check every value where it stands, so that each error has its line and column (see
+//! [`crate::keys`]). The file is read twice: once for its shape and its `ddf`, then, with
+//! the DDF loaded, again with the checks that need the DDF (a file's keys come in any order,
+//! so the DDF may follow the components that name its domains). The keys then become a
+//! [`Launch`]: defaults filled in, relative paths resolved.
 //!
 //! Relative paths (`ddf`, `run`'s program when it has a `/`, `fmu`, `cwd`, `record`,
 //! `gateway.config`) are relative to the launch file's directory.
 
-use std::cell::RefCell;
 use std::collections::BTreeMap;
-use std::fmt;
-use std::marker::PhantomData;
 use std::path::{Path, PathBuf};
+use std::sync::Arc;
 use std::time::Duration;
 
-use serde::de::value::{MapAccessDeserializer, SeqAccessDeserializer};
-use serde::de::{self, DeserializeSeed, Deserializer, IntoDeserializer, MapAccess, SeqAccess, Visitor};
-use serde::Deserialize;
+use serde::{Deserialize, Serialize};
 use tutti_core::ddf::Model;
-use tutti_core::parse::{parse_duration, parse_wait};
 use tutti_core::shm::WaitMode;
-use tutti_gateway::config::{self as gateway_config, ConfigFile};
+use tutti_gateway::config::ConfigFile;
 use tutti_gateway::GatewayOptions;
-use tutti_host::connect::{parse_connection, ConnectionSpec, Connections, StepOrder};
+use tutti_host::connect::{ConnectionSpec, StepOrder};
 
-use crate::LaunchError;
+use crate::keys::{self, ComponentKeys, FrameworkKeys, What};
+use crate::{KeyError, LaunchError};
 
 /// A launch file, checked: everything it names exists and fits.
 #[derive(Debug, Clone)]
@@ -82,7 +78,7 @@ impl Default for Framework {
         Framework {
             step: Duration::from_millis(10),
             speed: 1.0,
-            timeout: Duration::from_secs(1),
+            timeout: tutti_core::defaults::STEP_TIMEOUT,
             hold: false,
             duration: None,
             steps: None,
@@ -106,7 +102,7 @@ pub enum Program {
 }
 
 /// When a component that ended is started again.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
 #[serde(rename_all = "kebab-case")]
 pub enum Restart {
     /// Never (the default).
@@ -170,602 +166,85 @@ pub fn parse(text: &str, path: &Path) -> Result<Launch, LaunchError> {
     };
     let dir = std::path::absolute(&dir).unwrap_or(dir);
     // Pass 1: the shape of the file, and where the DDF is.
-    let first = with_context(Context::new(dir.clone(), None), || from_json5(text, &file))?;
+    let first = keys::read(text, &file, &dir, None)?;
     // Pass 2: with the DDF (or its error, which the `ddf` key then reports where it stands).
-    let ddf = first.ddf.clone();
-    let model = tutti_core::ddf::load(&ddf).map_err(|e| e.to_string());
-    let keys = with_context(Context::new(dir.clone(), Some((ddf.clone(), model))), || {
-        from_json5(text, &file).map(FileKeys::with_model)
-    })?;
-    let model = keys.model.ok_or_else(|| LaunchError::File { file: file.clone(), message: "no DDF".into() })?;
+    let ddf = dir.join(&first.ddf);
+    let model = tutti_core::ddf::load(&ddf).map_err(Arc::new);
+    let keys = keys::read(text, &file, &dir, Some((ddf.clone(), model.clone())))?;
+    let unplaced = |error| LaunchError::Unplaced { file: file.clone(), error: Box::new(error) };
+    // Refused by pass 2 already, at `ddf`.
+    let model = model.map_err(|e| unplaced(KeyError::Ddf(e)))?;
+    let framework = keys.framework.map(|k| Framework::from_keys(k, &dir)).unwrap_or_default();
+    let components = keys
+        .components
+        .into_iter()
+        .map(|k| Component::from_keys(k, &dir))
+        .collect::<Result<_, _>>()
+        .map_err(unplaced)?;
     Ok(Launch {
         path: path.to_path_buf(),
         dir,
         ddf,
         model,
-        framework: keys.framework,
-        components: keys.components,
+        framework,
+        components,
         gateway: keys.gateway,
         connections: keys.connections,
     })
 }
 
-fn from_json5(text: &str, file: &str) -> Result<FileKeys, LaunchError> {
-    json5::from_str::<FileKeys>(text).map_err(|json5::Error::Message { msg, location }| {
-        // A syntax error's message is pest's drawing of the line; its last line says what
-        // was expected (as the gateway's config file reports it).
-        let pest = msg.trim_start().starts_with("-->");
-        let message = match msg.lines().rev().find_map(|l| l.trim().strip_prefix("= ")) {
-            Some(expected) if pest => format!("syntax error: {expected}"),
-            _ => msg,
+impl Framework {
+    /// The framework `k` describes, its relative paths resolved in `dir`.
+    fn from_keys(k: FrameworkKeys, dir: &Path) -> Framework {
+        let dflt = Framework::default();
+        Framework {
+            step: k.step.unwrap_or(dflt.step),
+            // 0: as fast as the participants go (docs/timing.md).
+            speed: k.speed.map(|v| if v == 0.0 { f64::INFINITY } else { v }).unwrap_or(dflt.speed),
+            timeout: k.timeout.unwrap_or(dflt.timeout),
+            hold: k.hold.unwrap_or(dflt.hold),
+            duration: k.duration,
+            steps: k.steps,
+            catch_up: k.catch_up.unwrap_or(dflt.catch_up),
+            record: k.record.iter().map(|p| dir.join(p)).collect(),
+            set: k.set,
+            wait: k.wait.unwrap_or(dflt.wait),
+            ordering: k.ordering.unwrap_or(dflt.ordering),
+        }
+    }
+}
+
+impl Component {
+    /// The component `k` describes (checked as it was read), its relative paths resolved
+    /// in `dir`. The program of `run` is looked for again: gone since the check, it is an
+    /// error.
+    fn from_keys(k: ComponentKeys, dir: &Path) -> Result<Component, KeyError> {
+        let who = format!("component '{}'", k.name);
+        let program = match k.what(&who)? {
+            What::Run(argv) => {
+                let (program, args) = keys::program(&who, argv, dir)?;
+                Program::Run { program, args }
+            }
+            What::Fmu { fmu, .. } => Program::Fmu { fmu: dir.join(fmu), params: k.params.clone().unwrap_or_default() },
         };
-        match location {
-            Some(l) => LaunchError::At { file: file.to_string(), line: l.line, column: l.column, message },
-            None => LaunchError::File { file: file.to_string(), message },
-        }
-    })
-}
-
-// ---------------------------------------------------------------------------------------
-// What the checks need while the file is read: its directory, the DDF, the names so far.
-
-struct Context {
-    dir: PathBuf,
-    /// Pass 2: the DDF's path and its model, or why it cannot be loaded.
-    ddf: Option<(PathBuf, Result<Model, String>)>,
-    /// The names of the components read so far.
-    names: Vec<String>,
-    /// The component being read: its index, and its name once read.
-    current: (usize, Option<String>),
-}
-
-impl Context {
-    fn new(dir: PathBuf, ddf: Option<(PathBuf, Result<Model, String>)>) -> Self {
-        Context { dir, ddf, names: Vec::new(), current: (0, None) }
-    }
-
-    fn model(&self) -> Option<&Model> {
-        self.ddf.as_ref().and_then(|(_, m)| m.as_ref().ok())
-    }
-
-    fn resolve(&self, p: &str) -> PathBuf {
-        self.dir.join(p)
-    }
-
-    /// `component 'NAME'`, or `component #N` before its name is read.
-    fn who(&self) -> String {
-        match &self.current.1 {
-            Some(n) => format!("component '{n}'"),
-            None => format!("component #{}", self.current.0),
-        }
-    }
-}
-
-thread_local! {
-    static CONTEXT: RefCell<Option<Context>> = const { RefCell::new(None) };
-}
-
-fn with_context<T>(ctx: Context, f: impl FnOnce() -> T) -> T {
-    struct Reset;
-    impl Drop for Reset {
-        fn drop(&mut self) {
-            CONTEXT.with(|c| c.borrow_mut().take());
-        }
-    }
-    CONTEXT.with(|c| *c.borrow_mut() = Some(ctx));
-    let _reset = Reset;
-    f()
-}
-
-fn ctx<T>(f: impl FnOnce(&mut Context) -> T) -> T {
-    CONTEXT.with(|c| f(c.borrow_mut().as_mut().expect("a launch file is read inside its context")))
-}
-
-// ---------------------------------------------------------------------------------------
-// Checks where a value stands: `then(d, f)` reads an `R` from the value `d` and passes it
-// through `f`; an error of `f` gets the value's position from json5.
-
-struct Then<R, F>(F, PhantomData<R>);
-
-impl<'de, R, T, F> Visitor<'de> for Then<R, F>
-where
-    R: Deserialize<'de>,
-    F: FnOnce(R) -> Result<T, String>,
-{
-    type Value = T;
-
-    fn expecting(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        f.write_str("a value")
-    }
-    fn visit_bool<E: de::Error>(self, v: bool) -> Result<T, E> {
-        (self.0)(R::deserialize(v.into_deserializer())?).map_err(E::custom)
-    }
-    fn visit_i64<E: de::Error>(self, v: i64) -> Result<T, E> {
-        (self.0)(R::deserialize(v.into_deserializer())?).map_err(E::custom)
-    }
-    fn visit_u64<E: de::Error>(self, v: u64) -> Result<T, E> {
-        (self.0)(R::deserialize(v.into_deserializer())?).map_err(E::custom)
-    }
-    fn visit_f64<E: de::Error>(self, v: f64) -> Result<T, E> {
-        (self.0)(R::deserialize(v.into_deserializer())?).map_err(E::custom)
-    }
-    fn visit_str<E: de::Error>(self, v: &str) -> Result<T, E> {
-        (self.0)(R::deserialize(v.into_deserializer())?).map_err(E::custom)
-    }
-    fn visit_unit<E: de::Error>(self) -> Result<T, E> {
-        (self.0)(R::deserialize(().into_deserializer())?).map_err(E::custom)
-    }
-    fn visit_seq<A: SeqAccess<'de>>(self, seq: A) -> Result<T, A::Error> {
-        (self.0)(R::deserialize(SeqAccessDeserializer::new(seq))?).map_err(de::Error::custom)
-    }
-    fn visit_map<A: MapAccess<'de>>(self, map: A) -> Result<T, A::Error> {
-        (self.0)(R::deserialize(MapAccessDeserializer::new(map))?).map_err(de::Error::custom)
-    }
-}
-
-fn then<'de, D, R, T>(d: D, f: impl FnOnce(R) -> Result<T, String>) -> Result<T, D::Error>
-where
-    D: Deserializer<'de>,
-    R: Deserialize<'de>,
-{
-    d.deserialize_any(Then(f, PhantomData))
-}
-
-// ---------------------------------------------------------------------------------------
-// The file's keys.
-
-#[derive(Deserialize)]
-#[serde(deny_unknown_fields)]
-struct FileKeys {
-    #[serde(deserialize_with = "de_ddf")]
-    ddf: PathBuf,
-    /// Filled by `de_ddf` in pass 2 (not a key).
-    #[serde(skip)]
-    model: Option<Model>,
-    #[serde(default)]
-    framework: Framework,
-    #[serde(default)]
-    components: Vec<Component>,
-    #[serde(default)]
-    gateway: Option<Gateway>,
-    #[serde(default, deserialize_with = "de_connections")]
-    connections: Vec<ConnectionSpec>,
-}
-
-/// `connections: ["plant/subscribe/y -> ctrl/publish/y_meas", …]`, checked against the DDF
-/// (a connection that meets a `set` value is refused when the framework is created, before
-/// any component starts).
-fn de_connections<'de, D: Deserializer<'de>>(d: D) -> Result<Vec<ConnectionSpec>, D::Error> {
-    then(d, |list: Vec<String>| {
-        let specs = list
-            .iter()
-            .map(|s| parse_connection(s))
-            .collect::<Result<Vec<_>, _>>()
-            .map_err(|e| format!("connections: {e}"))?;
-        ctx(|c| match c.model() {
-            Some(m) => Connections::resolve(m, &specs, &[]).map(|_| specs).map_err(|e| format!("connections: {e}")),
-            None => Ok(specs),
+        Ok(Component {
+            name: k.name,
+            program,
+            domain: k.domain,
+            env: k.env,
+            cwd: k.cwd.map(|c| dir.join(c)).unwrap_or_else(|| dir.to_path_buf()),
+            restart: k.restart.unwrap_or_default(),
+            max_restarts: k.max_restarts.unwrap_or(3),
+            connect_timeout: k.connect_timeout.unwrap_or(Duration::from_secs(10)),
+            autostart: k.autostart.unwrap_or(true),
         })
-    })
-}
-
-impl FileKeys {
-    /// Takes the model from the context (pass 2), once the file is read.
-    fn with_model(mut self) -> Self {
-        self.model = ctx(|c| c.model().cloned());
-        self
-    }
-}
-
-fn de_ddf<'de, D: Deserializer<'de>>(d: D) -> Result<PathBuf, D::Error> {
-    then(d, |p: String| {
-        ctx(|c| match &c.ddf {
-            None => Ok(c.resolve(&p)),
-            Some((path, Ok(_))) => Ok(path.clone()),
-            Some((_, Err(e))) => Err(format!("ddf: {e}")),
-        })
-    })
-}
-
-fn duration(key: &'static str) -> impl Fn(String) -> Result<Duration, String> {
-    move |s: String| parse_duration(&s).map_err(|e| format!("{key}: {e}"))
-}
-
-#[derive(Deserialize)]
-#[serde(deny_unknown_fields)]
-struct FrameworkKeys {
-    #[serde(default, deserialize_with = "de_step")]
-    step: Option<Duration>,
-    #[serde(default, deserialize_with = "de_speed")]
-    speed: Option<f64>,
-    #[serde(default, deserialize_with = "de_timeout")]
-    timeout: Option<Duration>,
-    hold: Option<bool>,
-    #[serde(default, deserialize_with = "de_duration")]
-    duration: Option<Duration>,
-    steps: Option<u64>,
-    catch_up: Option<bool>,
-    #[serde(default, deserialize_with = "de_record")]
-    record: Vec<PathBuf>,
-    #[serde(default, deserialize_with = "de_sets")]
-    set: Vec<String>,
-    #[serde(default, deserialize_with = "de_wait")]
-    wait: Option<WaitMode>,
-    #[serde(default, deserialize_with = "de_ordering")]
-    ordering: Option<StepOrder>,
-}
-
-fn de_step<'de, D: Deserializer<'de>>(d: D) -> Result<Option<Duration>, D::Error> {
-    then(d, |s: String| match duration("step")(s)? {
-        z if z.is_zero() => Err("step: must be longer than 0".into()),
-        v => Ok(Some(v)),
-    })
-}
-
-fn de_speed<'de, D: Deserializer<'de>>(d: D) -> Result<Option<f64>, D::Error> {
-    then(d, |v: f64| {
-        if v > 0.0 && v.is_finite() {
-            Ok(Some(v))
-        } else if v == 0.0 {
-            // As fast as the participants go (docs/timing.md).
-            Ok(Some(f64::INFINITY))
-        } else {
-            Err(format!("speed: {v}: must be a positive number of simulated seconds per wall-clock second, or 0 for as fast as possible"))
-        }
-    })
-}
-
-fn de_timeout<'de, D: Deserializer<'de>>(d: D) -> Result<Option<Duration>, D::Error> {
-    then(d, |s: String| duration("timeout")(s).map(Some))
-}
-
-fn de_duration<'de, D: Deserializer<'de>>(d: D) -> Result<Option<Duration>, D::Error> {
-    then(d, |s: String| duration("duration")(s).map(Some))
-}
-
-fn de_wait<'de, D: Deserializer<'de>>(d: D) -> Result<Option<WaitMode>, D::Error> {
-    then(d, |s: String| parse_wait(&s).map(Some).map_err(|e| format!("wait: {e}")))
-}
-
-fn de_ordering<'de, D: Deserializer<'de>>(d: D) -> Result<Option<StepOrder>, D::Error> {
-    then(d, |s: String| s.parse().map(Some).map_err(|e| format!("ordering: {e}")))
-}
-
-fn de_record<'de, D: Deserializer<'de>>(d: D) -> Result<Vec<PathBuf>, D::Error> {
-    then(d, |paths: Vec<String>| Ok(ctx(|c| paths.iter().map(|p| c.resolve(p)).collect())))
-}
-
-fn de_sets<'de, D: Deserializer<'de>>(d: D) -> Result<Vec<String>, D::Error> {
-    then(d, |sets: Vec<String>| {
-        ctx(|c| match c.model() {
-            Some(m) => tutti_host::Host::check_sets(m, &sets).map(|()| sets).map_err(|e| format!("set: {e}")),
-            None => Ok(sets),
-        })
-    })
-}
-
-impl<'de> Deserialize<'de> for Framework {
-    fn deserialize<D: Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
-        then(d, |k: FrameworkKeys| {
-            if k.duration.is_some() && k.steps.is_some() {
-                return Err("framework: give `duration` or `steps`, not both".into());
-            }
-            let dflt = Framework::default();
-            Ok(Framework {
-                step: k.step.unwrap_or(dflt.step),
-                speed: k.speed.unwrap_or(dflt.speed),
-                timeout: k.timeout.unwrap_or(dflt.timeout),
-                hold: k.hold.unwrap_or(false),
-                duration: k.duration,
-                steps: k.steps,
-                catch_up: k.catch_up.unwrap_or(false),
-                record: k.record,
-                set: k.set,
-                wait: k.wait.unwrap_or(dflt.wait),
-                ordering: k.ordering.unwrap_or(dflt.ordering),
-            })
-        })
-    }
-}
-
-#[derive(Deserialize)]
-#[serde(deny_unknown_fields)]
-struct ComponentKeys {
-    #[serde(deserialize_with = "de_name")]
-    name: String,
-    #[serde(default, deserialize_with = "de_run")]
-    run: Option<Program>,
-    #[serde(default, deserialize_with = "de_fmu")]
-    fmu: Option<(PathBuf, Option<Box<tutti_fmu::ModelDescription>>)>,
-    #[serde(default, deserialize_with = "de_domain")]
-    domain: Option<String>,
-    #[serde(default)]
-    params: Option<Vec<String>>,
-    #[serde(default)]
-    env: BTreeMap<String, String>,
-    #[serde(default, deserialize_with = "de_cwd")]
-    cwd: Option<PathBuf>,
-    #[serde(default)]
-    restart: Restart,
-    max_restarts: Option<u32>,
-    #[serde(default, deserialize_with = "de_connect_timeout")]
-    connect_timeout: Option<Duration>,
-    autostart: Option<bool>,
-}
-
-fn de_name<'de, D: Deserializer<'de>>(d: D) -> Result<String, D::Error> {
-    then(d, |name: String| {
-        let ok = !name.is_empty()
-            && !name.starts_with('.')
-            && name.chars().all(|ch| ch.is_ascii_alphanumeric() || matches!(ch, '_' | '-' | '.'));
-        if !ok {
-            return Err(format!(
-                "name '{name}': use letters, digits, '_', '-' and '.' (not first): it names the component's log file"
-            ));
-        }
-        ctx(|c| {
-            if c.names.contains(&name) {
-                return Err(format!("name '{name}' is given to two components: names must be unique"));
-            }
-            c.names.push(name.clone());
-            c.current.1 = Some(name.clone());
-            Ok(name)
-        })
-    })
-}
-
-/// The program of `run: [PROGRAM, ARGS…]`: with a `/`, a path (relative to the launch
-/// file's directory); without, found on PATH.
-fn de_run<'de, D: Deserializer<'de>>(d: D) -> Result<Option<Program>, D::Error> {
-    then(d, |argv: Vec<String>| {
-        let (who, dir) = ctx(|c| (c.who(), c.dir.clone()));
-        let Some((program, args)) = argv.split_first() else {
-            return Err(format!(
-                "{who}: run: give the program and its arguments, like [\"./controller\", \"--gain\", \"2\"]"
-            ));
-        };
-        let found = if program.contains('/') {
-            let p = dir.join(program);
-            is_executable(&p).then_some(p).ok_or_else(|| {
-                format!("{who}: run: '{program}' is not an executable file ({}; relative paths start at the launch file's directory)", dir.join(program).display())
-            })
-        } else {
-            find_on_path(program).ok_or_else(|| format!("{who}: run: command '{program}' not found on PATH"))
-        }?;
-        Ok(Some(Program::Run { program: found, args: args.to_vec() }))
-    })
-}
-
-fn is_executable(p: &Path) -> bool {
-    use std::os::unix::fs::PermissionsExt;
-    p.metadata().is_ok_and(|m| m.is_file() && m.permissions().mode() & 0o111 != 0)
-}
-
-fn find_on_path(name: &str) -> Option<PathBuf> {
-    let path = std::env::var_os("PATH")?;
-    std::env::split_paths(&path).map(|d| d.join(name)).find(|p| is_executable(p))
-}
-
-#[allow(clippy::type_complexity)]
-fn de_fmu<'de, D: Deserializer<'de>>(
-    d: D,
-) -> Result<Option<(PathBuf, Option<Box<tutti_fmu::ModelDescription>>)>, D::Error> {
-    then(d, |p: String| {
-        let (who, path, pass2) = ctx(|c| (c.who(), c.resolve(&p), c.ddf.is_some()));
-        if !path.is_file() {
-            return Err(format!("{who}: fmu: no file {}", path.display()));
-        }
-        if !pass2 {
-            return Ok(Some((path, None)));
-        }
-        let fmu = tutti_fmu::Fmu::open(&path).map_err(|e| format!("{who}: fmu: {e}"))?;
-        fmu.model_identifier().map_err(|e| format!("{who}: fmu: {e}"))?;
-        Ok(Some((path, Some(Box::new(fmu.model)))))
-    })
-}
-
-/// Whether `name` is a variable of `md` that `--param` can set (a parameter or an input).
-fn check_param(md: &tutti_fmu::ModelDescription, name: &str) -> Result<(), String> {
-    use tutti_fmu::Causality;
-    let var = md.variable(name).ok_or_else(|| format!("model '{}' has no variable '{name}'", md.model_name))?;
-    match var.causality {
-        Causality::Parameter | Causality::Input | Causality::StructuralParameter if var.variability != "constant" => {
-            Ok(())
-        }
-        _ => Err(format!("'{name}' is {} {}, not a parameter or an input", var.variability, var.causality.as_str())),
-    }
-}
-
-fn de_domain<'de, D: Deserializer<'de>>(d: D) -> Result<Option<String>, D::Error> {
-    then(d, |domain: String| {
-        ctx(|c| match (c.model(), &c.ddf) {
-            (Some(m), Some((ddf, _))) if m.domain(&domain).is_none() => {
-                let names: Vec<&str> = m.domains.iter().map(|d| d.name.as_str()).collect();
-                Err(format!(
-                    "{}: domain '{domain}' is not in {} (its domains: {})",
-                    c.who(),
-                    ddf.display(),
-                    names.join(", ")
-                ))
-            }
-            _ => Ok(Some(domain)),
-        })
-    })
-}
-
-fn de_cwd<'de, D: Deserializer<'de>>(d: D) -> Result<Option<PathBuf>, D::Error> {
-    then(d, |p: String| {
-        ctx(|c| {
-            let dir = c.resolve(&p);
-            if dir.is_dir() {
-                Ok(Some(dir))
-            } else {
-                Err(format!("{}: cwd: no directory {}", c.who(), dir.display()))
-            }
-        })
-    })
-}
-
-fn de_connect_timeout<'de, D: Deserializer<'de>>(d: D) -> Result<Option<Duration>, D::Error> {
-    then(d, |s: String| duration("connect_timeout")(s).map(Some))
-}
-
-impl<'de> Deserialize<'de> for Component {
-    fn deserialize<D: Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
-        ctx(|c| c.current = (c.current.0 + 1, None));
-        then(d, |k: ComponentKeys| {
-            let (who, dir) = ctx(|c| (c.who(), c.dir.clone()));
-            let program = match (k.run, k.fmu) {
-                (Some(run), None) if k.params.is_none() => run,
-                (None, Some((fmu, md))) => {
-                    let md = md.map(|m| *m);
-                    let Some(domain) = &k.domain else {
-                        return Err(format!("{who}: an FMU component needs `domain`: the domain it joins"));
-                    };
-                    if let (Some(md), Some(m)) = (&md, ctx(|c| c.model().cloned())) {
-                        if let Some(dom) = m.domain(domain) {
-                            tutti_fmu::Mapping::build(md, dom, &[])
-                                .map_err(|e| format!("{who}: {} does not fit domain '{domain}': {e}", fmu.display()))?;
-                        }
-                    }
-                    let params = k.params.unwrap_or_default();
-                    for p in &params {
-                        let Some((name, _)) = p.split_once('=').filter(|(n, _)| !n.trim().is_empty()) else {
-                            return Err(format!("{who}: params: '{p}' is not NAME=VALUE"));
-                        };
-                        if let (Some(md), true) = (&md, ctx(|c| c.model().is_some())) {
-                            check_param(md, name.trim()).map_err(|why| format!("{who}: params: '{p}': {why}"))?;
-                        }
-                    }
-                    Program::Fmu { fmu, params }
-                }
-                (Some(_), Some(_)) => return Err(format!("{who}: give `run` or `fmu`, not both")),
-                (Some(_), None) => return Err(format!("{who}: `params` are an FMU's: give them with `fmu`")),
-                (None, None) => return Err(format!("{who}: give `run: [PROGRAM, ARGS…]` or `fmu: FILE`")),
-            };
-            Ok(Component {
-                name: k.name,
-                program,
-                domain: k.domain,
-                env: k.env,
-                cwd: k.cwd.unwrap_or(dir),
-                restart: k.restart,
-                max_restarts: k.max_restarts.unwrap_or(3),
-                connect_timeout: k.connect_timeout.unwrap_or(Duration::from_secs(10)),
-                autostart: k.autostart.unwrap_or(true),
-            })
-        })
-    }
-}
-
-// ---------------------------------------------------------------------------------------
-// The gateway: `config: FILE`, or the config file's keys inline (read by the gateway's own
-// types, so the keys and their checks are the gateway's).
-
-impl<'de> Deserialize<'de> for Gateway {
-    fn deserialize<D: Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
-        d.deserialize_map(GatewayVisitor)
-    }
-}
-
-struct GatewayVisitor;
-
-impl<'de> Visitor<'de> for GatewayVisitor {
-    type Value = Gateway;
-
-    fn expecting(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        f.write_str("the gateway config file's keys, or { config: \"gateway.json5\" }")
-    }
-
-    fn visit_map<A: MapAccess<'de>>(self, map: A) -> Result<Gateway, A::Error> {
-        let mut config: Option<String> = None;
-        let mut keys =
-            ConfigFile::deserialize(MapAccessDeserializer::new(Intercept { inner: map, config: &mut config }))?;
-        let fail = |m: String| de::Error::custom(format!("gateway: {m}"));
-        let (dir, ddf) = ctx(|c| (c.dir.clone(), c.ddf.as_ref().map(|(p, m)| (p.clone(), m.clone().ok()))));
-        let config = match config {
-            Some(_) if keys != ConfigFile::default() => {
-                return Err(fail("give `config: FILE` or the config file's keys, not both".into()))
-            }
-            Some(file) => {
-                let path = dir.join(file);
-                keys = gateway_config::load(&path).map_err(|e| fail(e.to_string()))?;
-                Some(path)
-            }
-            None => None,
-        };
-        let options = match ddf {
-            Some((ddf, Some(model))) => {
-                let opts = GatewayOptions::configured(&ddf, model, &keys).map_err(|e| fail(e.to_string()))?;
-                gateway_config::resolve(&opts).map_err(|e| fail(e.to_string()))?;
-                opts
-            }
-            // Pass 1 (or a DDF that did not load, reported at `ddf`): checked in pass 2.
-            _ => GatewayOptions::new(PathBuf::new(), Model { source: String::new(), domains: Vec::new() }),
-        };
-        Ok(Gateway { config, keys, options: Box::new(options) })
-    }
-}
-
-/// The gateway's keys with `config` taken out (into `config`) on the way.
-struct Intercept<'a, A> {
-    inner: A,
-    config: &'a mut Option<String>,
-}
-
-enum Key<K, V> {
-    Config(K),
-    Other(V),
-}
-
-struct KeyOrConfig<K>(K);
-
-impl<'de, K: DeserializeSeed<'de>> DeserializeSeed<'de> for KeyOrConfig<K> {
-    type Value = Key<K, K::Value>;
-    fn deserialize<D: Deserializer<'de>>(self, d: D) -> Result<Self::Value, D::Error> {
-        d.deserialize_any(self)
-    }
-}
-
-impl<'de, K: DeserializeSeed<'de>> Visitor<'de> for KeyOrConfig<K> {
-    type Value = Key<K, K::Value>;
-    fn expecting(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        f.write_str("a key")
-    }
-    fn visit_str<E: de::Error>(self, v: &str) -> Result<Self::Value, E> {
-        if v == "config" {
-            Ok(Key::Config(self.0))
-        } else {
-            self.0.deserialize(v.into_deserializer()).map(Key::Other)
-        }
-    }
-}
-
-impl<'de, A: MapAccess<'de>> MapAccess<'de> for Intercept<'_, A> {
-    type Error = A::Error;
-
-    fn next_key_seed<K: DeserializeSeed<'de>>(&mut self, seed: K) -> Result<Option<K::Value>, A::Error> {
-        let mut seed = seed;
-        loop {
-            match self.inner.next_key_seed(KeyOrConfig(seed))? {
-                None => return Ok(None),
-                Some(Key::Other(v)) => return Ok(Some(v)),
-                Some(Key::Config(s)) => {
-                    *self.config = Some(self.inner.next_value::<String>()?);
-                    seed = s;
-                }
-            }
-        }
-    }
-
-    fn next_value_seed<V: DeserializeSeed<'de>>(&mut self, seed: V) -> Result<V::Value, A::Error> {
-        self.inner.next_value_seed(seed)
     }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::LaunchKeys;
 
     /// `cosim.ddf`: one synchronous domain, `plant`, a float64 out and a float64 in.
     fn cosim_ddf() -> String {
@@ -887,6 +366,64 @@ mod tests {
         assert_eq!(l.unwrap().framework.speed, 4.0);
         let e = error("{ ddf: \"cosim.ddf\"\n  components: [] }");
         assert!(e.starts_with(":1:8: syntax error"), "{e}");
+    }
+
+    #[test]
+    fn an_inline_gateway_nested_too_deep_is_refused_where_it_goes_too_deep() {
+        let deep = format!(
+            "{{ ddf: \"cosim.ddf\",\n gateway: {{ topics: {}1{} }} }}",
+            "{a:".repeat(100_000),
+            "}".repeat(100_000)
+        );
+        // The file is level 1, `gateway` 2, and the first `{a:` (column 21, `topics`) 3.
+        let col = 21 + (tutti_config::MAX_NESTING + 1 - 3) * 3;
+        let e = error(&deep);
+        assert_eq!(e, format!(":2:{col}: nested more than 32 deep (a launch file needs 5 levels)"));
+    }
+
+    #[test]
+    fn keys_written_are_read_back_as_they_were() {
+        let keys = LaunchKeys {
+            ddf: "cosim.ddf".into(),
+            framework: Some(FrameworkKeys {
+                step: Some(Duration::from_micros(1500)),
+                speed: Some(0.0),
+                timeout: Some(Duration::from_secs(2)),
+                hold: Some(true),
+                duration: Some(Duration::from_millis(2500)),
+                catch_up: Some(true),
+                record: vec!["run.mcap".into()],
+                set: vec!["plant/x=1.5".into()],
+                wait: Some(WaitMode::Poll(Duration::from_micros(50))),
+                ordering: Some(StepOrder::Feedthrough),
+                ..Default::default()
+            }),
+            components: vec![ComponentKeys {
+                name: "a".into(),
+                run: Some(vec!["sh".into(), "-c".into(), "true".into()]),
+                domain: Some("plant".into()),
+                env: BTreeMap::from([("K".into(), "1".into())]),
+                cwd: Some(".".into()),
+                restart: Some(Restart::OnFailure),
+                max_restarts: Some(2),
+                connect_timeout: Some(Duration::from_secs(3)),
+                autostart: Some(false),
+                ..Default::default()
+            }],
+            gateway: None,
+            connections: vec![
+                tutti_host::connect::parse_connection("plant/subscribe/y -> plant/publish/x * 2 + -0.5").unwrap()
+            ],
+        };
+        let text = serde_json::to_string_pretty(&keys).unwrap();
+        assert!(text.contains("\"step\": \"1ms 500us\"") && text.contains("\"wait\": \"poll:50us\""), "{text}");
+        let (dir, r) = check(&text);
+        let launch = r.unwrap();
+        let again = keys::read(&text, "run.json5", dir.path(), None).unwrap();
+        assert_eq!((again.framework, again.components), (keys.framework, keys.components));
+        assert_eq!(again.connections, keys.connections);
+        assert_eq!(launch.framework.speed, f64::INFINITY);
+        assert_eq!(launch.connections, keys.connections);
     }
 
     #[test]

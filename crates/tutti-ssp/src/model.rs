@@ -221,6 +221,33 @@ fn cosmetic(n: &Node) -> bool {
     ) || n.ns == Ns::Other
 }
 
+/// `<ssd:DefaultExperiment>`: its `stopTime`, if it has one (its `startTime` must be 0).
+fn default_experiment(file: &str, n: &Node) -> Result<Option<f64>, SspError> {
+    let start = number(file, n, "startTime")?.unwrap_or(0.0);
+    if start != 0.0 {
+        return Err(at(file, n).error(format!(
+            "startTime=\"{start}\": a run starts at time 0 (docs/ssp.md); shift the system's time to 0"
+        )));
+    }
+    number(file, n, "stopTime")
+}
+
+/// Every system-level parameter names a component's variable, `COMPONENT.VARIABLE`.
+fn check_system_params(system: &System) -> Result<(), SspError> {
+    for p in &system.system_params {
+        let Some((comp, var)) = p.name.split_once('.') else {
+            return Err(p.at.error(format!(
+                "system-level parameter '{}': name a component's variable as COMPONENT.VARIABLE",
+                p.name
+            )));
+        };
+        if system.component(comp).is_none() || var.is_empty() {
+            return Err(p.at.error(format!("system-level parameter '{}': no component '{comp}'", p.name)));
+        }
+    }
+    Ok(())
+}
+
 impl Reader<'_> {
     fn system_description(&mut self, root: &Node) -> Result<System, SspError> {
         let f = self.file.clone();
@@ -240,15 +267,7 @@ impl Reader<'_> {
                 (Ns::Ssd, "System") => system = Some(c),
                 (Ns::Ssd, "Units") => units = self.units(c)?,
                 (Ns::Ssd, "Enumerations") => return Err(unsupported(&f, c, "enumerations (<ssd:Enumerations>)")),
-                (Ns::Ssd, "DefaultExperiment") => {
-                    let start = number(&f, c, "startTime")?.unwrap_or(0.0);
-                    if start != 0.0 {
-                        return Err(at(&f, c).error(format!(
-                            "startTime=\"{start}\": a run starts at time 0 (docs/ssp.md); shift the system's time to 0"
-                        )));
-                    }
-                    stop_time = number(&f, c, "stopTime")?;
-                }
+                (Ns::Ssd, "DefaultExperiment") => stop_time = default_experiment(&f, c)?,
                 _ if cosmetic(c) => {}
                 _ => return Err(at(&f, c).error(format!("unknown element <{}> in an SSD", c.qname))),
             }
@@ -266,32 +285,25 @@ impl Reader<'_> {
             system_params: Vec::new(),
             stop_time,
         };
+        let connections = self.system(sys, &mut out)?;
+        if out.components.is_empty() {
+            return Err(at(&f, sys).error("the system has no component"));
+        }
+        if let Some(c) = connections {
+            self.connections(c, &mut out)?;
+        }
+        check_system_params(&out)?;
+        Ok(out)
+    }
+
+    /// The children of `<ssd:System>`: its components and its parameter bindings, into
+    /// `out`. Its `<ssd:Connections>` is returned, to be read once every component is known.
+    fn system<'n>(&mut self, sys: &'n Node, out: &mut System) -> Result<Option<&'n Node>, SspError> {
+        let f = self.file.clone();
         let mut connections = None;
         for c in &sys.children {
             match (c.ns, c.name.as_str()) {
-                (Ns::Ssd, "Elements") => {
-                    for e in &c.children {
-                        match (e.ns, e.name.as_str()) {
-                            (Ns::Ssd, "Component") => {
-                                let comp = self.component(e)?;
-                                if out.component(&comp.name).is_some() {
-                                    return Err(at(&f, e).error(format!("two components are named '{}'", comp.name)));
-                                }
-                                out.components.push(comp);
-                            }
-                            (Ns::Ssd, "System") => {
-                                return Err(unsupported(&f, e, "a nested system (<ssd:System> inside <ssd:Elements>)"))
-                            }
-                            (Ns::Ssd, "SignalDictionaryReference") => {
-                                return Err(unsupported(&f, e, "a signal dictionary reference (SSB)"))
-                            }
-                            _ if cosmetic(e) => {}
-                            _ => {
-                                return Err(at(&f, e).error(format!("unknown element <{}> in <ssd:Elements>", e.qname)))
-                            }
-                        }
-                    }
-                }
+                (Ns::Ssd, "Elements") => self.elements(c, out)?,
                 (Ns::Ssd, "Connections") => connections = Some(c),
                 (Ns::Ssd, "ParameterBindings") => out.system_params = self.bindings(c)?,
                 (Ns::Ssd, "SignalDictionaries") => {
@@ -303,31 +315,45 @@ impl Reader<'_> {
                 _ => return Err(at(&f, c).error(format!("unknown element <{}> in <ssd:System>", c.qname))),
             }
         }
-        if out.components.is_empty() {
-            return Err(at(&f, sys).error("the system has no component"));
-        }
-        if let Some(c) = connections {
-            for n in &c.children {
-                if n.is(Ns::Ssd, "Connection") {
-                    let conn = self.connection(n, &out)?;
-                    out.connections.push(conn);
-                } else if !cosmetic(n) {
-                    return Err(at(&f, n).error(format!("unknown element <{}> in <ssd:Connections>", n.qname)));
+        Ok(connections)
+    }
+
+    /// `<ssd:Elements>`: the components, into `out`.
+    fn elements(&mut self, n: &Node, out: &mut System) -> Result<(), SspError> {
+        let f = self.file.clone();
+        for e in &n.children {
+            match (e.ns, e.name.as_str()) {
+                (Ns::Ssd, "Component") => {
+                    let comp = self.component(e)?;
+                    if out.component(&comp.name).is_some() {
+                        return Err(at(&f, e).error(format!("two components are named '{}'", comp.name)));
+                    }
+                    out.components.push(comp);
                 }
+                (Ns::Ssd, "System") => {
+                    return Err(unsupported(&f, e, "a nested system (<ssd:System> inside <ssd:Elements>)"))
+                }
+                (Ns::Ssd, "SignalDictionaryReference") => {
+                    return Err(unsupported(&f, e, "a signal dictionary reference (SSB)"))
+                }
+                _ if cosmetic(e) => {}
+                _ => return Err(at(&f, e).error(format!("unknown element <{}> in <ssd:Elements>", e.qname))),
             }
         }
-        for p in &out.system_params {
-            let Some((comp, var)) = p.name.split_once('.') else {
-                return Err(p.at.error(format!(
-                    "system-level parameter '{}': name a component's variable as COMPONENT.VARIABLE",
-                    p.name
-                )));
-            };
-            if out.component(comp).is_none() || var.is_empty() {
-                return Err(p.at.error(format!("system-level parameter '{}': no component '{comp}'", p.name)));
+        Ok(())
+    }
+
+    /// `<ssd:Connections>`, into `out` (whose components are all known).
+    fn connections(&mut self, n: &Node, out: &mut System) -> Result<(), SspError> {
+        for c in &n.children {
+            if c.is(Ns::Ssd, "Connection") {
+                let conn = self.connection(c, out)?;
+                out.connections.push(conn);
+            } else if !cosmetic(c) {
+                return Err(at(&self.file, c).error(format!("unknown element <{}> in <ssd:Connections>", c.qname)));
             }
         }
-        Ok(out)
+        Ok(())
     }
 
     fn units(&mut self, n: &Node) -> Result<Vec<(Unit, At)>, SspError> {

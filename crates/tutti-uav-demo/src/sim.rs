@@ -232,7 +232,8 @@ pub fn prepare(opts: &SimOptions, scenario: &Scenario, out: &Path) -> anyhow::Re
     build_fmu(out)?;
     let ros_domain_id = match opts.ros_domain_id {
         Some(id) => id.to_string(),
-        None => std::env::var("ROS_DOMAIN_ID").ok().filter(|s| !s.is_empty()).unwrap_or_else(|| "0".into()),
+        // The gateway's own reader: a bad value is refused here, naming the variable.
+        None => tutti_gateway::config::env::domain_id()?.unwrap_or(0).to_string(),
     };
     let filled = Filled {
         out: out.to_path_buf(),

@@ -35,7 +35,7 @@ pub struct UavArgs {
     #[arg(long, default_value_t = 4.0)]
     speed: f64,
     /// Longest wall-clock wait of a step for the participants.
-    #[arg(long, default_value = "1s", value_parser = parse_duration)]
+    #[arg(long, default_value = tutti_core::defaults::STEP_TIMEOUT_TEXT, value_parser = parse_duration)]
     timeout: Duration,
     /// A prebuilt C component (default: compiled from examples/c/uav_altitude_log.c).
     #[arg(long, value_name = "PATH")]

@@ -37,7 +37,7 @@ impl Default for FrameworkOptions {
     fn default() -> Self {
         FrameworkOptions {
             namespace: namespace_from_env(),
-            timeout: Duration::from_secs(1),
+            timeout: crate::defaults::STEP_TIMEOUT,
             wait: WaitMode::Block,
             connections: segment::DEFAULT_CONNECTIONS,
             mode: 0o600,
