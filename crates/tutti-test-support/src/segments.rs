@@ -14,8 +14,9 @@ pub fn segments_of(ns: &str) -> Vec<String> {
         .collect()
 }
 
-/// Removes the segments of namespace `.0` when dropped: a test's cleanup, which runs even
-/// when the test fails or a framework it started was killed.
+/// Removes the segments of namespace `.0` when dropped, and its run's control socket
+/// (`tutti-ctl.NS`, beside them): a test's cleanup, which runs even when the test fails or a
+/// framework it started was killed.
 #[derive(Debug)]
 pub struct RemoveSegments(pub String);
 
@@ -24,6 +25,7 @@ impl Drop for RemoveSegments {
         for name in segments_of(&self.0) {
             let _ = std::fs::remove_file(format!("/dev/shm/{name}"));
         }
+        let _ = std::fs::remove_file(format!("/dev/shm/tutti-ctl.{}", self.0));
     }
 }
 

@@ -36,7 +36,8 @@ pub fn poll_for<T>(patience: Duration, mut poll: impl FnMut() -> Option<T>) -> O
 
 /// [`poll_for`] that fails the test when the patience runs out: it panics with `what` (what
 /// never happened, or the state a failure should show: [`lazy`] builds it only then) and
-/// the patience.
+/// the patience. The failure is reported where the test called it.
+#[track_caller]
 pub fn wait_for<T>(what: impl fmt::Display, patience: Duration, poll: impl FnMut() -> Option<T>) -> T {
     match poll_for(patience, poll) {
         Some(v) => v,
@@ -46,6 +47,7 @@ pub fn wait_for<T>(what: impl fmt::Display, patience: Duration, poll: impl FnMut
 
 /// Waits until `done` is true, as [`wait_for`] does: fails the test with `what` when it is
 /// still false after `patience`.
+#[track_caller]
 pub fn wait_until(what: impl fmt::Display, patience: Duration, mut done: impl FnMut() -> bool) {
     wait_for(what, patience, || done().then_some(()))
 }
