@@ -1,8 +1,9 @@
 #!/usr/bin/env bash
 # The whole test suite, from a fresh Debian machine with the Rust toolchain, Python 3 and apt:
 # installs what the tests need (Debian packages, a local Python venv, npm packages, a ROS 2
-# Jazzy built from the sources in tests/ros2/jazzy), then runs the lints,
-# the docs build, every test of the workspace and the loom model checks.
+# Jazzy built from the sources in tests/ros2/jazzy), then runs the lints, the Cyclone-only
+# build (no default features) and its lints, the docs build, every test of the workspace and
+# the loom model checks.
 #
 # The tests install nothing themselves: everything they need is installed here. A test that
 # misses a tool, a Python module or root (network namespaces) is skipped with a message, and
@@ -99,6 +100,10 @@ cargo fmt --all -- --check
 
 step "cargo clippy (warnings are errors)"
 cargo clippy --workspace --all-targets --locked -- -D warnings
+
+step "the Cyclone-only build (docs/gateway.md, \"Builds\"): built and linted"
+cargo build -p tutti --no-default-features --locked --quiet
+cargo clippy -p tutti -p tutti-gateway --no-default-features --all-targets --locked -- -D warnings
 
 step "cargo doc (warnings are errors)"
 RUSTDOCFLAGS="-D warnings" cargo doc --workspace --no-deps --locked --quiet

@@ -157,102 +157,15 @@ impl RunResult {
 pub fn run(args: Args) -> CliResult {
     let cpus = std::thread::available_parallelism().map_or(0, |n| n.get());
     if !args.json {
-        println!(
-            "event-driven vs lock-step: 1 participant due every step + {} due every {} steps (threads of this process), step {:?}, {} steps per run, speed inf, wait {:?}, {} round(s), {cpus} CPUs, unpinned",
-            args.slow, args.every, args.step, args.steps, args.wait, args.rounds
-        );
-        println!(
-            "{:<26} {:>7} {:>11} {:>8} {:>11} {:>8} {:>8} {:>8} {:>9} {:>9} {:>11}",
-            "run",
-            "made",
-            "steps/s",
-            "wall s",
-            "CPU µs/step",
-            "p50 µs",
-            "p90 µs",
-            "p99 µs",
-            "max µs",
-            "timeouts",
-            "slow wakes"
-        );
+        print_header(&args, cpus);
     }
-    let mut results = Vec::new();
-    let first = if args.no_warmup { 1 } else { 0 };
-    for round in first..=args.rounds {
-        for kind in Kind::ALL {
-            eprintln!("bench event: round {round}: {}", kind.name());
-            let r = one_run(&args, kind, round)?;
-            check_answers(&args, &r)?;
-            let label =
-                if round == 0 { format!("{} (warm-up)", kind.name()) } else { format!("{} #{round}", kind.name()) };
-            if !args.json {
-                println!(
-                    "{:<26} {:>7} {:>11.0} {:>8.3} {:>11.2} {:>8.1} {:>8.1} {:>8.1} {:>9.1} {:>9} {:>11}",
-                    label,
-                    r.made,
-                    r.steps_per_s(),
-                    r.wall.as_secs_f64(),
-                    r.cpu_per_step_us(),
-                    r.step_us(0.5),
-                    r.step_us(0.9),
-                    r.step_us(0.99),
-                    r.max_step_us(),
-                    r.step_timeouts,
-                    r.slow_sleeps_per_step().map_or("-".into(), |w| format!("{w:.3}"))
-                );
-            }
-            if round > 0 {
-                results.push(r);
-            }
-        }
-    }
-    let rate = |kind: Kind| {
-        let (steps, secs) = results
-            .iter()
-            .filter(|r| r.kind == kind)
-            .fold((0u64, 0.0f64), |(s, w), r| (s + r.steps, w + r.wall.as_secs_f64()));
-        steps as f64 / secs
-    };
-    let ratio = rate(Kind::Event) / rate(Kind::LockStep);
-    let verdict = if ratio >= TARGET { "ok" } else { "MISSED" };
-    let floor = rate(Kind::EventEveryStepOnly) / rate(Kind::LockStep);
+    let results = rounds(&args)?;
+    let ratio = steps_per_s(&results, Kind::Event) / steps_per_s(&results, Kind::LockStep);
+    let floor = steps_per_s(&results, Kind::EventEveryStepOnly) / steps_per_s(&results, Kind::LockStep);
     if args.json {
-        let runs: Vec<_> = results
-            .iter()
-            .map(|r| {
-                json!({
-                    "run": r.kind.name(),
-                    "round": r.round,
-                    "steps": r.steps,
-                    "steps_made": r.made,
-                    "steps_per_s": r.steps_per_s(),
-                    "wall_s": r.wall.as_secs_f64(),
-                    "cpu_s": r.cpu.as_secs_f64(),
-                    "cpu_us_per_step": r.cpu_per_step_us(),
-                    "step_us": { "p50": r.step_us(0.5), "p90": r.step_us(0.9), "p99": r.step_us(0.99), "max": r.max_step_us() },
-                    "step_timeouts": r.step_timeouts,
-                    "answered": r.answered.iter().map(|a| a.steps).collect::<Vec<_>>(),
-                    "sleeps": r.answered.iter().map(|a| a.sleeps).collect::<Vec<_>>(),
-                    "slow_wakes_per_step": r.slow_sleeps_per_step(),
-                })
-            })
-            .collect();
-        let out = json!({
-            "benchmark": "event",
-            "steps": args.steps,
-            "step_s": args.step.as_secs_f64(),
-            "slow": args.slow,
-            "every": args.every,
-            "wait": format!("{:?}", args.wait),
-            "cpus": cpus,
-            "runs": runs,
-            "ratio_event_to_lock_step": ratio,
-            "ratio_every_step_only_to_lock_step": floor,
-            "target": TARGET,
-            "ok": ratio >= TARGET,
-        });
-        println!("{}", serde_json::to_string(&out).context("writing JSON")?);
+        print_json(&args, cpus, &results, ratio, floor)?;
     } else {
+        let verdict = if ratio >= TARGET { "ok" } else { "MISSED" };
         println!(
             "event / lock-step steps/s: {ratio:.2} (target >= {TARGET}) {verdict}; CPU per step: event {:.2} µs, lock-step {:.2} µs",
             mean_cpu(&results, Kind::Event),
@@ -263,6 +176,118 @@ pub fn run(args: Args) -> CliResult {
             args.every
         );
     }
+    Ok(())
+}
+
+/// The table's title and head.
+fn print_header(args: &Args, cpus: usize) {
+    println!(
+        "event-driven vs lock-step: 1 participant due every step + {} due every {} steps (threads of this process), step {:?}, {} steps per run, speed inf, wait {:?}, {} round(s), {cpus} CPUs, unpinned",
+        args.slow, args.every, args.step, args.steps, args.wait, args.rounds
+    );
+    println!(
+        "{:<26} {:>7} {:>11} {:>8} {:>11} {:>8} {:>8} {:>8} {:>9} {:>9} {:>11}",
+        "run",
+        "made",
+        "steps/s",
+        "wall s",
+        "CPU µs/step",
+        "p50 µs",
+        "p90 µs",
+        "p99 µs",
+        "max µs",
+        "timeouts",
+        "slow wakes"
+    );
+}
+
+/// Every round of the four runs, each checked and (but with `--json`) printed as it ends;
+/// returns the counted ones (the warm-up round left out).
+fn rounds(args: &Args) -> anyhow::Result<Vec<RunResult>> {
+    let mut results = Vec::new();
+    let first = if args.no_warmup { 1 } else { 0 };
+    for round in first..=args.rounds {
+        for kind in Kind::ALL {
+            eprintln!("bench event: round {round}: {}", kind.name());
+            let r = one_run(args, kind, round)?;
+            check_answers(args, &r)?;
+            let label =
+                if round == 0 { format!("{} (warm-up)", kind.name()) } else { format!("{} #{round}", kind.name()) };
+            if !args.json {
+                print_row(&label, &r);
+            }
+            if round > 0 {
+                results.push(r);
+            }
+        }
+    }
+    Ok(results)
+}
+
+/// One run's row of the table.
+fn print_row(label: &str, r: &RunResult) {
+    println!(
+        "{:<26} {:>7} {:>11.0} {:>8.3} {:>11.2} {:>8.1} {:>8.1} {:>8.1} {:>9.1} {:>9} {:>11}",
+        label,
+        r.made,
+        r.steps_per_s(),
+        r.wall.as_secs_f64(),
+        r.cpu_per_step_us(),
+        r.step_us(0.5),
+        r.step_us(0.9),
+        r.step_us(0.99),
+        r.max_step_us(),
+        r.step_timeouts,
+        r.slow_sleeps_per_step().map_or("-".into(), |w| format!("{w:.3}"))
+    );
+}
+
+/// Simulated steps per second of the runs of `kind`, over all rounds.
+fn steps_per_s(results: &[RunResult], kind: Kind) -> f64 {
+    let (steps, secs) = results
+        .iter()
+        .filter(|r| r.kind == kind)
+        .fold((0u64, 0.0f64), |(s, w), r| (s + r.steps, w + r.wall.as_secs_f64()));
+    steps as f64 / secs
+}
+
+/// `--json`: the runs and the ratios as one object.
+fn print_json(args: &Args, cpus: usize, results: &[RunResult], ratio: f64, floor: f64) -> anyhow::Result<()> {
+    let runs: Vec<_> = results
+        .iter()
+        .map(|r| {
+            json!({
+                "run": r.kind.name(),
+                "round": r.round,
+                "steps": r.steps,
+                "steps_made": r.made,
+                "steps_per_s": r.steps_per_s(),
+                "wall_s": r.wall.as_secs_f64(),
+                "cpu_s": r.cpu.as_secs_f64(),
+                "cpu_us_per_step": r.cpu_per_step_us(),
+                "step_us": { "p50": r.step_us(0.5), "p90": r.step_us(0.9), "p99": r.step_us(0.99), "max": r.max_step_us() },
+                "step_timeouts": r.step_timeouts,
+                "answered": r.answered.iter().map(|a| a.steps).collect::<Vec<_>>(),
+                "sleeps": r.answered.iter().map(|a| a.sleeps).collect::<Vec<_>>(),
+                "slow_wakes_per_step": r.slow_sleeps_per_step(),
+            })
+        })
+        .collect();
+    let out = json!({
+        "benchmark": "event",
+        "steps": args.steps,
+        "step_s": args.step.as_secs_f64(),
+        "slow": args.slow,
+        "every": args.every,
+        "wait": format!("{:?}", args.wait),
+        "cpus": cpus,
+        "runs": runs,
+        "ratio_event_to_lock_step": ratio,
+        "ratio_every_step_only_to_lock_step": floor,
+        "target": TARGET,
+        "ok": ratio >= TARGET,
+    });
+    println!("{}", serde_json::to_string(&out).context("writing JSON")?);
     Ok(())
 }
 

@@ -18,6 +18,20 @@ use tutti_gateway::cdr::{SetCodec, TypedSample};
 use tutti_gateway::engine::{self, Data, Decode, EndpointId, Engine, Sink, TopicType, Writer};
 use tutti_gateway::{GatewayError, GatewayOptions};
 
+/// Why a DDS peer of the benchmark failed.
+#[derive(Debug, thiserror::Error)]
+pub enum PeerError {
+    /// The echo writes back what it reads: its domain's two sets must have one layout.
+    #[error("domain '{domain}': the echo needs equal PUBLISH and SUBSCRIBE layouts")]
+    EchoLayouts { domain: String },
+    /// A ping got no answer from the echo.
+    #[error("no echo (is the loopback interface up?)")]
+    NoEcho,
+    /// The engine refused a participant, a reader or a writer.
+    #[error(transparent)]
+    Dds(#[from] GatewayError),
+}
+
 /// A sink that decodes typed samples (of other participants: the engine drops its own) and
 /// hands them to `f`.
 fn typed_sink(codec: Arc<SetCodec>, f: impl Fn(TypedSample) + Send + Sync + 'static) -> Sink {
@@ -36,9 +50,9 @@ fn typed_sink(codec: Arc<SetCodec>, f: impl Fn(TypedSample) + Send + Sync + 'sta
 }
 
 /// Echoes domain `domain` of `opts.model` until `stop`; returns the samples echoed.
-pub fn run(opts: &GatewayOptions, domain: &Domain, stop: Arc<AtomicBool>) -> Result<u64, GatewayError> {
+pub fn run(opts: &GatewayOptions, domain: &Domain, stop: Arc<AtomicBool>) -> Result<u64, PeerError> {
     if domain.publish.layout != domain.subscribe.layout {
-        return Err(GatewayError::EchoLayouts { domain: domain.name.clone() });
+        return Err(PeerError::EchoLayouts { domain: domain.name.clone() });
     }
     let ep = Endpoints::open(opts, domain, Role::Publish)?;
     let n = Arc::new(AtomicU64::new(0));
@@ -108,7 +122,7 @@ pub fn sink(
     window: Duration,
     patience: Duration,
     ordered: bool,
-) -> Result<Received, GatewayError> {
+) -> Result<Received, PeerError> {
     let dds = engine::open(opts.engine, &opts.engine_config())?;
     let pkg = mapping::package_name(&opts.ddf_path);
     let names = mapping::set_names(&pkg, &domain.name, role);
@@ -168,7 +182,7 @@ pub fn source(
     domain: &Domain,
     settle: Duration,
     stop: Arc<AtomicBool>,
-) -> Result<u64, GatewayError> {
+) -> Result<u64, PeerError> {
     let dds = engine::open(opts.engine, &opts.engine_config())?;
     let pkg = mapping::package_name(&opts.ddf_path);
     let names = mapping::set_names(&pkg, &domain.name, Role::Subscribe);
@@ -205,12 +219,7 @@ pub fn source(
 /// waits (spinning, yielding the core between looks, as the benchmark's framework does)
 /// for each to come back on SUBSCRIBE. Returns the round trips (µs) of `samples` pings,
 /// after the path works once (gives up after `patience`).
-pub fn ping(
-    opts: &GatewayOptions,
-    domain: &Domain,
-    samples: u32,
-    patience: Duration,
-) -> Result<Vec<f64>, GatewayError> {
+pub fn ping(opts: &GatewayOptions, domain: &Domain, samples: u32, patience: Duration) -> Result<Vec<f64>, PeerError> {
     let mut ep = Endpoints::open(opts, domain, Role::Subscribe)?;
     let back = Arc::new(AtomicU64::new(0));
     let b = back.clone();
@@ -253,7 +262,7 @@ pub fn ping(
             break;
         }
         if Instant::now() > end {
-            return Err(GatewayError::NoEcho);
+            return Err(PeerError::NoEcho);
         }
     }
     let mut times = Vec::with_capacity(samples as usize);
@@ -278,7 +287,7 @@ pub fn ping_in_listener(
     domain: &Domain,
     samples: u32,
     patience: Duration,
-) -> Result<Vec<f64>, GatewayError> {
+) -> Result<Vec<f64>, PeerError> {
     struct Chain {
         writer: Box<dyn Writer>,
         body: Vec<u8>,
@@ -331,7 +340,7 @@ pub fn ping_in_listener(
             break;
         }
         if n == 0 && Instant::now() > end {
-            return Err(GatewayError::NoEcho);
+            return Err(PeerError::NoEcho);
         }
         if n != last.0 {
             last = (n, Instant::now());
@@ -362,7 +371,7 @@ struct Endpoints {
 
 impl Endpoints {
     /// `reads`: the set whose topic is read (the echo reads PUBLISH, the ping SUBSCRIBE).
-    fn open(opts: &GatewayOptions, domain: &Domain, reads: Role) -> Result<Endpoints, GatewayError> {
+    fn open(opts: &GatewayOptions, domain: &Domain, reads: Role) -> Result<Endpoints, PeerError> {
         let dds = engine::open(opts.engine, &opts.engine_config())?;
         let pkg = mapping::package_name(&opts.ddf_path);
         let writes = match reads {

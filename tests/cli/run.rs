@@ -1,7 +1,8 @@
 //! `tutti run FILE`: a launch file refused with its line and column; two C components in
 //! lock-step, one SIGKILLed and restarted by its policy while the other keeps every step;
 //! Ctrl-C tearing everything down (no process, segment or temporary file left); `steps: N`
-//! ending the run; a component that fails making the exit status 1.
+//! ending the run; a component that fails making the exit status 1; a run (and a `tutti
+//! host`) whose control socket file was removed still ending on SIGTERM or with its duration.
 
 use tutti_test_support as common;
 
@@ -370,4 +371,72 @@ fn tutti_ctl_signals_a_component_and_starts_one_declared_without_autostart() {
     assert_eq!(run.wait(WAIT), Some(0), "{}", run.dump());
     let log = std::fs::read_to_string(dir.path().join("logs/late.log")).unwrap();
     assert!(log.contains("got USR1") && log.contains("got USR2"), "{log}");
+}
+
+/// Waits for the control socket of namespace `ns`, then removes it, as a clean-up of
+/// `/dev/shm` may do while the run goes on.
+fn remove_control_socket(ns: &str, run: &Proc) {
+    let socket = tutti_host::control::socket_path(ns);
+    let end = std::time::Instant::now() + WAIT;
+    while !socket.exists() {
+        assert!(std::time::Instant::now() < end, "no control socket\n{}", run.dump());
+        std::thread::sleep(Duration::from_millis(10));
+    }
+    std::fs::remove_file(&socket).unwrap();
+}
+
+/// `tutti host` of the test DDF in `dir`, in namespace `ns`, with `args` added.
+fn host(dir: &Path, ns: &str, args: &[&str]) -> Proc {
+    let mut cmd = common::tutti_command();
+    cmd.arg("host").arg(dir.join("lockstep.ddf")).args(["--step", "5ms", "-q"]).args(args);
+    cmd.env("TUTTI_NAMESPACE", ns);
+    Proc::spawn("tutti host", cmd, LIMIT)
+}
+
+/// A launched run whose control socket file was removed (a clean-up of `/dev/shm`) still
+/// ends on SIGTERM, with status 0 and no segment left.
+#[test]
+fn a_launched_run_whose_control_socket_was_removed_ends_on_sigterm() {
+    let ns = common::namespace("runnosock");
+    let _clean = RemoveSegments(ns.clone());
+    let text = r#"{ ddf: "lockstep.ddf", framework: { step: "5ms", timeout: "5s" },
+  components: [ { name: "a", run: ANSWER, domain: "lock" } ] }"#;
+    let (_dir, file) = setup(&text.replace("ANSWER", &answer("a")));
+    let tmp = tempfile::tempdir().unwrap();
+    let mut run = start(&file, &ns, tmp.path());
+    assert!(run.wait_line("every component has connected", WAIT).is_some(), "{}", run.dump());
+    remove_control_socket(&ns, &run);
+    run.signal("TERM");
+    assert_eq!(run.wait(WAIT), Some(0), "tutti run did not end on SIGTERM\n{}", run.dump());
+    assert!(common::segments_of(&ns).is_empty(), "{:?}", common::segments_of(&ns));
+}
+
+/// `tutti host` whose control socket file was removed still ends on SIGTERM.
+#[test]
+fn a_host_whose_control_socket_was_removed_ends_on_sigterm() {
+    let ns = common::namespace("hostnosock");
+    let _clean = RemoveSegments(ns.clone());
+    let (dir, _) = setup("{}");
+    let mut host = host(dir.path(), &ns, &[]);
+    remove_control_socket(&ns, &host);
+    host.signal("TERM");
+    assert_eq!(host.wait(WAIT), Some(0), "tutti host did not end on SIGTERM\n{}", host.dump());
+    assert!(common::segments_of(&ns).is_empty(), "{:?}", common::segments_of(&ns));
+}
+
+/// `tutti host --duration` whose control socket file was removed still ends when its time
+/// is up. Held until a writer connects, its time starts only after the socket is gone.
+#[test]
+fn a_host_whose_control_socket_was_removed_ends_with_its_duration() {
+    let ns = common::namespace("durnosock");
+    let _clean = RemoveSegments(ns.clone());
+    let (dir, _) = setup("{}");
+    let mut host = host(dir.path(), &ns, &["--wait-for", "lock=1", "--duration", "300ms"]);
+    remove_control_socket(&ns, &host);
+    let mut writer = std::process::Command::new(dir.path().join("answer"));
+    writer.args(["lockstep.ddf", "lock", "x", "a", "1000000000", "0", "0"]).current_dir(dir.path());
+    writer.env("TUTTI_NAMESPACE", &ns);
+    let _writer = Proc::spawn("answer", writer, LIMIT);
+    assert_eq!(host.wait(WAIT), Some(0), "tutti host did not end with its duration\n{}", host.dump());
+    assert!(common::segments_of(&ns).is_empty(), "{:?}", common::segments_of(&ns));
 }

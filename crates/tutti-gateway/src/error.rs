@@ -33,12 +33,6 @@ pub enum GatewayError {
     /// A set's `ros2msg` schema cannot be written (for the Foxglove server's channels).
     #[error("the Foxglove server's schemas: {0}")]
     Schema(#[from] tutti_ros2::idl::ros2msg::SchemaError),
-    /// A benchmark peer's domain cannot be echoed (exit status 2).
-    #[error("domain '{domain}': the echo needs equal PUBLISH and SUBSCRIBE layouts")]
-    EchoLayouts { domain: String },
-    /// A benchmark ping got no answer (exit status 2).
-    #[error("no echo (is the loopback interface up?)")]
-    NoEcho,
     /// A mirrored domain whose local framework is missing.
     #[error("domain '{domain}' was not created")]
     NotCreated { domain: String },
@@ -66,8 +60,6 @@ impl GatewayError {
                 | InProcessMirror
                 | Listen { .. }
                 | FoxgloveListen { .. }
-                | EchoLayouts { .. }
-                | NoEcho
                 | NotCreated { .. }
         )
     }

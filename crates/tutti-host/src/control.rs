@@ -247,6 +247,9 @@ pub(crate) struct ControlPort {
     pub shared: Arc<Shared>,
     server: Option<JoinHandle<()>>,
     closing: Arc<AtomicBool>,
+    /// The server thread's listening socket (another descriptor of it): shut down, it wakes
+    /// the thread from `accept`, whatever has become of the socket's path.
+    listener: UnixListener,
     path: PathBuf,
 }
 
@@ -266,6 +269,8 @@ impl ControlPort {
     ) -> Result<ControlPort, ControlError> {
         let path = socket_path(ns);
         let listener = bind(ns, &path)?;
+        let io = |source| ControlError::Io { what: "serving", path: path.display().to_string(), source };
+        let own = listener.try_clone().map_err(io)?;
         let shared = Arc::new(Shared {
             state: AtomicU8::new(RunState::Ready as u8),
             step: AtomicU64::new(0),
@@ -275,18 +280,20 @@ impl ControlPort {
         let (tx, commands) = mpsc::channel();
         let closing = Arc::new(AtomicBool::new(false));
         let server = Server { shared: shared.clone(), commands: tx, stop, components, closing: closing.clone() };
-        let io = |source| ControlError::Io { what: "serving", path: path.display().to_string(), source };
         let thread =
             std::thread::Builder::new().name("tutti-ctl".into()).spawn(move || server.accept(listener)).map_err(io)?;
-        Ok(ControlPort { commands, shared, server: Some(thread), closing, path })
+        Ok(ControlPort { commands, shared, server: Some(thread), closing, listener: own, path })
     }
 }
 
 impl Drop for ControlPort {
     fn drop(&mut self) {
         self.closing.store(true, Ordering::Release);
-        // Wakes the accepting thread, which then sees `closing`.
-        let _ = UnixStream::connect(&self.path);
+        // Wakes the accepting thread, which then sees `closing`: a listening socket shut down
+        // for reading fails `accept` (EINVAL), now and from then on. Not a connection to the
+        // socket's path, which anyone may have removed (a clean-up of /dev/shm), leaving the
+        // thread in `accept` and the run unable to end.
+        let _ = rustix::net::shutdown(&self.listener, rustix::net::Shutdown::Read);
         if let Some(t) = self.server.take() {
             let _ = t.join();
         }
