@@ -27,9 +27,12 @@ pub enum PeerError {
     /// A ping got no answer from the echo.
     #[error("no echo (is the loopback interface up?)")]
     NoEcho,
+    /// The gateway's options cannot be served.
+    #[error(transparent)]
+    Gateway(#[from] GatewayError),
     /// The engine refused a participant, a reader or a writer.
     #[error(transparent)]
-    Dds(#[from] GatewayError),
+    Engine(#[from] tutti_gateway::engine::EngineError),
 }
 
 /// A sink that decodes typed samples (of other participants: the engine drops its own) and
