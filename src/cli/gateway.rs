@@ -9,7 +9,9 @@ use clap::ValueEnum;
 use tutti_core::ddf::Model;
 use tutti_core::mapping::Profile;
 use tutti_core::shm::WaitMode;
-use tutti_gateway::config::{self, ConfigFile};
+use tutti_gateway::config::{self, ConfigFile, EngineKeys, GatewayKeys, PlanKeys};
+use tutti_gateway::foxglove::FoxgloveKeys;
+use tutti_gateway::http::HttpKeys;
 use tutti_gateway::{EngineKind, GatewayOptions, TypeMode};
 
 use super::{load_ddf, CliResult, Failure};
@@ -33,7 +35,7 @@ pub struct Args {
     #[arg(long, value_name = "FILE")]
     config: Option<PathBuf>,
     /// DDS domain id, 0-232 (default: ROS_DOMAIN_ID, else 0).
-    #[arg(long, value_name = "N", value_parser = clap::value_parser!(u16).range(0..=232))]
+    #[arg(long, value_name = "N", value_parser = domain_ids())]
     ros_domain_id: Option<u16>,
     /// Type mapping: one struct per set (tutti idl's types; the default) or one stock-typed
     /// topic per item.
@@ -145,41 +147,49 @@ impl From<ProfileArg> for Profile {
     }
 }
 
+/// `--ros-domain-id`'s parser: a ROS domain id (`tutti_ros2::names::DOMAIN_IDS`).
+fn domain_ids() -> clap::builder::RangedI64ValueParser<u16> {
+    let ids = tutti_ros2::names::DOMAIN_IDS;
+    clap::value_parser!(u16).range(i64::from(*ids.start())..=i64::from(*ids.end()))
+}
+
 impl Args {
     /// The flags given, as config keys (those not given are None, so the file's show through).
     fn flags(&self) -> ConfigFile {
         ConfigFile {
             source: None,
-            ros_domain_id: self.ros_domain_id,
-            ros2_types: self.ros2_types.map(|t| match t {
-                Types::Typed => TypeMode::Typed,
-                Types::PerItem => TypeMode::PerItem,
-            }),
-            qos_profile: self.qos_profile.map(Into::into),
-            strength: self.strength,
-            mirror: self.mirror.then_some(true),
-            node_name: self.node_name.clone(),
-            interface: (!self.interfaces.is_empty()).then(|| self.interfaces.clone()),
-            engine: self.engine,
-            peer: (!self.peers.is_empty()).then(|| self.peers.clone()),
-            clock: self.clock.clone(),
-            clock_rate: self.clock_rate,
-            timeout: self.timeout,
-            wait: self.wait,
-            poll: self.poll,
-            status_every: self.status_every,
-            duration: self.duration,
-            quiet: self.quiet.then_some(true),
-            ros_namespace: self.ros_namespace.clone(),
-            hosted_only: self.all_domains.then_some(false),
-            lease: self.lease,
-            every_step: self.every_step.then_some(true),
-            passive: self.passive.then_some(true),
-            http: self.http,
-            foxglove: self.foxglove,
-            allow: None,
-            deny: None,
-            topics: None,
+            engine: EngineKeys {
+                ros_domain_id: self.ros_domain_id,
+                engine: self.engine,
+                interface: (!self.interfaces.is_empty()).then(|| self.interfaces.clone()),
+                peer: (!self.peers.is_empty()).then(|| self.peers.clone()),
+            },
+            gateway: GatewayKeys {
+                ros2_types: self.ros2_types.map(|t| match t {
+                    Types::Typed => TypeMode::Typed,
+                    Types::PerItem => TypeMode::PerItem,
+                }),
+                qos_profile: self.qos_profile.map(Into::into),
+                strength: self.strength,
+                mirror: self.mirror.then_some(true),
+                node_name: self.node_name.clone(),
+                clock: self.clock.clone(),
+                clock_rate: self.clock_rate,
+                timeout: self.timeout,
+                wait: self.wait,
+                poll: self.poll,
+                status_every: self.status_every,
+                duration: self.duration,
+                quiet: self.quiet.then_some(true),
+                ros_namespace: self.ros_namespace.clone(),
+                hosted_only: self.all_domains.then_some(false),
+                lease: self.lease,
+                every_step: self.every_step.then_some(true),
+                passive: self.passive.then_some(true),
+            },
+            http: HttpKeys { http: self.http },
+            foxglove: FoxgloveKeys { foxglove: self.foxglove },
+            plan: PlanKeys::default(),
         }
     }
 }
@@ -221,21 +231,21 @@ pub fn run(args: Args) -> CliResult {
     let (opts, keys) = configured(&args.file, model, args.flags(), args.config.as_deref())?;
 
     let stop = super::stop_flag()?;
-    if let Some(d) = keys.duration {
+    if let Some(d) = keys.gateway.duration {
         let stop = stop.clone();
         std::thread::spawn(move || {
             std::thread::sleep(d);
             stop.store(true, Ordering::SeqCst);
         });
     }
-    let quiet = keys.quiet.unwrap_or(false);
+    let quiet = keys.gateway.quiet.unwrap_or(false);
     let shown = args.file.display().to_string();
     let mut on_status = |line: &str| {
         if !quiet {
             eprintln!("tutti gateway: {line}");
         }
     };
-    let status_every = keys.status_every.unwrap_or(Duration::from_secs(5));
+    let status_every = keys.gateway.status_every.unwrap_or(Duration::from_secs(5));
     match tutti_gateway::run(opts, stop, status_every, &mut on_status) {
         Ok(stats) => {
             if !quiet {

@@ -179,8 +179,8 @@ fn start_gateway(
     super::gateway::init_logging();
     let flags = tutti_gateway::config::ConfigFile::default();
     let (opts, keys) = super::gateway::configured(&args.file, model.clone(), flags, config)?;
-    let quiet = args.quiet || keys.quiet.unwrap_or(false);
-    let status_every = keys.status_every.unwrap_or(Duration::from_secs(5));
+    let quiet = args.quiet || keys.gateway.quiet.unwrap_or(false);
+    let status_every = keys.gateway.status_every.unwrap_or(Duration::from_secs(5));
     let on_status = Box::new(move |line: &str| {
         if !quiet {
             eprintln!("host: gateway: {line}");

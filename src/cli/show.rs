@@ -210,10 +210,12 @@ struct LeftOutJson<'a> {
 
 /// The gateway's plan for the DDF under the config file `cfg`, the show flags given over it.
 fn show_plan(args: &Args, model: Model, cfg: &Path) -> CliResult {
-    let flags = ConfigFile { qos_profile: args.qos_profile.map(Into::into), engine: args.engine, ..Default::default() };
+    let mut flags = ConfigFile::default();
+    flags.gateway.qos_profile = args.qos_profile.map(Into::into);
+    flags.engine.engine = args.engine;
     let keys = flags.layered(Some(cfg)).map_err(Failure::invalid)?;
     let mut opts = GatewayOptions::new(&args.file, model);
-    if keys.engine.is_none() {
+    if keys.engine.engine.is_none() {
         opts.engine = config::env::engine().map_err(Failure::invalid)?;
     }
     keys.apply(&mut opts).map_err(Failure::invalid)?;
@@ -239,7 +241,7 @@ fn plan_json<'a>(opts: &'a GatewayOptions, plan: &'a Plan, cfg: &Path) -> PlanJs
         dds_engine: opts.engine.name(),
         ros2_types: if per_item { "per-item" } else { "typed" },
         ros_namespace: &opts.ros_namespace,
-        node: config::node_full_name(&opts.ros_namespace, &opts.node_name),
+        node: tutti_ros2::names::under(&opts.ros_namespace, &opts.node_name),
         hosted_only: opts.hosted_only,
         sets: plan
             .sets

@@ -18,6 +18,7 @@ use std::path::Path;
 use serde::Deserialize;
 
 pub mod de;
+pub mod sections;
 
 /// The deepest nesting of objects and arrays a file may have.
 pub const MAX_NESTING: usize = 32;

@@ -42,6 +42,7 @@ pub mod cdr;
 pub mod cyclone;
 mod dds;
 mod error;
+pub mod keys;
 #[cfg(feature = "rustdds")]
 pub mod rustdds;
 

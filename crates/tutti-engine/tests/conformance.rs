@@ -396,9 +396,7 @@ fn the_node_is_announced_on_ros_discovery_info(c: &Case) {
             lock(&into).push(raw.to_vec());
         }
     });
-    observer
-        .raw_reader("ros_discovery_info", &TopicType::stock(DISCOVERY_TYPE), &latched, sink)
-        .unwrap();
+    observer.raw_reader("ros_discovery_info", &TopicType::stock(DISCOVERY_TYPE), &latched, sink).unwrap();
 
     let mine = |g: &EndpointId| g.peer == node.own_peer();
     let (w, r) = until_some("the node's endpoints in discovery", || {

@@ -5,7 +5,7 @@
 use std::net::SocketAddr;
 
 use tutti_core::shm::ShmError;
-use tutti_engine::{EngineError, UnknownEngine};
+use tutti_engine::EngineError;
 
 #[derive(Debug, thiserror::Error)]
 #[non_exhaustive]
@@ -55,12 +55,7 @@ impl GatewayError {
         }
         matches!(
             self,
-            Config(_)
-                | MirrorNeedsTyped
-                | InProcessMirror
-                | Listen { .. }
-                | FoxgloveListen { .. }
-                | NotCreated { .. }
+            Config(_) | MirrorNeedsTyped | InProcessMirror | Listen { .. } | FoxgloveListen { .. } | NotCreated { .. }
         )
     }
 }
@@ -93,12 +88,9 @@ pub enum ConfigError {
     /// A regular expression that does not compile.
     #[error("bad pattern '{pattern}': {error}")]
     Pattern { pattern: String, error: regex::Error },
-    /// An invalid ROS namespace.
-    #[error("ROS namespace '{given}': each part must be letters, digits and '_' and not start with a digit (e.g. sim1 or site_a/sim1)")]
-    Namespace { given: String },
-    /// An invalid ROS topic name (`remap`).
-    #[error("'{name}' is not a ROS topic name: {why} (e.g. uav1/cmd, or /fleet/uav1/cmd)")]
-    TopicName { name: String, why: &'static str },
+    /// An invalid ROS namespace or topic name (`remap`).
+    #[error(transparent)]
+    Name(#[from] tutti_ros2::names::NameError),
     /// Not a rate of at least one sample in 365 days.
     #[error("'{value}' is not a rate in Hz above 0 (e.g. 100; at least one sample in 365 days)")]
     Rate { value: String },
@@ -108,9 +100,10 @@ pub enum ConfigError {
     /// A duration out of its key's range.
     #[error("'{value}': {why}")]
     Duration { value: String, why: &'static str },
-    /// A discovery peer Cyclone DDS would not take.
-    #[error("peer '{value}': {why}")]
-    Peer { value: String, why: String },
+    /// A discovery peer the engine would not take, or a bad engine variable
+    /// (`TUTTI_DDS`, `TUTTI_GATEWAY_INTERFACE`).
+    #[error(transparent)]
+    Engine(#[from] tutti_engine::keys::KeysError),
     /// Not a type mapping.
     #[error("'{value}': use typed or per-item")]
     Types { value: String },
@@ -120,19 +113,10 @@ pub enum ConfigError {
     /// `--clock` names no domain of the DDF.
     #[error("--clock {name}: the DDF has no domain '{name}' (domains: {domains})")]
     NoSuchClockDomain { name: String, domains: String },
-    /// An unknown `ROS_AUTOMATIC_DISCOVERY_RANGE`.
-    #[error("ROS_AUTOMATIC_DISCOVERY_RANGE='{value}': expected SUBNET, LOCALHOST, OFF or SYSTEM_DEFAULT")]
-    DiscoveryRange { value: String },
+    /// A bad ROS 2 variable (`ROS_DOMAIN_ID`, `ROS_AUTOMATIC_DISCOVERY_RANGE`).
+    #[error(transparent)]
+    Env(#[from] tutti_ros2::env::EnvError),
     /// `ROS_AUTOMATIC_DISCOVERY_RANGE=OFF` and no peers.
     #[error("ROS_AUTOMATIC_DISCOVERY_RANGE=OFF: no automatic discovery, so the gateway would find nobody; give the peers with --peer ADDR (or the config file's `peer`), or unset the variable")]
     DiscoveryOff,
-    /// A bad `ROS_DOMAIN_ID`.
-    #[error("ROS_DOMAIN_ID='{value}' is not a DDS domain id (0-232)")]
-    DomainIdVar { value: String },
-    /// A bad `TUTTI_DDS`.
-    #[error("TUTTI_DDS='{value}': {error}")]
-    EngineVar { value: String, error: UnknownEngine },
-    /// A bad address in `TUTTI_GATEWAY_INTERFACE`.
-    #[error("TUTTI_GATEWAY_INTERFACE: '{value}': {error}")]
-    InterfaceVar { value: String, error: std::net::AddrParseError },
 }

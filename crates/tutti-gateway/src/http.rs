@@ -14,11 +14,30 @@ use std::thread::JoinHandle;
 use axum::http::header;
 use axum::response::IntoResponse;
 use axum::routing::get;
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
+
+use tutti_config::sections::Section;
 
 use crate::config::PlannedSet;
 use crate::stats::SetStats;
 use crate::{GatewayError, Stats};
+
+/// The HTTP server's key of the gateway's config file (`http`, as `--http`), parsed here as a
+/// section of its own (`crate::config::file`).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct HttpKeys {
+    /// The address the stats endpoint listens on.
+    pub http: Option<SocketAddr>,
+}
+
+impl Section for HttpKeys {
+    const KEYS: &'static [&'static str] = &["http"];
+
+    fn over(self, lower: Self) -> Self {
+        HttpKeys { http: self.http.or(lower.http) }
+    }
+}
 
 /// What `GET /stats` returns (and `GET /metrics` renders).
 #[derive(Debug, Clone, Default, PartialEq, Serialize)]

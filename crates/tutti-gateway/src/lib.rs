@@ -30,7 +30,7 @@ pub mod services;
 pub mod stats;
 
 pub use config::{ClockSource, GatewayOptions, TypeMode};
-pub use tutti_engine::{self as engine, cdr, EngineKind};
 pub use error::GatewayError;
 pub use manager::run;
 pub use stats::Stats;
+pub use tutti_engine::{self as engine, cdr, EngineKind};

@@ -26,7 +26,7 @@ use tutti_core::shm::observer::{Look, Observer};
 use tutti_core::shm::{DomainHost, Framework, FrameworkOptions};
 
 use crate::cdr::SetCodec;
-use crate::config::{self, PlannedSet};
+use crate::config::{self, ConfigError, PlannedSet};
 use crate::engine::{self, Decode, EndpointId, Engine, TopicType};
 use crate::routes::from_dds::{self, Destination, Direct, RemoteWriter, Sample, Target};
 use crate::routes::from_step::{self, StepRoute};
@@ -104,7 +104,7 @@ pub(crate) fn start(
         return Err(GatewayError::MirrorNeedsTyped);
     }
     // Canonical from here on (`sim1`, `a/b`, or empty), as the routes and the report use it.
-    opts.ros_namespace = config::ros_namespace(&opts.ros_namespace)?;
+    opts.ros_namespace = tutti_ros2::names::namespace(&opts.ros_namespace).map_err(ConfigError::from)?;
     let plan = config::plan(&opts)?;
     let rt = tokio::runtime::Builder::new_current_thread().enable_all().build().map_err(GatewayError::Runtime)?;
     let stats = Arc::new(Stats::default());
@@ -292,7 +292,7 @@ impl Manager {
         let gateway = http::GatewayReport {
             engine: self.dds.kind().name().to_string(),
             dds_domain: self.dds.domain_id(),
-            node: config::node_full_name(&ns, &self.opts.node_name),
+            node: tutti_ros2::names::under(&ns, &self.opts.node_name),
             ros_namespace: ns,
             ..Default::default()
         };

@@ -23,8 +23,8 @@ use tutti_ros2::simulation::action::{self, GoalId, GoalRun, Publisher};
 use tutti_ros2::simulation::{self, Answer, Goals, Lifecycle, RunControl, Simulation, FEEDBACK, SERVICES, STATUS};
 use tutti_ros2::Message;
 
-use crate::config::ros_name;
 use crate::GatewayError;
+use tutti_ros2::names::under as ros_name;
 
 /// Requests waiting for the services' thread; more are dropped (a client that floods the
 /// services gets no answer to the excess, the gateway keeps its memory).
@@ -80,14 +80,16 @@ pub fn start(
     stop: Arc<AtomicBool>,
 ) -> Result<JoinHandle<()>, GatewayError> {
     let (tx, rx) = mpsc::sync_channel::<Msg>(QUEUE);
-    let status = engine.writer(&ros_name(ros_ns, STATUS.name), &topic_type(STATUS.message()), &simulation::status_qos())?;
+    let status =
+        engine.writer(&ros_name(ros_ns, STATUS.name), &topic_type(STATUS.message()), &simulation::status_qos())?;
     let feedback_topic = ros_name(ros_ns, FEEDBACK.name);
     let feedback = engine.writer(&feedback_topic, &topic_type(FEEDBACK.message()), &simulation::feedback_qos())?;
     let goals = Goals::new(publisher(status), publisher(feedback));
     let mut responders = Vec::new();
     for (i, s) in SERVICES.iter().enumerate() {
         let svc = s.service();
-        let (name, request, response) = (ros_name(ros_ns, s.name), topic_type(svc.request()), topic_type(svc.response()));
+        let (name, request, response) =
+            (ros_name(ros_ns, s.name), topic_type(svc.request()), topic_type(svc.response()));
         let tx = tx.clone();
         let sink = Arc::new(move |r: Request<'_>| request_to(i, r, &tx));
         responders.push(engine.serve(&Service { name: &name, request: &request, response: &response }, sink)?);

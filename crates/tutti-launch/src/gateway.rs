@@ -31,7 +31,7 @@ pub struct GatewayRun {
 pub fn start(gateway: &Gateway, host: &mut Host, on_event: &OnEvent) -> Result<Option<GatewayRun>, RunError> {
     let ev = on_event.clone();
     let on_status = Box::new(move |line: &str| ev(Event::Notice(format!("gateway: {line}"))));
-    let every = gateway.keys.status_every.unwrap_or(STATUS_EVERY);
+    let every = gateway.keys.gateway.status_every.unwrap_or(STATUS_EVERY);
     let (running, sink) =
         tutti_gateway::in_process::start((*gateway.options).clone(), host.namespace(), every, on_status)
             .map_err(RunError::Gateway)?;

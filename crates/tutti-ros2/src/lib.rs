@@ -33,7 +33,9 @@
 
 pub mod cdr;
 pub mod clock;
+pub mod env;
 pub mod idl;
+pub mod names;
 pub mod parse;
 pub mod registry;
 pub mod simulation;

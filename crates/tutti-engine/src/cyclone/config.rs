@@ -6,8 +6,9 @@ use std::ptr;
 use std::time::Duration;
 
 use cyclors::{
-    dds_create_domain, dds_create_participant, dds_create_qos, dds_entity_t, dds_liveliness_kind_DDS_LIVELINESS_AUTOMATIC,
-    dds_qset_liveliness, DDS_RETCODE_OUT_OF_RESOURCES, DDS_RETCODE_PRECONDITION_NOT_MET,
+    dds_create_domain, dds_create_participant, dds_create_qos, dds_entity_t,
+    dds_liveliness_kind_DDS_LIVELINESS_AUTOMATIC, dds_qset_liveliness, DDS_RETCODE_OUT_OF_RESOURCES,
+    DDS_RETCODE_PRECONDITION_NOT_MET,
 };
 
 use super::native::{c_string, retcode, NativeQos};

@@ -40,7 +40,9 @@ use std::ptr;
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::{Arc, Mutex};
 
-use cyclors::{dds_create_writer, dds_entity_t, dds_get_children, dds_get_entity_sertype, dds_write_flush, ddsi_sertype};
+use cyclors::{
+    dds_create_writer, dds_entity_t, dds_get_children, dds_get_entity_sertype, dds_write_flush, ddsi_sertype,
+};
 use tutti_core::cdr::HEADER_LE;
 use tutti_core::mapping::{Durability, History, Ownership, Qos, Reliability};
 use tutti_ros2::{Struct, Value};
@@ -367,7 +369,8 @@ fn encode_participant_info(
     readers: &[[u8; 16]],
     writers: &[[u8; 16]],
 ) {
-    let gid = |g: &[u8; 16]| Value::from(Struct::new().with("data", g.iter().map(|b| Value::from(*b)).collect::<Vec<_>>()));
+    let gid =
+        |g: &[u8; 16]| Value::from(Struct::new().with("data", g.iter().map(|b| Value::from(*b)).collect::<Vec<_>>()));
     let gids = |gs: &[[u8; 16]]| gs.iter().map(gid).collect::<Vec<_>>();
     let node = Struct::new()
         .with("node_namespace", namespace)

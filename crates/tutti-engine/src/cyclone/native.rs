@@ -6,15 +6,14 @@ use std::ptr;
 use std::sync::{Mutex, MutexGuard, PoisonError};
 
 use cyclors::{
-    cdds_create_blob_topic, dds_create_qos, dds_delete, dds_delete_qos, dds_durability_kind_DDS_DURABILITY_TRANSIENT_LOCAL,
-    dds_durability_kind_DDS_DURABILITY_VOLATILE, dds_entity_t, dds_get_guid, dds_guid_t,
-    dds_history_kind_DDS_HISTORY_KEEP_ALL, dds_history_kind_DDS_HISTORY_KEEP_LAST,
+    cdds_create_blob_topic, dds_create_qos, dds_delete, dds_delete_qos,
+    dds_durability_kind_DDS_DURABILITY_TRANSIENT_LOCAL, dds_durability_kind_DDS_DURABILITY_VOLATILE, dds_entity_t,
+    dds_get_guid, dds_guid_t, dds_history_kind_DDS_HISTORY_KEEP_ALL, dds_history_kind_DDS_HISTORY_KEEP_LAST,
     dds_ownership_kind_DDS_OWNERSHIP_EXCLUSIVE, dds_ownership_kind_DDS_OWNERSHIP_SHARED, dds_qos_t,
     dds_qset_durability, dds_qset_durability_service, dds_qset_history, dds_qset_lifespan, dds_qset_ownership,
     dds_qset_ownership_strength, dds_qset_reliability, dds_qset_userdata, dds_qset_writer_batching,
     dds_reliability_kind_DDS_RELIABILITY_BEST_EFFORT, dds_reliability_kind_DDS_RELIABILITY_RELIABLE, dds_return_t,
-    dds_strretcode, dds_writecdr, ddsi_serdata_from_ser_iov, ddsi_serdata_kind_SDK_DATA, ddsi_sertype,
-    ddsrt_iovec_t,
+    dds_strretcode, dds_writecdr, ddsi_serdata_from_ser_iov, ddsi_serdata_kind_SDK_DATA, ddsi_sertype, ddsrt_iovec_t,
 };
 use tutti_core::mapping::{Durability, History, Ownership, Qos, Reliability};
 
@@ -169,4 +168,3 @@ pub(super) fn blob_topic(participant: dds_entity_t, topic: &str, type_name: &str
     }
     Ok(t)
 }
-

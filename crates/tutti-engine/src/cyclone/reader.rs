@@ -13,9 +13,9 @@ use std::sync::{Arc, Mutex};
 
 use cyclors::{
     dds_builtintopic_free_endpoint, dds_create_listener, dds_create_reader, dds_delete_listener, dds_entity_t,
-    dds_get_matched_publication_data, dds_instance_handle_t, dds_lset_data_available, dds_sample_info_t,
-    dds_takecdr, ddsi_serdata, ddsi_serdata_size, ddsi_serdata_to_ser_ref, ddsi_serdata_to_ser_unref,
-    ddsi_serdata_unref, ddsrt_iovec_t, DDS_ANY_STATE,
+    dds_get_matched_publication_data, dds_instance_handle_t, dds_lset_data_available, dds_sample_info_t, dds_takecdr,
+    ddsi_serdata, ddsi_serdata_size, ddsi_serdata_to_ser_ref, ddsi_serdata_to_ser_unref, ddsi_serdata_unref,
+    ddsrt_iovec_t, DDS_ANY_STATE,
 };
 use tutti_core::mapping::Qos;
 

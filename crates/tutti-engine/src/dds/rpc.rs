@@ -77,10 +77,8 @@ impl RequestHeader {
     /// The header at the start of `body`, in the sample's byte order.
     pub fn read(le: bool, body: &[u8]) -> Result<RequestHeader, CdrError> {
         let word = |at: usize| -> Result<u64, CdrError> {
-            let b: [u8; 8] = body
-                .get(at..at + 8)
-                .and_then(|b| b.try_into().ok())
-                .ok_or(CdrError::Truncated { len: body.len() })?;
+            let b: [u8; 8] =
+                body.get(at..at + 8).and_then(|b| b.try_into().ok()).ok_or(CdrError::Truncated { len: body.len() })?;
             Ok(if le { u64::from_le_bytes(b) } else { u64::from_be_bytes(b) })
         };
         Ok(RequestHeader { client: word(0)?, sequence: word(8)? as i64 })
@@ -218,7 +216,9 @@ impl Server {
         let clients = remote.writers_on(&self.request_topic).filter(|g| g.peer == peer).count().max(1);
         let readers = match self.writer.matched_readers_of(peer) {
             Some(n) => n,
-            None => remote.readers_on(std::slice::from_ref(&self.reply_topic)).iter().filter(|g| g.peer == peer).count(),
+            None => {
+                remote.readers_on(std::slice::from_ref(&self.reply_topic)).iter().filter(|g| g.peer == peer).count()
+            }
         };
         readers >= clients
     }

@@ -49,8 +49,8 @@ use crate::cyclone::ros_remote;
 use crate::dds::rpc::{self, Replies, ReplyWriter, SampleIdentity};
 use crate::dds::{data_topic, endpoint, peer_of, reply_topic, request_topic};
 use crate::{
-    Data, Decode, EndpointId, EndpointQos, Engine, EngineConfig, EngineError, EngineKind, PeerId, Remote, RequestSink, Responder,
-    Service, Sink, TopicType, Writer,
+    Data, Decode, EndpointId, EndpointQos, Engine, EngineConfig, EngineError, EngineKind, PeerId, Remote, RequestSink,
+    Responder, Service, Sink, TopicType, Writer,
 };
 
 mod qos;
@@ -167,7 +167,14 @@ impl Rustdds {
 
     /// A reader of per-item topic `topic`: each stock message is read through its interface's
     /// spec ([`seed::ValueSeed`]) and made the bytes of `leaf`.
-    fn item_reader(&self, topic: &str, ty: &TopicType, q: &Qos, leaf: Arc<Leaf>, sink: Sink) -> Result<(), EngineError> {
+    fn item_reader(
+        &self,
+        topic: &str,
+        ty: &TopicType,
+        q: &Qos,
+        leaf: Arc<Leaf>,
+        sink: Sink,
+    ) -> Result<(), EngineError> {
         let sub: Subscription<tutti_ros2::Value> = self.subscription(topic, ty, q)?;
         let path: Arc<str> = Arc::from(leaf.path.as_str());
         let message = Stock::of(&leaf).message();

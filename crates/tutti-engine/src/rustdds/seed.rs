@@ -179,7 +179,10 @@ mod tests {
         let body = m.encode(&v).unwrap();
         let back = ValueSeed(m).deserialize(&mut CdrDeserializer::<byteorder::LittleEndian>::new(&body)).unwrap();
         assert_eq!(m.encode(&back).unwrap(), body);
-        assert_eq!(back.path("layout.dim").and_then(|d| d.at(0)).and_then(|d| d.get("label")), Some(&Value::from("xyz")));
+        assert_eq!(
+            back.path("layout.dim").and_then(|d| d.at(0)).and_then(|d| d.get("label")),
+            Some(&Value::from("xyz"))
+        );
         let gid = r.message("rmw_dds_common/msg/Gid").unwrap();
         let g: Value = Struct::new().with("data", (0u8..16).map(Value::from).collect::<Vec<_>>()).into();
         let body = gid.encode(&g).unwrap();

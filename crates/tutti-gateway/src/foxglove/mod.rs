@@ -36,10 +36,12 @@ use tutti_core::ddf::Role;
 use tutti_core::mapping;
 use tutti_ros2::idl::ros2msg;
 
+pub use self::config::FoxgloveKeys;
 use crate::config::PlannedSet;
 use crate::routes::{Counters, ShmConfig};
 use crate::{GatewayError, GatewayOptions};
 
+mod config;
 pub mod follow;
 pub mod protocol;
 mod session;
@@ -220,7 +222,7 @@ pub(crate) fn serve(
 }
 
 fn config_node(opts: &GatewayOptions) -> String {
-    crate::config::node_full_name(&opts.ros_namespace, &opts.node_name)
+    tutti_ros2::names::under(&opts.ros_namespace, &opts.node_name)
 }
 
 /// The subprotocol of ours that a client offered (the first of ours, in our order).

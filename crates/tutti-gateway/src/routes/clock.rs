@@ -29,7 +29,7 @@ use crate::GatewayError;
 /// The `/clock` route of `domain` under the canonical ROS namespace `ns`: its writer,
 /// watched by the poller, at most `rate` samples a second (None: one per step).
 pub fn route(dds: &dyn Engine, domain: &str, ns: &str, rate: Option<f64>) -> Result<Outgoing, GatewayError> {
-    let topic = crate::config::ros_name(ns, clock::TOPIC);
+    let topic = tutti_ros2::names::under(ns, clock::TOPIC);
     let m = clock::message();
     let writer = dds.writer(&topic, &TopicType::ros2(&m.name().dds(), m.hash()), &clock::qos())?;
     let activation = Arc::new(Activation::default());

@@ -161,10 +161,8 @@ impl Goals {
 
     /// Publishes every kept goal's status (`GoalStatusArray`).
     fn publish_status(&self, goals: &[Goal]) {
-        let list: Vec<Value> = goals
-            .iter()
-            .map(|g| Struct::new().with("goal_info", g.info()).with("status", g.status).into())
-            .collect();
+        let list: Vec<Value> =
+            goals.iter().map(|g| Struct::new().with("goal_info", g.info()).with("status", g.status).into()).collect();
         self.status.publish(&Struct::new().with("status_list", list).into());
     }
 

@@ -119,11 +119,7 @@ pub const SERVICES: &[ServiceDef] = &[
         kind: Kind::SetState,
     },
     ServiceDef { name: "step_simulation", interface: "simulation_interfaces/srv/StepSimulation", kind: Kind::Step },
-    ServiceDef {
-        name: "reset_simulation",
-        interface: "simulation_interfaces/srv/ResetSimulation",
-        kind: Kind::Reset,
-    },
+    ServiceDef { name: "reset_simulation", interface: "simulation_interfaces/srv/ResetSimulation", kind: Kind::Reset },
     ServiceDef {
         name: "simulate_steps/_action/send_goal",
         interface: "simulation_interfaces/action/SimulateSteps_SendGoal",
@@ -134,7 +130,11 @@ pub const SERVICES: &[ServiceDef] = &[
         interface: "simulation_interfaces/action/SimulateSteps_GetResult",
         kind: Kind::GetResult,
     },
-    ServiceDef { name: "simulate_steps/_action/cancel_goal", interface: "action_msgs/srv/CancelGoal", kind: Kind::CancelGoal },
+    ServiceDef {
+        name: "simulate_steps/_action/cancel_goal",
+        interface: "action_msgs/srv/CancelGoal",
+        kind: Kind::CancelGoal,
+    },
 ];
 
 /// A topic of the action: its relative ROS name and its message.
@@ -155,10 +155,13 @@ impl TopicDef {
 }
 
 /// The action's feedback topic.
-pub const FEEDBACK: TopicDef =
-    TopicDef { name: "simulate_steps/_action/feedback", message: "simulation_interfaces/action/SimulateSteps_FeedbackMessage" };
+pub const FEEDBACK: TopicDef = TopicDef {
+    name: "simulate_steps/_action/feedback",
+    message: "simulation_interfaces/action/SimulateSteps_FeedbackMessage",
+};
 /// The action's status topic.
-pub const STATUS: TopicDef = TopicDef { name: "simulate_steps/_action/status", message: "action_msgs/msg/GoalStatusArray" };
+pub const STATUS: TopicDef =
+    TopicDef { name: "simulate_steps/_action/status", message: "action_msgs/msg/GoalStatusArray" };
 
 /// rcl_action's status QoS: reliable, transient local, keep last 1 (a late client gets the
 /// goals' last statuses).

@@ -1,0 +1,277 @@
+//! What the gateway serves and how ([`GatewayOptions`]): the defaults, then the environment,
+//! then the config file's keys with the CLI's flags laid over them.
+//!
+//! The config file (`tutti gateway --config gateway.json5`) is parsed, then validated, in two
+//! steps: [`load`] reads it into a [`ConfigFile`] (JSON5, unknown keys refused, every value
+//! checked where it stands, so errors carry the file, line and column; each key parsed by the
+//! section of the part that uses it, see [`file`]), [`ConfigFile::apply`] puts it into
+//! [`GatewayOptions`], and [`resolve`] checks the `topics` against the DDF's flags (a QoS that
+//! would break lock-step or the seed of late joiners is refused, naming the key and the
+//! flag). Its keys are the CLI's long flags with `_` for `-`; the CLI builds a [`ConfigFile`]
+//! from the flags it was given and lays it [`over`](ConfigFile::over) the file's, so flags
+//! win over the file and the file over the defaults.
+
+use std::net::{IpAddr, SocketAddr};
+use std::path::{Path, PathBuf};
+use std::time::Duration;
+
+use tutti_core::ddf::Model;
+use tutti_core::mapping::Profile;
+use tutti_core::shm::WaitMode;
+use tutti_ros2::env::DiscoveryRange;
+use tutti_ros2::names;
+
+use crate::engine::{EngineConfig, EngineKind};
+
+pub mod file;
+pub mod plan;
+pub mod values;
+
+pub use crate::error::ConfigError;
+pub use file::{load, parse, ConfigFile, GatewayKeys, KEYS};
+pub use plan::{
+    anchored, item_ros2_topics, item_topics, plan, resolve, set_key, LeftOut, Plan, PlanKeys, PlannedSet, QosOverride,
+    TopicEntry, TopicRules, TopicSettings,
+};
+pub use tutti_config::MAX_NESTING;
+pub use tutti_engine::keys::{parse_peer, EngineKeys};
+pub use values::{
+    parse_namespace, parse_period, parse_profile, parse_rate, parse_span, parse_topic_name, parse_wait_mode,
+    MAX_DURATION, MIN_RATE,
+};
+
+/// The shortest lease the gateway's DDS participant announces, whatever `--lease` says: the
+/// participant renews it every 4/5 of the lease, and a peer that misses a renewal on a
+/// loaded machine would drop every route of a gateway that is still there.
+pub const MIN_PARTICIPANT_LEASE: Duration = Duration::from_secs(2);
+
+/// The two type mappings of `docs/gateway.md` ("Mapping").
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum TypeMode {
+    /// One struct per set (`tutti idl`'s types), with `step` and `sim_time`.
+    #[default]
+    Typed,
+    /// One topic per item with stock `std_msgs` types.
+    PerItem,
+}
+
+/// Everything the gateway needs.
+#[derive(Debug, Clone)]
+pub struct GatewayOptions {
+    /// The DDF the model was read from (its stem names the ROS 2 package).
+    pub ddf_path: PathBuf,
+    pub model: Model,
+    /// DDS domain (ROS_DOMAIN_ID).
+    pub ros_domain_id: u16,
+    pub types: TypeMode,
+    pub profile: Profile,
+    /// OWNERSHIP_STRENGTH of the gateway's writers in the `dds` profile.
+    pub strength: i32,
+    /// Be the framework of local segments fed from DDS.
+    pub mirror: bool,
+    /// ROS 2 node name.
+    pub node_name: String,
+    /// Shared-memory namespace.
+    pub namespace: String,
+    /// Addresses DDS may use; empty: all interfaces.
+    pub interfaces: Vec<IpAddr>,
+    /// Longest shared-memory wait (a step, a commit's step, connecting); in mirror mode the
+    /// framework's step timeout.
+    pub timeout: Duration,
+    /// How shared-memory waits wait (spin for lowest latency, block for no CPU).
+    pub wait: WaitMode,
+    /// How often idle asynchronous sets are looked at for changes.
+    pub poll: Duration,
+    /// How often discovery data is compared with the routes' connections.
+    pub discovery_every: Duration,
+    /// The DDS engine.
+    pub engine: EngineKind,
+    /// Unicast discovery peers (Cyclone engine).
+    pub peers: Vec<String>,
+    /// Which domain's simulated time goes out on `/clock`.
+    pub clock: ClockSource,
+    /// At most this many `/clock` samples a second (None: one per step).
+    pub clock_rate: Option<f64>,
+    /// ROS namespace of every topic and of the node (empty: none): `rt/NS/DOMAIN/publish`,
+    /// node `/NS/NODE`.
+    pub ros_namespace: String,
+    /// Bridge a domain only while a framework hosts it in `namespace` (the default; a
+    /// mirror hosts its domains itself); false: every domain of the DDF from the start.
+    pub hosted_only: bool,
+    /// How long a DDS writer of a synchronous domain may owe its answer to a step before
+    /// the gateway releases its lock-step share (a killed writer; it joins again with its
+    /// next sample); also the lease the gateway's own DDS participant announces (at least
+    /// [`MIN_PARTICIPANT_LEASE`]), after which the other participants forget a killed gateway.
+    pub lease: Duration,
+    /// DDS readers of a synchronous PUBLISH set get every step: the gateway reads the set in
+    /// lock-step through an observer connection that the framework waits for (a copy and a
+    /// DDS write a step), instead of following it passively.
+    pub every_step: bool,
+    /// Serve the counters over HTTP (JSON at `/stats`, Prometheus text at `/metrics`).
+    pub http: Option<SocketAddr>,
+    /// Serve the bridged sets over the Foxglove WebSocket protocol (`crate::foxglove`).
+    pub foxglove: Option<SocketAddr>,
+    /// Offer no `simulation_interfaces` services (`crate::services`): the gateway bridges
+    /// data and never controls the run.
+    pub passive: bool,
+    /// Which sets are bridged, and per-topic QoS, rate and name (the config file's
+    /// `allow`, `deny` and `topics`).
+    pub rules: TopicRules,
+}
+
+/// The domain whose simulated time the gateway publishes on `/clock`.
+#[derive(Debug, Clone, PartialEq, Eq, Default)]
+pub enum ClockSource {
+    /// The first synchronous domain of the DDF (none if it has none).
+    #[default]
+    FirstSynchronous,
+    Domain(String),
+    Off,
+}
+
+impl GatewayOptions {
+    /// Defaults for `model` read from `ddf_path`.
+    pub fn new(ddf_path: impl Into<PathBuf>, model: Model) -> Self {
+        GatewayOptions {
+            ddf_path: ddf_path.into(),
+            model,
+            ros_domain_id: 0,
+            types: TypeMode::Typed,
+            profile: Profile::Ros2,
+            strength: 0,
+            mirror: false,
+            node_name: "tutti_gateway".into(),
+            namespace: tutti_core::shm::segment::namespace_from_env(),
+            interfaces: Vec::new(),
+            timeout: tutti_core::defaults::STEP_TIMEOUT,
+            wait: WaitMode::Block,
+            poll: Duration::from_micros(500),
+            discovery_every: Duration::from_millis(200),
+            engine: EngineKind::default(),
+            peers: Vec::new(),
+            clock: ClockSource::default(),
+            clock_rate: None,
+            ros_namespace: String::new(),
+            hosted_only: true,
+            lease: Duration::from_secs(1),
+            every_step: false,
+            passive: false,
+            http: None,
+            foxglove: None,
+            rules: TopicRules::default(),
+        }
+    }
+
+    /// The index of the domain whose time goes out on `/clock`, if any; an unknown name is
+    /// an error. A mirror publishes no clock (the home gateway does).
+    pub fn clock_domain(&self) -> Result<Option<usize>, ConfigError> {
+        if self.mirror {
+            return Ok(None);
+        }
+        match &self.clock {
+            ClockSource::Off => Ok(None),
+            ClockSource::FirstSynchronous => Ok(self.model.domains.iter().position(|d| d.flags.synchronous)),
+            ClockSource::Domain(name) => match self.model.domains.iter().position(|d| &d.name == name) {
+                Some(i) => Ok(Some(i)),
+                None => Err(ConfigError::NoSuchClockDomain {
+                    name: name.clone(),
+                    domains: self.model.domains.iter().map(|d| d.name.as_str()).collect::<Vec<_>>().join(", "),
+                }),
+            },
+        }
+    }
+
+    /// How the engine's participant joins DDS.
+    pub fn engine_config(&self) -> EngineConfig {
+        EngineConfig {
+            domain_id: self.ros_domain_id,
+            interfaces: self.interfaces.clone(),
+            peers: self.peers.clone(),
+            node_name: self.node_name.clone(),
+            node_namespace: names::node_namespace(self.ros_namespace.trim().trim_matches('/')),
+            participant_lease: Some(self.lease.max(MIN_PARTICIPANT_LEASE)),
+        }
+    }
+}
+
+// ---------------------------------------------------------------------------------------
+// The rules and the plan.
+
+impl GatewayOptions {
+    /// The options of the gateway for `model` read from `ddf`: the defaults, then the
+    /// environment where `keys` (flags laid over the config file) say nothing, then `keys`.
+    /// With ROS 2's discovery range OFF, peers must be given.
+    pub fn configured(ddf: &Path, model: Model, keys: &ConfigFile) -> Result<GatewayOptions, ConfigError> {
+        let mut opts = GatewayOptions::new(ddf, model);
+        if keys.engine.ros_domain_id.is_none() {
+            opts.ros_domain_id = env::domain_id()?.unwrap_or(0);
+        }
+        if keys.engine.engine.is_none() {
+            opts.engine = env::engine()?;
+        }
+        let range = env::discovery()?;
+        if keys.engine.interface.is_none() {
+            opts.interfaces = match env::interfaces()? {
+                Some(i) => i,
+                // This machine only: loopback.
+                None if range == DiscoveryRange::Localhost => vec![IpAddr::from([127, 0, 0, 1])],
+                None => Vec::new(),
+            };
+        }
+        keys.apply(&mut opts)?;
+        if range == DiscoveryRange::Off {
+            // Cyclone has no switch for "peers only" that we could set without overriding
+            // CYCLONEDDS_URI; with peers given, they are used beside what Cyclone is configured for.
+            if opts.peers.is_empty() {
+                return Err(ConfigError::DiscoveryOff);
+            }
+            tracing::warn!(
+                "ROS_AUTOMATIC_DISCOVERY_RANGE=OFF: discovering the peers {:?}; multicast discovery stays as \
+                 CYCLONEDDS_URI configures it",
+                opts.peers
+            );
+        }
+        Ok(opts)
+    }
+}
+
+// ---------------------------------------------------------------------------------------
+// Value parsers, shared by the CLI's flags and the file's keys.
+
+/// The longest duration a key or flag takes: 365 days. Longer ones are refused, since a
+/// deadline is the time now plus the duration, and that sum overflows the clock for
+
+/// The gateway's environment variables, each read once, by its owner: ROS 2's
+/// (`ROS_DOMAIN_ID`, the discovery range) by `tutti_ros2::env`, the engine's (`TUTTI_DDS`,
+/// `TUTTI_GATEWAY_INTERFACE`) by `tutti_engine::keys::env`. A variable set to nothing counts
+/// as unset; a bad value is an error naming the variable.
+pub mod env {
+    use std::net::IpAddr;
+
+    use super::ConfigError;
+    use crate::engine::EngineKind;
+    use tutti_ros2::env::DiscoveryRange;
+
+    /// `ROS_DOMAIN_ID`, if set.
+    pub fn domain_id() -> Result<Option<u16>, ConfigError> {
+        Ok(tutti_ros2::env::domain_id()?)
+    }
+
+    /// `TUTTI_DDS`, else the default engine (cyclone).
+    pub fn engine() -> Result<EngineKind, ConfigError> {
+        Ok(tutti_engine::keys::env::engine()?)
+    }
+
+    /// `ROS_LOCALHOST_ONLY` and `ROS_AUTOMATIC_DISCOVERY_RANGE`.
+    pub fn discovery() -> Result<DiscoveryRange, ConfigError> {
+        Ok(tutti_ros2::env::discovery()?)
+    }
+
+    /// `TUTTI_GATEWAY_INTERFACE` (comma-separated addresses), if set.
+    pub fn interfaces() -> Result<Option<Vec<IpAddr>>, ConfigError> {
+        Ok(tutti_engine::keys::env::interfaces()?)
+    }
+}
+
+#[cfg(test)]
+mod tests;
