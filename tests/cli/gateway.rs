@@ -44,6 +44,13 @@ pub fn python() -> Option<PathBuf> {
 
 pub use tutti_test_support::Proc;
 
+/// The log filter of the gateways the tests start: `TUTTI_TEST_GATEWAY_LOG` when set (to
+/// follow one test's gateway closer, e.g. `info,tutti_engine=debug`), else `info` with the DDS
+/// stacks' own logs off.
+pub fn gateway_log() -> String {
+    std::env::var("TUTTI_TEST_GATEWAY_LOG").unwrap_or_else(|_| "info,rustdds=off,ros2_client=off".into())
+}
+
 /// `tutti gateway DDF` on loopback in DDS domain `domain_id`, namespace `ns`.
 pub fn gateway(ddf: &str, domain_id: u16, ns: &str, extra: &[&str]) -> Proc {
     start_gateway(tutti_test_support::tutti_command(), ddf, domain_id, ns, "127.0.0.1", extra)
@@ -56,7 +63,7 @@ fn start_gateway(mut cmd: Command, ddf: &str, domain_id: u16, ns: &str, addr: &s
         .args(["--status-every", "300ms"])
         .args(extra)
         .env("TUTTI_NAMESPACE", ns)
-        .env("RUST_LOG", "info,rustdds=off,ros2_client=off");
+        .env("RUST_LOG", gateway_log());
     let p = Proc::spawn(&format!("gateway {ns}"), cmd, Duration::from_secs(180));
     assert!(p.wait_line("tutti gateway: up", Duration::from_secs(60)).is_some(), "gateway did not start\n{}", p.dump());
     p
@@ -74,7 +81,7 @@ pub fn host_with_gateway(e: Eng, ddf: &str, dom: u16, ns: &str, extra: &[&str]) 
         .env("ROS_DOMAIN_ID", dom.to_string())
         .env("TUTTI_DDS", e.name)
         .env("TUTTI_GATEWAY_INTERFACE", "127.0.0.1")
-        .env("RUST_LOG", "info,rustdds=off,ros2_client=off");
+        .env("RUST_LOG", gateway_log());
     let p = Proc::spawn(&format!("host --gateway {ns}"), cmd, SECS(180));
     assert!(p.wait_line("host: gateway: up", SECS(60)).is_some(), "the gateway did not start\n{}", p.dump());
     (p, guard)

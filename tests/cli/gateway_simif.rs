@@ -19,7 +19,7 @@ use std::time::Duration;
 
 use gateway::*;
 use serde_json::Value;
-use tutti_test_support::{lazy, namespace, wait_until, RemoveSegments};
+use tutti_test_support::{lazy, namespace, wait_until, Output, RemoveSegments};
 
 /// The wire form of a test's client.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -52,7 +52,7 @@ impl Way {
             Form::Cyclone => Some(python()?),
             Form::Enhanced => None,
         };
-        Some(Caller { way: self, py, dom, ns: namespace(&format!("simif{dom}_")) })
+        Some(Caller { way: self, py, dom, ns: namespace(&format!("simif{dom}_")), server: Default::default() })
     }
 }
 
@@ -84,6 +84,9 @@ struct Caller {
     py: Option<PathBuf>,
     dom: u16,
     ns: String,
+    /// What the gateway of the run started last prints (the framework's, with the gateway in
+    /// it), shown when a call fails.
+    server: std::cell::RefCell<Vec<Output>>,
 }
 
 /// A run: the framework, the gateway beside it (Fast DDS's form) and its segments.
@@ -99,6 +102,7 @@ impl Caller {
     fn start(&self, ddf: &str) -> Run {
         if self.way.form == Form::Cyclone {
             let (host, segments) = host_with_gateway(self.way.eng, ddf, self.dom, &self.ns, &[]);
+            *self.server.borrow_mut() = vec![host.output()];
             return Run { host, _gateway: None, _segments: segments };
         }
         let segments = RemoveSegments(self.ns.clone());
@@ -108,6 +112,7 @@ impl Caller {
         let socket = tutti_host::control::socket_path(&self.ns);
         wait_until(lazy(|| format!("no control socket\n{}", host.dump())), SECS(30), || socket.exists());
         let gw = self.way.eng.gateway(ddf, self.dom, &self.ns, &[]);
+        *self.server.borrow_mut() = vec![host.output(), gw.output()];
         Run { host, _gateway: Some(gw), _segments: segments }
     }
 
@@ -116,10 +121,11 @@ impl Caller {
         match &self.py {
             Some(py) => {
                 let mut p = peer(py, "simulation client", self.dom, "service", &["--calls", calls, "--timeout", "60"]);
-                assert_eq!(p.wait(SECS(100)), Some(0), "the client failed\n{}", p.dump());
+                assert_eq!(p.wait(SECS(100)), Some(0), "the client failed\n{}\n{}", p.dump(), self.server());
                 json_lines(&p, "call")
             }
-            None => simif_client::calls(self.dom, calls).unwrap_or_else(|e| panic!("the ros2-client client: {e}")),
+            None => simif_client::calls(self.dom, calls)
+                .unwrap_or_else(|e| panic!("the ros2-client client: {e}\n{}", self.server())),
         }
     }
 
@@ -148,12 +154,17 @@ impl Caller {
                 let (steps, cancel) = (steps.to_string(), cancel_after.to_string());
                 let args = ["--steps", steps.as_str(), "--cancel-after", cancel.as_str(), "--timeout", "60"];
                 let mut p = peer(py, "action client", self.dom, "action", &args);
-                assert_eq!(p.wait(SECS(100)), Some(0), "the action client failed\n{}", p.dump());
+                assert_eq!(p.wait(SECS(100)), Some(0), "the action client failed\n{}\n{}", p.dump(), self.server());
                 p.lines().iter().filter_map(|l| serde_json::from_str::<Value>(l).ok()).collect()
             }
             None => simif_client::simulate_steps(self.dom, steps, cancel_after)
-                .unwrap_or_else(|e| panic!("the ros2-client action client: {e}")),
+                .unwrap_or_else(|e| panic!("the ros2-client action client: {e}\n{}", self.server())),
         }
+    }
+
+    /// What the run's framework and gateway printed so far.
+    fn server(&self) -> String {
+        self.server.borrow().iter().map(Output::dump).collect::<Vec<_>>().join("\n")
     }
 }
 

@@ -143,6 +143,7 @@ impl State {
     }
 
     fn call(&mut self, call: Call) {
+        tracing::debug!("simulation services: {} from {:?}", SERVICES[call.service].name, call.client);
         let svc = SERVICES[call.service].service();
         let request = match svc.request().decode(&call.body, call.le) {
             Ok(r) => r,

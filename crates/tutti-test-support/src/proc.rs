@@ -201,10 +201,30 @@ impl Proc {
         format!("--- {} ---\n{}", self.name, self.lines().join("\n"))
     }
 
+    /// A handle on what it prints, for the failure messages of code that does not hold the
+    /// process (a client's call that fails while the server is held elsewhere).
+    pub fn output(&self) -> Output {
+        Output { name: self.name.clone(), lines: self.lines.clone() }
+    }
+
     /// SIGKILL: the process gets no chance to say goodbye; waits for its exit.
     pub fn kill9(&mut self) {
         let _ = lock(&self.child).kill();
         self.wait(Duration::from_secs(10));
+    }
+}
+
+/// What a [`Proc`] printed, read at any time ([`Proc::output`]).
+#[derive(Debug, Clone)]
+pub struct Output {
+    name: String,
+    lines: Arc<Mutex<Vec<String>>>,
+}
+
+impl Output {
+    /// Its name and everything it printed so far, as [`Proc::dump`] shows them.
+    pub fn dump(&self) -> String {
+        format!("--- {} ---\n{}", self.name, lock(&self.lines).join("\n"))
     }
 }
 

@@ -162,6 +162,7 @@ pub(crate) fn deliver(sample: Incoming<'_>, sink: &RequestSink) {
         Form::Header(_) => &body[RequestHeader::LEN..],
         Form::Related(_) => body,
     };
+    tracing::debug!("services: a request from {:?}, {form:?}", endpoint(sample.writer));
     let reply_to = crate::ReplyTo(ReplyTo { client: endpoint(sample.writer), form });
     sink(Request { client: endpoint(sample.writer), little_endian: le, body: fields, reply_to });
 }
@@ -230,7 +231,12 @@ impl Server {
             if !anyway {
                 return false;
             }
-            tracing::debug!("services: no reply reader of {:?} on {}; replied anyway", to.client, self.reply_topic);
+            tracing::warn!(
+                "services: after {} s the reply reader of {:?} on {} is still not matched; replied anyway",
+                REPLY_WAIT.as_secs(),
+                to.client,
+                self.reply_topic
+            );
         }
         let written = match to.form {
             Form::Header(h) => self.writer.write(&[&h.bytes()[..], body].concat()),
@@ -238,6 +244,8 @@ impl Server {
         };
         if !written {
             tracing::warn!("services: DDS refused a reply on {}", self.reply_topic);
+        } else {
+            tracing::debug!("services: replied to {:?} on {}", to.client, self.reply_topic);
         }
         self.writer.flush();
         true
@@ -370,6 +378,7 @@ impl Responder for DdsResponder {
             tracing::warn!("services: {MAX_HELD} replies wait for their clients already; one dropped");
             return;
         }
+        tracing::debug!("services: a reply to {:?} on {} held for its reader", to.client, server.reply_topic);
         server.held.push(Held { to, body: body.to_vec(), until: Instant::now() + REPLY_WAIT });
         drop(server);
         lock(&self.shared.waiting).held = true;

@@ -273,6 +273,7 @@ impl RelatedWriter {
         while let Some(status) = self.writer.try_recv_status() {
             if let DataWriterStatus::PublicationMatched { current, reader, .. } = status {
                 let peer = peer_of(&reader.to_bytes());
+                tracing::debug!("services: reply writer {:?} {reader:?} ({current:?})", self.writer.guid());
                 let n = self.matched.entry(peer).or_default();
                 if current.count_change() > 0 {
                     *n += 1;
