@@ -251,7 +251,27 @@ fn a_config_file_changes_what_a_dds_peer_sees_and_the_stats_endpoint_counts_it(e
     let (dom, ns) = (e.dom(124), e.ns("gwcit124"));
     let ns = ns.as_str();
     let dir = tempfile::tempdir().unwrap();
-    let cfg = dir.path().join("gateway.json5");
+    let cfg = write_gateway_config(dir.path());
+    let host = Host::start(ns, "gw_async", Duration::from_millis(5), |k| {
+        let mut b = vec![0u8; 40];
+        b[0..8].copy_from_slice(&(k as f64).to_ne_bytes());
+        b
+    });
+    let gw = e.gateway(DDF, dom, ns, &["--config", cfg.to_str().unwrap()]);
+    let stats_line = gw.wait_line("stats on http://", SECS(30)).unwrap_or_else(|| panic!("{}", gw.dump()));
+    let addr = stats_line.split("http://").nth(1).and_then(|r| r.split('/').next()).unwrap().to_string();
+
+    let (_peers, got) = the_renamed_set_is_best_effort_and_rate_limited(&py, dom, &gw);
+    let _kept = the_sets_left_out_have_no_writer_and_an_allowed_one_has(&py, dom);
+    the_stats_endpoint_counts_the_renamed_topic(&addr, got.len());
+    drop(host);
+}
+
+/// The gateway config file of the test above, written in `dir`: gw_states not allowed,
+/// gw_sync's SUBSCRIBE set denied, gw_async's PUBLISH set remapped, best-effort, 4 a second,
+/// and the stats endpoint on. Its path.
+fn write_gateway_config(dir: &std::path::Path) -> std::path::PathBuf {
+    let cfg = dir.join("gateway.json5");
     std::fs::write(
         &cfg,
         r#"{
@@ -264,15 +284,17 @@ fn a_config_file_changes_what_a_dds_peer_sees_and_the_stats_endpoint_counts_it(e
         }"#,
     )
     .unwrap();
-    let host = Host::start(ns, "gw_async", Duration::from_millis(5), |k| {
-        let mut b = vec![0u8; 40];
-        b[0..8].copy_from_slice(&(k as f64).to_ne_bytes());
-        b
-    });
-    let gw = e.gateway(DDF, dom, ns, &["--config", cfg.to_str().unwrap()]);
-    let stats_line = gw.wait_line("stats on http://", SECS(30)).unwrap_or_else(|| panic!("{}", gw.dump()));
-    let addr = stats_line.split("http://").nth(1).and_then(|r| r.split('/').next()).unwrap().to_string();
+    cfg
+}
 
+/// gw_async's PUBLISH set is read under its new name only, best-effort on the wire, at most
+/// 4 a second. Returns the peers (renamed, old name, QoS; they end with the test) and the
+/// samples the reader of the new name got.
+fn the_renamed_set_is_best_effort_and_rate_limited(
+    py: &std::path::Path,
+    dom: u16,
+    gw: &Proc,
+) -> ([Proc; 3], Vec<serde_json::Value>) {
     let ty = "gw_msgs::msg::dds_::GwAsyncPublish_";
     // Readers of the new and the old name, for 4 s each (they stop at their timeout).
     let args = |topic: &'static str| {
@@ -280,11 +302,11 @@ fn a_config_file_changes_what_a_dds_peer_sees_and_the_stats_endpoint_counts_it(e
     };
     // Best effort: a reliable reader does not match the overridden (best-effort) writer.
     let mut renamed =
-        peer(&py, "sub renamed", dom, "sub", &[&args("rt/renamed/state")[..], &["--best-effort"]].concat());
+        peer(py, "sub renamed", dom, "sub", &[&args("rt/renamed/state")[..], &["--best-effort"]].concat());
     // Best effort too: a reliable reader would not match a (best-effort) writer still there.
     let mut old =
-        peer(&py, "sub old name", dom, "sub", &[&args("rt/gw_async/publish")[..], &["--best-effort"]].concat());
-    let mut wire = peer(&py, "qos renamed", dom, "qos", &["--topic", "rt/renamed/state", "--timeout", "45"]);
+        peer(py, "sub old name", dom, "sub", &[&args("rt/gw_async/publish")[..], &["--best-effort"]].concat());
+    let mut wire = peer(py, "qos renamed", dom, "qos", &["--topic", "rt/renamed/state", "--timeout", "45"]);
     assert_eq!(wire.wait(SECS(60)), Some(0), "{}\n{}", wire.dump(), gw.dump());
     assert_eq!(json_lines(&wire, "reliability")[0]["reliability"], "BestEffort");
     renamed.wait(SECS(60));
@@ -294,27 +316,37 @@ fn a_config_file_changes_what_a_dds_peer_sees_and_the_stats_endpoint_counts_it(e
     // about 200 times a second: the rate limit, not the machine, sets the count.
     assert!(!got.is_empty() && got.len() <= 17, "{} samples in 4 s\n{}", got.len(), renamed.dump());
     assert!(json_lines(&old, "x").is_empty(), "the old name still carries samples: {}", old.dump());
+    ([renamed, old, wire], got)
+}
+
+/// gw_states (not allowed) and gw_sync's SUBSCRIBE set (denied) have no DDS writer; gw_sync's
+/// PUBLISH set (allowed) has one. Returns the peer that saw it (it ends with the test).
+fn the_sets_left_out_have_no_writer_and_an_allowed_one_has(py: &std::path::Path, dom: u16) -> Proc {
     for topic in ["rt/gw_states/publish", "rt/gw_sync/subscribe"] {
-        let mut left_out = peer(&py, "qos left out", dom, "qos", &["--topic", topic, "--timeout", "3"]);
+        let mut left_out = peer(py, "qos left out", dom, "qos", &["--topic", topic, "--timeout", "3"]);
         assert_eq!(left_out.wait(SECS(30)), Some(3), "a set left out has a DDS writer: {}", left_out.dump());
     }
-    let mut kept = peer(&py, "qos kept", dom, "qos", &["--topic", "rt/gw_sync/publish", "--timeout", "45"]);
+    let mut kept = peer(py, "qos kept", dom, "qos", &["--topic", "rt/gw_sync/publish", "--timeout", "45"]);
     assert_eq!(kept.wait(SECS(60)), Some(0), "an allowed set has no DDS writer: {}", kept.dump());
+    kept
+}
 
-    let stats: serde_json::Value = serde_json::from_str(&http_get(&addr, "/stats")).unwrap();
+/// The stats endpoint at `addr` counts at least the `got` samples the reader got of
+/// rt/renamed/state, under its set, nothing of gw_states, in JSON and in Prometheus text.
+fn the_stats_endpoint_counts_the_renamed_topic(addr: &str, got: usize) {
+    let stats: serde_json::Value = serde_json::from_str(&http_get(addr, "/stats")).unwrap();
     let topic = stats["topics"].as_array().unwrap().iter().find(|t| t["topic"] == "rt/renamed/state").cloned();
     let topic = topic.unwrap_or_else(|| panic!("{stats}"));
     assert_eq!(topic["set"], "gw_async/publish", "{topic}");
-    assert!(topic["samples_out"].as_u64().unwrap() >= got.len() as u64, "{topic}");
+    assert!(topic["samples_out"].as_u64().unwrap() >= got as u64, "{topic}");
     assert!(stats["topics"].as_array().unwrap().iter().all(|t| !t["set"].as_str().unwrap().starts_with("gw_states")));
-    let metrics = http_get(&addr, "/metrics");
+    let metrics = http_get(addr, "/metrics");
     assert!(
         metrics
             .lines()
             .any(|l| l.starts_with("tutti_gateway_samples_out_total{") && l.contains("topic=\"rt/renamed/state\"")),
         "{metrics}"
     );
-    drop(host);
 }
 
 per_engine!(

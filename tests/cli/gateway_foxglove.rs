@@ -141,6 +141,12 @@ fn start_run(runner: Runner, ns: &str, dom: u16, dir: &Path) -> (SocketAddr, Pro
     (foxglove_addr(&host), host, None, mcap)
 }
 
+/// The steps the client asks the step service for while the run is paused.
+const STEPS: u64 = 7;
+
+/// A run started by `runner` (see [`start_run`]) and the protocol's client from npm against
+/// its Foxglove server: the channels, messages, client publishing, services, connection graph
+/// and time the client saw are checked against the run's recording.
 fn foxglove_client_against(runner: Runner, tag: &str, doms: std::ops::RangeInclusive<u16>) {
     let Some(node) = require_tool("node", "nodejs") else { return };
     let modules = tutti_test_support::repo_root().join("tests/foxglove/node_modules/@foxglove/ws-protocol");
@@ -154,6 +160,32 @@ fn foxglove_client_against(runner: Runner, tag: &str, doms: std::ops::RangeInclu
     let dir = tempfile::tempdir().expect("a temporary directory");
     let (addr, mut host, gateway, mcap) = start_run(runner, &ns, dom, dir.path());
 
+    let mut client = start_client(&node, addr);
+    let rc = client.wait(SECS(180));
+    assert_eq!(rc, Some(0), "the client failed\n{}\n{}", client.dump(), host.dump());
+    let lines: Vec<Value> = client.stdout().lines().filter_map(|l| serde_json::from_str(l).ok()).collect();
+    if let Some(mut gw) = gateway {
+        assert_eq!(gw.interrupt(SECS(60)), Some(0), "{}", gw.dump());
+    }
+    assert_eq!(host.interrupt(SECS(60)), Some(0), "{}", host.dump());
+
+    the_channels_are_the_sets_with_the_recordings_schemas(&lines);
+    let rec = recorded(&mcap, "/gw_sync/publish");
+    each_message_is_the_recordings_of_its_step(&lines, &rec, &client);
+    the_published_value_reached_the_framework(&lines, &mcap, &client);
+    the_step_service_made_exactly_the_steps_asked_for(&lines);
+    the_graph_and_the_time_are_the_runs(&lines, &rec);
+}
+
+/// The client's lines of kind `kind`.
+fn of(lines: &[Value], kind: &str) -> Vec<Value> {
+    lines.iter().filter(|v| v["kind"] == kind).cloned().collect()
+}
+
+/// `tests/foxglove/client.mjs` (run by `node`) against the server at `addr`: it reads 40
+/// messages of gw_sync's PUBLISH set, publishes y = 4.75, n = 7 into gw_async's SUBSCRIBE set
+/// and watches for it in gw_async/publish/x, and calls the services (stepping [`STEPS`]).
+fn start_client(node: &Path, addr: SocketAddr) -> Proc {
     // The sample the client publishes into gw_async's SUBSCRIBE set: y = 4.75, n = 7.
     let sub = codec(Role::Subscribe, "gw_async");
     let mut set = vec![0u8; sub.shm_size()];
@@ -162,7 +194,6 @@ fn foxglove_client_against(runner: Runner, tag: &str, doms: std::ops::RangeInclu
     let mut body = Vec::new();
     sub.encode(0, 0.0, &set, &mut body);
     let sample = [&HEADER_LE[..], &body].concat();
-    const STEPS: u64 = 7;
     let client_cfg = serde_json::json!({
         "subscribe": "/gw_sync/publish",
         "count": 40,
@@ -181,23 +212,17 @@ fn foxglove_client_against(runner: Runner, tag: &str, doms: std::ops::RangeInclu
         &format!("ws://{addr}/"),
         &client_cfg.to_string(),
     ]);
-    let mut client = Proc::spawn("foxglove client", client, SECS(180));
-    let rc = client.wait(SECS(180));
-    assert_eq!(rc, Some(0), "the client failed\n{}\n{}", client.dump(), host.dump());
-    let lines: Vec<Value> = client.stdout().lines().filter_map(|l| serde_json::from_str(l).ok()).collect();
-    let of = |kind: &str| lines.iter().filter(|v| v["kind"] == kind).cloned().collect::<Vec<_>>();
-    if let Some(mut gw) = gateway {
-        assert_eq!(gw.interrupt(SECS(60)), Some(0), "{}", gw.dump());
-    }
-    assert_eq!(host.interrupt(SECS(60)), Some(0), "{}", host.dump());
+    Proc::spawn("foxglove client", client, SECS(180))
+}
 
-    // The channels: one per set, on its ROS 2 topic, in CDR, with the recording's schema.
-    let info = &of("serverInfo")[0];
+/// The channels: one per set, on its ROS 2 topic, in CDR, with the recording's schema.
+fn the_channels_are_the_sets_with_the_recordings_schemas(lines: &[Value]) {
+    let info = &of(lines, "serverInfo")[0];
     assert_eq!(info["protocol"], "foxglove.websocket.v1");
     for cap in ["clientPublish", "services", "connectionGraph", "time"] {
         assert!(info["capabilities"].as_array().unwrap().iter().any(|c| c == cap), "{info}");
     }
-    let chans = &of("channels")[0];
+    let chans = &of(lines, "channels")[0];
     let channel = |topic: &str| -> Value {
         chans["channels"]
             .as_array()
@@ -215,10 +240,12 @@ fn foxglove_client_against(runner: Runner, tag: &str, doms: std::ops::RangeInclu
     }
     assert_eq!(channel("/gw_sync/publish")["schemaName"], "gw_msgs/msg/GwSyncPublish");
     assert!(channel("/gw_async/publish")["schema"].as_str().unwrap().contains("float64[3] v"), "{chans}");
+}
 
-    // Each message is the recording's message of its step, stamped with its simulated time.
-    let rec = recorded(&mcap, "/gw_sync/publish");
-    let msgs = of("message");
+/// Each message is the recording's message of its step (`rec`), stamped with its simulated
+/// time, in order, and the values are live.
+fn each_message_is_the_recordings_of_its_step(lines: &[Value], rec: &BTreeMap<u64, (u64, Vec<u8>)>, client: &Proc) {
+    let msgs = of(lines, "message");
     assert_eq!(msgs.len(), 40, "{}", client.dump());
     let mut steps = Vec::new();
     for m in &msgs {
@@ -236,19 +263,23 @@ fn foxglove_client_against(runner: Runner, tag: &str, doms: std::ops::RangeInclu
         .map(|m| u64::from_le_bytes(unhex(m["hex"].as_str().unwrap())[20..28].try_into().unwrap()))
         .collect();
     assert!(xs.len() > 1, "one value only: {xs:?}");
+}
 
-    // The published value reached the framework: it copied y into gw_async/publish/x, and
-    // the recording's SUBSCRIBE set holds it.
-    assert_eq!(of("seen").len(), 1, "{}", client.dump());
-    let subs = recorded(&mcap, "/gw_async/subscribe");
+/// The published value reached the framework: it copied y into gw_async/publish/x, and
+/// the recording's SUBSCRIBE set holds it.
+fn the_published_value_reached_the_framework(lines: &[Value], mcap: &Path, client: &Proc) {
+    assert_eq!(of(lines, "seen").len(), 1, "{}", client.dump());
+    let subs = recorded(mcap, "/gw_async/subscribe");
     let want = [&4.75f64.to_le_bytes()[..], &7i32.to_le_bytes()].concat();
     assert!(
         subs.values().any(|(_, d)| d[4 + 16..4 + 28] == want[..]),
         "the recording never shows y = 4.75, n = 7 in gw_async/subscribe"
     );
+}
 
-    // The step service made exactly the steps asked for while the run was paused.
-    let calls = of("service");
+/// The step service made exactly the steps asked for while the run was paused.
+fn the_step_service_made_exactly_the_steps_asked_for(lines: &[Value]) {
+    let calls = of(lines, "service");
     let status = |name: &str| calls.iter().find(|c| c["name"] == name).map(|c| c["status"].clone()).unwrap();
     let (paused, stepped, state) = (status("/tutti/pause"), status("/tutti/step"), status("/tutti/state"));
     assert_eq!(paused["state"], "paused", "{paused}");
@@ -256,16 +287,19 @@ fn foxglove_client_against(runner: Runner, tag: &str, doms: std::ops::RangeInclu
     assert_eq!(stepped["step"].as_u64().unwrap(), paused["step"].as_u64().unwrap() + STEPS, "{paused} then {stepped}");
     assert_eq!(state["step"], stepped["step"], "a step made while paused: {state}");
     assert_eq!(status("/tutti/resume")["state"], "playing");
+}
 
-    // The connection graph: the framework of each domain, and the services.
-    let graph = &of("graph")[0];
+/// The connection graph shows the framework of each domain and the services; time messages
+/// carry the simulated time of gw_sync (`rec`, its recorded messages).
+fn the_graph_and_the_time_are_the_runs(lines: &[Value], rec: &BTreeMap<u64, (u64, Vec<u8>)>) {
+    let graph = &of(lines, "graph")[0];
     let published = graph["publishedTopics"].as_array().unwrap();
     let sync_pub = published.iter().find(|t| t["name"] == "/gw_sync/publish").expect("gw_sync's PUBLISH topic");
     assert!(sync_pub["publisherIds"][0].as_str().unwrap().starts_with("framework of gw_sync"), "{graph}");
     assert!(graph["advertisedServices"].as_array().unwrap().iter().any(|s| s["name"] == "/tutti/step"), "{graph}");
 
     // Time messages carry the simulated time of gw_sync.
-    let time = &of("time")[0];
+    let time = &of(lines, "time")[0];
     assert!(time["count"].as_u64().unwrap() > 0, "no time message: {time}");
     let last: u64 = time["last"].as_str().unwrap().parse().unwrap();
     let last_step = *rec.keys().last().unwrap();

@@ -54,13 +54,33 @@ fn an_installed_rtapi_builds_c_programs_with_pkg_config_and_cmake_and_a_pip_inst
     };
     let dir = tempfile::tempdir().unwrap();
     let prefix = dir.path().join("prefix");
+    install_into(&prefix);
+
+    let ns = tutti_test_support::namespace("install");
+    let _host = start_host(&ns);
+    the_installed_libraries_are_stripped(&prefix);
+    let product = a_client_builds_in_the_products_layout(dir.path(), &prefix);
+
+    let pc_path = prefix.join("lib/pkgconfig");
+    let reader = common::repo_root().join("examples/c/uav_reader.c");
+    a_pkg_config_build_reads_from_the_host(dir.path(), &prefix, &pc_path, &reader, &ns);
+    let mut opal = Command::new(dir.path().join("reader-opal"));
+    opal.env("LD_LIBRARY_PATH", &product);
+    reads_from_the_host_with(opal, &ns, "the client in the product's layout");
+    cmake_builds_read_from_the_host(dir.path(), &prefix, &reader, &ns);
+    a_pip_installed_module_reads_from_the_host(dir.path(), &prefix, &pc_path, &ns);
+}
+
+/// `launch-scripts/install.sh --no-cli` into `prefix` installs the header, the libraries and
+/// the pkg-config file.
+fn install_into(prefix: &Path) {
     // Built here when the test runs before the workspace was built (cargo test alone).
     let build_dir: PathBuf = common::rtapi_lib_dir();
     let mut install = Command::new("bash");
     install
         .arg(common::repo_root().join("launch-scripts/install.sh"))
         .arg("--prefix")
-        .arg(&prefix)
+        .arg(prefix)
         .arg("--build-dir")
         .arg(&build_dir)
         .arg("--no-cli");
@@ -70,32 +90,39 @@ fn an_installed_rtapi_builds_c_programs_with_pkg_config_and_cmake_and_a_pip_inst
     {
         assert!(prefix.join(f).exists(), "{f} not installed");
     }
+}
 
-    let ns = tutti_test_support::namespace("install");
+/// `tutti host` of ddf/multiuav.ddf in namespace `ns`, with multiuav_uav2/Z = 1.5.
+fn start_host(ns: &str) -> HostGuard {
     let mut host = common::tutti_command();
     host.args(["host", "ddf/multiuav.ddf", "--step", "2ms", "-q", "--set", "multiuav_uav2/Z=1.5"])
-        .env("TUTTI_NAMESPACE", &ns);
+        .env("TUTTI_NAMESPACE", ns);
     let opts =
         common::Spawn { watchdog: Duration::from_secs(1800), grace: Duration::from_secs(5), ..Default::default() };
-    let _host = HostGuard {
+    HostGuard {
         _host: common::Proc::spawn_with("tutti host", host, opts),
-        _segments: common::RemoveSegments(ns.clone()),
-    };
-    // Stripped: no debug information in what is installed.
+        _segments: common::RemoveSegments(ns.to_string()),
+    }
+}
+
+/// Stripped: no debug information in what is installed.
+fn the_installed_libraries_are_stripped(prefix: &Path) {
     for f in ["lib/librtapi.so.0", "lib/libOpalOrchestra.so", "lib/librtapi.a"] {
         let mut readelf = Command::new("readelf");
         readelf.arg("-S").arg(prefix.join(f));
         let sections = run(readelf, &format!("readelf -S {f}"));
         assert!(!sections.contains(".debug_info"), "{f} carries debug information");
     }
+}
 
-    // The product's layout: a directory holding only libOpalOrchestra.so (and RTAPI.h), the
-    // client linked against it and run with only that directory on the library path.
-    let product = dir.path().join("opal");
+/// The product's layout: a directory holding only libOpalOrchestra.so (and RTAPI.h), the
+/// client (`dir`/reader-opal) linked against it, needing nothing else; returns the directory.
+fn a_client_builds_in_the_products_layout(dir: &Path, prefix: &Path) -> PathBuf {
+    let product = dir.join("opal");
     std::fs::create_dir_all(&product).unwrap();
     std::fs::copy(prefix.join("lib/libOpalOrchestra.so"), product.join("libOpalOrchestra.so")).unwrap();
     std::fs::copy(prefix.join("include/RTAPI.h"), product.join("RTAPI.h")).unwrap();
-    let exe = dir.path().join("reader-opal");
+    let exe = dir.join("reader-opal");
     let mut gcc = Command::new("gcc");
     gcc.args(["-std=c99", "-Wall", "-Wextra", "-Werror"])
         .arg("-I")
@@ -112,29 +139,29 @@ fn an_installed_rtapi_builds_c_programs_with_pkg_config_and_cmake_and_a_pip_inst
     let dynamic = run(readelf, "readelf -d");
     assert!(dynamic.contains("[libOpalOrchestra.so]"), "the client does not name libOpalOrchestra.so:\n{dynamic}");
     assert!(!dynamic.contains("librtapi"), "the client needs librtapi beside libOpalOrchestra.so:\n{dynamic}");
+    product
+}
 
-    let pc_path = prefix.join("lib/pkgconfig");
-    let reader = common::repo_root().join("examples/c/uav_reader.c");
-
-    // pkg-config
+/// The reader built with pkg-config's flags for the installed rtapi reads from the host.
+fn a_pkg_config_build_reads_from_the_host(dir: &Path, prefix: &Path, pc_path: &Path, reader: &Path, ns: &str) {
     let mut pc = Command::new("pkg-config");
-    pc.args(["--cflags", "--libs", "rtapi"]).env("PKG_CONFIG_PATH", &pc_path);
+    pc.args(["--cflags", "--libs", "rtapi"]).env("PKG_CONFIG_PATH", pc_path);
     let flags = run(pc, "pkg-config --cflags --libs rtapi");
-    let exe = dir.path().join("reader-pkgconfig");
+    let exe = dir.join("reader-pkgconfig");
     let mut gcc = Command::new("gcc");
     gcc.args(["-std=c99", "-Wall", "-Wextra", "-Werror"])
-        .arg(&reader)
+        .arg(reader)
         .args(flags.split_whitespace())
         .arg(format!("-Wl,-rpath,{}", prefix.join("lib").display()))
         .arg("-o")
         .arg(&exe);
     run(gcc, "gcc with pkg-config's flags");
-    reads_from_the_host(&exe, &ns, "the pkg-config build");
-    let mut opal = Command::new(dir.path().join("reader-opal"));
-    opal.env("LD_LIBRARY_PATH", &product);
-    reads_from_the_host_with(opal, &ns, "the client in the product's layout");
+    reads_from_the_host(&exe, ns, "the pkg-config build");
+}
 
-    // CMake: find_package(tutti), and the product's way (RTAPI.h + a library OpalOrchestra).
+/// CMake: the reader built with find_package(tutti), and the product's way (RTAPI.h + a
+/// library OpalOrchestra), reads from the host.
+fn cmake_builds_read_from_the_host(dir: &Path, prefix: &Path, reader: &Path, ns: &str) {
     for (name, body) in [
         ("find-package", "find_package(tutti 0.1 REQUIRED)\nadd_executable(reader ${READER})\ntarget_link_libraries(reader tutti::rtapi)\n"),
         (
@@ -142,7 +169,7 @@ fn an_installed_rtapi_builds_c_programs_with_pkg_config_and_cmake_and_a_pip_inst
             "find_path(OPAL_ORCHESTRA_INCLUDE_DIR NAMES RTAPI.h REQUIRED)\nfind_library(OPAL_ORCHESTRA_LIBRARY NAMES OpalOrchestra REQUIRED)\nadd_executable(reader ${READER})\ntarget_include_directories(reader PRIVATE ${OPAL_ORCHESTRA_INCLUDE_DIR})\ntarget_link_libraries(reader ${OPAL_ORCHESTRA_LIBRARY})\n",
         ),
     ] {
-        let src = dir.path().join(format!("cmake-{name}"));
+        let src = dir.join(format!("cmake-{name}"));
         std::fs::create_dir_all(&src).unwrap();
         let text = format!("cmake_minimum_required(VERSION 3.18)\nproject(reader_{} C)\n{body}", name.replace('-', "_"));
         std::fs::write(src.join("CMakeLists.txt"), text).unwrap();
@@ -159,12 +186,14 @@ fn an_installed_rtapi_builds_c_programs_with_pkg_config_and_cmake_and_a_pip_inst
         let mut make = Command::new("cmake");
         make.arg("--build").arg(&build);
         run(make, &format!("cmake build ({name})"));
-        reads_from_the_host(&build.join("reader"), &ns, &format!("the CMake build ({name})"));
+        reads_from_the_host(&build.join("reader"), ns, &format!("the CMake build ({name})"));
     }
+}
 
-    // pip install of the Python module into a fresh venv (from a copy: a build writes beside
-    // its sources), run outside the checkout: it finds the library through pkg-config. Offline:
-    // its build backend (setuptools) comes from the wheels launch-scripts/test.sh downloads.
+/// pip install of the Python module into a fresh venv (from a copy: a build writes beside
+/// its sources), run outside the checkout: it finds the library through pkg-config. Offline:
+/// its build backend (setuptools) comes from the wheels launch-scripts/test.sh downloads.
+fn a_pip_installed_module_reads_from_the_host(dir: &Path, prefix: &Path, pc_path: &Path, ns: &str) {
     let Some(_) = common::require_tool("python3", "python3-venv") else { return };
     let wheels = common::repo_root().join("target/wheels");
     let has_setuptools = std::fs::read_dir(&wheels)
@@ -173,12 +202,12 @@ fn an_installed_rtapi_builds_c_programs_with_pkg_config_and_cmake_and_a_pip_inst
         .and_then(|found| if found { Ok(()) } else { Err("no setuptools wheel".into()) });
     let what = format!("the setuptools wheel in {}", wheels.display());
     let Some(()) = common::require(&what, has_setuptools) else { return };
-    let pysrc = dir.path().join("python-src");
+    let pysrc = dir.join("python-src");
     std::fs::create_dir_all(&pysrc).unwrap();
     for f in ["pyproject.toml", "README.md", "tutti_rtapi.py"] {
         std::fs::copy(common::repo_root().join("python").join(f), pysrc.join(f)).unwrap();
     }
-    let venv = dir.path().join("venv");
+    let venv = dir.join("venv");
     let mut mk = Command::new("python3");
     mk.arg("-m").arg("venv").arg(&venv);
     run(mk, "python3 -m venv");
@@ -186,14 +215,14 @@ fn an_installed_rtapi_builds_c_programs_with_pkg_config_and_cmake_and_a_pip_inst
     pip.args(["install", "-q", "--disable-pip-version-check", "--no-index", "--find-links"])
         .arg(&wheels)
         .arg(&pysrc)
-        .current_dir(dir.path());
+        .current_dir(dir);
     run(pip, "pip install ./python");
     let script = "import tutti_rtapi as rt\nwith rt.connect('multiuav_uav2', timeout=30) as c:\n    for _ in range(5):\n        with c.reading():\n            z = c.subscribe('Z')\n        with c.writing():\n            c.publish('Elevation', 2 * z)\nprint('z', z, rt._find_library())\n";
     let mut py = Command::new(venv.join("bin/python"));
     py.args(["-c", script])
-        .current_dir(dir.path())
-        .env("TUTTI_NAMESPACE", &ns)
-        .env("PKG_CONFIG_PATH", &pc_path)
+        .current_dir(dir)
+        .env("TUTTI_NAMESPACE", ns)
+        .env("PKG_CONFIG_PATH", pc_path)
         .env_remove("TUTTI_RTAPI_LIB")
         .env_remove("PYTHONPATH");
     let out = run(py, "the pip-installed Python component");

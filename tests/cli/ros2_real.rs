@@ -183,20 +183,32 @@ fn services_drive_a_synchronous_run(e: Eng, dom: u16) {
     let ns = namespace(&format!("ros2srv{dom}_"));
     let (mut host, _segments) = host_with_gateway(e, DDF, dom, &ns, &[]);
 
-    let r = rclpy_calls(
-        &ros,
-        dom,
-        r#"[["get_simulator_features"], ["get_simulation_state"], ["set_simulation_state", 2]]"#,
-    );
+    let at = rclpy_reads_the_features_and_pauses_the_run(&ros, dom, &ns);
+    rclpy_steps_and_simulates_steps_with_feedback_and_cancel(&ros, dom, &ns, at);
+    let at = rclpy_resets_and_is_told_why_a_request_is_refused(&ros, dom, &ns);
+    ros2cli_lists_the_services_steps_and_quits(&ros, dom, &ns, at);
+    assert!(host.wait(SECS(60)).is_some(), "QUITTING did not end the run\n{}", host.dump());
+}
+
+/// rclpy reads the simulator's features and the state (PLAYING) and pauses the run; returns
+/// the step it paused at.
+fn rclpy_reads_the_features_and_pauses_the_run(ros: &Ros2, dom: u16, ns: &str) -> u64 {
+    let r =
+        rclpy_calls(ros, dom, r#"[["get_simulator_features"], ["get_simulation_state"], ["set_simulation_state", 2]]"#);
     let features: Vec<u64> = r[0]["features"].as_array().expect("features").iter().filter_map(Value::as_u64).collect();
     assert_eq!(features, vec![20, 21, 24, 25, 26, 31, 32, 33], "{:?}", r[0]);
     assert_eq!((r[1]["state"].as_u64(), result(&r[1]).0), (Some(1), OK), "PLAYING: {:?}", r[1]);
     assert_eq!(result(&r[2]).0, OK, "{:?}", r[2]);
-    let (state, at) = ctl_state(&ns);
+    let (state, at) = ctl_state(ns);
     assert_eq!(state, "paused");
+    at
+}
 
+/// From the pause at step `at`, rclpy steps 3, then simulates 4 steps (with their feedback)
+/// and 100000 steps that it cancels: the run stays paused, having made exactly those steps.
+fn rclpy_steps_and_simulates_steps_with_feedback_and_cancel(ros: &Ros2, dom: u16, ns: &str, at: u64) {
     let r = rclpy_calls(
-        &ros,
+        ros,
         dom,
         r#"[["step_simulation", 3], ["get_simulation_state"], ["simulate_steps", 4, 0], ["simulate_steps", 100000, 2]]"#,
     );
@@ -224,15 +236,19 @@ fn services_drive_a_synchronous_run(e: Eng, dom: u16) {
     assert_eq!((r[2]["status"].as_u64(), result(&r[2]).0), (Some(SUCCEEDED), OK), "{:?}", r[2]);
     assert_eq!(r[3]["status"].as_u64(), Some(CANCELED), "{:?}", r[3]);
     assert_eq!(r[3]["cancel_return_code"].as_u64(), Some(0), "ERROR_NONE: {:?}", r[3]);
-    let (state, now) = ctl_state(&ns);
+    let (state, now) = ctl_state(ns);
     let made = now - at - 3 - 4;
     assert_eq!(state, "paused");
     assert!((2..100_000).contains(&made), "the canceled goal made {made} steps");
     assert_eq!(result(&r[3]).1, format!("canceled after {made} of 100000 steps"));
     assert!(in_order(&fb(&r[3]), 100_000, made), "feedback of {made} steps: {:?}", r[3]);
+}
 
+/// rclpy resets the run's time, is told why another scope, playing a playing run and stepping
+/// it are refused, and pauses the run again; returns the step it paused at.
+fn rclpy_resets_and_is_told_why_a_request_is_refused(ros: &Ros2, dom: u16, ns: &str) -> u64 {
     let r = rclpy_calls(
-        &ros,
+        ros,
         dom,
         r#"[["reset_simulation", 1], ["reset_simulation", 3], ["set_simulation_state", 1], ["set_simulation_state", 1],
             ["step_simulation", 1], ["set_simulation_state", 2]]"#,
@@ -245,10 +261,14 @@ fn services_drive_a_synchronous_run(e: Eng, dom: u16) {
     let (code, why) = result(&r[4]);
     assert!(code == INCORRECT_STATE && why.contains("playing"), "stepping a playing run: {:?}", r[4]);
     assert_eq!(result(&r[5]).0, OK);
-    let (_, at) = ctl_state(&ns);
+    let (_, at) = ctl_state(ns);
+    at
+}
 
-    // ros2cli, as docs/ros2.md shows it.
-    let out = ros2(&ros, dom, &["service", "list", "--no-daemon", "-t"]).join("\n");
+/// ros2cli, as docs/ros2.md shows it: lists the services, steps 5 from the pause at step
+/// `at`, simulates 2 more with feedback, and asks the run to quit.
+fn ros2cli_lists_the_services_steps_and_quits(ros: &Ros2, dom: u16, ns: &str, at: u64) {
+    let out = ros2(ros, dom, &["service", "list", "--no-daemon", "-t"]).join("\n");
     for s in [
         "get_simulator_features",
         "get_simulation_state",
@@ -259,14 +279,14 @@ fn services_drive_a_synchronous_run(e: Eng, dom: u16) {
         assert!(out.contains(&format!("/{s} [simulation_interfaces/srv/")), "{s} missing:\n{out}");
     }
     let out = ros2(
-        &ros,
+        ros,
         dom,
         &["service", "call", "/step_simulation", "simulation_interfaces/srv/StepSimulation", "{steps: 5}"],
     );
     assert!(out.join("\n").contains("result=1"), "{out:#?}");
-    assert_eq!(ctl_state(&ns), ("paused".to_string(), at + 5), "exactly 5 steps");
+    assert_eq!(ctl_state(ns), ("paused".to_string(), at + 5), "exactly 5 steps");
     let out = ros2(
-        &ros,
+        ros,
         dom,
         &[
             "action",
@@ -283,9 +303,9 @@ fn services_drive_a_synchronous_run(e: Eng, dom: u16) {
     let shown: Vec<u64> =
         out.lines().filter_map(|l| l.trim().strip_prefix("completed_steps: ")?.parse().ok()).collect();
     assert!(shown.windows(2).all(|w| w[0] < w[1]) && shown.iter().all(|n| (1..=2).contains(n)), "{out}");
-    assert_eq!(ctl_state(&ns), ("paused".to_string(), at + 7), "exactly 2 more steps");
+    assert_eq!(ctl_state(ns), ("paused".to_string(), at + 7), "exactly 2 more steps");
     let out = ros2(
-        &ros,
+        ros,
         dom,
         &[
             "service",
@@ -296,7 +316,6 @@ fn services_drive_a_synchronous_run(e: Eng, dom: u16) {
         ],
     );
     assert!(out.join("\n").contains("result=1"), "QUITTING: {out:#?}");
-    assert!(host.wait(SECS(60)).is_some(), "QUITTING did not end the run\n{}", host.dump());
 }
 
 #[test]

@@ -49,15 +49,40 @@ fn the_short_uav_demo_reproduces_figures_5_and_6() {
     let dds_domain = common::dds_domain_in(180..=198).to_string();
     let listened = tmp.path().join("listener.jsonl");
     let _listener = Listener::start(&dds_domain, &listened);
+    let (_demo, stderr) = run_the_demo(tmp.path(), &out, &dds_domain, &ns, &python);
+    if let Some(l) = &_listener {
+        // The listener did read all along: both sets of every UAV reached it.
+        let text = std::fs::read_to_string(&listened).unwrap_or_default();
+        l.check(&text);
+    }
+    the_figures_logs_and_summary_are_written(&out, &stderr);
+
+    let fw = csv(&out.join("framework.csv"));
+    let sim = col(&fw, "sim_time");
+    assert!((sim[sim.len() - 1] - 40.0).abs() < 0.06, "the run covers 40 s: {}", sim[sim.len() - 1]);
+    figure_5_level_while_disconnected_merged_after(&out, &fw, &sim);
+    figure_6_the_c_components_read_what_was_published(&out, &fw, &sim);
+    the_connection_counts_follow_the_script(&out);
+    run_mcap_holds_the_steps_of_framework_csv(&out, &sim);
+
+    // Nothing left behind: no segment of the run's namespace.
+    let left = tutti_core::shm::os::list_shm(&format!("tutti.{ns}.")).unwrap();
+    assert!(left.is_empty(), "segments left behind: {left:?}");
+}
+
+/// Runs `tutti-demo uav` (short scenario, 40 s at speed 8) into `out`, in namespace `ns`
+/// and DDS domain `dds_domain`: it succeeds and its summary says `0 failed`. Returns the
+/// demo's process (kept to the end of the test) and its stderr.
+fn run_the_demo(dir: &Path, out: &Path, dds_domain: &str, ns: &str, python: &str) -> (common::Proc, String) {
     let mut cmd = Command::new(common::workspace_bin("tutti-uav-demo", "tutti-demo"));
     cmd.args(["uav", "--scenario", "short", "--duration", "40", "--speed", "8"])
         .arg("--out")
-        .arg(&out)
+        .arg(out)
         // A DDS domain of its own, on loopback (the demo restricts the gateway to it).
-        .args(["--ros-domain-id", &dds_domain])
-        .env("TUTTI_NAMESPACE", &ns)
-        .env("TUTTI_PYTHON", &python)
-        .current_dir(tmp.path());
+        .args(["--ros-domain-id", dds_domain])
+        .env("TUTTI_NAMESPACE", ns)
+        .env("TUTTI_PYTHON", python)
+        .current_dir(dir);
     // Watchdog: the run takes ~10 s; it is killed (its children die with it) if it hangs.
     let mut demo = common::Proc::spawn("tutti-demo uav", cmd, Duration::from_secs(180));
     let status = demo
@@ -66,19 +91,18 @@ fn the_short_uav_demo_reproduces_figures_5_and_6() {
     let stderr = demo.stderr();
     assert!(status.success(), "tutti-demo uav failed ({status}):\n{stderr}");
     assert!(stderr.contains("0 failed"), "{stderr}");
-    if let Some(l) = &_listener {
-        // The listener did read all along: both sets of every UAV reached it.
-        let text = std::fs::read_to_string(&listened).unwrap_or_default();
-        l.check(&text);
-    }
+    (demo, stderr)
+}
+
+/// Both figures (PNG and SVG) are written; the UAV logs carry the state a user plots, units
+/// in the column names; the summary is also JSON, every check passed.
+fn the_figures_logs_and_summary_are_written(out: &Path, stderr: &str) {
     assert!(out.join("figure5.png").metadata().unwrap().len() > 10_000, "{stderr}");
     assert!(out.join("figure6.png").metadata().unwrap().len() > 10_000, "{stderr}");
     for svg in ["figure5.svg", "figure6.svg"] {
         let text = std::fs::read_to_string(out.join(svg)).unwrap();
         assert!(text.starts_with("<svg") && text.contains("simulated time (s)"), "{svg}");
     }
-    // The UAV logs carry the state a user plots, units in the column names; the summary is
-    // also JSON, every check passed.
     let uav1 = csv(&out.join("uav1.csv"));
     assert_eq!(uav1.0.join(","), "time_s,latitude_deg,longitude_deg,altitude_m,heading_deg,airspeed_mps,connected");
     assert!(col(&uav1, "airspeed_mps").iter().all(|v| (10.0..40.0).contains(v)), "airspeed out of range");
@@ -86,14 +110,13 @@ fn the_short_uav_demo_reproduces_figures_5_and_6() {
         serde_json::from_str(&std::fs::read_to_string(out.join("summary.json")).unwrap()).unwrap();
     assert_eq!(summary["failed"], 0, "{summary}");
     assert!(summary["checks"].as_array().unwrap().iter().all(|c| c["pass"] == true), "{summary}");
+}
 
-    let fw = csv(&out.join("framework.csv"));
-    let sim = col(&fw, "sim_time");
-    assert!((sim[sim.len() - 1] - 40.0).abs() < 0.06, "the run covers 40 s: {}", sim[sim.len() - 1]);
-
-    // Figure 5: level while disconnected, merged after, for UAV3 (10-20 s) and UAV4 (12-22 s).
+/// Figure 5: level while disconnected, merged after, for UAV3 (10-20 s) and UAV4 (12-22 s);
+/// `fw` is framework.csv, `sim` its simulated times.
+fn figure_5_level_while_disconnected_merged_after(out: &Path, fw: &(Vec<String>, Vec<Vec<f64>>), sim: &[f64]) {
     for (uav, from, to) in [(3, 10.0, 20.0), (4, 12.0, 22.0)] {
-        let elevation = col(&fw, &format!("uav{uav}_elevation"));
+        let elevation = col(fw, &format!("uav{uav}_elevation"));
         let model = csv(&out.join(format!("uav{uav}.csv")));
         let (mt, ma, mc) = (col(&model, "time_s"), col(&model, "altitude_m"), col(&model, "connected"));
         let held: Vec<f64> =
@@ -109,7 +132,7 @@ fn the_short_uav_demo_reproduces_figures_5_and_6() {
             "UAV{uav}: disconnected near {from} s"
         );
         // After reconnection: the framework reads what the model computes, at the same time.
-        let uav_time = col(&fw, &format!("uav{uav}_time"));
+        let uav_time = col(fw, &format!("uav{uav}_time"));
         let mut merged = 0;
         for i in (0..sim.len()).filter(|&i| sim[i] > to + 1.0) {
             let j = mt.iter().position(|&t| (t - uav_time[i]).abs() < 1e-6).expect("the model logged that time");
@@ -119,9 +142,11 @@ fn the_short_uav_demo_reproduces_figures_5_and_6() {
         }
         assert!(merged > 100, "UAV{uav}: {merged} steps after reconnection");
     }
+}
 
-    // Figure 6: both C components read every altitude the framework published, from their start.
-    let published = col(&fw, "uav2_altitude_pub");
+/// Figure 6: both C components read every altitude the framework published, from their start.
+fn figure_6_the_c_components_read_what_was_published(out: &Path, fw: &(Vec<String>, Vec<Vec<f64>>), sim: &[f64]) {
+    let published = col(fw, "uav2_altitude_pub");
     for (j, start) in [(1, 25.0), (2, 30.0)] {
         let r = csv(&out.join(format!("c_reader{j}.csv")));
         let (rt, ra) = (col(&r, "time"), col(&r, "altitude"));
@@ -131,8 +156,10 @@ fn the_short_uav_demo_reproduces_figures_5_and_6() {
         assert_eq!(&sim[first..first + rt.len()], &rt[..], "C component {j} read every step, once");
         assert_eq!(&published[first..first + rt.len()], &ra[..], "C component {j} read the published values");
     }
+}
 
-    // Connection counts as the monitoring script saw them, away from the scripted changes.
+/// Connection counts as the monitoring script saw them, away from the scripted changes.
+fn the_connection_counts_follow_the_script(out: &Path) {
     let counts = csv(&out.join("connections.csv"));
     let ct = col(&counts, "sim_time");
     let expected = |uav: usize, t: f64| -> Option<f64> {
@@ -161,9 +188,11 @@ fn the_short_uav_demo_reproduces_figures_5_and_6() {
             assert_eq!(c, e, "uav{uav}: {c} connections at {t} s, scripted {e}");
         }
     }
+}
 
-    // run.mcap, read with the ROS ecosystem's MCAP libraries: every schema parses, and each
-    // step's values are those of framework.csv.
+/// run.mcap, read with the ROS ecosystem's MCAP libraries: every schema parses, and each
+/// step's values are those of framework.csv (`sim` its simulated times).
+fn run_mcap_holds_the_steps_of_framework_csv(out: &Path, sim: &[f64]) {
     let py = tutti_test_support::repo_root().join(".venv/bin/python");
     if Command::new(&py).args(["-c", "import mcap, mcap_ros2"]).status().is_ok_and(|s| s.success()) {
         let check = Command::new(&py)
@@ -183,10 +212,6 @@ fn the_short_uav_demo_reproduces_figures_5_and_6() {
         assert!(!common::ci(), "CI=true: the MCAP Python libraries are missing");
         eprintln!("the MCAP Python libraries are missing: run.mcap not checked");
     }
-
-    // Nothing left behind: no segment of the run's namespace.
-    let left = tutti_core::shm::os::list_shm(&format!("tutti.{ns}.")).unwrap();
-    assert!(left.is_empty(), "segments left behind: {left:?}");
 }
 
 /// The Cyclone DDS listener of every UAV topic (launch-scripts/cyclone_uav_listener.py

@@ -134,129 +134,144 @@ fn child_main() {
     let namespace = std::env::var("TUTTI_NAMESPACE").unwrap();
     let mut parts = role.split(':');
     match parts.next().unwrap() {
-        "snapshots" => {
-            let n: u64 = parts.next().unwrap().parse().unwrap();
-            let mut p = Participant::connect("d", copts(&namespace)).unwrap();
-            // Count from the writer's first write on, so that every read races a writer.
-            loop {
-                p.subscribe_lock().unwrap();
-                if check(p.snapshot()).is_some_and(|v| v > 0) {
-                    break;
-                }
-                std::thread::yield_now();
-            }
-            let (mut torn, mut distinct, mut last) = (0u64, 0u64, u64::MAX);
-            for _ in 0..n {
-                p.subscribe_lock().unwrap();
-                match check(p.snapshot()) {
-                    None => {
-                        if torn == 0 {
-                            let w: Vec<u64> = p
-                                .snapshot()
-                                .chunks_exact(8)
-                                .map(|c| u64::from_ne_bytes(c.try_into().unwrap()))
-                                .collect();
-                            eprintln!("first torn snapshot (generation {}): {:?}", p.last_step(), w);
-                        }
-                        torn += 1
-                    }
-                    Some(v) if v != last => {
-                        distinct += 1;
-                        last = v;
-                    }
-                    Some(_) => {}
-                }
-            }
-            say(&format!("torn={torn} distinct={distinct}"));
-        }
-        "echo_all" => {
-            // Answers every PUBLISH value with the same bytes, written in place: from a
-            // snapshot (`commit_all_with`), or read in place too (`answer_with`).
-            let from_snapshot = parts.next() == Some("snapshot");
-            let mut p = Participant::connect("d", copts(&namespace)).unwrap();
-            loop {
-                let r = if from_snapshot {
-                    p.subscribe_lock().and_then(|_| p.commit_all_with(|snapshot, out| out.copy_from_slice(snapshot)))
-                } else {
-                    p.answer_with(|publish, out| out.copy_from_slice(publish)).map(drop)
-                };
-                match r {
-                    Ok(()) => {}
-                    Err(ShmError::FrameworkStopped { .. }) => return,
-                    Err(e) => panic!("{e}"),
-                }
-            }
-        }
-        "sync_reader" => {
-            let n: u64 = parts.next().unwrap().parse().unwrap();
-            let mut p = Participant::connect("d", copts(&namespace)).unwrap();
-            let (mut first, mut prev, mut bad) = (0u64, 0u64, 0u64);
-            for i in 0..n {
-                let step = p.subscribe_lock().unwrap();
-                if check(p.snapshot()) != Some(step) {
-                    bad += 1;
-                }
-                if i == 0 {
-                    first = step;
-                } else if step != prev + 1 {
-                    bad += 1;
-                }
-                prev = step;
-            }
-            say(&format!("first={first} last={prev} bad={bad}"));
-        }
-        "writer_loop" => {
-            // Reads each step and answers it with a = b = step, until killed.
-            let mut p = Participant::connect("d", copts(&namespace)).unwrap();
-            loop {
-                let step = match p.subscribe_lock() {
-                    Ok(s) => s,
-                    Err(ShmError::FrameworkStopped { .. }) => return,
-                    Err(e) => panic!("{e}"),
-                };
-                p.publish_lock().unwrap();
-                p.stage("a", &(step as f64).to_ne_bytes()).unwrap();
-                p.stage("b", &(step as i64).to_ne_bytes()).unwrap();
-                p.commit().unwrap();
-            }
-        }
-        "seed" => {
-            let mut p = Participant::connect("d", copts(&namespace)).unwrap();
-            // Seed a little later than the framework's first step starts to wait for it: the
-            // test calls that step right after starting this process, so it waits long before
-            // this process has connected; the 300 ms only make sure of it.
-            std::thread::sleep(Duration::from_millis(300));
-            p.publish_lock().unwrap();
-            p.stage("a", &42f64.to_ne_bytes()).unwrap();
-            p.commit().unwrap();
-            say("seeded");
-            std::thread::sleep(Duration::from_secs(30));
-        }
-        "stepper" => {
-            // A framework stepping its domain until killed: PUBLISH carries the checksummed
-            // payload of each step; synchronous (lock-step with its participants) or not.
-            let sync = parts.next() == Some("sync");
-            let opts = FrameworkOptions { namespace, timeout: Duration::from_millis(500), ..Default::default() };
-            let mut fw = Framework::create(&model(sync, true, false), &opts).unwrap();
-            say("created");
-            let host = &mut fw.domains[0];
-            loop {
-                let k = host.current_step() + 1;
-                host.step(&payload(k), k as f64).unwrap();
-                if !sync {
-                    std::thread::sleep(Duration::from_micros(100));
-                }
-            }
-        }
-        "framework" => {
-            let _fw =
-                Framework::create(&model(false, true, false), &FrameworkOptions { namespace, ..Default::default() })
-                    .unwrap();
-            say("created");
-            std::thread::sleep(Duration::from_secs(60));
-        }
+        "snapshots" => snapshots(&namespace, parts.next().unwrap().parse().unwrap()),
+        "echo_all" => echo_all(&namespace, parts.next() == Some("snapshot")),
+        "sync_reader" => sync_reader(&namespace, parts.next().unwrap().parse().unwrap()),
+        "writer_loop" => writer_loop(&namespace),
+        "seed" => seed(&namespace),
+        "stepper" => stepper(namespace, parts.next() == Some("sync")),
+        "framework" => framework(namespace),
         other => panic!("unknown role {other}"),
     }
+}
+
+/// Role `snapshots:N`: takes `n` snapshots of the PUBLISH set from the writer's first write
+/// on and says how many were torn and how many distinct values it saw.
+fn snapshots(namespace: &str, n: u64) {
+    let mut p = Participant::connect("d", copts(namespace)).unwrap();
+    // Count from the writer's first write on, so that every read races a writer.
+    loop {
+        p.subscribe_lock().unwrap();
+        if check(p.snapshot()).is_some_and(|v| v > 0) {
+            break;
+        }
+        std::thread::yield_now();
+    }
+    let (mut torn, mut distinct, mut last) = (0u64, 0u64, u64::MAX);
+    for _ in 0..n {
+        p.subscribe_lock().unwrap();
+        match check(p.snapshot()) {
+            None => {
+                if torn == 0 {
+                    let w: Vec<u64> =
+                        p.snapshot().chunks_exact(8).map(|c| u64::from_ne_bytes(c.try_into().unwrap())).collect();
+                    eprintln!("first torn snapshot (generation {}): {:?}", p.last_step(), w);
+                }
+                torn += 1
+            }
+            Some(v) if v != last => {
+                distinct += 1;
+                last = v;
+            }
+            Some(_) => {}
+        }
+    }
+    say(&format!("torn={torn} distinct={distinct}"));
+}
+
+/// Role `echo_all:MODE`: answers every PUBLISH value with the same bytes, written in place:
+/// from a snapshot (`commit_all_with`, `from_snapshot`), or read in place too (`answer_with`);
+/// until the framework stops.
+fn echo_all(namespace: &str, from_snapshot: bool) {
+    let mut p = Participant::connect("d", copts(namespace)).unwrap();
+    loop {
+        let r = if from_snapshot {
+            p.subscribe_lock().and_then(|_| p.commit_all_with(|snapshot, out| out.copy_from_slice(snapshot)))
+        } else {
+            p.answer_with(|publish, out| out.copy_from_slice(publish)).map(drop)
+        };
+        match r {
+            Ok(()) => {}
+            Err(ShmError::FrameworkStopped { .. }) => return,
+            Err(e) => panic!("{e}"),
+        }
+    }
+}
+
+/// Role `sync_reader:N`: reads `n` steps in lock-step and says the first and last step and
+/// how many were torn or out of sequence.
+fn sync_reader(namespace: &str, n: u64) {
+    let mut p = Participant::connect("d", copts(namespace)).unwrap();
+    let (mut first, mut prev, mut bad) = (0u64, 0u64, 0u64);
+    for i in 0..n {
+        let step = p.subscribe_lock().unwrap();
+        if check(p.snapshot()) != Some(step) {
+            bad += 1;
+        }
+        if i == 0 {
+            first = step;
+        } else if step != prev + 1 {
+            bad += 1;
+        }
+        prev = step;
+    }
+    say(&format!("first={first} last={prev} bad={bad}"));
+}
+
+/// Role `writer_loop`: reads each step and answers it with a = b = step, until killed (or
+/// until the framework stops).
+fn writer_loop(namespace: &str) {
+    let mut p = Participant::connect("d", copts(namespace)).unwrap();
+    loop {
+        let step = match p.subscribe_lock() {
+            Ok(s) => s,
+            Err(ShmError::FrameworkStopped { .. }) => return,
+            Err(e) => panic!("{e}"),
+        };
+        p.publish_lock().unwrap();
+        p.stage("a", &(step as f64).to_ne_bytes()).unwrap();
+        p.stage("b", &(step as i64).to_ne_bytes()).unwrap();
+        p.commit().unwrap();
+    }
+}
+
+/// Role `seed`: seeds a = 42 once the framework's first step waits for it, says so, and
+/// stays connected for 30 s.
+fn seed(namespace: &str) {
+    let mut p = Participant::connect("d", copts(namespace)).unwrap();
+    // Seed a little later than the framework's first step starts to wait for it: the
+    // test calls that step right after starting this process, so it waits long before
+    // this process has connected; the 300 ms only make sure of it.
+    std::thread::sleep(Duration::from_millis(300));
+    p.publish_lock().unwrap();
+    p.stage("a", &42f64.to_ne_bytes()).unwrap();
+    p.commit().unwrap();
+    say("seeded");
+    std::thread::sleep(Duration::from_secs(30));
+}
+
+/// Role `stepper:sync|async`: a framework stepping its domain until killed: PUBLISH carries
+/// the checksummed payload of each step; synchronous (lock-step with its participants) or not.
+fn stepper(namespace: String, sync: bool) {
+    let opts = FrameworkOptions { namespace, timeout: Duration::from_millis(500), ..Default::default() };
+    let mut fw = Framework::create(&model(sync, true, false), &opts).unwrap();
+    say("created");
+    let host = &mut fw.domains[0];
+    loop {
+        let k = host.current_step() + 1;
+        host.step(&payload(k), k as f64).unwrap();
+        if !sync {
+            std::thread::sleep(Duration::from_micros(100));
+        }
+    }
+}
+
+/// Role `framework`: a framework that creates its domain, says so and lives for 60 s.
+fn framework(namespace: String) {
+    let _fw =
+        Framework::create(&model(false, true, false), &FrameworkOptions { namespace, ..Default::default() }).unwrap();
+    say("created");
+    std::thread::sleep(Duration::from_secs(60));
 }
 
 #[test]
