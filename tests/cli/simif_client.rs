@@ -155,11 +155,11 @@ impl Clients {
     /// Whether every service is there within `wait`.
     async fn wait(&self, node: &Node, wait: Duration) -> bool {
         let all = async {
-            self.features.wait_for_service(node).await;
-            self.get.wait_for_service(node).await;
-            self.set.wait_for_service(node).await;
-            self.step.wait_for_service(node).await;
-            self.reset.wait_for_service(node).await;
+            matched(|| self.features.wait_for_service(node)).await;
+            matched(|| self.get.wait_for_service(node)).await;
+            matched(|| self.set.wait_for_service(node)).await;
+            matched(|| self.step.wait_for_service(node)).await;
+            matched(|| self.reset.wait_for_service(node)).await;
         };
         tokio::time::timeout(wait, all).await.is_ok()
     }
@@ -193,6 +193,17 @@ impl Clients {
         }
         Ok(line)
     }
+}
+
+/// Waits for what one of ros2-client's `wait_for_*` futures waits for, made afresh every
+/// second. A new future first reads the node's matches, which the node's spinner keeps; one
+/// future alone hears of a later match only through an event, and ros2-client 0.12 queues at
+/// most 8 events per listener (`Node::status_receiver`) and drops the rest. Under load, a
+/// burst of discovery events (the gateway's node has dozens of endpoints) overflowed that
+/// queue, the one event that mattered was dropped, and the client waited 60 s for services
+/// that had been there all along.
+async fn matched<F: Future<Output = ()>>(mut wait: impl FnMut() -> F) {
+    while tokio::time::timeout(Duration::from_secs(1), wait()).await.is_err() {}
 }
 
 /// Makes `calls` (JSON: `[["NAME", ARG], ...]`) in DDS domain `dom`: each call's response, as
@@ -252,10 +263,10 @@ pub fn simulate_steps(dom: u16, steps: u64, cancel_after: u64) -> Result<Vec<Val
             )
             .map_err(|e| format!("{e:?}"))?;
         let ready = async {
-            action.goal_client().wait_for_service(&node).await;
-            action.result_client().wait_for_service(&node).await;
-            action.cancel_client().wait_for_service(&node).await;
-            action.feedback_subscription().wait_for_publisher(&node).await;
+            matched(|| action.goal_client().wait_for_service(&node)).await;
+            matched(|| action.result_client().wait_for_service(&node)).await;
+            matched(|| action.cancel_client().wait_for_service(&node)).await;
+            matched(|| action.feedback_subscription().wait_for_publisher(&node)).await;
         };
         if tokio::time::timeout(Duration::from_secs(60), ready).await.is_err() {
             return Err("no action server".into());

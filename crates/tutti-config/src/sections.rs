@@ -60,6 +60,8 @@ impl<'de, A: MapAccess<'de>> MapAccess<'de> for OneKey<'_, A> {
 #[derive(Debug)]
 pub struct KeySeed<'a> {
     pub keys: &'static [&'static str],
+    /// (alias, key): an alias and its key count as one (the second of them is a duplicate).
+    pub aliases: &'static [(&'static str, &'static str)],
     pub seen: &'a mut Vec<&'static str>,
 }
 
@@ -81,10 +83,11 @@ impl Visitor<'_> for KeySeed<'_> {
         let Some(key) = self.keys.iter().copied().find(|k| *k == v) else {
             return Err(E::unknown_field(v, self.keys));
         };
-        if self.seen.contains(&key) {
-            return Err(E::duplicate_field(key));
+        let canonical = self.aliases.iter().find(|(alias, _)| *alias == key).map_or(key, |(_, k)| *k);
+        if self.seen.contains(&canonical) {
+            return Err(E::duplicate_field(canonical));
         }
-        self.seen.push(key);
+        self.seen.push(canonical);
         Ok(key)
     }
 }

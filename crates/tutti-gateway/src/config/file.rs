@@ -179,7 +179,9 @@ impl<'de> Visitor<'de> for FileVisitor {
     fn visit_map<A: MapAccess<'de>>(self, mut map: A) -> Result<ConfigFile, A::Error> {
         let mut c = ConfigFile::default();
         let mut seen = Vec::new();
-        while let Some(key) = map.next_key_seed(KeySeed { keys: KEYS, seen: &mut seen })? {
+        while let Some(key) =
+            map.next_key_seed(KeySeed { keys: KEYS, aliases: &[("dds", "engine")], seen: &mut seen })?
+        {
             let taken = take_into(&mut c.engine, key, &mut map)?
                 || take_into(&mut c.gateway, key, &mut map)?
                 || take_into(&mut c.plan, key, &mut map)?

@@ -194,9 +194,6 @@ impl GatewayOptions {
     }
 }
 
-// ---------------------------------------------------------------------------------------
-// The rules and the plan.
-
 impl GatewayOptions {
     /// The options of the gateway for `model` read from `ddf`: the defaults, then the
     /// environment where `keys` (flags laid over the config file) say nothing, then `keys`.
@@ -234,12 +231,6 @@ impl GatewayOptions {
         Ok(opts)
     }
 }
-
-// ---------------------------------------------------------------------------------------
-// Value parsers, shared by the CLI's flags and the file's keys.
-
-/// The longest duration a key or flag takes: 365 days. Longer ones are refused, since a
-/// deadline is the time now plus the duration, and that sum overflows the clock for
 
 /// The gateway's environment variables, each read once, by its owner: ROS 2's
 /// (`ROS_DOMAIN_ID`, the discovery range) by `tutti_ros2::env`, the engine's (`TUTTI_DDS`,

@@ -63,6 +63,8 @@ fn unknown_keys_are_refused_with_the_key_its_place_and_the_accepted_keys() {
     assert!(e.contains("`timeout`") && e.contains("`ros_namespace`") && e.contains("`topics`"), "{e}");
     let e = err(parse(r#"{ topics: { "a/publish": { qos: { reliablity: "reliable" } } } }"#, "gw.json5"));
     assert!(e.contains("unknown field `reliablity`") && e.contains("`durability`"), "{e}");
+    let e = err(parse("{ engine: \"cyclone\",\n  dds: \"rustdds\" }", "gw.json5"));
+    assert!(e.starts_with("gw.json5:2:3: duplicate field `engine`"), "{e}");
     let e = err(parse(r#"{ topics: { "a/publish": { rate: 5 } } }"#, "gw.json5"));
     assert!(e.contains("unknown field `rate`") && e.contains("`max_rate`"), "{e}");
 }
