@@ -15,8 +15,11 @@
 //! client: the reply writer has matched as many readers of the client's participant as the
 //! participant has request writers (clients) of the service, where the engine can count its
 //! matches (rustdds), else as discovery shows them (Cyclone). Until then it is held, and the
-//! engine's reply thread (`tutti-dds-replies`) writes it as soon as it reaches, or after
-//! [`REPLY_WAIT`] anyway.
+//! engine's reply thread (`tutti-dds-replies`) writes it as soon as it reaches. After
+//! [`REPLY_WAIT`] it is written anyway (in case the count is wrong) but still kept, and written
+//! again once it reaches, for as long as the client is there and at most [`REPLY_KEEP`]: a
+//! reply must reach a client that is still waiting, however late the gateway's side of
+//! discovery is (a ROS 2 client ignores a second reply to a request it has its answer to).
 
 use std::sync::{Arc, Condvar, Mutex, MutexGuard, PoisonError, Weak};
 use std::thread::JoinHandle;
@@ -33,6 +36,9 @@ use crate::{EndpointId, EngineError, PeerId, Remote, Request, RequestSink, Respo
 /// before the gateway has discovered the client's: seconds on a loaded machine); after this
 /// long it is written anyway.
 pub(crate) const REPLY_WAIT: Duration = Duration::from_secs(30);
+/// How long a response written anyway is kept, to be written again once it reaches its client
+/// (as long as the client's request writer is there).
+pub(crate) const REPLY_KEEP: Duration = Duration::from_secs(180);
 /// How often held responses are looked at while there are some.
 const RETRY_EVERY: Duration = Duration::from_millis(5);
 /// How often the reply writers are looked at otherwise: they take in their match statuses
@@ -197,7 +203,10 @@ pub(crate) type Discovery = Arc<dyn Fn() -> Remote + Send + Sync>;
 struct Held {
     to: ReplyTo,
     body: Vec<u8>,
+    /// When it is written anyway.
     until: Instant,
+    /// Written anyway already: kept only to be written again once it reaches.
+    written: bool,
 }
 
 /// One served service's response side.
@@ -224,20 +233,8 @@ impl Server {
         readers >= clients
     }
 
-    /// Writes `body` in the form of `to` if it reaches its client (or `anyway`); whether it
-    /// was written.
-    fn send(&mut self, remote: &Remote, to: &ReplyTo, body: &[u8], anyway: bool) -> bool {
-        if !self.reaches(remote, to.client.peer) {
-            if !anyway {
-                return false;
-            }
-            tracing::warn!(
-                "services: after {} s the reply reader of {:?} on {} is still not matched; replied anyway",
-                REPLY_WAIT.as_secs(),
-                to.client,
-                self.reply_topic
-            );
-        }
+    /// Writes `body` in the form of `to`.
+    fn write(&mut self, to: &ReplyTo, body: &[u8]) {
         let written = match to.form {
             Form::Header(h) => self.writer.write(&[&h.bytes()[..], body].concat()),
             Form::Related(related) => self.writer.write_related(body, related),
@@ -248,16 +245,40 @@ impl Server {
             tracing::debug!("services: replied to {:?} on {}", to.client, self.reply_topic);
         }
         self.writer.flush();
-        true
     }
 
-    /// Sends the held responses that reach their client now, or whose wait is over.
+    /// Sends the held responses that reach their client now, or whose wait is over; forgets
+    /// those written anyway whose client has gone, or which were kept [`REPLY_KEEP`].
     fn send_held(&mut self, remote: &Remote, now: Instant) {
         let held = std::mem::take(&mut self.held);
-        for h in held {
-            if !self.send(remote, &h.to, &h.body, now >= h.until) {
-                self.held.push(h);
+        for mut h in held {
+            if self.reaches(remote, h.to.client.peer) {
+                if h.written {
+                    tracing::info!(
+                        "services: the reply to {:?} on {} reaches it now; written again",
+                        h.to.client,
+                        self.reply_topic
+                    );
+                }
+                self.write(&h.to, &h.body);
+                continue;
             }
+            if !h.written && now >= h.until {
+                tracing::warn!(
+                    "services: after {} s the reply reader of {:?} on {} is still not matched; replied anyway, and \
+                     again once it is",
+                    REPLY_WAIT.as_secs(),
+                    h.to.client,
+                    self.reply_topic
+                );
+                self.write(&h.to, &h.body);
+                h.written = true;
+            }
+            let gone = !remote.writers_on(&self.request_topic).any(|g| g.peer == h.to.client.peer);
+            if h.written && (gone || now >= h.until + (REPLY_KEEP - REPLY_WAIT)) {
+                continue;
+            }
+            self.held.push(h);
         }
     }
 }
@@ -353,7 +374,8 @@ fn retry(shared: &Shared) {
                 // One look at discovery for them all.
                 let remote = remote.get_or_insert_with(|| (shared.discovery)());
                 s.send_held(remote, now);
-                held |= !s.held.is_empty();
+                // Replies written anyway are looked at every tick only.
+                held |= s.held.iter().any(|h| !h.written);
             }
         }
         lock(&shared.waiting).held = held;
@@ -371,15 +393,15 @@ impl Responder for DdsResponder {
         let to = to.0;
         let remote = (self.shared.discovery)();
         let mut server = lock(&self.server);
-        if server.send(&remote, &to, body, false) {
-            return;
+        if server.reaches(&remote, to.client.peer) {
+            return server.write(&to, body);
         }
         if server.held.len() >= MAX_HELD {
             tracing::warn!("services: {MAX_HELD} replies wait for their clients already; one dropped");
             return;
         }
         tracing::debug!("services: a reply to {:?} on {} held for its reader", to.client, server.reply_topic);
-        server.held.push(Held { to, body: body.to_vec(), until: Instant::now() + REPLY_WAIT });
+        server.held.push(Held { to, body: body.to_vec(), until: Instant::now() + REPLY_WAIT, written: false });
         drop(server);
         lock(&self.shared.waiting).held = true;
         self.shared.wake.notify_all();
@@ -456,5 +478,65 @@ mod tests {
         assert_eq!(got[0].0, 42u64.to_le_bytes());
         let form = Form::Header(RequestHeader { client: 5, sequence: 2 });
         assert_eq!(got[0].1, crate::ReplyTo(ReplyTo { client: endpoint(writer), form }));
+    }
+
+    /// A reply writer that counts its writes, with as many matched readers as the test says.
+    struct Counting {
+        writes: Arc<Mutex<usize>>,
+        matched: Arc<Mutex<usize>>,
+    }
+
+    impl ReplyWriter for Counting {
+        fn write(&mut self, _: &[u8]) -> bool {
+            *lock(&self.writes) += 1;
+            true
+        }
+        fn matched_readers_of(&mut self, _: PeerId) -> Option<usize> {
+            Some(*lock(&self.matched))
+        }
+    }
+
+    #[test]
+    fn a_reply_written_anyway_is_written_again_once_it_reaches_while_its_client_is_there() {
+        let (writes, matched) = (Arc::new(Mutex::new(0)), Arc::new(Mutex::new(0)));
+        let writer = Counting { writes: writes.clone(), matched: matched.clone() };
+        let mut server = Server {
+            request_topic: "rq/xRequest".into(),
+            reply_topic: "rr/xReply".into(),
+            writer: Box::new(writer),
+            held: Vec::new(),
+        };
+        let client = endpoint([1; 16]);
+        let mut remote = Remote::default();
+        remote.writers.entry("rq/xRequest".into()).or_default().insert(client);
+        let to = ReplyTo { client, form: Form::Header(RequestHeader { client: 1, sequence: 1 }) };
+        let t0 = Instant::now();
+        let held = |until| Held { to, body: vec![0; 4], until, written: false };
+        server.held.push(held(t0 + REPLY_WAIT));
+        // Not matched, not due: kept, not written.
+        server.send_held(&remote, t0);
+        assert_eq!((*lock(&writes), server.held.len()), (0, 1));
+        // Due: written anyway, and kept.
+        server.send_held(&remote, t0 + REPLY_WAIT);
+        assert_eq!((*lock(&writes), server.held.len()), (1, 1));
+        server.send_held(&remote, t0 + REPLY_WAIT + Duration::from_secs(1));
+        assert_eq!((*lock(&writes), server.held.len()), (1, 1), "written anyway once only");
+        // The reader matches late: written again, and forgotten.
+        *lock(&matched) = 1;
+        server.send_held(&remote, t0 + REPLY_WAIT + Duration::from_secs(5));
+        assert_eq!((*lock(&writes), server.held.len()), (2, 0));
+
+        // A reply written anyway whose client has gone is forgotten; one kept too long as well.
+        *lock(&matched) = 0;
+        server.held.push(held(t0));
+        server.send_held(&remote, t0);
+        assert_eq!((*lock(&writes), server.held.len()), (3, 1));
+        server.send_held(&Remote::default(), t0 + Duration::from_secs(1));
+        assert!(server.held.is_empty(), "the client has gone");
+        server.held.push(held(t0));
+        server.send_held(&remote, t0);
+        server.send_held(&remote, t0 + REPLY_KEEP);
+        assert!(server.held.is_empty(), "kept REPLY_KEEP at most");
+        assert_eq!(*lock(&writes), 4);
     }
 }
