@@ -6,18 +6,18 @@
 //! wire) and the CDR codec above this layer is the only one.
 //!
 //! * Writers batch (`dds_qset_writer_batching`, per writer, rather than the process-wide
-//!   `dds_write_set_batch`): [`writer`]. Readers in the same process get a sample at once
+//!   `dds_write_set_batch`): `writer`. Readers in the same process get a sample at once
 //!   either way.
 //! * Readers take up to 64 samples per `dds_takecdr` in a data-available listener, which
 //!   Cyclone runs on its receive thread ("recv") for remote writers and on the writing thread
 //!   itself for writers in the same process; Cyclone never runs the listener of one reader twice
 //!   at once. Cyclone hands a reader the samples of its own participant's writers: the listener
-//!   drops them and counts them ([`reader`]).
-//! * Discovery: DCPSPublication / DCPSSubscription built-in readers ([`discovery`]).
+//!   drops them and counts them (`reader`).
+//! * Discovery: DCPSPublication / DCPSSubscription built-in readers (`discovery`).
 //! * Services: a request reader and a reply writer per service, in rmw_cyclonedds's form only
 //!   (Cyclone DDS reads and writes no sample identity: docs/ros2.md, "Wire forms"), paired by
-//!   the DDS layer's [`crate::dds::rpc`].
-//! * Config ([`config`]): the participant's domain is created explicitly with
+//!   the DDS layer's `crate::dds::rpc`.
+//! * Config (`config`): the participant's domain is created explicitly with
 //!   `dds_create_domain`, whose configuration is `$CYCLONEDDS_URI` (when set: an explicit
 //!   config replaces the environment, so it goes first) followed by a fragment without the
 //!   `<CycloneDDS><Domain>` wrapper, which Cyclone accepts in XML strings: one receive thread

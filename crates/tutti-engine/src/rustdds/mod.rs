@@ -22,7 +22,7 @@
 //! node endpoints neither hand over a sample's identity nor write a related sample identity, and
 //! its `Node` adds no endpoint it did not make to its announcement, so these are not listed under
 //! the node on `ros_discovery_info` (docs/ros2.md, "Wire forms"). They serve both wire forms,
-//! chosen request by request ([`crate::dds::rpc`]).
+//! chosen request by request (`crate::dds::rpc`).
 
 use std::collections::HashMap;
 use std::convert::Infallible;

@@ -4,7 +4,7 @@
 //! The config file (`tutti gateway --config gateway.json5`) is parsed, then validated, in two
 //! steps: [`load`] reads it into a [`ConfigFile`] (JSON5, unknown keys refused, every value
 //! checked where it stands, so errors carry the file, line and column; each key parsed by the
-//! section of the part that uses it, see [`file`]), [`ConfigFile::apply`] puts it into
+//! section of the part that uses it, see [`mod@file`]), [`ConfigFile::apply`] puts it into
 //! [`GatewayOptions`], and [`resolve`] checks the `topics` against the DDF's flags (a QoS that
 //! would break lock-step or the seed of late joiners is refused, naming the key and the
 //! flag). Its keys are the CLI's long flags with `_` for `-`; the CLI builds a [`ConfigFile`]
