@@ -377,11 +377,7 @@ fn tutti_ctl_signals_a_component_and_starts_one_declared_without_autostart() {
 /// `/dev/shm` may do while the run goes on.
 fn remove_control_socket(ns: &str, run: &Proc) {
     let socket = tutti_host::control::socket_path(ns);
-    let end = std::time::Instant::now() + WAIT;
-    while !socket.exists() {
-        assert!(std::time::Instant::now() < end, "no control socket\n{}", run.dump());
-        std::thread::sleep(Duration::from_millis(10));
-    }
+    wait_until(lazy(|| format!("no control socket\n{}", run.dump())), WAIT, || socket.exists());
     std::fs::remove_file(&socket).unwrap();
 }
 
