@@ -5,7 +5,7 @@
 #[non_exhaustive]
 pub enum EngineError {
     /// The rustdds engine was given unicast peers (exit status 2).
-    #[error("the rustdds engine cannot be given unicast peers (--peer); use --engine cyclone")]
+    #[error("the rustdds engine cannot be given unicast peers (--peer); use --engine cyclone (--dds cyclone)")]
     PeersUnsupported,
     /// An engine this build does not contain (exit status 2).
     #[error("the {engine} engine is not in this build of the gateway (built without its cargo feature)")]
