@@ -26,7 +26,7 @@ use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
 use tutti_core::cdr::{split_header, CdrError};
-use tutti_core::mapping::{Durability, History, Ownership, Qos, Reliability};
+use tutti_core::mapping::Qos;
 
 use super::{endpoint, CYCLONE_VENDOR};
 use crate::{EndpointId, EngineError, PeerId, Remote, Request, RequestSink, Responder};
@@ -48,15 +48,9 @@ const TICK_EVERY: Duration = Duration::from_millis(100);
 /// gets no answer to the excess, the gateway keeps its memory).
 const MAX_HELD: usize = 256;
 
-/// rmw's services default: reliable, volatile, keep last 10.
+/// rmw's services default (`tutti_ros2::simulation::services_qos`).
 pub(crate) fn qos() -> Qos {
-    Qos {
-        reliability: Reliability::Reliable,
-        history: History::KeepLast(10),
-        durability: Durability::Volatile,
-        ownership: Ownership::Shared,
-        lifespan: None,
-    }
+    tutti_ros2::simulation::services_qos()
 }
 
 /// A sample's identity on the wire: the GUID of its writer and the writer's sequence number

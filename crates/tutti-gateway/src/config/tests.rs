@@ -354,3 +354,25 @@ fn every_key_is_documented() {
         assert!(e.contains(&format!("`{k}`")), "KEYS lists `{k}`, the parser does not: {e}");
     }
 }
+
+/// `KEYS` (the file's keys as the docs list them) is exactly the sections' keys, each owned by
+/// one section.
+#[test]
+fn the_files_keys_are_the_sections_keys() {
+    use tutti_config::sections::Section;
+    let owned: Vec<&str> = [
+        EngineKeys::KEYS,
+        GatewayKeys::KEYS,
+        PlanKeys::KEYS,
+        crate::foxglove::FoxgloveKeys::KEYS,
+        crate::http::HttpKeys::KEYS,
+    ]
+    .concat();
+    let mut a = owned.clone();
+    a.sort_unstable();
+    a.dedup();
+    assert_eq!(a.len(), owned.len(), "a key owned twice: {owned:?}");
+    let mut b = KEYS.to_vec();
+    b.sort_unstable();
+    assert_eq!(a, b);
+}

@@ -175,8 +175,15 @@ pub fn status_qos() -> Qos {
     }
 }
 
-/// rmw's default QoS, as rcl_action's feedback topic has it: reliable, volatile, keep last 10.
+/// rmw's default QoS, as rcl_action's feedback topic has it: reliable, volatile, keep last 10
+/// (the same terms as rmw's services default, [`services_qos`]).
 pub fn feedback_qos() -> Qos {
+    services_qos()
+}
+
+/// rmw's services default, which every service's request and reply topics have: reliable,
+/// volatile, keep last 10.
+pub fn services_qos() -> Qos {
     Qos {
         reliability: Reliability::Reliable,
         history: History::KeepLast(10),
