@@ -281,8 +281,12 @@ async fn build_figure2_from_an_empty_file() {
         w.until("the diagnostic still shown", "document.querySelector(\"[data-diag-for='d0']\")").await;
         w.screenshot("studio-editor-diagnostic.png").await;
         w.type_into("[data-field='d0']", "multiuav_uav1").await;
+        w.until("the name accepted", "!document.querySelector(\"[data-diag-for='d0']\")").await;
         w.click("[data-field='d0.synchronous']").await;
         w.click("[data-field='d0.multiple_publish_allowed']").await;
+        let flags = "[document.querySelector(\"[data-field='d0.synchronous']\").checked, \
+                     document.querySelector(\"[data-field='d0.multiple_publish_allowed']\").checked]";
+        assert_eq!(w.until("the flags", flags).await, json!([true, false]), "the flags' boxes after one click each");
         w.until("the flags in the XML", "document.getElementById('xml').value.includes('<multiplePublishAllowed>no')")
             .await;
         w.until("no problem left", "document.getElementById('diag-count').textContent === '(none)'").await;

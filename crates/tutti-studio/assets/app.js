@@ -44,6 +44,7 @@ const ed = {
   version: null,        // version of the file as opened (null: a new file)
   checked: null,
   timer: null,
+  seq: 0,               // answers of the server older than the latest request are dropped
 };
 
 function newDomain(n) {
@@ -78,9 +79,14 @@ function changed(structural) {
 
 async function check() {
   if (!ed.doc) return;
+  const seq = ++ed.seq;
   try {
-    ed.checked = await api("POST", "check", { document: ed.doc, path: ed.path || "new.ddf" });
-    showChecked(ed.checked, true);
+    const c = await api("POST", "check", { document: ed.doc, path: ed.path || "new.ddf" });
+    // Two checks can be under way at once, and their answers can come back in either
+    // order: only the latest request's answer describes the document as it is now.
+    if (seq !== ed.seq) return;
+    ed.checked = c;
+    showChecked(c, true);
   } catch (e) { fail(e); }
 }
 
@@ -237,7 +243,10 @@ function markFields() {
     if (input) {
       input.classList.add("bad");
       input.title = d.message;
-      input.insertAdjacentElement("afterend", el("div", { class: "fielddiag", "data-diag-for": d.field }, d.message));
+      // A domain's diagnostic goes on a line of its own below the domain's head, so that
+      // the flags beside the name stay where they are when it comes and goes.
+      const at = input.closest(".head") ? input.closest(".head > label") : input;
+      at.insertAdjacentElement("afterend", el("div", { class: "fielddiag", "data-diag-for": d.field }, d.message));
     }
     const t = document.querySelector('[data-tree="' + d.field + '"]');
     if (t) t.classList.add("bad");
@@ -302,6 +311,7 @@ async function refreshFiles() {
 }
 
 async function openFile(path) {
+  ed.seq++; // a check of the document before it is stale
   try {
     const r = await api("GET", "open?path=" + encodeURIComponent(path));
     ed.path = r.path;
@@ -344,6 +354,7 @@ async function save(force) {
 }
 
 async function applyXml() {
+  ed.seq++; // a check of the forms before it is stale
   try {
     const c = await api("POST", "parse", { xml: $("xml").value, path: ed.path || "new.ddf" });
     if (c.document) { ed.doc = c.document; renderForm(); }
