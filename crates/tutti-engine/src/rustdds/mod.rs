@@ -264,6 +264,13 @@ impl no_key::SerializerAdapter<RawBody> for RawAdapter {
 struct RelatedWriter {
     writer: no_key::DataWriter<RawBody, RawAdapter>,
     matched: HashMap<PeerId, u32>,
+    /// Whether `matched` is known to be right. rustdds queues a writer's statuses in a channel
+    /// of four and drops what does not fit (`vendor/rustdds/src/dds/pubsub.rs`,
+    /// `sync_status_channel(4)`): a lost "unmatched" would make a peer's count too high, and a
+    /// reply written to a reader not matched yet would be lost. Each status carries the
+    /// writer's total of matched readers, so a lost one shows as a sum that differs from it;
+    /// from then on the count is not trusted and discovery decides.
+    exact: bool,
 }
 
 impl RelatedWriter {
@@ -274,14 +281,16 @@ impl RelatedWriter {
             if let DataWriterStatus::PublicationMatched { current, reader, .. } = status {
                 let peer = peer_of(&reader.to_bytes());
                 tracing::debug!("services: reply writer {:?} {reader:?} ({current:?})", self.writer.guid());
-                let n = self.matched.entry(peer).or_default();
-                if current.count_change() > 0 {
-                    *n += 1;
-                } else {
-                    *n = n.saturating_sub(1);
-                    if *n == 0 {
-                        self.matched.remove(&peer);
-                    }
+                count_match(&mut self.matched, peer, current.count_change() > 0);
+                let sum: i64 = self.matched.values().map(|&n| i64::from(n)).sum();
+                if self.exact && sum != i64::from(current.count()) {
+                    tracing::info!(
+                        "services: reply writer {:?} lost match statuses ({sum} counted, {} matched): discovery \
+                         decides where its replies reach",
+                        self.writer.guid(),
+                        current.count()
+                    );
+                    self.exact = false;
                 }
             }
         }
@@ -317,11 +326,24 @@ impl ReplyWriter for RelatedWriter {
 
     fn matched_readers_of(&mut self, peer: PeerId) -> Option<usize> {
         self.take_statuses();
-        Some(self.matched.get(&peer).map_or(0, |&n| n as usize))
+        self.exact.then(|| self.matched.get(&peer).map_or(0, |&n| n as usize))
     }
 
     fn tick(&mut self) {
         self.take_statuses();
+    }
+}
+
+/// Counts one more (or one fewer) matched reader of `peer`.
+fn count_match(matched: &mut HashMap<PeerId, u32>, peer: PeerId, more: bool) {
+    let n = matched.entry(peer).or_default();
+    if more {
+        *n += 1;
+    } else {
+        *n = n.saturating_sub(1);
+        if *n == 0 {
+            matched.remove(&peer);
+        }
     }
 }
 
@@ -456,7 +478,7 @@ impl Rustdds {
         let writer = publisher
             .create_datawriter_no_key::<RawBody, RawAdapter>(&t, Some(qos::profile(&q).into()))
             .map_err(|e| EngineError::dds(format!("a writer on {topic}"), e))?;
-        Ok(RelatedWriter { writer, matched: HashMap::new() })
+        Ok(RelatedWriter { writer, matched: HashMap::new(), exact: true })
     }
 }
 
