@@ -16,12 +16,12 @@ step() { printf '\n== %s\n' "$*"; }
 
 # --- Debian packages: DDS peers and tools for the interop tests, what the Cyclone engine's
 # build needs (cmake, libclang for bindgen), C toolchain, valgrind, iproute2 for the
-# network-namespace tests, procps for `kill` (the tests stop their children with SIGINT), the
-# font the UAV demo draws its figures with, headless Chromium and its WebDriver for the
-# studio's browser tests, and what the ROS 2 build below compiles with (python3-dev, spdlog,
-# libyaml).
+# network-namespace tests and nftables for the one whose network loses datagrams, procps for
+# `kill` (the tests stop their children with SIGINT), the font the UAV demo draws its figures
+# with, headless Chromium and its WebDriver for the studio's browser tests, and what the ROS 2
+# build below compiles with (python3-dev, spdlog, libyaml).
 ensure_debian_packages cyclonedds-tools cyclonedds-dev fastddsgen libfastrtps-dev fastdds-tools valgrind gcc g++ make \
-    cmake libclang-dev iproute2 procps python3-venv fonts-dejavu-core pkgconf chromium chromium-driver \
+    cmake libclang-dev iproute2 nftables procps python3-venv fonts-dejavu-core pkgconf chromium chromium-driver \
     python3-dev libspdlog-dev libyaml-dev
 # Node.js and npm for the Foxglove WebSocket client: Debian's, unless the machine has a Node.js
 # with its own npm already (NodeSource's nodejs package carries npm, and Debian's npm package

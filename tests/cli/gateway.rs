@@ -73,8 +73,19 @@ fn start_gateway(mut cmd: Command, ddf: &str, domain_id: u16, ns: &str, addr: &s
 /// `ns`, stepping every 5 ms with more arguments `extra`; returns once the gateway is up. The
 /// segments are removed when the returned guard drops, even if the host was killed.
 pub fn host_with_gateway(e: Eng, ddf: &str, dom: u16, ns: &str, extra: &[&str]) -> (Proc, RemoveSegments) {
+    host_with_gateway_by(tutti_test_support::tutti_command(), e, ddf, dom, ns, extra)
+}
+
+/// [`host_with_gateway`] run by `cmd` (the binary itself, or `ip netns exec NS` before it).
+pub fn host_with_gateway_by(
+    mut cmd: Command,
+    e: Eng,
+    ddf: &str,
+    dom: u16,
+    ns: &str,
+    extra: &[&str],
+) -> (Proc, RemoveSegments) {
     let guard = RemoveSegments(ns.to_string());
-    let mut cmd = tutti_test_support::tutti_command();
     cmd.args(["host", ddf, "--step", "5ms", "--gateway"])
         .args(extra)
         .env("TUTTI_NAMESPACE", ns)
@@ -154,6 +165,56 @@ impl Drop for NetnsPair {
     }
 }
 
+/// A network namespace whose loopback loses `percent` % of the UDP datagrams it receives (an
+/// nftables rule that draws at random, as a loaded machine's full socket buffers lose them),
+/// removed on drop. Shared memory and pids are the test's.
+pub struct LossyNetns {
+    pub name: String,
+}
+
+impl LossyNetns {
+    /// Creates it, named after `tag` and this process; Err with the reason where this machine
+    /// does not let the test (no root, no `ip` or `nft`).
+    pub fn create(tag: &str, percent: u8) -> Result<LossyNetns, String> {
+        let name = format!("tutti-{}-{tag}", std::process::id());
+        let run = |program: &str, args: &[&str]| -> Result<(), String> {
+            let out = Command::new(program).args(args).output().map_err(|e| format!("{program}: {e}"))?;
+            if out.status.success() {
+                Ok(())
+            } else {
+                Err(format!("{program} {}: {}", args.join(" "), String::from_utf8_lossy(&out.stderr).trim()))
+            }
+        };
+        run("ip", &["netns", "add", &name])?;
+        let net = LossyNetns { name };
+        let n = net.name.as_str();
+        run("ip", &["-n", n, "link", "set", "lo", "up", "multicast", "on"])?;
+        run("ip", &["-n", n, "route", "add", "224.0.0.0/4", "dev", "lo"])?;
+        let drop = format!("add rule inet tutti input meta l4proto udp numgen random mod 100 < {percent} drop");
+        for rule in [
+            "add table inet tutti",
+            "add chain inet tutti input { type filter hook input priority 0; policy accept; }",
+            drop.as_str(),
+        ] {
+            run("ip", &["netns", "exec", n, "nft", rule])?;
+        }
+        Ok(net)
+    }
+
+    /// A command that runs `program` inside the namespace.
+    pub fn command(&self, program: &Path) -> Command {
+        let mut cmd = Command::new("ip");
+        cmd.args(["netns", "exec", &self.name]).arg(program);
+        cmd
+    }
+}
+
+impl Drop for LossyNetns {
+    fn drop(&mut self) {
+        let _ = Command::new("ip").args(["netns", "del", &self.name]).status();
+    }
+}
+
 /// The engine a gateway test runs against. Every interop test runs once per engine of the
 /// build ([`per_engine!`], over `tutti_engine::for_each_engine!`: the one list of engines),
 /// each run with a DDS domain and namespace of its own, so that the runs go in parallel.
@@ -222,7 +283,11 @@ macro_rules! per_engine_tests {
 
 /// The Cyclone peer in `mode`.
 pub fn peer(py: &Path, name: &str, domain_id: u16, mode: &str, args: &[&str]) -> Proc {
-    let mut cmd = Command::new(py);
+    peer_by(Command::new(py), name, domain_id, mode, args)
+}
+
+/// [`peer`] run by `cmd` (the Python, or `ip netns exec NS` before it).
+pub fn peer_by(mut cmd: Command, name: &str, domain_id: u16, mode: &str, args: &[&str]) -> Proc {
     cmd.arg(PEER).arg(mode).args(["--domain", &domain_id.to_string()]).args(args);
     Proc::spawn(name, cmd, Duration::from_secs(120))
 }

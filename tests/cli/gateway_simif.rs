@@ -369,6 +369,48 @@ per_way!(
     the_action_refuses_to_step_a_run_of_asynchronous_domains,
 );
 
+/// How much of the UDP traffic the lossy network drops, in percent.
+const LOSS: u8 = 20;
+/// How many clients call through it, one after the other.
+const LOSSY_CLIENTS: usize = 8;
+
+/// A reply reaches a client that is still waiting, however the network treats the first
+/// datagrams between the two: the framework with its gateway and the rmw_cyclonedds-form
+/// client run in a network namespace of the test's own whose loopback drops [`LOSS`] % of the
+/// UDP datagrams (nftables), and each of [`LOSSY_CLIENTS`] clients, one after the other, calls
+/// four services once each (a new reply reader for each, matched only just before the call:
+/// where a Cyclone DDS reader that has not yet seen a heartbeat of the gateway's reply writer
+/// would skip a reply lost on the way). Every call is answered, with what it asked for.
+fn services_are_answered_through_a_lossy_network(e: Eng) {
+    let Some(py) = python() else { return };
+    let why = "network namespaces with nftables (root, `ip` of iproute2, `nft` of nftables)";
+    let Some(net) = tutti_test_support::require(why, LossyNetns::create(&format!("loss{}", e.name), LOSS)) else {
+        return;
+    };
+    let dom = e.dom(46);
+    let ns = namespace(&format!("simifloss{dom}_"));
+    let (host, _segments) =
+        host_with_gateway_by(net.command(tutti_test_support::tutti_exe().as_ref()), e, DDF, dom, &ns, &[]);
+    let calls = r#"[["get_simulator_features"], ["get_simulation_state"], ["set_simulation_state", 2],
+                    ["step_simulation", 1], ["set_simulation_state", 1]]"#;
+    for client in 1..=LOSSY_CLIENTS {
+        let name = format!("simulation client {client} of {LOSSY_CLIENTS}");
+        let mut p = peer_by(net.command(&py), &name, dom, "service", &["--calls", calls, "--timeout", "60"]);
+        let ended = p.wait(SECS(100));
+        let failed = || format!("{name}, through {LOSS} % loss\n{}\n{}", p.dump(), host.dump());
+        assert_eq!(ended, Some(0), "{}", failed());
+        let r = json_lines(&p, "call");
+        assert_eq!(r.len(), 5, "{}", failed());
+        assert_eq!(r[1]["state"]["state"].as_u64(), Some(STATE_PLAYING), "{}", failed());
+        for (i, what) in [(2, "pause"), (3, "one step"), (4, "play")] {
+            assert_eq!(result(&r[i]).0, OK, "{what}: {:?}\n{}", r[i], failed());
+        }
+    }
+    assert_eq!(ctl_state(&ns)["state"], "playing");
+}
+
+per_engine!(services_are_answered_through_a_lossy_network);
+
 /// A Fast DDS client that sends and takes requests and replies exactly as rmw_fastrtps does
 /// (`tests/gateway/fastdds_requester.cpp`: each request carries a related sample identity
 /// naming its reply reader, the sequence number unknown) is answered by the rustdds engine in

@@ -12,9 +12,12 @@
 //! A reliable, volatile writer gives a reader it has not matched nothing, and a client finds
 //! the service once *it* has discovered the server, which may be before the server has
 //! discovered the client's reply reader. So a response is written only once it reaches its
-//! client: the reply writer has matched as many readers of the client's participant as the
-//! participant has request writers (clients) of the service, where the engine can count its
-//! matches (rustdds), else as discovery shows them (Cyclone). Until then it is held, and the
+//! client: as many readers of the client's participant as the participant has request
+//! writers (clients) of the service are in step with the reply writer, where the engine can
+//! say so (rustdds: each has answered one of the writer's heartbeats; a Cyclone DDS reader
+//! that has matched but not yet seen a heartbeat skips what was written before the first one
+//! it sees, so a reply written then and lost on the way would never be repaired), else as
+//! discovery shows them (Cyclone, whose writers keep that handshake themselves). Until then it is held, and the
 //! engine's reply thread (`tutti-dds-replies`) writes it as soon as it reaches. After
 //! [`REPLY_WAIT`] it is written anyway (in case the count is wrong) but still kept, and written
 //! again once it reaches, for as long as the client is there and at most [`REPLY_KEEP`]: a
@@ -41,8 +44,7 @@ pub(crate) const REPLY_WAIT: Duration = Duration::from_secs(30);
 pub(crate) const REPLY_KEEP: Duration = Duration::from_secs(180);
 /// How often held responses are looked at while there are some.
 const RETRY_EVERY: Duration = Duration::from_millis(5);
-/// How often the reply writers are looked at otherwise: they take in their match statuses
-/// (rustdds queues only a few and drops the rest).
+/// How often responses written anyway, and kept, are looked at.
 const TICK_EVERY: Duration = Duration::from_millis(100);
 /// Responses held at once per service; more are dropped (a client that floods a service
 /// gets no answer to the excess, the gateway keeps its memory).
@@ -177,17 +179,14 @@ pub(crate) trait ReplyWriter: Send {
         let _ = (body, related);
         false
     }
-    /// How many readers of `peer` this writer has matched (a sample written now reaches
-    /// those); None where the engine cannot say (then discovery decides).
-    fn matched_readers_of(&mut self, peer: PeerId) -> Option<usize> {
+    /// How many readers of `peer` a sample written now reaches (matched, and in step with
+    /// the writer); None where the engine cannot say (then discovery decides).
+    fn reaching_readers_of(&mut self, peer: PeerId) -> Option<usize> {
         let _ = peer;
         None
     }
     /// Sends what batching held back.
     fn flush(&mut self) {}
-    /// Called on the reply thread every [`TICK_EVERY`] or so: keeps what the writer tracks
-    /// of its matches up to date between responses.
-    fn tick(&mut self) {}
 }
 
 /// The engine's discovery, by DDS topic name (services' `rq/` and `rr/` topics included).
@@ -218,7 +217,7 @@ impl Server {
     /// client of the same service at any time, so this is counted afresh for every response.
     fn reaches(&mut self, remote: &Remote, peer: PeerId) -> bool {
         let clients = remote.writers_on(&self.request_topic).filter(|g| g.peer == peer).count().max(1);
-        let readers = match self.writer.matched_readers_of(peer) {
+        let readers = match self.writer.reaching_readers_of(peer) {
             Some(n) => n,
             None => {
                 remote.readers_on(std::slice::from_ref(&self.reply_topic)).iter().filter(|g| g.peer == peer).count()
@@ -363,7 +362,6 @@ fn retry(shared: &Shared) {
         let now = Instant::now();
         for s in servers {
             let mut s = lock(&s);
-            s.writer.tick();
             if !s.held.is_empty() {
                 // One look at discovery for them all.
                 let remote = remote.get_or_insert_with(|| (shared.discovery)());
@@ -485,7 +483,7 @@ mod tests {
             *lock(&self.writes) += 1;
             true
         }
-        fn matched_readers_of(&mut self, _: PeerId) -> Option<usize> {
+        fn reaching_readers_of(&mut self, _: PeerId) -> Option<usize> {
             Some(*lock(&self.matched))
         }
     }

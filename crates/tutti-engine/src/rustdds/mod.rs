@@ -33,10 +33,8 @@ use futures::{Stream, StreamExt};
 use ros2_client::builtin_topics::{parameter_events, ros_discovery};
 use ros2_client::dds::rustdds::{bytes::Bytes, no_key, RepresentationIdentifier};
 use ros2_client::dds::rustdds::{policy, QosPolicies};
-use ros2_client::dds::rustdds::{
-    DataWriterStatus, SequenceNumber, StatusEvented, Timestamp, WriteOptionsBuilder, GUID,
-};
 use ros2_client::dds::rustdds::{DomainParticipant, DomainParticipantBuilder, RTPSEntity, Topic, TopicKind};
+use ros2_client::dds::rustdds::{SequenceNumber, Timestamp, WriteOptionsBuilder, GUID};
 use ros2_client::dds::{Publisher, Subscription};
 use ros2_client::{Context, Gid, MessageInfo, Node, NodeName, NodeOptions};
 use serde::Serialize;
@@ -258,44 +256,18 @@ impl no_key::SerializerAdapter<RawBody> for RawAdapter {
     }
 }
 
-/// A plain rustdds writer, which can write a related sample identity, and follows the
-/// readers it has matched (its publication-matched statuses: rustdds 0.15 answers no query
-/// of them) by their participants, with how many of each.
+/// A plain rustdds writer, which can write a related sample identity, and says which readers
+/// are in step with it: they have answered one of its heartbeats, so a reply written now is
+/// delivered to them (`readers_in_step`, vendor/rustdds/TUTTI-PATCHES.md, 4). A reader that
+/// has only matched may not be: Cyclone DDS takes the first heartbeat it sees from a writer as
+/// its starting point and skips every sample up to that heartbeat's last, so a reply written
+/// before then and lost on the way (a full socket buffer under load) was never repaired, and
+/// the client waited for ever.
 struct RelatedWriter {
     writer: no_key::DataWriter<RawBody, RawAdapter>,
-    matched: HashMap<PeerId, u32>,
-    /// Whether `matched` is known to be right. rustdds queues a writer's statuses in a channel
-    /// of four and drops what does not fit (`vendor/rustdds/src/dds/pubsub.rs`,
-    /// `sync_status_channel(4)`): a lost "unmatched" would make a peer's count too high, and a
-    /// reply written to a reader not matched yet would be lost. Each status carries the
-    /// writer's total of matched readers, so a lost one shows as a sum that differs from it;
-    /// from then on the count is not trusted and discovery decides.
-    exact: bool,
 }
 
 impl RelatedWriter {
-    /// Takes the statuses the writer has queued (its channel holds a few and drops the
-    /// rest, so this runs at every question).
-    fn take_statuses(&mut self) {
-        while let Some(status) = self.writer.try_recv_status() {
-            if let DataWriterStatus::PublicationMatched { current, reader, .. } = status {
-                let peer = peer_of(&reader.to_bytes());
-                tracing::debug!("services: reply writer {:?} {reader:?} ({current:?})", self.writer.guid());
-                count_match(&mut self.matched, peer, current.count_change() > 0);
-                let sum: i64 = self.matched.values().map(|&n| i64::from(n)).sum();
-                if self.exact && sum != i64::from(current.count()) {
-                    tracing::info!(
-                        "services: reply writer {:?} lost match statuses ({sum} counted, {} matched): discovery \
-                         decides where its replies reach",
-                        self.writer.guid(),
-                        current.count()
-                    );
-                    self.exact = false;
-                }
-            }
-        }
-    }
-
     fn write_with(&mut self, body: &[u8], related: Option<SampleIdentity>) -> bool {
         let options = WriteOptionsBuilder::new().source_timestamp(Timestamp::now());
         let options = match related {
@@ -324,26 +296,8 @@ impl ReplyWriter for RelatedWriter {
         self.write_with(body, Some(related))
     }
 
-    fn matched_readers_of(&mut self, peer: PeerId) -> Option<usize> {
-        self.take_statuses();
-        self.exact.then(|| self.matched.get(&peer).map_or(0, |&n| n as usize))
-    }
-
-    fn tick(&mut self) {
-        self.take_statuses();
-    }
-}
-
-/// Counts one more (or one fewer) matched reader of `peer`.
-fn count_match(matched: &mut HashMap<PeerId, u32>, peer: PeerId, more: bool) {
-    let n = matched.entry(peer).or_default();
-    if more {
-        *n += 1;
-    } else {
-        *n = n.saturating_sub(1);
-        if *n == 0 {
-            matched.remove(&peer);
-        }
+    fn reaching_readers_of(&mut self, peer: PeerId) -> Option<usize> {
+        Some(self.writer.readers_in_step().iter().filter(|g| peer_of(&g.to_bytes()) == peer).count())
     }
 }
 
@@ -478,7 +432,7 @@ impl Rustdds {
         let writer = publisher
             .create_datawriter_no_key::<RawBody, RawAdapter>(&t, Some(qos::profile(&q).into()))
             .map_err(|e| EngineError::dds(format!("a writer on {topic}"), e))?;
-        Ok(RelatedWriter { writer, matched: HashMap::new(), exact: true })
+        Ok(RelatedWriter { writer })
     }
 }
 

@@ -1072,11 +1072,13 @@ impl Writer {
     let first_change = self.send_buffer.first_change_sequence_number();
     let last_change = self.send_buffer.last_change_sequence_number();
 
-    if self
-      .readers
-      .values()
-      .all(|rp| last_change < rp.all_acked_before)
-    {
+    // tutti: a reliable reader not yet in step (its first heartbeat may have been
+    // lost) is sent heartbeats until it answers one, data or not.
+    if self.readers.values().all(|rp| {
+      last_change < rp.all_acked_before
+        && (!matches!(rp.qos().reliability(), Some(Reliability::Reliable { .. }))
+          || self.send_buffer.reader_in_step(&rp.remote_reader_guid))
+    }) {
       trace!("heartbeat tick: all readers have all available data.");
       false
     } else {
@@ -1181,6 +1183,7 @@ impl Writer {
         let my_topic = self.my_topic_name.clone(); // for debugging
 
         let mut start_repair = false;
+        let send_buffer = self.send_buffer.clone(); // tutti: the handle, for in-step readers
 
         if let Some(reader_proxy) = self.lookup_reader_proxy_mut(reader_guid) {
           if reader_proxy.last_acknack_count == Some(an.count) {
@@ -1193,6 +1196,21 @@ impl Writer {
             return;
           }
           reader_proxy.last_acknack_count = Some(an.count);
+
+          // tutti: a reader that answers a heartbeat is in step with this writer:
+          // what is written from now on reaches it. Until then a Cyclone DDS reader
+          // is not: it takes the first heartbeat it sees as its starting point and
+          // skips every sample up to the heartbeat's last one (ddsi_receive.c,
+          // handle_Heartbeat), so a sample written before that heartbeat and lost
+          // on the way is never repaired. Cyclone numbers its pre-emptive ACKNACKs
+          // (sent before it has seen a heartbeat) 0 and the ones that answer a
+          // heartbeat from 1 (ddsi_acknack.c); Fast DDS and Connext send pre-emptive
+          // ones with base 0. Any other ACKNACK answers a heartbeat.
+          let eclipse = reader_guid_prefix.bytes[..2] == [0x01, 0x10];
+          let preemptive = an.reader_sn_state.base() < SequenceNumber::from(1) || (eclipse && an.count == 0);
+          if !preemptive && !send_buffer.reader_in_step(&reader_guid) {
+            send_buffer.set_reader_in_step(reader_guid, true);
+          }
 
           // Mark requested SNs as "unsent changes"
 
@@ -2150,6 +2168,7 @@ impl Writer {
 
   fn matched_reader_remove(&mut self, guid: GUID) -> Option<RtpsReaderProxy> {
     let removed = self.readers.remove(&guid);
+    self.send_buffer.set_reader_in_step(guid, false); // tutti
     if let Some(ref removed_reader) = removed {
       info!(
         "Removed reader proxy. topic={:?} reader={:?}",

@@ -1,6 +1,6 @@
 use std::{
   cmp::max,
-  collections::BTreeMap,
+  collections::{BTreeMap, BTreeSet},
   sync::{Arc, Condvar, Mutex},
   time::{Duration as StdDuration, Instant},
 };
@@ -90,6 +90,10 @@ struct Shared {
   // late-joining readers, so pre-match trimming is disabled.
   volatile: bool,
   topic_name: String,
+  // tutti: the matched readers known to be in step with this writer: they have
+  // answered one of its heartbeats, so a sample written now is delivered to them
+  // (see `Writer::handle_ack_nack`). Read by the `DataWriter`.
+  in_step: Mutex<BTreeSet<GUID>>,
 }
 
 /// A shared, flow-controlled buffer of samples between a `DataWriter`
@@ -138,8 +142,31 @@ impl WriterSendBuffer {
         is_builtin,
         volatile,
         topic_name,
+        in_step: Mutex::new(BTreeSet::new()), // tutti
       }),
     }
+  }
+
+  // tutti: whether `reader` is in step with the writer (see `Shared::in_step`).
+  pub fn set_reader_in_step(&self, reader: GUID, in_step: bool) {
+    let mut set = self.shared.in_step.lock().unwrap_or_else(|e| e.into_inner());
+    if in_step {
+      set.insert(reader);
+    } else {
+      set.remove(&reader);
+    }
+  }
+
+  // tutti: whether `reader` is in step with the writer.
+  pub fn reader_in_step(&self, reader: &GUID) -> bool {
+    let set = self.shared.in_step.lock().unwrap_or_else(|e| e.into_inner());
+    set.contains(reader)
+  }
+
+  // tutti: the readers in step with the writer.
+  pub fn readers_in_step(&self) -> Vec<GUID> {
+    let set = self.shared.in_step.lock().unwrap_or_else(|e| e.into_inner());
+    set.iter().copied().collect()
   }
 
   // --- predicates (must be called while holding the lock) ---

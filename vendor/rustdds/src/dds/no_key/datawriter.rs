@@ -278,6 +278,12 @@ where
     self.keyed_datawriter.topic()
   }
 
+  /// tutti: the matched readers in step with this writer (see the keyed
+  /// `DataWriter::readers_in_step`).
+  pub fn readers_in_step(&self) -> Vec<GUID> {
+    self.keyed_datawriter.readers_in_step()
+  }
+
   /// Publisher this DataWriter is connected to.
   ///
   /// # Examples

@@ -670,6 +670,16 @@ where
     &self.my_topic
   }
 
+  /// tutti: the matched readers that are in step with this writer: each has
+  /// answered one of its heartbeats, so a sample written now is delivered to it
+  /// (reliably, where both are reliable). A reader that has matched but not yet
+  /// answered may skip what is written before it does (Cyclone DDS takes the
+  /// first heartbeat it sees as its starting point); the writer sends
+  /// heartbeats until it answers.
+  pub fn readers_in_step(&self) -> Vec<GUID> {
+    self.send_buffer.readers_in_step()
+  }
+
   /// Publisher assigned to this DataWriter
   ///
   /// # Examples
