@@ -47,6 +47,11 @@ pub mod type_names;
 pub mod zenoh_options;
 pub mod zid;
 
+#[cfg(test)]
+mod tests_golden;
+#[cfg(test)]
+mod tests_prop;
+
 pub use attachment::{Attachment, AttachmentError};
 pub use gid::{gid_of_key, xxh3_128, Gid};
 pub use keyexpr::{DataKey, DataKeyError};
