@@ -23,6 +23,9 @@
 //! [`EngineKind::built`] lists those of this build, and [`for_each_engine!`] expands one
 //! item per built engine: the conformance suite (`tests/conformance.rs`), the command-line
 //! tests and the tests' DDS domain-id bands all take their list from it.
+//!
+//! [`rmw_zenoh`] is rmw_zenoh's wire format (keys, liveliness tokens, QoS strings, attachments,
+//! GIDs), written out for a Zenoh engine to come; no engine uses it yet.
 
 #![deny(unsafe_op_in_unsafe_fn)]
 
@@ -43,6 +46,7 @@ pub mod cyclone;
 mod dds;
 mod error;
 pub mod keys;
+pub mod rmw_zenoh;
 #[cfg(feature = "rustdds")]
 pub mod rustdds;
 
