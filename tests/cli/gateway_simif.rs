@@ -370,7 +370,7 @@ per_way!(
 );
 
 /// How much of the UDP traffic the lossy network drops, in percent.
-const LOSS: u8 = 20;
+const LOSS: u8 = 10;
 /// How many clients call through it, one after the other.
 const LOSSY_CLIENTS: usize = 8;
 
