@@ -66,6 +66,12 @@ if ! .venv/bin/python -c 'import prometheus_client' 2>/dev/null; then
     step "installing prometheus-client into .venv"
     .venv/bin/pip install -q --disable-pip-version-check prometheus-client==0.26.0
 fi
+# Zenoh's own Python binding, the peer that judges the rmw_zenoh format's bytes and keys (the
+# release with a wheel for this Python; Zenoh 1.x keeps one wire format).
+if ! .venv/bin/python -c 'import zenoh' 2>/dev/null; then
+    step "installing eclipse-zenoh into .venv"
+    .venv/bin/pip install -q --disable-pip-version-check --only-binary=:all: eclipse-zenoh==1.10.2
+fi
 # The build backend of the Python binding, for the install test's offline `pip install ./python`.
 if ! ls target/wheels/setuptools-80.9.0-*.whl >/dev/null 2>&1; then
     step "downloading the setuptools wheel into target/wheels"
