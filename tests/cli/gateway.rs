@@ -98,6 +98,17 @@ pub fn host_with_gateway_by(
     (p, guard)
 }
 
+/// Runs `program ARGS` to its end; Err with what it printed on failure (the namespaces'
+/// set-up: `ip`, `nft`).
+fn run_tool(program: &str, args: &[&str]) -> Result<(), String> {
+    let out = Command::new(program).args(args).output().map_err(|e| format!("{program}: {e}"))?;
+    if out.status.success() {
+        Ok(())
+    } else {
+        Err(format!("{program} {}: {}", args.join(" "), String::from_utf8_lossy(&out.stderr).trim()))
+    }
+}
+
 /// Two network namespaces joined by a veth pair (`veth0` in each, 192.0.2.1/24 in the first,
 /// 192.0.2.2/24 in the second: addresses that exist only inside them), both removed on drop.
 /// Shared memory (/dev/shm) and pids are shared with the test, as on one machine with two
@@ -114,14 +125,7 @@ impl NetnsPair {
     pub fn create(tag: &str) -> Result<NetnsPair, String> {
         let names = [0, 1].map(|i| format!("tutti-{}-{tag}-{i}", std::process::id()));
         let pair = NetnsPair { names: names.clone() };
-        let ip = |args: &[&str]| -> Result<(), String> {
-            let out = Command::new("ip").args(args).output().map_err(|e| format!("ip: {e}"))?;
-            if out.status.success() {
-                Ok(())
-            } else {
-                Err(format!("ip {}: {}", args.join(" "), String::from_utf8_lossy(&out.stderr).trim()))
-            }
-        };
+        let ip = |args: &[&str]| run_tool("ip", args);
         for n in &names {
             ip(&["netns", "add", n])?;
         }
@@ -177,26 +181,18 @@ impl LossyNetns {
     /// does not let the test (no root, no `ip` or `nft`).
     pub fn create(tag: &str, percent: u8) -> Result<LossyNetns, String> {
         let name = format!("tutti-{}-{tag}", std::process::id());
-        let run = |program: &str, args: &[&str]| -> Result<(), String> {
-            let out = Command::new(program).args(args).output().map_err(|e| format!("{program}: {e}"))?;
-            if out.status.success() {
-                Ok(())
-            } else {
-                Err(format!("{program} {}: {}", args.join(" "), String::from_utf8_lossy(&out.stderr).trim()))
-            }
-        };
-        run("ip", &["netns", "add", &name])?;
+        run_tool("ip", &["netns", "add", &name])?;
         let net = LossyNetns { name };
         let n = net.name.as_str();
-        run("ip", &["-n", n, "link", "set", "lo", "up", "multicast", "on"])?;
-        run("ip", &["-n", n, "route", "add", "224.0.0.0/4", "dev", "lo"])?;
+        run_tool("ip", &["-n", n, "link", "set", "lo", "up", "multicast", "on"])?;
+        run_tool("ip", &["-n", n, "route", "add", "224.0.0.0/4", "dev", "lo"])?;
         let drop = format!("add rule inet tutti input meta l4proto udp numgen random mod 100 < {percent} drop");
         for rule in [
             "add table inet tutti",
             "add chain inet tutti input { type filter hook input priority 0; policy accept; }",
             drop.as_str(),
         ] {
-            run("ip", &["netns", "exec", n, "nft", rule])?;
+            run_tool("ip", &["netns", "exec", n, "nft", rule])?;
         }
         Ok(net)
     }
