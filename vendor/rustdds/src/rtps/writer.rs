@@ -1183,7 +1183,7 @@ impl Writer {
         let my_topic = self.my_topic_name.clone(); // for debugging
 
         let mut start_repair = false;
-        let send_buffer = self.send_buffer.clone(); // tutti: the handle, for in-step readers
+        let mut answers_heartbeat = false; // tutti
 
         if let Some(reader_proxy) = self.lookup_reader_proxy_mut(reader_guid) {
           if reader_proxy.last_acknack_count == Some(an.count) {
@@ -1208,9 +1208,7 @@ impl Writer {
           // ones with base 0. Any other ACKNACK answers a heartbeat.
           let eclipse = reader_guid_prefix.bytes[..2] == [0x01, 0x10];
           let preemptive = an.reader_sn_state.base() < SequenceNumber::from(1) || (eclipse && an.count == 0);
-          if !preemptive && !send_buffer.reader_in_step(&reader_guid) {
-            send_buffer.set_reader_in_step(reader_guid, true);
-          }
+          answers_heartbeat = !preemptive;
 
           // Mark requested SNs as "unsent changes"
 
@@ -1260,6 +1258,9 @@ impl Writer {
             start_repair = true;
           }
         } // if have reader_proxy
+        if answers_heartbeat {
+          self.send_buffer.set_reader_in_step(reader_guid, true); // tutti
+        }
 
         // Every Writer, built-in or user, answers after nack_response_delay
         // (RTPS v2.5 Section 8.4.7.1.1), so that ACKNACKs arriving close
