@@ -48,7 +48,7 @@ pub enum DataKeyError {
 }
 
 /// Zenoh's reserved characters: no chunk of a plain key may hold them.
-fn zenoh_reserved(c: char) -> bool {
+pub(crate) fn zenoh_reserved(c: char) -> bool {
     matches!(c, '*' | '$' | '?' | '#')
 }
 

@@ -156,7 +156,7 @@ pub fn subscription_key(domain_id: u64) -> String {
 /// A field mangled for a token, refused where rmw_zenoh would write a key it cannot read back or
 /// Zenoh would refuse.
 fn mangled(field: &'static str, value: &str) -> Result<String, TokenError> {
-    if value.is_empty() || value.contains(['%', '*', '$', '?', '#']) {
+    if value.is_empty() || value.contains(|c| c == '%' || super::keyexpr::zenoh_reserved(c)) {
         return Err(TokenError::Unwritable { field, value: value.to_owned() });
     }
     Ok(mangle_name(value))
