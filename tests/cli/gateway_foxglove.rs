@@ -18,7 +18,7 @@ use std::time::Duration;
 use serde_json::Value;
 use tutti_core::cdr::{SetCodec, HEADER_LE};
 use tutti_core::ddf::Role;
-use tutti_test_support::{dds_domain_in, namespace, require, require_tool, Proc, RemoveSegments};
+use tutti_test_support::{dds_domain_in, hex, namespace, require, require_tool, unhex, Proc, RemoveSegments};
 
 const DDF: &str = "tests/gateway/gw.ddf";
 const SECS: fn(u64) -> Duration = Duration::from_secs;
@@ -37,14 +37,6 @@ fn config(dir: &Path, keys: &str) -> String {
     let path = dir.join("gateway.json5");
     std::fs::write(&path, keys).expect("the config file");
     path.display().to_string()
-}
-
-fn hex(b: &[u8]) -> String {
-    b.iter().map(|x| format!("{x:02x}")).collect()
-}
-
-fn unhex(s: &str) -> Vec<u8> {
-    (0..s.len() / 2).map(|i| u8::from_str_radix(&s[2 * i..2 * i + 2], 16).expect("hex")).collect()
 }
 
 /// The recording's messages of `topic`, by step (the first 8 bytes of the CDR body).

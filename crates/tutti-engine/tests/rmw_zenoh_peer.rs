@@ -10,22 +10,22 @@
 //!
 //! Without the binding the test is skipped with a message (a failure under `CI=true`).
 
-use std::io::Write;
-use std::process::{Command, Stdio};
+use std::process::Command;
 use std::time::Duration;
 
 use serde_json::{json, Value};
 use tutti_engine::rmw_zenoh::liveliness::subscription_key;
 use tutti_engine::rmw_zenoh::qos::{Durability, History, Reliability};
 use tutti_engine::rmw_zenoh::{Attachment, DataKey, Entity, EntityKind, NodeInfo, QosProfile, TopicInfo};
+use tutti_test_support::{hex, unhex};
 
-/// What the Python side does with the JSON on its stdin; prints JSON.
+/// What the Python side does with the JSON of its first argument; prints JSON.
 const JUDGE: &str = r#"
 import json, sys
 import zenoh
 from zenoh.ext import z_serialize, z_deserialize, Int64
 
-case = json.load(sys.stdin)
+case = json.loads(sys.argv[1])
 out = {"attachments": [], "ours": [], "keys": [], "matches": []}
 for seq, ts, gid in case["attachments"]:
     out["attachments"].append(z_serialize((Int64(seq), Int64(ts), bytes.fromhex(gid))).to_bytes().hex())
@@ -109,28 +109,13 @@ fn attachments() -> Vec<Attachment> {
         .collect()
 }
 
-fn hex(bytes: &[u8]) -> String {
-    bytes.iter().map(|b| format!("{b:02x}")).collect()
-}
-
 /// Runs the judge on `case` with `py`; its JSON answer.
 fn judge(py: &std::path::Path, case: &Value) -> Value {
-    let mut child = Command::new(py)
-        .args(["-c", JUDGE])
-        .stdin(Stdio::piped())
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .expect("start the Python judge");
-    child.stdin.take().expect("stdin").write_all(case.to_string().as_bytes()).expect("write the case");
-    // The judge does no I/O but its stdin and stdout: a watchdog all the same.
-    let (tx, rx) = std::sync::mpsc::channel();
-    std::thread::spawn(move || {
-        let _ = tx.send(child.wait_with_output());
-    });
-    let out = rx.recv_timeout(Duration::from_secs(120)).expect("the Python judge did not end").expect("judge");
-    assert!(out.status.success(), "the Python judge failed: {}", String::from_utf8_lossy(&out.stderr));
-    serde_json::from_slice(&out.stdout).expect("the judge's JSON")
+    let mut cmd = Command::new(py);
+    cmd.args(["-c", JUDGE, &case.to_string()]);
+    let (status, out, err) = tutti_test_support::run_with_timeout(cmd, Duration::from_secs(120));
+    assert!(status.success(), "the Python judge failed: {err}");
+    serde_json::from_str(&out).expect("the judge's JSON")
 }
 
 #[test]
@@ -162,9 +147,7 @@ fn zenohs_python_binding_writes_and_reads_the_attachments_and_accepts_the_keys()
     for (i, a) in attachments.iter().enumerate() {
         let zenohs = answer["attachments"][i].as_str().expect("bytes");
         assert_eq!(hex(&a.encode()), zenohs, "attachment {a:?}: ours, then zenoh-ext's");
-        let bytes: Vec<u8> =
-            (0..zenohs.len()).step_by(2).map(|j| u8::from_str_radix(&zenohs[j..j + 2], 16).expect("hex")).collect();
-        assert_eq!(Attachment::decode(&bytes).as_ref(), Ok(a), "zenoh-ext's bytes read back");
+        assert_eq!(Attachment::decode(&unhex(zenohs)).as_ref(), Ok(a), "zenoh-ext's bytes read back");
         let read = &answer["ours"][i];
         assert_eq!(read, &json!([a.sequence_number, a.source_timestamp, hex(&a.source_gid)]), "ours read by zenoh-ext");
     }

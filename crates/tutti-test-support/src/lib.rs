@@ -27,6 +27,7 @@ mod c;
 pub mod ddf;
 #[cfg(feature = "fmu")]
 pub mod fmu;
+mod hex;
 pub mod mutate;
 mod names;
 mod policy;
@@ -37,6 +38,7 @@ mod wait;
 mod worker;
 
 pub use c::{compile_c, rtapi_lib_dir};
+pub use hex::{hex, unhex};
 pub use names::{dds_domain_in, namespace};
 pub use policy::{ci, python, require, require_tool, which};
 pub use proc::{Output, Proc, Spawn};

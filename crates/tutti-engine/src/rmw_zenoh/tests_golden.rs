@@ -18,11 +18,7 @@ const STRING_HASH: &str = "RIHS01_df668c740482bbd48fb39d76a70dfd4bd59db128802174
 const ADD_TWO_INTS_HASH: &str = "RIHS01_e118de6bf5eeb66a2491b5bda11202e7b68f198d6f67922cf30364858239c81a";
 
 fn gid(hex: &str) -> [u8; 16] {
-    let mut out = [0u8; 16];
-    for (i, byte) in out.iter_mut().enumerate() {
-        *byte = u8::from_str_radix(&hex[2 * i..2 * i + 2], 16).expect("hex");
-    }
-    out
+    tutti_test_support::unhex(hex).try_into().expect("16 bytes")
 }
 
 fn entity(domain_id: u64, ids: (u64, u64), node: (&str, &str, &str), kind: EntityKind) -> Entity {
