@@ -17,12 +17,13 @@
 //! say so (rustdds: each has answered one of the writer's heartbeats; a Cyclone DDS reader
 //! that has matched but not yet seen a heartbeat skips what was written before the first one
 //! it sees, so a reply written then and lost on the way would never be repaired), else as
-//! discovery shows them (Cyclone, whose writers keep that handshake themselves). Until then it is held, and the
-//! engine's reply thread (`tutti-dds-replies`) writes it as soon as it reaches. After
-//! [`REPLY_WAIT`] it is written anyway (in case the count is wrong) but still kept, and written
-//! again once it reaches, for as long as the client is there and at most [`REPLY_KEEP`]: a
-//! reply must reach a client that is still waiting, however late the gateway's side of
-//! discovery is (a ROS 2 client ignores a second reply to a request it has its answer to).
+//! discovery shows them (Cyclone, whose writers keep that handshake themselves). Until then it
+//! is held, and the engine's reply thread (`tutti-dds-replies`) writes it as soon as it
+//! reaches. After [`REPLY_WAIT`] it is written anyway (in case the count is wrong) but still
+//! kept, and written again once it reaches, for as long as the client is there and at most
+//! [`REPLY_KEEP`]: a reply must reach a client that is still waiting, however late the
+//! gateway's side of discovery is (a ROS 2 client ignores a second reply to a request it has
+//! its answer to).
 
 use std::sync::{Arc, Condvar, Mutex, MutexGuard, PoisonError, Weak};
 use std::thread::JoinHandle;
