@@ -4,6 +4,8 @@
 Usage: dds_peer.py MODE --domain N [options]; types are given as JSON field lists,
 e.g. '[["step","uint64"],["sim_time","float64"],["x","float64"],["v","float64[3]"]]'.
 Every mode prints JSON lines on stdout and exits 0 on success, 3 on timeout.
+Every mode takes --announce-every S: announce the participant (SPDP) every S seconds, for a network
+that loses datagrams (see ANNOUNCE below).
 
   sub    --topic T --type TN --fields F [--count N] [--timeout S] [--best-effort] [--exclusive]
          [--transient-local]: a late joiner that asks for what writers kept
@@ -52,11 +54,32 @@ import time
 import types
 from dataclasses import dataclass
 
+
+
+def announce_every(argv):
+    """The value of `--announce-every S` in `argv` (read before Cyclone is loaded), or None."""
+    for i, a in enumerate(argv):
+        if a == "--announce-every" and i + 1 < len(argv):
+            return float(argv[i + 1])
+        if a.startswith("--announce-every="):
+            return float(a.split("=", 1)[1])
+    return None
+
+
+# Under Cyclone's defaults a participant that finds the others by unicast (Discovery/Peers)
+# announces itself (SPDP) to a port where nobody is known yet twice, at start and 100 ms
+# later, and then only every 30 s, which is when such a port is dropped
+# (Discovery/InitialLocatorPruneDelay, 30 s): on a network that loses datagrams on purpose,
+# losing both leaves the others unaware of it. `--announce-every S` announces it every S
+# seconds (Discovery/SPDPInterval) instead.
+ANNOUNCE = announce_every(sys.argv)
 LOOPBACK = (
     '<CycloneDDS xmlns="https://cdds.io/config"><Domain id="any"><General><Interfaces>'
     '<NetworkInterface name="lo"/></Interfaces><AllowMulticast>false</AllowMulticast></General>'
     '<Discovery><Peers><Peer address="127.0.0.1"/></Peers><ParticipantIndex>auto</ParticipantIndex>'
-    '<MaxAutoParticipantIndex>20</MaxAutoParticipantIndex></Discovery></Domain></CycloneDDS>'
+    '<MaxAutoParticipantIndex>20</MaxAutoParticipantIndex>'
+    + (f'<SPDPInterval>{ANNOUNCE}s</SPDPInterval>' if ANNOUNCE else '')
+    + '</Discovery></Domain></CycloneDDS>'
 )
 os.environ.setdefault("CYCLONEDDS_URI", LOOPBACK)
 
@@ -655,6 +678,7 @@ def main():
     p.add_argument("--calls", default="[]")
     p.add_argument("--steps", type=int, default=1)
     p.add_argument("--cancel-after", type=int, default=0)
+    p.add_argument("--announce-every", type=float, help="SPDP every S seconds (read before Cyclone is loaded)")
     p.add_argument("--ros-namespace", default="")
     a = p.parse_args()
     dp = DomainParticipant(a.domain)
