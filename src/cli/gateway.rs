@@ -23,7 +23,7 @@ use super::{load_ddf, CliResult, Failure};
 /// also come from a --config file (flags given here win over it).
 #[derive(Debug, clap::Args)]
 #[command(
-    after_help = "Examples:\n  tutti gateway ddf/multiuav.ddf\n  ROS_DOMAIN_ID=7 tutti gateway ddf/multiuav.ddf --ros2-types per-item\n  tutti gateway ddf/product-sample.ddf --qos-profile dds --strength 10\n  TUTTI_NAMESPACE=site2 tutti gateway ddf/multiuav.ddf --mirror --interface 192.0.2.2\n  tutti gateway ddf/multiuav.ddf --mirror --peer 192.0.2.1   # discovery without multicast\n  tutti gateway ddf/multiuav.ddf --engine rustdds\n  tutti gateway ddf/multiuav.ddf --clock multiuav_uav1 --clock-rate 100   # /clock for use_sim_time\n  tutti gateway ddf/multiuav.ddf --config examples/gateway.json5   # tutti show --config shows its topics\n  tutti gateway ddf/multiuav.ddf --ros-namespace sim1 --http 127.0.0.1:9100   # /sim1/...; curl .../metrics\n\nEnvironment (a flag, then the --config file, win over these):\n  ROS_DOMAIN_ID            DDS domain (default 0)\n  ROS_LOCALHOST_ONLY=1     DDS on loopback only (as ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST)\n  ROS_AUTOMATIC_DISCOVERY_RANGE  SUBNET or SYSTEM_DEFAULT: as configured; LOCALHOST: loopback only;\n                           OFF: refused unless --peer is given\n  TUTTI_DDS                default for --engine\n  CYCLONEDDS_URI           Cyclone DDS configuration (cyclone engine)\n  TUTTI_NAMESPACE          namespace of the shared-memory segments\n  TUTTI_GATEWAY_INTERFACE  default for --interface (comma-separated addresses)\n  RUST_LOG                 log filter (default: info, DDS internals off)\n\nStop with Ctrl-C. Exit status: 0 stopped cleanly, 2 invalid input, 1 runtime failure."
+    after_help = "Examples:\n  tutti gateway ddf/multiuav.ddf\n  ROS_DOMAIN_ID=7 tutti gateway ddf/multiuav.ddf --ros2-types per-item\n  tutti gateway ddf/product-sample.ddf --qos-profile dds --strength 10\n  TUTTI_NAMESPACE=site2 tutti gateway ddf/multiuav.ddf --mirror --interface 192.0.2.2\n  tutti gateway ddf/multiuav.ddf --mirror --peer 192.0.2.1   # discovery without multicast\n  tutti gateway ddf/multiuav.ddf --engine rustdds\n  tutti gateway ddf/multiuav.ddf --engine zenoh   # for rmw_zenoh nodes; run rmw_zenohd first\n  tutti gateway ddf/multiuav.ddf --clock multiuav_uav1 --clock-rate 100   # /clock for use_sim_time\n  tutti gateway ddf/multiuav.ddf --config examples/gateway.json5   # tutti show --config shows its topics\n  tutti gateway ddf/multiuav.ddf --ros-namespace sim1 --http 127.0.0.1:9100   # /sim1/...; curl .../metrics\n\nEnvironment (a flag, then the --config file, win over these):\n  ROS_DOMAIN_ID            DDS domain (default 0)\n  ROS_LOCALHOST_ONLY=1     DDS on loopback only (as ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST)\n  ROS_AUTOMATIC_DISCOVERY_RANGE  SUBNET or SYSTEM_DEFAULT: as configured; LOCALHOST: loopback only;\n                           OFF: refused unless --peer is given\n  TUTTI_DDS                default for --engine\n  CYCLONEDDS_URI           Cyclone DDS configuration (cyclone engine)\n  ZENOH_SESSION_CONFIG_URI Zenoh session config file, as rmw_zenoh reads it (zenoh engine)\n  TUTTI_NAMESPACE          namespace of the shared-memory segments\n  TUTTI_GATEWAY_INTERFACE  default for --interface (comma-separated addresses)\n  RUST_LOG                 log filter (default: info, DDS internals off)\n\nStop with Ctrl-C. Exit status: 0 stopped cleanly, 2 invalid input, 1 runtime failure."
 )]
 pub struct Args {
     /// The DDF whose domains to bridge.
@@ -74,8 +74,8 @@ pub struct Args {
     /// Address of a network interface DDS may use (repeatable; default: all interfaces).
     #[arg(long = "interface", value_name = "ADDR")]
     interfaces: Vec<IpAddr>,
-    /// Engine: cyclone (Cyclone DDS, the default) or rustdds (pure Rust DDS); `--dds` is an
-    /// alias.
+    /// Engine: cyclone (Cyclone DDS, the default), rustdds (pure Rust DDS) or zenoh (rmw_zenoh's
+    /// wire format, through a Zenoh router); `--dds` is an alias.
     #[arg(long = "engine", visible_alias = "dds", value_name = "ENGINE")]
     engine: Option<EngineKind>,
     /// Unicast discovery peer (an IPv4 address or a host name that resolves, with an optional
@@ -83,6 +83,13 @@ pub struct Args {
     /// --mirror pair (cyclone engine).
     #[arg(long = "peer", value_name = "ADDR", value_parser = config::parse_peer)]
     peers: Vec<String>,
+    /// Zenoh endpoint to connect to (repeatable; zenoh engine; default: the router at
+    /// tcp/localhost:7447, as rmw_zenoh nodes do, or ZENOH_SESSION_CONFIG_URI's).
+    #[arg(long = "zenoh-connect", value_name = "ENDPOINT")]
+    zenoh_connect: Vec<String>,
+    /// Zenoh endpoint to listen on (repeatable; zenoh engine; default tcp/localhost:0).
+    #[arg(long = "zenoh-listen", value_name = "ENDPOINT")]
+    zenoh_listen: Vec<String>,
     /// Publish this domain's simulated time on /clock (rosgraph_msgs/msg/Clock, for ROS 2
     /// nodes with use_sim_time); default: the first synchronous domain; `none`: no /clock.
     #[arg(long, value_name = "DOMAIN")]
@@ -163,6 +170,8 @@ impl Args {
                 engine: self.engine,
                 interface: (!self.interfaces.is_empty()).then(|| self.interfaces.clone()),
                 peer: (!self.peers.is_empty()).then(|| self.peers.clone()),
+                zenoh_connect: (!self.zenoh_connect.is_empty()).then(|| self.zenoh_connect.clone()),
+                zenoh_listen: (!self.zenoh_listen.is_empty()).then(|| self.zenoh_listen.clone()),
             },
             gateway: GatewayKeys {
                 ros2_types: self.ros2_types.map(|t| match t {

@@ -254,7 +254,7 @@ fn show_names_the_dds_engine_and_refuses_an_unknown_one() {
     assert_eq!(engine(&["--dds", "rustdds"]), "rustdds");
     let (code, _, err) = tutti(["show", "ddf/multiuav.ddf", "--dds", "opendds"]);
     assert_eq!(code, 2);
-    assert!(err.contains("unknown DDS engine 'opendds'") && err.contains("cyclone or rustdds"), "{err}");
+    assert!(err.contains("unknown engine 'opendds'") && err.contains("cyclone, rustdds or zenoh"), "{err}");
     let (code, out, _) = tutti(["show", "ddf/multiuav.ddf", "--dds", "rustdds"]);
     assert_eq!(code, 0);
     assert!(out.lines().next().is_some_and(|l| l.ends_with("DDS engine rustdds")), "{out}");

@@ -211,9 +211,10 @@ impl Drop for LossyNetns {
     }
 }
 
-/// The engine a gateway test runs against. Every interop test runs once per engine of the
-/// build ([`per_engine!`], over `tutti_engine::for_each_engine!`: the one list of engines),
-/// each run with a DDS domain and namespace of its own, so that the runs go in parallel.
+/// The engine a gateway test runs against. Every DDS interop test runs once per DDS engine of
+/// the build ([`per_engine!`], over `tutti_engine::for_each_dds_engine!`: the one list of
+/// engines, those that speak DDS), each run with a DDS domain and namespace of its own, so
+/// that the runs go in parallel.
 #[derive(Debug, Clone, Copy)]
 pub struct Eng {
     pub name: &'static str,
@@ -258,11 +259,11 @@ impl Eng {
 #[macro_export]
 macro_rules! per_engine {
     ($($name:ident),* $(,)?) => {$(
-        tutti_engine::for_each_engine!(per_engine_tests, $name);
+        tutti_engine::for_each_dds_engine!(per_engine_tests, $name);
     )*};
 }
 
-/// [`per_engine!`]'s tests of one function, one per engine `for_each_engine!` lists.
+/// [`per_engine!`]'s tests of one function, one per engine `for_each_dds_engine!` lists.
 #[macro_export]
 macro_rules! per_engine_tests {
     ($name:ident $($engine:ident: $kind:ident),* $(,)?) => {

@@ -29,6 +29,8 @@ impl Bench<'_> {
             node_name: "bench_peer".into(),
             node_namespace: "/".into(),
             participant_lease: None,
+            zenoh_connect: Vec::new(),
+            zenoh_listen: Vec::new(),
         };
         let peer = tutti_gateway::engine::open(EngineKind::Cyclone, &peer_cfg).context("the DDS peer")?;
         let t = Instant::now();

@@ -19,6 +19,13 @@ pub enum EngineError {
     /// The middleware refused to create an entity.
     #[error("DDS: cannot create {what}: {detail}")]
     Dds { what: String, detail: String },
+    /// A Zenoh configuration that Zenoh refuses: the file of `ZENOH_SESSION_CONFIG_URI`, an
+    /// endpoint (exit status 2).
+    #[error("Zenoh configuration: {detail}")]
+    ZenohConfig { detail: String },
+    /// Zenoh refused to open the session or to declare an entity.
+    #[error("Zenoh: cannot create {what}: {detail}")]
+    Zenoh { what: String, detail: String },
     /// The engine's own threads cannot be started.
     #[error("cannot start the engine's runtime: {0}")]
     Runtime(#[source] std::io::Error),
@@ -37,13 +44,14 @@ impl EngineError {
                 | EngineError::NotBuilt { .. }
                 | EngineError::NodeName { .. }
                 | EngineError::NulByte { .. }
+                | EngineError::ZenohConfig { .. }
         )
     }
 }
 
 /// A name that is not one of the engines.
 #[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
-#[error("unknown DDS engine '{name}' (expected cyclone or rustdds)")]
+#[error("unknown engine '{name}' (expected cyclone, rustdds or zenoh)")]
 pub struct UnknownEngine {
     pub name: String,
 }

@@ -28,10 +28,16 @@ pub struct EngineKeys {
     /// Unicast discovery peers, checked where each stands ([`parse_peer`]).
     #[serde(default, deserialize_with = "de_peers")]
     pub peer: Option<Vec<String>>,
+    /// Zenoh: the endpoints to connect to (`tcp/127.0.0.1:7447`), checked when the session
+    /// opens.
+    pub zenoh_connect: Option<Vec<String>>,
+    /// Zenoh: the endpoints to listen on.
+    pub zenoh_listen: Option<Vec<String>>,
 }
 
 impl Section for EngineKeys {
-    const KEYS: &'static [&'static str] = &["ros_domain_id", "engine", "dds", "interface", "peer"];
+    const KEYS: &'static [&'static str] =
+        &["ros_domain_id", "engine", "dds", "interface", "peer", "zenoh_connect", "zenoh_listen"];
 
     fn over(self, lower: Self) -> Self {
         EngineKeys {
@@ -39,6 +45,8 @@ impl Section for EngineKeys {
             engine: self.engine.or(lower.engine),
             interface: self.interface.or(lower.interface),
             peer: self.peer.or(lower.peer),
+            zenoh_connect: self.zenoh_connect.or(lower.zenoh_connect),
+            zenoh_listen: self.zenoh_listen.or(lower.zenoh_listen),
         }
     }
 }
@@ -114,7 +122,7 @@ fn host_name(h: &str) -> bool {
 
 fn de_engine<'de, D: Deserializer<'de>>(d: D) -> Result<Option<EngineKind>, D::Error> {
     let parse = std::str::FromStr::from_str;
-    d.deserialize_any(Parsed { expecting: "\"cyclone\" or \"rustdds\"", parse }).map(Some)
+    d.deserialize_any(Parsed { expecting: "\"cyclone\", \"rustdds\" or \"zenoh\"", parse }).map(Some)
 }
 
 /// The highest ROS domain id, as the numbers of the file are read.

@@ -49,6 +49,8 @@ pub mod keys;
 pub mod rmw_zenoh;
 #[cfg(feature = "rustdds")]
 pub mod rustdds;
+#[cfg(feature = "zenoh")]
+pub mod zenoh;
 
 pub use error::{EngineError, UnknownEngine};
 
@@ -86,9 +88,9 @@ impl fmt::Debug for EndpointId {
 
 /// Calls `$callback! { $($args)* name: Kind, … }` with one `name: Kind` pair per engine of
 /// this build, in [`EngineKind::built`]'s order (`cyclone: Cyclone`, then `rustdds: Rustdds`
-/// where the `rustdds` feature is on). The one list of engines that tests expand: a test
-/// suite run against every engine is written once, and an engine added here is tested by all
-/// of them.
+/// where the `rustdds` feature is on, then `zenoh: Zenoh` where the `zenoh` feature is on).
+/// The one list of engines that tests expand: a test suite run against every engine is
+/// written once, and an engine added here is tested by all of them.
 ///
 /// ```
 /// macro_rules! names {
@@ -98,21 +100,53 @@ impl fmt::Debug for EndpointId {
 /// assert_eq!(built[0], "cyclone");
 /// assert_eq!(built.len(), tutti_engine::EngineKind::built().len());
 /// ```
-#[cfg(feature = "rustdds")]
 #[macro_export]
 macro_rules! for_each_engine {
     ($callback:ident $(, $($args:tt)*)?) => {
-        $callback! { $($($args)*)? cyclone: Cyclone, rustdds: Rustdds }
+        $crate::__engines_rustdds! { $callback [$($($args)*)?] [cyclone: Cyclone] [zenoh] }
     };
 }
 
-/// See the `rustdds` build's documentation: one `name: Kind` pair per built engine.
-#[cfg(not(feature = "rustdds"))]
+/// [`for_each_engine!`] for the engines that speak DDS only (Cyclone, and rustdds where
+/// built): the tests whose peers are DDS participants.
 #[macro_export]
-macro_rules! for_each_engine {
+macro_rules! for_each_dds_engine {
     ($callback:ident $(, $($args:tt)*)?) => {
-        $callback! { $($($args)*)? cyclone: Cyclone }
+        $crate::__engines_rustdds! { $callback [$($($args)*)?] [cyclone: Cyclone] [] }
     };
+}
+
+#[cfg(feature = "rustdds")]
+#[doc(hidden)]
+#[macro_export]
+macro_rules! __engines_rustdds {
+    ($cb:ident [$($args:tt)*] [$($list:tt)*] [$($z:ident)?]) => {
+        $crate::__engines_zenoh! { $cb [$($args)*] [$($list)*, rustdds: Rustdds] [$($z)?] }
+    };
+}
+
+#[cfg(not(feature = "rustdds"))]
+#[doc(hidden)]
+#[macro_export]
+macro_rules! __engines_rustdds {
+    ($cb:ident [$($args:tt)*] [$($list:tt)*] [$($z:ident)?]) => {
+        $crate::__engines_zenoh! { $cb [$($args)*] [$($list)*] [$($z)?] }
+    };
+}
+
+#[cfg(feature = "zenoh")]
+#[doc(hidden)]
+#[macro_export]
+macro_rules! __engines_zenoh {
+    ($cb:ident [$($args:tt)*] [$($list:tt)*] [zenoh]) => { $cb! { $($args)* $($list)*, zenoh: Zenoh } };
+    ($cb:ident [$($args:tt)*] [$($list:tt)*] []) => { $cb! { $($args)* $($list)* } };
+}
+
+#[cfg(not(feature = "zenoh"))]
+#[doc(hidden)]
+#[macro_export]
+macro_rules! __engines_zenoh {
+    ($cb:ident [$($args:tt)*] [$($list:tt)*] [$($z:ident)?]) => { $cb! { $($args)* $($list)* } };
 }
 
 /// The engines.
@@ -123,6 +157,8 @@ pub enum EngineKind {
     Cyclone,
     /// rustdds and ros2-client (pure Rust).
     Rustdds,
+    /// Zenoh, in rmw_zenoh's wire format.
+    Zenoh,
 }
 
 impl EngineKind {
@@ -130,11 +166,12 @@ impl EngineKind {
         match self {
             EngineKind::Cyclone => "cyclone",
             EngineKind::Rustdds => "rustdds",
+            EngineKind::Zenoh => "zenoh",
         }
     }
 
     /// Every engine, built or not.
-    pub const ALL: [EngineKind; 2] = [EngineKind::Cyclone, EngineKind::Rustdds];
+    pub const ALL: [EngineKind; 3] = [EngineKind::Cyclone, EngineKind::Rustdds, EngineKind::Zenoh];
 
     /// The engines this build contains (the order of [`for_each_engine!`]).
     pub fn built() -> &'static [EngineKind] {
@@ -155,6 +192,7 @@ impl EngineKind {
         match self {
             EngineKind::Cyclone => 0,
             EngineKind::Rustdds => 1,
+            EngineKind::Zenoh => 2,
         }
     }
 
@@ -170,6 +208,7 @@ impl std::str::FromStr for EngineKind {
         match s.trim().to_ascii_lowercase().as_str() {
             "cyclone" | "cyclonedds" => Ok(EngineKind::Cyclone),
             "rustdds" => Ok(EngineKind::Rustdds),
+            "zenoh" | "rmw_zenoh" => Ok(EngineKind::Zenoh),
             other => Err(UnknownEngine { name: other.to_string() }),
         }
     }
@@ -233,6 +272,11 @@ pub struct EngineConfig {
     /// history. None: the engine's default. Cyclone only: rustdds 0.15 always announces 50 s
     /// (docs/gateway.md, "Departures").
     pub participant_lease: Option<Duration>,
+    /// Zenoh: the endpoints to connect to (`tcp/HOST:PORT`); empty: the configuration's
+    /// (`ZENOH_SESSION_CONFIG_URI`, else rmw_zenoh's router at `tcp/localhost:7447`).
+    pub zenoh_connect: Vec<String>,
+    /// Zenoh: the endpoints to listen on; empty: the configuration's.
+    pub zenoh_listen: Vec<String>,
 }
 
 /// How the samples of a reader are decoded into a [`Payload`].
@@ -313,7 +357,19 @@ pub struct Service<'a> {
 /// Whom a response goes to: the request it answers, in the form its client asked (opaque;
 /// each engine fills it in and reads it back).
 #[derive(Debug, Clone, PartialEq, Eq)]
-pub struct ReplyTo(pub(crate) dds::ReplyTo);
+pub struct ReplyTo(pub(crate) Route);
+
+/// How a response finds its request, per engine family.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum Route {
+    Dds(dds::ReplyTo),
+    /// The client's GID and the request's sequence number, as rmw_zenoh keys its queries.
+    #[cfg_attr(not(feature = "zenoh"), allow(dead_code))]
+    Zenoh {
+        client: [u8; 16],
+        sequence: i64,
+    },
+}
 
 /// One request to a served service.
 #[derive(Debug)]
@@ -413,6 +469,10 @@ pub fn open(kind: EngineKind, cfg: &EngineConfig) -> Result<Box<dyn Engine>, Eng
         EngineKind::Rustdds => Ok(Box::new(rustdds::Rustdds::open(cfg)?)),
         #[cfg(not(feature = "rustdds"))]
         EngineKind::Rustdds => Err(EngineError::NotBuilt { engine: kind.name() }),
+        #[cfg(feature = "zenoh")]
+        EngineKind::Zenoh => Ok(Box::new(zenoh::Zenoh::open(cfg)?)),
+        #[cfg(not(feature = "zenoh"))]
+        EngineKind::Zenoh => Err(EngineError::NotBuilt { engine: kind.name() }),
     }
 }
 
@@ -424,12 +484,20 @@ mod tests {
     fn the_build_names_its_engines_and_refuses_the_others() {
         assert!(EngineKind::Cyclone.is_built());
         assert_eq!(EngineKind::Rustdds.is_built(), cfg!(feature = "rustdds"));
+        assert_eq!(EngineKind::Zenoh.is_built(), cfg!(feature = "zenoh"));
         assert_eq!("CycloneDDS".parse::<EngineKind>(), Ok(EngineKind::Cyclone));
+        assert_eq!("zenoh".parse::<EngineKind>(), Ok(EngineKind::Zenoh));
+        assert!(!EngineKind::Zenoh.is_dds() && EngineKind::Rustdds.is_dds());
         let e = "opendds".parse::<EngineKind>().unwrap_err();
-        assert_eq!(e.to_string(), "unknown DDS engine 'opendds' (expected cyclone or rustdds)");
-        if !EngineKind::Rustdds.is_built() {
-            let e = open(EngineKind::Rustdds, &EngineConfig::default()).map(|_| ()).unwrap_err();
-            assert!(e.is_invalid() && matches!(e, EngineError::NotBuilt { engine: "rustdds" }), "{e}");
+        assert_eq!(e.to_string(), "unknown engine 'opendds' (expected cyclone, rustdds or zenoh)");
+        for kind in [EngineKind::Rustdds, EngineKind::Zenoh] {
+            if !kind.is_built() {
+                let e = open(kind, &EngineConfig::default()).map(|_| ()).unwrap_err();
+                assert!(
+                    e.is_invalid() && matches!(e, EngineError::NotBuilt { engine } if engine == kind.name()),
+                    "{e}"
+                );
+            }
         }
     }
 

@@ -75,7 +75,7 @@ fn raw_cdr_round_trips_in_both_byte_orders(c: &Case) {
     let (codec, layout) = set_codec();
     let reader = c.open("reader");
     let writer = c.open("writer");
-    let cyclone = c.peer_cyclone("be_writer");
+    let cyclone = c.peer_raw("be_writer");
     let q = qos(Reliability::Reliable, History::KeepAll, false, Ownership::Shared);
 
     let topic = c.topic("set");
@@ -189,13 +189,11 @@ fn discovery_lists_remote_endpoints_with_their_qos(c: &Case) {
     });
     let w = remote.writers_on(&wt).find(|g| mine(g)).unwrap();
     let r = *remote.readers_on(std::slice::from_ref(&rt)).iter().find(|g| mine(g)).unwrap();
+    // Zenoh has no ownership: its tokens carry none (docs/gateway.md, "Zenoh").
+    let ownership = if c.engine.is_dds() { Ownership::Exclusive { strength: 7 } } else { Ownership::Shared };
     assert_eq!(
         remote.qos.get(&w),
-        Some(&EndpointQos {
-            reliability: Reliability::Reliable,
-            transient_local: true,
-            ownership: Ownership::Exclusive { strength: 7 }
-        })
+        Some(&EndpointQos { reliability: Reliability::Reliable, transient_local: true, ownership })
     );
     assert_eq!(
         remote.qos.get(&r),
@@ -211,8 +209,9 @@ fn discovery_lists_remote_endpoints_with_their_qos(c: &Case) {
     );
 }
 
-/// A best-effort volatile writer matches a best-effort volatile reader, and neither a reliable
-/// reader nor a transient-local one; a reliable transient-local writer matches all three.
+/// A best-effort volatile writer matches a best-effort volatile reader, and on DDS neither a
+/// reliable reader nor a transient-local one (Zenoh delivers to all three); a reliable
+/// transient-local writer matches all three.
 /// Refusal is seen against a reader that matched: both are in one participant, which learns
 /// of the writer once, and the refused readers get nothing while it gets every sample.
 fn qos_matching_and_refusal(c: &Case) {
@@ -224,8 +223,14 @@ fn qos_matching_and_refusal(c: &Case) {
         ("reliable", qos(Reliability::Reliable, History::KeepAll, false, Ownership::Shared)),
         ("transient local", qos(Reliability::BestEffort, History::KeepAll, true, Ownership::Shared)),
     ];
+    // Zenoh refuses no reader for its QoS (docs/gateway.md, "Zenoh"): every reader matches.
+    let refuses = c.engine.is_dds();
     for (what, offered, matched) in [
-        ("weakest", qos(Reliability::BestEffort, History::KeepLast(1), false, Ownership::Shared), [true, false, false]),
+        (
+            "weakest",
+            qos(Reliability::BestEffort, History::KeepLast(1), false, Ownership::Shared),
+            [true, !refuses, !refuses],
+        ),
         ("strongest", qos(Reliability::Reliable, History::KeepLast(1), true, Ownership::Shared), [true, true, true]),
     ] {
         let topic = c.topic(what);
@@ -337,7 +342,7 @@ fn exclusive_ownership_goes_by_strength(c: &Case) {
 fn a_sample_that_cannot_be_decoded_is_reported(c: &Case) {
     let (codec, layout) = set_codec();
     let reader = c.open("reader");
-    let cyclone = c.peer_cyclone("bad_writer");
+    let cyclone = c.peer_raw("bad_writer");
     let q = qos(Reliability::Reliable, History::KeepAll, false, Ownership::Shared);
     let topic = c.topic("bad");
     let inbox = Inbox::new(Decode::Set(codec.clone()));
@@ -373,6 +378,9 @@ fn a_sample_that_cannot_be_decoded_is_reported(c: &Case) {
 /// `announce` publishes the node (namespace and name) with the GUIDs of its readers and
 /// writers on `ros_discovery_info`, as ROS 2's graph reads it.
 fn the_node_is_announced_on_ros_discovery_info(c: &Case) {
+    if c.engine == EngineKind::Zenoh {
+        return the_node_is_announced_by_its_tokens(c);
+    }
     let (codec, _) = set_codec();
     let node = c.open("announced_node");
     let observer = c.raw_cyclone("graph");
@@ -424,6 +432,9 @@ fn the_node_is_announced_on_ros_discovery_info(c: &Case) {
 /// header, with its client's peer and byte order; and the response, held until the client's
 /// reply reader has matched, reaches the client.
 fn a_service_answers_each_request_in_its_clients_form(c: &Case) {
+    if c.engine == EngineKind::Zenoh {
+        return a_service_answers_a_query_in_rmw_zenohs_form(c);
+    }
     let server = c.open("server");
     let client = c.raw_cyclone("client");
     let name = c.topic("echo");
@@ -482,6 +493,123 @@ fn a_service_answers_each_request_in_its_clients_form(c: &Case) {
     assert_eq!(body[16..], 42u64.to_le_bytes());
 }
 
+/// On Zenoh the graph is the liveliness tokens (`@ros2_lv/…`): the node's own, and one for
+/// each of its endpoints, whose key's hash is the endpoint's GID, as a raw Zenoh session
+/// reads them.
+fn the_node_is_announced_by_its_tokens(c: &Case) {
+    use ::zenoh::Wait;
+    use tutti_engine::rmw_zenoh::{gid_of_key, Entity, EntityKind as Kind};
+    let (codec, _) = set_codec();
+    let node = c.open("announced_node");
+    let observer = c.open("graph");
+    let (wt, rt) = (c.topic("node_out"), c.topic("node_in"));
+    let q = qos(Reliability::Reliable, History::KeepLast(1), false, Ownership::Shared);
+    let _w = node.writer(&wt, &TopicType::plain(SET_TYPE), &q).unwrap();
+    node.reader(&rt, &TopicType::plain(SET_TYPE), &q, Decode::Set(codec.clone()), Arc::new(|_, _| {})).unwrap();
+    node.announce().unwrap();
+
+    let mine = |g: &EndpointId| g.peer == node.own_peer();
+    let (w, r) = until_some("the node's endpoints in discovery", || {
+        let rem = observer.remote();
+        let w = rem.writers_on(&wt).find(|g| mine(g))?;
+        let r = *rem.readers_on(std::slice::from_ref(&rt)).iter().find(|g| mine(g))?;
+        Some((w, r))
+    });
+    let raw = c.router.as_ref().expect("a router").session();
+    let want = format!("conf_{}_announced_node", c.number);
+    until("the node's tokens, read by a raw Zenoh session", || {
+        let Ok(replies) = raw.liveliness().get(format!("@ros2_lv/{}/**", c.domain)).wait() else { return false };
+        let mut tokens = Vec::new();
+        while let Ok(reply) = replies.recv() {
+            if let Ok(sample) = reply.result() {
+                let key = sample.key_expr().as_str();
+                if let Ok(e) = Entity::parse(key) {
+                    tokens.push((e, gid_of_key(key)));
+                }
+            }
+        }
+        let of_node: Vec<_> = tokens.iter().filter(|(e, _)| e.zid.to_le_bytes() == node.own_peer().0).collect();
+        let named = of_node
+            .iter()
+            .any(|(e, _)| e.kind == Kind::Node && e.node.name == want && e.node.namespace == "/conformance");
+        let writer = of_node.iter().any(|(e, g)| matches!(&e.kind, Kind::Publisher(t) if t.name == wt) && *g == w.gid);
+        let reader =
+            of_node.iter().any(|(e, g)| matches!(&e.kind, Kind::Subscription(t) if t.name == rt) && *g == r.gid);
+        named && writer && reader
+    });
+}
+
+/// On Zenoh a client is a querier (a raw Zenoh session here, in rmw_zenoh's form: its
+/// client token first, then each request as a query on the service's key with the CDR
+/// request and the attachment): the request reaches the sink with the client's GID and peer,
+/// past its encapsulation header, and the response comes back as the reply, with the
+/// request's sequence number and the client's GID in its attachment.
+fn a_service_answers_a_query_in_rmw_zenohs_form(c: &Case) {
+    use ::zenoh::Wait;
+    use tutti_engine::rmw_zenoh::qos::QosProfile;
+    use tutti_engine::rmw_zenoh::{gid_of_key, Attachment, Entity, EntityKind as Kind, NodeInfo, TopicInfo};
+    let server = c.open("server");
+    let name = c.topic("echo");
+    let (rq_ty, rr_ty) = (TopicType::plain(ECHO_REQUEST), TopicType::plain(ECHO_RESPONSE));
+    let seen = Arc::new(Mutex::new(Vec::<(EndpointId, bool, Vec<u8>)>::new()));
+    let (tx, rx) = std::sync::mpsc::channel::<engine::ReplyTo>();
+    let tap = seen.clone();
+    let tx = Mutex::new(tx);
+    let sink = Arc::new(move |r: Request<'_>| {
+        lock(&tap).push((r.client, r.little_endian, r.body.to_vec()));
+        let _ = lock(&tx).send(r.reply_to);
+    });
+    let service = Service { name: &name, request: &rq_ty, response: &rr_ty };
+    let mut responder = server.serve(&service, sink).unwrap();
+
+    let raw = c.router.as_ref().expect("a router").session();
+    let client = Entity {
+        zid: raw.zid().to_string().parse().unwrap(),
+        node_id: 0,
+        entity_id: 1,
+        node: NodeInfo {
+            domain_id: u64::from(c.domain),
+            namespace: "/conformance".into(),
+            name: format!("conf_{}_client", c.number),
+            enclave: "/".into(),
+        },
+        kind: Kind::Client(TopicInfo {
+            name: name.clone(),
+            type_name: "conformance::srv::dds_::Echo_".into(),
+            type_hash: format!("RIHS01_{}", "0".repeat(64)),
+            qos: QosProfile::ZENOH_DEFAULT,
+        }),
+    };
+    let token_key = client.to_key().unwrap();
+    let gid = gid_of_key(&token_key);
+    let _token = raw.liveliness().declare_token(&token_key).wait().unwrap();
+    let key = client.data_key().unwrap().to_keyexpr().unwrap();
+    let request = [&HEADER_LE[..], &41u64.to_le_bytes()].concat();
+    // A query sent before the router knows the queryable reaches nobody: ask again.
+    let mut sequence = 0;
+    let (to, replies) = until_some("a request at the server", || {
+        sequence += 1;
+        let a = Attachment { sequence_number: sequence, source_timestamp: 1, source_gid: gid };
+        let replies = raw.get(&key).payload(request.clone()).attachment(a.encode().to_vec()).wait().unwrap();
+        rx.recv_timeout(Duration::from_millis(500)).ok().map(|to| (to, replies))
+    });
+    let (from, le, body) = lock(&seen).last().cloned().unwrap();
+    assert_eq!(from.gid, gid, "the request comes with its client's GID");
+    assert_eq!(from.peer.0, raw.zid().to_le_bytes(), "and its client's session");
+    assert!(le, "the client wrote little-endian");
+    assert_eq!(body, 41u64.to_le_bytes(), "the request's body, past its encapsulation header");
+
+    responder.respond(&to, &42u64.to_le_bytes());
+    let reply = replies.recv_timeout(PATIENCE).ok().flatten().expect("a reply to the query");
+    let sample = reply.result().expect("a reply, not an error");
+    let payload = sample.payload().to_bytes();
+    let (le, body) = split_header(&payload).unwrap();
+    assert!(le, "a response is little-endian");
+    assert_eq!(body, 42u64.to_le_bytes(), "the response's body, no request header on Zenoh");
+    let a = Attachment::decode(&sample.attachment().expect("an attachment").to_bytes()).unwrap();
+    assert_eq!((a.sequence_number, a.source_gid), (sequence, gid), "the request's sequence number and client");
+}
+
 // ---------------------------------------------------------------------------------------
 // The test's own means.
 
@@ -495,6 +623,49 @@ struct Case {
     engine: EngineKind,
     number: u16,
     domain: u16,
+    /// The Zenoh router the scenario's Zenoh sessions meet at (Zenoh only).
+    router: Option<Router>,
+}
+
+/// A Zenoh router of the test's own, on a port of loopback the system picked.
+struct Router {
+    _session: ::zenoh::Session,
+    endpoint: String,
+}
+
+impl Router {
+    fn start() -> Router {
+        use ::zenoh::Wait;
+        let mut c = ::zenoh::Config::default();
+        for (key, value) in [
+            ("mode", r#""router""#),
+            ("listen/endpoints", r#"["tcp/127.0.0.1:0"]"#),
+            ("scouting/multicast/enabled", "false"),
+        ] {
+            c.insert_json5(key, value).unwrap();
+        }
+        let session = ::zenoh::open(c).wait().expect("a Zenoh router on loopback");
+        let endpoint = session
+            .info()
+            .locators()
+            .wait()
+            .into_iter()
+            .map(|l| l.to_string())
+            .find(|l| l.starts_with("tcp/127.0.0.1:"))
+            .expect("the router's TCP endpoint");
+        Router { _session: session, endpoint }
+    }
+
+    /// A raw Zenoh session connected to it (a peer written with Zenoh's own API).
+    fn session(&self) -> ::zenoh::Session {
+        use ::zenoh::Wait;
+        let mut c = ::zenoh::Config::default();
+        c.insert_json5("mode", r#""peer""#).unwrap();
+        c.insert_json5("connect/endpoints", &format!(r#"["{}"]"#, self.endpoint)).unwrap();
+        c.insert_json5("listen/endpoints", r#"["tcp/127.0.0.1:0"]"#).unwrap();
+        c.insert_json5("scouting/multicast/enabled", "false").unwrap();
+        ::zenoh::open(c).wait().expect("a Zenoh session")
+    }
 }
 
 impl Case {
@@ -503,9 +674,14 @@ impl Case {
         self.open_kind(self.engine, node)
     }
 
-    /// A Cyclone participant: a peer that can write any encapsulation and reads raw bytes.
-    fn peer_cyclone(&self, node: &str) -> Box<dyn Engine> {
-        self.open_kind(EngineKind::Cyclone, node)
+    /// A peer that writes any encapsulation as it is given: a Cyclone participant for a DDS
+    /// engine, another session of the engine for Zenoh (which writes serialized samples as
+    /// they are).
+    fn peer_raw(&self, node: &str) -> Box<dyn Engine> {
+        match self.engine {
+            EngineKind::Zenoh => self.open(node),
+            _ => self.open_kind(EngineKind::Cyclone, node),
+        }
     }
 
     /// A Cyclone participant whose DDS topics the scenario names itself (`ros_discovery_info`,
@@ -525,6 +701,8 @@ impl Case {
             node_name: format!("conf_{}_{node}", self.number),
             node_namespace: "/conformance".into(),
             participant_lease: None,
+            zenoh_connect: self.router.iter().map(|r| r.endpoint.clone()).collect(),
+            zenoh_listen: if self.router.is_some() { vec!["tcp/127.0.0.1:0".into()] } else { Vec::new() },
         }
     }
 
@@ -561,7 +739,8 @@ fn run(engine: EngineKind, n: u16, scenario: fn(&Case)) {
     let _done = Done(done);
     // 20 domains per engine, by its place in the list of engines.
     let base = 60 + 20 * engine.index() as u16;
-    scenario(&Case { engine, number: n, domain: base + n });
+    let router = (engine == EngineKind::Zenoh).then(Router::start);
+    scenario(&Case { engine, number: n, domain: base + n, router });
 }
 
 fn lock<T>(m: &Mutex<T>) -> std::sync::MutexGuard<'_, T> {

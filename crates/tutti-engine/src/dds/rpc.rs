@@ -166,7 +166,7 @@ pub(crate) fn deliver(sample: Incoming<'_>, sink: &RequestSink) {
         Form::Related(_) => body,
     };
     tracing::debug!("services: a request from {:?}, {form:?}", endpoint(sample.writer));
-    let reply_to = crate::ReplyTo(ReplyTo { client: endpoint(sample.writer), form });
+    let reply_to = crate::ReplyTo(crate::Route::Dds(ReplyTo { client: endpoint(sample.writer), form }));
     sink(Request { client: endpoint(sample.writer), little_endian: le, body: fields, reply_to });
 }
 
@@ -383,7 +383,9 @@ pub(crate) struct DdsResponder {
 
 impl Responder for DdsResponder {
     fn respond(&mut self, to: &crate::ReplyTo, body: &[u8]) {
-        let to = to.0;
+        let crate::Route::Dds(to) = to.0 else {
+            return tracing::warn!("services: a response addressed as Zenoh addresses it dropped");
+        };
         let remote = (self.shared.discovery)();
         let mut server = lock(&self.server);
         if server.reaches(&remote, to.client.peer) {
@@ -470,7 +472,7 @@ mod tests {
         assert_eq!(got.len(), 1, "the sample without its header is dropped");
         assert_eq!(got[0].0, 42u64.to_le_bytes());
         let form = Form::Header(RequestHeader { client: 5, sequence: 2 });
-        assert_eq!(got[0].1, crate::ReplyTo(ReplyTo { client: endpoint(writer), form }));
+        assert_eq!(got[0].1, crate::ReplyTo(crate::Route::Dds(ReplyTo { client: endpoint(writer), form })));
     }
 
     /// A reply writer that counts its writes, with as many matched readers as the test says.

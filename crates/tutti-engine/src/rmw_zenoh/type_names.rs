@@ -53,6 +53,16 @@ pub fn response_type_name(ros_service_type: &str) -> Result<String, TypeNameErro
     dds_type_name(&format!("{ros_service_type}_Response"))
 }
 
+/// The service type of a request type as rmw_zenoh names services
+/// (`pkg::srv::dds_::Name_Request_` to `pkg::srv::dds_::Name_`); a name that is no request's
+/// comes back as it is.
+pub fn service_of_request(request_type: &str) -> String {
+    match request_type.strip_suffix("Request_") {
+        Some(service) if service.ends_with('_') => service.to_owned(),
+        _ => request_type.to_owned(),
+    }
+}
+
 /// The ROS 2 name of a type as written in a key or token, as rmw_zenoh's graph gives it to ROS 2
 /// (`_demangle_if_ros_type`, `rmw_zenoh_cpp/src/detail/graph_cache.cpp:733-753`):
 /// `pkg::msg::dds_::Type_` is `pkg/msg/Type`, services alike. A name that does not end in `_` or
@@ -90,6 +100,18 @@ mod tests {
             dds_type_name("action_tutorials_interfaces/action/Fibonacci_SendGoal").as_deref(),
             Ok("action_tutorials_interfaces::action::dds_::Fibonacci_SendGoal_")
         );
+    }
+
+    #[test]
+    fn a_request_type_names_its_service() {
+        let srv = "example_interfaces/srv/AddTwoInts";
+        let request = request_type_name(srv).expect("valid");
+        assert_eq!(Ok(service_of_request(&request)), service_type_name(srv));
+        let send_goal = "simulation_interfaces::action::dds_::SimulateSteps_SendGoal_Request_";
+        assert_eq!(service_of_request(send_goal), "simulation_interfaces::action::dds_::SimulateSteps_SendGoal_");
+        for not_a_request in ["", "Request_", "pkg::msg::dds_::Request_", "a::b::X_Response_"] {
+            assert_eq!(service_of_request(not_a_request), not_a_request);
+        }
     }
 
     #[test]

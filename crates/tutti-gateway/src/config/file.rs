@@ -141,6 +141,8 @@ pub const KEYS: &[&str] = &[
     "engine",
     "dds",
     "peer",
+    "zenoh_connect",
+    "zenoh_listen",
     "clock",
     "clock_rate",
     "timeout",
@@ -246,6 +248,8 @@ impl ConfigFile {
         set(&mut opts.interfaces, &e.interface);
         set(&mut opts.engine, &e.engine);
         set(&mut opts.peers, &e.peer);
+        set(&mut opts.zenoh_connect, &e.zenoh_connect);
+        set(&mut opts.zenoh_listen, &e.zenoh_listen);
         set(&mut opts.types, &g.ros2_types);
         set(&mut opts.profile, &g.qos_profile);
         set(&mut opts.strength, &g.strength);

@@ -88,6 +88,9 @@ pub struct GatewayOptions {
     pub engine: EngineKind,
     /// Unicast discovery peers (Cyclone engine).
     pub peers: Vec<String>,
+    /// Zenoh endpoints to connect to and to listen on (Zenoh engine; empty: its configuration's).
+    pub zenoh_connect: Vec<String>,
+    pub zenoh_listen: Vec<String>,
     /// Which domain's simulated time goes out on `/clock`.
     pub clock: ClockSource,
     /// At most this many `/clock` samples a second (None: one per step).
@@ -149,6 +152,8 @@ impl GatewayOptions {
             discovery_every: Duration::from_millis(200),
             engine: EngineKind::default(),
             peers: Vec::new(),
+            zenoh_connect: Vec::new(),
+            zenoh_listen: Vec::new(),
             clock: ClockSource::default(),
             clock_rate: None,
             ros_namespace: String::new(),
@@ -190,6 +195,8 @@ impl GatewayOptions {
             node_name: self.node_name.clone(),
             node_namespace: names::node_namespace(self.ros_namespace.trim().trim_matches('/')),
             participant_lease: Some(self.lease.max(MIN_PARTICIPANT_LEASE)),
+            zenoh_connect: self.zenoh_connect.clone(),
+            zenoh_listen: self.zenoh_listen.clone(),
         }
     }
 }
