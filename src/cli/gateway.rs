@@ -23,7 +23,7 @@ use super::{load_ddf, CliResult, Failure};
 /// also come from a --config file (flags given here win over it).
 #[derive(Debug, clap::Args)]
 #[command(
-    after_help = "Examples:\n  tutti gateway ddf/multiuav.ddf\n  ROS_DOMAIN_ID=7 tutti gateway ddf/multiuav.ddf --ros2-types per-item\n  tutti gateway ddf/product-sample.ddf --qos-profile dds --strength 10\n  TUTTI_NAMESPACE=site2 tutti gateway ddf/multiuav.ddf --mirror --interface 192.0.2.2\n  tutti gateway ddf/multiuav.ddf --mirror --peer 192.0.2.1   # discovery without multicast\n  tutti gateway ddf/multiuav.ddf --engine rustdds\n  tutti gateway ddf/multiuav.ddf --engine zenoh   # for rmw_zenoh nodes; run rmw_zenohd first\n  tutti gateway ddf/multiuav.ddf --clock multiuav_uav1 --clock-rate 100   # /clock for use_sim_time\n  tutti gateway ddf/multiuav.ddf --config examples/gateway.json5   # tutti show --config shows its topics\n  tutti gateway ddf/multiuav.ddf --ros-namespace sim1 --http 127.0.0.1:9100   # /sim1/...; curl .../metrics\n\nEnvironment (a flag, then the --config file, win over these):\n  ROS_DOMAIN_ID            DDS domain (default 0)\n  ROS_LOCALHOST_ONLY=1     DDS on loopback only (as ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST)\n  ROS_AUTOMATIC_DISCOVERY_RANGE  SUBNET or SYSTEM_DEFAULT: as configured; LOCALHOST: loopback only;\n                           OFF: refused unless --peer is given\n  TUTTI_DDS                default for --engine\n  CYCLONEDDS_URI           Cyclone DDS configuration (cyclone engine)\n  ZENOH_SESSION_CONFIG_URI Zenoh session config file, as rmw_zenoh reads it (zenoh engine)\n  TUTTI_NAMESPACE          namespace of the shared-memory segments\n  TUTTI_GATEWAY_INTERFACE  default for --interface (comma-separated addresses)\n  RUST_LOG                 log filter (default: info, DDS internals off)\n\nStop with Ctrl-C. Exit status: 0 stopped cleanly, 2 invalid input, 1 runtime failure."
+    after_help = "Examples:\n  tutti gateway ddf/multiuav.ddf\n  ROS_DOMAIN_ID=7 tutti gateway ddf/multiuav.ddf --ros2-types per-item\n  tutti gateway ddf/product-sample.ddf --qos-profile dds --strength 10\n  TUTTI_NAMESPACE=site2 tutti gateway ddf/multiuav.ddf --mirror --interface 192.0.2.2\n  tutti gateway ddf/multiuav.ddf --mirror --peer 192.0.2.1   # discovery without multicast\n  tutti gateway ddf/multiuav.ddf --engine rustdds\n  tutti gateway ddf/multiuav.ddf --engine zenoh   # for rmw_zenoh nodes; run rmw_zenohd first\n  tutti gateway ddf/multiuav.ddf --clock multiuav_uav1 --clock-rate 100   # /clock for use_sim_time\n  tutti gateway ddf/multiuav.ddf --config examples/gateway.json5   # tutti show --config shows its topics\n  tutti gateway ddf/multiuav.ddf --ros-namespace sim1 --http 127.0.0.1:9100   # /sim1/...; curl .../metrics\n\nEnvironment (a flag, then the --config file, win over these):\n  ROS_DOMAIN_ID            DDS domain (default 0)\n  ROS_LOCALHOST_ONLY=1     DDS on loopback only (as ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST)\n  ROS_AUTOMATIC_DISCOVERY_RANGE  SUBNET or SYSTEM_DEFAULT: as configured; LOCALHOST: loopback only;\n                           OFF: refused unless --peer is given\n  TUTTI_DDS                default for --engine\n  CYCLONEDDS_URI           Cyclone DDS configuration (cyclone engine)\n  ZENOH_SESSION_CONFIG_URI Zenoh session config file, as rmw_zenoh reads it (zenoh engine)\n  TUTTI_NAMESPACE          namespace of the shared-memory segments\n  TUTTI_GATEWAY_INTERFACE  default for --interface (comma-separated addresses)\n  RUST_LOG                 log filter (default: info, DDS internals off, Zenoh's warnings only)\n\nStop with Ctrl-C. Exit status: 0 stopped cleanly, 2 invalid input, 1 runtime failure."
 )]
 pub struct Args {
     /// The DDF whose domains to bridge.
@@ -203,13 +203,16 @@ impl Args {
     }
 }
 
-/// The gateway's log on stderr (`RUST_LOG`, default: info, DDS internals off); once per
-/// process.
+/// The gateway's log filter unless `RUST_LOG` says otherwise: info, the DDS stacks' internals
+/// off, Zenoh's warnings only.
+const DEFAULT_LOG: &str = "info,rustdds=off,ros2_client=off,zenoh=warn,zenoh_transport=warn,zenoh_ext=warn";
+
+/// The gateway's log on stderr (`RUST_LOG`, default [`DEFAULT_LOG`]); once per process.
 pub fn init_logging() {
     let _ = tracing_subscriber::fmt()
         .with_env_filter(
             tracing_subscriber::EnvFilter::try_from_default_env()
-                .unwrap_or_else(|_| tracing_subscriber::EnvFilter::new("info,rustdds=off,ros2_client=off")),
+                .unwrap_or_else(|_| tracing_subscriber::EnvFilter::new(DEFAULT_LOG)),
         )
         .with_writer(std::io::stderr)
         // Colour only for a terminal: logs piped to a file or another program stay plain text.

@@ -32,6 +32,7 @@ mod gateway_interop;
 mod gateway_mirror;
 mod gateway_reliable;
 mod gateway_simif;
+mod gateway_zenoh;
 mod host_cli;
 mod hostile_files;
 mod idl_generated;

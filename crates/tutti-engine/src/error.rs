@@ -19,6 +19,9 @@ pub enum EngineError {
     /// The middleware refused to create an entity.
     #[error("DDS: cannot create {what}: {detail}")]
     Dds { what: String, detail: String },
+    /// The Zenoh engine was given DDS discovery peers (exit status 2).
+    #[error("the zenoh engine finds the others through a Zenoh router, not DDS peers (--peer): give its endpoint with --zenoh-connect tcp/HOST:7447")]
+    ZenohPeers,
     /// A Zenoh configuration that Zenoh refuses: the file of `ZENOH_SESSION_CONFIG_URI`, an
     /// endpoint (exit status 2).
     #[error("Zenoh configuration: {detail}")]
@@ -45,6 +48,7 @@ impl EngineError {
                 | EngineError::NodeName { .. }
                 | EngineError::NulByte { .. }
                 | EngineError::ZenohConfig { .. }
+                | EngineError::ZenohPeers
         )
     }
 }

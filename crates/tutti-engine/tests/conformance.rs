@@ -26,6 +26,7 @@ use tutti_engine::{
     self as engine, Decode, EndpointId, EndpointQos, Engine, EngineConfig, EngineKind, Request, Service, Sink,
     TopicType, Writer,
 };
+use tutti_test_support::ZenohRouter;
 
 /// The longest wait for one expected event (discovery, a sample).
 const PATIENCE: Duration = Duration::from_secs(30);
@@ -624,48 +625,7 @@ struct Case {
     number: u16,
     domain: u16,
     /// The Zenoh router the scenario's Zenoh sessions meet at (Zenoh only).
-    router: Option<Router>,
-}
-
-/// A Zenoh router of the test's own, on a port of loopback the system picked.
-struct Router {
-    _session: ::zenoh::Session,
-    endpoint: String,
-}
-
-impl Router {
-    fn start() -> Router {
-        use ::zenoh::Wait;
-        let mut c = ::zenoh::Config::default();
-        for (key, value) in [
-            ("mode", r#""router""#),
-            ("listen/endpoints", r#"["tcp/127.0.0.1:0"]"#),
-            ("scouting/multicast/enabled", "false"),
-        ] {
-            c.insert_json5(key, value).unwrap();
-        }
-        let session = ::zenoh::open(c).wait().expect("a Zenoh router on loopback");
-        let endpoint = session
-            .info()
-            .locators()
-            .wait()
-            .into_iter()
-            .map(|l| l.to_string())
-            .find(|l| l.starts_with("tcp/127.0.0.1:"))
-            .expect("the router's TCP endpoint");
-        Router { _session: session, endpoint }
-    }
-
-    /// A raw Zenoh session connected to it (a peer written with Zenoh's own API).
-    fn session(&self) -> ::zenoh::Session {
-        use ::zenoh::Wait;
-        let mut c = ::zenoh::Config::default();
-        c.insert_json5("mode", r#""peer""#).unwrap();
-        c.insert_json5("connect/endpoints", &format!(r#"["{}"]"#, self.endpoint)).unwrap();
-        c.insert_json5("listen/endpoints", r#"["tcp/127.0.0.1:0"]"#).unwrap();
-        c.insert_json5("scouting/multicast/enabled", "false").unwrap();
-        ::zenoh::open(c).wait().expect("a Zenoh session")
-    }
+    router: Option<ZenohRouter>,
 }
 
 impl Case {
@@ -701,7 +661,7 @@ impl Case {
             node_name: format!("conf_{}_{node}", self.number),
             node_namespace: "/conformance".into(),
             participant_lease: None,
-            zenoh_connect: self.router.iter().map(|r| r.endpoint.clone()).collect(),
+            zenoh_connect: self.router.iter().map(|r| r.endpoint().to_string()).collect(),
             zenoh_listen: if self.router.is_some() { vec!["tcp/127.0.0.1:0".into()] } else { Vec::new() },
         }
     }
@@ -739,7 +699,7 @@ fn run(engine: EngineKind, n: u16, scenario: fn(&Case)) {
     let _done = Done(done);
     // 20 domains per engine, by its place in the list of engines.
     let base = 60 + 20 * engine.index() as u16;
-    let router = (engine == EngineKind::Zenoh).then(Router::start);
+    let router = (engine == EngineKind::Zenoh).then(ZenohRouter::start);
     scenario(&Case { engine, number: n, domain: base + n, router });
 }
 

@@ -18,6 +18,7 @@
 //!   namespace; [`ShmFile`]: one crafted by hand.
 //! * [`ddf::one_domain`]: a small DDF of one domain.
 //! * [`mutate`]: the byte mutator of the fuzz tests.
+//! * `ZenohRouter` (feature `zenoh`): a Zenoh router of the test's own on loopback.
 //! * [`compile_c`], [`rtapi_lib_dir`]: C programs built against this build's librtapi.
 //! * `fmu` (feature `fmu`): FMUs built for the FMU tests.
 //!
@@ -36,6 +37,8 @@ mod run;
 mod segments;
 mod wait;
 mod worker;
+#[cfg(feature = "zenoh")]
+mod zenoh_router;
 
 pub use c::{compile_c, rtapi_lib_dir};
 pub use hex::{hex, unhex};
@@ -46,6 +49,8 @@ pub use run::{run_output, run_with_timeout, tutti, tutti_command, tutti_exe, wor
 pub use segments::{segments_of, shrink_segment, RemoveSegments, ShmFile};
 pub use wait::{lazy, poll_for, wait_for, wait_until, Lazy, POLL};
 pub use worker::{within, Worker};
+#[cfg(feature = "zenoh")]
+pub use zenoh_router::ZenohRouter;
 
 use std::path::{Path, PathBuf};
 

@@ -50,7 +50,7 @@ use crate::{
 
 mod config;
 
-pub use config::{session_config, CONFIG_ENV, DEFAULT_CONNECT};
+pub use config::{session_config, CONFIG_ENV, DEFAULT_CONNECT, OVERRIDE_ENV};
 
 /// The type hash a token and a key carry for a type ROS 2 does not know: all zeros, as
 /// rosidl writes an unset hash.
@@ -206,6 +206,9 @@ impl Zenoh {
     pub fn open(cfg: &EngineConfig) -> Result<Zenoh, EngineError> {
         check_node_name(&cfg.node_name)
             .map_err(|detail| EngineError::NodeName { name: cfg.node_name.clone(), detail: detail.into() })?;
+        if !cfg.peers.is_empty() {
+            return Err(EngineError::ZenohPeers);
+        }
         let config: Config = session_config(cfg)?;
         let session = ::zenoh::open(config).wait().map_err(|e| zerr("a session", e))?;
         let zid: ZenohId = session.zid().to_string().parse().map_err(|e| zerr("the session's id", e))?;
@@ -230,6 +233,12 @@ impl Zenoh {
         };
         engine.watch_graph()?;
         engine.declare(EntityKind::Node)?;
+        if engine.session.info().routers_zid().wait().next().is_none() {
+            tracing::warn!(
+                "zenoh: no Zenoh router reached yet (rmw_zenoh's nodes meet at one: start rmw_zenohd, or give \
+                 --zenoh-connect); the session keeps trying"
+            );
+        }
         Ok(engine)
     }
 
