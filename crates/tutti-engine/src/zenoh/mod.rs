@@ -83,10 +83,17 @@ struct Kept {
     graph_subscriber: Option<::zenoh::pubsub::Subscriber<()>>,
 }
 
-/// The other sessions' entities, by token key.
+/// The other sessions' entities, by token key, and their peers by GID (looked up for every
+/// sample received).
 struct Graph {
     own: ZenohId,
-    entities: Mutex<HashMap<String, (Entity, EndpointId)>>,
+    entities: Mutex<Entities>,
+}
+
+#[derive(Default)]
+struct Entities {
+    by_key: HashMap<String, (Entity, EndpointId)>,
+    peers: HashMap<[u8; 16], PeerId>,
 }
 
 /// A query's key: its client's GID and its sequence number.
@@ -219,7 +226,7 @@ impl Zenoh {
             name: cfg.node_name.clone(),
             enclave: "/".into(),
         };
-        let graph = Arc::new(Graph { own: zid, entities: Mutex::new(HashMap::new()) });
+        let graph = Arc::new(Graph { own: zid, entities: Mutex::new(Entities::default()) });
         let engine = Zenoh {
             session,
             domain_id: cfg.domain_id,
@@ -308,19 +315,24 @@ impl Graph {
                 Ok(e) if e.zid == self.own => {}
                 Ok(e) => {
                     let id = EndpointId { gid: gid_of_key(key), peer: peer_of(e.zid) };
-                    lock(&self.entities).insert(key.to_string(), (e, id));
+                    let mut entities = lock(&self.entities);
+                    entities.peers.insert(id.gid, id.peer);
+                    entities.by_key.insert(key.to_string(), (e, id));
                 }
                 Err(why) => bad.token(key, &why),
             },
             SampleKind::Delete => {
-                lock(&self.entities).remove(key);
+                let mut entities = lock(&self.entities);
+                if let Some((_, id)) = entities.by_key.remove(key) {
+                    entities.peers.remove(&id.gid);
+                }
             }
         }
     }
 
     /// The peer of the entity whose GID is `gid` (a zero peer for one not known yet).
     fn peer_of_gid(&self, gid: &[u8; 16]) -> PeerId {
-        lock(&self.entities).values().find(|(_, id)| &id.gid == gid).map(|(_, id)| id.peer).unwrap_or_default()
+        lock(&self.entities).peers.get(gid).copied().unwrap_or_default()
     }
 }
 
@@ -546,7 +558,7 @@ impl Engine for Zenoh {
 
     fn remote(&self) -> Remote {
         let mut r = Remote::default();
-        for (e, id) in lock(&self.graph.entities).values() {
+        for (e, id) in lock(&self.graph.entities).by_key.values() {
             let (list, topic) = match &e.kind {
                 EntityKind::Publisher(t) => (&mut r.writers, t),
                 EntityKind::Subscription(t) => (&mut r.readers, t),
