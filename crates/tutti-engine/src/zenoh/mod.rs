@@ -336,10 +336,19 @@ impl Graph {
     }
 }
 
-/// The attachment of a sample or query, or why it has none rmw_zenoh would read.
-fn attachment_of(a: Option<&ZBytes>) -> Result<Attachment, String> {
-    let a = a.ok_or("no attachment")?;
-    Attachment::decode_prefix(&a.to_bytes()).map(|(a, _)| a).map_err(|e| e.to_string())
+/// Why a sample or query has no attachment rmw_zenoh would read.
+#[derive(Debug, thiserror::Error)]
+enum BadAttachment {
+    #[error("no attachment")]
+    Missing,
+    #[error(transparent)]
+    Malformed(#[from] crate::rmw_zenoh::AttachmentError),
+}
+
+/// The attachment of a sample or query.
+fn attachment_of(a: Option<&ZBytes>) -> Result<Attachment, BadAttachment> {
+    let a = a.ok_or(BadAttachment::Missing)?;
+    Ok(Attachment::decode_prefix(&a.to_bytes()).map(|(a, _)| a)?)
 }
 
 /// A writer: an advanced publisher and its attachment's state.
