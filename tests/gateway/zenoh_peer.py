@@ -74,6 +74,14 @@ def wait_token(s, domain, kind, name, deadline):
     return None, None
 
 
+def need_token(s, a, kind, name, what, deadline):
+    """`wait_token`, printing {"error": "no WHAT token"} when none came."""
+    key, f = wait_token(s, a.domain, kind, name, deadline)
+    if key is None:
+        print(json.dumps({"error": f"no {what} token", "name": name}), flush=True)
+    return key, f
+
+
 def own_token(s, domain, entity_id, kind, f):
     """A token of this node for the same topic, type and hash as the token fields `f`."""
     key = "/".join(["@ros2_lv", str(domain), str(s.zid()), "0", str(entity_id), kind, "%", "%", "zenoh_peer",
@@ -128,9 +136,8 @@ def main():
         return 3
 
     if a.mode == "sub":
-        key, f = wait_token(s, a.domain, "MP", a.topic, deadline)
+        key, f = need_token(s, a, "MP", a.topic, "publisher", deadline)
         if key is None:
-            print(json.dumps({"error": "no publisher token", "topic": a.topic}), flush=True)
             return 3
         print(json.dumps({"token": key}), flush=True)
         got = []
@@ -152,9 +159,8 @@ def main():
         return 0 if len(got) >= a.count else 3
 
     if a.mode == "pub":
-        key, f = wait_token(s, a.domain, "MS", a.topic, deadline)
+        key, f = need_token(s, a, "MS", a.topic, "subscription", deadline)
         if key is None:
-            print(json.dumps({"error": "no subscription token", "topic": a.topic}), flush=True)
             return 3
         _tok = own_token(s, a.domain, 2, "MP", f)
         pub = s.declare_publisher(data_key(a.domain, f))
@@ -166,9 +172,8 @@ def main():
         return 0
 
     if a.mode == "call":
-        key, f = wait_token(s, a.domain, "SS", a.service, deadline)
+        key, f = need_token(s, a, "SS", a.service, "service", deadline)
         if key is None:
-            print(json.dumps({"error": "no service token", "service": a.service}), flush=True)
             return 3
         _tok = own_token(s, a.domain, 3, "SC", f)
         time.sleep(0.3)  # the server learns of the client (its node) before the call

@@ -382,14 +382,8 @@ fn the_node_is_announced_on_ros_discovery_info(c: &Case) {
     if c.engine == EngineKind::Zenoh {
         return the_node_is_announced_by_its_tokens(c);
     }
-    let (codec, _) = set_codec();
-    let node = c.open("announced_node");
+    let announced = AnnouncedNode::open(c);
     let observer = c.raw_cyclone("graph");
-    let (wt, rt) = (c.topic("node_out"), c.topic("node_in"));
-    let q = qos(Reliability::Reliable, History::KeepLast(1), false, Ownership::Shared);
-    let _w = node.writer(&wt, &TopicType::plain(SET_TYPE), &q).unwrap();
-    node.reader(&rt, &TopicType::plain(SET_TYPE), &q, Decode::Set(codec.clone()), Arc::new(|_, _| {})).unwrap();
-    node.announce().unwrap();
 
     let infos = Arc::new(Mutex::new(Vec::<Vec<u8>>::new()));
     let into = infos.clone();
@@ -407,13 +401,8 @@ fn the_node_is_announced_on_ros_discovery_info(c: &Case) {
     });
     observer.raw_reader("ros_discovery_info", &TopicType::stock(DISCOVERY_TYPE), &latched, sink).unwrap();
 
-    let mine = |g: &EndpointId| g.peer == node.own_peer();
-    let (w, r) = until_some("the node's endpoints in discovery", || {
-        let rem = observer.remote();
-        let w = rem.writers_on(&wt).find(|g| mine(g))?;
-        let r = *rem.readers_on(std::slice::from_ref(&rt)).iter().find(|g| mine(g))?;
-        Some((w, r))
-    });
+    let (w, r) = announced.endpoints_seen_by(&observer);
+    let node = &announced.node;
     let want = format!("conf_{}_announced_node", c.number);
     let info = until_some("the node on ros_discovery_info", || {
         node.announce().unwrap();
@@ -438,18 +427,7 @@ fn a_service_answers_each_request_in_its_clients_form(c: &Case) {
     }
     let server = c.open("server");
     let client = c.raw_cyclone("client");
-    let name = c.topic("echo");
-    let (rq_ty, rr_ty) = (TopicType::plain(ECHO_REQUEST), TopicType::plain(ECHO_RESPONSE));
-    let seen = Arc::new(Mutex::new(Vec::<(EndpointId, bool, Vec<u8>)>::new()));
-    let (tx, rx) = std::sync::mpsc::channel::<engine::ReplyTo>();
-    let tap = seen.clone();
-    let tx = Mutex::new(tx);
-    let sink = Arc::new(move |r: Request<'_>| {
-        lock(&tap).push((r.client, r.little_endian, r.body.to_vec()));
-        let _ = lock(&tx).send(r.reply_to);
-    });
-    let service = Service { name: &name, request: &rq_ty, response: &rr_ty };
-    let mut responder = server.serve(&service, sink).unwrap();
+    let Served { name, seen, rx, mut responder } = Served::on(c, server.as_ref());
 
     let q = Qos {
         reliability: Reliability::Reliable,
@@ -466,6 +444,7 @@ fn a_service_answers_each_request_in_its_clients_form(c: &Case) {
         }
     });
     let relative = name.trim_start_matches('/');
+    let (rq_ty, rr_ty) = (TopicType::plain(ECHO_REQUEST), TopicType::plain(ECHO_RESPONSE));
     client.raw_reader(&format!("rr/{relative}Reply"), &rr_ty, &q, on_reply).unwrap();
     let mut w = client.raw_writer(&format!("rq/{relative}Request"), &rq_ty, &q).unwrap();
     let request = |sequence: i64| [&77u64.to_le_bytes()[..], &sequence.to_le_bytes(), &41u64.to_le_bytes()].concat();
@@ -500,22 +479,11 @@ fn a_service_answers_each_request_in_its_clients_form(c: &Case) {
 fn the_node_is_announced_by_its_tokens(c: &Case) {
     use ::zenoh::Wait;
     use tutti_engine::rmw_zenoh::{gid_of_key, Entity, EntityKind as Kind};
-    let (codec, _) = set_codec();
-    let node = c.open("announced_node");
+    let announced = AnnouncedNode::open(c);
     let observer = c.open("graph");
-    let (wt, rt) = (c.topic("node_out"), c.topic("node_in"));
-    let q = qos(Reliability::Reliable, History::KeepLast(1), false, Ownership::Shared);
-    let _w = node.writer(&wt, &TopicType::plain(SET_TYPE), &q).unwrap();
-    node.reader(&rt, &TopicType::plain(SET_TYPE), &q, Decode::Set(codec.clone()), Arc::new(|_, _| {})).unwrap();
-    node.announce().unwrap();
 
-    let mine = |g: &EndpointId| g.peer == node.own_peer();
-    let (w, r) = until_some("the node's endpoints in discovery", || {
-        let rem = observer.remote();
-        let w = rem.writers_on(&wt).find(|g| mine(g))?;
-        let r = *rem.readers_on(std::slice::from_ref(&rt)).iter().find(|g| mine(g))?;
-        Some((w, r))
-    });
+    let (w, r) = announced.endpoints_seen_by(observer.as_ref());
+    let AnnouncedNode { node, wt, rt, .. } = &announced;
     let raw = c.router.as_ref().expect("a router").session();
     let want = format!("conf_{}_announced_node", c.number);
     until("the node's tokens, read by a raw Zenoh session", || {
@@ -533,9 +501,9 @@ fn the_node_is_announced_by_its_tokens(c: &Case) {
         let named = of_node
             .iter()
             .any(|(e, _)| e.kind == Kind::Node && e.node.name == want && e.node.namespace == "/conformance");
-        let writer = of_node.iter().any(|(e, g)| matches!(&e.kind, Kind::Publisher(t) if t.name == wt) && *g == w.gid);
+        let writer = of_node.iter().any(|(e, g)| matches!(&e.kind, Kind::Publisher(t) if t.name == *wt) && *g == w.gid);
         let reader =
-            of_node.iter().any(|(e, g)| matches!(&e.kind, Kind::Subscription(t) if t.name == rt) && *g == r.gid);
+            of_node.iter().any(|(e, g)| matches!(&e.kind, Kind::Subscription(t) if t.name == *rt) && *g == r.gid);
         named && writer && reader
     });
 }
@@ -550,18 +518,7 @@ fn a_service_answers_a_query_in_rmw_zenohs_form(c: &Case) {
     use tutti_engine::rmw_zenoh::qos::QosProfile;
     use tutti_engine::rmw_zenoh::{gid_of_key, Attachment, Entity, EntityKind as Kind, NodeInfo, TopicInfo};
     let server = c.open("server");
-    let name = c.topic("echo");
-    let (rq_ty, rr_ty) = (TopicType::plain(ECHO_REQUEST), TopicType::plain(ECHO_RESPONSE));
-    let seen = Arc::new(Mutex::new(Vec::<(EndpointId, bool, Vec<u8>)>::new()));
-    let (tx, rx) = std::sync::mpsc::channel::<engine::ReplyTo>();
-    let tap = seen.clone();
-    let tx = Mutex::new(tx);
-    let sink = Arc::new(move |r: Request<'_>| {
-        lock(&tap).push((r.client, r.little_endian, r.body.to_vec()));
-        let _ = lock(&tx).send(r.reply_to);
-    });
-    let service = Service { name: &name, request: &rq_ty, response: &rr_ty };
-    let mut responder = server.serve(&service, sink).unwrap();
+    let Served { name, seen, rx, mut responder } = Served::on(c, server.as_ref());
 
     let raw = c.router.as_ref().expect("a router").session();
     let client = Entity {
@@ -613,6 +570,68 @@ fn a_service_answers_a_query_in_rmw_zenohs_form(c: &Case) {
 
 // ---------------------------------------------------------------------------------------
 // The test's own means.
+
+/// A node of the engine under test with a writer on `wt` and a reader on `rt`, announced.
+struct AnnouncedNode {
+    node: Box<dyn Engine>,
+    wt: String,
+    rt: String,
+    _writer: Box<dyn Writer>,
+}
+
+impl AnnouncedNode {
+    fn open(c: &Case) -> AnnouncedNode {
+        let (codec, _) = set_codec();
+        let node = c.open("announced_node");
+        let (wt, rt) = (c.topic("node_out"), c.topic("node_in"));
+        let q = qos(Reliability::Reliable, History::KeepLast(1), false, Ownership::Shared);
+        let _writer = node.writer(&wt, &TopicType::plain(SET_TYPE), &q).unwrap();
+        node.reader(&rt, &TopicType::plain(SET_TYPE), &q, Decode::Set(codec), Arc::new(|_, _| {})).unwrap();
+        node.announce().unwrap();
+        AnnouncedNode { node, wt, rt, _writer }
+    }
+
+    /// Its writer and reader, once `observer`'s discovery lists them.
+    fn endpoints_seen_by(&self, observer: &dyn Engine) -> (EndpointId, EndpointId) {
+        let mine = |g: &EndpointId| g.peer == self.node.own_peer();
+        until_some("the node's endpoints in discovery", || {
+            let rem = observer.remote();
+            let w = rem.writers_on(&self.wt).find(mine)?;
+            let r = *rem.readers_on(std::slice::from_ref(&self.rt)).iter().find(|g| mine(g))?;
+            Some((w, r))
+        })
+    }
+}
+
+/// The scenarios' echo service served by an engine: each request as its sink saw it (client,
+/// byte order, body) and its `ReplyTo`, and the responder.
+/// A request as a sink saw it: its client, its byte order, its body.
+type Seen = (EndpointId, bool, Vec<u8>);
+
+struct Served {
+    name: String,
+    seen: Arc<Mutex<Vec<Seen>>>,
+    rx: std::sync::mpsc::Receiver<engine::ReplyTo>,
+    responder: Box<dyn engine::Responder>,
+}
+
+impl Served {
+    fn on(c: &Case, server: &dyn Engine) -> Served {
+        let name = c.topic("echo");
+        let (rq_ty, rr_ty) = (TopicType::plain(ECHO_REQUEST), TopicType::plain(ECHO_RESPONSE));
+        let seen = Arc::new(Mutex::new(Vec::new()));
+        let (tx, rx) = std::sync::mpsc::channel::<engine::ReplyTo>();
+        let tap = seen.clone();
+        let tx = Mutex::new(tx);
+        let sink = Arc::new(move |r: Request<'_>| {
+            lock(&tap).push((r.client, r.little_endian, r.body.to_vec()));
+            let _ = lock(&tx).send(r.reply_to);
+        });
+        let service = Service { name: &name, request: &rq_ty, response: &rr_ty };
+        let responder = server.serve(&service, sink).unwrap();
+        Served { name, seen, rx, responder }
+    }
+}
 
 const SET_TYPE: &str = "conformance::msg::dds_::Set_";
 const DISCOVERY_TYPE: &str = "rmw_dds_common::msg::dds_::ParticipantEntitiesInfo_";
