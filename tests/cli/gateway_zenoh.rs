@@ -106,6 +106,31 @@ fn an_rmw_zenoh_publisher_writes_into_a_subscribe_set() {
     wait_until(counted, secs(10), || gateway::counter(&gw, "from_dds") > 0);
 }
 
+/// A TRANSIENT_LOCAL set (`states=yes`) is kept in the publisher's cache as rmw_zenoh keeps
+/// it: a subscription that joins late, as rmw_zenoh makes one (an advanced subscriber that
+/// queries late publishers' caches), gets a sample written before it subscribed.
+#[test]
+fn a_late_transient_local_subscription_gets_a_state_from_the_cache() {
+    let Some(py) = python() else { return };
+    let router = ZenohRouter::start();
+    let (dom, ns) = (14, namespace("zgwlate_"));
+    let _host = Host::start(&ns, "gw_states", Duration::from_millis(20), |k| (k as f64).to_ne_bytes().to_vec());
+    let gw = ZENOH.gateway(DDF, dom, &ns, &["--zenoh-connect", router.endpoint()]);
+    let topic = ["--topic", "/gw_states/publish"];
+    let mut first = peer(&py, "first subscription", &router, dom, "sub", &[&topic[..], &["--count", "5"]].concat());
+    assert_eq!(first.wait(secs(90)), Some(0), "{}\n{}", first.dump(), gw.dump());
+    let mut late = peer(&py, "late subscription", &router, dom, "late", &[&topic[..], &["--count", "3"]].concat());
+    assert_eq!(late.wait(secs(90)), Some(0), "{}\n{}", late.dump(), gw.dump());
+    let declared = json_lines(&late, "declared_at")[0]["declared_at"].as_i64().expect("when it subscribed");
+    let samples = json_lines(&late, "seq");
+    assert!(samples.iter().all(|s| s["header"] == "00010000"), "{samples:?}");
+    assert!(
+        samples.iter().any(|s| s["ts"].as_i64().is_some_and(|ts| ts < declared)),
+        "no sample from before the subscription (the cache): {samples:?}\n{}",
+        late.dump()
+    );
+}
+
 /// `get_simulation_state` asked by an rmw_zenoh client (a query on the service's key, the
 /// request after the CDR header, rmw_zenoh's attachment) is answered with the run's state,
 /// and the reply's attachment carries the request's sequence number and the client's GID.

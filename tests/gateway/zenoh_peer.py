@@ -27,6 +27,11 @@ lines on stdout and exits 0 on success, 3 on timeout. Each rule cites rmw_zenoh_
   call --service S --request HEX [--timeout S]: waits for the service's token (SS) on S, declares a
        client token, sends the request as a query; prints {"token": KEY, "seq", "gid", "reply": HEX
        (after the header), "header", "reply_seq", "reply_gid"}
+  late --topic T [--count N] [--timeout S]: a late-joining TRANSIENT_LOCAL subscription, as
+       rmw_zenoh makes one (src/detail/rmw_subscription_data.cpp:192-207): its token with
+       TRANSIENT_LOCAL, keep last 1, and an advanced subscriber that queries late publishers'
+       caches; prints {"declared_at": ns} just before it subscribes, then the samples it got (as
+       sub) once N came or the timeout passed
   graph [--timeout S] [--count N]: every token of the domain once N are known and none came for a
        second: one {"token": KEY} line each
 """
@@ -36,10 +41,12 @@ import sys
 import time
 
 import zenoh
+import zenoh.ext
 from zenoh.ext import Int64, z_deserialize, z_serialize
 
 HEADER_LE = bytes([0, 1, 0, 0])
 DEFAULT_QOS = "::,10:,:,:,,"  # reliable, volatile, keep last 10 (ROS 2's default, as rmw_zenoh writes it)
+LATCHED_QOS = ":1:,1:,:,:,,"  # reliable, TRANSIENT_LOCAL, keep last 1
 
 
 def mangle(name):
@@ -82,10 +89,10 @@ def need_token(s, a, kind, name, what, deadline):
     return key, f
 
 
-def own_token(s, domain, entity_id, kind, f):
+def own_token(s, domain, entity_id, kind, f, qos=DEFAULT_QOS):
     """A token of this node for the same topic, type and hash as the token fields `f`."""
     key = "/".join(["@ros2_lv", str(domain), str(s.zid()), "0", str(entity_id), kind, "%", "%", "zenoh_peer",
-                    f[9], f[10], f[11], DEFAULT_QOS])
+                    f[9], f[10], f[11], qos])
     return key, s.liveliness().declare_token(key)
 
 
@@ -107,7 +114,7 @@ GID = bytes(range(16))  # the GID this node's client and publisher use (rmw_zeno
 
 def main():
     p = argparse.ArgumentParser()
-    p.add_argument("mode", choices=["sub", "pub", "call", "graph"])
+    p.add_argument("mode", choices=["sub", "pub", "call", "graph", "late"])
     p.add_argument("--router", required=True)
     p.add_argument("--domain", type=int, required=True)
     p.add_argument("--topic")
@@ -135,7 +142,7 @@ def main():
         print(json.dumps({"error": "timeout", "tokens": sorted(seen)}), flush=True)
         return 3
 
-    if a.mode == "sub":
+    if a.mode in ("sub", "late"):
         key, f = need_token(s, a, "MP", a.topic, "publisher", deadline)
         if key is None:
             return 3
@@ -150,8 +157,16 @@ def main():
             step = int.from_bytes(body[:8], "little") if len(body) >= 8 else None
             got.append({"seq": seq, "ts": ts, "gid": gid, "header": raw[:4].hex(), "step": step, "body": body.hex()})
 
-        _tok = own_token(s, a.domain, 1, "MS", f)
-        _sub = s.declare_subscriber(data_key(a.domain, f), on_sample)
+        if a.mode == "sub":
+            _tok = own_token(s, a.domain, 1, "MS", f)
+            _sub = s.declare_subscriber(data_key(a.domain, f), on_sample)
+        else:
+            _tok = own_token(s, a.domain, 1, "MS", f, qos=LATCHED_QOS)
+            # A sample written before this moment can only come from the publisher's cache.
+            print(json.dumps({"declared_at": time.time_ns()}), flush=True)
+            history = zenoh.ext.HistoryConfig(detect_late_publishers=True, max_samples=1)
+            _sub = zenoh.ext.declare_advanced_subscriber(s, data_key(a.domain, f), on_sample, history=history,
+                                                         subscriber_detection=True)
         while time.time() < deadline and len(got) < a.count:
             time.sleep(0.05)
         for g in list(got)[:a.count]:
