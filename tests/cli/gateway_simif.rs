@@ -169,7 +169,7 @@ impl Caller {
 }
 
 /// `tutti ctl state --json` in namespace `ns`.
-fn ctl_state(ns: &str) -> Value {
+pub(crate) fn ctl_state(ns: &str) -> Value {
     let mut cmd = tutti_test_support::tutti_command();
     cmd.args(["ctl", "state", "--json"]).env("TUTTI_NAMESPACE", ns);
     let (status, out, err) = tutti_test_support::run_with_timeout(cmd, Duration::from_secs(60));

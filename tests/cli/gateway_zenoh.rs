@@ -13,9 +13,11 @@ use serde_json::Value;
 use tutti_core::ddf::Role;
 use tutti_engine::rmw_zenoh::{gid_of_key, Entity, EntityKind};
 use tutti_engine::EngineKind;
+use tutti_ros2::Struct;
 use tutti_test_support::{hex, lazy, namespace, unhex, wait_until, Proc, ZenohRouter};
 
 use crate::gateway::{self, f64_at, host_with_gateway_by, json_lines, leaf_offset, Eng, Host, DDF};
+use crate::gateway_simif::ctl_state;
 
 const ZENOH: Eng = Eng::of(EngineKind::Zenoh);
 const PEER: &str = "tests/gateway/zenoh_peer.py";
@@ -163,4 +165,61 @@ fn the_simulation_services_answer_an_rmw_zenoh_client() {
     let field = |v: &Value| v.as_u64();
     let result = serde_json::to_value(&response).map(|v| (field(&v["result"]["result"]), field(&v["state"]["state"])));
     assert_eq!(result.ok(), Some((Some(1), Some(1))), "RESULT_OK and STATE_PLAYING: {response:?}");
+}
+
+/// A call of service `name` (of interface `srv`) by an rmw_zenoh client: the request `value`
+/// encoded by the interface, the response decoded by it, as JSON.
+fn call(
+    py: &std::path::Path,
+    router: &ZenohRouter,
+    dom: u16,
+    name: &str,
+    srv: tutti_ros2::Service<'_>,
+    value: tutti_ros2::Value,
+) -> Value {
+    let body = srv.request().encode(&value).expect("a request");
+    let mut c = peer(py, name, router, dom, "call", &["--service", name, "--request", &hex(&body)]);
+    assert_eq!(c.wait(secs(90)), Some(0), "{}", c.dump());
+    let reply = unhex(json_lines(&c, "reply")[0]["reply"].as_str().expect("a reply"));
+    let response = srv.response().decode(&reply, true).unwrap_or_else(|e| panic!("{name}: {e}"));
+    serde_json::to_value(&response).expect("JSON")
+}
+
+/// The action `simulate_steps` for an rmw_zenoh client, its services as queries: paused by
+/// `set_simulation_state`, a goal of 5 steps is accepted, `get_result` (a query the gateway
+/// holds until the goal ends) says SUCCEEDED with RESULT_OK, and the run made exactly 5 steps.
+#[test]
+fn the_simulate_steps_action_runs_for_an_rmw_zenoh_client() {
+    let Some(py) = python() else { return };
+    let router = ZenohRouter::start();
+    let (dom, ns) = (15, namespace("zgwact_"));
+    let mut cmd = tutti_test_support::tutti_command();
+    cmd.env("ZENOH_CONFIG_OVERRIDE", format!(r#"connect/endpoints=["{}"]"#, router.endpoint()));
+    let (host, _segments) = host_with_gateway_by(cmd, ZENOH, DDF, dom, &ns, &[]);
+    let reg = tutti_ros2::registry();
+    let set_state = reg.service("simulation_interfaces/srv/SetSimulationState").expect("SetSimulationState");
+    let paused = Struct::new().with("state", Struct::new().with("state", 2u8)).into();
+    let r = call(&py, &router, dom, "/set_simulation_state", set_state, paused);
+    assert_eq!(r["result"]["result"], 1, "RESULT_OK: {r}\n{}", host.dump());
+    let at = ctl_state(&ns)["step"].as_u64().expect("a step");
+
+    let action = reg.action("simulation_interfaces/action/SimulateSteps").expect("SimulateSteps");
+    let goal_id = || Struct::new().with("uuid", (1..=16u8).map(tutti_ros2::Value::from).collect::<Vec<_>>());
+    let goal = Struct::new().with("goal_id", goal_id()).with("goal", Struct::new().with("steps", 5u64)).into();
+    let r = call(&py, &router, dom, "/simulate_steps/_action/send_goal", action.send_goal(), goal);
+    assert_eq!(r["accepted"], true, "{r}\n{}", host.dump());
+    let r = call(
+        &py,
+        &router,
+        dom,
+        "/simulate_steps/_action/get_result",
+        action.get_result(),
+        Struct::new().with("goal_id", goal_id()).into(),
+    );
+    assert_eq!(
+        (r["status"].as_u64(), r["result"]["result"]["result"].as_u64()),
+        (Some(4), Some(1)),
+        "SUCCEEDED, RESULT_OK: {r}"
+    );
+    assert_eq!(ctl_state(&ns)["step"].as_u64(), Some(at + 5), "exactly 5 steps");
 }
