@@ -88,7 +88,8 @@ fn a_domain_reaches_an_rmw_zenoh_subscription_in_rmw_zenohs_form() {
 }
 
 /// An rmw_zenoh publisher on a SUBSCRIBE set's topic (its token, then samples with rmw_zenoh's
-/// attachment) writes into the set: the framework reads its value.
+/// attachment) writes into the set: the framework reads its value. A sample without the
+/// attachment, sent before each, is dropped and counted as bad input.
 #[test]
 fn an_rmw_zenoh_publisher_writes_into_a_subscribe_set() {
     let Some(py) = python() else { return };
@@ -98,7 +99,7 @@ fn an_rmw_zenoh_publisher_writes_into_a_subscribe_set() {
     let gw = ZENOH.gateway(DDF, dom, &ns, &["--zenoh-connect", router.endpoint()]);
     // GwAsyncSubscribe: step, sim_time, y = 9.5, n = 3.
     let body = [&0u64.to_le_bytes()[..], &0f64.to_le_bytes(), &9.5f64.to_le_bytes(), &3i32.to_le_bytes()].concat();
-    let args = ["--topic", "/gw_async/subscribe", "--body", &hex(&body), "--count", "40"];
+    let args = ["--topic", "/gw_async/subscribe", "--body", &hex(&body), "--count", "40", "--bad"];
     let mut w = peer(&py, "rmw_zenoh publisher", &router, dom, "pub", &args);
     let y = leaf_offset("gw_async", Role::Subscribe, "y");
     let seen = host.wait_for(secs(60), |_, b| f64_at(b, y) == 9.5);
@@ -106,6 +107,8 @@ fn an_rmw_zenoh_publisher_writes_into_a_subscribe_set() {
     assert_eq!(w.wait(secs(60)), Some(0), "{}", w.dump());
     let counted = lazy(|| format!("the gateway counted no sample read\n{}", gw.dump()));
     wait_until(counted, secs(10), || gateway::counter(&gw, "from_dds") > 0);
+    let bad = lazy(|| format!("the samples without an attachment were not counted\n{}", gw.dump()));
+    wait_until(bad, secs(10), || gateway::counter(&gw, "bad_input") >= 3);
 }
 
 /// A TRANSIENT_LOCAL set (`states=yes`) is kept in the publisher's cache as rmw_zenoh keeps

@@ -21,9 +21,10 @@ lines on stdout and exits 0 on success, 3 on timeout. Each rule cites rmw_zenoh_
        declares a subscription token for it (rmw_zenoh's default QoS), subscribes to its data key;
        prints {"token": KEY} for the publisher's token, then one line per sample:
        {"seq", "ts", "gid", "header", "step", "body"} (body in hex, after the header)
-  pub  --topic T --body HEX [--count N] [--timeout S]: waits for the gateway's subscription token
-       on T, declares a publisher token, then writes the sample (header + body) N times, 50 ms apart,
-       with rmw_zenoh's attachment; prints {"token": KEY, "written": N}
+  pub  --topic T --body HEX [--count N] [--bad] [--timeout S]: waits for the gateway's subscription
+       token on T, declares a publisher token, then writes the sample (header + body) N times, 50 ms
+       apart, with rmw_zenoh's attachment (with --bad, each time after one without it: bad input);
+       prints {"token": KEY, "written": N}
   call --service S --request HEX [--timeout S]: waits for the service's token (SS) on S, declares a
        client token, sends the request as a query; prints {"token": KEY, "seq", "gid", "reply": HEX
        (after the header), "header", "reply_seq", "reply_gid"}
@@ -122,6 +123,7 @@ def main():
     p.add_argument("--body", default="")
     p.add_argument("--request", default="")
     p.add_argument("--count", type=int, default=1)
+    p.add_argument("--bad", action="store_true")
     p.add_argument("--timeout", type=float, default=60.0)
     a = p.parse_args()
     deadline = time.time() + a.timeout
@@ -181,6 +183,8 @@ def main():
         pub = s.declare_publisher(data_key(a.domain, f))
         time.sleep(0.5)  # the gateway's subscriber learns of the token, then of the samples
         for seq in range(1, a.count + 1):
+            if a.bad:
+                pub.put(HEADER_LE + bytes.fromhex(a.body))
             pub.put(HEADER_LE + bytes.fromhex(a.body), attachment=attachment(seq, GID))
             time.sleep(0.05)
         print(json.dumps({"token": key, "written": a.count}), flush=True)

@@ -442,6 +442,12 @@ pub trait Engine: Send + Sync {
     /// suppression): an engine whose readers see their own participant's samples (Cyclone)
     /// counts them here.
     fn own_samples(&self) -> u64;
+    /// How many samples, requests and announcements from the network the engine dropped as
+    /// malformed before any sink saw them (Zenoh: no valid attachment, a token that is not
+    /// rmw_zenoh's); a DDS engine's stack drops such input itself, unseen: 0.
+    fn bad_input(&self) -> u64 {
+        0
+    }
     /// Whether the engine's EXCLUSIVE readers deliver only the strongest live writer's
     /// samples (Cyclone); rustdds' readers deliver every writer's, and only the core's
     /// first-writer rule applies above it.

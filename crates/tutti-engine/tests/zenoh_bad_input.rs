@@ -1,6 +1,6 @@
 //! The Zenoh engine under bad input from the network: samples without rmw_zenoh's attachment
 //! or with a malformed one, and liveliness tokens that are not rmw_zenoh's, sent by a raw Zenoh
-//! session. Each is dropped and counted ([`Zenoh::bad_input`]), none reaches a sink or the
+//! session. Each is dropped and counted ([`Zenoh::bad_input_by_kind`], and in all `Engine::bad_input`), none reaches a sink or the
 //! graph, nothing panics, and a good sample after them still arrives.
 #![cfg(feature = "zenoh")]
 
@@ -71,11 +71,12 @@ fn bad_samples_and_tokens_are_counted_and_dropped() {
         (!got.lock().unwrap().is_empty()).then_some(())
     });
     let (attachments, bad_tokens) = wait_for("the bad tokens counted", Duration::from_secs(30), || {
-        let (a, t) = engine.bad_input();
+        let (a, t) = engine.bad_input_by_kind();
         (t >= 3).then_some((a, t))
     });
     assert!(attachments >= 2, "both bad samples of the first round counted: {attachments}");
     assert_eq!(bad_tokens, 3, "each bad token once");
+    assert!(Engine::bad_input(&engine) >= attachments + bad_tokens, "the engine's total for the gateway's stats");
     assert!(got.lock().unwrap().iter().all(|s| *s == good), "only good samples reach the sink");
     assert!(engine.remote().writers.is_empty(), "no bad token in the graph");
 }

@@ -188,6 +188,10 @@ fn total_help(name: &str) -> (&'static str, &'static str) {
         "refused" => ("counter", "DDS samples refused by the role rules (a second writer on an exclusive set)."),
         "late" => ("counter", "DDS samples answering a step the framework had already left."),
         "own_samples" => ("counter", "DDS samples that came back from this gateway itself (dropped)."),
+        "bad_input" => (
+            "counter",
+            "Samples and announcements the engine dropped as malformed (Zenoh: no valid attachment, a foreign token).",
+        ),
         "errors" => ("counter", "Shared-memory or DDS write failures."),
         "skipped" => ("counter", "Synchronous steps the pump could not send to DDS before the framework moved on."),
         "lost" => ("counter", "Synchronous steps the DDS writer refused for the whole step timeout (never sent)."),

@@ -694,6 +694,7 @@ impl Manager {
         self.stats.remote_writers.store(self.writers.len() as u64, Ordering::Relaxed);
         // Our own samples the engine dropped (echo suppression is the engine's).
         self.stats.own_samples.store(self.dds.own_samples(), Ordering::Relaxed);
+        self.stats.bad_input.store(self.dds.bad_input(), Ordering::Relaxed);
         self.stats.remote_readers.store(self.dds_readers() as u64, Ordering::Relaxed);
     }
 

@@ -18,6 +18,9 @@ pub struct Stats {
     pub late: AtomicU64,
     /// DDS samples that came back from this gateway itself (dropped).
     pub own_samples: AtomicU64,
+    /// Samples and announcements the engine dropped as malformed before decoding (Zenoh: no
+    /// valid attachment, a token that is not rmw_zenoh's).
+    pub bad_input: AtomicU64,
     /// Shared-memory or DDS write failures.
     pub errors: AtomicU64,
     /// Steps of a synchronous PUBLISH set that the framework published faster than DDS
@@ -48,6 +51,7 @@ impl Stats {
             ("refused", g(&self.refused)),
             ("late", g(&self.late)),
             ("own_samples", g(&self.own_samples)),
+            ("bad_input", g(&self.bad_input)),
             ("errors", g(&self.errors)),
             ("skipped", g(&self.skipped)),
             ("lost", g(&self.lost)),

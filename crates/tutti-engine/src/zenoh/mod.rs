@@ -301,8 +301,9 @@ impl Zenoh {
             .map_err(|e| zerr(format!("the key of {}", topic.name), e))
     }
 
-    /// How many samples, queries and tokens from the network were dropped as malformed.
-    pub fn bad_input(&self) -> (u64, u64) {
+    /// How many samples and queries (first) and tokens (second) from the network were dropped
+    /// as malformed.
+    pub fn bad_input_by_kind(&self) -> (u64, u64) {
         (self.bad.attachments.load(Ordering::Relaxed), self.bad.tokens.load(Ordering::Relaxed))
     }
 }
@@ -453,6 +454,11 @@ impl Engine for Zenoh {
 
     fn arbitrates_ownership(&self) -> bool {
         false
+    }
+
+    fn bad_input(&self) -> u64 {
+        let (samples, tokens) = self.bad_input_by_kind();
+        samples + tokens
     }
 
     fn writer(&self, topic: &str, ty: &TopicType, q: &Qos) -> Result<Box<dyn Writer>, EngineError> {
