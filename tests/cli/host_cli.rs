@@ -67,6 +67,10 @@ fn host_records_both_sets_and_status_shows_connections() {
         .env("TUTTI_NAMESPACE", &ns);
     let mut g = Guard::spawn(host, &ns);
     wait_until("segments never appeared", Duration::from_secs(60), || segments(&ns) >= 2);
+    // The first recorded step must read the default: commit only once the host has stepped
+    // (segments appear before the first step, and a slow machine may commit before it).
+    let step = || tutti_core::shm::Segment::open(&ns, "grid_feeder").map_or(0, |s| s.status().step);
+    wait_until("the host never stepped", Duration::from_secs(30), || step() >= 2);
     // A participant of the core library, connected while the host runs, shows in status.
     let opts = tutti_core::shm::ConnectOptions { namespace: ns.clone(), name: "probe".into(), ..Default::default() };
     let mut p = tutti_core::shm::Participant::connect("grid_feeder", opts).unwrap();
@@ -79,7 +83,6 @@ fn host_records_both_sets_and_status_shows_connections() {
     assert!(text.contains("probe") && text.contains("writer"), "{text}");
     // Stop the host once it has stepped past the commit: the step after the one under way
     // now reads the committed value, and is recorded once the host has gone on to the next.
-    let step = || tutti_core::shm::Segment::open(&ns, "grid_feeder").map_or(0, |s| s.status().step);
     let committed_at = step();
     wait_until("the host never stepped past the commit", Duration::from_secs(30), || step() >= committed_at + 2);
     drop(p);
