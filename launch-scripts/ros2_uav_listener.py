@@ -17,6 +17,7 @@ import importlib
 import sys
 
 import rclpy
+from rclpy.impl.implementation_singleton import rclpy_implementation
 from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from rclpy.qos import QoSProfile, ReliabilityPolicy, HistoryPolicy, DurabilityPolicy
@@ -40,6 +41,8 @@ class UavListener(Node):
             f"uav{n} step {m.step} t={m.sim_time:.3f}s lat={m.latitude:.6f} lon={m.longitude:.6f} "
             f"elev={m.elevation:.1f} m airspeed={m.airspeed:.1f} m/s heading={m.heading:.1f} deg")
 
+RCLError = rclpy_implementation.RCLError
+
 
 def main():
     rclpy.init(args=sys.argv)
@@ -51,7 +54,12 @@ def main():
         pass
     finally:
         node.destroy_node()
-        rclpy.try_shutdown()
+        try:
+            rclpy.try_shutdown()
+        except RCLError:
+            # Ctrl-C: rclpy's SIGINT handler may be shutting the context down at this moment
+            # (on rmw_zenoh, closing the session takes a while), which try_shutdown misses.
+            pass
 
 
 if __name__ == "__main__":

@@ -225,6 +225,7 @@ pub struct Eng {
 impl Eng {
     pub const CYCLONE: Eng = Eng::of(EngineKind::Cyclone);
     pub const RUSTDDS: Eng = Eng::of(EngineKind::Rustdds);
+    pub const ZENOH: Eng = Eng::of(EngineKind::Zenoh);
 
     /// The test runs of engine `kind`.
     pub const fn of(kind: EngineKind) -> Eng {

@@ -12,14 +12,13 @@ use std::time::Duration;
 use serde_json::Value;
 use tutti_core::ddf::Role;
 use tutti_engine::rmw_zenoh::{gid_of_key, Entity, EntityKind};
-use tutti_engine::EngineKind;
 use tutti_ros2::Struct;
 use tutti_test_support::{hex, lazy, namespace, unhex, wait_until, Proc, ZenohRouter};
 
 use crate::gateway::{self, f64_at, host_with_gateway_by, json_lines, leaf_offset, Eng, Host, DDF};
 use crate::gateway_simif::ctl_state;
 
-const ZENOH: Eng = Eng::of(EngineKind::Zenoh);
+const ZENOH: Eng = Eng::ZENOH;
 const PEER: &str = "tests/gateway/zenoh_peer.py";
 
 fn secs(s: u64) -> Duration {

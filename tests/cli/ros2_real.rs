@@ -1,17 +1,22 @@
-//! The gateway against a real ROS 2 Jazzy: rclpy, rmw_cyclonedds and ros2cli, built from the
-//! sources in `tests/ros2/jazzy` by `launch-scripts/test.sh`, which names the workspace in
-//! `TUTTI_ROS2_WS` (docs/ros2.md, "Tested against ROS 2"):
+//! The gateway against a real ROS 2 Jazzy: rclpy, rmw_cyclonedds, rmw_zenoh and ros2cli, built
+//! from the sources in `tests/ros2/jazzy` by `launch-scripts/test.sh`, which names the
+//! workspace in `TUTTI_ROS2_WS` (docs/ros2.md, "Tested against ROS 2"). Each test runs once per
+//! engine, its ROS 2 processes on the middleware that engine speaks: rmw_cyclonedds_cpp for
+//! `cyclone` and `rustdds`, rmw_zenoh_cpp (through the workspace's own router, `rmw_zenohd`)
+//! for `zenoh`:
 //! * rclpy's own service and action clients, and `ros2 service call` / `ros2 action
 //!   send_goal`, drive every simulation service and the action (feedback, cancel, refusals);
 //! * `launch-scripts/ros2_uav_listener.py` receives the UAV states, which agree with the run's
-//!   recording step by step, per engine;
-//! * an rclpy node with `use_sim_time` takes its time from the gateway's `/clock`, per engine;
+//!   recording step by step;
+//! * an rclpy node with `use_sim_time` takes its time from the gateway's `/clock`;
+//! * `ros2 node list`, `ros2 topic list -t`, `ros2 topic info -v` and `ros2 topic echo` show
+//!   the gateway's node and topics, and an rclpy publisher writes into a SUBSCRIBE set;
 //! * and none of them prints a warning or an error (before type hashes, rmw_cyclonedds
-//!   warned once per endpoint).
+//!   warned once per endpoint; rmw_zenoh warns of a token or attachment it cannot read).
 //!
-//! Every ROS 2 process runs on loopback (`CYCLONEDDS_URI`), in a DDS domain of its test
-//! (142-149; 51 for the services on the rustdds engine), with its logs in the test's temporary
-//! directory, and without the ros2cli daemon.
+//! Every ROS 2 process runs on loopback (`CYCLONEDDS_URI`; the router on a loopback port of its
+//! own), in a ROS domain of its test (142-149 and 51-54 on DDS, 60-66 on Zenoh), with its
+//! logs in the test's temporary directory, and without the ros2cli daemon.
 
 use crate::gateway;
 
@@ -25,7 +30,8 @@ use crate::gateway_simif::{
 };
 use gateway::*;
 use serde_json::Value;
-use tutti_test_support::{namespace, run_output, workspace_bin};
+use tutti_core::ddf::Role;
+use tutti_test_support::{namespace, run_output, workspace_bin, RemoveSegments};
 
 /// Cyclone on loopback only, as the suite's other DDS peers.
 const LOOPBACK: &str = concat!(
@@ -41,26 +47,63 @@ struct Ros2 {
     home: tempfile::TempDir,
     /// Interface packages built by the test, sourced after the workspace.
     overlays: Vec<PathBuf>,
+    /// rmw_zenoh's router, for a test on the Zenoh engine (the ROS 2 processes then run on
+    /// rmw_zenoh_cpp; else on rmw_cyclonedds_cpp).
+    zenohd: Option<Zenohd>,
+}
+
+/// `rmw_zenohd`, the router of rmw_zenoh, listening on a loopback port of its own.
+struct Zenohd {
+    _router: Proc,
+    endpoint: String,
+}
+
+impl Zenohd {
+    /// What points a Zenoh session at this router, as rmw_zenoh and the gateway read it.
+    fn connect_override(&self) -> String {
+        format!(r#"connect/endpoints=["{}"]"#, self.endpoint)
+    }
 }
 
 impl Ros2 {
-    /// The workspace `TUTTI_ROS2_WS` names, as the suite's policy for tools has it.
-    fn get() -> Option<Ros2> {
+    /// The workspace `TUTTI_ROS2_WS` names, as the suite's policy for tools has it, with the
+    /// middleware of engine `e`.
+    fn get(e: Eng) -> Option<Ros2> {
         let found = std::env::var("TUTTI_ROS2_WS")
             .map_err(|_| "TUTTI_ROS2_WS is not set (launch-scripts/test.sh builds tests/ros2/jazzy and sets it)".into())
             .and_then(|ws| {
                 let ws = PathBuf::from(ws);
-                if ws.join("install/setup.bash").is_file() {
-                    Ok(ws)
-                } else {
+                if !ws.join("install/setup.bash").is_file() {
                     Err(format!("{} has no install/setup.bash", ws.display()))
+                } else if e.name == Eng::ZENOH.name && !ws.join(ZENOHD).is_file() {
+                    Err(format!("{} has no {ZENOHD} (built before rmw_zenoh joined it?)", ws.display()))
+                } else {
+                    Ok(ws)
                 }
             });
         let ws = tutti_test_support::require::<_, String>("a ROS 2 Jazzy workspace", found)?;
-        Some(Ros2 { ws, home: tempfile::tempdir().expect("a temporary directory"), overlays: Vec::new() })
+        let home = tempfile::tempdir().expect("a temporary directory");
+        let mut ros = Ros2 { ws, home, overlays: Vec::new(), zenohd: None };
+        if e.name == Eng::ZENOH.name {
+            ros.zenohd = Some(ros.start_zenohd());
+        }
+        Some(ros)
     }
 
-    /// `program` in the ROS 2 environment, in DDS domain `dom`, on loopback.
+    /// The workspace's `rmw_zenohd` on a free loopback port; returns once it accepts.
+    fn start_zenohd(&self) -> Zenohd {
+        let port = std::net::TcpListener::bind("127.0.0.1:0").and_then(|l| l.local_addr()).expect("a free port").port();
+        let zenohd = self.ws.join(ZENOHD);
+        let mut cmd = self.command(0, &[zenohd.to_str().expect("a UTF-8 path")]);
+        cmd.env("ZENOH_CONFIG_OVERRIDE", format!(r#"listen/endpoints=["tcp/127.0.0.1:{port}"]"#));
+        let mut router = Proc::spawn("rmw_zenohd", cmd, SECS(900));
+        let up = tutti_test_support::poll_for(SECS(60), || std::net::TcpStream::connect(("127.0.0.1", port)).ok());
+        assert!(up.is_some() && router.exited().is_none(), "rmw_zenohd never listened\n{}", router.dump());
+        Zenohd { _router: router, endpoint: format!("tcp/127.0.0.1:{port}") }
+    }
+
+    /// `program` in the ROS 2 environment, in ROS domain `dom`, on loopback, on the test's
+    /// middleware.
     fn command(&self, dom: u16, program: &[&str]) -> Command {
         let mut sources = format!(r#"source "{}/install/setup.bash""#, self.ws.display());
         for o in &self.overlays {
@@ -68,16 +111,40 @@ impl Ros2 {
         }
         let mut c = Command::new("bash");
         c.arg("-c").arg(format!(r#"{sources} && exec "$@""#)).arg("ros2-env").args(program);
-        c.env("RMW_IMPLEMENTATION", "rmw_cyclonedds_cpp")
-            .env("ROS_DOMAIN_ID", dom.to_string())
+        c.env("ROS_DOMAIN_ID", dom.to_string())
             .env_remove("ROS_LOCALHOST_ONLY")
             .env_remove("ROS_AUTOMATIC_DISCOVERY_RANGE")
             .env("CYCLONEDDS_URI", LOOPBACK)
+            .env_remove("ZENOH_SESSION_CONFIG_URI")
+            .env_remove("ZENOH_ROUTER_CONFIG_URI")
             .env("ROS_HOME", self.home.path())
             .env("ROS_LOG_DIR", self.home.path().join("log"))
             .env("PYTHONUNBUFFERED", "1")
             .env_remove("ROS_NAMESPACE");
+        match &self.zenohd {
+            None => c.env("RMW_IMPLEMENTATION", "rmw_cyclonedds_cpp").env_remove("ZENOH_CONFIG_OVERRIDE"),
+            Some(z) => c.env("RMW_IMPLEMENTATION", "rmw_zenoh_cpp").env("ZENOH_CONFIG_OVERRIDE", z.connect_override()),
+        };
         c
+    }
+
+    /// `tutti host DDF --gateway` on engine `e` (see [`host_with_gateway`]), on this test's
+    /// router when `e` is Zenoh.
+    fn host(&self, e: Eng, ddf: &str, dom: u16, ns: &str, extra: &[&str]) -> (Proc, RemoveSegments) {
+        let mut cmd = tutti_test_support::tutti_command();
+        if let Some(z) = &self.zenohd {
+            cmd.env("ZENOH_CONFIG_OVERRIDE", z.connect_override());
+        }
+        host_with_gateway_by(cmd, e, ddf, dom, ns, extra)
+    }
+
+    /// `tutti gateway --engine E DDF` (see [`Eng::gateway`]), on this test's router when `e`
+    /// is Zenoh.
+    fn gateway(&self, e: Eng, ddf: &str, dom: u16, ns: &str) -> Proc {
+        match &self.zenohd {
+            None => e.gateway(ddf, dom, ns, &[]),
+            Some(z) => e.gateway(ddf, dom, ns, &["--zenoh-connect", &z.endpoint]),
+        }
     }
 
     /// The workspace's Python (the venv that has rclpy's dependencies) running `script`.
@@ -122,8 +189,11 @@ impl Ros2 {
     }
 }
 
-/// The lines of `lines` in which ROS 2 complains: a warning or an error of a node or of
-/// rmw_cyclonedds, or a Python traceback.
+/// Where the workspace has rmw_zenoh's router.
+const ZENOHD: &str = "install/lib/rmw_zenoh_cpp/rmw_zenohd";
+
+/// The lines of `lines` in which ROS 2 complains: a warning or an error of a node, of
+/// rmw_cyclonedds or of rmw_zenoh, or a Python traceback.
 fn complaints(lines: &[String]) -> Vec<&String> {
     lines
         .iter()
@@ -179,9 +249,9 @@ fn ros2(ros: &Ros2, dom: u16, args: &[&str]) -> Vec<String> {
 /// Every service and the action of a synchronous run, through rclpy's clients and ros2cli,
 /// against the gateway of `tutti host --gateway` on engine `e`.
 fn services_drive_a_synchronous_run(e: Eng, dom: u16) {
-    let Some(ros) = Ros2::get() else { return };
+    let Some(ros) = Ros2::get(e) else { return };
     let ns = namespace(&format!("ros2srv{dom}_"));
-    let (mut host, _segments) = host_with_gateway(e, DDF, dom, &ns, &[]);
+    let (mut host, _segments) = ros.host(e, DDF, dom, &ns, &[]);
 
     let at = rclpy_reads_the_features_and_pauses_the_run(&ros, dom, &ns);
     rclpy_steps_and_simulates_steps_with_feedback_and_cancel(&ros, dom, &ns, at);
@@ -332,9 +402,9 @@ fn rclpy_and_ros2cli_drive_the_simulation_services_rustdds() {
 
 #[test]
 fn rclpy_is_told_why_a_run_of_asynchronous_domains_does_not_step() {
-    let Some(ros) = Ros2::get() else { return };
+    let Some(ros) = Ros2::get(Eng::CYCLONE) else { return };
     let (dom, ns) = (143, namespace("ros2async143_"));
-    let (_host, _segments) = host_with_gateway(Eng::CYCLONE, "tests/gateway/async-only.ddf", dom, &ns, &[]);
+    let (_host, _segments) = ros.host(Eng::CYCLONE, "tests/gateway/async-only.ddf", dom, &ns, &[]);
     let r =
         rclpy_calls(&ros, dom, r#"[["set_simulation_state", 2], ["step_simulation", 1], ["simulate_steps", 2, 0]]"#);
     assert_eq!(result(&r[0]).0, OK);
@@ -377,7 +447,7 @@ fn recorded_uavs(dir: &Path, uavs: &[u32]) -> BTreeMap<u32, BTreeMap<u64, [f64; 
 /// DDF (`idl/multiuav_msgs`) built by colcon, receives UAV 1's and 2's states from the
 /// gateway on engine `e`, and each state it prints is the one the run recorded at its step.
 fn the_uav_listener_prints_the_recorded_states(e: Eng, dom: u16) {
-    let Some(mut ros) = Ros2::get() else { return };
+    let Some(mut ros) = Ros2::get(e) else { return };
     ros.build_interfaces(&tutti_test_support::repo_root().join("idl/multiuav_msgs"));
     let ns = namespace(&format!("ros2uav{dom}_"));
     let dir = tempfile::tempdir().expect("a temporary directory");
@@ -391,7 +461,7 @@ fn the_uav_listener_prints_the_recorded_states(e: Eng, dom: u16) {
         }
     }
     let args: Vec<&str> = args.iter().map(String::as_str).collect();
-    let (mut host, _segments) = host_with_gateway(e, "ddf/multiuav.ddf", dom, &ns, &args);
+    let (mut host, _segments) = ros.host(e, "ddf/multiuav.ddf", dom, &ns, &args);
     let mut uavs = Vec::new();
     for n in [1, 2] {
         let mut cmd = Command::new(workspace_bin("tutti-uav-demo", "tutti-demo"));
@@ -450,9 +520,9 @@ fn the_ros2_uav_listener_prints_the_recorded_states_rustdds() {
 /// An rclpy node with `use_sim_time` beside the gateway on engine `e`: its clock reads the
 /// simulated times `/clock` carries (multiples of the 5 ms step), not the wall clock.
 fn a_node_on_sim_time_follows_clock(e: Eng, dom: u16) {
-    let Some(ros) = Ros2::get() else { return };
+    let Some(ros) = Ros2::get(e) else { return };
     let ns = namespace(&format!("ros2clock{dom}_"));
-    let (_host, _segments) = host_with_gateway(e, DDF, dom, &ns, &[]);
+    let (_host, _segments) = ros.host(e, DDF, dom, &ns, &[]);
     let lines = run_quietly("rclpy on sim time", ros.python(dom, "tests/ros2/sim_time.py", &["200"]), SECS(120));
     let values = |key: &str| -> Vec<u64> {
         lines.iter().filter_map(|l| l.strip_prefix(key)?.split(' ').next()?.parse().ok()).collect()
@@ -483,4 +553,124 @@ fn an_rclpy_node_on_sim_time_follows_the_gateway_clock_cyclone() {
 #[test]
 fn an_rclpy_node_on_sim_time_follows_the_gateway_clock_rustdds() {
     a_node_on_sim_time_follows_clock(Eng::RUSTDDS, 147);
+}
+
+#[test]
+fn an_rclpy_node_on_sim_time_follows_the_gateway_clock_zenoh() {
+    a_node_on_sim_time_follows_clock(Eng::ZENOH, 62);
+}
+
+#[test]
+fn rclpy_and_ros2cli_drive_the_simulation_services_zenoh() {
+    services_drive_a_synchronous_run(Eng::ZENOH, 60);
+}
+
+#[test]
+fn the_ros2_uav_listener_prints_the_recorded_states_zenoh() {
+    the_uav_listener_prints_the_recorded_states(Eng::ZENOH, 61);
+}
+
+/// `ros2 ARGS...` run again (at most 20 times, a second apart) until its output satisfies
+/// `ok`: what ros2cli without its daemon shows of a graph it has just joined may lack what it
+/// discovers a moment later. Returns the last output.
+fn ros2_until(ros: &Ros2, dom: u16, args: &[&str], ok: impl Fn(&str) -> bool) -> String {
+    let mut out = String::new();
+    for _ in 0..20 {
+        out = ros2(ros, dom, args).join("\n");
+        if ok(&out) {
+            return out;
+        }
+        std::thread::sleep(SECS(1));
+    }
+    panic!("ros2 {} never showed what was expected:\n{out}", args.join(" "));
+}
+
+/// The RIHS01 hash rosidl computed for message `name` of package `pkg`, from the type
+/// description it installed (`share/PKG/msg/NAME.json`).
+fn rosidl_hash(install: &Path, pkg: &str, name: &str) -> String {
+    let path = install.join(format!("share/{pkg}/msg/{name}.json"));
+    let text = std::fs::read_to_string(&path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+    let v: Value = serde_json::from_str(&text).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+    let want = format!("{pkg}/msg/{name}");
+    let hashes = v["type_hashes"].as_array().unwrap_or_else(|| panic!("{}: no type_hashes", path.display()));
+    let h = hashes.iter().find(|h| h["type_name"] == want.as_str()).unwrap_or_else(|| panic!("{want} in {path:?}"));
+    h["hash_string"].as_str().expect("a hash string").to_string()
+}
+
+/// The gateway of `tests/gateway/gw.ddf` on engine `e`, seen and written by ROS 2's own tools:
+/// `ros2 node list` shows its node, `ros2 topic list -t` its topics with their types, `ros2
+/// topic info -v` its writer with the QoS of the domain's flags and the type hash rosidl
+/// computes, `ros2 topic echo` a sample; an rclpy publisher's message reaches the framework
+/// through a SUBSCRIBE set.
+fn ros2cli_sees_the_gateway_and_rclpy_writes_a_subscribe_set(e: Eng, dom: u16) {
+    let Some(mut ros) = Ros2::get(e) else { return };
+    let idl = tempfile::tempdir().expect("a temporary directory");
+    let mut cmd = tutti_test_support::tutti_command();
+    cmd.args(["idl", DDF, "--out"]).arg(idl.path());
+    let (status, _, err) = tutti_test_support::run_with_timeout(cmd, SECS(60));
+    assert!(status.success(), "tutti idl: {err}");
+    ros.build_interfaces(&idl.path().join("gw_msgs"));
+    let install = ros.overlays.last().expect("the interfaces' install").clone();
+
+    let ns = namespace(&format!("ros2cli{dom}_"));
+    let x = leaf_offset("gw_async", Role::Publish, "x");
+    let host = Host::start(&ns, "gw_async", SECS(1) / 100, move |k| {
+        let mut b = vec![0u8; 40];
+        b[x..x + 8].copy_from_slice(&(k as f64).to_ne_bytes());
+        b
+    });
+    let _gw = ros.gateway(e, DDF, dom, &ns);
+
+    ros2_until(&ros, dom, &["node", "list", "--no-daemon"], |o| o.lines().any(|l| l == "/tutti_gateway"));
+    let topics = ros2_until(&ros, dom, &["topic", "list", "-t", "--no-daemon"], |o| {
+        o.contains("/gw_async/publish [gw_msgs/msg/GwAsyncPublish]")
+            && o.contains("/gw_async/subscribe [gw_msgs/msg/GwAsyncSubscribe]")
+    });
+    assert!(topics.contains("/gw_sync/publish [gw_msgs/msg/GwSyncPublish]"), "{topics}");
+
+    let info = ros2_until(&ros, dom, &["topic", "info", "-v", "/gw_async/publish", "--no-daemon"], |o| {
+        o.contains("Node name: tutti_gateway") && o.contains("Endpoint type: PUBLISHER")
+    });
+    let hash = rosidl_hash(&install, "gw_msgs", "GwAsyncPublish");
+    assert!(info.contains(&format!("Topic type hash: {hash}")), "rosidl's hash {hash}:\n{info}");
+    // The asynchronous domain's PUBLISH set (docs/gateway.md, "QoS"): its latest value,
+    // delivered reliably, to those who are there.
+    for qos in ["Reliability: RELIABLE", "History (Depth): KEEP_LAST (1)", "Durability: VOLATILE"] {
+        assert!(info.contains(qos), "{qos}:\n{info}");
+    }
+
+    let echo = ros2(&ros, dom, &["topic", "echo", "--once", "--no-daemon", "/gw_async/publish"]).join("\n");
+    let field = |name: &str| -> f64 {
+        let v = echo.lines().find_map(|l| l.trim().strip_prefix(name)?.strip_prefix(": ")?.parse().ok());
+        v.unwrap_or_else(|| panic!("no {name} in the echo:\n{echo}"))
+    };
+    // The framework writes x = its step; the gateway samples the set as it changes.
+    assert!(field("x") >= 1.0 && field("step") >= 1.0 && echo.contains("flag: false"), "{echo}");
+
+    let fields = r#"{"y": 9.5, "n": 3}"#;
+    let cmd =
+        ros.python(dom, "tests/ros2/publish.py", &["/gw_async/subscribe", "gw_msgs/msg/GwAsyncSubscribe", fields]);
+    let mut publisher = Proc::spawn("rclpy publisher", cmd, SECS(180));
+    let y = leaf_offset("gw_async", Role::Subscribe, "y");
+    let seen = host.wait_for(SECS(60), |_, b| f64_at(b, y) == 9.5);
+    assert!(seen.is_some(), "the framework never read y = 9.5\n{}", publisher.dump());
+    assert_eq!(publisher.interrupt(SECS(20)), Some(0), "Ctrl-C of the publisher\n{}", publisher.dump());
+    let lines = publisher.lines();
+    let bad = complaints(&lines);
+    assert!(bad.is_empty(), "the publisher complained:\n{bad:#?}\n{}", publisher.dump());
+}
+
+#[test]
+fn ros2cli_sees_the_gateway_and_rclpy_writes_a_subscribe_set_cyclone() {
+    ros2cli_sees_the_gateway_and_rclpy_writes_a_subscribe_set(Eng::CYCLONE, 148);
+}
+
+#[test]
+fn ros2cli_sees_the_gateway_and_rclpy_writes_a_subscribe_set_rustdds() {
+    ros2cli_sees_the_gateway_and_rclpy_writes_a_subscribe_set(Eng::RUSTDDS, 149);
+}
+
+#[test]
+fn ros2cli_sees_the_gateway_and_rclpy_writes_a_subscribe_set_zenoh() {
+    ros2cli_sees_the_gateway_and_rclpy_writes_a_subscribe_set(Eng::ZENOH, 63);
 }
