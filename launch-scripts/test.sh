@@ -11,7 +11,8 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
-step() { printf '\n== %s\n' "$*"; }
+# Each step says when it starts (seconds since this script did), so that a slow one shows.
+step() { printf '\n== [%ss] %s\n' "$SECONDS" "$*"; }
 . launch-scripts/lib.sh
 
 # --- Debian packages: DDS peers and tools for the interop tests, what the Cyclone engine's
@@ -83,10 +84,11 @@ if ! [ -d tests/foxglove/node_modules/@foxglove/ws-protocol ]; then
     step "installing the Foxglove WebSocket client into tests/foxglove/node_modules"
     (cd tests/foxglove && npm ci --no-audit --no-fund --loglevel=error)
 fi
-# --- A real ROS 2 Jazzy (rclpy, rmw_cyclonedds, ros2cli, simulation_interfaces), built with
-# colcon from the sources in tests/ros2/jazzy (see its README.md): about 8 minutes the first
-# time; the workspace under ~/.cache/tutti is reused while those sources are unchanged. The
-# ROS 2 tests (tests/cli/ros2_real.rs) find it in TUTTI_ROS2_WS.
+# --- A real ROS 2 Jazzy (rclpy, rmw_cyclonedds, rmw_zenoh with its router, ros2cli,
+# simulation_interfaces), built with colcon from the sources in tests/ros2/jazzy (see its
+# README.md): about 20 minutes on 2 cores the first time; the workspace under ~/.cache/tutti is
+# reused while those sources are unchanged. The ROS 2 tests (tests/cli/ros2_real.rs) find it
+# in TUTTI_ROS2_WS.
 step "ROS 2 Jazzy for the ROS 2 tests (tests/ros2/jazzy)"
 mkdir -p target
 if ! TUTTI_ROS2_WS=$(tests/ros2/jazzy/build.sh 2>target/ros2-build.log); then
@@ -131,4 +133,4 @@ if [ -n "$leftover" ]; then
     echo "$leftover" >&2
     exit 1
 fi
-echo "all checks passed"
+echo "all checks passed in ${SECONDS}s"

@@ -24,6 +24,9 @@ pub enum PeerError {
     /// The echo writes back what it reads: its domain's two sets must have one layout.
     #[error("domain '{domain}': the echo needs equal PUBLISH and SUBSCRIBE layouts")]
     EchoLayouts { domain: String },
+    /// The gateway's options leave the set out.
+    #[error("domain '{domain}': its {role} set is not bridged")]
+    NotBridged { domain: String, role: Role },
     /// A ping got no answer from the echo.
     #[error("no echo (is the loopback interface up?)")]
     NoEcho,
@@ -52,6 +55,16 @@ fn typed_sink(codec: Arc<SetCodec>, f: impl Fn(TypedSample) + Send + Sync + 'sta
     })
 }
 
+/// The ROS 2 topic and the type of `role`'s set of `domain` as the gateway serves them (its
+/// plan): the type with the hash its endpoints announce. On Zenoh the hash is part of every
+/// key, so a peer without it would never meet the gateway.
+fn set_topic(opts: &GatewayOptions, domain: &Domain, role: Role) -> Result<(String, TopicType), PeerError> {
+    let plan = tutti_gateway::config::plan(opts).map_err(GatewayError::from)?;
+    let set = plan.into_iter().find(|s| s.role == role && opts.model.domains[s.domain].name == domain.name);
+    let set = set.ok_or_else(|| PeerError::NotBridged { domain: domain.name.clone(), role })?;
+    Ok((set.ros2_topic.clone(), set.topic_type()))
+}
+
 /// Echoes domain `domain` of `opts.model` until `stop`; returns the samples echoed.
 pub fn run(opts: &GatewayOptions, domain: &Domain, stop: Arc<AtomicBool>) -> Result<u64, PeerError> {
     if domain.publish.layout != domain.subscribe.layout {
@@ -70,13 +83,7 @@ pub fn run(opts: &GatewayOptions, domain: &Domain, stop: Arc<AtomicBool>) -> Res
         }
         w.flush();
     });
-    ep.dds.reader(
-        &ep.reads.ros2_topic,
-        &TopicType::plain(&ep.reads.dds_type),
-        &ep.rq,
-        Decode::Set(ep.codec.clone()),
-        sink,
-    )?;
+    ep.dds.reader(&ep.reads.0, &ep.reads.1, &ep.rq, Decode::Set(ep.codec.clone()), sink)?;
     while !stop.load(Ordering::Acquire) {
         std::thread::sleep(Duration::from_millis(50));
     }
@@ -127,8 +134,7 @@ pub fn sink(
     ordered: bool,
 ) -> Result<Received, PeerError> {
     let dds = engine::open(opts.engine, &opts.engine_config())?;
-    let pkg = mapping::package_name(&opts.ddf_path);
-    let names = mapping::set_names(&pkg, &domain.name, role);
+    let (topic, ty) = set_topic(opts, domain, role)?;
     let mut rq = mapping::qos(domain.flags, opts.profile, Endpoint::Reader, 0);
     if !ordered {
         rq.reliability = Reliability::BestEffort;
@@ -160,7 +166,7 @@ pub fn sink(
             *last = Some(last.map_or(s.step, |prev| prev.max(s.step)));
         }
     });
-    dds.reader(&names.ros2_topic, &TopicType::plain(&names.dds_type), &rq, Decode::Set(codec), counter)?;
+    dds.reader(&topic, &ty, &rq, Decode::Set(codec), counter)?;
     let start = Instant::now();
     loop {
         std::thread::sleep(Duration::from_millis(20));
@@ -187,12 +193,11 @@ pub fn source(
     stop: Arc<AtomicBool>,
 ) -> Result<u64, PeerError> {
     let dds = engine::open(opts.engine, &opts.engine_config())?;
-    let pkg = mapping::package_name(&opts.ddf_path);
-    let names = mapping::set_names(&pkg, &domain.name, Role::Subscribe);
+    let (topic, ty) = set_topic(opts, domain, Role::Subscribe)?;
     let wq = mapping::qos(domain.flags, opts.profile, Endpoint::Writer, 0);
     let layout = &domain.subscribe.layout;
     let codec = SetCodec::new(layout);
-    let mut w = dds.writer(&names.ros2_topic, &TopicType::plain(&names.dds_type), &wq)?;
+    let mut w = dds.writer(&topic, &ty, &wq)?;
     std::thread::sleep(settle);
     let mut shm = vec![0u8; layout.size as usize];
     let mut body = Vec::new();
@@ -227,13 +232,7 @@ pub fn ping(opts: &GatewayOptions, domain: &Domain, samples: u32, patience: Dura
     let back = Arc::new(AtomicU64::new(0));
     let b = back.clone();
     let sink = typed_sink(ep.codec.clone(), move |s| b.store(s.step, Ordering::Release));
-    ep.dds.reader(
-        &ep.reads.ros2_topic,
-        &TopicType::plain(&ep.reads.dds_type),
-        &ep.rq,
-        Decode::Set(ep.codec.clone()),
-        sink,
-    )?;
+    ep.dds.reader(&ep.reads.0, &ep.reads.1, &ep.rq, Decode::Set(ep.codec.clone()), sink)?;
     let shm = vec![0u8; ep.codec.shm_size()];
     let mut body = Vec::new();
     let mut once = |step: u64, limit: Duration| -> Option<f64> {
@@ -332,7 +331,7 @@ pub fn ping_in_listener(
             ch.send(&cd, step + 1);
         }
     });
-    dds.reader(&reads.ros2_topic, &TopicType::plain(&reads.dds_type), &rq, Decode::Set(codec.clone()), sink)?;
+    dds.reader(&reads.0, &reads.1, &rq, Decode::Set(codec.clone()), sink)?;
     let end = Instant::now() + patience;
     let mut last = (0usize, Instant::now());
     loop {
@@ -368,7 +367,8 @@ struct Endpoints {
     writer: Box<dyn Writer>,
     dds: Box<dyn Engine>,
     codec: Arc<SetCodec>,
-    reads: mapping::SetNames,
+    /// The topic read and its type.
+    reads: (String, TopicType),
     rq: mapping::Qos,
 }
 
@@ -376,16 +376,15 @@ impl Endpoints {
     /// `reads`: the set whose topic is read (the echo reads PUBLISH, the ping SUBSCRIBE).
     fn open(opts: &GatewayOptions, domain: &Domain, reads: Role) -> Result<Endpoints, PeerError> {
         let dds = engine::open(opts.engine, &opts.engine_config())?;
-        let pkg = mapping::package_name(&opts.ddf_path);
         let writes = match reads {
             Role::Publish => Role::Subscribe,
             Role::Subscribe => Role::Publish,
         };
-        let (rn, wn) = (mapping::set_names(&pkg, &domain.name, reads), mapping::set_names(&pkg, &domain.name, writes));
+        let (rn, wn) = (set_topic(opts, domain, reads)?, set_topic(opts, domain, writes)?);
         let rq = mapping::qos(domain.flags, opts.profile, Endpoint::Reader, 0);
         let wq = mapping::qos(domain.flags, opts.profile, Endpoint::Writer, 0);
         let codec = Arc::new(SetCodec::new(&domain.publish.layout));
-        let writer = dds.writer(&wn.ros2_topic, &TopicType::plain(&wn.dds_type), &wq)?;
+        let writer = dds.writer(&wn.0, &wn.1, &wq)?;
         Ok(Endpoints { writer, dds, codec, reads: rn, rq })
     }
 }

@@ -18,7 +18,8 @@ const LOOPBACK: &str = "<CycloneDDS xmlns=\"https://cdds.io/config\"><Domain id=
 const FASTDDS_SRC: &str = include_str!("fastdds_pingpong.cpp");
 
 impl Bench<'_> {
-    /// ddsperf (back to back and paced) and Fast DDS on the placement's cores.
+    /// ddsperf (back to back and paced), Fast DDS and Zenoh's ping-pong on the placement's
+    /// cores.
     pub(super) fn peers(&mut self, cpus: Cpus, fastdds: &Fig<PathBuf>) -> Peers {
         let at = |what: &str| format!("{}: {what}", cpus.key);
         let ddsperf = noted(self.ddsperf(cpus, None, false), &at("ddsperf"));
@@ -28,7 +29,11 @@ impl Bench<'_> {
             Ok(bin) => noted(self.fastdds(bin, cpus), &at("fastdds")),
             Err(why) => Err(why.clone()),
         };
-        Peers { ddsperf, ddsperf_paced, ddsperf_waitset, fastdds }
+        let zenoh = match self.zenoh_router {
+            Some(_) => noted(self.zenoh_ping_pong(cpus), &at("Zenoh ping-pong")),
+            None => Err("the zenoh engine is not in --engines".to_string()),
+        };
+        Peers { ddsperf, ddsperf_paced, ddsperf_waitset, fastdds, zenoh }
     }
 
     /// ddsperf ping-pong, back to back (`rate` None: a ping as soon as the pong is in) or at

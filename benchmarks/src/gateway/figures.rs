@@ -68,7 +68,7 @@ pub(super) struct EngineRun {
     pub lock: Fig<LockStep>,
 }
 
-/// DDS without tutti, once per placement.
+/// DDS (and Zenoh) without tutti, once per placement.
 #[derive(Debug)]
 pub(super) struct Peers {
     pub ddsperf: Fig<Rtt>,
@@ -77,6 +77,8 @@ pub(super) struct Peers {
     /// shape of a framework awaiting an answer.
     pub ddsperf_waitset: Fig<Rtt>,
     pub fastdds: Fig<Rtt>,
+    /// Zenoh's own ping-pong (`z_ping` / `z_pong`'s loop), when the zenoh engine is measured.
+    pub zenoh: Fig<Rtt>,
 }
 
 #[derive(Debug)]

@@ -16,6 +16,8 @@ struct JsonRun {
     rtt_p99_us: Option<f64>,
     ddsperf_rtt_p50_us: Option<f64>,
     fastdds_rtt_p50_us: Option<f64>,
+    /// Zenoh's own ping-pong (`z_ping`'s loop) on the same cores.
+    zenoh_rtt_p50_us: Option<f64>,
     shm_to_dds_per_s: Option<f64>,
     dds_to_shm_per_s: Option<f64>,
     sync_steps_per_s: Option<f64>,
@@ -73,6 +75,7 @@ pub(super) fn to_json(runs: &[PlacementRun], large: &[(EngineKind, LargeFig)]) -
                 rtt_p99_us: r.rtt.as_ref().ok().map(|t| tenths(t.p99)),
                 ddsperf_rtt_p50_us: p50(&run.peers.ddsperf),
                 fastdds_rtt_p50_us: p50(&run.peers.fastdds),
+                zenoh_rtt_p50_us: p50(&run.peers.zenoh),
                 shm_to_dds_per_s: r.to_dds.as_ref().ok().map(|x| x.round()),
                 dds_to_shm_per_s: r.from_dds.as_ref().ok().map(|x| x.round()),
                 sync_steps_per_s: r.lock.as_ref().ok().map(|l| l.per_s.round()),

@@ -29,10 +29,12 @@ impl Bench<'_> {
             node_name: "bench_peer".into(),
             node_namespace: "/".into(),
             participant_lease: None,
-            zenoh_connect: Vec::new(),
+            zenoh_connect: self.zenoh_router.iter().cloned().collect(),
             zenoh_listen: Vec::new(),
         };
-        let peer = tutti_gateway::engine::open(EngineKind::Cyclone, &peer_cfg).context("the DDS peer")?;
+        // The peer speaks what the gateway speaks: Zenoh to the Zenoh engine, else DDS.
+        let peer_engine = if e == EngineKind::Zenoh { e } else { EngineKind::Cyclone };
+        let peer = tutti_gateway::engine::open(peer_engine, &peer_cfg).context("the peer")?;
         let t = Instant::now();
         let ddf = self.args.large.to_string_lossy();
         let mut cmd = self.tutti(e, slot, &["gateway", &ddf, "--interface", "127.0.0.1", "--status-every", "1h"]);

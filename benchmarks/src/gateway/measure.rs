@@ -94,7 +94,7 @@ impl Bench<'_> {
     pub(super) fn engine_ping(&mut self, e: EngineKind, cpus: Cpus, in_listener: bool) -> anyhow::Result<Rtt> {
         let slot = self.slot();
         let _echo = self.echo_peer(e, &slot, false, cpus.peer)?;
-        let (mut opts, d) = peer_opts(&self.async_ddf, slot.dom, e)?;
+        let (mut opts, d) = peer_opts(&self.async_ddf, slot.dom, e, self.zenoh_router.as_deref())?;
         opts.node_name = "tutti_bench_ping".into();
         pin_self(cpus.gw);
         let t = if in_listener {
@@ -131,11 +131,11 @@ impl Bench<'_> {
         if synchronous {
             what.push("--ordered");
         }
-        // The synchronous set's sink reads with Cyclone on either engine: a rustdds KEEP_ALL
-        // reader acknowledges samples as they arrive and then drops those its reader task has
-        // not taken when its cache holds more than 64 (docs/gateway.md, "Not done / known
-        // limits"), which would count rustdds' reader, not the gateway, as losing steps.
-        let sink_engine = if synchronous { EngineKind::Cyclone } else { e };
+        // The synchronous set's sink of the rustdds engine's runs reads with Cyclone: a rustdds
+        // KEEP_ALL reader acknowledges samples as they arrive and then drops those its reader
+        // task has not taken when its cache holds more than 64 (docs/gateway.md, "Not done /
+        // known limits"), which would count rustdds' reader, not the gateway, as losing steps.
+        let sink_engine = if synchronous && e == EngineKind::Rustdds { EngineKind::Cyclone } else { e };
         let mut sink = self.peer(sink_engine, &slot, cpus.peer, &what)?;
         let mut data = vec![0u8; ITEMS * 8];
         let end = Instant::now() + self.args.duration + PATIENCE + Duration::from_secs(10);

@@ -29,6 +29,7 @@ mod measure;
 mod modes;
 mod processes;
 mod tables;
+mod zenoh;
 
 use std::path::{Path, PathBuf};
 use std::time::Duration;
@@ -96,6 +97,12 @@ pub struct Args {
     /// Internal: write SUBSCRIBE samples of DDF flat out.
     #[arg(long, hide = true, value_name = "DDF")]
     source: Option<PathBuf>,
+    /// Internal: the Zenoh router of the run, for a peer on the Zenoh engine.
+    #[arg(long, hide = true, value_name = "ENDPOINT")]
+    zenoh_connect: Option<String>,
+    /// Internal: run Zenoh's pong (answer every ping with its payload).
+    #[arg(long, hide = true)]
+    zenoh_pong: bool,
 }
 
 /// Where the gateway runs.
@@ -143,6 +150,8 @@ struct Bench<'a> {
     async_ddf: PathBuf,
     sync_ddf: PathBuf,
     next: u16,
+    /// The endpoint of the run's Zenoh router, when the zenoh engine is measured.
+    zenoh_router: Option<String>,
 }
 
 /// The scratch directory of this run (the benchmark's DDFs).
@@ -175,6 +184,9 @@ pub fn run(args: Args) -> CliResult {
     if let Some(ddf) = &args.source {
         return modes::source(ddf, &args);
     }
+    if args.zenoh_pong {
+        return zenoh::pong(&args);
+    }
     let placements = Cpus::parse(&args.placement).map_err(Failure::invalid)?;
     clean_up_on_signal()?;
     let n_eng = args.engines.len() as u16;
@@ -197,7 +209,14 @@ pub fn run(args: Args) -> CliResult {
     let (async_ddf, sync_ddf) = (dir.join("gwbench.ddf"), dir.join("gwsync.ddf"));
     std::fs::write(&async_ddf, ddf_text("gwbench", false)).context("writing the benchmark DDF")?;
     std::fs::write(&sync_ddf, ddf_text("gwsync", true)).context("writing the benchmark DDF")?;
-    let mut b = Bench { args: &args, exe, bench_exe, dir, async_ddf, sync_ddf, next: 0 };
+    // The Zenoh engine's sessions meet at a router, as rmw_zenoh's nodes at rmw_zenohd; kept
+    // until the run ends.
+    let router = match args.engines.contains(&EngineKind::Zenoh) {
+        true => Some(zenoh::router()?),
+        false => None,
+    };
+    let zenoh_router = router.as_ref().map(|(_, endpoint)| endpoint.clone());
+    let mut b = Bench { args: &args, exe, bench_exe, dir, async_ddf, sync_ddf, next: 0, zenoh_router };
     let result = b.run_all(&placements);
     let _ = std::fs::remove_dir_all(&b.dir);
     let (runs, large) = result?;
@@ -259,7 +278,7 @@ impl Bench<'_> {
     /// Whether engine `e` opens a participant here (the Cyclone engine may not be built).
     fn check_engine(&mut self, e: EngineKind) -> Fig<()> {
         let slot = self.slot();
-        let r = modes::peer_opts(&self.async_ddf, slot.dom, e)
+        let r = modes::peer_opts(&self.async_ddf, slot.dom, e, self.zenoh_router.as_deref())
             .and_then(|(opts, _)| tutti_gateway::engine::open(e, &opts.engine_config()).map_err(anyhow::Error::new));
         noted(r.map(drop), e.name())
     }

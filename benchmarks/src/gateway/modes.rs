@@ -33,28 +33,32 @@ pub(super) fn sink_result(kid: &mut ChildProcess) -> anyhow::Result<Received> {
     }
 }
 
+/// The options of a peer (or an in-process gateway) on `engine` in DDS domain `domain_id`,
+/// on loopback; on Zenoh, connected to the run's router at `zenoh_router`.
 pub(super) fn peer_opts(
     ddf: &Path,
     domain_id: u16,
     engine: EngineKind,
+    zenoh_router: Option<&str>,
 ) -> anyhow::Result<(GatewayOptions, tutti_core::ddf::Domain)> {
     let model = load_ddf(ddf).map_err(|f| f.error)?;
     let mut opts = GatewayOptions::new(ddf, model.clone());
     opts.ros_domain_id = domain_id;
     opts.engine = engine;
     opts.interfaces = vec![std::net::IpAddr::V4(std::net::Ipv4Addr::LOCALHOST)];
+    opts.zenoh_connect = zenoh_router.into_iter().map(str::to_string).collect();
     let d = model.domains.first().context("the DDF has no domain")?.clone();
     Ok((opts, d))
 }
 
 pub(super) fn echo(ddf: &Path, args: &Args) -> CliResult {
-    let (opts, d) = peer_opts(ddf, args.ros_domain_id, args.dds)?;
+    let (opts, d) = peer_opts(ddf, args.ros_domain_id, args.dds, args.zenoh_connect.as_deref())?;
     crate::peers::run(&opts, &d, tutti_exit::stop_flag()?).map_err(anyhow::Error::new)?;
     Ok(())
 }
 
 pub(super) fn sink(ddf: &Path, role: &str, args: &Args) -> CliResult {
-    let (opts, d) = peer_opts(ddf, args.ros_domain_id, args.dds)?;
+    let (opts, d) = peer_opts(ddf, args.ros_domain_id, args.dds, args.zenoh_connect.as_deref())?;
     let role = if role == "publish" { Role::Publish } else { Role::Subscribe };
     let r = crate::peers::sink(&opts, &d, role, args.duration, PATIENCE, args.ordered).map_err(anyhow::Error::new)?;
     println!("{} {} {} {} {}", r.samples, r.secs, r.lost, r.misordered, r.skipped_joining);
@@ -62,7 +66,7 @@ pub(super) fn sink(ddf: &Path, role: &str, args: &Args) -> CliResult {
 }
 
 pub(super) fn source(ddf: &Path, args: &Args) -> CliResult {
-    let (opts, d) = peer_opts(ddf, args.ros_domain_id, args.dds)?;
+    let (opts, d) = peer_opts(ddf, args.ros_domain_id, args.dds, args.zenoh_connect.as_deref())?;
     crate::peers::source(&opts, &d, Duration::from_millis(500), tutti_exit::stop_flag()?)
         .map_err(anyhow::Error::new)?;
     Ok(())

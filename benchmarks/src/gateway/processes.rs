@@ -161,11 +161,11 @@ impl Bench<'_> {
     /// `exe ARGS` for `slot` and engine `e`.
     fn command(&self, exe: &Path, e: EngineKind, slot: &Slot, args: &[&str]) -> Command {
         let mut cmd = Command::new(exe);
-        cmd.args(args)
-            .args(["--ros-domain-id", &slot.dom.to_string(), "--dds", e.name()])
-            .env("TUTTI_NAMESPACE", &slot.ns)
-            .env("RUST_LOG", QUIET_LOG)
-            .stdin(Stdio::null());
+        cmd.args(args).args(["--ros-domain-id", &slot.dom.to_string(), "--dds", e.name()]);
+        if let (EngineKind::Zenoh, Some(router)) = (e, &self.zenoh_router) {
+            cmd.args(["--zenoh-connect", router]);
+        }
+        cmd.env("TUTTI_NAMESPACE", &slot.ns).env("RUST_LOG", QUIET_LOG).stdin(Stdio::null());
         cmd
     }
 
@@ -197,7 +197,7 @@ impl Bench<'_> {
         if mode == GatewayMode::Process {
             return Ok(Gw::Process(self.gateway(e, slot, synchronous, cpus)?));
         }
-        let (mut opts, _) = peer_opts(self.ddf(synchronous), slot.dom, e)?;
+        let (mut opts, _) = peer_opts(self.ddf(synchronous), slot.dom, e, self.zenoh_router.as_deref())?;
         opts.poll = Duration::ZERO;
         opts.wait = cpus.wait(synchronous);
         // Threads inherit the CPU of the thread that starts them.

@@ -7,15 +7,21 @@ use tutti_gateway::EngineKind;
 use super::figures::{rate, EngineRun, Fig, LargeFig, Peers, PlacementRun, Rtt};
 use super::{GatewayMode, ITEMS};
 
-/// Targets of the Cyclone engine.
+/// Targets of the Cyclone engine (against ddsperf) and of the Zenoh engine (against Zenoh's
+/// own ping-pong): the round trip's p50 over the peer's, the rate shm -> the engine.
 const TARGET_RTT_RATIO: f64 = 1.3;
 const TARGET_RATE: f64 = 300_000.0;
 const TARGET_STARTUP_S: f64 = 2.0;
 
 /// Which figure of an engine's run a row shows.
 type Get<T> = fn(&EngineRun) -> &Fig<T>;
-/// The engine a target applies to and whether a figure meets it.
-type Target = Option<(EngineKind, fn(f64) -> bool)>;
+/// Whether a figure meets its target, where one applies.
+type Target = Option<fn(f64) -> bool>;
+
+/// `met` where engine `e` is one of `engines`, whose target it is.
+fn target_of(e: EngineKind, engines: &[EngineKind], met: fn(f64) -> bool) -> Target {
+    engines.contains(&e).then_some(met)
+}
 
 /// One row of a placement's table: a label and one cell per engine.
 fn row(label: &str, cells: impl IntoIterator<Item = String>) {
@@ -23,16 +29,16 @@ fn row(label: &str, cells: impl IntoIterator<Item = String>) {
     println!("  {label:<62}{cells}");
 }
 
-/// A figure's cell: `show` of it, "-" when not measured; "ok" or "MISSED" after the
-/// Cyclone engine's figure where `target` says whether it met its target.
+/// A figure's cell: `show` of it, "-" when not measured; "ok" or "MISSED" after it where
+/// `target` says whether it met its target.
 fn cell<T>(f: &Fig<T>, show: impl Fn(&T) -> f64, digits: usize, target: Target) -> String {
     match f {
         Ok(v) => {
             let x = show(v);
             let mark = match target {
-                Some((EngineKind::Cyclone, met)) if met(x) => " ok",
-                Some((EngineKind::Cyclone, _)) => " MISSED",
-                _ => "",
+                Some(met) if met(x) => " ok",
+                Some(_) => " MISSED",
+                None => "",
             };
             format!("{x:.digits$}{mark}")
         }
@@ -105,12 +111,11 @@ fn peer_rows(peers: &Peers) {
         ("ddsperf ping-pong (80 B), ping 1kHz", &peers.ddsperf_paced),
         ("ddsperf ping-pong (80 B), ping waits on a waitset", &peers.ddsperf_waitset),
         ("Fast DDS ping-pong (UDP, 80 B), back to back", &peers.fastdds),
+        ("Zenoh ping-pong (z_ping's loop, TCP, 84 B), back to back", &peers.zenoh),
     ] {
         match f {
             Ok(t) => row(&format!("{label}, p50 / p99 µs"), [format!("{:.1} / {:.1}", t.p50, t.p99)]),
-            Err(why) => {
-                println!("  {}: not run ({why})", if label.starts_with("Fast") { "fastdds" } else { "ddsperf" })
-            }
+            Err(why) => println!("  {}: not run ({why})", label.split(' ').next().unwrap_or(label)),
         }
     }
 }
@@ -119,7 +124,7 @@ fn peer_rows(peers: &Peers) {
 fn ratio_rows(engines: &[EngineRun], peers: &Peers) {
     let met_rtt: fn(f64) -> bool = |x| x <= TARGET_RTT_RATIO;
     each(engines, &format!("ratio gateway / ddsperf p50, back to back (cyclone <= {TARGET_RTT_RATIO})"), &|r| {
-        cell(&ratio(&r.rtt, &peers.ddsperf), |x| *x, 2, Some((r.engine, met_rtt)))
+        cell(&ratio(&r.rtt, &peers.ddsperf), |x| *x, 2, target_of(r.engine, &[EngineKind::Cyclone], met_rtt))
     });
     each(engines, "ratio gateway / ddsperf ping on a waitset p50, back to back", &|r| {
         cell(&ratio(&r.rtt, &peers.ddsperf_waitset), |x| *x, 2, None)
@@ -130,6 +135,16 @@ fn ratio_rows(engines: &[EngineRun], peers: &Peers) {
     each(engines, "ratio gateway / Fast DDS p50, back to back", &|r| {
         cell(&ratio(&r.rtt, &peers.fastdds), |x| *x, 2, None)
     });
+    if peers.zenoh.is_ok() {
+        each(
+            engines,
+            &format!("ratio gateway / Zenoh ping-pong p50, back to back (zenoh <= {TARGET_RTT_RATIO})"),
+            &|r| {
+                let target = target_of(r.engine, &[EngineKind::Zenoh], met_rtt);
+                cell(&ratio(&r.rtt, &peers.zenoh), |x| *x, 2, target)
+            },
+        );
+    }
 }
 
 /// Throughput each way, the synchronous set's steps and lock-step.
@@ -141,7 +156,10 @@ fn rate_rows(engines: &[EngineRun]) {
         ("async set DDS source -> DDS sink, no gateway, samples/s", |r| &r.alone, false),
     ];
     for (label, get, targeted) in rate_rows {
-        each(engines, label, &|r| cell(get(r), |x| *x, 0, targeted.then_some((r.engine, met_rate))));
+        each(engines, label, &|r| {
+            let target = target_of(r.engine, &[EngineKind::Cyclone, EngineKind::Zenoh], met_rate);
+            cell(get(r), |x| *x, 0, target.filter(|_| targeted))
+        });
     }
     each(engines, "sync set shm -> gateway -> DDS sink, samples/s", &|r| cell(&r.sync, rate, 0, None));
     each(engines, "sync set steps lost (but for the start of the reader's stream)", &|r| {
