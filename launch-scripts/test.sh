@@ -86,7 +86,7 @@ if ! [ -d tests/foxglove/node_modules/@foxglove/ws-protocol ]; then
 fi
 # --- A real ROS 2 Jazzy (rclpy, rmw_cyclonedds, rmw_zenoh with its router, ros2cli,
 # simulation_interfaces), built with colcon from the sources in tests/ros2/jazzy (see its
-# README.md): about 20 minutes on 2 cores the first time; the workspace under ~/.cache/tutti is
+# README.md): about 35 minutes on 2 cores the first time; the workspace under ~/.cache/tutti is
 # reused while those sources are unchanged. The ROS 2 tests (tests/cli/ros2_real.rs) find it
 # in TUTTI_ROS2_WS.
 step "ROS 2 Jazzy for the ROS 2 tests (tests/ros2/jazzy)"
