@@ -200,6 +200,10 @@ fn complaints(lines: &[String]) -> Vec<&String> {
         .filter(|l| {
             ["[WARN]", "[ERROR]", "[FATAL]", "Failed to parse", "Traceback", "Warning:"].iter().any(|k| l.contains(k))
         })
+        // rmw_zenoh's own teardown race, whoever publishes: a sample that arrives while a
+        // subscription is being destroyed (`ros2 topic echo --once` right after its message)
+        // finds its data gone (`rmw_zenoh_cpp/src/detail/rmw_subscription_data.cpp:211-216`).
+        .filter(|l| !l.contains("[rmw_zenoh_cpp]: SubscriberCallback triggered over "))
         .collect()
 }
 
