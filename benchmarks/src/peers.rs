@@ -15,6 +15,7 @@ use tutti_core::ddf::{Domain, Role};
 use tutti_core::mapping::{self, Endpoint, History, Reliability};
 
 use tutti_gateway::cdr::{SetCodec, TypedSample};
+use tutti_gateway::config::PlannedSet;
 use tutti_gateway::engine::{self, Data, Decode, EndpointId, Engine, Sink, TopicType, Writer};
 use tutti_gateway::{GatewayError, GatewayOptions};
 
@@ -55,12 +56,21 @@ fn typed_sink(codec: Arc<SetCodec>, f: impl Fn(TypedSample) + Send + Sync + 'sta
     })
 }
 
-/// The ROS 2 topic and the type of `role`'s set of `domain` as the gateway serves them (its
-/// plan): the type with the hash its endpoints announce. On Zenoh the hash is part of every
-/// key, so a peer without it would never meet the gateway.
-fn set_topic(opts: &GatewayOptions, domain: &Domain, role: Role) -> Result<(String, TopicType), PeerError> {
-    let plan = tutti_gateway::config::plan(opts).map_err(GatewayError::from)?;
-    let set = plan.into_iter().find(|s| s.role == role && opts.model.domains[s.domain].name == domain.name);
+/// The sets the gateway bridges for `opts` (its plan).
+fn plan_of(opts: &GatewayOptions) -> Result<Vec<PlannedSet>, PeerError> {
+    Ok(tutti_gateway::config::plan(opts).map_err(GatewayError::from)?)
+}
+
+/// The ROS 2 topic and the type of `role`'s set of `domain` in the gateway's `plan`: the type
+/// with the hash its endpoints announce. On Zenoh the hash is part of every key, so a peer
+/// without it would never meet the gateway.
+fn set_topic(
+    plan: &[PlannedSet],
+    opts: &GatewayOptions,
+    domain: &Domain,
+    role: Role,
+) -> Result<(String, TopicType), PeerError> {
+    let set = plan.iter().find(|s| s.role == role && opts.model.domains[s.domain].name == domain.name);
     let set = set.ok_or_else(|| PeerError::NotBridged { domain: domain.name.clone(), role })?;
     Ok((set.ros2_topic.clone(), set.topic_type()))
 }
@@ -134,7 +144,7 @@ pub fn sink(
     ordered: bool,
 ) -> Result<Received, PeerError> {
     let dds = engine::open(opts.engine, &opts.engine_config())?;
-    let (topic, ty) = set_topic(opts, domain, role)?;
+    let (topic, ty) = set_topic(&plan_of(opts)?, opts, domain, role)?;
     let mut rq = mapping::qos(domain.flags, opts.profile, Endpoint::Reader, 0);
     if !ordered {
         rq.reliability = Reliability::BestEffort;
@@ -193,7 +203,7 @@ pub fn source(
     stop: Arc<AtomicBool>,
 ) -> Result<u64, PeerError> {
     let dds = engine::open(opts.engine, &opts.engine_config())?;
-    let (topic, ty) = set_topic(opts, domain, Role::Subscribe)?;
+    let (topic, ty) = set_topic(&plan_of(opts)?, opts, domain, Role::Subscribe)?;
     let wq = mapping::qos(domain.flags, opts.profile, Endpoint::Writer, 0);
     let layout = &domain.subscribe.layout;
     let codec = SetCodec::new(layout);
@@ -380,7 +390,8 @@ impl Endpoints {
             Role::Publish => Role::Subscribe,
             Role::Subscribe => Role::Publish,
         };
-        let (rn, wn) = (set_topic(opts, domain, reads)?, set_topic(opts, domain, writes)?);
+        let plan = plan_of(opts)?;
+        let (rn, wn) = (set_topic(&plan, opts, domain, reads)?, set_topic(&plan, opts, domain, writes)?);
         let rq = mapping::qos(domain.flags, opts.profile, Endpoint::Reader, 0);
         let wq = mapping::qos(domain.flags, opts.profile, Endpoint::Writer, 0);
         let codec = Arc::new(SetCodec::new(&domain.publish.layout));

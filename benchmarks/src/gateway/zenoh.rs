@@ -52,16 +52,17 @@ pub(super) fn router() -> anyhow::Result<(zenoh::Session, String)> {
     Ok((r, endpoint))
 }
 
+/// A publisher on `key` as z_ping's and z_pong's: express, blocking when congested.
+fn publisher(s: &zenoh::Session, key: &'static str) -> anyhow::Result<zenoh::pubsub::Publisher<'static>> {
+    let p = s.declare_publisher(key).congestion_control(CongestionControl::Block).express(true).wait();
+    p.map_err(|e| anyhow::anyhow!("the publisher on {key}: {e}"))
+}
+
 /// `--zenoh-pong`: answers every ping with its payload, as `z_pong` does, until stopped.
 pub(super) fn pong(args: &Args) -> CliResult {
     let endpoint = args.zenoh_connect.as_deref().context("--zenoh-pong needs --zenoh-connect")?;
     let s = session(endpoint)?;
-    let publisher = s
-        .declare_publisher(PONG)
-        .congestion_control(CongestionControl::Block)
-        .express(true)
-        .wait()
-        .map_err(|e| anyhow::anyhow!("the pong publisher: {e}"))?;
+    let publisher = publisher(&s, PONG)?;
     let _sub = s
         .declare_subscriber(PING)
         .callback(move |sample| {
@@ -103,12 +104,7 @@ impl Bench<'_> {
 fn ping(endpoint: &str, samples: u32) -> anyhow::Result<Rtt> {
     let s = session(endpoint)?;
     let sub = s.declare_subscriber(PONG).wait().map_err(|e| anyhow::anyhow!("the pong subscriber: {e}"))?;
-    let publisher = s
-        .declare_publisher(PING)
-        .congestion_control(CongestionControl::Block)
-        .express(true)
-        .wait()
-        .map_err(|e| anyhow::anyhow!("the ping publisher: {e}"))?;
+    let publisher = publisher(&s, PING)?;
     let data: Vec<u8> = (0..SIZE).map(|i| (i % 10) as u8).collect();
     let put = || publisher.put(data.clone()).wait().map_err(|e| anyhow::anyhow!("a ping: {e}"));
     // Until the path works (the pong's session found, its subscriber declared), then a
