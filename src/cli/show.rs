@@ -107,11 +107,20 @@ fn qos_text(q: &Qos) -> String {
     format!("{reliability}, {history}, {durability}, {ownership}")
 }
 
+/// A set's names on the engine's wire: the DDS topic on a DDS engine, the ROS 2 name that
+/// rmw_zenoh's keys carry on Zenoh (docs/gateway.md, "Zenoh").
+fn wire_names(engine: &str, dds_topic: &str, ros2_topic: &str, ty: &str) -> String {
+    match engine.parse::<tutti_gateway::EngineKind>() {
+        Ok(k) if !k.is_dds() => format!("Zenoh key <ROS domain>{ros2_topic}/{ty}/<type hash>"),
+        _ => format!("DDS topic {dds_topic}  type {ty}"),
+    }
+}
+
 fn text(v: &ShowJson<'_>) -> String {
     let mut s = String::new();
     let _ = writeln!(
         s,
-        "{}: {}, ROS 2 package {}, QoS profile {}, DDS engine {}",
+        "{}: {}, ROS 2 package {}, QoS profile {}, engine {}",
         v.source,
         super::count(v.domains.len(), "domain"),
         v.package,
@@ -156,7 +165,8 @@ fn text(v: &ShowJson<'_>) -> String {
                     default
                 );
             }
-            let _ = writeln!(s, "    DDS topic {}  type {}", set.dds.topic, set.dds.dds_type);
+            let _ =
+                writeln!(s, "    {}", wire_names(v.dds_engine, &set.dds.topic, &set.dds.ros2_topic, &set.dds.dds_type));
             let _ = writeln!(s, "    gateway writer QoS: {}", qos_text(&set.writer_qos));
             let _ = writeln!(s, "    gateway reader QoS: {}", qos_text(&set.reader_qos));
         }
@@ -272,7 +282,7 @@ fn plan_text(v: &PlanJson<'_>) -> String {
     let ns = if v.ros_namespace.is_empty() { "none".to_string() } else { format!("/{}", v.ros_namespace) };
     let _ = writeln!(
         s,
-        "{} under {}: {} of {} sets bridged, ROS namespace {ns}, node {}, ROS 2 package {}, types {}, QoS profile {}, DDS engine {}",
+        "{} under {}: {} of {} sets bridged, ROS namespace {ns}, node {}, ROS 2 package {}, types {}, QoS profile {}, engine {}",
         v.source,
         v.config,
         v.sets.len(),
@@ -294,14 +304,14 @@ fn plan_text(v: &PlanJson<'_>) -> String {
     );
     for set in &v.sets {
         let _ = writeln!(s, "\n{}  ->  {}", set.key, set.ros2_topic);
-        let _ = writeln!(s, "    DDS topic {}  type {}", set.topic, set.dds_type);
+        let _ = writeln!(s, "    {}", wire_names(v.dds_engine, set.topic, set.ros2_topic, set.dds_type));
         for t in &set.per_item_topics {
             let _ = writeln!(s, "      item {:<28} {}  {}", t.path, t.topic, t.dds_type);
         }
         let _ = writeln!(s, "    gateway writer QoS: {}", qos_text(&set.writer_qos));
         let _ = writeln!(s, "    gateway reader QoS: {}", qos_text(&set.reader_qos));
         let rate = set.max_rate.map_or("every sample".to_string(), |r| format!("at most {r} samples/s"));
-        let _ = writeln!(s, "    to DDS: {rate}");
+        let _ = writeln!(s, "    out: {rate}");
     }
     if !v.left_out.is_empty() {
         let _ = writeln!(s, "\nleft out:");

@@ -103,7 +103,7 @@ fn render_domain(s: &mut String, d: &DomainStatus, (step_rate, commit_rate): (f6
     };
     let _ = writeln!(
         s,
-        "{} [{mode}] framework {fw}  step {}  sim {:.3}s  {:.0} steps/s  {:.0} commits/s  participants {}  DDS writers {}  DDS readers {}",
+        "{} [{mode}] framework {fw}  step {}  sim {:.3}s  {:.0} steps/s  {:.0} commits/s  participants {}  remote writers {}  remote readers {}",
         d.domain, d.step, d.sim_time, step_rate, commit_rate, d.connection_count, d.dds_writers, d.dds_readers
     );
     let _ = writeln!(
@@ -133,8 +133,8 @@ fn render_connection(s: &mut String, c: &ConnectionInfo, now_ns: u64) {
         (_, false, false) => "reader",
     };
     let via = match (c.observer, c.remote) {
-        (true, _) => format!("bridges {} DDS reader(s)  ", c.dds_readers),
-        (false, true) => "via DDS  ".to_string(),
+        (true, _) => format!("bridges {} remote reader(s)  ", c.dds_readers),
+        (false, true) => "via the gateway  ".to_string(),
         _ => String::new(),
     };
     let since = now_ns.saturating_sub(c.since_ns) as f64 / 1e9;

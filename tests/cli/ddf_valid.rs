@@ -257,7 +257,14 @@ fn show_names_the_dds_engine_and_refuses_an_unknown_one() {
     assert!(err.contains("unknown engine 'opendds'") && err.contains("cyclone, rustdds or zenoh"), "{err}");
     let (code, out, _) = tutti(["show", "ddf/multiuav.ddf", "--dds", "rustdds"]);
     assert_eq!(code, 0);
-    assert!(out.lines().next().is_some_and(|l| l.ends_with("DDS engine rustdds")), "{out}");
+    assert!(out.lines().next().is_some_and(|l| l.ends_with("engine rustdds")), "{out}");
+    assert!(out.contains("    DDS topic rt/multiuav_uav1/publish  type "), "{out}");
+    // On Zenoh a set's name on the wire is rmw_zenoh's key, not a DDS topic.
+    let (code, out, _) = tutti(["show", "ddf/multiuav.ddf", "--dds", "zenoh"]);
+    assert_eq!(code, 0);
+    assert!(out.lines().next().is_some_and(|l| l.ends_with("engine zenoh")), "{out}");
+    assert!(out.contains("    Zenoh key <ROS domain>/multiuav_uav1/publish/multiuav_msgs::msg::dds_::"), "{out}");
+    assert!(!out.contains("DDS topic"), "{out}");
 }
 
 #[test]

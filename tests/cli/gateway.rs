@@ -248,11 +248,24 @@ impl Eng {
         format!("{base}{}", &self.name[..2])
     }
 
-    /// `tutti gateway --engine ENGINE DDF` (see [`gateway`]).
+    /// `tutti gateway --engine ENGINE DDF` (see [`gateway`]); on Zenoh, connected to the
+    /// test binary's router ([`zenoh_router`]) unless `extra` names one.
     pub fn gateway(self, ddf: &str, domain_id: u16, ns: &str, extra: &[&str]) -> Proc {
-        let args: Vec<&str> = ["--engine", self.name].into_iter().chain(extra.iter().copied()).collect();
+        let mut args: Vec<&str> = vec!["--engine", self.name];
+        if self.name == Eng::ZENOH.name && !extra.contains(&"--zenoh-connect") {
+            args.extend(["--zenoh-connect", zenoh_router().endpoint()]);
+        }
+        args.extend(extra.iter().copied());
         gateway(ddf, domain_id, ns, &args)
     }
+}
+
+/// The Zenoh router the gateways of [`Eng::gateway`] meet at on the Zenoh engine, one for the
+/// whole test binary (as `rmw_zenohd` is one per machine): the tests keep apart by their ROS
+/// domain ids, the first chunk of every key and token.
+pub fn zenoh_router() -> &'static tutti_test_support::ZenohRouter {
+    static ROUTER: std::sync::OnceLock<tutti_test_support::ZenohRouter> = std::sync::OnceLock::new();
+    ROUTER.get_or_init(tutti_test_support::ZenohRouter::start)
 }
 
 /// Turns each named `fn NAME(e: Eng)` into one test per engine of the build: `NAME::cyclone`,
@@ -261,6 +274,15 @@ impl Eng {
 macro_rules! per_engine {
     ($($name:ident),* $(,)?) => {$(
         tutti_engine::for_each_dds_engine!(per_engine_tests, $name);
+    )*};
+}
+
+/// Turns each named `fn NAME(e: Eng)` into one test per engine of the build, Zenoh included
+/// (`tutti_engine::for_each_engine!`): the tests whose peers are tutti gateways themselves.
+#[macro_export]
+macro_rules! per_any_engine {
+    ($($name:ident),* $(,)?) => {$(
+        tutti_engine::for_each_engine!(per_engine_tests, $name);
     )*};
 }
 

@@ -270,7 +270,7 @@ fn a_config_file_changes_what_a_dds_peer_sees_and_the_stats_endpoint_counts_it(e
 /// The gateway config file of the test above, written in `dir`: gw_states not allowed,
 /// gw_sync's SUBSCRIBE set denied, gw_async's PUBLISH set remapped, best-effort, 4 a second,
 /// and the stats endpoint on. Its path.
-fn write_gateway_config(dir: &std::path::Path) -> std::path::PathBuf {
+pub(crate) fn write_gateway_config(dir: &std::path::Path) -> std::path::PathBuf {
     let cfg = dir.join("gateway.json5");
     std::fs::write(
         &cfg,

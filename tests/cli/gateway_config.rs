@@ -42,7 +42,7 @@ fn show_config_prints_the_plan_of_the_example() {
         "multiuav_uav1/subscribe  ->  /fleet/uav1/state\n    DDS topic rt/fleet/uav1/state",
         "multiuav_uav2/publish  ->  /sim1/multiuav_uav2/publish\n",
         "    gateway writer QoS: RELIABLE, KEEP_ALL, TRANSIENT_LOCAL depth 1, SHARED\n    gateway reader QoS: RELIABLE, KEEP_ALL, TRANSIENT_LOCAL depth 1, SHARED\n",
-        "    to DDS: every sample\n",
+        "    out: every sample\n",
         "left out:\n",
         "  multiuav_uav3/publish            matches deny pattern 'multiuav_uav3/publish'\n",
         "  multiuav_uav4/subscribe          matches no allow pattern ('multiuav_uav[1-3]/.*')\n",
@@ -105,7 +105,7 @@ fn show_flags_win_over_the_file_and_rates_and_per_item_topics_show() {
     assert_eq!(code, 0, "{err}");
     assert!(
         out.contains("grid_feeder/subscribe  ->  /site_a/feeder/state\n")
-            && out.contains("    to DDS: at most 25 samples/s\n"),
+            && out.contains("    out: at most 25 samples/s\n"),
         "{out}"
     );
 }

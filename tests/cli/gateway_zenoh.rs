@@ -225,3 +225,105 @@ fn the_simulate_steps_action_runs_for_an_rmw_zenoh_client() {
     );
     assert_eq!(ctl_state(&ns)["step"].as_u64(), Some(at + 5), "exactly 5 steps");
 }
+
+/// While an rmw_zenoh subscription takes every step of a synchronous domain's PUBLISH topic,
+/// the domain has no participant and no connection the framework waits for: the
+/// subscription, known from its token, is counted as a remote reader of the gateway's
+/// observer connection (passive, as on DDS), and its steps come in order, each with its own
+/// value.
+#[test]
+fn an_rmw_zenoh_subscription_is_an_observer_not_a_participant() {
+    let Some(py) = python() else { return };
+    let router = ZenohRouter::start();
+    let (dom, ns) = (16, namespace("zgwobs_"));
+    let host = Host::start(&ns, "gw_sync", Duration::from_millis(5), |k| (k as f64).to_ne_bytes().to_vec());
+    let gw = ZENOH.gateway(DDF, dom, &ns, &["--zenoh-connect", router.endpoint()]);
+    let args = ["--topic", "/gw_sync/publish", "--count", "400", "--timeout", "90"];
+    let mut reader = peer(&py, "rmw_zenoh subscription", &router, dom, "sub", &args);
+    let mut readers_seen = 0;
+    let done = lazy(|| format!("the subscription never ended\n{}", gw.dump()));
+    wait_until(done, secs(120), || {
+        let s = gateway::status(&ns, "gw_sync");
+        assert_eq!(s.connection_count, 0, "a Zenoh subscription counted as a participant: {:?}", s.connections);
+        assert!(
+            s.connections.iter().all(|c| !c.sync_reader && !c.writer),
+            "a connection the framework waits for: {:?}",
+            s.connections
+        );
+        readers_seen = readers_seen.max(s.dds_readers);
+        reader.exited().is_some()
+    });
+    assert_eq!(reader.wait(secs(10)), Some(0), "{}\n{}", reader.dump(), gw.dump());
+    assert_eq!(readers_seen, 1, "the subscription was never counted as a remote reader\n{}", gw.dump());
+    let samples = json_lines(&reader, "seq");
+    let steps: Vec<u64> = samples.iter().map(|s| s["step"].as_u64().expect("a step")).collect();
+    for (s, k) in samples.iter().zip(&steps) {
+        let body = unhex(s["body"].as_str().expect("a body"));
+        assert_eq!(f64_at(&body, 16), *k as f64, "step {k} carries another step's value: {s}");
+    }
+    assert!(steps.windows(2).all(|w| w[1] > w[0]), "steps out of order: {steps:?}");
+    assert_eq!(gateway::status(&ns, "gw_sync").step_timeouts, 0);
+    crate::gateway_reliable::assert_no_step_lost(&gw, false);
+    drop(host);
+}
+
+/// A gateway config file on Zenoh: the sets not allowed or denied have no token and no key,
+/// the remapped set is published under its new name only, its QoS override is in its token
+/// (best effort, as rmw_zenoh writes it), its rate limit thins a set changing every 5 ms, and
+/// the stats endpoint counts what went out, under the set.
+#[test]
+fn a_config_file_changes_what_an_rmw_zenoh_node_sees_and_the_stats_endpoint_counts_it() {
+    let Some(py) = python() else { return };
+    let router = ZenohRouter::start();
+    let (dom, ns) = (17, namespace("zgwcfg_"));
+    let dir = tempfile::tempdir().unwrap();
+    let cfg = crate::gateway_citizen::write_gateway_config(dir.path());
+    let host = Host::start(&ns, "gw_async", Duration::from_millis(5), |k| {
+        let mut b = vec![0u8; 40];
+        b[0..8].copy_from_slice(&(k as f64).to_ne_bytes());
+        b
+    });
+    let gw = ZENOH.gateway(DDF, dom, &ns, &["--zenoh-connect", router.endpoint(), "--config", cfg.to_str().unwrap()]);
+    let stats_line = gw.wait_line("stats on http://", secs(30)).unwrap_or_else(|| panic!("{}", gw.dump()));
+    let addr = stats_line.split("http://").nth(1).and_then(|r| r.split('/').next()).unwrap().to_string();
+
+    // The graph as an rmw_zenoh node sees it: the gateway's publishers and subscriptions.
+    let mut graph = peer(&py, "graph", &router, dom, "graph", &["--count", "2"]);
+    assert_eq!(graph.wait(secs(60)), Some(0), "{}\n{}", graph.dump(), gw.dump());
+    let entities: Vec<Entity> =
+        json_lines(&graph, "token").iter().map(|t| entity(t["token"].as_str().unwrap()).0).collect();
+    let topic = |kind: &str, name: &str| {
+        entities.iter().find_map(|e| match (&e.kind, kind) {
+            (EntityKind::Publisher(t), "MP") | (EntityKind::Subscription(t), "MS") if t.name == name => Some(t.clone()),
+            _ => None,
+        })
+    };
+    let renamed =
+        topic("MP", "/renamed/state").unwrap_or_else(|| panic!("no publisher of /renamed/state: {entities:#?}"));
+    assert_eq!(renamed.qos.reliability, tutti_engine::rmw_zenoh::qos::Reliability::BestEffort, "{renamed:?}");
+    assert!(topic("MP", "/gw_sync/publish").is_some(), "an allowed set has no publisher: {entities:#?}");
+    for (kind, name) in [("MP", "/gw_async/publish"), ("MP", "/gw_states/publish"), ("MS", "/gw_states/subscribe")] {
+        assert!(topic(kind, name).is_none(), "{kind} {name} is left out, yet has a token: {entities:#?}");
+    }
+    assert!(topic("MS", "/gw_sync/subscribe").is_none(), "a denied set has a subscription: {entities:#?}");
+
+    // Readers of the new and the old name, for 4 s each (they stop at their timeout).
+    let args = |t: &'static str| ["--topic", t, "--count", "100000", "--timeout", "4"];
+    let mut new_name = peer(&py, "sub renamed", &router, dom, "sub", &args("/renamed/state"));
+    let mut old_name = peer(&py, "sub old name", &router, dom, "sub", &args("/gw_async/publish"));
+    assert_eq!(new_name.wait(secs(60)), Some(3), "{}", new_name.dump());
+    assert_eq!(old_name.wait(secs(60)), Some(3), "{}", old_name.dump());
+    let got = json_lines(&new_name, "seq");
+    // At most 4 a second in a 4 s window (one more at its edge), where the set changed about
+    // 200 times a second: the rate limit, not the machine, sets the count.
+    assert!(!got.is_empty() && got.len() <= 17, "{} samples in 4 s\n{}", got.len(), new_name.dump());
+    assert!(json_lines(&old_name, "seq").is_empty(), "the old name still carries samples: {}", old_name.dump());
+
+    let stats: Value = serde_json::from_str(&gateway::http_get(&addr, "/stats")).unwrap();
+    let topics = stats["topics"].as_array().unwrap_or_else(|| panic!("{stats}"));
+    let t = topics.iter().find(|t| t["set"] == "gw_async/publish").unwrap_or_else(|| panic!("{stats}"));
+    assert!(t["topic"].as_str().is_some_and(|n| n.ends_with("renamed/state")), "{t}");
+    assert!(t["samples_out"].as_u64().unwrap() >= got.len() as u64, "{t}");
+    assert!(topics.iter().all(|t| !t["set"].as_str().unwrap().starts_with("gw_states")), "{stats}");
+    drop(host);
+}

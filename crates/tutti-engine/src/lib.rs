@@ -196,6 +196,15 @@ impl EngineKind {
         }
     }
 
+    /// What its wire is called where the gateway speaks of its readers and writers: "DDS" or
+    /// "Zenoh".
+    pub const fn network(self) -> &'static str {
+        match self {
+            EngineKind::Cyclone | EngineKind::Rustdds => "DDS",
+            EngineKind::Zenoh => "Zenoh",
+        }
+    }
+
     /// Whether it speaks DDS (its wire carries `rt/` topics and a DDS domain id).
     pub fn is_dds(self) -> bool {
         matches!(self, EngineKind::Cyclone | EngineKind::Rustdds)

@@ -517,8 +517,9 @@ impl Manager {
 
     fn line(&self) -> String {
         let bridged = self.domains.iter().filter(|d| d.bridged).count();
+        let net = self.dds.kind().network();
         format!(
-            "{bridged} of {} domains bridged, {} topics, {} ({}), DDS writers {}, DDS readers {} | {}",
+            "{bridged} of {} domains bridged, {} topics, {} ({}), {net} writers {}, {net} readers {} | {}",
             self.domains.len(),
             self.topics,
             self.dds.location(),
