@@ -352,34 +352,84 @@ fn attachment_of(a: Option<&ZBytes>) -> Result<Attachment, BadAttachment> {
     Ok(Attachment::decode_prefix(&a.to_bytes()).map(|(a, _)| a)?)
 }
 
-/// A writer: an advanced publisher and its attachment's state.
+/// Samples a writer holds at most before it puts them without waiting for a flush.
+const BATCH: usize = 64;
+
+/// A writer: an advanced publisher and its attachment's state. As the Cyclone engine's
+/// writers batch, it holds what it writes until [`Writer::flush`] (or until [`BATCH`] wait,
+/// or it is dropped), then puts the samples one after the other, each with its attachment
+/// made when it was written: Zenoh packs the puts of a burst into one message on the link,
+/// where a put at a time would wake Zenoh's transmission task and cost a send each
+/// (docs/benchmarks.md, "The Zenoh engine beside Zenoh's own ping-pong"). The gateway flushes
+/// whenever nothing more is waiting.
 struct ZenohWriter {
-    publisher: AdvancedPublisher<'static>,
+    out: Arc<Held>,
     gid: [u8; 16],
     sequence: i64,
-    buf: Vec<u8>,
+}
+
+/// A writer's publisher and the samples it holds (payload, attachment), in order; the lock
+/// is held while they are put, so that a flush from another thread keeps that order.
+struct Held {
+    publisher: AdvancedPublisher<'static>,
+    samples: Mutex<Vec<(Vec<u8>, [u8; crate::rmw_zenoh::attachment::ENCODED_LEN])>>,
+}
+
+impl Held {
+    /// Puts what is held; false when Zenoh refused one (its session is closed).
+    fn flush(&self) -> bool {
+        let mut held = lock(&self.samples);
+        let mut ok = true;
+        for (payload, attachment) in held.drain(..) {
+            ok &= self.publisher.put(payload).attachment(attachment.to_vec()).wait().is_ok();
+        }
+        ok
+    }
 }
 
 impl ZenohWriter {
-    fn put(&mut self, payload: Vec<u8>) -> bool {
+    fn hold(&mut self, payload: Vec<u8>) -> bool {
         let attachment =
             Attachment { sequence_number: self.sequence, source_timestamp: now_ns(), source_gid: self.gid };
         self.sequence += 1;
-        self.publisher.put(payload).attachment(attachment.encode().to_vec()).wait().is_ok()
+        let full = {
+            let mut held = lock(&self.out.samples);
+            held.push((payload, attachment.encode()));
+            held.len() >= BATCH
+        };
+        !full || self.out.flush()
     }
 }
 
 impl Writer for ZenohWriter {
     fn write(&mut self, body: &[u8]) -> bool {
-        self.buf.clear();
-        self.buf.extend_from_slice(&HEADER_LE);
-        self.buf.extend_from_slice(body);
-        let payload = self.buf.clone();
-        self.put(payload)
+        let mut payload = Vec::with_capacity(HEADER_LE.len() + body.len());
+        payload.extend_from_slice(&HEADER_LE);
+        payload.extend_from_slice(body);
+        self.hold(payload)
     }
 
     fn write_serialized(&mut self, raw: &[u8]) -> bool {
-        self.put(raw.to_vec())
+        self.hold(raw.to_vec())
+    }
+
+    fn flush(&mut self) {
+        if !self.out.flush() {
+            tracing::debug!("zenoh: a held sample was refused (the session is closed)");
+        }
+    }
+
+    fn flusher(&self) -> Option<crate::Flusher> {
+        let out = self.out.clone();
+        Some(Arc::new(move || {
+            out.flush();
+        }))
+    }
+}
+
+impl Drop for ZenohWriter {
+    fn drop(&mut self) {
+        self.out.flush();
     }
 }
 
@@ -491,7 +541,8 @@ impl Engine for Zenoh {
         // its first sample, which comes after it on the same link.
         let (_, id) = self.declare(EntityKind::Publisher(info))?;
         let publisher = b.wait().map_err(|e| zerr(format!("a publisher on {key}"), e))?;
-        Ok(Box::new(ZenohWriter { publisher, gid: id.gid, sequence: 1, buf: Vec::new() }))
+        let out = Arc::new(Held { publisher, samples: Mutex::new(Vec::with_capacity(BATCH)) });
+        Ok(Box::new(ZenohWriter { out, gid: id.gid, sequence: 1 }))
     }
 
     fn reader(&self, topic: &str, ty: &TopicType, q: &Qos, decode: Decode, sink: Sink) -> Result<(), EngineError> {
