@@ -327,3 +327,36 @@ fn a_config_file_changes_what_an_rmw_zenoh_node_sees_and_the_stats_endpoint_coun
     assert!(topics.iter().all(|t| !t["set"].as_str().unwrap().starts_with("gw_states")), "{stats}");
     drop(host);
 }
+
+/// Per-item topics under a ROS namespace on Zenoh: the item `x` of an asynchronous PUBLISH set
+/// reaches an rmw_zenoh subscription as `std_msgs/Float64` on `/sim/gw_async/publish/x`, from a
+/// publisher whose token names the node's namespace; an rmw_zenoh publisher of
+/// `std_msgs/Float64` on `/sim/gw_async/subscribe/y` writes the item `y` of the SUBSCRIBE set.
+#[test]
+fn per_item_topics_under_a_ros_namespace_go_both_ways() {
+    let Some(py) = python() else { return };
+    let router = ZenohRouter::start();
+    let (dom, ns) = (18, namespace("zgwitem_"));
+    let host = Host::start(&ns, "gw_async", Duration::from_millis(10), |_| {
+        let mut b = vec![0u8; 40];
+        b[0..8].copy_from_slice(&2.5f64.to_ne_bytes());
+        b
+    });
+    let args = ["--zenoh-connect", router.endpoint(), "--ros2-types", "per-item", "--ros-namespace", "sim"];
+    let gw = ZENOH.gateway(DDF, dom, &ns, &args);
+    let mut x = peer(&py, "sub x", &router, dom, "sub", &["--topic", "/sim/gw_async/publish/x", "--count", "1"]);
+    assert_eq!(x.wait(secs(90)), Some(0), "{}\n{}", x.dump(), gw.dump());
+    let (e, _) = entity(json_lines(&x, "token")[0]["token"].as_str().expect("the publisher's token"));
+    assert_eq!(e.node.namespace, "/sim", "{e:?}");
+    assert!(matches!(&e.kind, EntityKind::Publisher(t) if t.type_name == "std_msgs::msg::dds_::Float64_"), "{e:?}");
+    let body = unhex(json_lines(&x, "seq")[0]["body"].as_str().expect("a body"));
+    assert_eq!(f64_at(&body, 0), 2.5, "std_msgs/Float64 holds x");
+
+    let y = 9.5f64.to_le_bytes();
+    let args = ["--topic", "/sim/gw_async/subscribe/y", "--body", &hex(&y), "--count", "40"];
+    let mut w = peer(&py, "pub y", &router, dom, "pub", &args);
+    let off = leaf_offset("gw_async", Role::Subscribe, "y");
+    let seen = host.wait_for(secs(60), |_, b| f64_at(b, off) == 9.5);
+    assert!(seen.is_some(), "the framework never read y = 9.5\n{}\n{}", w.dump(), gw.dump());
+    assert_eq!(w.wait(secs(60)), Some(0), "{}", w.dump());
+}
