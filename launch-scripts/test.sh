@@ -101,7 +101,10 @@ echo "ROS 2 workspace: $TUTTI_ROS2_WS"
 
 export PATH="$PWD/.venv/bin:$PATH"
 
-segments_before=$(ls /dev/shm 2>/dev/null | grep '^tutti\.' || true)
+# The segments of the core (tutti.*) and of Zenoh's shared-memory transport (*.zenoh, which a
+# Zenoh session with it enabled makes).
+segments() { ls /dev/shm 2>/dev/null | grep -E '^tutti\.|\.zenoh$' || true; }
+segments_before=$(segments)
 
 step "cargo fmt --check"
 cargo fmt --all -- --check
@@ -127,7 +130,7 @@ cargo build --workspace --locked --quiet
 cargo test --workspace --locked --no-fail-fast
 
 # The tests must leave no shared-memory segment behind.
-leftover=$(comm -13 <(echo "$segments_before" | sort) <(ls /dev/shm 2>/dev/null | grep '^tutti\.' | sort) || true)
+leftover=$(comm -13 <(echo "$segments_before" | sort) <(segments | sort) || true)
 if [ -n "$leftover" ]; then
     echo "shared-memory segments left behind by the tests:" >&2
     echo "$leftover" >&2

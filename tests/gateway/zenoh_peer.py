@@ -60,6 +60,9 @@ def open_session(router):
     c.insert_json5("connect/endpoints", json.dumps([router]))
     c.insert_json5("listen/endpoints", '["tcp/127.0.0.1:0"]')
     c.insert_json5("scouting/multicast/enabled", "false")
+    # No shared-memory transport: the gateway has none, and a session with it makes segments in
+    # /dev/shm (*.zenoh) that a test must not leave behind.
+    c.insert_json5("transport/shared_memory/enabled", "false")
     return zenoh.open(c)
 
 
@@ -128,7 +131,13 @@ def main():
     a = p.parse_args()
     deadline = time.time() + a.timeout
     s = open_session(a.router)
+    try:
+        return serve(a, s, deadline)
+    finally:
+        s.close()
 
+
+def serve(a, s, deadline):
     if a.mode == "graph":
         seen, quiet_since = set(), time.time()
         while time.time() < deadline:
