@@ -312,6 +312,26 @@ pub fn peer_by(mut cmd: Command, name: &str, domain_id: u16, mode: &str, args: &
     Proc::spawn(name, cmd, Duration::from_secs(120))
 }
 
+/// The address of a gateway's stats endpoint (started with `--http 127.0.0.1:0`).
+pub fn stats_addr(gw: &Proc) -> String {
+    let line = gw.wait_line("stats on http://", SECS(30)).unwrap_or_else(|| panic!("{}", gw.dump()));
+    line.split("http://").nth(1).and_then(|r| r.split('/').next()).unwrap_or_else(|| panic!("{line}")).to_string()
+}
+
+/// The status of `domain` in namespace `ns`, once it is checked that the gateway's remote
+/// readers made no participant of it and no connection the framework waits for (a passive
+/// observer's only).
+pub fn status_without_participants(ns: &str, domain: &str) -> tutti_core::shm::DomainStatus {
+    let s = status(ns, domain);
+    assert_eq!(s.connection_count, 0, "a remote reader counted as a participant: {:?}", s.connections);
+    assert!(
+        s.connections.iter().all(|c| !c.sync_reader && !c.writer),
+        "a connection the framework waits for: {:?}",
+        s.connections
+    );
+    s
+}
+
 /// The last gateway counter `name` printed in a status line.
 pub fn counter(p: &Proc, name: &str) -> u64 {
     let key = format!(" {name}=");

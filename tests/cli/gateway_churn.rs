@@ -39,12 +39,6 @@ fn metric(addr: &str, name: &str) -> u64 {
     v.unwrap_or_else(|| panic!("no {name} in\n{text}")) as u64
 }
 
-/// The address of a gateway's stats endpoint (started with `--http 127.0.0.1:0`).
-fn stats_addr(gw: &Proc) -> String {
-    let line = gw.wait_line("stats on http://", SECS(30)).unwrap_or_else(|| panic!("{}", gw.dump()));
-    line.split("http://").nth(1).and_then(|r| r.split('/').next()).unwrap_or_else(|| panic!("{line}")).to_string()
-}
-
 /// What the test counts after each join and each leave: the gateway's DDS writers and
 /// readers (`/metrics`) and the domain's (its segment, as `tutti status` reads it).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]

@@ -16,6 +16,7 @@ use tutti_ros2::Struct;
 use tutti_test_support::{hex, lazy, namespace, unhex, wait_until, Proc, ZenohRouter};
 
 use crate::gateway::{self, f64_at, host_with_gateway_by, json_lines, leaf_offset, Eng, Host, DDF};
+use crate::gateway_citizen::{async_publish, ConfigRun};
 use crate::gateway_simif::ctl_state;
 
 const ZENOH: Eng = Eng::ZENOH;
@@ -243,13 +244,7 @@ fn an_rmw_zenoh_subscription_is_an_observer_not_a_participant() {
     let mut readers_seen = 0;
     let done = lazy(|| format!("the subscription never ended\n{}", gw.dump()));
     wait_until(done, secs(120), || {
-        let s = gateway::status(&ns, "gw_sync");
-        assert_eq!(s.connection_count, 0, "a Zenoh subscription counted as a participant: {:?}", s.connections);
-        assert!(
-            s.connections.iter().all(|c| !c.sync_reader && !c.writer),
-            "a connection the framework waits for: {:?}",
-            s.connections
-        );
+        let s = gateway::status_without_participants(&ns, "gw_sync");
         readers_seen = readers_seen.max(s.dds_readers);
         reader.exited().is_some()
     });
@@ -276,16 +271,9 @@ fn a_config_file_changes_what_an_rmw_zenoh_node_sees_and_the_stats_endpoint_coun
     let Some(py) = python() else { return };
     let router = ZenohRouter::start();
     let (dom, ns) = (17, namespace("zgwcfg_"));
-    let dir = tempfile::tempdir().unwrap();
-    let cfg = crate::gateway_citizen::write_gateway_config(dir.path());
-    let host = Host::start(&ns, "gw_async", Duration::from_millis(5), |k| {
-        let mut b = vec![0u8; 40];
-        b[0..8].copy_from_slice(&(k as f64).to_ne_bytes());
-        b
-    });
-    let gw = ZENOH.gateway(DDF, dom, &ns, &["--zenoh-connect", router.endpoint(), "--config", cfg.to_str().unwrap()]);
-    let stats_line = gw.wait_line("stats on http://", secs(30)).unwrap_or_else(|| panic!("{}", gw.dump()));
-    let addr = stats_line.split("http://").nth(1).and_then(|r| r.split('/').next()).unwrap().to_string();
+    let connect = ["--zenoh-connect", router.endpoint()];
+    let run = ConfigRun::start(&ns, |cfg| ZENOH.gateway(DDF, dom, &ns, &[&connect[..], &["--config", cfg]].concat()));
+    let gw = &run.gw;
 
     // The graph as an rmw_zenoh node sees it: the gateway's publishers and subscriptions.
     let mut graph = peer(&py, "graph", &router, dom, "graph", &["--count", "2"]);
@@ -319,13 +307,12 @@ fn a_config_file_changes_what_an_rmw_zenoh_node_sees_and_the_stats_endpoint_coun
     assert!(!got.is_empty() && got.len() <= 17, "{} samples in 4 s\n{}", got.len(), new_name.dump());
     assert!(json_lines(&old_name, "seq").is_empty(), "the old name still carries samples: {}", old_name.dump());
 
-    let stats: Value = serde_json::from_str(&gateway::http_get(&addr, "/stats")).unwrap();
+    let stats: Value = serde_json::from_str(&gateway::http_get(&run.addr, "/stats")).unwrap();
     let topics = stats["topics"].as_array().unwrap_or_else(|| panic!("{stats}"));
     let t = topics.iter().find(|t| t["set"] == "gw_async/publish").unwrap_or_else(|| panic!("{stats}"));
     assert!(t["topic"].as_str().is_some_and(|n| n.ends_with("renamed/state")), "{t}");
     assert!(t["samples_out"].as_u64().unwrap() >= got.len() as u64, "{t}");
     assert!(topics.iter().all(|t| !t["set"].as_str().unwrap().starts_with("gw_states")), "{stats}");
-    drop(host);
 }
 
 /// Per-item topics under a ROS namespace on Zenoh: the item `x` of an asynchronous PUBLISH set
@@ -337,11 +324,7 @@ fn per_item_topics_under_a_ros_namespace_go_both_ways() {
     let Some(py) = python() else { return };
     let router = ZenohRouter::start();
     let (dom, ns) = (18, namespace("zgwitem_"));
-    let host = Host::start(&ns, "gw_async", Duration::from_millis(10), |_| {
-        let mut b = vec![0u8; 40];
-        b[0..8].copy_from_slice(&2.5f64.to_ne_bytes());
-        b
-    });
+    let host = Host::start(&ns, "gw_async", Duration::from_millis(10), async_publish(2.5));
     let args = ["--zenoh-connect", router.endpoint(), "--ros2-types", "per-item", "--ros-namespace", "sim"];
     let gw = ZENOH.gateway(DDF, dom, &ns, &args);
     let mut x = peer(&py, "sub x", &router, dom, "sub", &["--topic", "/sim/gw_async/publish/x", "--count", "1"]);
