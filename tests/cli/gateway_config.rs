@@ -156,3 +156,22 @@ fn gateway_refuses_ros2_discovery_settings_it_cannot_honour() {
     assert_eq!(code, 2, "{err}");
     assert!(err.contains("ROS_AUTOMATIC_DISCOVERY_RANGE=OFF") && err.contains("--peer"), "{err}");
 }
+
+#[test]
+fn gateway_refuses_a_lookahead_it_cannot_honour_naming_the_domain() {
+    let (code, _, err) = tutti_env(&["gateway", "ddf/multiuav.ddf", "--lookahead", "uav9=3", "--duration", "1ms"], &[]);
+    assert_eq!(code, 2, "{err}");
+    assert!(err.contains("lookahead for domain 'uav9': the DDF has no such domain"), "{err}");
+    let (code, _, err) =
+        tutti_env(&["gateway", "ddf/multiuav.ddf", "--mirror", "--lookahead", "4", "--duration", "1ms"], &[]);
+    assert_eq!(code, 2, "{err}");
+    assert!(err.contains("a mirror takes no lookahead"), "{err}");
+    let (code, _, err) = tutti_env(&["gateway", "ddf/multiuav.ddf", "--lookahead", "ten"], &[]);
+    assert_eq!(code, 2, "{err}");
+    assert!(err.contains("'ten' is not a lookahead"), "{err}");
+    let dir = tempfile::tempdir().unwrap();
+    let file = write(dir.path(), "la.json5", "{\n  lookahead: { grid_feeder: 2 },\n}\n");
+    let (code, _, err) = tutti_env(&["show", "ddf/product-sample.ddf", "--config", &file], &[]);
+    assert_eq!(code, 2, "{err}");
+    assert!(err.contains("lookahead for domain 'grid_feeder': the domain is asynchronous"), "{err}");
+}

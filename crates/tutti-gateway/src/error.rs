@@ -94,6 +94,12 @@ pub enum ConfigError {
     /// Not a rate of at least one sample in 365 days.
     #[error("'{value}' is not a rate in Hz above 0 (e.g. 100; at least one sample in 365 days)")]
     Rate { value: String },
+    /// Not a lookahead (`K` or `DOMAIN=K`).
+    #[error("'{value}' is not a lookahead: give a number of steps from 0 to 100000 (every synchronous domain), or DOMAIN=STEPS")]
+    Lookahead { value: String },
+    /// A lookahead for a domain the DDF does not have, or cannot have one.
+    #[error("lookahead for domain '{domain}': {why}")]
+    LookaheadDomain { domain: String, why: String },
     /// Not a duration.
     #[error(transparent)]
     Parse(#[from] tutti_core::parse::ParseError),

@@ -111,6 +111,14 @@ pub struct TopicReport {
     pub matched_readers: u64,
     /// Remote DDS writers matched with the gateway's reader (now).
     pub matched_writers: u64,
+    /// A synchronous SUBSCRIBE set with a lookahead (docs/run.md, "Sites and lookahead"): its
+    /// steps of lookahead (0: lock-step), how many steps the framework is ahead of the newest
+    /// answer received, the latest round trip from a step to its answer (µs), and the steps
+    /// the framework waited for the link.
+    pub lookahead: u64,
+    pub ahead: u64,
+    pub rtt_us: u64,
+    pub link_waits: u64,
 }
 
 impl TopicReport {
@@ -135,6 +143,10 @@ impl TopicReport {
         self.bad_input = g(&s.bad_input);
         self.matched_readers = g(&s.readers);
         self.matched_writers = g(&s.writers);
+        self.lookahead = g(&s.lookahead);
+        self.ahead = g(&s.ahead);
+        self.rtt_us = g(&s.rtt_us);
+        self.link_waits = g(&s.link_waits);
         self
     }
 }
@@ -175,6 +187,30 @@ const TOPIC_METRICS: &[TopicMetric] = &[
         "gauge",
         "Remote DDS writers matched with the gateway's reader of a topic.",
         |t| t.matched_writers,
+    ),
+    (
+        "tutti_gateway_lookahead_steps",
+        "gauge",
+        "Steps of lookahead of a synchronous SUBSCRIBE set (0: lock-step).",
+        |t| t.lookahead,
+    ),
+    (
+        "tutti_gateway_ahead_steps",
+        "gauge",
+        "Steps the framework is ahead of the newest answer received on a topic with a lookahead.",
+        |t| t.ahead,
+    ),
+    (
+        "tutti_gateway_link_rtt_microseconds",
+        "gauge",
+        "Latest round trip from a step's publication to its answer's arrival, on a topic with a lookahead.",
+        |t| t.rtt_us,
+    ),
+    (
+        "tutti_gateway_link_waits_total",
+        "counter",
+        "Steps the framework waited for the link's answer on a topic with a lookahead.",
+        |t| t.link_waits,
     ),
 ];
 
@@ -342,6 +378,7 @@ mod tests {
                     bad_input: 0,
                     matched_readers: 3,
                     matched_writers: 0,
+                    ..TopicReport::default()
                 },
                 TopicReport {
                     topic: "rt/odd\"name\\x".into(),

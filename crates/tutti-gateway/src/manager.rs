@@ -52,6 +52,8 @@ enum Route {
 struct DomainState {
     name: String,
     synchronous: bool,
+    /// Steps of lookahead of its DDS writers' answers (docs/run.md, "Sites and lookahead").
+    lookahead: u32,
     own_commits: Arc<AtomicU64>,
     /// Its routes exist.
     bridged: bool,
@@ -193,6 +195,7 @@ impl Manager {
             .map(|d| DomainState {
                 name: d.name.clone(),
                 synchronous: d.flags.synchronous,
+                lookahead: opts.lookahead.of(&d.name),
                 own_commits: Arc::new(AtomicU64::new(0)),
                 bridged: false,
                 presence: (!opts.mirror).then(|| Observer::with_presence(d.name.clone(), &opts.node_name)),
@@ -408,7 +411,9 @@ impl Manager {
         let out = if self.written_from_step(p.role) {
             from_step::typed(&*self.dds, d, &p, self.counters(si), self.cfg.patience())?
         } else {
-            let every_step = self.opts.every_step.then(|| format!("{} every-step reader", self.opts.node_name));
+            // With a lookahead, the other site answers every step, so it must be sent every step.
+            let every_step = (self.opts.every_step || self.domains[di].lookahead > 0)
+                .then(|| format!("{} every-step reader", self.opts.node_name));
             to_dds::typed(&*self.dds, d, &p, &self.cfg, self.counters(si), own_commits, every_step)?
         };
         self.outgoing(di, Some(si), out);
@@ -591,6 +596,7 @@ impl Manager {
             d.name.clone(),
             format!("dds-writer {}", gid.short()),
             d.synchronous,
+            d.lookahead,
             self.cfg.clone(),
             Counters { total: self.stats.clone(), set: self.set_stats[*set].clone() },
             d.own_commits.clone(),

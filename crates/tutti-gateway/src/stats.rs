@@ -89,6 +89,14 @@ pub struct SetStats {
     /// Matched remote readers and writers of the set's topics (each once).
     pub readers: AtomicU64,
     pub writers: AtomicU64,
+    /// A synchronous SUBSCRIBE set with a lookahead (docs/run.md, "Sites and lookahead"):
+    /// its steps of lookahead; how many steps the framework is ahead of the newest answer
+    /// received; the round trip from a step's publication to its answer's arrival (µs, the
+    /// latest); and the steps the framework waited for the link (its answer had not come).
+    pub lookahead: AtomicU64,
+    pub ahead: AtomicU64,
+    pub rtt_us: AtomicU64,
+    pub link_waits: AtomicU64,
 }
 
 impl SetStats {

@@ -19,7 +19,7 @@ use tutti_core::shm::WaitMode;
 use tutti_engine::keys::EngineKeys;
 
 use super::plan::{PlanKeys, TopicRules};
-use super::values::{de_namespace, de_period, de_profile, de_rate, de_span, de_types, de_wait};
+use super::values::{de_lookahead, de_namespace, de_period, de_profile, de_rate, de_span, de_types, de_wait};
 use super::{ClockSource, ConfigError, GatewayOptions, TypeMode};
 use crate::foxglove::FoxgloveKeys;
 use crate::http::HttpKeys;
@@ -80,6 +80,9 @@ pub struct GatewayKeys {
     pub every_step: Option<bool>,
     /// Offer no `simulation_interfaces` services (`--passive`).
     pub passive: Option<bool>,
+    /// Steps of lookahead of synchronous domains (`--lookahead`).
+    #[serde(default, deserialize_with = "de_lookahead")]
+    pub lookahead: Option<super::Lookahead>,
 }
 
 impl Section for GatewayKeys {
@@ -102,6 +105,7 @@ impl Section for GatewayKeys {
         "lease",
         "every_step",
         "passive",
+        "lookahead",
     ];
 
     fn over(self, lower: Self) -> Self {
@@ -124,6 +128,10 @@ impl Section for GatewayKeys {
             lease: self.lease.or(lower.lease),
             every_step: self.every_step.or(lower.every_step),
             passive: self.passive.or(lower.passive),
+            lookahead: match (self.lookahead, lower.lookahead) {
+                (Some(a), Some(b)) => Some(a.over(b)),
+                (a, b) => a.or(b),
+            },
         }
     }
 }
@@ -156,6 +164,7 @@ pub const KEYS: &[&str] = &[
     "lease",
     "every_step",
     "passive",
+    "lookahead",
     "http",
     "foxglove",
     "allow",
@@ -272,6 +281,7 @@ impl ConfigFile {
         set(&mut opts.lease, &g.lease);
         set(&mut opts.every_step, &g.every_step);
         set(&mut opts.passive, &g.passive);
+        set(&mut opts.lookahead, &g.lookahead);
         if self.http.http.is_some() {
             opts.http = self.http.http;
         }

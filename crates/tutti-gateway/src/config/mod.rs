@@ -36,8 +36,8 @@ pub use plan::{
 pub use tutti_config::MAX_NESTING;
 pub use tutti_engine::keys::{parse_peer, EngineKeys};
 pub use values::{
-    parse_namespace, parse_period, parse_profile, parse_rate, parse_span, parse_topic_name, parse_wait_mode,
-    MAX_DURATION, MIN_RATE,
+    parse_lookahead, parse_namespace, parse_period, parse_profile, parse_rate, parse_span, parse_topic_name,
+    parse_wait_mode, MAX_DURATION, MAX_LOOKAHEAD, MIN_RATE,
 };
 
 /// The shortest lease the gateway's DDS participant announces, whatever `--lease` says: the
@@ -120,6 +120,75 @@ pub struct GatewayOptions {
     /// Which sets are bridged, and per-topic QoS, rate and name (the config file's
     /// `allow`, `deny` and `topics`).
     pub rules: TopicRules,
+    /// How many steps late the framework takes the answers of a synchronous domain's DDS
+    /// writers (docs/run.md, "Sites and lookahead").
+    pub lookahead: Lookahead,
+}
+
+/// The steps of lookahead of each synchronous domain (`--lookahead`, `lookahead:`): the
+/// answer a DDS writer (a mirror on another site) gives to step n is committed for step
+/// n + K, so the framework runs up to K steps ahead of the link. 0: lock-step as ever.
+#[derive(Debug, Clone, Default, PartialEq, Eq)]
+pub struct Lookahead {
+    /// Every synchronous domain's, unless named in `domains`.
+    pub all: Option<u32>,
+    /// Per domain, in the order given.
+    pub domains: Vec<(String, u32)>,
+}
+
+impl Lookahead {
+    /// The lookahead of domain `name`.
+    pub fn of(&self, name: &str) -> u32 {
+        self.domains.iter().rev().find(|(d, _)| d == name).map_or(self.all.unwrap_or(0), |(_, k)| *k)
+    }
+
+    /// `self`'s, and `lower`'s where `self` says nothing (flags over the file).
+    pub fn over(mut self, lower: Lookahead) -> Lookahead {
+        let mut domains = lower.domains;
+        domains.append(&mut self.domains);
+        Lookahead { all: self.all.or(lower.all), domains }
+    }
+
+    /// Whether any domain has one.
+    pub fn any(&self) -> bool {
+        self.all.is_some_and(|k| k > 0) || self.domains.iter().any(|(_, k)| *k > 0)
+    }
+
+    /// Each domain named must be one of `model`'s and synchronous; a mirror takes none (it
+    /// answers every step in order; the home side consumes them late), and per-item topics
+    /// cannot have one (their samples carry no step).
+    pub fn check(&self, model: &Model, mirror: bool, types: TypeMode) -> Result<(), ConfigError> {
+        let refuse = |domain: &str, why: String| Err(ConfigError::LookaheadDomain { domain: domain.into(), why });
+        if self.any() {
+            let d = self.domains.iter().find(|(_, k)| *k > 0).map_or("*", |(d, _)| d.as_str());
+            if mirror {
+                return refuse(
+                    d,
+                    "a mirror takes no lookahead: give it to the home gateway (the mirror answers every step in order)"
+                        .into(),
+                );
+            }
+            if types == TypeMode::PerItem {
+                return refuse(d, "per-item topics carry no step to delay answers by: use --ros2-types typed".into());
+            }
+        }
+        for (name, _) in &self.domains {
+            match model.domains.iter().find(|d| &d.name == name) {
+                None => {
+                    let all: Vec<&str> = model.domains.iter().map(|d| d.name.as_str()).collect();
+                    return refuse(name, format!("the DDF has no such domain (it has {})", all.join(", ")));
+                }
+                Some(d) if !d.flags.synchronous => {
+                    return refuse(
+                        name,
+                        "the domain is asynchronous: a lookahead is counted in steps of lock-step".into(),
+                    )
+                }
+                Some(_) => {}
+            }
+        }
+        Ok(())
+    }
 }
 
 /// The domain whose simulated time the gateway publishes on `/clock`.
@@ -164,6 +233,7 @@ impl GatewayOptions {
             http: None,
             foxglove: None,
             rules: TopicRules::default(),
+            lookahead: Lookahead::default(),
         }
     }
 
@@ -223,6 +293,7 @@ impl GatewayOptions {
             };
         }
         keys.apply(&mut opts)?;
+        opts.lookahead.check(&opts.model, opts.mirror, opts.types)?;
         if range == DiscoveryRange::Off {
             // Cyclone has no switch for "peers only" that we could set without overriding
             // CYCLONEDDS_URI; with peers given, they are used beside what Cyclone is configured for.

@@ -376,3 +376,49 @@ fn the_files_keys_are_the_sections_keys() {
     b.sort_unstable();
     assert_eq!(a, b);
 }
+
+#[test]
+fn a_lookahead_is_a_number_of_steps_for_every_synchronous_domain_or_one_per_domain() {
+    let o = opts("multiuav.ddf", "{ lookahead: 10 }").unwrap();
+    assert_eq!((o.lookahead.of("multiuav_uav1"), o.lookahead.of("anything")), (10, 10));
+    let o = opts("multiuav.ddf", "{ lookahead: { multiuav_uav1: 40 } }").unwrap();
+    assert_eq!((o.lookahead.of("multiuav_uav1"), o.lookahead.of("multiuav_uav2")), (40, 0));
+    o.lookahead.check(&o.model, false, TypeMode::Typed).unwrap();
+    // Flags over the file: `--lookahead 3 --lookahead multiuav_uav2=5` over the file's 40.
+    let flags = parse_lookahead("3").unwrap().over(Lookahead::default());
+    let flags = parse_lookahead("multiuav_uav2=5").unwrap().over(flags);
+    let l = flags.over(o.lookahead.clone());
+    assert_eq!((l.of("multiuav_uav1"), l.of("multiuav_uav2"), l.of("x")), (40, 5, 3));
+    for bad in ["-1", "1.5", "100001", "x", "=3", "d=", "d=-2"] {
+        assert!(err(parse_lookahead(bad)).contains("is not a lookahead"), "{bad}");
+    }
+    for (cfg, want) in [
+        ("{ lookahead: -1 }", "-1 is not a number of steps"),
+        ("{ lookahead: 2.5 }", "2.5 is not a number of steps"),
+        ("{ lookahead: \"10\" }", "a number of steps"),
+        ("{ lookahead: { a: \"x\" } }", "a number of steps"),
+        ("{ lookahead: { a: 1, a: 2 } }", "domain 'a' is given twice"),
+    ] {
+        let e = err(opts("multiuav.ddf", cfg));
+        assert!(e.contains(want) && e.contains("gw.json5:1:"), "{cfg}: {e}");
+    }
+}
+
+#[test]
+fn a_lookahead_is_refused_for_a_domain_that_cannot_have_one_naming_it() {
+    let model = |ddf: &str| tutti_core::ddf::load(repo(&format!("ddf/{ddf}"))).unwrap();
+    let check = |ddf: &str, l: &str, mirror: bool, types: TypeMode| {
+        err(parse_lookahead(l).unwrap().check(&model(ddf), mirror, types).map(|()| "accepted"))
+    };
+    let e = check("multiuav.ddf", "nosuch=3", false, TypeMode::Typed);
+    assert!(e.contains("'nosuch'") && e.contains("no such domain") && e.contains("multiuav_uav1"), "{e}");
+    let e = check("multiuav.ddf", "multiuav_uav1=3", true, TypeMode::Typed);
+    assert!(e.contains("a mirror takes no lookahead"), "{e}");
+    let e = check("multiuav.ddf", "2", false, TypeMode::PerItem);
+    assert!(e.contains("per-item topics carry no step"), "{e}");
+    let asynchronous = model("product-sample.ddf").domains.iter().find(|d| !d.flags.synchronous).unwrap().name.clone();
+    let e = check("product-sample.ddf", &format!("{asynchronous}=1"), false, TypeMode::Typed);
+    assert!(e.contains(&asynchronous) && e.contains("asynchronous"), "{e}");
+    // 0 is lock-step: allowed anywhere, a mirror included.
+    parse_lookahead("0").unwrap().check(&model("multiuav.ddf"), true, TypeMode::PerItem).unwrap();
+}

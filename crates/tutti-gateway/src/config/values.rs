@@ -10,7 +10,7 @@ use tutti_core::mapping::Profile;
 use tutti_core::parse::{parse_duration, parse_wait};
 use tutti_core::shm::WaitMode;
 
-use super::{ConfigError, TypeMode};
+use super::{ConfigError, Lookahead, TypeMode};
 
 /// The longest duration a key or flag takes: 365 days. Longer ones are refused, since a
 /// deadline is the time now plus the duration, and that sum overflows the clock for
@@ -111,4 +111,74 @@ parsed! {
 pub(crate) fn de_rate<'de, D: Deserializer<'de>>(d: D) -> Result<Option<f64>, D::Error> {
     let expecting = "a rate in Hz above 0 (at least one sample in 365 days)";
     d.deserialize_any(Number { expecting, ok: |v| v >= MIN_RATE }).map(Some)
+}
+
+/// The most steps of lookahead a domain takes: the home side keeps up to that many answers,
+/// and a larger one is no lookahead but a mistake.
+pub const MAX_LOOKAHEAD: u32 = 100_000;
+
+/// One `--lookahead` flag: `K` (every synchronous domain) or `DOMAIN=K`.
+pub fn parse_lookahead(s: &str) -> Result<Lookahead, ConfigError> {
+    let (domain, k) = match s.split_once('=') {
+        Some((d, k)) => (Some(d.trim()), k),
+        None => (None, s),
+    };
+    let k = match k.trim().parse::<u32>() {
+        Ok(k) if k <= MAX_LOOKAHEAD => k,
+        _ => return Err(ConfigError::Lookahead { value: s.to_string() }),
+    };
+    Ok(match domain {
+        None => Lookahead { all: Some(k), domains: Vec::new() },
+        Some("") => return Err(ConfigError::Lookahead { value: s.to_string() }),
+        Some(d) => Lookahead { all: None, domains: vec![(d.to_string(), k)] },
+    })
+}
+
+/// `lookahead`: a number of steps (every synchronous domain), or a map of domain names to
+/// numbers of steps.
+pub(crate) fn de_lookahead<'de, D: Deserializer<'de>>(d: D) -> Result<Option<Lookahead>, D::Error> {
+    struct V;
+    const WHAT: &str = "a number of steps from 0 to 100000, or a map of domain names to numbers of steps";
+    fn steps<E: serde::de::Error>(v: f64) -> Result<u32, E> {
+        if v.fract() == 0.0 && (0.0..=f64::from(MAX_LOOKAHEAD)).contains(&v) {
+            Ok(v as u32)
+        } else {
+            Err(E::custom(format!("{v} is not {WHAT}")))
+        }
+    }
+    /// A map's value: a number, refused with [`WHAT`] otherwise.
+    struct Steps;
+    impl<'de> serde::de::DeserializeSeed<'de> for Steps {
+        type Value = f64;
+        fn deserialize<D: Deserializer<'de>>(self, d: D) -> Result<f64, D::Error> {
+            d.deserialize_any(Number { expecting: WHAT, ok: |_| true })
+        }
+    }
+    impl<'de> serde::de::Visitor<'de> for V {
+        type Value = Lookahead;
+        fn expecting(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+            f.write_str(WHAT)
+        }
+        fn visit_f64<E: serde::de::Error>(self, v: f64) -> Result<Lookahead, E> {
+            Ok(Lookahead { all: Some(steps(v)?), domains: Vec::new() })
+        }
+        fn visit_i64<E: serde::de::Error>(self, v: i64) -> Result<Lookahead, E> {
+            self.visit_f64(v as f64)
+        }
+        fn visit_u64<E: serde::de::Error>(self, v: u64) -> Result<Lookahead, E> {
+            self.visit_f64(v as f64)
+        }
+        fn visit_map<A: serde::de::MapAccess<'de>>(self, mut map: A) -> Result<Lookahead, A::Error> {
+            let mut l = Lookahead::default();
+            while let Some(domain) = map.next_key::<String>()? {
+                let k = steps(map.next_value_seed(Steps)?)?;
+                if l.domains.iter().any(|(d, _)| *d == domain) {
+                    return Err(serde::de::Error::custom(format!("domain '{domain}' is given twice")));
+                }
+                l.domains.push((domain, k));
+            }
+            Ok(l)
+        }
+    }
+    d.deserialize_any(V).map(Some)
 }

@@ -201,6 +201,8 @@ impl Session {
             d.name.clone(),
             name,
             d.synchronous,
+            // A Foxglove client answers the step it is at: no lookahead.
+            0,
             self.sh.cfg.clone(),
             ch.counters.clone(),
             // Not the gateway's DDS commits: the set goes on to DDS as a component's would.

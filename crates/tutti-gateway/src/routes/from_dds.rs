@@ -158,38 +158,57 @@ enum Kind {
 /// Where one remote writer's samples go, and how they are counted and logged: the same
 /// for a writer committed inline and for one with its own thread.
 #[derive(Debug)]
-struct Delivery {
-    domain: String,
-    name: String,
+pub(super) struct Delivery {
+    pub(super) domain: String,
+    pub(super) name: String,
     /// The gateway's totals and the counters of the set this writer writes.
-    counters: Counters,
+    pub(super) counters: Counters,
     own_commits: Arc<AtomicU64>,
     refused_log: LogLimit,
     error_log: LogLimit,
+    /// Steps of lookahead: a sample answering step n is committed for step n + `ahead`.
+    pub(super) ahead: u64,
 }
 
 impl Delivery {
-    fn new(domain: String, name: String, counters: Counters, own_commits: Arc<AtomicU64>) -> Self {
+    fn new(domain: String, name: String, counters: Counters, own_commits: Arc<AtomicU64>, ahead: u64) -> Self {
         let limit = || LogLimit::new(Duration::from_secs(5));
-        Delivery { domain, name, counters, own_commits, refused_log: limit(), error_log: limit() }
+        Delivery { domain, name, counters, own_commits, refused_log: limit(), error_log: limit(), ahead }
     }
 
     /// Commits `payload` through `p` (None: the domain is not running, and the sample is
     /// dropped); a connection that cannot go on is dropped (`p` set to None) for the caller
     /// to connect again.
-    fn deliver(&mut self, p: &mut Option<Participant>, sample: Sample<'_>) {
-        let (domain, name, stats) = (&self.domain, &self.name, &*self.counters.total);
-        let set = Some(&*self.counters.set);
-        let dropped = |total: &AtomicU64| SetStats::add(set, |s| &s.dropped, total, 1);
+    pub(super) fn deliver(&mut self, p: &mut Option<Participant>, sample: Sample<'_>) {
         let Some(part) = p.as_mut() else {
-            dropped(&stats.errors);
+            SetStats::add(Some(&*self.counters.set), |s| &s.dropped, &self.counters.total.errors, 1);
             if self.error_log.allow().is_some() {
-                warn!(domain = %domain, "{name}: sample dropped: the domain is not running");
+                warn!(domain = %self.domain, "{}: sample dropped: the domain is not running", self.name);
             }
             return;
         };
-        match commit(part, sample, &self.own_commits) {
+        let r = commit(part, sample, &self.own_commits, self.ahead);
+        self.settle(p, r);
+    }
+
+    /// Answers the step locked with the values as they are (a lookahead's first steps, or a
+    /// step whose answer never came): a commit of nothing new.
+    pub(super) fn hold(&mut self, p: &mut Option<Participant>) {
+        if let Some(part) = p.as_mut() {
+            let r = part.commit().map(|()| Committed::Held);
+            self.settle(p, r);
+        }
+    }
+
+    /// Counts and logs what became of a commit through `p`; drops a connection that cannot
+    /// go on.
+    fn settle(&mut self, p: &mut Option<Participant>, r: Result<Committed, ShmError>) {
+        let (domain, name, stats) = (&self.domain, &self.name, &*self.counters.total);
+        let set = Some(&*self.counters.set);
+        let dropped = |total: &AtomicU64| SetStats::add(set, |s| &s.dropped, total, 1);
+        match r {
             Ok(Committed::Yes) => SetStats::add(set, |s| &s.samples_in, &stats.from_dds, 1),
+            Ok(Committed::Held) => {}
             Ok(Committed::Late) => dropped(&stats.late),
             Err(e @ ShmError::NotOwner { .. }) => {
                 dropped(&stats.refused);
@@ -198,7 +217,7 @@ impl Delivery {
                 }
                 // A refused connection is flagged as a writer; in a synchronous domain the
                 // framework would wait for its commits. Leave, and come back with the next sample.
-                if part.info().flags.synchronous {
+                if p.as_ref().is_some_and(|part| part.info().flags.synchronous) {
                     *p = None;
                 }
             }
@@ -250,16 +269,20 @@ impl RemoteWriter {
     /// Connects to `domain` on behalf of a remote writer (a DDS writer, or a Foxglove client)
     /// whose connection shows `name`: in its own thread when the domain is `synchronous`,
     /// else right here (without waiting; retried on the next sample or
-    /// [`RemoteWriter::tick`] if the domain is not there).
+    /// [`RemoteWriter::tick`] if the domain is not there). With a `lookahead` of K steps
+    /// (synchronous only), its answer to step n is committed for step n + K
+    /// (docs/run.md, "Sites and lookahead").
     pub fn spawn(
         domain: String,
         name: String,
         synchronous: bool,
+        lookahead: u32,
         cfg: ShmConfig,
         counters: Counters,
         own_commits: Arc<AtomicU64>,
     ) -> std::io::Result<Self> {
-        let out = Delivery::new(domain, name, counters, own_commits);
+        let ahead = if synchronous { u64::from(lookahead) } else { 0 };
+        let out = Delivery::new(domain, name, counters, own_commits, ahead);
         if !synchronous {
             let mut inline = Inline { out, cfg, p: None, next_try: Instant::now() };
             inline.connect();
@@ -268,11 +291,14 @@ impl RemoteWriter {
         let (tx, rx) = mpsc::channel();
         let state = Mutex::new(WriterState { out, part: None });
         let shared = Arc::new(LockstepState { pending: AtomicUsize::new(0), state });
-        let ls = Arc::new(Lockstep { tx, shared: shared.clone() });
-        thread::Builder::new()
-            .name("tutti-gw-writer".into())
-            .stack_size(256 << 10)
-            .spawn(move || run(&shared, rx, cfg))?;
+        let ls = Arc::new(Lockstep { tx, shared: shared.clone(), ahead: ahead > 0 });
+        thread::Builder::new().name("tutti-gw-writer".into()).stack_size(256 << 10).spawn(move || {
+            if ahead > 0 {
+                super::lookahead::run(&shared, &rx, &cfg)
+            } else {
+                run(&shared, rx, cfg)
+            }
+        })?;
         Ok(RemoteWriter { kind: Kind::Thread(ls) })
     }
 
@@ -303,30 +329,32 @@ impl RemoteWriter {
 /// the connection.
 #[derive(Debug)]
 struct Lockstep {
-    tx: Sender<Payload>,
+    tx: Sender<(Payload, Instant)>,
     shared: Arc<LockstepState>,
+    /// It has a lookahead: every sample goes to the thread, which commits it K steps on.
+    ahead: bool,
 }
 
 /// What the sink and the thread share.
 #[derive(Debug)]
-struct LockstepState {
+pub(super) struct LockstepState {
     /// Samples handed to the thread and not yet committed: while any are, later samples
     /// follow them there, so that they are committed in order.
-    pending: AtomicUsize,
-    state: Mutex<WriterState>,
+    pub(super) pending: AtomicUsize,
+    pub(super) state: Mutex<WriterState>,
 }
 
 /// A synchronous remote writer's delivery and its connection (None: not connected).
 #[derive(Debug)]
-struct WriterState {
-    out: Delivery,
-    part: Option<Participant>,
+pub(super) struct WriterState {
+    pub(super) out: Delivery,
+    pub(super) part: Option<Participant>,
 }
 
 impl Lockstep {
     fn send(&self, sample: Sample<'_>) -> Result<(), Payload> {
         let sh = &self.shared;
-        if sh.pending.load(Ordering::Acquire) == 0 {
+        if !self.ahead && sh.pending.load(Ordering::Acquire) == 0 {
             if let Ok(mut st) = sh.state.try_lock() {
                 let WriterState { out, part } = &mut *st;
                 if part.as_ref().is_some_and(Participant::publish_ready) && sh.pending.load(Ordering::Acquire) == 0 {
@@ -336,9 +364,9 @@ impl Lockstep {
             }
         }
         sh.pending.fetch_add(1, Ordering::AcqRel);
-        self.tx.send(sample.into_owned()).map_err(|e| {
+        self.tx.send((sample.into_owned(), Instant::now())).map_err(|e| {
             sh.pending.fetch_sub(1, Ordering::AcqRel);
-            e.0
+            e.0 .0
         })
     }
 }
@@ -348,18 +376,8 @@ impl Lockstep {
 /// owes the framework its answer to a step and sends nothing for `cfg.lease` (killed, or
 /// hung) has its connection released, so that the domain stops waiting for it; its next
 /// sample connects it again.
-fn run(ls: &LockstepState, rx: Receiver<Payload>, cfg: ShmConfig) {
-    let connect = |out: &Delivery| {
-        let mut p =
-            Participant::connect(&out.domain, cfg.connect_options(out.name.clone(), Duration::from_millis(100)))
-                .ok()?;
-        if p.info().flags.event {
-            // In an event-driven domain a DDS writer is due where its inputs changed, and
-            // its sample answers the step (docs/timing.md).
-            p.wake_on_change_writer();
-        }
-        Some(p)
-    };
+fn run(ls: &LockstepState, rx: Receiver<(Payload, Instant)>, cfg: ShmConfig) {
+    let connect = |out: &Delivery| connect(out, &cfg);
     {
         let mut st = ls.state.lock().unwrap_or_else(PoisonError::into_inner);
         let WriterState { out, part } = &mut *st;
@@ -375,7 +393,7 @@ fn run(ls: &LockstepState, rx: Receiver<Payload>, cfg: ShmConfig) {
         let mut st = ls.state.lock().unwrap_or_else(PoisonError::into_inner);
         let WriterState { out, part: p } = &mut *st;
         match msg {
-            Ok(payload) => {
+            Ok((payload, _)) => {
                 lapsed = false;
                 if p.is_none() {
                     *p = connect(out);
@@ -410,22 +428,36 @@ fn run(ls: &LockstepState, rx: Receiver<Payload>, cfg: ShmConfig) {
     }
 }
 
+/// The connection of a synchronous domain's remote writer, or None (the domain is not there).
+pub(super) fn connect(out: &Delivery, cfg: &ShmConfig) -> Option<Participant> {
+    let mut p =
+        Participant::connect(&out.domain, cfg.connect_options(out.name.clone(), Duration::from_millis(100))).ok()?;
+    if p.info().flags.event {
+        // In an event-driven domain a DDS writer is due where its inputs changed, and its
+        // sample answers the step (docs/timing.md).
+        p.wake_on_change_writer();
+    }
+    Some(p)
+}
+
 /// What became of a sample.
 enum Committed {
     Yes,
+    /// No sample: the step was answered with the values as they were.
+    Held,
     /// It answers a step the framework has already left (it timed out waiting).
     Late,
 }
 
-fn commit(p: &mut Participant, sample: Sample<'_>, own_commits: &AtomicU64) -> Result<Committed, ShmError> {
+fn commit(p: &mut Participant, sample: Sample<'_>, own_commits: &AtomicU64, ahead: u64) -> Result<Committed, ShmError> {
     if p.info().flags.synchronous {
-        // Waits for the step this sample answers (a seed needs none). A sample answering an
-        // earlier step is not committed for the current one, or every later step would
-        // get its predecessor's answer; the lock alone makes the connection a writer, so
-        // the framework waits for the next answer.
+        // Waits for the step this sample answers (a seed needs none), `ahead` steps on with
+        // a lookahead. A sample answering an earlier step is not committed for the current
+        // one, or every later step would get its predecessor's answer; the lock alone makes
+        // the connection a writer, so the framework waits for the next answer.
         let locked = p.publish_lock()?;
         if let Some(step) = sample.step() {
-            if step != 0 && step < locked {
+            if step != 0 && step.saturating_add(ahead) < locked {
                 return Ok(Committed::Late);
             }
         }
@@ -461,7 +493,7 @@ pub enum Sample<'a> {
 
 impl Sample<'_> {
     /// The step a typed sample answers.
-    fn step(&self) -> Option<u64> {
+    pub(super) fn step(&self) -> Option<u64> {
         match self {
             Sample::Owned(Payload::Set(s)) => Some(s.step),
             Sample::Owned(Payload::Item { .. }) => None,

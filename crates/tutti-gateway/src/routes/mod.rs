@@ -3,7 +3,8 @@
 //! * [`to_dds`]: a set in shared memory -> its DDS writer (typed), polled when asynchronous,
 //!   in lock-step through a remote connection when synchronous;
 //! * [`from_dds`]: a DDS reader -> shared memory, through one remote connection per
-//!   matched DDS writer (so role rules, exclusivity and seeding are the core's);
+//!   matched DDS writer (so role rules, exclusivity and seeding are the core's); with a
+//!   lookahead, a synchronous writer's thread is `lookahead`'s (its answers K steps on);
 //! * [`per_item`]: the same two directions with one stock-typed topic per item;
 //! * [`mirror`]: local segments whose framework is fed from DDS (`--mirror`), each sample
 //!   handed by the reader's sink straight to the mirror's thread;
@@ -30,6 +31,7 @@ use crate::stats::{SetStats, Stats};
 pub mod clock;
 pub mod from_dds;
 pub mod from_step;
+mod lookahead;
 pub mod mirror;
 pub mod per_item;
 pub mod to_dds;
