@@ -98,16 +98,7 @@ pub fn host_with_gateway_by(
     (p, guard)
 }
 
-/// Runs `program ARGS` to its end; Err with what it printed on failure (the namespaces'
-/// set-up: `ip`, `nft`).
-fn run_tool(program: &str, args: &[&str]) -> Result<(), String> {
-    let out = Command::new(program).args(args).output().map_err(|e| format!("{program}: {e}"))?;
-    if out.status.success() {
-        Ok(())
-    } else {
-        Err(format!("{program} {}: {}", args.join(" "), String::from_utf8_lossy(&out.stderr).trim()))
-    }
-}
+use tutti_test_support::run_tool;
 
 /// Two network namespaces joined by a veth pair (`veth0` in each, 192.0.2.1/24 in the first,
 /// 192.0.2.2/24 in the second: addresses that exist only inside them), both removed on drop.
@@ -152,12 +143,26 @@ impl NetnsPair {
         extra: &[&str],
         env: &[(&str, &str)],
     ) -> Proc {
-        let mut cmd = Command::new("ip");
-        cmd.args(["netns", "exec", &self.names[i]]).arg(tutti_test_support::tutti_exe());
-        cmd.envs(env.iter().copied());
-        let args: Vec<&str> = ["--dds", e.name].into_iter().chain(extra.iter().copied()).collect();
-        start_gateway(cmd, ddf, domain_id, ns, Self::ADDRS[i], &args)
+        netns_gateway((&self.names[i], Self::ADDRS[i]), e, ddf, domain_id, ns, extra, env)
     }
+}
+
+/// `tutti gateway` on engine `e` inside network namespace `at.0`, on its address `at.1`, with
+/// `env` added to its environment.
+pub fn netns_gateway(
+    at: (&str, &str),
+    e: Eng,
+    ddf: &str,
+    domain_id: u16,
+    ns: &str,
+    extra: &[&str],
+    env: &[(&str, &str)],
+) -> Proc {
+    let mut cmd = Command::new("ip");
+    cmd.args(["netns", "exec", at.0]).arg(tutti_test_support::tutti_exe());
+    cmd.envs(env.iter().copied());
+    let args: Vec<&str> = ["--dds", e.name].into_iter().chain(extra.iter().copied()).collect();
+    start_gateway(cmd, ddf, domain_id, ns, at.1, &args)
 }
 
 impl Drop for NetnsPair {

@@ -134,92 +134,134 @@ fn a_component_on_the_mirror_side_takes_part_in_lock_step(e: Eng) {
 /// A mirrored synchronous domain with a lookahead of K steps (`--lookahead`, docs/run.md,
 /// "Sites and lookahead"): the answer the mirror side gives to step n is the one the home
 /// framework reads at the end of step n + K, exactly, and the first K steps read the initial
-/// value. The home side is a closed loop (what it publishes depends on what it read), so one
-/// answer taken a step early or late changes every value after it; each step is compared with
-/// the same loop computed here with a K-step delay on the connection.
+/// value. Both gateways on this machine's loopback; the stats endpoint shows the lookahead.
 fn a_mirrored_domain_with_a_lookahead_answers_each_step_k_steps_later(e: Eng) {
-    const K: u64 = 4;
-    const STEPS: u64 = 300;
     let (dom, home, away) = (e.dom(118), e.ns("gwtest118a"), e.ns("gwtest118b"));
-    let model = tutti_core::ddf::load(tutti_test_support::repo_root().join(DDF)).unwrap();
-    let opts = tutti_core::shm::FrameworkOptions {
-        namespace: home.clone(),
-        timeout: Duration::from_secs(5),
-        ..Default::default()
-    };
-    let mut fw = tutti_core::shm::Framework::create(&model, &opts).expect("framework");
-    let k = K.to_string();
-    let gw_home = e.gateway(DDF, dom, &home, &["--lookahead", &format!("gw_sync={k}"), "--http", "127.0.0.1:0"]);
-    let gw_away = e.gateway(DDF, dom, &away, &["--mirror", "--timeout", "5s"]);
-    let dump = || format!("{}\n{}", gw_home.dump(), gw_away.dump());
-    // The mirror side's component: y = x + 1 at every step.
-    let stop = Arc::new(AtomicBool::new(false));
-    let s = stop.clone();
-    let away_ns = away.clone();
-    let component = thread::spawn(move || {
-        let mut p = connect(&away_ns, "gw_sync");
-        // A writer from the start, so that the mirror's first step waits for its answer too
-        // (a connection is otherwise a writer from its first lock).
-        p.publish_gate().unwrap();
-        while !s.load(Ordering::Acquire) {
-            if p.subscribe_lock().is_err() {
-                continue;
-            }
-            let x = f64_at(p.snapshot(), 0);
-            if p.publish_lock().is_ok() {
-                p.stage("y", &(x + 1.0).to_ne_bytes()).unwrap();
-                p.commit().unwrap();
-            }
-        }
-    });
-    // Ready when the mirror side's component waits for its first step, the home gateway
-    // answers for the mirror's writer, and its PUBLISH writer has the mirror's reader.
-    let stats = stats_addr(&gw_home);
-    let ready = tutti_test_support::poll_for(SECS(60), || {
-        let away_ok = tutti_core::shm::segment::Segment::open(&away, "gw_sync").is_ok_and(|seg| {
-            seg.status().connections.iter().any(|c| c.name == "test-component" && c.sync_reader && c.writer)
-        });
-        let home_ok = status(&home, "gw_sync").connections.iter().any(|c| c.remote && c.writer);
-        let body = http_get(&stats, "/stats");
-        let v: serde_json::Value = serde_json::from_str(&body).unwrap_or_default();
-        let matched = v["topics"]
-            .as_array()
-            .into_iter()
-            .flatten()
-            .any(|t| t["set"] == "gw_sync/publish" && t["matched_readers"].as_u64().unwrap_or(0) >= 1);
-        (away_ok && home_ok && matched).then_some(())
-    });
-    assert!(ready.is_some(), "the two sites never joined\n{}", dump());
-    let d = fw.domains.iter_mut().find(|d| d.info().name == "gw_sync").unwrap();
-    let mut read = Vec::new();
-    let mut y = 0.0;
-    for step in 1..=STEPS {
-        let x = step as f64 + 0.5 * y;
-        let r = d.step(&x.to_ne_bytes(), step as f64 * 0.01).unwrap_or_else(|e| panic!("step {step}: {e}\n{}", dump()));
-        assert_eq!(r.step, step);
-        y = f64_at(d.subscribe(), 0);
-        read.push((x, y));
-    }
-    let body = http_get(&stats, "/stats");
-    stop.store(true, Ordering::Release);
-    drop(fw);
-    component.join().unwrap();
-    // The same loop with a K-step delay on the connection.
-    let (mut xs, mut y) = (Vec::new(), 0.0);
-    for (i, &(x_got, y_got)) in read.iter().enumerate() {
-        let step = i as u64 + 1;
-        let x = step as f64 + 0.5 * y;
-        xs.push(x);
-        y = if step > K { xs[(step - K - 1) as usize] + 1.0 } else { 0.0 };
-        assert_eq!((x_got, y_got), (x, y), "step {step} differs from a run with a {K}-step delay\n{}", dump());
-    }
-    let v: serde_json::Value = serde_json::from_str(&body).unwrap();
+    let k = 4;
+    let args = ["--lookahead".to_string(), format!("gw_sync={k}"), "--http".into(), "127.0.0.1:0".into()];
+    let args: Vec<&str> = args.iter().map(String::as_str).collect();
+    let run = LookaheadRun { home: &home, away: &away, k, steps: 300 };
+    let (gw_home, _gw_away) =
+        run.check(|| (e.gateway(DDF, dom, &home, &args), e.gateway(DDF, dom, &away, &["--mirror", "--timeout", "5s"])));
+    let v: serde_json::Value = serde_json::from_str(&http_get(&stats_addr(&gw_home), "/stats")).unwrap();
     let sub = v["topics"].as_array().unwrap().iter().find(|t| t["set"] == "gw_sync/subscribe").unwrap().clone();
-    assert_eq!(sub["lookahead"], K, "{sub}");
-    assert_eq!(v["gateway"]["totals"]["late"], 0, "{body}");
+    assert_eq!(sub["lookahead"], k, "{sub}");
+    assert_eq!(v["gateway"]["totals"]["late"], 0, "{v}");
 }
 
-per_engine!(the_mirror_discovers_across_network_namespaces_by_multicast);
+/// The same across a link of 20 ms each way between two network namespaces (a
+/// `tutti_test_support::Wire`: TAP devices joined by this process after the delay), with
+/// K = 10: the home framework runs ahead of the link, and every value is still exactly the
+/// one of a run with a 10-step delay.
+fn a_lookahead_across_a_slow_link_keeps_every_value_of_a_k_step_delay(e: Eng) {
+    let Some(wire) = tutti_test_support::require(
+        "network namespaces and TAP devices (root, `ip` of iproute2, /dev/net/tun)",
+        tutti_test_support::Wire::create(&format!("la{}", &e.name[..2]), Duration::from_millis(20)),
+    ) else {
+        return;
+    };
+    let (dom, home, away) = (e.dom(119), e.ns("gwtest119a"), e.ns("gwtest119b"));
+    let [a, b] = tutti_test_support::Wire::ADDRS;
+    let names = wire.names().clone();
+    let run = LookaheadRun { home: &home, away: &away, k: 10, steps: 200 };
+    let (gw_home, gw_away) = run.check(|| {
+        (
+            netns_gateway((&names[0], a), e, DDF, dom, &home, &["--lookahead", "10"], &[]),
+            netns_gateway((&names[1], b), e, DDF, dom, &away, &["--mirror", "--timeout", "5s"], &[]),
+        )
+    });
+    assert_eq!(counter(&gw_home, "late"), 0, "{}\n{}", gw_home.dump(), gw_away.dump());
+    assert!(wire.counts().0 > 0, "nothing crossed the wire");
+}
+
+/// One run of a mirrored domain with a lookahead: the home framework (this test's) is a
+/// closed loop, what it publishes computed from what it read, so one answer taken a step
+/// early or late changes every value after it; each step is compared with the same loop
+/// computed here with a K-step delay on the connection.
+struct LookaheadRun<'a> {
+    home: &'a str,
+    away: &'a str,
+    k: u64,
+    steps: u64,
+}
+
+impl LookaheadRun<'_> {
+    /// Runs it with the gateways `gateways` starts (home, mirror) once the home framework is
+    /// up; returns them, for what the caller checks next.
+    fn check(&self, gateways: impl FnOnce() -> (Proc, Proc)) -> (Proc, Proc) {
+        let (k, steps) = (self.k, self.steps);
+        let model = tutti_core::ddf::load(tutti_test_support::repo_root().join(DDF)).unwrap();
+        let opts = tutti_core::shm::FrameworkOptions {
+            namespace: self.home.to_string(),
+            timeout: Duration::from_secs(5),
+            ..Default::default()
+        };
+        let mut fw = tutti_core::shm::Framework::create(&model, &opts).expect("framework");
+        let (gw_home, gw_away) = gateways();
+        let dump = || format!("{}\n{}", gw_home.dump(), gw_away.dump());
+        // The mirror side's component: y = x + 1 at every step.
+        let stop = Arc::new(AtomicBool::new(false));
+        let s = stop.clone();
+        let away_ns = self.away.to_string();
+        let component = thread::spawn(move || {
+            let mut p = connect(&away_ns, "gw_sync");
+            // A writer from the start, so that the mirror's first step waits for its answer
+            // too (a connection is otherwise a writer from its first lock).
+            p.publish_gate().unwrap();
+            while !s.load(Ordering::Acquire) {
+                if p.subscribe_lock().is_err() {
+                    continue;
+                }
+                let x = f64_at(p.snapshot(), 0);
+                if p.publish_lock().is_ok() {
+                    p.stage("y", &(x + 1.0).to_ne_bytes()).unwrap();
+                    p.commit().unwrap();
+                }
+            }
+        });
+        // Ready when the mirror side's component waits for its first step, the home gateway
+        // answers for the mirror's writer, and it has the mirror's PUBLISH reader.
+        let ready = tutti_test_support::poll_for(SECS(60), || {
+            let away_ok = tutti_core::shm::segment::Segment::open(self.away, "gw_sync").is_ok_and(|seg| {
+                seg.status().connections.iter().any(|c| c.name == "test-component" && c.sync_reader && c.writer)
+            });
+            let conns = status(self.home, "gw_sync").connections;
+            let home_ok =
+                conns.iter().any(|c| c.remote && c.writer) && conns.iter().any(|c| c.observer && c.dds_readers >= 1);
+            (away_ok && home_ok).then_some(())
+        });
+        assert!(ready.is_some(), "the two sides never joined\n{}", dump());
+        let d = fw.domains.iter_mut().find(|d| d.info().name == "gw_sync").unwrap();
+        let mut read = Vec::new();
+        let mut y = 0.0;
+        for step in 1..=steps {
+            let x = step as f64 + 0.5 * y;
+            let r =
+                d.step(&x.to_ne_bytes(), step as f64 * 0.01).unwrap_or_else(|e| panic!("step {step}: {e}\n{}", dump()));
+            assert_eq!(r.step, step);
+            y = f64_at(d.subscribe(), 0);
+            read.push((x, y));
+        }
+        stop.store(true, Ordering::Release);
+        drop(fw);
+        component.join().unwrap();
+        // The same loop with a K-step delay on the connection.
+        let (mut xs, mut y) = (Vec::new(), 0.0);
+        for (i, &(x_got, y_got)) in read.iter().enumerate() {
+            let step = i as u64 + 1;
+            let x = step as f64 + 0.5 * y;
+            xs.push(x);
+            y = if step > k { xs[(step - k - 1) as usize] + 1.0 } else { 0.0 };
+            assert_eq!((x_got, y_got), (x, y), "step {step} differs from a run with a {k}-step delay\n{}", dump());
+        }
+        (gw_home, gw_away)
+    }
+}
+
+per_engine!(
+    the_mirror_discovers_across_network_namespaces_by_multicast,
+    a_lookahead_across_a_slow_link_keeps_every_value_of_a_k_step_delay,
+);
 
 // The gateway on the other side is the peer: these run on Zenoh too, both gateways meeting at
 // a router (docs/gateway.md, "Zenoh").

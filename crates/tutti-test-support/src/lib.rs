@@ -19,6 +19,8 @@
 //! * [`ddf::one_domain`]: a small DDF of one domain.
 //! * [`mutate`]: the byte mutator of the fuzz tests.
 //! * `ZenohRouter` (feature `zenoh`): a Zenoh router of the test's own on loopback.
+//! * `Wire` (feature `wire`): two network namespaces joined by a link with a delay, losses,
+//!   reordering and cuts, made in userspace (TAP devices); [`run_tool`]: a set-up command.
 //! * [`compile_c`], [`rtapi_lib_dir`]: C programs built against this build's librtapi.
 //! * `fmu` (feature `fmu`): FMUs built for the FMU tests.
 //!
@@ -36,6 +38,8 @@ mod proc;
 mod run;
 mod segments;
 mod wait;
+#[cfg(feature = "wire")]
+mod wire;
 mod worker;
 #[cfg(feature = "zenoh")]
 mod zenoh_router;
@@ -45,9 +49,11 @@ pub use hex::{hex, unhex};
 pub use names::{dds_domain_in, namespace};
 pub use policy::{ci, python, require, require_tool, which};
 pub use proc::{Output, Proc, Spawn};
-pub use run::{run_output, run_with_timeout, tutti, tutti_command, tutti_exe, workspace_bin, TIMEOUT};
+pub use run::{run_output, run_tool, run_with_timeout, tutti, tutti_command, tutti_exe, workspace_bin, TIMEOUT};
 pub use segments::{segments_of, shrink_segment, RemoveSegments, ShmFile};
 pub use wait::{lazy, poll_for, wait_for, wait_until, Lazy, POLL};
+#[cfg(feature = "wire")]
+pub use wire::{Faults, Wire};
 pub use worker::{within, Worker};
 #[cfg(feature = "zenoh")]
 pub use zenoh_router::ZenohRouter;

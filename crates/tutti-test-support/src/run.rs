@@ -103,3 +103,14 @@ where
     let (status, out, err) = run_with_timeout(cmd, TIMEOUT);
     (status.code().unwrap_or(-1), out, err)
 }
+
+/// Runs `program ARGS` to its end; Err with what it printed on failure (a test's set-up of
+/// the machine: `ip`, `nft`).
+pub fn run_tool(program: &str, args: &[&str]) -> Result<(), String> {
+    let out = Command::new(program).args(args).output().map_err(|e| format!("{program}: {e}"))?;
+    if out.status.success() {
+        Ok(())
+    } else {
+        Err(format!("{program} {}: {}", args.join(" "), String::from_utf8_lossy(&out.stderr).trim()))
+    }
+}
