@@ -18,6 +18,7 @@ mod peers;
 mod record;
 mod rtapi;
 mod shm;
+mod sites;
 mod studio;
 
 /// Benchmarks of tutti, each next to a peer in the same run.
@@ -43,6 +44,9 @@ enum What {
     Record(record::Args),
     /// Round trips through shared-memory domains, next to iceoryx2 in the same run.
     Shm(shm::Args),
+    /// Lock-step between two sites joined by a slow link (two network namespaces), per
+    /// lookahead, next to K / RTT; every value checked against a K-step delay.
+    Sites(sites::Args),
     /// RTPublishLock's latency in a client whose writer thread runs beside a reader thread
     /// looping on RTSubscribeLock, next to a one-thread client.
     RtapiThreads(rtapi::Args),
@@ -64,6 +68,7 @@ fn main() -> ExitCode {
         What::Gateway(a) => gateway::run(a),
         What::Record(a) => record::run(a),
         What::Shm(a) => shm::run(a),
+        What::Sites(a) => sites::run(a),
         What::RtapiThreads(a) => rtapi::run(a).map_err(Into::into),
         What::Studio(a) => studio::run(a),
         What::ShmPong(a) => shm::pong(a),

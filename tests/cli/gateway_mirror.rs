@@ -174,6 +174,52 @@ fn a_lookahead_across_a_slow_link_keeps_every_value_of_a_k_step_delay(e: Eng) {
     assert!(wire.counts().0 > 0, "nothing crossed the wire");
 }
 
+/// Through a link that loses 5 % of the frames each way and holds 5 % back by 3 ms (so that
+/// later ones overtake them), and is cut for 0.5 s in the middle of the run: the run waits
+/// for the link and goes on, and no step is lost, repeated or taken out of order.
+fn a_lookahead_through_a_lossy_reordering_link_that_is_cut_loses_no_step(e: Eng) {
+    let Some(wire) = tutti_test_support::require(
+        "network namespaces and TAP devices (root, `ip` of iproute2, /dev/net/tun)",
+        tutti_test_support::Wire::create(&format!("lf{}", &e.name[..2]), Duration::from_millis(5)),
+    ) else {
+        return;
+    };
+    let f = wire.faults();
+    f.loss_ppm.store(50_000, Ordering::Relaxed);
+    f.reorder_ppm.store(50_000, Ordering::Relaxed);
+    f.reorder_us.store(3_000, Ordering::Relaxed);
+    let (dom, home, away) = (e.dom(120), e.ns("gwtest120a"), e.ns("gwtest120b"));
+    let [a, b] = tutti_test_support::Wire::ADDRS;
+    let names = wire.names().clone();
+    let run = LookaheadRun { home: &home, away: &away, k: 4, steps: 400 };
+    let mut mend = None;
+    let (gw_home, gw_away) = run.check_with(
+        || {
+            (
+                netns_gateway((&names[0], a), e, DDF, dom, &home, &["--lookahead", "4"], &[]),
+                netns_gateway((&names[1], b), e, DDF, dom, &away, &["--mirror", "--timeout", "5s"], &[]),
+            )
+        },
+        |step| {
+            if step == 150 {
+                // Cut for 0.5 s: the framework, at most 4 steps ahead, waits for the link
+                // meanwhile (in its step, so another thread joins the wire again).
+                f.cut.store(true, Ordering::Relaxed);
+                let f = f.clone();
+                mend = Some(thread::spawn(move || {
+                    thread::sleep(Duration::from_millis(500));
+                    f.cut.store(false, Ordering::Relaxed);
+                }));
+            }
+        },
+    );
+    mend.expect("the link was cut").join().unwrap();
+    let (copied, dropped) = wire.counts();
+    assert!(dropped > 0 && copied > 0, "the wire lost nothing ({copied} copied)");
+    assert_eq!(counter(&gw_home, "late"), 0, "{}\n{}", gw_home.dump(), gw_away.dump());
+    assert_eq!(counter(&gw_home, "lapsed"), 0, "{}\n{}", gw_home.dump(), gw_away.dump());
+}
+
 /// One run of a mirrored domain with a lookahead: the home framework (this test's) is a
 /// closed loop, what it publishes computed from what it read, so one answer taken a step
 /// early or late changes every value after it; each step is compared with the same loop
@@ -189,6 +235,11 @@ impl LookaheadRun<'_> {
     /// Runs it with the gateways `gateways` starts (home, mirror) once the home framework is
     /// up; returns them, for what the caller checks next.
     fn check(&self, gateways: impl FnOnce() -> (Proc, Proc)) -> (Proc, Proc) {
+        self.check_with(gateways, |_| {})
+    }
+
+    /// [`LookaheadRun::check`], calling `before(n)` before each step n (a fault to make).
+    fn check_with(&self, gateways: impl FnOnce() -> (Proc, Proc), mut before: impl FnMut(u64)) -> (Proc, Proc) {
         let (k, steps) = (self.k, self.steps);
         let model = tutti_core::ddf::load(tutti_test_support::repo_root().join(DDF)).unwrap();
         let opts = tutti_core::shm::FrameworkOptions {
@@ -235,6 +286,7 @@ impl LookaheadRun<'_> {
         let mut read = Vec::new();
         let mut y = 0.0;
         for step in 1..=steps {
+            before(step);
             let x = step as f64 + 0.5 * y;
             let r =
                 d.step(&x.to_ne_bytes(), step as f64 * 0.01).unwrap_or_else(|e| panic!("step {step}: {e}\n{}", dump()));
@@ -261,6 +313,7 @@ impl LookaheadRun<'_> {
 per_engine!(
     the_mirror_discovers_across_network_namespaces_by_multicast,
     a_lookahead_across_a_slow_link_keeps_every_value_of_a_k_step_delay,
+    a_lookahead_through_a_lossy_reordering_link_that_is_cut_loses_no_step,
 );
 
 // The gateway on the other side is the peer: these run on Zenoh too, both gateways meeting at

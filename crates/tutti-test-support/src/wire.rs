@@ -86,9 +86,9 @@ impl Wire {
         &self.names
     }
 
-    /// What the wire does, to change while it runs.
-    pub fn faults(&self) -> &Faults {
-        &self.faults
+    /// What the wire does, to change while it runs (from any thread).
+    pub fn faults(&self) -> Arc<Faults> {
+        self.faults.clone()
     }
 
     pub fn set_delay(&self, d: Duration) {
