@@ -51,7 +51,9 @@ pub struct Args {
     /// each costs a round trip).
     #[arg(long, default_value_t = 2000, value_parser = clap::value_parser!(u64).range(20..))]
     steps: u64,
-    /// The engines (DDS ones: the two gateways find each other by multicast on the wire).
+    /// The engines: on DDS the two gateways find each other by multicast on the wire; on
+    /// Zenoh each connects to its site's router (eclipse-zenoh's, `tests/gateway/zenoh_router.py`
+    /// run by the repository's `.venv` Python), and the second router to the first.
     #[arg(long, value_delimiter = ',', default_value = "cyclone")]
     engines: Vec<EngineKind>,
     /// Print one JSON object instead of the table.
@@ -87,12 +89,6 @@ struct Run {
 }
 
 pub fn run(a: Args) -> CliResult {
-    if a.engines.contains(&EngineKind::Zenoh) {
-        return Err(anyhow!(
-            "--engines: the Zenoh engine needs routers on the two sites, which this benchmark does not start yet"
-        )
-        .into());
-    }
     let dir = std::env::temp_dir().join(format!("tutti-bench-sites-{}", std::process::id()));
     std::fs::create_dir_all(&dir).with_context(|| format!("creating {}", dir.display()))?;
     let ddf = dir.join("sites.ddf");
@@ -158,6 +154,7 @@ fn runs(a: &Args, ddf: &Path) -> anyhow::Result<Vec<Run>> {
     for &engine in &a.engines {
         let wire = Wire::create(&format!("bs{}", &engine.name()[..2]), a.delay)
             .map_err(|e| anyhow!("cannot make the two sites' namespaces (run as root): {e}"))?;
+        let _routers = if engine == EngineKind::Zenoh { Some(routers(&wire)?) } else { None };
         for (i, &k) in a.lookahead.iter().enumerate() {
             let steps = if k == 0 { (a.steps / 10).max(20) } else { a.steps };
             eprintln!("{}: K = {k}, {steps} steps ...", engine.name());
@@ -185,8 +182,14 @@ fn one(wire: &Wire, ddf: &Path, engine: EngineKind, k: u64, steps: u64, i: usize
         // Lock-step still needs every step sent (with a lookahead the gateway does it).
         home_args = vec!["--every-step"];
     }
+    let mut away_args = vec!["--mirror", "--timeout", "10s"];
+    let routers = [0, 1].map(router_endpoint);
+    if engine == EngineKind::Zenoh {
+        home_args.extend(["--zenoh-connect", &routers[0]]);
+        away_args.extend(["--zenoh-connect", &routers[1]]);
+    }
     let _gw_home = gateway(&names[0], Wire::ADDRS[0], engine, ddf, dom, &home, &home_args)?;
-    let _gw_away = gateway(&names[1], Wire::ADDRS[1], engine, ddf, dom, &away, &["--mirror", "--timeout", "10s"])?;
+    let _gw_away = gateway(&names[1], Wire::ADDRS[1], engine, ddf, dom, &away, &away_args)?;
     let stop = Arc::new(AtomicBool::new(false));
     let s = stop.clone();
     let away_ns = away.clone();
@@ -275,6 +278,31 @@ fn gateway(
     cmd.args(extra).env("TUTTI_NAMESPACE", ns).env("RUST_LOG", "warn").stdin(Stdio::null());
     Ok(ChildProcess::spawn(&format!("the gateway in {netns}"), cmd, None)?
         .stop_on_drop(Some(SIGINT), Duration::from_secs(5)))
+}
+
+/// The endpoint of site `i`'s Zenoh router.
+fn router_endpoint(i: usize) -> String {
+    format!("tcp/{}:7447", Wire::ADDRS[i])
+}
+
+/// The two sites' Zenoh routers (eclipse-zenoh's, run by the repository's `.venv` Python):
+/// the second connects to the first.
+fn routers(wire: &Wire) -> anyhow::Result<[ChildProcess; 2]> {
+    let root = tutti_test_support::repo_root();
+    let py = root.join(".venv/bin/python");
+    anyhow::ensure!(py.is_file(), "{} is missing: the Zenoh runs need the test command's venv", py.display());
+    let start = |i: usize, connect: Option<String>| -> anyhow::Result<ChildProcess> {
+        let mut cmd = Command::new("ip");
+        cmd.args(["netns", "exec", &wire.names()[i]]).arg(&py).arg(root.join("tests/gateway/zenoh_router.py"));
+        cmd.args(["--listen", &router_endpoint(i)]).args(connect.iter().flat_map(|c| ["--connect", c.as_str()]));
+        cmd.stdin(Stdio::null()).stdout(Stdio::null());
+        Ok(ChildProcess::spawn(&format!("the Zenoh router of site {i}"), cmd, None)?
+            .stop_on_drop(Some(SIGINT), Duration::from_secs(3)))
+    };
+    let first = start(0, None)?;
+    let second = start(1, Some(router_endpoint(0)))?;
+    // The gateways connect to them, retrying until they listen.
+    Ok([first, second])
 }
 
 /// Waits until the component waits for the mirror's first step as a writer, the home gateway

@@ -140,7 +140,7 @@ fn a_mirrored_domain_with_a_lookahead_answers_each_step_k_steps_later(e: Eng) {
     let k = 4;
     let args = ["--lookahead".to_string(), format!("gw_sync={k}"), "--http".into(), "127.0.0.1:0".into()];
     let args: Vec<&str> = args.iter().map(String::as_str).collect();
-    let run = LookaheadRun { home: &home, away: &away, k, steps: 300 };
+    let run = LookaheadRun { home: &home, away: &away, k, steps: 300, timeout: SECS(5) };
     let (gw_home, _gw_away) =
         run.check(|| (e.gateway(DDF, dom, &home, &args), e.gateway(DDF, dom, &away, &["--mirror", "--timeout", "5s"])));
     let v: serde_json::Value = serde_json::from_str(&http_get(&stats_addr(&gw_home), "/stats")).unwrap();
@@ -163,7 +163,7 @@ fn a_lookahead_across_a_slow_link_keeps_every_value_of_a_k_step_delay(e: Eng) {
     let (dom, home, away) = (e.dom(119), e.ns("gwtest119a"), e.ns("gwtest119b"));
     let [a, b] = tutti_test_support::Wire::ADDRS;
     let names = wire.names().clone();
-    let run = LookaheadRun { home: &home, away: &away, k: 10, steps: 200 };
+    let run = LookaheadRun { home: &home, away: &away, k: 10, steps: 200, timeout: SECS(5) };
     let (gw_home, gw_away) = run.check(|| {
         (
             netns_gateway((&names[0], a), e, DDF, dom, &home, &["--lookahead", "10"], &[]),
@@ -178,39 +178,40 @@ fn a_lookahead_across_a_slow_link_keeps_every_value_of_a_k_step_delay(e: Eng) {
 /// later ones overtake them), and is cut for 0.5 s in the middle of the run: the run waits
 /// for the link and goes on, and no step is lost, repeated or taken out of order.
 fn a_lookahead_through_a_lossy_reordering_link_that_is_cut_loses_no_step(e: Eng) {
-    let Some(wire) = tutti_test_support::require(
-        "network namespaces and TAP devices (root, `ip` of iproute2, /dev/net/tun)",
-        tutti_test_support::Wire::create(&format!("lf{}", &e.name[..2]), Duration::from_millis(5)),
-    ) else {
-        return;
-    };
+    let Some(wire) = wire_for("lf", e) else { return };
     let f = wire.faults();
-    f.loss_ppm.store(50_000, Ordering::Relaxed);
-    f.reorder_ppm.store(50_000, Ordering::Relaxed);
-    f.reorder_us.store(3_000, Ordering::Relaxed);
     let (dom, home, away) = (e.dom(120), e.ns("gwtest120a"), e.ns("gwtest120b"));
     let [a, b] = tutti_test_support::Wire::ADDRS;
     let names = wire.names().clone();
-    let run = LookaheadRun { home: &home, away: &away, k: 4, steps: 400 };
+    let run = LookaheadRun { home: &home, away: &away, k: 4, steps: 400, timeout: SECS(10) };
     let mut mend = None;
     let (gw_home, gw_away) = run.check_with(
         || {
             (
-                netns_gateway((&names[0], a), e, DDF, dom, &home, &["--lookahead", "4"], &[]),
-                netns_gateway((&names[1], b), e, DDF, dom, &away, &["--mirror", "--timeout", "5s"], &[]),
+                // A lease above the time a lost frame takes to be sent again (rustdds: up to
+                // seconds), so that a loss is waited for rather than taken for a dead site.
+                netns_gateway((&names[0], a), e, DDF, dom, &home, &["--lookahead", "4", "--lease", "5s"], &[]),
+                netns_gateway(
+                    (&names[1], b),
+                    e,
+                    DDF,
+                    dom,
+                    &away,
+                    &["--mirror", "--timeout", "10s", "--lease", "5s"],
+                    &[],
+                ),
             )
         },
-        |step| {
-            if step == 150 {
-                // Cut for 0.5 s: the framework, at most 4 steps ahead, waits for the link
-                // meanwhile (in its step, so another thread joins the wire again).
-                f.cut.store(true, Ordering::Relaxed);
-                let f = f.clone();
-                mend = Some(thread::spawn(move || {
-                    thread::sleep(Duration::from_millis(500));
-                    f.cut.store(false, Ordering::Relaxed);
-                }));
+        |step| match step {
+            // Losses and reordering from the first step on (discovery is not what is tested).
+            1 => {
+                f.loss_ppm.store(50_000, Ordering::Relaxed);
+                f.reorder_ppm.store(50_000, Ordering::Relaxed);
+                f.reorder_us.store(3_000, Ordering::Relaxed);
             }
+            // Cut for 0.5 s: the framework, at most 4 steps ahead, waits for the link.
+            150 => mend = Some(cut_for(&f, Duration::from_millis(500))),
+            _ => {}
         },
     );
     mend.expect("the link was cut").join().unwrap();
@@ -218,6 +219,153 @@ fn a_lookahead_through_a_lossy_reordering_link_that_is_cut_loses_no_step(e: Eng)
     assert!(dropped > 0 && copied > 0, "the wire lost nothing ({copied} copied)");
     assert_eq!(counter(&gw_home, "late"), 0, "{}\n{}", gw_home.dump(), gw_away.dump());
     assert_eq!(counter(&gw_home, "lapsed"), 0, "{}\n{}", gw_home.dump(), gw_away.dump());
+}
+
+/// A cut of 5 s, with both gateways' `--lease` (how long a silent writer is waited for, and
+/// the DDS participants' lease) and the home framework's step timeout above it: the run
+/// waits for the link and goes on when it returns, no step lost, repeated or reordered.
+fn a_lookahead_waits_out_a_five_second_cut_within_its_lease(e: Eng) {
+    let Some(wire) = wire_for("l5", e) else { return };
+    let (dom, home, away) = (e.dom(121), e.ns("gwtest121a"), e.ns("gwtest121b"));
+    let [a, b] = tutti_test_support::Wire::ADDRS;
+    let names = wire.names().clone();
+    let f = wire.faults();
+    let run = LookaheadRun { home: &home, away: &away, k: 4, steps: 200, timeout: SECS(20) };
+    let mut mend = None;
+    let (gw_home, gw_away) = run.check_with(
+        || {
+            (
+                netns_gateway((&names[0], a), e, DDF, dom, &home, &["--lookahead", "4", "--lease", "10s"], &[]),
+                netns_gateway(
+                    (&names[1], b),
+                    e,
+                    DDF,
+                    dom,
+                    &away,
+                    &["--mirror", "--timeout", "20s", "--lease", "10s"],
+                    &[],
+                ),
+            )
+        },
+        |step| {
+            if step == 100 {
+                mend = Some(cut_for(&f, Duration::from_secs(5)));
+            }
+        },
+    );
+    mend.expect("the link was cut").join().unwrap();
+    assert_eq!(counter(&gw_home, "lapsed"), 0, "{}\n{}", gw_home.dump(), gw_away.dump());
+    assert!(gw_home.wait_line("waits for the link", SECS(1)).is_some(), "the wait was not logged\n{}", gw_home.dump());
+}
+
+/// A cut longer than the home framework's step timeout (3 s against 2 s; the leases are
+/// longer): the step times out, and the framework's report names the domain and the other
+/// site's writer (its participant and the lookahead); when the link returns the run goes on
+/// and its steps again read what a K-step delay gives.
+fn a_cut_longer_than_the_step_timeout_is_reported_and_the_run_goes_on(e: Eng) {
+    let Some(wire) = wire_for("lt", e) else { return };
+    let (dom, home, away) = (e.dom(122), e.ns("gwtest122a"), e.ns("gwtest122b"));
+    let [a, b] = tutti_test_support::Wire::ADDRS;
+    let names = wire.names().clone();
+    let f = wire.faults();
+    let (k, steps) = (4, 300);
+    let run = LookaheadRun { home: &home, away: &away, k, steps, timeout: SECS(2) };
+    let mut mend = None;
+    let r = run.run_with(
+        || {
+            (
+                netns_gateway((&names[0], a), e, DDF, dom, &home, &["--lookahead", "4", "--lease", "10s"], &[]),
+                netns_gateway(
+                    (&names[1], b),
+                    e,
+                    DDF,
+                    dom,
+                    &away,
+                    &["--mirror", "--timeout", "20s", "--lease", "10s"],
+                    &[],
+                ),
+            )
+        },
+        |step| {
+            if step == 100 {
+                mend = Some(cut_for(&f, Duration::from_secs(3)));
+            }
+        },
+    );
+    mend.expect("the link was cut").join().unwrap();
+    let (first, waited_for) = r.timed_out.first().cloned().unwrap_or_else(|| panic!("no step timed out\n{}", r.dump()));
+    assert!((100..=110).contains(&first), "step {first} timed out, not one during the cut\n{}", r.dump());
+    assert!(waited_for.iter().any(|c| c.contains("lookahead 4")), "{waited_for:?}");
+    for step in 1..first {
+        assert!(r.delayed(k, step), "step {step} before the cut\n{}", r.dump());
+    }
+    for step in steps - 50..=steps {
+        assert!(r.delayed(k, step), "step {step}: the run did not go on with a {k}-step delay\n{}", r.dump());
+    }
+}
+
+/// On Zenoh, across the wire through two routers, one per site (eclipse-zenoh's,
+/// `tests/gateway/zenoh_router.py`): each gateway connects to its own site's router, and the
+/// second router to the first, as rmw_zenoh graphs on two networks meet. K = 10 keeps every
+/// value of a 10-step delay.
+#[test]
+fn a_lookahead_across_two_zenoh_routers_keeps_every_value_of_a_k_step_delay() {
+    let e = Eng::ZENOH;
+    let Some(py) = tutti_test_support::python(&["zenoh"]) else { return };
+    let Some(wire) = wire_for("lz", e) else { return };
+    let names = wire.names().clone();
+    let [a, b] = tutti_test_support::Wire::ADDRS;
+    let (ra, rb) = (format!("tcp/{a}:7447"), format!("tcp/{b}:7447"));
+    let router = |i: usize, listen: &str, connect: &[&str]| {
+        let mut cmd = std::process::Command::new("ip");
+        cmd.args(["netns", "exec", &names[i]]).arg(&py);
+        cmd.arg(tutti_test_support::repo_root().join("tests/gateway/zenoh_router.py")).args(["--listen", listen]);
+        for c in connect {
+            cmd.args(["--connect", c]);
+        }
+        let p = Proc::spawn(&format!("the Zenoh router of site {i}"), cmd, SECS(180));
+        assert!(p.wait_line("up", SECS(30)).is_some(), "the router did not start\n{}", p.dump());
+        p
+    };
+    let _routers = [router(0, &ra, &[]), router(1, &rb, &[&ra])];
+    let (dom, home, away) = (e.dom(119), e.ns("gwtest119a"), e.ns("gwtest119b"));
+    let run = LookaheadRun { home: &home, away: &away, k: 10, steps: 200, timeout: SECS(5) };
+    let (gw_home, gw_away) = run.check(|| {
+        (
+            netns_gateway((&names[0], a), e, DDF, dom, &home, &["--lookahead", "10", "--zenoh-connect", &ra], &[]),
+            netns_gateway(
+                (&names[1], b),
+                e,
+                DDF,
+                dom,
+                &away,
+                &["--mirror", "--timeout", "5s", "--zenoh-connect", &rb],
+                &[],
+            ),
+        )
+    });
+    assert_eq!(counter(&gw_home, "late"), 0, "{}\n{}", gw_home.dump(), gw_away.dump());
+    assert!(wire.counts().0 > 0, "nothing crossed the wire");
+}
+
+/// The wire of a test (5 ms each way), or None (skipped with the reason; a failure under
+/// CI=true) where this machine does not let a test make it.
+fn wire_for(tag: &str, e: Eng) -> Option<tutti_test_support::Wire> {
+    tutti_test_support::require(
+        "network namespaces and TAP devices (root, `ip` of iproute2, /dev/net/tun)",
+        tutti_test_support::Wire::create(&format!("{tag}{}", &e.name[..2]), Duration::from_millis(5)),
+    )
+}
+
+/// Cuts the wire whose faults are `f` now, and joins it again after `d` from another thread
+/// (the framework waits for the link in its step meanwhile).
+fn cut_for(f: &Arc<tutti_test_support::Faults>, d: Duration) -> thread::JoinHandle<()> {
+    f.cut.store(true, Ordering::Relaxed);
+    let f = f.clone();
+    thread::spawn(move || {
+        thread::sleep(d);
+        f.cut.store(false, Ordering::Relaxed);
+    })
 }
 
 /// One run of a mirrored domain with a lookahead: the home framework (this test's) is a
@@ -229,28 +377,71 @@ struct LookaheadRun<'a> {
     away: &'a str,
     k: u64,
     steps: u64,
+    /// The home framework's step timeout.
+    timeout: Duration,
+}
+
+/// What a [`LookaheadRun`] read: (x, y) of each step, and the steps that timed out with the
+/// connections they waited for.
+struct LookaheadRead {
+    gw_home: Proc,
+    gw_away: Proc,
+    read: Vec<(f64, f64)>,
+    timed_out: Vec<(u64, Vec<String>)>,
+}
+
+impl LookaheadRead {
+    fn dump(&self) -> String {
+        format!("{}\n{}", self.gw_home.dump(), self.gw_away.dump())
+    }
+
+    /// Whether step `step` (1, 2, ...) read what a run with a K-step delay reads there, given
+    /// what the steps before it read.
+    fn delayed(&self, k: u64, step: u64) -> bool {
+        let i = (step - 1) as usize;
+        let before = if i == 0 { 0.0 } else { self.read[i - 1].1 };
+        let y = if step > k { self.read[i - k as usize].0 + 1.0 } else { 0.0 };
+        self.read[i] == (step as f64 + 0.5 * before, y)
+    }
 }
 
 impl LookaheadRun<'_> {
     /// Runs it with the gateways `gateways` starts (home, mirror) once the home framework is
-    /// up; returns them, for what the caller checks next.
+    /// up, and checks every step against a K-step delay; returns the gateways, for what the
+    /// caller checks next.
     fn check(&self, gateways: impl FnOnce() -> (Proc, Proc)) -> (Proc, Proc) {
         self.check_with(gateways, |_| {})
     }
 
     /// [`LookaheadRun::check`], calling `before(n)` before each step n (a fault to make).
-    fn check_with(&self, gateways: impl FnOnce() -> (Proc, Proc), mut before: impl FnMut(u64)) -> (Proc, Proc) {
-        let (k, steps) = (self.k, self.steps);
+    fn check_with(&self, gateways: impl FnOnce() -> (Proc, Proc), before: impl FnMut(u64)) -> (Proc, Proc) {
+        let r = self.run_with(gateways, before);
+        assert!(r.timed_out.is_empty(), "steps timed out: {:?}\n{}", r.timed_out, r.dump());
+        for step in 1..=self.steps {
+            assert!(
+                r.delayed(self.k, step),
+                "step {step} read {:?}: not what a run with a {}-step delay reads\n{}",
+                r.read[step as usize - 1],
+                self.k,
+                r.dump()
+            );
+        }
+        (r.gw_home, r.gw_away)
+    }
+
+    /// The run itself, `before(n)` called before each step n: the home framework (the test's)
+    /// publishes x = n + y/2, y read at the step before; the mirror side's component answers
+    /// y = x + 1.
+    fn run_with(&self, gateways: impl FnOnce() -> (Proc, Proc), mut before: impl FnMut(u64)) -> LookaheadRead {
         let model = tutti_core::ddf::load(tutti_test_support::repo_root().join(DDF)).unwrap();
         let opts = tutti_core::shm::FrameworkOptions {
             namespace: self.home.to_string(),
-            timeout: Duration::from_secs(5),
+            timeout: self.timeout,
             ..Default::default()
         };
         let mut fw = tutti_core::shm::Framework::create(&model, &opts).expect("framework");
         let (gw_home, gw_away) = gateways();
         let dump = || format!("{}\n{}", gw_home.dump(), gw_away.dump());
-        // The mirror side's component: y = x + 1 at every step.
         let stop = Arc::new(AtomicBool::new(false));
         let s = stop.clone();
         let away_ns = self.away.to_string();
@@ -283,30 +474,24 @@ impl LookaheadRun<'_> {
         });
         assert!(ready.is_some(), "the two sides never joined\n{}", dump());
         let d = fw.domains.iter_mut().find(|d| d.info().name == "gw_sync").unwrap();
-        let mut read = Vec::new();
+        let (mut read, mut timed_out) = (Vec::new(), Vec::new());
         let mut y = 0.0;
-        for step in 1..=steps {
+        for step in 1..=self.steps {
             before(step);
             let x = step as f64 + 0.5 * y;
             let r =
                 d.step(&x.to_ne_bytes(), step as f64 * 0.01).unwrap_or_else(|e| panic!("step {step}: {e}\n{}", dump()));
             assert_eq!(r.step, step);
+            if r.timed_out > 0 {
+                timed_out.push((step, d.timed_out_on().to_vec()));
+            }
             y = f64_at(d.subscribe(), 0);
             read.push((x, y));
         }
         stop.store(true, Ordering::Release);
         drop(fw);
         component.join().unwrap();
-        // The same loop with a K-step delay on the connection.
-        let (mut xs, mut y) = (Vec::new(), 0.0);
-        for (i, &(x_got, y_got)) in read.iter().enumerate() {
-            let step = i as u64 + 1;
-            let x = step as f64 + 0.5 * y;
-            xs.push(x);
-            y = if step > k { xs[(step - k - 1) as usize] + 1.0 } else { 0.0 };
-            assert_eq!((x_got, y_got), (x, y), "step {step} differs from a run with a {k}-step delay\n{}", dump());
-        }
-        (gw_home, gw_away)
+        LookaheadRead { gw_home, gw_away, read, timed_out }
     }
 }
 
@@ -314,6 +499,8 @@ per_engine!(
     the_mirror_discovers_across_network_namespaces_by_multicast,
     a_lookahead_across_a_slow_link_keeps_every_value_of_a_k_step_delay,
     a_lookahead_through_a_lossy_reordering_link_that_is_cut_loses_no_step,
+    a_lookahead_waits_out_a_five_second_cut_within_its_lease,
+    a_cut_longer_than_the_step_timeout_is_reported_and_the_run_goes_on,
 );
 
 // The gateway on the other side is the peer: these run on Zenoh too, both gateways meeting at

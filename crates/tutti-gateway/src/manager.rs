@@ -594,7 +594,7 @@ impl Manager {
         let gid = key.1;
         let spawned = RemoteWriter::spawn(
             d.name.clone(),
-            format!("dds-writer {}", gid.short()),
+            writer_name(&gid, d.lookahead),
             d.synchronous,
             d.lookahead,
             self.cfg.clone(),
@@ -740,4 +740,15 @@ fn mirror_hosts(opts: &GatewayOptions) -> Result<Vec<Option<DomainHost>>, Gatewa
         ..Default::default()
     };
     Ok(Framework::create(&opts.model, &fo)?.domains.into_iter().map(Some).collect())
+}
+
+/// The name of a remote writer's connection, as `tutti status` and the framework's reports
+/// show it: `dds-writer GID`; with a lookahead, the writer's participant (the other site's
+/// gateway: the first 12 bytes of its GID) and K, within the 48 bytes a name has.
+fn writer_name(gid: &EndpointId, lookahead: u32) -> String {
+    let id = gid.short();
+    if lookahead == 0 {
+        return format!("dds-writer {id}");
+    }
+    format!("dds-writer {} lookahead {lookahead}", &id[..id.len().min(24)])
 }

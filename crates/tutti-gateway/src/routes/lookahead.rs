@@ -18,7 +18,7 @@ use std::sync::mpsc::{Receiver, RecvTimeoutError, TryRecvError};
 use std::sync::{MutexGuard, PoisonError};
 use std::time::{Duration, Instant};
 
-use tracing::info;
+use tracing::{info, warn};
 use tutti_core::shm::ShmError;
 
 use super::from_dds::{connect, LockstepState, Sample, WriterState};
@@ -99,12 +99,15 @@ pub(super) fn run(ls: &LockstepState, rx: &Receiver<(Payload, Instant)>, cfg: &S
             _ => None,
         };
         let mut owing_since: Option<Instant> = None;
-        let answer = loop {
-            let Some(n) = wanted else { break None };
+        let mut told = false;
+        let outcome = loop {
+            let Some(n) = wanted else { break Outcome::Hold };
             link.drop_before(n, &mut st);
             match link.answers.front() {
-                Some((m, _)) if n.map_or(true, |n| *m == n) => break link.answers.pop_front().map(|(_, p)| p),
-                Some(_) => break None,
+                Some((m, _)) if n.map_or(true, |n| *m == n) => {
+                    break link.answers.pop_front().map_or(Outcome::Hold, |(_, p)| Outcome::Answer(p))
+                }
+                Some(_) => break Outcome::Hold,
                 None => {}
             }
             // The answer has not come: the framework waits for the link.
@@ -112,17 +115,30 @@ pub(super) fn run(ls: &LockstepState, rx: &Receiver<(Payload, Instant)>, cfg: &S
                 Stats::add(&set.link_waits, 1);
                 Instant::now()
             });
+            let WriterState { out, part } = &mut *st;
+            if part.as_ref().and_then(|p| p.owed_step()) != Some(locked) {
+                // The framework went on without this answer (its step timed out, and it has
+                // said so): answer the step it is at now.
+                break Outcome::Skip;
+            }
             if since.elapsed() >= cfg.lease {
-                let WriterState { out, part } = &mut *st;
-                info!(
+                warn!(
                     domain = %out.domain,
-                    "{}: sent nothing for {:?} while step {locked} waited for its answer (to step {}, {k_ahead} steps of lookahead): its share of the step is released (its next sample joins it again)",
+                    "{}: nothing came over the link for {:?} while step {locked} waited for the answer to step {} ({k_ahead} steps of lookahead): its share of the step is released (its next sample joins it again; --lease waits longer)",
                     out.name, cfg.lease, locked.saturating_sub(k_ahead)
                 );
                 Stats::add(&out.counters.total.lapsed, 1);
                 *part = None;
                 lapsed = true;
-                break None;
+                break Outcome::Skip;
+            }
+            if !told && since.elapsed() >= Duration::from_secs(1) {
+                told = true;
+                warn!(
+                    domain = %out.domain,
+                    "{}: step {locked} waits for the link: no answer to step {} for 1 s ({k_ahead} steps of lookahead)",
+                    out.name, locked.saturating_sub(k_ahead)
+                );
             }
             match rx.recv_timeout(check) {
                 Ok(m) => link.take(m),
@@ -130,18 +146,29 @@ pub(super) fn run(ls: &LockstepState, rx: &Receiver<(Payload, Instant)>, cfg: &S
                 Err(RecvTimeoutError::Disconnected) => return,
             }
         };
-        if lapsed && st.part.is_none() {
-            continue;
+        if told {
+            info!(domain = %st.out.domain, "{}: the link answers again (step {locked})", st.out.name);
         }
         let WriterState { out, part } = &mut *st;
-        match answer {
-            Some(p) => out.deliver(part, Sample::Owned(p)),
-            None => out.hold(part),
+        match outcome {
+            Outcome::Answer(p) => out.deliver(part, Sample::Owned(p)),
+            Outcome::Hold => out.hold(part),
+            Outcome::Skip => {}
         }
         if let Some(newest) = link.newest {
             set.ahead.store(locked.saturating_sub(newest), Ordering::Relaxed);
         }
     }
+}
+
+/// How a step is answered.
+enum Outcome {
+    /// With the answer to step n - K.
+    Answer(Payload),
+    /// With the values as they are (no answer can come for it).
+    Hold,
+    /// Not at all: the framework has left the step, or the connection was released.
+    Skip,
 }
 
 /// The answers received and not yet committed, and when each recent step was published (for
