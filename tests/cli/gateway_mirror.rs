@@ -271,21 +271,14 @@ fn a_cut_longer_than_the_step_timeout_is_reported_and_the_run_goes_on(e: Eng) {
     let (k, steps) = (4, 300);
     let run = LookaheadRun { home: &home, away: &away, k, steps, timeout: SECS(2) };
     let mut mend = None;
+    let mirror: Away = Arc::default();
     let r = run.run_with(
         || {
-            (
-                netns_gateway((&names[0], a), e, DDF, dom, &home, &["--lookahead", "4", "--lease", "10s"], &[]),
-                netns_gateway(
-                    (&names[1], b),
-                    e,
-                    DDF,
-                    dom,
-                    &away,
-                    &["--mirror", "--timeout", "20s", "--lease", "10s"],
-                    &[],
-                ),
-            )
+            let away_args = ["--mirror", "--timeout", "20s", "--lease", "10s"];
+            *mirror.lock().unwrap() = Some(netns_gateway((&names[1], b), e, DDF, dom, &away, &away_args, &[]));
+            netns_gateway((&names[0], a), e, DDF, dom, &home, &["--lookahead", "4", "--lease", "10s"], &[])
         },
+        &mirror,
         |step| {
             if step == 100 {
                 mend = Some(cut_for(&f, Duration::from_secs(3)));
@@ -302,6 +295,72 @@ fn a_cut_longer_than_the_step_timeout_is_reported_and_the_run_goes_on(e: Eng) {
     for step in steps - 50..=steps {
         assert!(r.delayed(k, step), "step {step}: the run did not go on with a {k}-step delay\n{}", r.dump());
     }
+}
+
+/// The other site killed (`kill -9` of its gateway, the framework of its copy of the domain)
+/// and started again: the home side waits for the lease, then releases the silent writer
+/// (a warning names the domain and the step) and goes on with the values as they are; when
+/// the other site is back, it joins at a step boundary (logged), and from a step on every
+/// step again reads what a K-step delay gives.
+fn a_killed_site_that_starts_again_rejoins_at_a_step_boundary(e: Eng) {
+    let Some(wire) = wire_for("lk", e) else { return };
+    let (dom, home, away) = (e.dom(123), e.ns("gwtest123a"), e.ns("gwtest123b"));
+    let [a, b] = tutti_test_support::Wire::ADDRS;
+    let names = wire.names().clone();
+    let (k, steps) = (4, 1500);
+    let run = LookaheadRun { home: &home, away: &away, k, steps, timeout: SECS(10) };
+    let mirror: Away = Arc::default();
+    let start_mirror = {
+        let (netns, away) = (names[1].clone(), away.clone());
+        move || netns_gateway((&netns, b), e, DDF, dom, &away, &["--mirror", "--timeout", "10s"], &[])
+    };
+    let first = start_mirror.clone();
+    let mut restart = None;
+    let r = run.run_with(
+        || {
+            *mirror.lock().unwrap() = Some(first());
+            netns_gateway((&names[0], a), e, DDF, dom, &home, &["--lookahead", "4"], &[])
+        },
+        &mirror,
+        |step| {
+            // Paced, so that the run outlasts the other site's absence.
+            thread::sleep(Duration::from_millis(4));
+            if step == 100 {
+                let (slot, start) = (mirror.clone(), start_mirror.clone());
+                restart = Some(thread::spawn(move || {
+                    slot.lock().unwrap().as_mut().expect("the mirror").kill9();
+                    thread::sleep(Duration::from_secs(2));
+                    let again = start();
+                    *slot.lock().unwrap() = Some(again);
+                }));
+            }
+        },
+    );
+    restart.expect("the site was killed").join().unwrap();
+    assert!(r.timed_out.is_empty(), "steps timed out: {:?}\n{}", r.timed_out, r.dump());
+    for step in 1..100 {
+        assert!(r.delayed(k, step), "step {step}, before the kill\n{}", r.dump());
+    }
+    let last_off = (1..=steps)
+        .rev()
+        .find(|&n| !r.delayed(k, n))
+        .unwrap_or_else(|| panic!("no step missed an answer\n{}", r.dump()));
+    assert!(
+        last_off < steps - 200,
+        "the other site did not rejoin for good (step {last_off} read no answer)\n{}",
+        r.dump()
+    );
+    assert!(r.gw_home.wait_line("its share of the step is released", SECS(1)).is_some(), "{}", r.dump());
+    // The step the home gateway said the rejoined site's answers are read from is the one
+    // from which every step reads a K-step delay again.
+    let joins: Vec<String> = r.gw_home.lines().into_iter().filter(|l| l.contains(" joins at step ")).collect();
+    assert!(joins.len() >= 2, "the rejoin was not logged\n{}", r.dump());
+    let from: u64 = joins[joins.len() - 1]
+        .split("read from step ")
+        .nth(1)
+        .and_then(|t| t.split_whitespace().next()?.parse().ok())
+        .unwrap_or_else(|| panic!("{joins:?}"));
+    assert_eq!(last_off + 1, from, "{joins:?}\n{}", r.dump());
 }
 
 /// On Zenoh, across the wire through two routers, one per site (eclipse-zenoh's,
@@ -385,14 +444,22 @@ struct LookaheadRun<'a> {
 /// connections they waited for.
 struct LookaheadRead {
     gw_home: Proc,
-    gw_away: Proc,
+    gw_away: Away,
     read: Vec<(f64, f64)>,
     timed_out: Vec<(u64, Vec<String>)>,
 }
 
+/// The mirror's gateway: in a slot that a test may empty (kill it) and fill again (start
+/// another) while the run goes on.
+type Away = Arc<std::sync::Mutex<Option<Proc>>>;
+
+fn dump_away(away: &Away) -> String {
+    away.lock().unwrap().as_ref().map_or_else(|| "(no mirror gateway now)".into(), Proc::dump)
+}
+
 impl LookaheadRead {
     fn dump(&self) -> String {
-        format!("{}\n{}", self.gw_home.dump(), self.gw_away.dump())
+        format!("{}\n{}", self.gw_home.dump(), dump_away(&self.gw_away))
     }
 
     /// Whether step `step` (1, 2, ...) read what a run with a K-step delay reads there, given
@@ -415,7 +482,17 @@ impl LookaheadRun<'_> {
 
     /// [`LookaheadRun::check`], calling `before(n)` before each step n (a fault to make).
     fn check_with(&self, gateways: impl FnOnce() -> (Proc, Proc), before: impl FnMut(u64)) -> (Proc, Proc) {
-        let r = self.run_with(gateways, before);
+        let away: Away = Arc::default();
+        let slot = away.clone();
+        let r = self.run_with(
+            || {
+                let (home, mirror) = gateways();
+                *slot.lock().unwrap() = Some(mirror);
+                home
+            },
+            &away,
+            before,
+        );
         assert!(r.timed_out.is_empty(), "steps timed out: {:?}\n{}", r.timed_out, r.dump());
         for step in 1..=self.steps {
             assert!(
@@ -426,13 +503,15 @@ impl LookaheadRun<'_> {
                 r.dump()
             );
         }
-        (r.gw_home, r.gw_away)
+        let mirror = r.gw_away.lock().unwrap().take().expect("the mirror's gateway");
+        (r.gw_home, mirror)
     }
 
     /// The run itself, `before(n)` called before each step n: the home framework (the test's)
     /// publishes x = n + y/2, y read at the step before; the mirror side's component answers
     /// y = x + 1.
-    fn run_with(&self, gateways: impl FnOnce() -> (Proc, Proc), mut before: impl FnMut(u64)) -> LookaheadRead {
+    /// `gateways` starts the home gateway (returned) and puts the mirror's in `away`.
+    fn run_with(&self, gateways: impl FnOnce() -> Proc, away: &Away, mut before: impl FnMut(u64)) -> LookaheadRead {
         let model = tutti_core::ddf::load(tutti_test_support::repo_root().join(DDF)).unwrap();
         let opts = tutti_core::shm::FrameworkOptions {
             namespace: self.home.to_string(),
@@ -440,24 +519,33 @@ impl LookaheadRun<'_> {
             ..Default::default()
         };
         let mut fw = tutti_core::shm::Framework::create(&model, &opts).expect("framework");
-        let (gw_home, gw_away) = gateways();
-        let dump = || format!("{}\n{}", gw_home.dump(), gw_away.dump());
+        let gw_home = gateways();
+        let dump = || format!("{}\n{}", gw_home.dump(), dump_away(away));
         let stop = Arc::new(AtomicBool::new(false));
         let s = stop.clone();
         let away_ns = self.away.to_string();
         let component = thread::spawn(move || {
-            let mut p = connect(&away_ns, "gw_sync");
-            // A writer from the start, so that the mirror's first step waits for its answer
-            // too (a connection is otherwise a writer from its first lock).
-            p.publish_gate().unwrap();
+            // Connected again whenever its domain goes (a mirror killed and started again).
             while !s.load(Ordering::Acquire) {
-                if p.subscribe_lock().is_err() {
+                let mut p = connect(&away_ns, "gw_sync");
+                // A writer from the start, so that the mirror's first step waits for its answer
+                // too (a connection is otherwise a writer from its first lock).
+                if p.publish_gate().is_err() {
                     continue;
                 }
-                let x = f64_at(p.snapshot(), 0);
-                if p.publish_lock().is_ok() {
-                    p.stage("y", &(x + 1.0).to_ne_bytes()).unwrap();
-                    p.commit().unwrap();
+                while !s.load(Ordering::Acquire) {
+                    match p.subscribe_lock() {
+                        Ok(_) => {}
+                        Err(tutti_core::shm::ShmError::Timeout { .. }) => continue,
+                        Err(_) => break,
+                    }
+                    let x = f64_at(p.snapshot(), 0);
+                    if p.publish_lock().is_ok() {
+                        p.stage("y", &(x + 1.0).to_ne_bytes()).unwrap();
+                        if p.commit().is_err() {
+                            break;
+                        }
+                    }
                 }
             }
         });
@@ -491,7 +579,7 @@ impl LookaheadRun<'_> {
         stop.store(true, Ordering::Release);
         drop(fw);
         component.join().unwrap();
-        LookaheadRead { gw_home, gw_away, read, timed_out }
+        LookaheadRead { gw_home, gw_away: away.clone(), read, timed_out }
     }
 }
 
@@ -501,6 +589,7 @@ per_engine!(
     a_lookahead_through_a_lossy_reordering_link_that_is_cut_loses_no_step,
     a_lookahead_waits_out_a_five_second_cut_within_its_lease,
     a_cut_longer_than_the_step_timeout_is_reported_and_the_run_goes_on,
+    a_killed_site_that_starts_again_rejoins_at_a_step_boundary,
 );
 
 // The gateway on the other side is the peer: these run on Zenoh too, both gateways meeting at

@@ -87,7 +87,16 @@ pub(super) fn run(ls: &LockstepState, rx: &Receiver<(Payload, Instant)>, cfg: &S
             }
         };
         link.published(locked);
-        let start = *first.get_or_insert(locked);
+        let start = *first.get_or_insert_with(|| {
+            let out = &st.out;
+            info!(
+                domain = %out.domain,
+                "{}: joins at step {locked}; its answers are read from step {} on ({k_ahead} steps of lookahead), the steps before read the values as they are",
+                out.name,
+                locked.max(1) + k_ahead
+            );
+            locked
+        });
         if !link.drain() {
             return;
         }
