@@ -132,9 +132,16 @@ fn render_connection(s: &mut String, c: &ConnectionInfo, now_ns: u64) {
         (_, false, true) => "sync reader",
         (_, false, false) => "reader",
     };
-    let via = match (c.observer, c.remote) {
-        (true, _) => format!("bridges {} remote reader(s)  ", c.dds_readers),
-        (false, true) => "via the gateway  ".to_string(),
+    let via = match (c.observer, c.remote, c.link) {
+        (true, _, _) => format!("bridges {} remote reader(s)  ", c.dds_readers),
+        (false, true, Some(l)) => format!(
+            "via the gateway, lookahead {} (ahead {}, round trip {:.1} ms, {} steps waited for the link)  ",
+            l.lookahead,
+            l.ahead,
+            l.rtt_us as f64 / 1e3,
+            l.link_waits
+        ),
+        (false, true, None) => "via the gateway  ".to_string(),
         _ => String::new(),
     };
     let since = now_ns.saturating_sub(c.since_ns) as f64 / 1e9;

@@ -141,8 +141,30 @@ fn a_mirrored_domain_with_a_lookahead_answers_each_step_k_steps_later(e: Eng) {
     let args = ["--lookahead".to_string(), format!("gw_sync={k}"), "--http".into(), "127.0.0.1:0".into()];
     let args: Vec<&str> = args.iter().map(String::as_str).collect();
     let run = LookaheadRun { home: &home, away: &away, k, steps: 300, timeout: SECS(5) };
-    let (gw_home, _gw_away) =
-        run.check(|| (e.gateway(DDF, dom, &home, &args), e.gateway(DDF, dom, &away, &["--mirror", "--timeout", "5s"])));
+    // `tutti status --json` in the middle of the run: the remote writer's link.
+    let mut shown = None;
+    let (gw_home, _gw_away) = run.check_with(
+        || (e.gateway(DDF, dom, &home, &args), e.gateway(DDF, dom, &away, &["--mirror", "--timeout", "5s"])),
+        |step| {
+            if step == 200 {
+                let mut cmd = tutti_test_support::tutti_command();
+                cmd.args(["status", "--json", "--namespace", &home]);
+                shown = Some(tutti_test_support::run_with_timeout(cmd, SECS(60)).1);
+            }
+        },
+    );
+    let shown = shown.expect("tutti status ran");
+    let v: serde_json::Value = serde_json::from_str(&shown).unwrap_or_else(|e| panic!("{e}: {shown}"));
+    let conns = v
+        .as_array()
+        .into_iter()
+        .flatten()
+        .filter(|d| d["domain"] == "gw_sync")
+        .flat_map(|d| d["connections"].as_array().cloned().unwrap_or_default());
+    let link = conns.filter(|c| c["remote"] == true).find_map(|c| c.get("link").cloned());
+    let link = link.unwrap_or_else(|| panic!("no remote writer shows its link: {shown}"));
+    assert_eq!(link["lookahead"], k, "{link}");
+    assert!(link["rtt_us"].as_u64().is_some_and(|r| r > 0), "{link}");
     let v: serde_json::Value = serde_json::from_str(&http_get(&stats_addr(&gw_home), "/stats")).unwrap();
     let sub = v["topics"].as_array().unwrap().iter().find(|t| t["set"] == "gw_sync/subscribe").unwrap().clone();
     assert_eq!(sub["lookahead"], k, "{sub}");

@@ -41,5 +41,5 @@ pub use participant::{ConnectOptions, Participant, StepGate};
 #[cfg(not(tutti_loom))]
 pub use segment::{
     check_namespace, list_domains, namespace_from_env, segment_name, segment_path, ConnKind, ConnectionInfo,
-    DomainInfo, DomainStatus, Segment, WaitMode,
+    DomainInfo, DomainStatus, LinkInfo, Segment, WaitMode,
 };

@@ -19,6 +19,7 @@ use std::sync::{MutexGuard, PoisonError};
 use std::time::{Duration, Instant};
 
 use tracing::{info, warn};
+use tutti_core::shm::segment::LinkInfo;
 use tutti_core::shm::ShmError;
 
 use super::from_dds::{connect, LockstepState, Sample, WriterState};
@@ -166,6 +167,16 @@ pub(super) fn run(ls: &LockstepState, rx: &Receiver<(Payload, Instant)>, cfg: &S
         }
         if let Some(newest) = link.newest {
             set.ahead.store(locked.saturating_sub(newest), Ordering::Relaxed);
+        }
+        // `tutti status` shows them on the connection.
+        if let Some(p) = st.part.as_ref() {
+            let g = |c: &std::sync::atomic::AtomicU64| c.load(Ordering::Relaxed);
+            p.set_link(&LinkInfo {
+                lookahead: k_ahead,
+                ahead: g(&set.ahead),
+                rtt_us: g(&set.rtt_us),
+                link_waits: g(&set.link_waits),
+            });
         }
     }
 }

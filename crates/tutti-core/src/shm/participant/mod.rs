@@ -156,6 +156,12 @@ impl Participant {
         }
     }
 
+    /// Shows this connection's link to another site (a remote writer with a lookahead, the
+    /// gateway's) in `tutti status`.
+    pub fn set_link(&self, link: &crate::shm::segment::LinkInfo) {
+        self.seg.set_link(self.slot, link);
+    }
+
     /// Sets a bit of this connection's flags (written only when missing: the framework
     /// polls the line they are on).
     fn set_flag(&self, bit: u32) {

@@ -2,6 +2,7 @@
 //! released here, and what a slot stands for.
 
 use super::format::{ConnSlot, Header, CONN_BYTES, HEADER_BYTES, RELEASING};
+use super::status::LinkInfo;
 use super::wait::wake;
 use super::Segment;
 use crate::ddf::Role;
@@ -62,6 +63,14 @@ impl Segment {
     }
 
     /// Sets the DDS reader count an observer's slot `i` shows.
+    pub(crate) fn set_link(&self, i: usize, link: &LinkInfo) {
+        if let Some(c) = self.conn(i) {
+            for (slot, v) in c.link.iter().zip([link.lookahead, link.ahead, link.rtt_us, link.link_waits]) {
+                slot.store(v, Ordering::Relaxed);
+            }
+        }
+    }
+
     pub(crate) fn set_peers(&self, i: usize, n: u64) {
         if let Some(c) = self.conn(i) {
             c.peers.store(n, Ordering::Relaxed);

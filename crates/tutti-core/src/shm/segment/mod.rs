@@ -48,7 +48,7 @@ use format::Header;
 pub use format::{DomainInfo, DEFAULT_CONNECTIONS, VERSION};
 pub(crate) use format::{MAX_READ_TRIES, PAUSED, RELEASING, STATE_RUNNING, STATE_STOPPED};
 pub use names::{check_namespace, namespace_from_env, segment_name, segment_path};
-pub use status::{list_domains, ConnectionInfo, DomainStatus};
+pub use status::{list_domains, ConnectionInfo, DomainStatus, LinkInfo};
 pub use wait::WaitMode;
 pub(crate) use wait::{wake, Waited, Waiter};
 

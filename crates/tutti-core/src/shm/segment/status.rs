@@ -38,6 +38,7 @@ impl Segment {
                 reads: c.reads.load(Ordering::Relaxed),
                 commits: c.commits.load(Ordering::Relaxed),
                 missed_steps: c.missed.load(Ordering::Relaxed),
+                link: LinkInfo::of(c),
                 alive: os::is_alive(ProcessId { pid, start_time: c.start_time.load(Ordering::Relaxed) }),
             });
         }
@@ -72,6 +73,28 @@ impl Segment {
     }
 }
 
+/// A remote writer's link to another site with a lookahead (docs/run.md, "Sites and
+/// lookahead"), as the gateway last wrote it.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize)]
+pub struct LinkInfo {
+    /// Steps of lookahead.
+    pub lookahead: u64,
+    /// Steps the framework is ahead of the newest answer received.
+    pub ahead: u64,
+    /// The latest round trip from a step's publication to its answer's arrival, µs.
+    pub rtt_us: u64,
+    /// Steps that waited for the link.
+    pub link_waits: u64,
+}
+
+impl LinkInfo {
+    /// The slot's link figures; None for a connection without a lookahead.
+    fn of(c: &super::format::ConnSlot) -> Option<LinkInfo> {
+        let [lookahead, ahead, rtt_us, link_waits] = c.link.each_ref().map(|v| v.load(Ordering::Relaxed));
+        (lookahead > 0).then_some(LinkInfo { lookahead, ahead, rtt_us, link_waits })
+    }
+}
+
 /// One connection, as `tutti status` shows it.
 #[derive(Debug, Clone, Serialize)]
 pub struct ConnectionInfo {
@@ -91,6 +114,9 @@ pub struct ConnectionInfo {
     pub reads: u64,
     pub commits: u64,
     pub missed_steps: u64,
+    /// A remote writer across a link with a lookahead: its figures (absent otherwise).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub link: Option<LinkInfo>,
     pub alive: bool,
 }
 
