@@ -182,7 +182,8 @@ fn one(wire: &Wire, ddf: &Path, engine: EngineKind, k: u64, steps: u64, i: usize
         // Lock-step still needs every step sent (with a lookahead the gateway does it).
         home_args = vec!["--every-step"];
     }
-    let mut away_args = vec!["--mirror", "--timeout", "10s"];
+    // The mirror keeps the steps of the lookahead (docs/run.md, "Sites and lookahead").
+    let mut away_args = vec!["--mirror", "--timeout", "10s", "--lookahead", &la];
     let routers = [0, 1].map(router_endpoint);
     if engine == EngineKind::Zenoh {
         home_args.extend(["--zenoh-connect", &routers[0]]);

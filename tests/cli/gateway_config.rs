@@ -162,10 +162,22 @@ fn gateway_refuses_a_lookahead_it_cannot_honour_naming_the_domain() {
     let (code, _, err) = tutti_env(&["gateway", "ddf/multiuav.ddf", "--lookahead", "uav9=3", "--duration", "1ms"], &[]);
     assert_eq!(code, 2, "{err}");
     assert!(err.contains("lookahead for domain 'uav9': the DDF has no such domain"), "{err}");
-    let (code, _, err) =
-        tutti_env(&["gateway", "ddf/multiuav.ddf", "--mirror", "--lookahead", "4", "--duration", "1ms"], &[]);
+    let (code, _, err) = tutti_env(
+        &[
+            "gateway",
+            "ddf/multiuav.ddf",
+            "--mirror",
+            "--ros2-types",
+            "per-item",
+            "--lookahead",
+            "4",
+            "--duration",
+            "1ms",
+        ],
+        &[],
+    );
     assert_eq!(code, 2, "{err}");
-    assert!(err.contains("a mirror takes no lookahead"), "{err}");
+    assert!(err.contains("per-item topics carry no step"), "{err}");
     let (code, _, err) = tutti_env(&["gateway", "ddf/multiuav.ddf", "--lookahead", "ten"], &[]);
     assert_eq!(code, 2, "{err}");
     assert!(err.contains("'ten' is not a lookahead"), "{err}");

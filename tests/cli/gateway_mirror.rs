@@ -2,6 +2,9 @@
 //! domains to DDS (or Zenoh); the `--mirror` gateway hosts local copies fed from it. A component on
 //! the mirror side reads the PUBLISH set and writes the SUBSCRIBE set of the framework on
 //! the home side, asynchronously and in lock-step.
+//!
+//! The tests over a `Wire` run their gateways in network namespaces of their own, so their
+//! DDS domains (119-124) meet no other test's traffic.
 
 use crate::gateway;
 
@@ -144,7 +147,12 @@ fn a_mirrored_domain_with_a_lookahead_answers_each_step_k_steps_later(e: Eng) {
     // `tutti status --json` in the middle of the run: the remote writer's link.
     let mut shown = None;
     let (gw_home, _gw_away) = run.check_with(
-        || (e.gateway(DDF, dom, &home, &args), e.gateway(DDF, dom, &away, &["--mirror", "--timeout", "5s"])),
+        || {
+            (
+                e.gateway(DDF, dom, &home, &args),
+                e.gateway(DDF, dom, &away, &["--mirror", "--timeout", "5s", "--lookahead", "4"]),
+            )
+        },
         |step| {
             if step == 200 {
                 let mut cmd = tutti_test_support::tutti_command();
@@ -189,7 +197,15 @@ fn a_lookahead_across_a_slow_link_keeps_every_value_of_a_k_step_delay(e: Eng) {
     let (gw_home, gw_away) = run.check(|| {
         (
             netns_gateway((&names[0], a), e, DDF, dom, &home, &["--lookahead", "10"], &[]),
-            netns_gateway((&names[1], b), e, DDF, dom, &away, &["--mirror", "--timeout", "5s"], &[]),
+            netns_gateway(
+                (&names[1], b),
+                e,
+                DDF,
+                dom,
+                &away,
+                &["--mirror", "--timeout", "5s", "--lookahead", "10"],
+                &[],
+            ),
         )
     });
     assert_eq!(counter(&gw_home, "late"), 0, "{}\n{}", gw_home.dump(), gw_away.dump());
@@ -219,7 +235,7 @@ fn a_lookahead_through_a_lossy_reordering_link_that_is_cut_loses_no_step(e: Eng)
                     DDF,
                     dom,
                     &away,
-                    &["--mirror", "--timeout", "10s", "--lease", "5s"],
+                    &["--mirror", "--timeout", "10s", "--lease", "5s", "--lookahead", "4"],
                     &[],
                 ),
             )
@@ -264,7 +280,7 @@ fn a_lookahead_waits_out_a_five_second_cut_within_its_lease(e: Eng) {
                     DDF,
                     dom,
                     &away,
-                    &["--mirror", "--timeout", "20s", "--lease", "10s"],
+                    &["--mirror", "--timeout", "20s", "--lease", "10s", "--lookahead", "4"],
                     &[],
                 ),
             )
@@ -296,7 +312,7 @@ fn a_cut_longer_than_the_step_timeout_is_reported_and_the_run_goes_on(e: Eng) {
     let mirror: Away = Arc::default();
     let r = run.run_with(
         || {
-            let away_args = ["--mirror", "--timeout", "20s", "--lease", "10s"];
+            let away_args = ["--mirror", "--timeout", "20s", "--lease", "10s", "--lookahead", "4"];
             *mirror.lock().unwrap() = Some(netns_gateway((&names[1], b), e, DDF, dom, &away, &away_args, &[]));
             netns_gateway((&names[0], a), e, DDF, dom, &home, &["--lookahead", "4", "--lease", "10s"], &[])
         },
@@ -334,7 +350,9 @@ fn a_killed_site_that_starts_again_rejoins_at_a_step_boundary(e: Eng) {
     let mirror: Away = Arc::default();
     let start_mirror = {
         let (netns, away) = (names[1].clone(), away.clone());
-        move || netns_gateway((&netns, b), e, DDF, dom, &away, &["--mirror", "--timeout", "10s"], &[])
+        move || {
+            netns_gateway((&netns, b), e, DDF, dom, &away, &["--mirror", "--timeout", "10s", "--lookahead", "4"], &[])
+        }
     };
     let first = start_mirror.clone();
     let mut restart = None;
@@ -385,6 +403,177 @@ fn a_killed_site_that_starts_again_rejoins_at_a_step_boundary(e: Eng) {
     assert_eq!(last_off + 1, from, "{joins:?}\n{}", r.dump());
 }
 
+/// A mirror that joins a running home starts at the home's current step (docs/run.md, "Sites
+/// and lookahead"), across a link of 20 ms each way: the home runs on alone while the other
+/// site's component takes 3 s over its first step; the other site then steps the home's
+/// latest step instead of working one by one through the thousands the home made meanwhile,
+/// and from there on every home step is answered in lock-step, each seen once on that site.
+fn a_mirror_that_joins_a_running_home_starts_at_its_current_step(e: Eng) {
+    let Some(wire) = wire_for("lj", e) else { return };
+    wire.set_delay(Duration::from_millis(20));
+    let (dom, home, away) = (e.dom(124), e.ns("gwtest124a"), e.ns("gwtest124b"));
+    let [a, b] = tutti_test_support::Wire::ADDRS;
+    let names = wire.names().clone();
+    let model = tutti_core::ddf::load(tutti_test_support::repo_root().join(DDF)).unwrap();
+    let opts = tutti_core::shm::FrameworkOptions { namespace: home.clone(), timeout: SECS(10), ..Default::default() };
+    let mut fw = tutti_core::shm::Framework::create(&model, &opts).expect("framework");
+    let gw_home = netns_gateway((&names[0], a), e, DDF, dom, &home, &["--every-step"], &[]);
+    let gw_away = netns_gateway((&names[1], b), e, DDF, dom, &away, &["--mirror", "--timeout", "10s"], &[]);
+    let dump = || format!("{}\n{}", gw_home.dump(), gw_away.dump());
+    // The other site's component: y = x + 1, its first step 3 s long (a model loading); it
+    // tells each x it is given.
+    let stop = Arc::new(AtomicBool::new(false));
+    let (tx, seen) = std::sync::mpsc::channel::<f64>();
+    let component = {
+        let (s, away) = (stop.clone(), away.clone());
+        thread::spawn(move || {
+            let mut p = connect(&away, "gw_sync");
+            // A writer from the start: the mirror's steps wait for its answer.
+            p.publish_gate().expect("publish gate");
+            let mut first = true;
+            while !s.load(Ordering::Acquire) {
+                match p.subscribe_lock() {
+                    Ok(_) => {}
+                    Err(tutti_core::shm::ShmError::Timeout { .. }) => continue,
+                    Err(_) => break,
+                }
+                let x = f64_at(p.snapshot(), 0);
+                if std::mem::take(&mut first) {
+                    thread::sleep(SECS(3));
+                }
+                let _ = tx.send(x);
+                if p.publish_lock().is_ok() {
+                    p.stage("y", &(x + 1.0).to_ne_bytes()).unwrap();
+                    if p.commit().is_err() {
+                        break;
+                    }
+                }
+            }
+        })
+    };
+    let ready = tutti_test_support::poll_for(SECS(60), || {
+        let away_ok = tutti_core::shm::segment::Segment::open(&away, "gw_sync").is_ok_and(|seg| {
+            seg.status().connections.iter().any(|c| c.name == "test-component" && c.sync_reader && c.writer)
+        });
+        let home_ok = status(&home, "gw_sync").connections.iter().any(|c| c.observer && c.dds_readers >= 1);
+        (away_ok && home_ok).then_some(())
+    });
+    assert!(ready.is_some(), "the two sides never met\n{}", dump());
+    // The home steps alone (about a step per ms) until the other site answers, then in
+    // lock-step: y read at the end of step n is x_n + 1. Until 100 steps in a row are so.
+    let d = fw.domains.iter_mut().find(|d| d.info().name == "gw_sync").unwrap();
+    let (mut n, mut in_a_row) = (0u64, 0u64);
+    let watchdog = std::time::Instant::now() + SECS(120);
+    while in_a_row < 100 {
+        assert!(std::time::Instant::now() < watchdog, "step {n}: no lock-step after 120 s\n{}", dump());
+        n += 1;
+        thread::sleep(Duration::from_millis(1));
+        let r =
+            d.step(&(n as f64).to_ne_bytes(), n as f64 * 0.01).unwrap_or_else(|e| panic!("step {n}: {e}\n{}", dump()));
+        assert_eq!(r.timed_out, 0, "step {n} timed out waiting for {:?}\n{}", d.timed_out_on(), dump());
+        in_a_row = if f64_at(d.subscribe(), 0) == n as f64 + 1.0 { in_a_row + 1 } else { 0 };
+    }
+    let lock_step = n - 99;
+    stop.store(true, Ordering::Release);
+    drop(fw);
+    component.join().unwrap();
+    let seen: Vec<f64> = seen.try_iter().collect();
+    let first = seen[0];
+    // What the home made without the other site, and what of it that site stepped anyway.
+    let alone = lock_step as f64 - first;
+    let stepped_late = seen.iter().filter(|&&x| x > first && x < lock_step as f64).count();
+    assert!(alone >= 500.0, "the home made only {alone} steps alone: no backlog to skip\n{}", dump());
+    assert!(
+        (stepped_late as f64) * 4.0 < alone,
+        "the other site stepped {stepped_late} of the {alone} steps the home made without it (first {first}, lock-step from {lock_step})\n{}",
+        dump()
+    );
+    let tail: Vec<f64> = seen.iter().copied().filter(|&x| x >= lock_step as f64).collect();
+    let want: Vec<f64> = (lock_step..=n).map(|k| k as f64).collect();
+    assert_eq!(tail, want, "the steps in lock-step, as the other site saw them\n{}", dump());
+    assert!(gw_away.wait_line("the mirror starts at step", SECS(1)).is_some(), "{}", dump());
+}
+
+/// The worked example of two sites (examples/sites/README.md; docs/run.md, "Sites and
+/// lookahead"), as a user runs it on one machine: each site a `tutti run` of its own launch
+/// file (its own framework, namespace and components: the cart at home; the operator, the
+/// controller and the mirror of `link` on the other site), joined over DDS on loopback by
+/// `link` with a lookahead of 10 steps. The home run ends well, its cart settles at the target
+/// the other site's operator set, and every step's force is the controller's answer to the
+/// cart's state 10 steps before, exactly.
+#[test]
+fn the_two_site_example_brings_the_home_cart_to_the_target_set_on_the_other_site() {
+    let Some(py) = tutti_test_support::python(&["ctypes"]) else { return };
+    let repo = tutti_test_support::repo_root();
+    let dir = tempfile::tempdir().unwrap();
+    // The example where it is in the repository, so its relative paths hold; its recording
+    // goes to the temporary folder.
+    let site = dir.path().join("examples/sites");
+    std::fs::create_dir_all(&site).unwrap();
+    for f in std::fs::read_dir(repo.join("examples/sites")).unwrap() {
+        let f = f.unwrap().path();
+        std::fs::copy(&f, site.join(f.file_name().unwrap())).unwrap();
+    }
+    std::os::unix::fs::symlink(repo.join("python"), dir.path().join("python")).unwrap();
+    let lib = tutti_test_support::rtapi_lib_dir().join("librtapi.so");
+    let path = format!(
+        "{}:{}:{}",
+        tutti_test_support::tutti_exe().parent().unwrap().display(),
+        py.parent().unwrap().display(),
+        std::env::var("PATH").unwrap_or_default()
+    );
+    let run = |name: &str, launch: &str, ns: &str| {
+        let mut cmd = tutti_test_support::tutti_command();
+        cmd.args(["run", &site.join(launch).display().to_string()])
+            .env("TUTTI_NAMESPACE", ns)
+            .env("ROS_DOMAIN_ID", "47")
+            .env("ROS_LOCALHOST_ONLY", "1")
+            .env("TUTTI_RTAPI_LIB", &lib)
+            .env("PATH", &path);
+        Proc::spawn(name, cmd, SECS(180))
+    };
+    let mut away = run("the other site", "away.json5", &tutti_test_support::namespace("sites_b"));
+    let mut home = run("the home site", "home.json5", &tutti_test_support::namespace("sites_a"));
+    let code = home.wait(SECS(120));
+    assert_eq!(code, Some(0), "the home run did not end well\n{}\n{}", home.dump(), away.dump());
+    let stopped = away.interrupt(SECS(30));
+    let dump = || format!("{}\n{}", home.dump(), away.dump());
+    assert_eq!(stopped, Some(0), "the other site did not stop well\n{}", dump());
+    let csv = std::fs::read_to_string(site.join("home-link.csv")).unwrap_or_else(|e| panic!("{e}\n{}", dump()));
+    let mut lines = csv.lines();
+    let header: Vec<&str> = lines.next().unwrap().split(',').collect();
+    let col =
+        |name: &str| header.iter().position(|h| h.trim() == name).unwrap_or_else(|| panic!("no {name}: {header:?}"));
+    let (step, pos, vel, force) =
+        (col("step"), col("publish.position"), col("publish.velocity"), col("subscribe.force"));
+    let rows: Vec<(u64, f64, f64, f64)> = lines
+        .map(|l| {
+            let v: Vec<&str> = l.split(',').collect();
+            let f = |i: usize| v[i].trim().parse::<f64>().unwrap();
+            (v[step].trim().parse().unwrap(), f(pos), f(vel), f(force))
+        })
+        .collect();
+    assert_eq!(rows.len(), 1500, "a row per step\n{}", dump());
+    let (k, (kp, kd)) = (10, (4.0, 3.0));
+    for (i, &(n, _, _, f)) in rows.iter().enumerate() {
+        assert_eq!(n, i as u64 + 1);
+        if i < k {
+            assert_eq!(f, 0.0, "step {n}: no answer can have come yet");
+            continue;
+        }
+        // The answer to step n - 10, for one of the targets the operator sets (none yet: 0).
+        let (_, p, v, _) = rows[i - k];
+        assert!(
+            [0.0, 1.0, 0.5].iter().any(|g| f == kp * (g - p) - kd * v),
+            "step {n} read force {f}: not the answer to step {} (position {p}, velocity {v})\n{}",
+            n - 10,
+            dump()
+        );
+    }
+    let (_, p, v, _) = rows[rows.len() - 1];
+    assert!((p - 0.5).abs() < 0.02 && v.abs() < 0.05, "the cart ended at {p} m, {v} m/s, not at 0.5 m\n{}", dump());
+}
+
 /// On Zenoh, across the wire through two routers, one per site (eclipse-zenoh's,
 /// `tests/gateway/zenoh_router.py`): each gateway connects to its own site's router, and the
 /// second router to the first, as rmw_zenoh graphs on two networks meet. K = 10 keeps every
@@ -420,7 +609,7 @@ fn a_lookahead_across_two_zenoh_routers_keeps_every_value_of_a_k_step_delay() {
                 DDF,
                 dom,
                 &away,
-                &["--mirror", "--timeout", "5s", "--zenoh-connect", &rb],
+                &["--mirror", "--timeout", "5s", "--lookahead", "10", "--zenoh-connect", &rb],
                 &[],
             ),
         )
@@ -612,6 +801,7 @@ per_engine!(
     a_lookahead_waits_out_a_five_second_cut_within_its_lease,
     a_cut_longer_than_the_step_timeout_is_reported_and_the_run_goes_on,
     a_killed_site_that_starts_again_rejoins_at_a_step_boundary,
+    a_mirror_that_joins_a_running_home_starts_at_its_current_step,
 );
 
 // The gateway on the other side is the peer: these run on Zenoh too, both gateways meeting at

@@ -187,7 +187,7 @@ impl Manager {
         let poll_thread =
             to_dds::spawn_poller(added, cfg.clone(), stats.clone()).map_err(|e| GatewayError::Thread("a thread", e))?;
         let poller_thread = poll_thread.thread().clone();
-        let mut hosts = mirror_hosts(&opts)?;
+        let mut hosts = mirror_hosts(&opts, &plan)?;
         let domains = opts
             .model
             .domains
@@ -230,6 +230,10 @@ impl Manager {
         let bridge_all = m.opts.mirror || !m.opts.hosted_only || placement == Placement::InProcess;
         for di in 0..m.domains.len() {
             let host = hosts.get_mut(di).and_then(Option::take);
+            if m.opts.mirror && host.is_none() {
+                info!(domain = %m.domains[di].name, "not mirrored: `allow` / `deny` leave out both its sets");
+                continue;
+            }
             if bridge_all || m.hosted(di) {
                 m.bridge(di, host)?;
             }
@@ -459,7 +463,7 @@ impl Manager {
             None => None,
         };
         let (tx, rx) = std_mpsc::channel();
-        let thread = mirror::spawn(host, rx, out, self.cfg.clone(), counters);
+        let thread = mirror::spawn(host, rx, out, self.cfg.clone(), counters, self.domains[di].lookahead);
         self.threads.push(thread.map_err(|e| GatewayError::Thread("a thread", e))?);
         if let Some(si) = publish {
             self.topics += 1;
@@ -728,8 +732,10 @@ impl Manager {
     }
 }
 
-/// A mirror's local frameworks, one per domain of the DDF (none when not a mirror).
-fn mirror_hosts(opts: &GatewayOptions) -> Result<Vec<Option<DomainHost>>, GatewayError> {
+/// A mirror's local frameworks, by the DDF's domain index (none when not a mirror): one for
+/// each domain with a set bridged. A domain whose sets `allow` / `deny` leave out gets no
+/// copy, so that a site mirroring some of a DDF's domains may host the others itself.
+fn mirror_hosts(opts: &GatewayOptions, plan: &[PlannedSet]) -> Result<Vec<Option<DomainHost>>, GatewayError> {
     if !opts.mirror {
         return Ok(Vec::new());
     }
@@ -739,7 +745,17 @@ fn mirror_hosts(opts: &GatewayOptions) -> Result<Vec<Option<DomainHost>>, Gatewa
         wait: opts.wait,
         ..Default::default()
     };
-    Ok(Framework::create(&opts.model, &fo)?.domains.into_iter().map(Some).collect())
+    let bridged = |di: usize| plan.iter().any(|p| p.domain == di);
+    let mut model = opts.model.clone();
+    model.domains =
+        opts.model.domains.iter().enumerate().filter(|(di, _)| bridged(*di)).map(|(_, d)| d.clone()).collect();
+    let mut hosts: Vec<Option<DomainHost>> = opts.model.domains.iter().map(|_| None).collect();
+    for host in Framework::create(&model, &fo)?.domains {
+        if let Some(di) = opts.model.domains.iter().position(|d| d.name == host.info().name) {
+            hosts[di] = Some(host);
+        }
+    }
+    Ok(hosts)
 }
 
 /// The name of a remote writer's connection, as `tutti status` and the framework's reports

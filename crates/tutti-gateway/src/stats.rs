@@ -24,7 +24,8 @@ pub struct Stats {
     /// Shared-memory or DDS write failures.
     pub errors: AtomicU64,
     /// Steps of a synchronous PUBLISH set that the framework published faster than DDS
-    /// could be sent them (a DDS reader never holds a domain back).
+    /// could be sent them (a DDS reader never holds a domain back); on a mirror, the home's
+    /// steps it skipped to start at the home's current step.
     pub skipped: AtomicU64,
     /// Steps of a synchronous set that never reached DDS: its DDS writer refused them for
     /// the whole step timeout (each logged with its domain and topic).

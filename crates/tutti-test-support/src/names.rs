@@ -1,7 +1,7 @@
 //! Names that keep the tests apart: each test uses a shared-memory namespace and a DDS domain
 //! of its own, so that the tests of one binary (and of two checkouts) run in parallel.
 //!
-//! DDS domain ids in use (ROS 2 allows 0..=232): the Foxglove server 61..=76, the gateway
+//! DDS domain ids in use (ROS 2 allows 0..=232): the two-site example 47, the Foxglove server 61..=76, the gateway
 //! scenarios 101..=125 with Cyclone DDS and 151..=175 with rustdds (50 above), the gateway's
 //! DDS writers in an event-driven domain 136..=141 (each test's two engines side by side),
 //! the UAV demo 180..=198, the gateway that `tutti show` plans against 199, the

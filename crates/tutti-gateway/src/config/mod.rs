@@ -154,20 +154,14 @@ impl Lookahead {
         self.all.is_some_and(|k| k > 0) || self.domains.iter().any(|(_, k)| *k > 0)
     }
 
-    /// Each domain named must be one of `model`'s and synchronous; a mirror takes none (it
-    /// answers every step in order; the home side consumes them late), and per-item topics
-    /// cannot have one (their samples carry no step).
-    pub fn check(&self, model: &Model, mirror: bool, types: TypeMode) -> Result<(), ConfigError> {
+    /// Each domain named must be one of `model`'s and synchronous, and per-item topics cannot
+    /// have one (their samples carry no step). A mirror takes the home's K too: it steps the
+    /// PUBLISH samples within K of the newest, in order, and skips older ones (steps the home
+    /// made without it).
+    pub fn check(&self, model: &Model, types: TypeMode) -> Result<(), ConfigError> {
         let refuse = |domain: &str, why: String| Err(ConfigError::LookaheadDomain { domain: domain.into(), why });
         if self.any() {
             let d = self.domains.iter().find(|(_, k)| *k > 0).map_or("*", |(d, _)| d.as_str());
-            if mirror {
-                return refuse(
-                    d,
-                    "a mirror takes no lookahead: give it to the home gateway (the mirror answers every step in order)"
-                        .into(),
-                );
-            }
             if types == TypeMode::PerItem {
                 return refuse(d, "per-item topics carry no step to delay answers by: use --ros2-types typed".into());
             }
@@ -293,7 +287,7 @@ impl GatewayOptions {
             };
         }
         keys.apply(&mut opts)?;
-        opts.lookahead.check(&opts.model, opts.mirror, opts.types)?;
+        opts.lookahead.check(&opts.model, opts.types)?;
         if range == DiscoveryRange::Off {
             // Cyclone has no switch for "peers only" that we could set without overriding
             // CYCLONEDDS_URI; with peers given, they are used beside what Cyclone is configured for.

@@ -111,7 +111,7 @@ pub fn plan(opts: &GatewayOptions) -> Result<Vec<PlannedSet>, ConfigError> {
 /// `deny`, with the reason. Refuses `topics` that name no set, QoS overrides the domain's
 /// flags forbid, a rate limit on a synchronous set and two topics of one name.
 pub fn resolve(opts: &GatewayOptions) -> Result<Plan, ConfigError> {
-    opts.lookahead.check(&opts.model, opts.mirror, opts.types)?;
+    opts.lookahead.check(&opts.model, opts.types)?;
     let rules = &opts.rules;
     let at = |key: &str| in_source(&rules.source, key);
     let pkg = mapping::package_name(&opts.ddf_path);

@@ -383,7 +383,7 @@ fn a_lookahead_is_a_number_of_steps_for_every_synchronous_domain_or_one_per_doma
     assert_eq!((o.lookahead.of("multiuav_uav1"), o.lookahead.of("anything")), (10, 10));
     let o = opts("multiuav.ddf", "{ lookahead: { multiuav_uav1: 40 } }").unwrap();
     assert_eq!((o.lookahead.of("multiuav_uav1"), o.lookahead.of("multiuav_uav2")), (40, 0));
-    o.lookahead.check(&o.model, false, TypeMode::Typed).unwrap();
+    o.lookahead.check(&o.model, TypeMode::Typed).unwrap();
     // Flags over the file: `--lookahead 3 --lookahead multiuav_uav2=5` over the file's 40.
     let flags = parse_lookahead("3").unwrap().over(Lookahead::default());
     let flags = parse_lookahead("multiuav_uav2=5").unwrap().over(flags);
@@ -407,18 +407,16 @@ fn a_lookahead_is_a_number_of_steps_for_every_synchronous_domain_or_one_per_doma
 #[test]
 fn a_lookahead_is_refused_for_a_domain_that_cannot_have_one_naming_it() {
     let model = |ddf: &str| tutti_core::ddf::load(repo(&format!("ddf/{ddf}"))).unwrap();
-    let check = |ddf: &str, l: &str, mirror: bool, types: TypeMode| {
-        err(parse_lookahead(l).unwrap().check(&model(ddf), mirror, types).map(|()| "accepted"))
+    let check = |ddf: &str, l: &str, types: TypeMode| {
+        err(parse_lookahead(l).unwrap().check(&model(ddf), types).map(|()| "accepted"))
     };
-    let e = check("multiuav.ddf", "nosuch=3", false, TypeMode::Typed);
+    let e = check("multiuav.ddf", "nosuch=3", TypeMode::Typed);
     assert!(e.contains("'nosuch'") && e.contains("no such domain") && e.contains("multiuav_uav1"), "{e}");
-    let e = check("multiuav.ddf", "multiuav_uav1=3", true, TypeMode::Typed);
-    assert!(e.contains("a mirror takes no lookahead"), "{e}");
-    let e = check("multiuav.ddf", "2", false, TypeMode::PerItem);
+    let e = check("multiuav.ddf", "2", TypeMode::PerItem);
     assert!(e.contains("per-item topics carry no step"), "{e}");
     let asynchronous = model("product-sample.ddf").domains.iter().find(|d| !d.flags.synchronous).unwrap().name.clone();
-    let e = check("product-sample.ddf", &format!("{asynchronous}=1"), false, TypeMode::Typed);
+    let e = check("product-sample.ddf", &format!("{asynchronous}=1"), TypeMode::Typed);
     assert!(e.contains(&asynchronous) && e.contains("asynchronous"), "{e}");
-    // 0 is lock-step: allowed anywhere, a mirror included.
-    parse_lookahead("0").unwrap().check(&model("multiuav.ddf"), true, TypeMode::PerItem).unwrap();
+    // 0 is lock-step: allowed anywhere.
+    parse_lookahead("0").unwrap().check(&model("multiuav.ddf"), TypeMode::PerItem).unwrap();
 }

@@ -25,7 +25,7 @@ use tutti_core::shm::ShmError;
 use super::from_dds::{connect, LockstepState, Sample, WriterState};
 use super::ShmConfig;
 use crate::cdr::Payload;
-use crate::stats::{SetStats, Stats};
+use crate::stats::{LogLimit, SetStats, Stats};
 
 /// The thread of a remote writer with a lookahead: until its [`super::from_dds::RemoteWriter`]
 /// is dropped, answers each step the framework publishes from the answers handed to it on
@@ -44,6 +44,7 @@ pub(super) fn run(ls: &LockstepState, rx: &Receiver<(Payload, Instant)>, cfg: &S
         answers: VecDeque::new(),
         published: VecDeque::new(),
         newest: None,
+        gaps: LogLimit::new(Duration::from_secs(5)),
     };
     let check = (cfg.lease / 4).clamp(Duration::from_millis(10), Duration::from_millis(100));
     // The connection's first step (answers to earlier ones cannot come), and whether the
@@ -117,7 +118,16 @@ pub(super) fn run(ls: &LockstepState, rx: &Receiver<(Payload, Instant)>, cfg: &S
                 Some((m, _)) if n.map_or(true, |n| *m == n) => {
                     break link.answers.pop_front().map_or(Outcome::Hold, |(_, p)| Outcome::Answer(p))
                 }
-                Some(_) => break Outcome::Hold,
+                Some((m, _)) => {
+                    if let (Some(n), Some(_)) = (n, link.gaps.allow()) {
+                        warn!(
+                            domain = %st.out.domain,
+                            "{}: the answer to step {n} never came (the answer to step {m} came first): the other site started again, or its mirror keeps fewer steps than this lookahead (give it --lookahead {k_ahead} too); step {locked} reads the values as they are",
+                            st.out.name
+                        );
+                    }
+                    break Outcome::Hold;
+                }
                 None => {}
             }
             // The answer has not come: the framework waits for the link.
@@ -203,6 +213,8 @@ struct Link<'a> {
     published: VecDeque<(u64, Instant)>,
     /// The latest step answered so far.
     newest: Option<u64>,
+    /// Steps whose answer never came (a later one did), logged.
+    gaps: LogLimit,
 }
 
 impl Link<'_> {
