@@ -155,13 +155,12 @@ fn twenty_participants_joining_and_leaving_leave_the_routes_as_they_were(e: Eng)
     drop(host);
 }
 
-/// A synchronous domain (step timeout 5 s) under ROS namespace `ros_ns`, answered by a
-/// Cyclone writer (keeping all its samples until acknowledged, or with `depth` the last
-/// `depth`) through a gateway started with `gw_args`; returns the host, the gateway and the
-/// writer once 20 steps were answered.
-fn answered(e: Eng, py: &Path, ns: &str, ros_ns: &str, depth: u32, gw_args: &[&str]) -> (Host, Proc, Proc) {
+/// The Cyclone peer that answers each step of `gw_sync` under ROS namespace `ros_ns` (its
+/// writer keeping all its samples until acknowledged, or with `depth` the last `depth`; its
+/// reader all it has not taken, or with `read_depth` the last `read_depth`).
+fn answer_peer(py: &Path, ros_ns: &str, depth: u32, read_depth: u32) -> Proc {
     let (topic, reply) = (format!("rt/{ros_ns}/gw_sync/publish"), format!("rt/{ros_ns}/gw_sync/subscribe"));
-    let depth = depth.to_string();
+    let (depth, read_depth) = (depth.to_string(), read_depth.to_string());
     let args = [
         "--topic",
         &topic,
@@ -181,8 +180,17 @@ fn answered(e: Eng, py: &Path, ns: &str, ros_ns: &str, depth: u32, gw_args: &[&s
         "150",
         "--reply-depth",
         &depth,
+        "--read-depth",
+        &read_depth,
     ];
-    let answer = peer(py, "answer", 232, "answer", &args);
+    peer(py, "answer", 232, "answer", &args)
+}
+
+/// A synchronous domain (step timeout 5 s) under ROS namespace `ros_ns`, answered by a
+/// Cyclone peer (`depth`: its writer's and reader's, as [`answer_peer`] takes them) through a gateway started with `gw_args`; returns the host, the gateway and the
+/// writer once 20 steps were answered.
+fn answered(e: Eng, py: &Path, ns: &str, ros_ns: &str, depth: (u32, u32), gw_args: &[&str]) -> (Host, Proc, Proc) {
+    let answer = answer_peer(py, ros_ns, depth.0, depth.1);
     let host = Host::start_opts(DDF, ns, "gw_sync", Duration::from_millis(5), SECS(5), |k| {
         (k as f64 * 10.0).to_ne_bytes().to_vec()
     });
@@ -229,7 +237,7 @@ fn a_gateway_restarted_after_kill_9_takes_its_dds_writer_back(e: Eng) {
     let ros_ns = format!("restart_{}", e.name);
     let gw_args = ["--ros-namespace", ros_ns.as_str(), "--lease", "1s"];
     let (depth, lease) = if e.name == "cyclone" { (0, 2.0) } else { (10, 50.0) };
-    let (host, mut gw, mut answer) = answered(e, &py, ns, &ros_ns, depth, &gw_args);
+    let (host, mut gw, mut answer) = answered(e, &py, ns, &ros_ns, (depth, 0), &gw_args);
     let node_ns = format!("/{ros_ns}");
     let args = ["--name", "tutti_gateway", "--node-namespace", &node_ns, "--timeout", "60"];
     let mut announced = peer(&py, "lease", 232, "lease", &args);
@@ -256,6 +264,37 @@ fn a_gateway_restarted_after_kill_9_takes_its_dds_writer_back(e: Eng) {
     assert_eq!(s.step_timeouts, 0, "{}", gw2.dump());
     let remote: Vec<_> = s.connections.iter().filter(|c| c.remote).collect();
     assert!(remote.len() == 1 && remote[0].pid == gw2.id(), "{:?}\n{}", s.connections, gw2.dump());
+    drop(host);
+}
+
+/// The other way round: the DDS peer that answers every step of a synchronous domain (a
+/// reliable writer keeping its last sample, a reader its last 8) is killed with
+/// SIGKILL, and the framework goes on without it once the gateway's `--lease` has released
+/// its share of the step; started again, the peer's new writer gets a connection from its
+/// first answer on and the run is in lock-step with it again, with no step timeout.
+fn a_dds_peer_killed_and_started_again_answers_every_step_again(e: Eng) {
+    let Some(py) = python() else { return };
+    let ns = ns(e, "peerkill");
+    let ns = ns.as_str();
+    let ros_ns = format!("peerkill_{}", e.name);
+    let gw_args = ["--ros-namespace", ros_ns.as_str(), "--lease", "1s"];
+    let (host, gw, mut answer) = answered(e, &py, ns, &ros_ns, (1, 8), &gw_args);
+    answer.kill9();
+    let killed_at = last_step(&host);
+    let failed =
+        lazy(|| format!("the framework did not go on without the peer: {:?}\n{}", status(ns, "gw_sync"), gw.dump()));
+    wait_until(failed, SECS(60), || {
+        last_step(&host) >= killed_at + 200 && status(ns, "gw_sync").connections.iter().all(|c| !c.remote)
+    });
+    let again = answer_peer(&py, &ros_ns, 1, 8);
+    let restarted_at = last_step(&host);
+    answered_more(&host, restarted_at, 500, &|| format!("{}\n{}", again.dump(), gw.dump()));
+    let seen = host.seen.lock().unwrap().clone();
+    let first = seen.iter().find(|(k, b)| *k > restarted_at && is_answer(*k, b)).map_or(0, |(k, _)| *k);
+    assert_lock_step(&seen, first, is_answer);
+    let s = status(ns, "gw_sync");
+    let remote: Vec<_> = s.connections.iter().filter(|c| c.remote).collect();
+    assert_eq!(remote.len(), 1, "{:?}\n{}", s.connections, gw.dump());
     drop(host);
 }
 
@@ -322,4 +361,5 @@ per_engine!(
     twenty_participants_joining_and_leaving_leave_the_routes_as_they_were,
     a_late_reader_of_a_transient_local_set_gets_the_last_sample_of_each_writer,
     a_gateway_restarted_after_kill_9_takes_its_dds_writer_back,
+    a_dds_peer_killed_and_started_again_answers_every_step_again,
 );

@@ -13,7 +13,7 @@ that loses datagrams (see ANNOUNCE below).
          [--linger S] [--transient-local]: waits for a matched reader, writes each sample (transient
          local: a latched writer, keeping its last sample for late joiners)
   answer --topic T --type TN --fields F --reply-topic T2 --reply-type TN2 --reply-fields F2
-         --count N [--reply-depth D] [--on-change]: for each sample read on T (a step k) writes one sample on T2
+         --count N [--reply-depth D] [--read-depth D] [--on-change]: for each sample read on T (a step k) writes one sample on T2
          with step k and every other field of F2 = the first data field of the sample + 1; the
          writer keeps all its samples until acknowledged, or with D the last D (as rclpy's
          default KEEP_LAST 10); with --on-change, only for a sample whose first data field differs
@@ -205,8 +205,9 @@ def cmd_pub(dp, a):
 def cmd_answer(dp, a):
     f_in, f_out = json.loads(a.fields), json.loads(a.reply_fields)
     cin, cout = make_type(a.type, f_in), make_type(a.reply_type, f_out)
+    read_history = Policy.History.KeepLast(a.read_depth) if a.read_depth else Policy.History.KeepAll
     rd = DataReader(dp, Topic(dp, a.topic, cin), qos=Qos(Policy.Reliability.Reliable(duration(milliseconds=100)),
-                                                           Policy.History.KeepAll, Policy.Durability.Volatile))
+                                                           read_history, Policy.Durability.Volatile))
     history = Policy.History.KeepLast(a.reply_depth) if a.reply_depth else Policy.History.KeepAll
     w = DataWriter(dp, Topic(dp, a.reply_topic, cout), qos=Qos(Policy.Reliability.Reliable(duration(milliseconds=100)),
                                                                  history, Policy.Durability.Volatile))
@@ -672,6 +673,7 @@ def main():
     p.add_argument("--readers", action="store_true")
     p.add_argument("--on-change", action="store_true")
     p.add_argument("--reply-depth", type=int, default=0)
+    p.add_argument("--read-depth", type=int, default=0)
     p.add_argument("--strength", type=int, default=5)
     p.add_argument("--max-samples", type=int, default=0)
     p.add_argument("--pause-ms", type=float, default=1.0)
