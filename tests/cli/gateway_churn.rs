@@ -268,10 +268,13 @@ fn a_gateway_restarted_after_kill_9_takes_its_dds_writer_back(e: Eng) {
 }
 
 /// The other way round: the DDS peer that answers every step of a synchronous domain (a
-/// reliable writer keeping its last sample, a reader its last 8) is killed with
-/// SIGKILL, and the framework goes on without it once the gateway's `--lease` has released
-/// its share of the step; started again, the peer's new writer gets a connection from its
-/// first answer on and the run is in lock-step with it again, with no step timeout.
+/// reliable writer keeping its last sample, a reader its last 8) is killed with SIGKILL and
+/// started again at once. The framework goes on once the gateway's `--lease` has released the
+/// killed writer's share of the step. The killed peer's reader, which never leaves, holds the
+/// gateway's RELIABLE, KEEP_ALL writer back until DDS drops it at its participant's lease
+/// (Cyclone's default, 10 s: docs/gateway.md, "Nothing lost on a synchronous set"); the
+/// steps refused meanwhile are reported as lost, naming the topic. From then on the restarted
+/// peer's writer has a connection and the run is in lock-step with it again.
 fn a_dds_peer_killed_and_started_again_answers_every_step_again(e: Eng) {
     let Some(py) = python() else { return };
     let ns = ns(e, "peerkill");
@@ -280,21 +283,27 @@ fn a_dds_peer_killed_and_started_again_answers_every_step_again(e: Eng) {
     let gw_args = ["--ros-namespace", ros_ns.as_str(), "--lease", "1s"];
     let (host, gw, mut answer) = answered(e, &py, ns, &ros_ns, (1, 8), &gw_args);
     answer.kill9();
-    let killed_at = last_step(&host);
-    let failed =
-        lazy(|| format!("the framework did not go on without the peer: {:?}\n{}", status(ns, "gw_sync"), gw.dump()));
-    wait_until(failed, SECS(60), || {
-        last_step(&host) >= killed_at + 200 && status(ns, "gw_sync").connections.iter().all(|c| !c.remote)
-    });
     let again = answer_peer(&py, &ros_ns, 1, 8);
-    let restarted_at = last_step(&host);
-    answered_more(&host, restarted_at, 500, &|| format!("{}\n{}", again.dump(), gw.dump()));
+    let dump = || format!("{:?}\n{}\n{}", status(ns, "gw_sync"), again.dump(), gw.dump());
+    // DDS drops the killed peer (its lease ran out): its writer leaves, and its reader with it.
+    let left = gw.wait_line(" left: its connection is released", SECS(60));
+    assert!(left.is_some(), "DDS never dropped the killed peer\n{}", dump());
+    let dropped_at = last_step(&host);
+    answered_more(&host, dropped_at, 500, &dump);
     let seen = host.seen.lock().unwrap().clone();
-    let first = seen.iter().find(|(k, b)| *k > restarted_at && is_answer(*k, b)).map_or(0, |(k, _)| *k);
-    assert_lock_step(&seen, first, is_answer);
+    let first = seen.iter().find(|(k, b)| *k > dropped_at && is_answer(*k, b)).map_or(0, |(k, _)| *k);
+    let after: Vec<_> = seen.iter().filter(|(k, _)| *k > first).collect();
+    let missed: Vec<u64> = after.iter().filter(|(k, b)| !is_answer(*k, b)).map(|(k, _)| *k).collect();
+    assert!(
+        missed.is_empty(),
+        "{} of {} steps from step {first} not answered in lock-step: {:?}\n{}",
+        missed.len(),
+        after.len(),
+        &missed[..missed.len().min(20)],
+        dump()
+    );
     let s = status(ns, "gw_sync");
-    let remote: Vec<_> = s.connections.iter().filter(|c| c.remote).collect();
-    assert_eq!(remote.len(), 1, "{:?}\n{}", s.connections, gw.dump());
+    assert_eq!(s.connections.iter().filter(|c| c.remote).count(), 1, "{}", dump());
     drop(host);
 }
 

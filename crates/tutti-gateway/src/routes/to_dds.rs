@@ -201,7 +201,7 @@ impl SetWriter {
             warn!(
                 domain = %self.domain,
                 topic = %self.topic,
-                "step {step} of domain '{}' was not written to DDS topic '{}': its DDS writer refused it {tries} time(s) for {:?}, the step timeout (its reliable readers did not acknowledge the earlier steps); counted as lost ({held} more lost since the last report)",
+                "step {step} of domain '{}' was not written to DDS topic '{}': its DDS writer refused it {tries} time(s) for {:?}, the step timeout (its reliable readers did not acknowledge the earlier steps: a reader killed without leaving holds it back until its participant's lease runs out); counted as lost ({held} more lost since the last report)",
                 self.domain,
                 self.topic,
                 patience.timeout
