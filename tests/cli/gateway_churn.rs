@@ -190,8 +190,21 @@ fn answer_peer(py: &Path, ros_ns: &str, depth: u32, read_depth: u32) -> Proc {
 /// Cyclone peer (`depth`: its writer's and reader's, as [`answer_peer`] takes them) through a gateway started with `gw_args`; returns the host, the gateway and the
 /// writer once 20 steps were answered.
 fn answered(e: Eng, py: &Path, ns: &str, ros_ns: &str, depth: (u32, u32), gw_args: &[&str]) -> (Host, Proc, Proc) {
+    answered_within(e, py, ns, ros_ns, depth, gw_args, SECS(5))
+}
+
+/// [`answered`] with a step timeout of `timeout`.
+fn answered_within(
+    e: Eng,
+    py: &Path,
+    ns: &str,
+    ros_ns: &str,
+    depth: (u32, u32),
+    gw_args: &[&str],
+    timeout: Duration,
+) -> (Host, Proc, Proc) {
     let answer = answer_peer(py, ros_ns, depth.0, depth.1);
-    let host = Host::start_opts(DDF, ns, "gw_sync", Duration::from_millis(5), SECS(5), |k| {
+    let host = Host::start_opts(DDF, ns, "gw_sync", Duration::from_millis(5), timeout, |k| {
         (k as f64 * 10.0).to_ne_bytes().to_vec()
     });
     let gw = e.gateway(DDF, 232, ns, gw_args);
@@ -307,6 +320,34 @@ fn a_dds_peer_killed_and_started_again_answers_every_step_again(e: Eng) {
     drop(host);
 }
 
+/// As above, with the run told to wait rather than go on without the killed reader: the
+/// gateway holds the framework until each step is written (`--every-step`), and both its
+/// `--timeout` and the framework's step timeout are above the killed peer's lease (10 s). The
+/// run waits at the step the killed reader holds back, and goes on in lock-step with the
+/// restarted peer once DDS drops the killed one: no step lost, skipped or timed out.
+fn a_dds_peer_killed_and_started_again_with_the_run_waiting_loses_no_step(e: Eng) {
+    let Some(py) = python() else { return };
+    let ns = ns(e, "peerwait");
+    let ns = ns.as_str();
+    let ros_ns = format!("peerwait_{}", e.name);
+    let gw_args = ["--ros-namespace", ros_ns.as_str(), "--lease", "1s", "--every-step", "--timeout", "30s"];
+    let (host, gw, mut answer) = answered_within(e, &py, ns, &ros_ns, (1, 8), &gw_args, SECS(40));
+    answer.kill9();
+    let again = answer_peer(&py, &ros_ns, 1, 8);
+    let dump = || format!("{:?}\n{}\n{}", status(ns, "gw_sync"), again.dump(), gw.dump());
+    let left = gw.wait_line(" left: its connection is released", SECS(60));
+    assert!(left.is_some(), "DDS never dropped the killed peer\n{}", dump());
+    let dropped_at = last_step(&host);
+    answered_more(&host, dropped_at, 500, &dump);
+    let seen = host.seen.lock().unwrap().clone();
+    let first = seen.iter().find(|(k, b)| *k > dropped_at && is_answer(*k, b)).map_or(0, |(k, _)| *k);
+    let missed: Vec<u64> = seen.iter().filter(|(k, b)| *k > first && !is_answer(*k, b)).map(|(k, _)| *k).collect();
+    assert!(missed.is_empty(), "steps from step {first} not answered in lock-step: {missed:?}\n{}", dump());
+    assert_eq!(status(ns, "gw_sync").step_timeouts, 0, "{}", dump());
+    crate::gateway_reliable::assert_no_step_lost(&gw, true);
+    drop(host);
+}
+
 /// A Cyclone writer of `topic` that writes `values` (transient-local, keep last 1) and
 /// stays until killed, so that late readers get its last sample from it.
 fn latched_writer(py: &Path, topic: &str, values: &str) -> Proc {
@@ -371,4 +412,5 @@ per_engine!(
     a_late_reader_of_a_transient_local_set_gets_the_last_sample_of_each_writer,
     a_gateway_restarted_after_kill_9_takes_its_dds_writer_back,
     a_dds_peer_killed_and_started_again_answers_every_step_again,
+    a_dds_peer_killed_and_started_again_with_the_run_waiting_loses_no_step,
 );
