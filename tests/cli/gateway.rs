@@ -98,7 +98,7 @@ pub fn host_with_gateway_by(
     (p, guard)
 }
 
-use tutti_test_support::run_tool;
+use tutti_test_support::{run_tool, SetupError};
 
 /// Two network namespaces joined by a veth pair (`veth0` in each, 192.0.2.1/24 in the first,
 /// 192.0.2.2/24 in the second: addresses that exist only inside them), both removed on drop.
@@ -113,7 +113,7 @@ impl NetnsPair {
 
     /// Creates the pair, named after `tag` and this process; Err with the reason when this
     /// machine does not let the test create namespaces (no root, no `ip`).
-    pub fn create(tag: &str) -> Result<NetnsPair, String> {
+    pub fn create(tag: &str) -> Result<NetnsPair, SetupError> {
         let names = [0, 1].map(|i| format!("tutti-{}-{tag}-{i}", std::process::id()));
         let pair = NetnsPair { names: names.clone() };
         let ip = |args: &[&str]| run_tool("ip", args);
@@ -184,7 +184,7 @@ pub struct LossyNetns {
 impl LossyNetns {
     /// Creates it, named after `tag` and this process; Err with the reason where this machine
     /// does not let the test (no root, no `ip` or `nft`).
-    pub fn create(tag: &str, percent: u8) -> Result<LossyNetns, String> {
+    pub fn create(tag: &str, percent: u8) -> Result<LossyNetns, SetupError> {
         let name = format!("tutti-{}-{tag}", std::process::id());
         run_tool("ip", &["netns", "add", &name])?;
         let net = LossyNetns { name };

@@ -49,7 +49,9 @@ pub use hex::{hex, unhex};
 pub use names::{dds_domain_in, namespace};
 pub use policy::{ci, python, require, require_tool, which};
 pub use proc::{Output, Proc, Spawn};
-pub use run::{run_output, run_tool, run_with_timeout, tutti, tutti_command, tutti_exe, workspace_bin, TIMEOUT};
+pub use run::{
+    run_output, run_tool, run_with_timeout, tutti, tutti_command, tutti_exe, workspace_bin, SetupError, TIMEOUT,
+};
 pub use segments::{segments_of, shrink_segment, RemoveSegments, ShmFile};
 pub use wait::{lazy, poll_for, wait_for, wait_until, Lazy, POLL};
 #[cfg(feature = "wire")]

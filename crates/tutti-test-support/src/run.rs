@@ -104,13 +104,49 @@ where
     (status.code().unwrap_or(-1), out, err)
 }
 
+/// Why a test could not set the machine up for itself (network namespaces, devices, a tool).
+#[derive(Debug, thiserror::Error)]
+pub enum SetupError {
+    /// `program` could not be started.
+    #[error("{program}: {source}")]
+    Spawn { program: String, source: std::io::Error },
+    /// `command` ran and failed; what it printed on stderr.
+    #[error("{command}: {stderr}")]
+    Failed { command: String, stderr: String },
+    /// A system call or file of the set-up failed.
+    #[error("{what}: {source}")]
+    Os { what: String, source: std::io::Error },
+    /// A thread of the set-up panicked.
+    #[error("{0} panicked")]
+    Panicked(&'static str),
+}
+
+impl SetupError {
+    /// [`SetupError::Os`] with the calling thread's last OS error.
+    pub fn last_os(what: impl Into<String>) -> SetupError {
+        SetupError::Os { what: what.into(), source: std::io::Error::last_os_error() }
+    }
+
+    /// A function that makes [`SetupError::Os`] of `what` from an I/O error (for `map_err`).
+    pub fn os(what: impl Into<String>) -> impl FnOnce(std::io::Error) -> SetupError {
+        let what = what.into();
+        move |source| SetupError::Os { what, source }
+    }
+}
+
 /// Runs `program ARGS` to its end; Err with what it printed on failure (a test's set-up of
 /// the machine: `ip`, `nft`).
-pub fn run_tool(program: &str, args: &[&str]) -> Result<(), String> {
-    let out = Command::new(program).args(args).output().map_err(|e| format!("{program}: {e}"))?;
+pub fn run_tool(program: &str, args: &[&str]) -> Result<(), SetupError> {
+    let out = Command::new(program)
+        .args(args)
+        .output()
+        .map_err(|source| SetupError::Spawn { program: program.into(), source })?;
     if out.status.success() {
         Ok(())
     } else {
-        Err(format!("{program} {}: {}", args.join(" "), String::from_utf8_lossy(&out.stderr).trim()))
+        Err(SetupError::Failed {
+            command: format!("{program} {}", args.join(" ")),
+            stderr: String::from_utf8_lossy(&out.stderr).trim().to_string(),
+        })
     }
 }

@@ -19,6 +19,8 @@ use std::sync::{Arc, Condvar, Mutex, PoisonError};
 use std::thread::{self, JoinHandle};
 use std::time::{Duration, Instant};
 
+use crate::SetupError;
+
 /// What the wire does to the frames that cross it, each way; changed while it runs.
 #[derive(Debug, Default)]
 pub struct Faults {
@@ -51,7 +53,7 @@ impl Wire {
 
     /// Makes the two namespaces (named after `tag` and this process) and the wire between
     /// them, with `delay` each way; Err with the reason when this machine does not let it.
-    pub fn create(tag: &str, delay: Duration) -> Result<Wire, String> {
+    pub fn create(tag: &str, delay: Duration) -> Result<Wire, SetupError> {
         let names = [0, 1].map(|i| format!("tutti-{}-{tag}-{i}", std::process::id()));
         let mut wire = Wire {
             names: names.clone(),
@@ -73,9 +75,11 @@ impl Wire {
             ip(&["-n", n, "link", "set", "tap0", "up", "multicast", "on"])?;
             ip(&["-n", n, "route", "add", "224.0.0.0/4", "dev", "tap0"])?;
         }
-        let [a, b]: [OwnedFd; 2] = taps.try_into().map_err(|_| "two TAP devices".to_string())?;
-        let (a, b) = (File::from(a), File::from(b));
-        let (a2, b2) = (a.try_clone().map_err(|e| e.to_string())?, b.try_clone().map_err(|e| e.to_string())?);
+        let (a, b) = (File::from(taps.remove(0)), File::from(taps.remove(0)));
+        let (a2, b2) = (
+            a.try_clone().map_err(SetupError::os("a TAP device"))?,
+            b.try_clone().map_err(SetupError::os("a TAP device"))?,
+        );
         wire.direction(a, b2)?;
         wire.direction(b, a2)?;
         Ok(wire)
@@ -106,7 +110,7 @@ impl Wire {
     }
 
     /// Starts one direction: frames read from `from` are written to `to` when due.
-    fn direction(&mut self, mut from: File, mut to: File) -> Result<(), String> {
+    fn direction(&mut self, mut from: File, mut to: File) -> Result<(), SetupError> {
         let queue = Arc::new((Mutex::new(BinaryHeap::<Frame>::new()), Condvar::new()));
         let (q, faults, stop, counts) = (queue.clone(), self.faults.clone(), self.stop.clone(), self.counts.clone());
         let reader = thread::Builder::new()
@@ -143,7 +147,7 @@ impl Wire {
                     cv.notify_one();
                 }
             })
-            .map_err(|e| e.to_string())?;
+            .map_err(SetupError::os("the wire's reading thread"))?;
         let (stop, counts) = (self.stop.clone(), self.counts.clone());
         let writer = thread::Builder::new()
             .name("tutti-wire-tx".into())
@@ -175,7 +179,7 @@ impl Wire {
                     }
                 }
             })
-            .map_err(|e| e.to_string())?;
+            .map_err(SetupError::os("the wire's writing thread"))?;
         self.threads.push(reader);
         self.threads.push(writer);
         Ok(())
@@ -230,20 +234,20 @@ fn readable(f: &File, ms: i32) -> bool {
 
 /// A TAP device `tap0` made in network namespace `ns` (by a thread that enters it: a device
 /// is made in its creator's namespace and stays there), as an open file of this process.
-fn tap_in(ns: &str) -> Result<OwnedFd, String> {
+fn tap_in(ns: &str) -> Result<OwnedFd, SetupError> {
     let path = format!("/var/run/netns/{ns}");
     let made = thread::scope(|s| {
-        s.spawn(|| -> Result<OwnedFd, String> {
-            let nsf = File::open(&path).map_err(|e| format!("{path}: {e}"))?;
+        s.spawn(|| -> Result<OwnedFd, SetupError> {
+            let nsf = File::open(&path).map_err(SetupError::os(path.as_str()))?;
             // SAFETY: a valid descriptor of a network namespace; only this thread moves.
             if unsafe { libc::setns(nsf.as_raw_fd(), libc::CLONE_NEWNET) } != 0 {
-                return Err(format!("entering {ns}: {}", std::io::Error::last_os_error()));
+                return Err(SetupError::last_os(format!("entering {ns}")));
             }
             let tun = std::fs::OpenOptions::new()
                 .read(true)
                 .write(true)
                 .open("/dev/net/tun")
-                .map_err(|e| format!("/dev/net/tun: {e}"))?;
+                .map_err(SetupError::os("/dev/net/tun"))?;
             // SAFETY: an ifreq zeroed, its name and flags set as TUNSETIFF reads them.
             let mut req: libc::ifreq = unsafe { std::mem::zeroed() };
             for (d, s) in req.ifr_name.iter_mut().zip(b"tap0") {
@@ -252,13 +256,13 @@ fn tap_in(ns: &str) -> Result<OwnedFd, String> {
             req.ifr_ifru.ifru_flags = (libc::IFF_TAP | libc::IFF_NO_PI) as libc::c_short;
             // SAFETY: TUNSETIFF on a /dev/net/tun descriptor, with a valid ifreq.
             if unsafe { libc::ioctl(tun.as_raw_fd(), libc::TUNSETIFF, &mut req) } != 0 {
-                return Err(format!("TUNSETIFF in {ns}: {}", std::io::Error::last_os_error()));
+                return Err(SetupError::last_os(format!("TUNSETIFF in {ns}")));
             }
             // SAFETY: the descriptor is taken out of the File, which no longer closes it.
             Ok(unsafe { OwnedFd::from_raw_fd(std::os::fd::IntoRawFd::into_raw_fd(tun)) })
         })
         .join()
-        .map_err(|_| "the thread that made the TAP device panicked".to_string())?
+        .map_err(|_| SetupError::Panicked("the thread that made the TAP device"))?
     });
     made
 }
