@@ -290,14 +290,46 @@ fn a_gateway_restarted_after_kill_9_takes_its_dds_writer_back(e: Eng) {
 /// peer's writer has a connection and the run is in lock-step with it again.
 fn a_dds_peer_killed_and_started_again_answers_every_step_again(e: Eng) {
     let Some(py) = python() else { return };
-    let ns = ns(e, "peerkill");
-    let ns = ns.as_str();
-    let ros_ns = format!("peerkill_{}", e.name);
-    let gw_args = ["--ros-namespace", ros_ns.as_str(), "--lease", "1s"];
-    let (host, gw, mut answer) = answered(e, &py, ns, &ros_ns, (1, 8), &gw_args);
+    let (ns, host, gw, _again) = peer_killed_and_started_again(e, &py, "peerkill", &[], SECS(5));
+    let s = status(&ns, "gw_sync");
+    assert_eq!(s.connections.iter().filter(|c| c.remote).count(), 1, "{}", gw.dump());
+    drop(host);
+}
+
+/// As above, with the run told to wait rather than go on without the killed reader: the
+/// gateway holds the framework until each step is written (`--every-step`), and both its
+/// `--timeout` and the framework's step timeout are above the killed peer's lease (10 s). The
+/// run waits at the step the killed reader holds back, and goes on in lock-step with the
+/// restarted peer once DDS drops the killed one: no step lost, skipped or timed out.
+fn a_dds_peer_killed_and_started_again_with_the_run_waiting_loses_no_step(e: Eng) {
+    let Some(py) = python() else { return };
+    let waits = ["--every-step", "--timeout", "30s"];
+    let (ns, host, gw, _again) = peer_killed_and_started_again(e, &py, "peerwait", &waits, SECS(40));
+    assert_eq!(status(&ns, "gw_sync").step_timeouts, 0, "{}", gw.dump());
+    crate::gateway_reliable::assert_no_step_lost(&gw, true);
+    drop(host);
+}
+
+/// The run of the two tests above: a synchronous domain (step timeout `timeout`) answered by
+/// a Cyclone peer (a writer keeping its last sample, a reader its last 8) through a gateway
+/// with `--lease 1s` and `gw_args`; the peer killed with SIGKILL and started again at once.
+/// Once DDS drops the killed peer (the gateway logs that its writer left), every step from
+/// the restarted peer's first answer on is answered in lock-step (500 of them). Returns the
+/// namespace, the framework, the gateway and the restarted peer.
+fn peer_killed_and_started_again(
+    e: Eng,
+    py: &Path,
+    tag: &str,
+    gw_args: &[&str],
+    timeout: Duration,
+) -> (String, Host, Proc, Proc) {
+    let ns = ns(e, tag);
+    let ros_ns = format!("{tag}_{}", e.name);
+    let gw_args = [&["--ros-namespace", ros_ns.as_str(), "--lease", "1s"], gw_args].concat();
+    let (host, gw, mut answer) = answered_within(e, py, &ns, &ros_ns, (1, 8), &gw_args, timeout);
     answer.kill9();
-    let again = answer_peer(&py, &ros_ns, 1, 8);
-    let dump = || format!("{:?}\n{}\n{}", status(ns, "gw_sync"), again.dump(), gw.dump());
+    let again = answer_peer(py, &ros_ns, 1, 8);
+    let dump = || format!("{:?}\n{}\n{}", status(&ns, "gw_sync"), again.dump(), gw.dump());
     // DDS drops the killed peer (its lease ran out): its writer leaves, and its reader with it.
     let left = gw.wait_line(" left: its connection is released", SECS(60));
     assert!(left.is_some(), "DDS never dropped the killed peer\n{}", dump());
@@ -315,37 +347,7 @@ fn a_dds_peer_killed_and_started_again_answers_every_step_again(e: Eng) {
         &missed[..missed.len().min(20)],
         dump()
     );
-    let s = status(ns, "gw_sync");
-    assert_eq!(s.connections.iter().filter(|c| c.remote).count(), 1, "{}", dump());
-    drop(host);
-}
-
-/// As above, with the run told to wait rather than go on without the killed reader: the
-/// gateway holds the framework until each step is written (`--every-step`), and both its
-/// `--timeout` and the framework's step timeout are above the killed peer's lease (10 s). The
-/// run waits at the step the killed reader holds back, and goes on in lock-step with the
-/// restarted peer once DDS drops the killed one: no step lost, skipped or timed out.
-fn a_dds_peer_killed_and_started_again_with_the_run_waiting_loses_no_step(e: Eng) {
-    let Some(py) = python() else { return };
-    let ns = ns(e, "peerwait");
-    let ns = ns.as_str();
-    let ros_ns = format!("peerwait_{}", e.name);
-    let gw_args = ["--ros-namespace", ros_ns.as_str(), "--lease", "1s", "--every-step", "--timeout", "30s"];
-    let (host, gw, mut answer) = answered_within(e, &py, ns, &ros_ns, (1, 8), &gw_args, SECS(40));
-    answer.kill9();
-    let again = answer_peer(&py, &ros_ns, 1, 8);
-    let dump = || format!("{:?}\n{}\n{}", status(ns, "gw_sync"), again.dump(), gw.dump());
-    let left = gw.wait_line(" left: its connection is released", SECS(60));
-    assert!(left.is_some(), "DDS never dropped the killed peer\n{}", dump());
-    let dropped_at = last_step(&host);
-    answered_more(&host, dropped_at, 500, &dump);
-    let seen = host.seen.lock().unwrap().clone();
-    let first = seen.iter().find(|(k, b)| *k > dropped_at && is_answer(*k, b)).map_or(0, |(k, _)| *k);
-    let missed: Vec<u64> = seen.iter().filter(|(k, b)| *k > first && !is_answer(*k, b)).map(|(k, _)| *k).collect();
-    assert!(missed.is_empty(), "steps from step {first} not answered in lock-step: {missed:?}\n{}", dump());
-    assert_eq!(status(ns, "gw_sync").step_timeouts, 0, "{}", dump());
-    crate::gateway_reliable::assert_no_step_lost(&gw, true);
-    drop(host);
+    (ns, host, gw, again)
 }
 
 /// A Cyclone writer of `topic` that writes `values` (transient-local, keep last 1) and

@@ -191,22 +191,10 @@ fn a_lookahead_across_a_slow_link_keeps_every_value_of_a_k_step_delay(e: Eng) {
         return;
     };
     let (dom, home, away) = (e.dom(119), e.ns("gwtest119a"), e.ns("gwtest119b"));
-    let [a, b] = tutti_test_support::Wire::ADDRS;
     let names = wire.names().clone();
     let run = LookaheadRun { home: &home, away: &away, k: 10, steps: 200, timeout: SECS(5) };
     let (gw_home, gw_away) = run.check(|| {
-        (
-            netns_gateway((&names[0], a), e, DDF, dom, &home, &["--lookahead", "10"], &[]),
-            netns_gateway(
-                (&names[1], b),
-                e,
-                DDF,
-                dom,
-                &away,
-                &["--mirror", "--timeout", "5s", "--lookahead", "10"],
-                &[],
-            ),
-        )
+        sites(&names, e, dom, (&home, &away), &["--lookahead", "10"], &["--timeout", "5s", "--lookahead", "10"])
     });
     assert_eq!(counter(&gw_home, "late"), 0, "{}\n{}", gw_home.dump(), gw_away.dump());
     assert!(wire.counts().0 > 0, "nothing crossed the wire");
@@ -219,25 +207,20 @@ fn a_lookahead_through_a_lossy_reordering_link_that_is_cut_loses_no_step(e: Eng)
     let Some(wire) = wire_for("lf", e) else { return };
     let f = wire.faults();
     let (dom, home, away) = (e.dom(120), e.ns("gwtest120a"), e.ns("gwtest120b"));
-    let [a, b] = tutti_test_support::Wire::ADDRS;
     let names = wire.names().clone();
     let run = LookaheadRun { home: &home, away: &away, k: 4, steps: 400, timeout: SECS(10) };
     let mut mend = None;
     let (gw_home, gw_away) = run.check_with(
         || {
-            (
-                // A lease above the time a lost frame takes to be sent again (rustdds: up to
-                // seconds), so that a loss is waited for rather than taken for a dead site.
-                netns_gateway((&names[0], a), e, DDF, dom, &home, &["--lookahead", "4", "--lease", "5s"], &[]),
-                netns_gateway(
-                    (&names[1], b),
-                    e,
-                    DDF,
-                    dom,
-                    &away,
-                    &["--mirror", "--timeout", "10s", "--lease", "5s", "--lookahead", "4"],
-                    &[],
-                ),
+            // A lease above the time a lost frame takes to be sent again (rustdds: up to
+            // seconds), so that a loss is waited for rather than taken for a dead site.
+            sites(
+                &names,
+                e,
+                dom,
+                (&home, &away),
+                &["--lookahead", "4", "--lease", "5s"],
+                &["--timeout", "10s", "--lease", "5s", "--lookahead", "4"],
             )
         },
         |step| match step {
@@ -265,24 +248,19 @@ fn a_lookahead_through_a_lossy_reordering_link_that_is_cut_loses_no_step(e: Eng)
 fn a_lookahead_waits_out_a_five_second_cut_within_its_lease(e: Eng) {
     let Some(wire) = wire_for("l5", e) else { return };
     let (dom, home, away) = (e.dom(121), e.ns("gwtest121a"), e.ns("gwtest121b"));
-    let [a, b] = tutti_test_support::Wire::ADDRS;
     let names = wire.names().clone();
     let f = wire.faults();
     let run = LookaheadRun { home: &home, away: &away, k: 4, steps: 200, timeout: SECS(20) };
     let mut mend = None;
     let (gw_home, gw_away) = run.check_with(
         || {
-            (
-                netns_gateway((&names[0], a), e, DDF, dom, &home, &["--lookahead", "4", "--lease", "10s"], &[]),
-                netns_gateway(
-                    (&names[1], b),
-                    e,
-                    DDF,
-                    dom,
-                    &away,
-                    &["--mirror", "--timeout", "20s", "--lease", "10s", "--lookahead", "4"],
-                    &[],
-                ),
+            sites(
+                &names,
+                e,
+                dom,
+                (&home, &away),
+                &["--lookahead", "4", "--lease", "10s"],
+                &["--timeout", "20s", "--lease", "10s", "--lookahead", "4"],
             )
         },
         |step| {
@@ -412,13 +390,11 @@ fn a_mirror_that_joins_a_running_home_starts_at_its_current_step(e: Eng) {
     let Some(wire) = wire_for("lj", e) else { return };
     wire.set_delay(Duration::from_millis(20));
     let (dom, home, away) = (e.dom(124), e.ns("gwtest124a"), e.ns("gwtest124b"));
-    let [a, b] = tutti_test_support::Wire::ADDRS;
     let names = wire.names().clone();
     let model = tutti_core::ddf::load(tutti_test_support::repo_root().join(DDF)).unwrap();
     let opts = tutti_core::shm::FrameworkOptions { namespace: home.clone(), timeout: SECS(10), ..Default::default() };
     let mut fw = tutti_core::shm::Framework::create(&model, &opts).expect("framework");
-    let gw_home = netns_gateway((&names[0], a), e, DDF, dom, &home, &["--every-step"], &[]);
-    let gw_away = netns_gateway((&names[1], b), e, DDF, dom, &away, &["--mirror", "--timeout", "10s"], &[]);
+    let (gw_home, gw_away) = sites(&names, e, dom, (&home, &away), &["--every-step"], &["--timeout", "10s"]);
     let dump = || format!("{}\n{}", gw_home.dump(), gw_away.dump());
     // The other site's component: y = x + 1, its first step 3 s long (a model loading); it
     // tells each x it is given.
@@ -601,17 +577,13 @@ fn a_lookahead_across_two_zenoh_routers_keeps_every_value_of_a_k_step_delay() {
     let (dom, home, away) = (e.dom(119), e.ns("gwtest119a"), e.ns("gwtest119b"));
     let run = LookaheadRun { home: &home, away: &away, k: 10, steps: 200, timeout: SECS(5) };
     let (gw_home, gw_away) = run.check(|| {
-        (
-            netns_gateway((&names[0], a), e, DDF, dom, &home, &["--lookahead", "10", "--zenoh-connect", &ra], &[]),
-            netns_gateway(
-                (&names[1], b),
-                e,
-                DDF,
-                dom,
-                &away,
-                &["--mirror", "--timeout", "5s", "--lookahead", "10", "--zenoh-connect", &rb],
-                &[],
-            ),
+        sites(
+            &names,
+            e,
+            dom,
+            (&home, &away),
+            &["--lookahead", "10", "--zenoh-connect", &ra],
+            &["--timeout", "5s", "--lookahead", "10", "--zenoh-connect", &rb],
         )
     });
     assert_eq!(counter(&gw_home, "late"), 0, "{}\n{}", gw_home.dump(), gw_away.dump());
@@ -624,6 +596,25 @@ fn wire_for(tag: &str, e: Eng) -> Option<tutti_test_support::Wire> {
     tutti_test_support::require(
         "network namespaces and TAP devices (root, `ip` of iproute2, /dev/net/tun)",
         tutti_test_support::Wire::create(&format!("{tag}{}", &e.name[..2]), Duration::from_millis(5)),
+    )
+}
+
+/// The two sites' gateways across the wire whose namespaces are `names`: the home gateway
+/// (namespace `home`) with `home_args` in the first, and `--mirror` (namespace `away`) with
+/// `away_args` in the second.
+fn sites(
+    names: &[String; 2],
+    e: Eng,
+    dom: u16,
+    (home, away): (&str, &str),
+    home_args: &[&str],
+    away_args: &[&str],
+) -> (Proc, Proc) {
+    let [a, b] = tutti_test_support::Wire::ADDRS;
+    let away_args = [&["--mirror"], away_args].concat();
+    (
+        netns_gateway((&names[0], a), e, DDF, dom, home, home_args, &[]),
+        netns_gateway((&names[1], b), e, DDF, dom, away, &away_args, &[]),
     )
 }
 
