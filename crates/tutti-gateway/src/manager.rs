@@ -746,9 +746,8 @@ fn mirror_hosts(opts: &GatewayOptions, plan: &[PlannedSet]) -> Result<Vec<Option
         ..Default::default()
     };
     let bridged = |di: usize| plan.iter().any(|p| p.domain == di);
-    let mut model = opts.model.clone();
-    model.domains =
-        opts.model.domains.iter().enumerate().filter(|(di, _)| bridged(*di)).map(|(_, d)| d.clone()).collect();
+    let domains = opts.model.domains.iter().enumerate().filter(|(di, _)| bridged(*di)).map(|(_, d)| d.clone());
+    let model = tutti_core::ddf::Model { source: opts.model.source.clone(), domains: domains.collect() };
     let mut hosts: Vec<Option<DomainHost>> = opts.model.domains.iter().map(|_| None).collect();
     for host in Framework::create(&model, &fo)?.domains {
         if let Some(di) = opts.model.domains.iter().position(|d| d.name == host.info().name) {

@@ -83,58 +83,52 @@ fn serve(
     let mut waiting: VecDeque<TypedSample> = VecDeque::new();
     let mut skip_log = LogLimit::new(Duration::from_secs(5));
     while !cfg.stop.load(Ordering::Acquire) {
-        let next = match waiting.pop_front() {
-            Some(s) => Ok(s),
-            None => rx.recv_timeout(idle),
-        };
-        let next = match next {
-            Ok(s) if sync => {
-                waiting.push_front(s);
-                let skipped = start_at_home(&mut waiting, rx, lookahead);
-                if skipped > 0 {
-                    SetStats::add(Some(&publish), |s| &s.dropped, &stats.skipped, skipped);
-                    if let (Some(_), Some(s)) = (skip_log.allow(), waiting.front()) {
-                        info!(
-                            domain = %name,
-                            "the mirror starts at step {} (the home's latest, within {lookahead} steps of lookahead): {skipped} steps the home made without this site are skipped",
-                            s.step
-                        );
-                    }
-                }
-                waiting.pop_front().ok_or(RecvTimeoutError::Timeout)
+        if waiting.is_empty() {
+            match rx.recv_timeout(idle) {
+                Ok(s) => waiting.push_back(s),
+                Err(RecvTimeoutError::Timeout) => {}
+                Err(RecvTimeoutError::Disconnected) => break,
             }
-            other => other,
-        };
-        match next {
-            Ok(s) => {
-                if s.data.len() != host.info().publish.size as usize {
-                    SetStats::add(Some(&publish), |s| &s.bad_input, &stats.bad_samples, 1);
-                    continue;
-                }
-                let r = host.publish_step(&s.data, s.sim_time).and_then(|_| {
-                    if sync {
-                        host.complete_step().map(|_| ())
-                    } else {
-                        Ok(())
-                    }
-                });
-                if let Err(e) = r {
-                    SetStats::add(Some(&publish), |s| &s.dropped, &stats.errors, 1);
-                    if log.allow().is_some() {
-                        warn!(domain = %name, "mirror step failed: {e}");
-                    }
-                    continue;
-                }
-                SetStats::add(Some(&publish), |s| &s.samples_in, &stats.from_dds, 1);
-                last_step = s.step;
-                sim_time = s.sim_time;
-                if let (true, true, Some(out)) = (sync, host.seeded(), out.as_mut()) {
-                    last_sub = host.segment().generation(Role::Subscribe);
-                    out.send_step(last_step, sim_time, host.subscribe(), &stats, Some(&subscribe), &patience);
+        }
+        if sync {
+            let skipped = start_at_home(&mut waiting, rx, lookahead);
+            if skipped > 0 {
+                SetStats::add(Some(&publish), |s| &s.dropped, &stats.skipped, skipped);
+                if let (Some(_), Some(s)) = (skip_log.allow(), waiting.front()) {
+                    info!(
+                        domain = %name,
+                        "the mirror starts at step {} (the home's latest, within {lookahead} steps of lookahead): {skipped} steps the home made without this site are skipped",
+                        s.step
+                    );
                 }
             }
-            Err(RecvTimeoutError::Timeout) => {}
-            Err(RecvTimeoutError::Disconnected) => break,
+        }
+        if let Some(s) = waiting.pop_front() {
+            if s.data.len() != host.info().publish.size as usize {
+                SetStats::add(Some(&publish), |s| &s.bad_input, &stats.bad_samples, 1);
+                continue;
+            }
+            let r = host.publish_step(&s.data, s.sim_time).and_then(|_| {
+                if sync {
+                    host.complete_step().map(|_| ())
+                } else {
+                    Ok(())
+                }
+            });
+            if let Err(e) = r {
+                SetStats::add(Some(&publish), |s| &s.dropped, &stats.errors, 1);
+                if log.allow().is_some() {
+                    warn!(domain = %name, "mirror step failed: {e}");
+                }
+                continue;
+            }
+            SetStats::add(Some(&publish), |s| &s.samples_in, &stats.from_dds, 1);
+            last_step = s.step;
+            sim_time = s.sim_time;
+            if let (true, true, Some(out)) = (sync, host.seeded(), out.as_mut()) {
+                last_sub = host.segment().generation(Role::Subscribe);
+                out.send_step(last_step, sim_time, host.subscribe(), &stats, Some(&subscribe), &patience);
+            }
         }
         if !sync {
             let cur = host.segment().generation(Role::Subscribe);
