@@ -9,7 +9,7 @@ use clap::ValueEnum;
 use tutti_core::ddf::Model;
 use tutti_core::mapping::Profile;
 use tutti_core::shm::WaitMode;
-use tutti_gateway::config::{self, ConfigFile, EngineKeys, GatewayKeys, PlanKeys};
+use tutti_gateway::config::{self, ConfigFile, EngineKeys, GatewayKeys, PlanKeys, Strategy};
 use tutti_gateway::foxglove::FoxgloveKeys;
 use tutti_gateway::http::HttpKeys;
 use tutti_gateway::{EngineKind, GatewayOptions, TypeMode};
@@ -23,7 +23,11 @@ use super::{load_ddf, CliResult, Failure};
 /// also come from a --config file (flags given here win over it).
 #[derive(Debug, clap::Args)]
 #[command(
-    after_help = "Examples:\n  tutti gateway ddf/multiuav.ddf\n  ROS_DOMAIN_ID=7 tutti gateway ddf/multiuav.ddf --ros2-types per-item\n  tutti gateway ddf/product-sample.ddf --qos-profile dds --strength 10\n  TUTTI_NAMESPACE=site2 tutti gateway ddf/multiuav.ddf --mirror --interface 192.0.2.2\n  tutti gateway ddf/multiuav.ddf --mirror --peer 192.0.2.1   # discovery without multicast\n  tutti gateway ddf/multiuav.ddf --peer 192.0.2.2 --lookahead 10   # the mirror's answers 10 steps late\n  tutti gateway ddf/multiuav.ddf --mirror --peer 192.0.2.1 --lookahead 10   # its side of that link\n  tutti gateway ddf/multiuav.ddf --engine rustdds\n  tutti gateway ddf/multiuav.ddf --engine zenoh   # for rmw_zenoh nodes; run rmw_zenohd first\n  tutti gateway ddf/multiuav.ddf --clock multiuav_uav1 --clock-rate 100   # /clock for use_sim_time\n  tutti gateway ddf/multiuav.ddf --config examples/gateway.json5   # tutti show --config shows its topics\n  tutti gateway ddf/multiuav.ddf --ros-namespace sim1 --http 127.0.0.1:9100   # /sim1/...; curl .../metrics\n\nEnvironment (a flag, then the --config file, win over these):\n  ROS_DOMAIN_ID            DDS domain (default 0)\n  ROS_LOCALHOST_ONLY=1     DDS on loopback only (as ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST)\n  ROS_AUTOMATIC_DISCOVERY_RANGE  SUBNET or SYSTEM_DEFAULT: as configured; LOCALHOST: loopback only;\n                           OFF: refused unless --peer is given\n  TUTTI_DDS                default for --engine\n  CYCLONEDDS_URI           Cyclone DDS configuration (cyclone engine)\n  ZENOH_SESSION_CONFIG_URI Zenoh session config file, as rmw_zenoh reads it (zenoh engine)\n  ZENOH_CONFIG_OVERRIDE    key=value;... laid over it, as rmw_zenoh does (zenoh engine)\n  TUTTI_NAMESPACE          namespace of the shared-memory segments\n  TUTTI_GATEWAY_INTERFACE  default for --interface (comma-separated addresses)\n  RUST_LOG                 log filter (default: info, DDS internals off, Zenoh's warnings only)\n\nStop with Ctrl-C. Exit status: 0 stopped cleanly, 2 invalid input, 1 runtime failure."
+    after_help = "Examples:\n  tutti gateway ddf/multiuav.ddf\n  ROS_DOMAIN_ID=7 tutti gateway ddf/multiuav.ddf --ros2-types per-item\n  tutti gateway ddf/product-sample.ddf --qos-profile dds --strength 10\n  TUTTI_NAMESPACE=site2 tutti gateway ddf/multiuav.ddf --mirror --interface 192.0.2.2\n  tutti gateway ddf/multiuav.ddf --mirror --peer 192.0.2.1   # discovery without multicast\n  tutti gateway ddf/multiuav.ddf --peer 192.0.2.2 --lookahead 10   # the mirror's answers 10 steps late\n  tutti gateway ddf/multiuav.ddf --mirror --peer 192.0.2.1 --lookahead 10   # its side of that link\n  tutti gateway ddf/multiuav.ddf --engine rustdds\n  tutti gateway ddf/multiuav.ddf --engine zenoh   # for rmw_zenoh nodes; run rmw_zenohd first\n  tutti gateway ddf/multiuav.ddf --security --security-keystore keys --enclave /tutti/gateway --security-strategy Enforce\n  tutti gateway ddf/multiuav.ddf --clock multiuav_uav1 --clock-rate 100   # /clock for use_sim_time\n  tutti gateway ddf/multiuav.ddf --config examples/gateway.json5   # tutti show --config shows its topics\n  tutti gateway ddf/multiuav.ddf --ros-namespace sim1 --http 127.0.0.1:9100   # /sim1/...; curl .../metrics\n\nEnvironment (a flag, then the --config file, win over these):\n  ROS_DOMAIN_ID            DDS domain (default 0)\n  ROS_LOCALHOST_ONLY=1     DDS on loopback only (as ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST)\n  ROS_AUTOMATIC_DISCOVERY_RANGE  SUBNET or SYSTEM_DEFAULT: as configured; LOCALHOST: loopback only;\n                           OFF: refused unless --peer is given\n  TUTTI_DDS                default for --engine\n  CYCLONEDDS_URI           Cyclone DDS configuration (cyclone engine)\n  ZENOH_SESSION_CONFIG_URI Zenoh session config file, as rmw_zenoh reads it (zenoh engine)\n  ZENOH_CONFIG_OVERRIDE    key=value;... laid over it, as rmw_zenoh does (zenoh engine)\n  ROS_SECURITY_ENABLE=true DDS Security (SROS2), as --security
+  ROS_SECURITY_KEYSTORE    default for --security-keystore
+  ROS_SECURITY_ENCLAVE_OVERRIDE  default for --enclave
+  ROS_SECURITY_STRATEGY    default for --security-strategy (Enforce or Permissive)
+  TUTTI_NAMESPACE          namespace of the shared-memory segments\n  TUTTI_GATEWAY_INTERFACE  default for --interface (comma-separated addresses)\n  RUST_LOG                 log filter (default: info, DDS internals off, Zenoh's warnings only)\n\nStop with Ctrl-C. Exit status: 0 stopped cleanly, 2 invalid input, 1 runtime failure."
 )]
 pub struct Args {
     /// The DDF whose domains to bridge.
@@ -97,6 +101,21 @@ pub struct Args {
     /// Zenoh endpoint to listen on (repeatable; zenoh engine; default tcp/localhost:0).
     #[arg(long = "zenoh-listen", value_name = "ENDPOINT")]
     zenoh_listen: Vec<String>,
+    /// Run the DDS participant under DDS Security, as an SROS2 node does with
+    /// ROS_SECURITY_ENABLE=true (cyclone engine; docs/security.md).
+    #[arg(long)]
+    security: bool,
+    /// The SROS2 keystore (default: ROS_SECURITY_KEYSTORE).
+    #[arg(long, value_name = "DIR")]
+    security_keystore: Option<PathBuf>,
+    /// The gateway's enclave in the keystore, like /tutti/gateway (default:
+    /// ROS_SECURITY_ENCLAVE_OVERRIDE, else /).
+    #[arg(long, value_name = "NAME")]
+    enclave: Option<String>,
+    /// Enforce: refuse to start unless the enclave's files check out; Permissive: warn and
+    /// run unsecured (default: ROS_SECURITY_STRATEGY, else Permissive, as rcl).
+    #[arg(long, value_name = "STRATEGY", value_parser = |s: &str| s.parse::<Strategy>())]
+    security_strategy: Option<Strategy>,
     /// Publish this domain's simulated time on /clock (rosgraph_msgs/msg/Clock, for ROS 2
     /// nodes with use_sim_time); default: the first synchronous domain; `none`: no /clock.
     #[arg(long, value_name = "DOMAIN")]
@@ -179,6 +198,10 @@ impl Args {
                 peer: (!self.peers.is_empty()).then(|| self.peers.clone()),
                 zenoh_connect: (!self.zenoh_connect.is_empty()).then(|| self.zenoh_connect.clone()),
                 zenoh_listen: (!self.zenoh_listen.is_empty()).then(|| self.zenoh_listen.clone()),
+                security_enable: self.security.then_some(true),
+                security_keystore: self.security_keystore.clone(),
+                enclave: self.enclave.clone(),
+                security_strategy: self.security_strategy,
             },
             gateway: GatewayKeys {
                 ros2_types: self.ros2_types.map(|t| match t {

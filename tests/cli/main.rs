@@ -31,6 +31,7 @@ mod gateway_in_process;
 mod gateway_interop;
 mod gateway_mirror;
 mod gateway_reliable;
+mod gateway_security;
 mod gateway_simif;
 mod gateway_zenoh;
 mod host_cli;

@@ -29,6 +29,13 @@ pub enum EngineError {
     /// Zenoh refused to open the session or to declare an entity.
     #[error("Zenoh: cannot create {what}: {detail}")]
     Zenoh { what: String, detail: String },
+    /// The DDS Security enclave cannot be used (exit status 2): the error names the file.
+    #[error("DDS Security: {0}")]
+    Security(#[from] crate::security::SecurityError),
+    /// DDS Security's access control refused an entity: the enclave's permissions do not
+    /// allow the topic (for this direction, on this domain).
+    #[error("DDS Security: the permissions do not allow {what}")]
+    NotAllowed { what: String },
     /// The engine's own threads cannot be started.
     #[error("cannot start the engine's runtime: {0}")]
     Runtime(#[source] std::io::Error),
@@ -49,6 +56,7 @@ impl EngineError {
                 | EngineError::NulByte { .. }
                 | EngineError::ZenohConfig { .. }
                 | EngineError::ZenohPeers
+                | EngineError::Security(_)
         )
     }
 }

@@ -5,12 +5,14 @@
 
 use std::fmt;
 use std::net::IpAddr;
+use std::path::PathBuf;
 
 use serde::de::{Deserializer, SeqAccess, Visitor};
 use serde::Deserialize;
 use tutti_config::de::{Number, Parsed};
 use tutti_config::sections::Section;
 
+use crate::security::{SecurityError, SecuritySettings, Strategy};
 use crate::{EngineKind, UnknownEngine};
 
 /// The engine's keys; each None where the file (or the flags) say nothing.
@@ -33,11 +35,31 @@ pub struct EngineKeys {
     pub zenoh_connect: Option<Vec<String>>,
     /// Zenoh: the endpoints to listen on.
     pub zenoh_listen: Option<Vec<String>>,
+    /// DDS Security on (`ROS_SECURITY_ENABLE`, `--security`).
+    pub security_enable: Option<bool>,
+    /// The SROS2 keystore (`ROS_SECURITY_KEYSTORE`, `--security-keystore`).
+    pub security_keystore: Option<PathBuf>,
+    /// The gateway's enclave (`ROS_SECURITY_ENCLAVE_OVERRIDE`, `--enclave`).
+    pub enclave: Option<String>,
+    /// `Enforce` or `Permissive` (`ROS_SECURITY_STRATEGY`, `--security-strategy`).
+    #[serde(default, deserialize_with = "de_strategy")]
+    pub security_strategy: Option<Strategy>,
 }
 
 impl Section for EngineKeys {
-    const KEYS: &'static [&'static str] =
-        &["ros_domain_id", "engine", "dds", "interface", "peer", "zenoh_connect", "zenoh_listen"];
+    const KEYS: &'static [&'static str] = &[
+        "ros_domain_id",
+        "engine",
+        "dds",
+        "interface",
+        "peer",
+        "zenoh_connect",
+        "zenoh_listen",
+        "security_enable",
+        "security_keystore",
+        "enclave",
+        "security_strategy",
+    ];
 
     fn over(self, lower: Self) -> Self {
         EngineKeys {
@@ -47,8 +69,31 @@ impl Section for EngineKeys {
             peer: self.peer.or(lower.peer),
             zenoh_connect: self.zenoh_connect.or(lower.zenoh_connect),
             zenoh_listen: self.zenoh_listen.or(lower.zenoh_listen),
+            security_enable: self.security_enable.or(lower.security_enable),
+            security_keystore: self.security_keystore.or(lower.security_keystore),
+            enclave: self.enclave.or(lower.enclave),
+            security_strategy: self.security_strategy.or(lower.security_strategy),
         }
     }
+}
+
+impl EngineKeys {
+    /// The DDS Security settings: the environment's (as rcl reads it), where these keys say
+    /// nothing.
+    pub fn security(&self) -> Result<SecuritySettings, SecurityError> {
+        let env = SecuritySettings::from_env()?;
+        Ok(SecuritySettings {
+            enable: self.security_enable.unwrap_or(env.enable),
+            keystore: self.security_keystore.clone().or(env.keystore),
+            enclave: self.enclave.clone().or(env.enclave),
+            strategy: self.security_strategy.unwrap_or(env.strategy),
+        })
+    }
+}
+
+fn de_strategy<'de, D: Deserializer<'de>>(d: D) -> Result<Option<Strategy>, D::Error> {
+    let parse = std::str::FromStr::from_str;
+    d.deserialize_any(Parsed { expecting: "\"Enforce\" or \"Permissive\"", parse }).map(Some)
 }
 
 /// A peer or a variable the engine cannot take.

@@ -49,6 +49,7 @@ pub mod keys;
 pub mod rmw_zenoh;
 #[cfg(feature = "rustdds")]
 pub mod rustdds;
+pub mod security;
 #[cfg(feature = "zenoh")]
 pub mod zenoh;
 
@@ -286,6 +287,9 @@ pub struct EngineConfig {
     pub zenoh_connect: Vec<String>,
     /// Zenoh: the endpoints to listen on; empty: the configuration's.
     pub zenoh_listen: Vec<String>,
+    /// DDS Security: the enclave whose identity and permissions the participant takes
+    /// ([`security::SecuritySettings::resolve`]); None: unsecured. Cyclone only.
+    pub security: Option<security::Enclave>,
 }
 
 /// How the samples of a reader are decoded into a [`Payload`].
@@ -478,6 +482,9 @@ pub trait Engine: Send + Sync {
 
 /// Opens a participant of engine `kind`; an engine this build does not contain is refused.
 pub fn open(kind: EngineKind, cfg: &EngineConfig) -> Result<Box<dyn Engine>, EngineError> {
+    if cfg.security.is_some() && kind != EngineKind::Cyclone {
+        return Err(security::SecurityError::Unsupported { engine: kind.name() }.into());
+    }
     match kind {
         EngineKind::Cyclone => Ok(Box::new(cyclone::Cyclone::open(cfg)?)),
         #[cfg(feature = "rustdds")]

@@ -110,6 +110,10 @@ pub enum ConfigError {
     /// (`TUTTI_DDS`, `TUTTI_GATEWAY_INTERFACE`).
     #[error(transparent)]
     Engine(#[from] tutti_engine::keys::KeysError),
+    /// A DDS Security enclave that cannot be used under `Enforce`, or a bad security
+    /// setting: the message names the file or variable.
+    #[error("DDS Security: {0}")]
+    Security(#[from] tutti_engine::security::SecurityError),
     /// Not a type mapping.
     #[error("'{value}': use typed or per-item")]
     Types { value: String },

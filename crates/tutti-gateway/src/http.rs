@@ -232,6 +232,7 @@ fn total_help(name: &str) -> (&'static str, &'static str) {
         "skipped" => ("counter", "Synchronous steps the pump could not send to DDS before the framework moved on."),
         "lost" => ("counter", "Synchronous steps the DDS writer refused for the whole step timeout (never sent)."),
         "lapsed" => ("counter", "Synchronous DDS writers released after owing a step's answer, silent, for the lease."),
+        "denied" => ("counter", "Topic directions left out because the DDS Security permissions do not allow them."),
         "remote_writers" => ("gauge", "Matched remote DDS writers."),
         "remote_readers" => ("gauge", "Matched remote DDS readers."),
         _ => ("counter", "A gateway counter (see the status line)."),

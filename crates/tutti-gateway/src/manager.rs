@@ -255,9 +255,26 @@ impl Manager {
             &self.cfg.namespace,
             &self.opts.model,
             self.cfg.stop.clone(),
-        )?;
-        self.threads.push(thread);
+        );
+        if let Some(thread) = self.permitted("*", "the simulation_interfaces services", thread)? {
+            self.threads.push(thread);
+        }
         Ok(())
+    }
+
+    /// `r`, or None where DDS Security's access control refused an entity of it: the
+    /// enclave's permissions do not allow `topic` (in that direction), which is then left
+    /// out, with a warning, and counted in `denied` (docs/security.md, "What the network
+    /// can do"). Every other error stands.
+    fn permitted<T>(&self, domain: &str, topic: &str, r: Result<T, GatewayError>) -> Result<Option<T>, GatewayError> {
+        match r {
+            Err(GatewayError::Engine(engine::EngineError::NotAllowed { what })) => {
+                warn!(domain, "{topic} left out: the enclave's permissions do not allow {what}");
+                Stats::add(&self.stats.denied, 1);
+                Ok(None)
+            }
+            r => r.map(Some),
+        }
     }
 
     /// The routes of the framework's own PUBLISH sets (per domain; None: not bridged), for
@@ -375,9 +392,11 @@ impl Manager {
             }
         }
         if self.clock_domain == Some(di) {
-            let out = clock::route(&*self.dds, &d.name, &self.opts.ros_namespace, self.opts.clock_rate)?;
-            info!(domain = %d.name, "{}: the simulated time of {}", out.topics[0], d.name);
-            self.outgoing(di, None, out);
+            let out = clock::route(&*self.dds, &d.name, &self.opts.ros_namespace, self.opts.clock_rate);
+            if let Some(out) = self.permitted(&d.name, "/clock", out)? {
+                info!(domain = %d.name, "{}: the simulated time of {}", out.topics[0], d.name);
+                self.outgoing(di, None, out);
+            }
         }
         self.poller_thread.unpark();
         self.domains[di].bridged = true;
@@ -408,19 +427,22 @@ impl Manager {
             Role::Publish => None,
             Role::Subscribe => {
                 let decode = Decode::Set(Arc::new(SetCodec::new(&d.subscribe.layout)));
-                self.inbound(di, si, &p.ros2_topic, &p.topic_type(), decode, None)?;
+                let r = self.inbound(di, si, &p.ros2_topic, &p.topic_type(), decode, None);
+                self.permitted(&d.name, &p.ros2_topic, r)?;
                 Some(self.domains[di].own_commits.clone())
             }
         };
         let out = if self.written_from_step(p.role) {
-            from_step::typed(&*self.dds, d, &p, self.counters(si), self.cfg.patience())?
+            from_step::typed(&*self.dds, d, &p, self.counters(si), self.cfg.patience())
         } else {
             // With a lookahead, the other site answers every step, so it must be sent every step.
             let every_step = (self.opts.every_step || self.domains[di].lookahead > 0)
                 .then(|| format!("{} every-step reader", self.opts.node_name));
-            to_dds::typed(&*self.dds, d, &p, &self.cfg, self.counters(si), own_commits, every_step)?
+            to_dds::typed(&*self.dds, d, &p, &self.cfg, self.counters(si), own_commits, every_step)
         };
-        self.outgoing(di, Some(si), out);
+        if let Some(out) = self.permitted(&d.name, &p.ros2_topic, out)? {
+            self.outgoing(di, Some(si), out);
+        }
         Ok(())
     }
 
@@ -434,17 +456,21 @@ impl Manager {
             Role::Subscribe => {
                 for t in &items {
                     let Some(leaf) = d.subscribe.layout.leaf(&t.path) else { continue };
-                    self.inbound(di, si, &t.topic, &TopicType::stock(&t.dds_type), per_item::decoder(leaf), None)?;
+                    let r =
+                        self.inbound(di, si, &t.topic, &TopicType::stock(&t.dds_type), per_item::decoder(leaf), None);
+                    self.permitted(&d.name, &t.topic, r)?;
                 }
                 Some(self.domains[di].own_commits.clone())
             }
         };
         let out = if self.written_from_step(p.role) {
-            from_step::items(&*self.dds, d, &p, &items, self.counters(si), self.cfg.patience())?
+            from_step::items(&*self.dds, d, &p, &items, self.counters(si), self.cfg.patience())
         } else {
-            to_dds::items(&*self.dds, d, &p, &items, self.set_stats[si].clone(), own_commits)?
+            to_dds::items(&*self.dds, d, &p, &items, self.set_stats[si].clone(), own_commits)
         };
-        self.outgoing(di, Some(si), out);
+        if let Some(out) = self.permitted(&d.name, &p.ros2_topic, out)? {
+            self.outgoing(di, Some(si), out);
+        }
         Ok(())
     }
 
@@ -458,7 +484,8 @@ impl Manager {
         let out = match subscribe {
             Some(si) => {
                 self.topics += 1;
-                Some(to_dds::set_writer(&*self.dds, d, &self.plan[si])?)
+                let w = to_dds::set_writer(&*self.dds, d, &self.plan[si]);
+                self.permitted(&d.name, &self.plan[si].ros2_topic, w)?
             }
             None => None,
         };
@@ -469,7 +496,8 @@ impl Manager {
             self.topics += 1;
             let p = self.plan[si].clone();
             let decode = Decode::Set(Arc::new(SetCodec::new(&d.publish.layout)));
-            self.inbound(di, si, &p.ros2_topic, &p.topic_type(), decode, Some(tx))?;
+            let r = self.inbound(di, si, &p.ros2_topic, &p.topic_type(), decode, Some(tx));
+            self.permitted(&d.name, &p.ros2_topic, r)?;
         }
         Ok(())
     }
@@ -516,7 +544,12 @@ impl Manager {
         self.routes.push(Route::In { domain, set, topic: topic.to_string(), direct });
         let to = Destination { route, events: self.events_tx.clone(), target };
         let rq = self.plan[set].reader_qos;
-        from_dds::reader(&*self.dds, topic, ty, &rq, decode, to)
+        let r = from_dds::reader(&*self.dds, topic, ty, &rq, decode, to);
+        if r.is_err() {
+            // No reader: the route has nothing to route.
+            self.routes.pop();
+        }
+        r
     }
 
     /// DDS readers, over all domains (each set's once).

@@ -32,6 +32,9 @@ pub struct Stats {
     pub lost: AtomicU64,
     /// Synchronous DDS writers released after owing a step's answer, silent, for the lease.
     pub lapsed: AtomicU64,
+    /// Topics (each direction of each) left out because the DDS Security enclave's
+    /// permissions do not allow them.
+    pub denied: AtomicU64,
     /// Matched remote DDS writers and readers.
     pub remote_writers: AtomicU64,
     pub remote_readers: AtomicU64,
@@ -57,6 +60,7 @@ impl Stats {
             ("skipped", g(&self.skipped)),
             ("lost", g(&self.lost)),
             ("lapsed", g(&self.lapsed)),
+            ("denied", g(&self.denied)),
             ("remote_writers", g(&self.remote_writers)),
             ("remote_readers", g(&self.remote_readers)),
         ]

@@ -7,11 +7,12 @@ use std::time::Duration;
 
 use cyclors::{
     dds_create_domain, dds_create_participant, dds_create_qos, dds_entity_t,
-    dds_liveliness_kind_DDS_LIVELINESS_AUTOMATIC, dds_qset_liveliness, DDS_RETCODE_OUT_OF_RESOURCES,
-    DDS_RETCODE_PRECONDITION_NOT_MET,
+    dds_liveliness_kind_DDS_LIVELINESS_AUTOMATIC, dds_qset_liveliness, dds_qset_prop, dds_qset_userdata,
+    DDS_RETCODE_OUT_OF_RESOURCES, DDS_RETCODE_PRECONDITION_NOT_MET,
 };
 
 use super::native::{c_string, retcode, NativeQos};
+use crate::security::Enclave;
 use crate::{EngineConfig, EngineError};
 
 /// Escapes a value for an XML attribute in double quotes.
@@ -93,26 +94,67 @@ fn sets_receive_threads(env: &str) -> bool {
 }
 
 /// A participant on domain `id` announcing `lease` (None: Cyclone's, `Discovery/LeaseDuration`,
-/// 10 s by default): its handle or Cyclone's return code. The lease is the participant's
-/// automatic liveliness, which Cyclone renews every 4/5 of it.
-pub(super) fn create_participant(id: u32, lease: Option<Duration>) -> dds_entity_t {
-    let Some(lease) = lease else {
-        // SAFETY: default QoS, no listener.
-        return unsafe { dds_create_participant(id, ptr::null(), ptr::null()) };
-    };
+/// 10 s by default), in `enclave` (None: unsecured): its handle or Cyclone's return code. The
+/// lease is the participant's automatic liveliness, which Cyclone renews every 4/5 of it.
+///
+/// As rmw_cyclonedds does, the participant's USER_DATA names its enclave (`enclave=/;` when
+/// unsecured), and a secured participant gets the enclave's six files as DDS Security
+/// properties (`file:` URIs) with the three plugins that Cyclone has built in
+/// (`dds_security_auth`, `dds_security_ac`, `dds_security_crypto`).
+pub(super) fn create_participant(
+    id: u32,
+    lease: Option<Duration>,
+    enclave: Option<&Enclave>,
+) -> Result<dds_entity_t, EngineError> {
     // SAFETY: plain allocation; null on failure.
     let qos = unsafe { dds_create_qos() };
     if qos.is_null() {
-        return DDS_RETCODE_OUT_OF_RESOURCES;
+        return Ok(DDS_RETCODE_OUT_OF_RESOURCES);
     }
     let qos = NativeQos(qos);
-    let ns = i64::try_from(lease.as_nanos()).unwrap_or(i64::MAX);
-    // SAFETY: `qos.0` is a valid QoS object; the setter stores the value, the participant
-    // copies the QoS during the call; no listener.
-    unsafe {
-        dds_qset_liveliness(qos.0, dds_liveliness_kind_DDS_LIVELINESS_AUTOMATIC, ns);
-        dds_create_participant(id, qos.0, ptr::null())
+    let user_data = format!("enclave={};", enclave.map_or(crate::security::DEFAULT_ENCLAVE, |e| e.name.as_str()));
+    // SAFETY: `qos.0` is a valid QoS object; the setters copy their arguments.
+    unsafe { dds_qset_userdata(qos.0, user_data.as_ptr().cast(), user_data.len()) };
+    if let Some(lease) = lease {
+        let ns = i64::try_from(lease.as_nanos()).unwrap_or(i64::MAX);
+        // SAFETY: as above.
+        unsafe { dds_qset_liveliness(qos.0, dds_liveliness_kind_DDS_LIVELINESS_AUTOMATIC, ns) };
     }
+    if let Some(e) = enclave {
+        for (name, value) in security_properties(e) {
+            let (name, value) = (c_string("a DDS Security property", name)?, c_string("a keystore path", &value)?);
+            // SAFETY: as above; both strings are NUL-terminated.
+            unsafe { dds_qset_prop(qos.0, name.as_ptr(), value.as_ptr()) };
+        }
+    }
+    // SAFETY: a valid QoS, copied during the call; no listener.
+    Ok(unsafe { dds_create_participant(id, qos.0, ptr::null()) })
+}
+
+/// The DDS Security properties rmw_cyclonedds gives a participant in `e`.
+pub(super) fn security_properties(e: &Enclave) -> Vec<(&'static str, String)> {
+    let file = |p: &std::path::Path| format!("file:{}", std::path::absolute(p).unwrap_or_else(|_| p.into()).display());
+    let mut props = vec![
+        ("dds.sec.auth.identity_ca", file(&e.identity_ca)),
+        ("dds.sec.auth.identity_certificate", file(&e.certificate)),
+        ("dds.sec.auth.private_key", file(&e.private_key)),
+        ("dds.sec.access.permissions_ca", file(&e.permissions_ca)),
+        ("dds.sec.access.governance", file(&e.governance)),
+        ("dds.sec.access.permissions", file(&e.permissions)),
+        ("dds.sec.auth.library.path", "dds_security_auth".into()),
+        ("dds.sec.auth.library.init", "init_authentication".into()),
+        ("dds.sec.auth.library.finalize", "finalize_authentication".into()),
+        ("dds.sec.crypto.library.path", "dds_security_crypto".into()),
+        ("dds.sec.crypto.library.init", "init_crypto".into()),
+        ("dds.sec.crypto.library.finalize", "finalize_crypto".into()),
+        ("dds.sec.access.library.path", "dds_security_ac".into()),
+        ("dds.sec.access.library.init", "init_access_control".into()),
+        ("dds.sec.access.library.finalize", "finalize_access_control".into()),
+    ];
+    if let Some(crl) = &e.crl {
+        props.push(("org.eclipse.cyclonedds.sec.auth.crl", file(crl)));
+    }
+    props
 }
 
 /// Creates domain `id` with configuration `conf`: the handle or Cyclone's return code.

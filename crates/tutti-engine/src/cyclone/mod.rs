@@ -48,7 +48,7 @@ use tutti_core::mapping::{Durability, History, Ownership, Qos, Reliability};
 use tutti_ros2::{Struct, Value};
 
 use self::discovery::Discovery;
-use self::native::{blob_topic, delete_entity, entity_guid, lock, retcode, write_pieces, NativeQos};
+use self::native::{blob_topic, delete_entity, entity_error, entity_guid, lock, retcode, write_pieces, NativeQos};
 use self::reader::{Deliver, ReaderCtx};
 use self::writer::CycloneWriter;
 use crate::dds::rpc::{self, Replies};
@@ -141,7 +141,7 @@ impl Cyclone {
     pub fn open(cfg: &EngineConfig) -> Result<Cyclone, EngineError> {
         let domain = config::domain(cfg)?;
         let domain_id = u32::from(cfg.domain_id);
-        let participant = config::create_participant(domain_id, cfg.participant_lease);
+        let participant = config::create_participant(domain_id, cfg.participant_lease, cfg.security.as_ref())?;
         if participant < 0 {
             if let Some(d) = domain {
                 delete_entity(d);
@@ -191,7 +191,7 @@ impl Cyclone {
         let w = unsafe { dds_create_writer(self.inner.participant, t, qos.0, ptr::null()) };
         if w < 0 {
             delete_entity(t);
-            return Err(EngineError::dds(format!("a writer on {topic}"), retcode(w)));
+            return Err(entity_error(format!("a writer on {topic}"), w));
         }
         let mut sertype: *const ddsi_sertype = ptr::null();
         // SAFETY: `sertype` is a valid out-parameter.

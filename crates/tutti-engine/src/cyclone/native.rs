@@ -33,6 +33,16 @@ pub(super) fn retcode(ret: dds_return_t) -> String {
     unsafe { CStr::from_ptr(s) }.to_string_lossy().into_owned()
 }
 
+/// The error of Cyclone's `ret` making `what`: [`EngineError::NotAllowed`] when DDS Security's
+/// access control refused it.
+pub(super) fn entity_error(what: String, ret: dds_return_t) -> EngineError {
+    if ret == cyclors::DDS_RETCODE_NOT_ALLOWED_BY_SECURITY as dds_return_t {
+        EngineError::NotAllowed { what }
+    } else {
+        EngineError::dds(what, retcode(ret))
+    }
+}
+
 pub(super) fn c_string(what: &'static str, s: &str) -> Result<CString, EngineError> {
     CString::new(s).map_err(|_| EngineError::NulByte { what, value: s.escape_debug().to_string() })
 }
@@ -164,7 +174,7 @@ pub(super) fn blob_topic(participant: dds_entity_t, topic: &str, type_name: &str
         cdds_create_blob_topic(participant, ctopic.as_ptr() as *mut c_char, ctype.as_ptr() as *mut c_char, true)
     };
     if t < 0 {
-        return Err(EngineError::dds(format!("topic {topic} ({type_name})"), retcode(t)));
+        return Err(entity_error(format!("topic {topic} ({type_name})"), t));
     }
     Ok(t)
 }

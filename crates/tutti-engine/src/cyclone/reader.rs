@@ -19,7 +19,7 @@ use cyclors::{
 };
 use tutti_core::mapping::Qos;
 
-use super::native::{blob_topic, delete_entity, entity_guid, lock, retcode, NativeQos};
+use super::native::{blob_topic, delete_entity, entity_error, entity_guid, lock, retcode, NativeQos};
 use super::Inner;
 use crate::dds::{endpoint, peer_of, rpc};
 use crate::{Data, EngineError, PeerId, RequestSink, Sink, TopicType};
@@ -160,6 +160,10 @@ pub(super) fn create(
         delete_entity(t);
         EngineError::dds(what, detail)
     };
+    let refused = |what: String, ret| {
+        delete_entity(t);
+        entity_error(what, ret)
+    };
     let qos = NativeQos::new(q, ty, false).map_err(|e| fail(format!("a reader on {topic}"), e.to_string()))?;
     let ctx = Arc::new(ReaderCtx { deliver, writers: Mutex::new(HashMap::new()), own: own.0, own_samples: own.1 });
     // SAFETY: the argument stays valid for the reader's life (kept in `contexts` below).
@@ -177,7 +181,7 @@ pub(super) fn create(
     unsafe { dds_delete_listener(listener) };
     if r < 0 {
         lock(&inner.contexts).retain(|c| !Arc::ptr_eq(c, &ctx));
-        return Err(fail(format!("a reader on {topic}"), retcode(r)));
+        return Err(refused(format!("a reader on {topic}"), r));
     }
     match entity_guid(r) {
         Ok(g) => lock(&inner.endpoints).readers.push(g),

@@ -35,6 +35,7 @@ pub use plan::{
 };
 pub use tutti_config::MAX_NESTING;
 pub use tutti_engine::keys::{parse_peer, EngineKeys};
+pub use tutti_engine::security::Strategy;
 pub use values::{
     parse_lookahead, parse_namespace, parse_period, parse_profile, parse_rate, parse_span, parse_topic_name,
     parse_wait_mode, MAX_DURATION, MAX_LOOKAHEAD, MIN_RATE,
@@ -123,6 +124,9 @@ pub struct GatewayOptions {
     /// How many steps late the framework takes the answers of a synchronous domain's DDS
     /// writers (docs/run.md, "Sites and lookahead").
     pub lookahead: Lookahead,
+    /// The DDS Security enclave the engine's participant runs in, its files checked (None:
+    /// unsecured; docs/security.md, "What the network can do").
+    pub security: Option<tutti_engine::security::Enclave>,
 }
 
 /// The steps of lookahead of each synchronous domain (`--lookahead`, `lookahead:`): the
@@ -228,6 +232,7 @@ impl GatewayOptions {
             foxglove: None,
             rules: TopicRules::default(),
             lookahead: Lookahead::default(),
+            security: None,
         }
     }
 
@@ -261,6 +266,7 @@ impl GatewayOptions {
             participant_lease: Some(self.lease.max(MIN_PARTICIPANT_LEASE)),
             zenoh_connect: self.zenoh_connect.clone(),
             zenoh_listen: self.zenoh_listen.clone(),
+            security: self.security.clone(),
         }
     }
 }
@@ -288,6 +294,7 @@ impl GatewayOptions {
         }
         keys.apply(&mut opts)?;
         opts.lookahead.check(&opts.model, opts.types)?;
+        opts.security = keys.engine.security()?.resolve(opts.engine)?;
         if range == DiscoveryRange::Off {
             // Cyclone has no switch for "peers only" that we could set without overriding
             // CYCLONEDDS_URI; with peers given, they are used beside what Cyclone is configured for.
