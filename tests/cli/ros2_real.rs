@@ -25,6 +25,7 @@ use std::path::{Path, PathBuf};
 use std::process::Command;
 use std::time::Duration;
 
+use crate::gateway_security::{Keystore, DEBIAN_PLUGINS, GATEWAY_ENCLAVE};
 use crate::gateway_simif::{
     ABORTED, ALREADY_IN_TARGET_STATE, CANCELED, FEATURE_UNSUPPORTED, INCORRECT_STATE, OK, SUCCEEDED,
 };
@@ -50,7 +51,13 @@ struct Ros2 {
     /// rmw_zenoh's router, for a test on the Zenoh engine (the ROS 2 processes then run on
     /// rmw_zenoh_cpp; else on rmw_cyclonedds_cpp).
     zenohd: Option<Zenohd>,
+    /// A secured test's keystore: the ROS 2 processes run in its enclave [`RCLPY_ENCLAVE`],
+    /// the gateway in [`GATEWAY_ENCLAVE`], both under `Enforce`.
+    keystore: Option<Keystore>,
 }
+
+/// The enclave of a secured test's ROS 2 processes.
+const RCLPY_ENCLAVE: &str = "/rclpy";
 
 /// `rmw_zenohd`, the router of rmw_zenoh, listening on a loopback port of its own.
 struct Zenohd {
@@ -83,10 +90,18 @@ impl Ros2 {
             });
         let ws = tutti_test_support::require::<_, String>("a ROS 2 Jazzy workspace", found)?;
         let home = tempfile::tempdir().expect("a temporary directory");
-        let mut ros = Ros2 { ws, home, overlays: Vec::new(), zenohd: None };
+        let mut ros = Ros2 { ws, home, overlays: Vec::new(), zenohd: None, keystore: None };
         if e.name == Eng::ZENOH.name {
             ros.zenohd = Some(ros.start_zenohd());
         }
+        Some(ros)
+    }
+
+    /// The same, secured: the ROS 2 processes and the gateway run in enclaves of a fresh
+    /// keystore (the gateway's with `gateway_opts` for keystore.sh, like `--deny TOPIC`).
+    fn get_secured(e: Eng, gateway_opts: &[&str]) -> Option<Ros2> {
+        let mut ros = Ros2::get(e)?;
+        ros.keystore = Some(Keystore::new(&[(GATEWAY_ENCLAVE, gateway_opts), (RCLPY_ENCLAVE, &[])])?);
         Some(ros)
     }
 
@@ -109,6 +124,12 @@ impl Ros2 {
         for o in &self.overlays {
             sources += &format!(r#" && source "{}/local_setup.bash""#, o.display());
         }
+        if self.keystore.is_some() {
+            // Cyclone 0.10's security plugins, beside the libddsc that rmw_cyclonedds loads.
+            let deps = self.ws.join("deps/usr/lib/x86_64-linux-gnu/libddsc0debian");
+            let plugins = if deps.is_dir() { deps.display().to_string() } else { DEBIAN_PLUGINS.to_string() };
+            sources += &format!(r#" && export LD_LIBRARY_PATH="{plugins}:$LD_LIBRARY_PATH""#);
+        }
         let mut c = Command::new("bash");
         c.arg("-c").arg(format!(r#"{sources} && exec "$@""#)).arg("ros2-env").args(program);
         c.env("ROS_DOMAIN_ID", dom.to_string())
@@ -125,6 +146,21 @@ impl Ros2 {
             None => c.env("RMW_IMPLEMENTATION", "rmw_cyclonedds_cpp").env_remove("ZENOH_CONFIG_OVERRIDE"),
             Some(z) => c.env("RMW_IMPLEMENTATION", "rmw_zenoh_cpp").env("ZENOH_CONFIG_OVERRIDE", z.connect_override()),
         };
+        for v in SECURITY_VARS {
+            c.env_remove(v);
+        }
+        if let Some(ks) = &self.keystore {
+            c.envs(ks.env(RCLPY_ENCLAVE));
+        }
+        c
+    }
+
+    /// [`Ros2::command`] without DDS Security, in a secured test: a node outside the graph.
+    fn unsecured(&self, dom: u16, program: &[&str]) -> Command {
+        let mut c = self.command(dom, program);
+        for v in SECURITY_VARS {
+            c.env_remove(v);
+        }
         c
     }
 
@@ -135,16 +171,21 @@ impl Ros2 {
         if let Some(z) = &self.zenohd {
             cmd.env("ZENOH_CONFIG_OVERRIDE", z.connect_override());
         }
+        if let Some(ks) = &self.keystore {
+            cmd.envs(ks.env(GATEWAY_ENCLAVE));
+        }
         host_with_gateway_by(cmd, e, ddf, dom, ns, extra)
     }
 
     /// `tutti gateway --engine E DDF` (see [`Eng::gateway`]), on this test's router when `e`
     /// is Zenoh.
     fn gateway(&self, e: Eng, ddf: &str, dom: u16, ns: &str) -> Proc {
-        match &self.zenohd {
-            None => e.gateway(ddf, dom, ns, &[]),
-            Some(z) => e.gateway(ddf, dom, ns, &["--zenoh-connect", &z.endpoint]),
+        let secured = self.keystore.as_ref().map(|ks| ks.flags(GATEWAY_ENCLAVE)).unwrap_or_default();
+        let mut extra: Vec<&str> = secured.iter().map(String::as_str).collect();
+        if let Some(z) = &self.zenohd {
+            extra.extend(["--zenoh-connect", &z.endpoint]);
         }
+        e.gateway(ddf, dom, ns, &extra)
     }
 
     /// The workspace's Python (the venv that has rclpy's dependencies) running `script`.
@@ -188,6 +229,10 @@ impl Ros2 {
         self.overlays.push(install);
     }
 }
+
+/// rcl's DDS Security variables: set only where a test secures a process.
+const SECURITY_VARS: [&str; 4] =
+    ["ROS_SECURITY_ENABLE", "ROS_SECURITY_STRATEGY", "ROS_SECURITY_KEYSTORE", "ROS_SECURITY_ENCLAVE_OVERRIDE"];
 
 /// Where the workspace has rmw_zenoh's router.
 const ZENOHD: &str = "install/lib/rmw_zenoh_cpp/rmw_zenohd";
@@ -451,7 +496,12 @@ fn recorded_uavs(dir: &Path, uavs: &[u32]) -> BTreeMap<u32, BTreeMap<u64, [f64; 
 /// DDF (`idl/multiuav_msgs`) built by colcon, receives UAV 1's and 2's states from the
 /// gateway on engine `e`, and each state it prints is the one the run recorded at its step.
 fn the_uav_listener_prints_the_recorded_states(e: Eng, dom: u16) {
-    let Some(mut ros) = Ros2::get(e) else { return };
+    let Some(ros) = Ros2::get(e) else { return };
+    uav_listener(ros, e, dom);
+}
+
+/// [`the_uav_listener_prints_the_recorded_states`] in `ros`'s workspace (secured or not).
+fn uav_listener(mut ros: Ros2, e: Eng, dom: u16) {
     ros.build_interfaces(&tutti_test_support::repo_root().join("idl/multiuav_msgs"));
     let ns = namespace(&format!("ros2uav{dom}_"));
     let dir = tempfile::tempdir().expect("a temporary directory");
@@ -514,6 +564,15 @@ fn the_uav_listener_prints_the_recorded_states(e: Eng, dom: u16) {
 #[test]
 fn the_ros2_uav_listener_prints_the_recorded_states_cyclone() {
     the_uav_listener_prints_the_recorded_states(Eng::CYCLONE, 144);
+}
+
+/// The same with DDS Security: the gateway (`Enforce`, enclave `/tutti/gateway`) and the
+/// listener (rclpy on rmw_cyclonedds with Debian's Cyclone 0.10 plugins, `Enforce`, its own
+/// enclave of the same keystore), every state equal to the recording's.
+#[test]
+fn the_ros2_uav_listener_prints_the_recorded_states_secured() {
+    let Some(ros) = Ros2::get_secured(Eng::CYCLONE, &[]) else { return };
+    uav_listener(ros, Eng::CYCLONE, 213);
 }
 
 #[test]
@@ -607,7 +666,14 @@ fn rosidl_hash(install: &Path, pkg: &str, name: &str) -> String {
 /// computes, `ros2 topic echo` a sample; an rclpy publisher's message reaches the framework
 /// through a SUBSCRIBE set.
 fn ros2cli_sees_the_gateway_and_rclpy_writes_a_subscribe_set(e: Eng, dom: u16) {
-    let Some(mut ros) = Ros2::get(e) else { return };
+    let Some(ros) = Ros2::get(e) else { return };
+    ros2cli_and_rclpy(ros, e, dom);
+}
+
+/// [`ros2cli_sees_the_gateway_and_rclpy_writes_a_subscribe_set`] in `ros`'s workspace
+/// (secured or not); returns the framework (its SUBSCRIBE set's `y` now 9.5, at offset
+/// `y`), the gateway and the workspace, for more checks.
+fn ros2cli_and_rclpy(mut ros: Ros2, e: Eng, dom: u16) -> (Host, Proc, Ros2, usize) {
     let idl = tempfile::tempdir().expect("a temporary directory");
     let mut cmd = tutti_test_support::tutti_command();
     cmd.args(["idl", DDF, "--out"]).arg(idl.path());
@@ -623,7 +689,7 @@ fn ros2cli_sees_the_gateway_and_rclpy_writes_a_subscribe_set(e: Eng, dom: u16) {
         b[x..x + 8].copy_from_slice(&(k as f64).to_ne_bytes());
         b
     });
-    let _gw = ros.gateway(e, DDF, dom, &ns);
+    let gw = ros.gateway(e, DDF, dom, &ns);
 
     ros2_until(&ros, dom, &["node", "list", "--no-daemon"], |o| o.lines().any(|l| l == "/tutti_gateway"));
     let topics = ros2_until(&ros, dom, &["topic", "list", "-t", "--no-daemon"], |o| {
@@ -662,6 +728,44 @@ fn ros2cli_sees_the_gateway_and_rclpy_writes_a_subscribe_set(e: Eng, dom: u16) {
     let lines = publisher.lines();
     let bad = complaints(&lines);
     assert!(bad.is_empty(), "the publisher complained:\n{bad:#?}\n{}", publisher.dump());
+    (host, gw, ros, y)
+}
+
+/// The same with DDS Security (the gateway under `Enforce` in enclave `/tutti/gateway`,
+/// ros2cli and rclpy in their own enclave), whose permissions deny the gateway one topic
+/// (`rt/gw_states/publish`): everything above works as unsecured, every value equal; that
+/// topic is left out (a warning, `denied=1`) while the others work; and ROS 2 processes
+/// without security see none of the gateway's topics, and cannot write into its SUBSCRIBE
+/// set (their publisher never matches, and the framework's value stays).
+#[test]
+fn ros2cli_sees_the_gateway_and_rclpy_writes_a_subscribe_set_secured() {
+    let Some(ros) = Ros2::get_secured(Eng::CYCLONE, &["--deny", "rt/gw_states/publish"]) else { return };
+    let dom = 214;
+    let (host, gw, ros, y) = ros2cli_and_rclpy(ros, Eng::CYCLONE, dom);
+
+    let denied = gw.lines().iter().any(|l| l.contains("/gw_states/publish left out") && l.contains("permissions"));
+    assert!(denied, "no warning of the denied topic\n{}", gw.dump());
+    assert!(gw.wait_line(" denied=1", SECS(10)).is_some(), "{}", gw.dump());
+    let topics = ros2(&ros, dom, &["topic", "list", "--no-daemon"]).join("\n");
+    assert!(topics.contains("/gw_states/subscribe") && !topics.contains("/gw_states/publish"), "{topics}");
+
+    // Unsecured: rcl without ROS_SECURITY_ENABLE on the same domain.
+    let mut list = ros.unsecured(dom, &["ros2", "topic", "list", "--no-daemon", "--spin-time", "3"]);
+    let (_, out, err) = tutti_test_support::run_with_timeout(&mut list, SECS(120));
+    assert!(!out.contains("/gw_"), "an unsecured node sees the gateway's topics:\n{out}\n{err}");
+    let fields = r#"{"y": 2.5, "n": 4}"#;
+    let publish = tutti_test_support::repo_root().join("tests/ros2/publish.py");
+    let py = std::fs::read_to_string(ros.ws.join("install/PYTHON")).expect("the workspace's install/PYTHON");
+    let program = [py.trim(), publish.to_str().expect("UTF-8"), "/gw_async/subscribe", "gw_msgs/msg/GwAsyncSubscribe"];
+    let mut cmd = ros.unsecured(dom, &program);
+    cmd.args([fields, "--timeout", "5"]);
+    let (status, out, err) = tutti_test_support::run_with_timeout(cmd, SECS(120));
+    assert!(
+        status.code() == Some(1) && out.contains("timeout after 0 messages"),
+        "the unsecured publisher matched the gateway:\n{out}\n{err}"
+    );
+    let written = host.wait_for(SECS(2), |_, b| f64_at(b, y) == 2.5);
+    assert_eq!(written, None, "the unsecured publisher's y = 2.5 reached the framework");
 }
 
 #[test]
