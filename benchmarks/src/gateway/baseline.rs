@@ -41,7 +41,7 @@ impl Bench<'_> {
     /// the 8 doubles); it prints half the round trip. `waitset`: the ping waits for each pong
     /// on a thread of its own (ddsperf's `ping waitset`) rather than writing the next ping from
     /// the pong's data-available listener, on the receive thread (its default).
-    fn ddsperf(&mut self, cpus: Cpus, rate: Option<&str>, waitset: bool) -> anyhow::Result<Rtt> {
+    pub(super) fn ddsperf(&mut self, cpus: Cpus, rate: Option<&str>, waitset: bool) -> anyhow::Result<Rtt> {
         let dom = self.slot().dom.to_string();
         let mut pong = Command::new("ddsperf");
         pong.args(["-i", &dom, "-D8", "pong"]).env("CYCLONEDDS_URI", LOOPBACK).stdout(Stdio::null());
@@ -51,6 +51,13 @@ impl Bench<'_> {
             .args(waitset.then_some("waitset"))
             .args(["size", "80"])
             .env("CYCLONEDDS_URI", LOOPBACK);
+        if let Some(ks) = &self.secured {
+            // Authentication takes a handshake per pair of participants: more time to match.
+            pong.args(["-D", "15"]);
+            ping.args(["-Qinitwait:10"]);
+            super::security::secured_ddsperf(&mut pong, LOOPBACK, ks);
+            super::security::secured_ddsperf(&mut ping, LOOPBACK, ks);
+        }
         let out = ping_pong("ddsperf", pong, ping, cpus).context("apt-get install -y cyclonedds-tools")?;
         let mut p50s = Vec::new();
         let mut p99s = Vec::new();

@@ -31,6 +31,7 @@ impl Bench<'_> {
             participant_lease: None,
             zenoh_connect: self.zenoh_router.iter().cloned().collect(),
             zenoh_listen: Vec::new(),
+            security: None,
         };
         // The peer speaks what the gateway speaks: Zenoh to the Zenoh engine, else DDS.
         let peer_engine = if e == EngineKind::Zenoh { e } else { EngineKind::Cyclone };

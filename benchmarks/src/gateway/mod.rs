@@ -28,6 +28,7 @@ mod large;
 mod measure;
 mod modes;
 mod processes;
+mod security;
 mod tables;
 mod zenoh;
 
@@ -52,7 +53,7 @@ const MAX_DOMAIN_ID: u16 = 232;
 /// Fast DDS.
 #[derive(Debug, clap::Args)]
 #[command(
-    after_help = "Examples:\n  cargo build --release -p tutti -p tutti-bench && target/release/tutti-bench gateway\n  tutti-bench gateway --engines rustdds --placement same --samples 300 --duration 1s --json\n  tutti-bench gateway --engines cyclone --gateways in-process --placement same\n\nNeeds ddsperf (apt-get install -y cyclonedds-tools) and, for the Fast DDS ping-pong, g++ and\nlibfastrtps-dev; without them those rows say \"not run\". Progress goes to stderr; figures go\nto docs/benchmarks.md."
+    after_help = "Examples:\n  cargo build --release -p tutti -p tutti-bench && target/release/tutti-bench gateway\n  tutti-bench gateway --engines rustdds --placement same --samples 300 --duration 1s --json\n  tutti-bench gateway --engines cyclone --gateways in-process --placement same\n  tutti-bench gateway --security --placement same   # secured vs unsecured, beside ddsperf\n\nNeeds ddsperf (apt-get install -y cyclonedds-tools) and, for the Fast DDS ping-pong, g++ and\nlibfastrtps-dev; without them those rows say \"not run\". Progress goes to stderr; figures go\nto docs/benchmarks.md."
 )]
 pub struct Args {
     /// Round trips timed per placement, engine and mode.
@@ -82,6 +83,11 @@ pub struct Args {
     /// Print one JSON object on stdout instead of the tables.
     #[arg(long)]
     json: bool,
+    /// Measure what DDS Security costs instead: per placement, ddsperf and the gateway round
+    /// trip (cyclone engine) unsecured and secured, in enclaves of a keystore made for the
+    /// run (needs openssl and Debian's libddsc0debian plugins).
+    #[arg(long)]
+    security: bool,
     /// Internal: the DDS engine of a peer mode.
     #[arg(long = "dds", hide = true, default_value = "cyclone", value_name = "ENGINE")]
     dds: EngineKind,
@@ -152,6 +158,8 @@ struct Bench<'a> {
     next: u16,
     /// The endpoint of the run's Zenoh router, when the zenoh engine is measured.
     zenoh_router: Option<String>,
+    /// The keystore the sub-run's parties take their enclaves from; None: unsecured.
+    secured: Option<PathBuf>,
 }
 
 /// The scratch directory of this run (the benchmark's DDFs).
@@ -216,7 +224,18 @@ pub fn run(args: Args) -> CliResult {
         false => None,
     };
     let zenoh_router = router.as_ref().map(|(_, endpoint)| endpoint.clone());
-    let mut b = Bench { args: &args, exe, bench_exe, dir, async_ddf, sync_ddf, next: 0, zenoh_router };
+    let mut b = Bench { args: &args, exe, bench_exe, dir, async_ddf, sync_ddf, next: 0, zenoh_router, secured: None };
+    if args.security {
+        let runs = security::make_keystore(&b.dir).map(|ks| b.security_runs(&placements, &ks));
+        let _ = std::fs::remove_dir_all(&b.dir);
+        let runs = runs?;
+        if args.json {
+            println!("{}", serde_json::to_string(&security::json(&runs)).context("writing JSON")?);
+        } else {
+            security::print(&runs);
+        }
+        return Ok(());
+    }
     let result = b.run_all(&placements);
     let _ = std::fs::remove_dir_all(&b.dir);
     let (runs, large) = result?;

@@ -47,6 +47,8 @@ pub(super) fn peer_opts(
     opts.engine = engine;
     opts.interfaces = vec![std::net::IpAddr::V4(std::net::Ipv4Addr::LOCALHOST)];
     opts.zenoh_connect = zenoh_router.into_iter().map(str::to_string).collect();
+    // A peer of a secured run takes its enclave as rcl would (ROS_SECURITY_*, set by the run).
+    opts.security = tutti_gateway::engine::security::SecuritySettings::from_env()?.resolve(engine)?;
     let d = model.domains.first().context("the DDF has no domain")?.clone();
     Ok((opts, d))
 }

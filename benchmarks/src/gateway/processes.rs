@@ -166,6 +166,11 @@ impl Bench<'_> {
             cmd.args(["--zenoh-connect", router]);
         }
         cmd.env("TUTTI_NAMESPACE", &slot.ns).env("RUST_LOG", QUIET_LOG).stdin(Stdio::null());
+        if let Some(ks) = &self.secured {
+            let enclave =
+                if exe == self.exe { super::security::GATEWAY_ENCLAVE } else { super::security::PEER_ENCLAVE };
+            cmd.envs(super::security::env(ks, enclave));
+        }
         cmd
     }
 
@@ -200,6 +205,9 @@ impl Bench<'_> {
         let (mut opts, _) = peer_opts(self.ddf(synchronous), slot.dom, e, self.zenoh_router.as_deref())?;
         opts.poll = Duration::ZERO;
         opts.wait = cpus.wait(synchronous);
+        if let Some(ks) = &self.secured {
+            opts.security = Some(super::security::enclave(ks, super::security::GATEWAY_ENCLAVE)?);
+        }
         // Threads inherit the CPU of the thread that starts them.
         pin_self(cpus.gw);
         let started = tutti_gateway::in_process::start(opts, &slot.ns, Duration::from_secs(3600), Box::new(|_| {}));

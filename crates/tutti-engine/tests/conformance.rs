@@ -682,6 +682,7 @@ impl Case {
             participant_lease: None,
             zenoh_connect: self.router.iter().map(|r| r.endpoint().to_string()).collect(),
             zenoh_listen: if self.router.is_some() { vec!["tcp/127.0.0.1:0".into()] } else { Vec::new() },
+            security: None,
         }
     }
 
