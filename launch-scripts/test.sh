@@ -16,14 +16,15 @@ step() { printf '\n== [%ss] %s\n' "$SECONDS" "$*"; }
 . launch-scripts/lib.sh
 
 # --- Debian packages: DDS peers and tools for the interop tests, what the Cyclone engine's
-# build needs (cmake, libclang for bindgen), C toolchain, valgrind, iproute2 for the
+# build needs (cmake, libclang for bindgen, libssl-dev for its DDS Security plugins; openssl
+# makes the secured tests' keystores), C toolchain, valgrind, iproute2 for the
 # network-namespace tests and nftables for the one whose network loses datagrams, procps for
 # `kill` (the tests stop their children with SIGINT), the font the UAV demo draws its figures
 # with, headless Chromium and its WebDriver for the studio's browser tests, and what the ROS 2
 # build below compiles with (python3-dev, spdlog, libyaml).
 ensure_debian_packages cyclonedds-tools cyclonedds-dev fastddsgen libfastrtps-dev fastdds-tools valgrind gcc g++ make \
     cmake libclang-dev iproute2 nftables procps python3-venv fonts-dejavu-core pkgconf chromium chromium-driver \
-    python3-dev libspdlog-dev libyaml-dev
+    python3-dev libspdlog-dev libyaml-dev libssl-dev openssl
 # Node.js and npm for the Foxglove WebSocket client: Debian's, unless the machine has a Node.js
 # with its own npm already (NodeSource's nodejs package carries npm, and Debian's npm package
 # cannot be installed beside it).

@@ -18,9 +18,10 @@ step() { printf '\n== %s\n' "$*" >&2; }
 . launch-scripts/lib.sh
 
 # --- Debian packages: C compiler, the font plotters renders text with, Python 3, and what
-# the gateway's Cyclone DDS engine builds with (cmake, libclang for bindgen).
-# Without apt-get the demo goes on: what is missing fails later with its own message.
-ensure_debian_packages gcc g++ libc6-dev cmake libclang-dev fonts-dejavu-core python3 || true
+# the gateway's Cyclone DDS engine builds with (cmake, libclang for bindgen, OpenSSL for its
+# DDS Security plugins). Without apt-get the demo goes on: what is missing fails later with its
+# own message.
+ensure_debian_packages gcc g++ libc6-dev cmake libclang-dev libssl-dev pkgconf fonts-dejavu-core python3 || true
 
 # --- Python: the monitoring script needs only the standard library and python/tutti_rtapi.py.
 if [ -z "${TUTTI_PYTHON:-}" ]; then
