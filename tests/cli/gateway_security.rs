@@ -15,15 +15,8 @@ use std::path::{Path, PathBuf};
 use std::process::Command;
 
 use crate::gateway::*;
+use tutti_core::ddf::Role;
 use tutti_test_support::{namespace, require_tool, run_with_timeout, tutti_command};
-
-/// Cyclone on loopback only, as the suite's other DDS peers.
-const LOOPBACK_URI: &str = concat!(
-    r#"<CycloneDDS><Domain id="any"><General><Interfaces><NetworkInterface name="lo"/></Interfaces>"#,
-    r#"<AllowMulticast>false</AllowMulticast></General><Discovery><Peers><Peer address="127.0.0.1"/></Peers>"#,
-    r#"<ParticipantIndex>auto</ParticipantIndex><MaxAutoParticipantIndex>40</MaxAutoParticipantIndex></Discovery>"#,
-    r#"</Domain></CycloneDDS>"#
-);
 
 /// The enclave the tests give the gateway.
 pub const GATEWAY_ENCLAVE: &str = "/tutti/gateway";
@@ -260,16 +253,18 @@ pub fn secured_ddsperf(ks: &Keystore, enclave: &str, dom: u16, args: &[&str]) ->
 /// The secured peers of the benchmark and the unsecured one, beside a secured gateway: a
 /// `ddsperf` ping and pong pair in enclaves of the test's keystore (Cyclone 0.10's plugins
 /// reading sros2's layout as made here) exchange round trips, while an unsecured Cyclone peer
-/// (the Python binding) on the same domain sees none of the gateway's endpoints, nor theirs.
+/// (the Python binding) on the same domain sees none of the gateway's endpoints, nor theirs,
+/// and its writer on a SUBSCRIBE topic of the gateway never matches: the framework never
+/// gets its value.
 #[test]
-fn secured_ddsperf_runs_in_the_keystore_and_an_unsecured_peer_sees_no_secured_endpoint() {
+fn secured_ddsperf_runs_in_the_keystore_and_an_unsecured_peer_sees_and_writes_nothing() {
     let Some(ks) = Keystore::new(&[(GATEWAY_ENCLAVE, &[]), ("/ddsperf", &[])]) else { return };
     let Some(py) = tutti_test_support::python(&["cyclonedds"]) else { return };
     let dom = 212;
     let ns = namespace("secdisc");
+    let host = Host::start(&ns, "gw_async", SECS(1) / 100, |_| vec![0u8; 40]);
     let flags = ks.flags(GATEWAY_ENCLAVE);
-    let mut args: Vec<&str> = flags.iter().map(String::as_str).collect();
-    args.push("--all-domains");
+    let args: Vec<&str> = flags.iter().map(String::as_str).collect();
     let gw = gateway(DDF, dom, &ns, &args);
 
     let Some(pong) = secured_ddsperf(&ks, "/ddsperf", dom, &["pong"]) else { return };
@@ -285,11 +280,23 @@ fn secured_ddsperf_runs_in_the_keystore_and_an_unsecured_peer_sees_no_secured_en
         pong.dump()
     );
 
-    let mut peer = Command::new(py);
-    peer.arg(tutti_test_support::repo_root().join("tests/gateway/dds_peer.py"))
-        .args(["endpoints", "--domain", &dom.to_string(), "--count", "1", "--timeout", "5"])
-        .env("CYCLONEDDS_URI", LOOPBACK_URI);
-    let (status, out, err) = run_with_timeout(peer, SECS(60));
-    assert_eq!(status.code(), Some(3), "the unsecured peer saw secured endpoints:\n{out}\n{err}\n{}", gw.dump());
-    assert!(!out.contains("gw_") && !out.contains("DDSPerf"), "{out}");
+    let mut endpoints = peer(&py, "unsecured endpoints", dom, "endpoints", &["--count", "1", "--timeout", "5"]);
+    assert_eq!(
+        endpoints.wait(SECS(60)),
+        Some(3),
+        "the unsecured peer saw secured endpoints:\n{}\n{}",
+        endpoints.dump(),
+        gw.dump()
+    );
+    let seen = endpoints.lines().join("\n");
+    assert!(!seen.contains("gw_") && !seen.contains("DDSPerf"), "{seen}");
+
+    let values = r#"[{"y": 7.25, "n": 3}]"#;
+    let args = ["--topic", "rt/gw_async/subscribe", "--type", "gw_msgs::msg::dds_::GwAsyncSubscribe_"];
+    let rest = ["--fields", ASYNC_SUB, "--values", values, "--timeout", "5"];
+    let mut writer = peer(&py, "unsecured writer", dom, "pub", &[&args[..], &rest].concat());
+    assert_eq!(writer.wait(SECS(60)), Some(3), "the unsecured writer matched:\n{}", writer.dump());
+    assert!(writer.lines().iter().any(|l| l.contains("no matched reader")), "{}", writer.dump());
+    let y = leaf_offset("gw_async", Role::Subscribe, "y");
+    assert_eq!(host.wait_for(SECS(1), |_, b| f64_at(b, y) == 7.25), None, "the unsecured write reached the framework");
 }

@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # An SROS2 keystore made with openssl, in the layout `ros2 security create_keystore` and
 # `create_enclave` write (ROS 2 Jazzy's sros2): one CA, EC prime256v1, that is both the
-# identity CA and the permissions CA; governance and permissions signed with S/MIME.
+# identity CA and the permissions CA; keys in PKCS#8 PEM, as sros2 writes them; governance
+# and permissions signed with S/MIME.
 #
 #   keystore.sh init KEYSTORE
 #       the CA (public/ca.cert.pem, private/ca.key.pem, with the identity_ca.* and
@@ -63,7 +64,7 @@ CNF
 case $cmd in
 init)
     mkdir -p "$ks/public" "$ks/private" "$ks/enclaves"
-    ossl ecparam -name prime256v1 -genkey -noout -out "$ks/private/ca.key.pem"
+    ossl genpkey -algorithm EC -pkeyopt ec_paramgen_curve:P-256 -out "$ks/private/ca.key.pem"
     ossl req -new -x509 -key "$ks/private/ca.key.pem" -out "$ks/public/ca.cert.pem" -days 3650 -sha256 \
         -subj "/CN=sros2testCA"
     for n in identity_ca permissions_ca; do
@@ -114,7 +115,7 @@ enclave)
     case $name in /*) ;; *) die "an enclave name is absolute: $name" ;; esac
     dir=$ks/enclaves${name}
     mkdir -p "$dir"
-    ossl ecparam -name prime256v1 -genkey -noout -out "$dir/key.pem"
+    ossl genpkey -algorithm EC -pkeyopt ec_paramgen_curve:P-256 -out "$dir/key.pem"
     ossl req -new -key "$dir/key.pem" -out "$dir/req.csr" -subj "/CN=${name//\//\\/}"
     if [ $expired = 1 ]; then
         dates=(-startdate 20200101000000Z -enddate 20201231000000Z)

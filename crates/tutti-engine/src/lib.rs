@@ -482,7 +482,7 @@ pub trait Engine: Send + Sync {
 
 /// Opens a participant of engine `kind`; an engine this build does not contain is refused.
 pub fn open(kind: EngineKind, cfg: &EngineConfig) -> Result<Box<dyn Engine>, EngineError> {
-    if cfg.security.is_some() && kind != EngineKind::Cyclone {
+    if cfg.security.is_some() && !security::engine_does_security(kind) {
         return Err(security::SecurityError::Unsupported { engine: kind.name() }.into());
     }
     match kind {

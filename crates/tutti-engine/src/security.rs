@@ -54,6 +54,22 @@ impl fmt::Display for Strategy {
     }
 }
 
+/// Whether engine `kind` takes an enclave: Cyclone only. rustdds' own DDS Security does
+/// not complete a handshake with Cyclone's plugins (docs/security.md, "rustdds and DDS
+/// Security"); Zenoh's wire is not DDS.
+pub fn engine_does_security(kind: EngineKind) -> bool {
+    kind == EngineKind::Cyclone
+}
+
+/// Why engine `engine` takes no enclave, for [`SecurityError::Unsupported`].
+fn unsupported_why(engine: &str) -> &'static str {
+    if engine == EngineKind::Rustdds.name() {
+        "rustdds' handshake refuses Cyclone's ECDH key agreement: docs/security.md, \"rustdds and DDS Security\""
+    } else {
+        "its wire is not DDS; rmw_zenoh secures sessions in the Zenoh configuration"
+    }
+}
+
 /// The enclave rcl gives a node that names none.
 pub const DEFAULT_ENCLAVE: &str = "/";
 
@@ -117,7 +133,7 @@ pub enum SecurityError {
     Signature { file: PathBuf, ca: PathBuf, why: String },
     #[error("{}: no grant for the certificate's subject '{subject}' (the grants are for: {grants})", file.display())]
     NoGrant { file: PathBuf, subject: String, grants: String },
-    #[error("the {engine} engine does not do DDS Security (docs/security.md): use --engine cyclone, or ROS_SECURITY_STRATEGY=Permissive to run unsecured")]
+    #[error("the {engine} engine does not do DDS Security ({}): use --engine cyclone, or ROS_SECURITY_STRATEGY=Permissive to run unsecured", unsupported_why(engine))]
     Unsupported { engine: &'static str },
 }
 
@@ -151,7 +167,7 @@ impl SecuritySettings {
         if !self.enable {
             return Ok(None);
         }
-        let found = if kind == EngineKind::Cyclone {
+        let found = if engine_does_security(kind) {
             self.enclave()
         } else {
             Err(SecurityError::Unsupported { engine: kind.name() })

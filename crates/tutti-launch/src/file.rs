@@ -442,4 +442,20 @@ mod tests {
             (9, Some(std::path::absolute(dir.path().join("gw.json5")).unwrap()))
         );
     }
+
+    #[test]
+    fn the_gateway_block_takes_the_security_keys_and_a_keystore_relative_to_the_launch_file() {
+        let dir = tempfile::tempdir().unwrap();
+        std::fs::write(dir.path().join("cosim.ddf"), cosim_ddf()).unwrap();
+        let path = dir.path().join("run.json5");
+        let text = "{ ddf: \"cosim.ddf\", gateway: { security_enable: true, security_keystore: \"keys\",\n  \
+                    enclave: \"/tutti/gateway\", security_strategy: \"Enforce\" } }";
+        std::fs::write(&path, text).unwrap();
+        let e = load(&path).unwrap_err().to_string();
+        let keys = std::path::absolute(dir.path().join("keys")).unwrap();
+        assert!(e.contains(&format!("keystore {}: No such file", keys.display())), "{e}");
+        // Permissive: the run goes on unsecured.
+        std::fs::write(&path, text.replace("Enforce", "Permissive")).unwrap();
+        assert_eq!(load(&path).unwrap().gateway.unwrap().options.security, None);
+    }
 }

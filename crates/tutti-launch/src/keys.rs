@@ -587,6 +587,10 @@ impl<'de> Visitor<'de> for GatewayVisitor {
             }
             None => None,
         };
+        // A keystore, as every path of a launch file, is relative to the launch file.
+        if let Some(ks) = keys.engine.security_keystore.take() {
+            keys.engine.security_keystore = Some(dir.join(ks));
+        }
         let options = match ddf {
             Some((ddf, Some(model))) => {
                 let opts =
