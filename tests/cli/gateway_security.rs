@@ -269,10 +269,8 @@ fn secured_ddsperf_runs_in_the_keystore_and_an_unsecured_peer_sees_and_writes_no
 
     let Some(pong) = secured_ddsperf(&ks, "/ddsperf", dom, &["pong"]) else { return };
     let pong = Proc::spawn("secured ddsperf pong", pong, SECS(60));
-    let Some(mut ping) = secured_ddsperf(&ks, "/ddsperf", dom, &["-Qminmatch:1", "-Qinitwait:20", "ping"]) else {
-        return;
-    };
-    ping.args(["-D", "5"]);
+    let ping_args = ["-D", "5", "-Qminmatch:1", "-Qinitwait:20", "ping"];
+    let Some(mut ping) = secured_ddsperf(&ks, "/ddsperf", dom, &ping_args) else { return };
     let (status, out, err) = run_with_timeout(&mut ping, SECS(60));
     assert!(
         status.success() && out.contains(" 50% "),
