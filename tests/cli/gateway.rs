@@ -340,11 +340,13 @@ pub fn status_without_participants(ns: &str, domain: &str) -> tutti_core::shm::D
 /// The last gateway counter `name` printed in a status line.
 pub fn counter(p: &Proc, name: &str) -> u64 {
     let key = format!(" {name}=");
-    p.lines()
-        .iter()
-        .rev()
-        .find_map(|l| l.split_once(&key).and_then(|(_, rest)| rest.split_whitespace().next()?.parse().ok()))
-        .unwrap_or(0)
+    p.lines().iter().rev().find(|l| l.contains(&key)).map_or(0, |l| counter_in(l, name))
+}
+
+/// Counter `name` of one status line (0 when the line has none).
+pub fn counter_in(line: &str, name: &str) -> u64 {
+    let key = format!(" {name}=");
+    line.split_once(&key).and_then(|(_, rest)| rest.split_whitespace().next()?.parse().ok()).unwrap_or(0)
 }
 
 pub fn model() -> Model {

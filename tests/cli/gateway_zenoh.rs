@@ -114,18 +114,59 @@ fn an_rmw_zenoh_publisher_writes_into_a_subscribe_set() {
 /// A TRANSIENT_LOCAL set (`states=yes`) is kept in the publisher's cache as rmw_zenoh keeps
 /// it: a subscription that joins late, as rmw_zenoh makes one (an advanced subscriber that
 /// queries late publishers' caches), gets a sample written before it subscribed.
+///
+/// The framework is held (its step blocks) and the gateway seen to have written its last
+/// sample before the late subscription is made: while samples keep coming, the advanced
+/// subscriber delivers a live sample that overtakes the cache's reply and then drops the
+/// older cached one (it delivers each publisher's samples in order), so the cache could not
+/// be told from the live stream.
 #[test]
 fn a_late_transient_local_subscription_gets_a_state_from_the_cache() {
+    use std::sync::atomic::{AtomicBool, Ordering};
+    use std::sync::Arc;
     let Some(py) = python() else { return };
     let router = ZenohRouter::start();
     let (dom, ns) = (14, namespace("zgwlate_"));
-    let _host = Host::start(&ns, "gw_states", Duration::from_millis(20), |k| (k as f64).to_ne_bytes().to_vec());
+    let (hold, held) = (Arc::new(AtomicBool::new(false)), Arc::new(AtomicBool::new(false)));
+    let (h, d) = (hold.clone(), held.clone());
+    let _host = Host::start(&ns, "gw_states", Duration::from_millis(20), move |k| {
+        // Held: the step waits here (at most a minute, so that a failing test still ends).
+        let since = std::time::Instant::now();
+        while h.load(Ordering::Acquire) && since.elapsed() < secs(60) {
+            d.store(true, Ordering::Release);
+            std::thread::sleep(Duration::from_millis(5));
+        }
+        (k as f64).to_ne_bytes().to_vec()
+    });
+    // Dropped before the host: a held step is let go before the host stops.
+    struct Release(Arc<AtomicBool>);
+    impl Drop for Release {
+        fn drop(&mut self) {
+            self.0.store(false, Ordering::Release);
+        }
+    }
+    let _release = Release(hold.clone());
     let gw = ZENOH.gateway(DDF, dom, &ns, &["--zenoh-connect", router.endpoint()]);
     let topic = ["--topic", "/gw_states/publish"];
     let mut first = peer(&py, "first subscription", &router, dom, "sub", &[&topic[..], &["--count", "5"]].concat());
     assert_eq!(first.wait(secs(90)), Some(0), "{}\n{}", first.dump(), gw.dump());
-    let mut late = peer(&py, "late subscription", &router, dom, "late", &[&topic[..], &["--count", "3"]].concat());
-    assert_eq!(late.wait(secs(90)), Some(0), "{}\n{}", late.dump(), gw.dump());
+
+    hold.store(true, Ordering::Release);
+    wait_until(lazy(|| "the framework's step was never held".into()), secs(30), || held.load(Ordering::Acquire));
+    // The gateway has written the last step once two status lines in a row count the same
+    // samples written.
+    let written = |gw: &Proc| -> Vec<u64> {
+        gw.lines().iter().filter(|l| l.contains(" to_dds=")).map(|l| gateway::counter_in(l, "to_dds")).collect()
+    };
+    let from = written(&gw).len();
+    let quiet = lazy(|| format!("the gateway kept writing\n{}", gw.dump()));
+    wait_until(quiet, secs(30), || {
+        let w = written(&gw);
+        w.len() >= from + 2 && w[w.len() - 1] == w[w.len() - 2]
+    });
+
+    let mut late = peer(&py, "late subscription", &router, dom, "late", &[&topic[..], &["--count", "1"]].concat());
+    assert_eq!(late.wait(secs(90)), Some(0), "no sample reached the late subscription\n{}\n{}", late.dump(), gw.dump());
     let declared = json_lines(&late, "declared_at")[0]["declared_at"].as_i64().expect("when it subscribed");
     let samples = json_lines(&late, "seq");
     assert!(samples.iter().all(|s| s["header"] == "00010000"), "{samples:?}");
