@@ -18,14 +18,13 @@
 //! * a service is an engine operation ([`Engine::serve`]): requests come with an opaque
 //!   [`ReplyTo`], and the engine pairs the response with its request in its own wire form.
 //!
-//! Two engines implement it: [`cyclone`] (Cyclone DDS through `cyclors`, the default, always
-//! built) and `rustdds` (ros2-client over rustdds; cargo feature `rustdds`, on by default).
+//! Three engines implement it: [`cyclone`] (Cyclone DDS through `cyclors`, the default, always
+//! built, with DDS Security: [`security`]), `rustdds` (ros2-client over rustdds; cargo feature
+//! `rustdds`, on by default) and `zenoh` (cargo feature `zenoh`, on by default), which speaks
+//! [`rmw_zenoh`]'s wire format (keys, liveliness tokens, QoS strings, attachments, GIDs).
 //! [`EngineKind::built`] lists those of this build, and [`for_each_engine!`] expands one
 //! item per built engine: the conformance suite (`tests/conformance.rs`), the command-line
 //! tests and the tests' DDS domain-id bands all take their list from it.
-//!
-//! [`rmw_zenoh`] is rmw_zenoh's wire format (keys, liveliness tokens, QoS strings, attachments,
-//! GIDs), written out for a Zenoh engine to come; no engine uses it yet.
 
 #![deny(unsafe_op_in_unsafe_fn)]
 
