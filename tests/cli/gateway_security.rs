@@ -16,6 +16,7 @@ use std::process::Command;
 
 use crate::gateway::*;
 use tutti_core::ddf::Role;
+use tutti_engine::security::{Enclave, SecuritySettings, Strategy};
 use tutti_test_support::{namespace, require_tool, run_with_timeout, tutti_command};
 
 /// The enclave the tests give the gateway.
@@ -75,13 +76,19 @@ impl Keystore {
 
     /// The environment a secured ROS 2 process (or gateway) of enclave `enclave` runs with:
     /// rcl's variables, `Enforce`.
-    pub fn env(&self, enclave: &str) -> Vec<(&'static str, String)> {
-        vec![
-            ("ROS_SECURITY_ENABLE", "true".into()),
-            ("ROS_SECURITY_STRATEGY", "Enforce".into()),
-            ("ROS_SECURITY_KEYSTORE", self.path_str().into()),
-            ("ROS_SECURITY_ENCLAVE_OVERRIDE", enclave.into()),
-        ]
+    pub fn env(&self, enclave: &str) -> [(&'static str, String); 4] {
+        SecuritySettings::enforce_env(self.path(), enclave)
+    }
+
+    /// Enclave `enclave`, as the gateway finds and checks it.
+    pub fn enclave_of(&self, enclave: &str) -> Enclave {
+        let s = SecuritySettings {
+            enable: true,
+            keystore: Some(self.path().into()),
+            enclave: Some(enclave.into()),
+            strategy: Strategy::Enforce,
+        };
+        s.enclave().unwrap_or_else(|e| panic!("enclave {enclave}: {e}"))
     }
 
     /// The gateway's flags for enclave `enclave`, `Enforce`.
@@ -235,16 +242,13 @@ fn permissive_runs_unsecured_with_a_warning_and_rustdds_is_refused_under_enforce
 /// configuration, on loopback, with its security plugins.
 pub fn secured_ddsperf(ks: &Keystore, enclave: &str, dom: u16, args: &[&str]) -> Option<Command> {
     let ddsperf = require_tool("ddsperf", "cyclonedds-tools")?;
-    let f = |name: &str| format!("file:{}", ks.file(enclave, name).display());
-    let uri = format!(
-        r#"<CycloneDDS><Domain id="any"><General><Interfaces><NetworkInterface name="lo"/></Interfaces><AllowMulticast>false</AllowMulticast></General><Discovery><Peers><Peer address="127.0.0.1"/></Peers><ParticipantIndex>auto</ParticipantIndex><MaxAutoParticipantIndex>40</MaxAutoParticipantIndex></Discovery><Security><Authentication><Library path="dds_security_auth" initFunction="init_authentication" finalizeFunction="finalize_authentication"/><IdentityCA>{}</IdentityCA><IdentityCertificate>{}</IdentityCertificate><PrivateKey>{}</PrivateKey></Authentication><AccessControl><Library path="dds_security_ac" initFunction="init_access_control" finalizeFunction="finalize_access_control"/><PermissionsCA>{}</PermissionsCA><Governance>{}</Governance><Permissions>{}</Permissions></AccessControl><Cryptographic><Library path="dds_security_crypto" initFunction="init_crypto" finalizeFunction="finalize_crypto"/></Cryptographic></Security></Domain></CycloneDDS>"#,
-        f("identity_ca.cert.pem"),
-        f("cert.pem"),
-        f("key.pem"),
-        f("permissions_ca.cert.pem"),
-        f("governance.p7s"),
-        f("permissions.p7s"),
-    );
+    let uri = concat!(
+        r#"<CycloneDDS><Domain id="any"><General><Interfaces><NetworkInterface name="lo"/></Interfaces>"#,
+        r#"<AllowMulticast>false</AllowMulticast></General><Discovery><Peers><Peer address="127.0.0.1"/></Peers>"#,
+        r#"<ParticipantIndex>auto</ParticipantIndex><MaxAutoParticipantIndex>40</MaxAutoParticipantIndex></Discovery>"#,
+        "SECURITY</Domain></CycloneDDS>"
+    )
+    .replace("SECURITY", &tutti_engine::cyclone::security_xml(&ks.enclave_of(enclave)));
     let mut cmd = Command::new(ddsperf);
     cmd.args(["-i", &dom.to_string()]).args(args).env("CYCLONEDDS_URI", uri).env("LD_LIBRARY_PATH", DEBIAN_PLUGINS);
     Some(cmd)

@@ -146,7 +146,7 @@ impl Ros2 {
             None => c.env("RMW_IMPLEMENTATION", "rmw_cyclonedds_cpp").env_remove("ZENOH_CONFIG_OVERRIDE"),
             Some(z) => c.env("RMW_IMPLEMENTATION", "rmw_zenoh_cpp").env("ZENOH_CONFIG_OVERRIDE", z.connect_override()),
         };
-        for v in SECURITY_VARS {
+        for v in tutti_engine::security::ENV_VARS {
             c.env_remove(v);
         }
         if let Some(ks) = &self.keystore {
@@ -158,7 +158,7 @@ impl Ros2 {
     /// [`Ros2::command`] without DDS Security, in a secured test: a node outside the graph.
     fn unsecured(&self, dom: u16, program: &[&str]) -> Command {
         let mut c = self.command(dom, program);
-        for v in SECURITY_VARS {
+        for v in tutti_engine::security::ENV_VARS {
             c.env_remove(v);
         }
         c
@@ -229,10 +229,6 @@ impl Ros2 {
         self.overlays.push(install);
     }
 }
-
-/// rcl's DDS Security variables: set only where a test secures a process.
-const SECURITY_VARS: [&str; 4] =
-    ["ROS_SECURITY_ENABLE", "ROS_SECURITY_STRATEGY", "ROS_SECURITY_KEYSTORE", "ROS_SECURITY_ENCLAVE_OVERRIDE"];
 
 /// Where the workspace has rmw_zenoh's router.
 const ZENOHD: &str = "install/lib/rmw_zenoh_cpp/rmw_zenohd";

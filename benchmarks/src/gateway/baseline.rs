@@ -55,8 +55,8 @@ impl Bench<'_> {
             // Authentication takes a handshake per pair of participants: more time to match.
             pong.args(["-D", "15"]);
             ping.args(["-Qinitwait:10"]);
-            super::security::secured_ddsperf(&mut pong, LOOPBACK, ks);
-            super::security::secured_ddsperf(&mut ping, LOOPBACK, ks);
+            super::security::secured_ddsperf(&mut pong, LOOPBACK, ks)?;
+            super::security::secured_ddsperf(&mut ping, LOOPBACK, ks)?;
         }
         let out = ping_pong("ddsperf", pong, ping, cpus).context("apt-get install -y cyclonedds-tools")?;
         let mut p50s = Vec::new();

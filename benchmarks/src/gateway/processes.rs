@@ -169,7 +169,7 @@ impl Bench<'_> {
         if let Some(ks) = &self.secured {
             let enclave =
                 if exe == self.exe { super::security::GATEWAY_ENCLAVE } else { super::security::PEER_ENCLAVE };
-            cmd.envs(super::security::env(ks, enclave));
+            cmd.envs(tutti_gateway::engine::security::SecuritySettings::enforce_env(ks, enclave));
         }
         cmd
     }

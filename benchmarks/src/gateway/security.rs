@@ -70,16 +70,6 @@ pub(super) fn make_keystore(dir: &Path) -> anyhow::Result<PathBuf> {
     Ok(ks)
 }
 
-/// rcl's variables for enclave `enclave` of `ks`, under `Enforce`.
-pub(super) fn env(ks: &Path, enclave: &str) -> [(&'static str, String); 4] {
-    [
-        ("ROS_SECURITY_ENABLE", "true".into()),
-        ("ROS_SECURITY_STRATEGY", "Enforce".into()),
-        ("ROS_SECURITY_KEYSTORE", ks.display().to_string()),
-        ("ROS_SECURITY_ENCLAVE_OVERRIDE", enclave.into()),
-    ]
-}
-
 /// Enclave `enclave` of `ks`, checked (for a gateway in this process).
 pub(super) fn enclave(ks: &Path, enclave: &str) -> anyhow::Result<Enclave> {
     let s = SecuritySettings {
@@ -91,35 +81,13 @@ pub(super) fn enclave(ks: &Path, enclave: &str) -> anyhow::Result<Enclave> {
     Ok(s.enclave()?)
 }
 
-/// `CYCLONEDDS_URI`'s `<Security>` element for enclave `enclave` of `ks`.
-pub(super) fn cyclone_security_xml(ks: &Path, enclave: &str) -> String {
-    let f =
-        |name: &str| format!("file:{}", ks.join("enclaves").join(enclave.trim_start_matches('/')).join(name).display());
-    let lib = |kind: &str, init: &str, fini: &str| {
-        format!(r#"<Library path="dds_security_{kind}" initFunction="{init}" finalizeFunction="{fini}"/>"#)
-    };
-    format!(
-        "<Security><Authentication>{}<IdentityCA>{}</IdentityCA><IdentityCertificate>{}</IdentityCertificate>\
-         <PrivateKey>{}</PrivateKey></Authentication><AccessControl>{}<PermissionsCA>{}</PermissionsCA>\
-         <Governance>{}</Governance><Permissions>{}</Permissions></AccessControl><Cryptographic>{}</Cryptographic>\
-         </Security>",
-        lib("auth", "init_authentication", "finalize_authentication"),
-        f("identity_ca.cert.pem"),
-        f("cert.pem"),
-        f("key.pem"),
-        lib("ac", "init_access_control", "finalize_access_control"),
-        f("permissions_ca.cert.pem"),
-        f("governance.p7s"),
-        f("permissions.p7s"),
-        lib("crypto", "init_crypto", "finalize_crypto"),
-    )
-}
-
 /// ddsperf's configuration `base` (a `<CycloneDDS><Domain>` document) secured in
 /// [`DDSPERF_ENCLAVE`] of `ks`, and the loader path of its plugins.
-pub(super) fn secured_ddsperf(cmd: &mut Command, base: &str, ks: &Path) {
-    let uri = base.replace("</Domain>", &format!("{}</Domain>", cyclone_security_xml(ks, DDSPERF_ENCLAVE)));
+pub(super) fn secured_ddsperf(cmd: &mut Command, base: &str, ks: &Path) -> anyhow::Result<()> {
+    let xml = tutti_gateway::engine::cyclone::security_xml(&enclave(ks, DDSPERF_ENCLAVE)?);
+    let uri = base.replace("</Domain>", &format!("{xml}</Domain>"));
     cmd.env("CYCLONEDDS_URI", uri).env("LD_LIBRARY_PATH", DEBIAN_PLUGINS);
+    Ok(())
 }
 
 impl Bench<'_> {

@@ -13,7 +13,6 @@
 //! `Enforce` refuses to start on any of these errors; `Permissive` warns and runs unsecured,
 //! as rcl does.
 
-use std::fmt;
 use std::path::{Path, PathBuf};
 
 use openssl::pkcs7::{Pkcs7, Pkcs7Flags};
@@ -45,15 +44,6 @@ impl std::str::FromStr for Strategy {
     }
 }
 
-impl fmt::Display for Strategy {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        f.write_str(match self {
-            Strategy::Enforce => "Enforce",
-            Strategy::Permissive => "Permissive",
-        })
-    }
-}
-
 /// Whether engine `kind` takes an enclave: Cyclone only. rustdds' own DDS Security does
 /// not complete a handshake with Cyclone's plugins (docs/security.md, "rustdds and DDS
 /// Security"); Zenoh's wire is not DDS.
@@ -69,6 +59,11 @@ fn unsupported_why(engine: &str) -> &'static str {
         "its wire is not DDS; rmw_zenoh secures sessions in the Zenoh configuration"
     }
 }
+
+/// rcl's variables, as [`SecuritySettings::from_env`] reads them: enable, strategy, keystore,
+/// enclave.
+pub const ENV_VARS: [&str; 4] =
+    ["ROS_SECURITY_ENABLE", "ROS_SECURITY_STRATEGY", "ROS_SECURITY_KEYSTORE", "ROS_SECURITY_ENCLAVE_OVERRIDE"];
 
 /// The enclave rcl gives a node that names none.
 pub const DEFAULT_ENCLAVE: &str = "/";
@@ -140,7 +135,8 @@ pub enum SecurityError {
 impl SecuritySettings {
     /// The settings of the environment, as rcl reads them.
     pub fn from_env() -> Result<SecuritySettings, SecurityError> {
-        let enable = match tutti_ros2::env::var("ROS_SECURITY_ENABLE") {
+        let [enable_var, strategy_var, keystore_var, enclave_var] = ENV_VARS;
+        let enable = match tutti_ros2::env::var(enable_var) {
             None => false,
             Some(v) => match v.trim() {
                 "true" => true,
@@ -148,16 +144,28 @@ impl SecuritySettings {
                 _ => return Err(SecurityError::Enable { value: v.escape_debug().to_string() }),
             },
         };
-        let strategy = match tutti_ros2::env::var("ROS_SECURITY_STRATEGY") {
+        let strategy = match tutti_ros2::env::var(strategy_var) {
             None => Strategy::default(),
             Some(v) => v.parse()?,
         };
         Ok(SecuritySettings {
             enable,
-            keystore: tutti_ros2::env::var("ROS_SECURITY_KEYSTORE").map(PathBuf::from),
-            enclave: tutti_ros2::env::var("ROS_SECURITY_ENCLAVE_OVERRIDE"),
+            keystore: tutti_ros2::env::var(keystore_var).map(PathBuf::from),
+            enclave: tutti_ros2::env::var(enclave_var),
             strategy,
         })
+    }
+
+    /// The environment that gives a process (an rclpy node, a gateway) enclave `enclave` of
+    /// `keystore` under `Enforce`: what [`SecuritySettings::from_env`] reads back.
+    pub fn enforce_env(keystore: &Path, enclave: &str) -> [(&'static str, String); 4] {
+        let [enable, strategy, ks, name] = ENV_VARS;
+        [
+            (enable, "true".into()),
+            (strategy, "Enforce".into()),
+            (ks, keystore.display().to_string()),
+            (name, enclave.into()),
+        ]
     }
 
     /// The enclave engine `kind`'s participant runs in: None when security is off, or when

@@ -122,7 +122,7 @@ pub(super) fn create_participant(
     }
     if let Some(e) = enclave {
         for (name, value) in security_properties(e) {
-            let (name, value) = (c_string("a DDS Security property", name)?, c_string("a keystore path", &value)?);
+            let (name, value) = (c_string("a DDS Security property", &name)?, c_string("a keystore path", &value)?);
             // SAFETY: as above; both strings are NUL-terminated.
             unsafe { dds_qset_prop(qos.0, name.as_ptr(), value.as_ptr()) };
         }
@@ -131,30 +131,60 @@ pub(super) fn create_participant(
     Ok(unsafe { dds_create_participant(id, qos.0, ptr::null()) })
 }
 
-/// The DDS Security properties rmw_cyclonedds gives a participant in `e`.
-pub(super) fn security_properties(e: &Enclave) -> Vec<(&'static str, String)> {
+/// Cyclone's three built-in DDS Security plugins: the prefix of their properties, their
+/// element in Cyclone's XML configuration, their library and its init and finalize functions.
+const PLUGINS: [(&str, &str, &str, &str, &str); 3] = [
+    ("dds.sec.auth", "Authentication", "dds_security_auth", "init_authentication", "finalize_authentication"),
+    ("dds.sec.access", "AccessControl", "dds_security_ac", "init_access_control", "finalize_access_control"),
+    ("dds.sec.crypto", "Cryptographic", "dds_security_crypto", "init_crypto", "finalize_crypto"),
+];
+
+/// The enclave's six files as `file:` URIs, each with its property and its element in
+/// Cyclone's XML configuration (both under its plugin's, [`PLUGINS`]).
+fn enclave_files(e: &Enclave) -> [(&'static str, &'static str, String); 6] {
     let file = |p: &std::path::Path| format!("file:{}", std::path::absolute(p).unwrap_or_else(|_| p.into()).display());
-    let mut props = vec![
-        ("dds.sec.auth.identity_ca", file(&e.identity_ca)),
-        ("dds.sec.auth.identity_certificate", file(&e.certificate)),
-        ("dds.sec.auth.private_key", file(&e.private_key)),
-        ("dds.sec.access.permissions_ca", file(&e.permissions_ca)),
-        ("dds.sec.access.governance", file(&e.governance)),
-        ("dds.sec.access.permissions", file(&e.permissions)),
-        ("dds.sec.auth.library.path", "dds_security_auth".into()),
-        ("dds.sec.auth.library.init", "init_authentication".into()),
-        ("dds.sec.auth.library.finalize", "finalize_authentication".into()),
-        ("dds.sec.crypto.library.path", "dds_security_crypto".into()),
-        ("dds.sec.crypto.library.init", "init_crypto".into()),
-        ("dds.sec.crypto.library.finalize", "finalize_crypto".into()),
-        ("dds.sec.access.library.path", "dds_security_ac".into()),
-        ("dds.sec.access.library.init", "init_access_control".into()),
-        ("dds.sec.access.library.finalize", "finalize_access_control".into()),
-    ];
+    [
+        ("dds.sec.auth.identity_ca", "IdentityCA", file(&e.identity_ca)),
+        ("dds.sec.auth.identity_certificate", "IdentityCertificate", file(&e.certificate)),
+        ("dds.sec.auth.private_key", "PrivateKey", file(&e.private_key)),
+        ("dds.sec.access.permissions_ca", "PermissionsCA", file(&e.permissions_ca)),
+        ("dds.sec.access.governance", "Governance", file(&e.governance)),
+        ("dds.sec.access.permissions", "Permissions", file(&e.permissions)),
+    ]
+}
+
+/// The DDS Security properties rmw_cyclonedds gives a participant in `e`.
+pub(super) fn security_properties(e: &Enclave) -> Vec<(String, String)> {
+    let mut props: Vec<(String, String)> =
+        enclave_files(e).into_iter().map(|(prop, _, uri)| (prop.to_string(), uri)).collect();
+    for (prefix, _, library, init, finalize) in PLUGINS {
+        props.push((format!("{prefix}.library.path"), library.into()));
+        props.push((format!("{prefix}.library.init"), init.into()));
+        props.push((format!("{prefix}.library.finalize"), finalize.into()));
+    }
     if let Some(crl) = &e.crl {
-        props.push(("org.eclipse.cyclonedds.sec.auth.crl", file(crl)));
+        let crl = std::path::absolute(crl).unwrap_or_else(|_| crl.clone());
+        props.push(("org.eclipse.cyclonedds.sec.auth.crl".into(), format!("file:{}", crl.display())));
     }
     props
+}
+
+/// The same as the `<Security>` element of a Cyclone XML configuration (`CYCLONEDDS_URI`),
+/// for another Cyclone program in enclave `e` (`ddsperf`, in the tests and the benchmark);
+/// without the enclave's CRL.
+pub fn security_xml(e: &Enclave) -> String {
+    let files = enclave_files(e);
+    let mut xml = String::from("<Security>");
+    for (prefix, element, library, init, finalize) in PLUGINS {
+        xml +=
+            &format!(r#"<{element}><Library path="{library}" initFunction="{init}" finalizeFunction="{finalize}"/>"#);
+        let ours = format!("{prefix}.");
+        for (_, name, uri) in files.iter().filter(|(prop, ..)| prop.starts_with(&ours)) {
+            xml += &format!("<{name}>{}</{name}>", xml_attr(uri));
+        }
+        xml += &format!("</{element}>");
+    }
+    xml + "</Security>"
 }
 
 /// Creates domain `id` with configuration `conf`: the handle or Cyclone's return code.

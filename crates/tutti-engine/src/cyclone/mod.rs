@@ -47,6 +47,7 @@ use tutti_core::cdr::HEADER_LE;
 use tutti_core::mapping::{Durability, History, Ownership, Qos, Reliability};
 use tutti_ros2::{Struct, Value};
 
+pub use self::config::security_xml;
 use self::discovery::Discovery;
 use self::native::{blob_topic, delete_entity, entity_error, entity_guid, lock, retcode, write_pieces, NativeQos};
 use self::reader::{Deliver, ReaderCtx};
