@@ -25,6 +25,19 @@
 typedef int RTAPIReturn_t;
 
 /**
+ * Hands the component's state over: sets `*buffer` to bytes it owns (valid until the call
+ * after this one into the component) and `*sizeBytes` to their length; returns 0, or
+ * anything else when it cannot.
+ */
+typedef int (*RTSaveStateCallback_t)(void *context, const void **buffer, unsigned int *sizeBytes);
+
+/**
+ * Takes back a state that the save callback handed over; returns 0, or anything else when
+ * it cannot.
+ */
+typedef int (*RTRestoreStateCallback_t)(void *context, const void *buffer, unsigned int sizeBytes);
+
+/**
  * The call succeeded.
  */
 #define RTAPI_SUCCESS 0
@@ -373,6 +386,22 @@ RTAPIReturn_t RTSetPeriod(double seconds);
  * `simTime` must be NULL or writable.
  */
 RTAPIReturn_t RTGetSimulationTime(double *simTime);
+
+/**
+ * Checkpoints (tutti's extension, docs/rtapi.md "Checkpoints"): the current connection
+ * keeps a state that `save` hands over and `restore` takes back as bytes, so that `tutti ctl
+ * save` and `restore`, `tutti run --restore` and a ROS 2 `ResetSimulation` with SCOPE_STATE
+ * include it. Call it before RTConnect (the connection then says so from the start, and the
+ * run's checkpoint of step 0 has it) or after. The callbacks are called at a step boundary,
+ * from within RTSubscribeLock (or RTPublishLock for a connection that only writes) while it
+ * waits for the next step, in the calling thread, with `context`; they must not call the
+ * RTAPI. `save` sets `*buffer` to bytes it owns, valid until the next call into the
+ * component, and `*sizeBytes` to their length; both return 0 on success.
+ * RTAPI_ERROR_NULL_POINTER if either is NULL.
+ */
+RTAPIReturn_t RTSetStateCallbacks(RTSaveStateCallback_t save,
+                                  RTRestoreStateCallback_t restore,
+                                  void *context);
 
 /**
  * The static text of a return code (a text saying so for an unknown code). Never NULL.

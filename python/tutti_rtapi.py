@@ -137,6 +137,10 @@ _SIGNATURES = {
     "RTSetPeriod": [ctypes.c_double],
     "RTGetSimulationTime": [ctypes.POINTER(ctypes.c_double)],
 }
+# RTSetStateCallbacks: a connection's state, handed over and taken back as bytes (docs/rtapi.md).
+_SAVE_CB = ctypes.CFUNCTYPE(ctypes.c_int, ctypes.c_void_p, ctypes.POINTER(ctypes.c_void_p), _c_uint_p)
+_RESTORE_CB = ctypes.CFUNCTYPE(ctypes.c_int, ctypes.c_void_p, ctypes.c_void_p, ctypes.c_uint)
+_SIGNATURES["RTSetStateCallbacks"] = [_SAVE_CB, _RESTORE_CB, ctypes.c_void_p]
 for _name, _args in _SIGNATURES.items():
     _fn = getattr(_lib, _name)
     _fn.argtypes = _args
@@ -210,7 +214,7 @@ def _ddf_types(path, domain):
 class Connection:
     """One RTAPI connection (its own connection key)."""
 
-    def __init__(self, domain, timeout=5, ddf=None, types=None, skip_wait_to_go=False):
+    def __init__(self, domain, timeout=5, ddf=None, types=None, skip_wait_to_go=False, state=None):
         self.domain = domain
         key = ctypes.c_uint()
         _call("RTNewConnectionKey", ctypes.byref(key))
@@ -220,6 +224,8 @@ class Connection:
         self._info = {}
         self._select()
         _call("RTSetSkipWaitToGoAtConnection", bool(skip_wait_to_go))
+        if state is not None:
+            self._set_state(*state)
         if ddf:
             _call("RTConnectWithFile", _b(os.fspath(ddf)), _b(domain), int(timeout))
         else:
@@ -231,6 +237,44 @@ class Connection:
 
     def _select(self):
         _call("RTSetConnectionKey", self.key)
+
+    def _set_state(self, save, restore):
+        """RTSetStateCallbacks: `save()` returns the component's state as bytes, `restore(b)`
+        takes such bytes back; both are called at a step boundary from within reading() (or
+        writing()) while it waits for the next step. An exception fails the checkpoint."""
+        holder = {}
+
+        def on_save(_ctx, buffer, size):
+            try:
+                data = bytes(save())
+            except Exception:  # the checkpoint names the component; its own words go to stderr
+                import traceback
+                traceback.print_exc()
+                return 1
+            holder["last"] = ctypes.create_string_buffer(data, len(data) or 1)
+            buffer[0] = ctypes.cast(holder["last"], ctypes.c_void_p)
+            size[0] = len(data)
+            return 0
+
+        def on_restore(_ctx, buffer, size):
+            try:
+                restore(ctypes.string_at(buffer, size) if size else b"")
+            except Exception:
+                import traceback
+                traceback.print_exc()
+                return 1
+            return 0
+
+        # Kept alive as long as the connection: the library calls them later.
+        self._state_callbacks = (_SAVE_CB(on_save), _RESTORE_CB(on_restore), holder)
+        self._select()
+        _call("RTSetStateCallbacks", self._state_callbacks[0], self._state_callbacks[1], None)
+
+    def set_state_callbacks(self, save, restore):
+        """This connection keeps a state for checkpoints (docs/rtapi.md, "Checkpoints"):
+        `save()` returns bytes, `restore(data)` takes them back. Prefer connect(..., state=(save,
+        restore)), which says so from the start (the run's checkpoint of step 0 then has it)."""
+        self._set_state(save, restore)
 
     def _item(self, item):
         """(struct format of one element, element count, total size) of an item."""
@@ -370,6 +414,8 @@ class Connection:
         self.disconnect()
 
 
-def connect(domain, timeout=5, ddf=None, types=None, skip_wait_to_go=False):
-    """Connects to `domain` (checking it against `ddf` when given); returns a Connection."""
-    return Connection(domain, timeout=timeout, ddf=ddf, types=types, skip_wait_to_go=skip_wait_to_go)
+def connect(domain, timeout=5, ddf=None, types=None, skip_wait_to_go=False, state=None):
+    """Connects to `domain` (checking it against `ddf` when given); returns a Connection.
+    `state=(save, restore)`: the connection keeps a state for checkpoints (save() -> bytes,
+    restore(bytes)), said from the start."""
+    return Connection(domain, timeout=timeout, ddf=ddf, types=types, skip_wait_to_go=skip_wait_to_go, state=state)

@@ -1,4 +1,5 @@
-//! `tutti ctl state|pause|resume|step N|reset|stop [--json]`, and `tutti ctl
+//! `tutti ctl state|pause|resume|step N|reset [state]|stop [--json]`, `tutti ctl save|restore
+//! FILE` (checkpoints), and `tutti ctl
 //! restart|stop|start COMPONENT`, `tutti ctl signal COMPONENT SIGNAL`: acts on the run of the namespace through its control
 //! plane (`tutti_host::control`, docs/run.md).
 
@@ -14,16 +15,20 @@ use super::{CliResult, Failure};
 /// resume or stop it, or restart, stop and start the components of a `tutti run`.
 #[derive(Debug, clap::Args)]
 #[command(
-    after_help = "Examples:\n  tutti ctl state\n  tutti ctl pause\n  tutti ctl step 7 --json\n  tutti ctl reset\n  tutti ctl resume\n  tutti ctl restart ctrl\n  tutti ctl signal uav3 USR1\n  tutti ctl stop\n  TUTTI_NAMESPACE=lab2 tutti ctl state --json\n\nWhile paused, no step is made and no participant times out, however long the pause; `step N`\nmakes exactly N steps and pauses again. `stop` with no component ends the run and waits\nuntil it is gone. Only the user who started the run may control it. See docs/run.md."
+    after_help = "Examples:\n  tutti ctl state\n  tutti ctl pause\n  tutti ctl step 7 --json\n  tutti ctl reset\n  tutti ctl save warm.tutti-checkpoint\n  tutti ctl restore warm.tutti-checkpoint\n  tutti ctl save run.tutti-checkpoint --skip-stateless\n  tutti ctl reset state\n  tutti ctl resume\n  tutti ctl restart ctrl\n  tutti ctl signal uav3 USR1\n  tutti ctl stop\n  TUTTI_NAMESPACE=lab2 tutti ctl state --json\n\nWhile paused, no step is made and no participant times out, however long the pause; `step N`\nmakes exactly N steps and pauses again. `save FILE` writes a checkpoint of the run (values and every\ncomponent's state) at the next step boundary, `restore FILE` puts one back, `reset state` goes back to\nthe run's step 0, states included (docs/run.md, Checkpoints). `stop` with no component ends the run and waits\nuntil it is gone. Only the user who started the run may control it. See docs/run.md."
 )]
 pub struct Args {
-    /// state, pause, resume, step N, reset, stop, stop/restart/start COMPONENT, or signal
-    /// COMPONENT SIGNAL (USR1, USR2, TERM, INT, HUP, …)
+    /// state, pause, resume, step N, reset [state], save FILE, restore FILE, stop,
+    /// stop/restart/start COMPONENT, or signal COMPONENT SIGNAL (USR1, USR2, TERM, INT, HUP, …)
     #[arg(value_name = "COMMAND", required = true, num_args = 1..=3)]
     command: Vec<String>,
     /// Print the run's state after the command as one JSON object.
     #[arg(long)]
     json: bool,
+    /// save: leave out the components that keep no state (the checkpoint names them)
+    /// instead of failing.
+    #[arg(long)]
+    skip_stateless: bool,
     /// Namespace of the run (default: TUTTI_NAMESPACE, else tutti).
     #[arg(long)]
     namespace: Option<String>,
@@ -32,8 +37,8 @@ pub struct Args {
     timeout: Duration,
 }
 
-/// The request that `words` ask for.
-fn request(words: &[String]) -> anyhow::Result<Request> {
+/// The request that `words` ask for (`skip_stateless`: `save`'s flag).
+fn request(words: &[String], skip_stateless: bool) -> anyhow::Result<Request> {
     let arg = words.get(1).map(String::as_str);
     if words[0] == "signal" {
         return match (arg, words.get(2)) {
@@ -59,7 +64,21 @@ fn request(words: &[String]) -> anyhow::Result<Request> {
         "state" => alone(Request::State),
         "pause" => alone(Request::Pause),
         "resume" => alone(Request::Resume),
-        "reset" => alone(Request::Reset),
+        "reset" => match arg {
+            None => Ok(Request::Reset),
+            Some("state") => Ok(Request::ResetState),
+            Some(a) => Err(anyhow::anyhow!("reset takes no argument or `state` (got '{a}')")),
+        },
+        "save" | "restore" => {
+            let Some(file) = arg else { return Err(anyhow::anyhow!("{} needs a FILE", words[0])) };
+            // The run's process reads and writes it: its working directory may be another.
+            let path = std::path::absolute(file).map_err(|e| anyhow::anyhow!("{file}: {e}"))?;
+            let path = path.display().to_string();
+            Ok(match words[0].as_str() {
+                "save" => Request::Save { path, skip_stateless },
+                _ => Request::Restore { path },
+            })
+        }
         "step" => match arg.map(str::parse::<u64>) {
             Some(Ok(n)) if n > 0 => Ok(Request::Step { n }),
             Some(_) => Err(anyhow::anyhow!("step N: '{}' is not a number of steps above 0", arg.unwrap_or_default())),
@@ -70,15 +89,18 @@ fn request(words: &[String]) -> anyhow::Result<Request> {
         "restart" => component(ComponentAction::Restart),
         "start" => component(ComponentAction::Start),
         other => Err(anyhow::anyhow!(
-            "unknown command '{other}': expected state, pause, resume, step N, reset, stop [COMPONENT], restart COMPONENT, start COMPONENT or signal COMPONENT SIGNAL"
+            "unknown command '{other}': expected state, pause, resume, step N, reset [state], save FILE, restore FILE, stop [COMPONENT], restart COMPONENT, start COMPONENT or signal COMPONENT SIGNAL"
         )),
     }
 }
 
 pub fn run(args: Args) -> CliResult {
-    let request = request(&args.command).map_err(|e| Failure::invalid(e.context("tutti ctl")))?;
+    let request = request(&args.command, args.skip_stateless).map_err(|e| Failure::invalid(e.context("tutti ctl")))?;
     let ns = args.namespace.clone().unwrap_or_else(namespace_from_env);
+    let checkpoint = matches!(request, Request::Save { .. } | Request::Restore { .. } | Request::ResetState);
     let failed = |e: ControlError| match e {
+        // A checkpoint refused (another DDF's, damaged, a component without a state): exit 2.
+        ControlError::Refused(_) if checkpoint => Failure::invalid(anyhow::Error::new(e)),
         ControlError::Refused(_) | ControlError::NoRun { .. } => Failure::from(anyhow::Error::new(e)),
         e => Failure::from(anyhow::Error::new(e).context(format!("tutti ctl {}", args.command.join(" ")))),
     };
@@ -135,11 +157,11 @@ mod tests {
 
     #[test]
     fn commands_parse_and_mistakes_say_what_is_expected() {
-        let err = |s: &str| request(&words(s)).unwrap_err().to_string();
-        assert_eq!(request(&words("step 7")).unwrap(), Request::Step { n: 7 });
-        assert_eq!(request(&words("stop")).unwrap(), Request::Stop);
+        let err = |s: &str| request(&words(s), false).unwrap_err().to_string();
+        assert_eq!(request(&words("step 7"), false).unwrap(), Request::Step { n: 7 });
+        assert_eq!(request(&words("stop"), false).unwrap(), Request::Stop);
         assert_eq!(
-            request(&words("stop ctrl")).unwrap(),
+            request(&words("stop ctrl"), false).unwrap(),
             Request::Component { action: ComponentAction::Stop, name: "ctrl".into() }
         );
         assert!(err("step 0").contains("above 0"));
@@ -148,7 +170,7 @@ mod tests {
         assert!(err("pause now").contains("takes no argument"));
         assert!(err("jump").contains("unknown command 'jump'"));
         assert_eq!(
-            request(&words("signal uav3 USR1")).unwrap(),
+            request(&words("signal uav3 USR1"), false).unwrap(),
             Request::Signal { name: "uav3".into(), signal: "USR1".into() }
         );
         assert!(err("signal uav3").contains("needs a COMPONENT and a SIGNAL"));

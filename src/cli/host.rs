@@ -105,6 +105,7 @@ impl Args {
             connections: self.connections.clone(),
             ordering: self.ordering,
             ddf_name: self.file.display().to_string(),
+            ..Default::default()
         }
     }
 }

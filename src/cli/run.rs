@@ -17,7 +17,7 @@ use super::{CliResult, Failure};
 /// Run a co-simulation described by a launch file (or an SSP archive): the framework, the components, the gateway.
 #[derive(Debug, clap::Args)]
 #[command(
-    after_help = "Examples:\n  tutti run cosim.json5\n  tutti run system.ssp --record run.csv --step 10ms\n  tutti run cosim.json5 --logs /tmp/cosim-logs --check\n  sudo tutti run cosim.json5 --realtime --cpu 1 --priority 80\n\nThe launch file's keys, restart policies and logs: docs/run.md. Exit status: 0 when every component \
+    after_help = "Examples:\n  tutti run cosim.json5\n  tutti run system.ssp --record run.csv --step 10ms\n  tutti run cosim.json5 --logs /tmp/cosim-logs --check\n  sudo tutti run cosim.json5 --realtime --cpu 1 --priority 80\n  tutti run cosim.json5 --restore checkpoints/step-000000500.tutti-checkpoint\n\nThe launch file's keys, restart policies and logs: docs/run.md. Exit status: 0 when every component \
                   ended well (exit status 0, or stopped by the run), 1 otherwise, 2 for a launch file that is refused."
 )]
 pub struct Args {
@@ -43,6 +43,11 @@ pub struct Args {
     /// Print no framework progress lines (the components' output and the run's events stay).
     #[arg(short, long)]
     quiet: bool,
+    /// Start from this checkpoint (`tutti ctl save`, or a launch file's `checkpoint:`): put
+    /// back once the components have connected, before the first step. One of another DDF,
+    /// or a damaged one, is refused before anything starts (exit 2).
+    #[arg(long, value_name = "CHECKPOINT")]
+    restore: Option<PathBuf>,
     #[command(flatten)]
     rt: super::RealtimeArgs,
 }
@@ -56,6 +61,14 @@ pub fn run(args: Args) -> CliResult {
         (p.launch.clone(), Some(p))
     } else {
         (tutti_launch::load(&args.file).map_err(Failure::invalid)?, None)
+    };
+    let restore = match &args.restore {
+        Some(path) => {
+            let c = tutti_host::checkpoint::Checkpoint::read(path).map_err(Failure::invalid)?;
+            c.check_model(&launch.model, &path.display().to_string()).map_err(Failure::invalid)?;
+            Some(Box::new(c))
+        }
+        None => None,
     };
     if args.check {
         eprintln!(
@@ -79,6 +92,7 @@ pub fn run(args: Args) -> CliResult {
         namespace: None,
         grace: args.grace,
         realtime: args.rt.request(),
+        restore,
     };
     let quiet = args.quiet;
     let print = Arc::new(move |e: Event| match &e {

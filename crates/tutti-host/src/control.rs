@@ -84,6 +84,20 @@ pub enum Request {
     Step { n: u64 },
     /// Step count and simulated time back to zero.
     Reset,
+    /// Back to the run's first step boundary, every value and component's state included: the
+    /// checkpoint taken at step 0 (docs/run.md, "Checkpoints").
+    ResetState,
+    /// Write a checkpoint of the run to `path` (a path the run's process can reach; `tutti
+    /// ctl` sends it absolute) at the next step boundary; with `skip_stateless`, components
+    /// that keep no state are left out (and named in the file) instead of failing the save.
+    Save {
+        path: String,
+        #[serde(default)]
+        skip_stateless: bool,
+    },
+    /// Put back the checkpoint at `path` at the next step boundary; the run goes on (or stays
+    /// paused) from there.
+    Restore { path: String },
     /// End the run (a launched run tears its components down).
     Stop,
     /// Restart, stop or start one component of a launched run.
@@ -141,6 +155,9 @@ pub struct RunStatus {
     /// The components of a launched run (none for `tutti host`).
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub components: Vec<ComponentStatus>,
+    /// The run holds a checkpoint of its step 0, so `reset_state` can go back to it.
+    #[serde(default)]
+    pub state_reset: bool,
 }
 
 /// An answer on the socket: `{"ok": true, "status": {…}}` or `{"ok": false, "error": "…"}`.
@@ -207,6 +224,8 @@ pub(crate) struct Shared {
     step: AtomicU64,
     sim_bits: AtomicU64,
     namespace: String,
+    /// Whether the run holds its step-0 checkpoint.
+    pub(crate) state_reset: AtomicBool,
 }
 
 impl Shared {
@@ -228,6 +247,7 @@ impl Shared {
             namespace: self.namespace.clone(),
             pid: std::process::id(),
             components: components.map(|c| c.status()).unwrap_or_default(),
+            state_reset: self.state_reset.load(Ordering::Acquire),
         }
     }
 }
@@ -276,6 +296,7 @@ impl ControlPort {
             step: AtomicU64::new(0),
             sim_bits: AtomicU64::new(0),
             namespace: ns.to_string(),
+            state_reset: AtomicBool::new(false),
         });
         let (tx, commands) = mpsc::channel();
         let closing = Arc::new(AtomicBool::new(false));
@@ -480,6 +501,12 @@ impl ControlClient {
     }
     pub fn step(&mut self, n: u64) -> Result<RunStatus, ControlError> {
         self.request(&Request::Step { n })
+    }
+    pub fn save(&mut self, path: &std::path::Path, skip_stateless: bool) -> Result<RunStatus, ControlError> {
+        self.request(&Request::Save { path: path.display().to_string(), skip_stateless })
+    }
+    pub fn restore(&mut self, path: &std::path::Path) -> Result<RunStatus, ControlError> {
+        self.request(&Request::Restore { path: path.display().to_string() })
     }
     pub fn reset(&mut self) -> Result<RunStatus, ControlError> {
         self.request(&Request::Reset)

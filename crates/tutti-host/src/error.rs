@@ -40,6 +40,9 @@ pub enum HostError {
     /// The control plane could not be served.
     #[error(transparent)]
     Control(#[from] crate::control::ControlError),
+    /// A checkpoint could not be put back at the start (`tutti run --restore`).
+    #[error("restoring the checkpoint: {0}")]
+    Checkpoint(#[source] crate::checkpoint::CheckpointError),
     /// A step sink (a recording) failed.
     #[error("{what}: {source}")]
     Sink {
@@ -60,6 +63,6 @@ impl HostError {
                 | HostError::Set { .. }
                 | HostError::WaitForDomain { .. }
                 | HostError::Connect(_)
-        )
+        ) || matches!(self, HostError::Checkpoint(e) if e.is_invalid())
     }
 }

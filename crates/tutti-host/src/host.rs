@@ -6,8 +6,11 @@ use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 use tutti_core::ddf::{Domain, Model};
-use tutti_core::shm::{DomainHost, Framework, FrameworkOptions, StepReport, WaitMode};
+use tutti_core::shm::{
+    DomainHost, Framework, FrameworkOptions, StateAnswer, StateConnection, StateRequest, StepReport, WaitMode,
+};
 
+use crate::checkpoint::{Checkpoint, CheckpointError, ComponentState, DomainState, Skipped};
 use crate::connect::{ConnectionSpec, Connections, StepOrder};
 use crate::control::{Components, ControlPort, Refusal, Reply, Request, RunState};
 use crate::steps::{complete_all, publish_all, wait_for_writers};
@@ -52,6 +55,25 @@ pub struct HostOptions {
     pub ordering: StepOrder,
     /// The DDF's name, for messages.
     pub ddf_name: String,
+    /// Components (by connection name) that keep no state: a checkpoint leaves them out and
+    /// says so (a launch file's `stateless: true`).
+    pub stateless: Vec<String>,
+    /// Save a checkpoint every so many steps (a launch file's `checkpoint:`).
+    pub checkpoint: Option<Periodic>,
+    /// Start from this checkpoint: put back once the components have connected, before the
+    /// first step (`tutti run --restore`).
+    pub restore: Option<Box<Checkpoint>>,
+}
+
+/// Checkpoints saved as the run goes (docs/run.md, "Checkpoints").
+#[derive(Debug, Clone, PartialEq)]
+pub struct Periodic {
+    /// Every this many steps (> 0).
+    pub every: u64,
+    /// Into this directory, as `step-NNNNNNNNN.tutti-checkpoint`.
+    pub dir: std::path::PathBuf,
+    /// Keeping the newest this many (0: all).
+    pub keep: usize,
 }
 
 impl Default for HostOptions {
@@ -72,6 +94,9 @@ impl Default for HostOptions {
             connections: Vec::new(),
             ordering: StepOrder::Delayed,
             ddf_name: "the DDF".into(),
+            stateless: Vec::new(),
+            checkpoint: None,
+            restore: None,
         }
     }
 }
@@ -159,6 +184,13 @@ pub enum Report {
     StepTimedOut { step: u64, domain: String, timeout: Duration, waiting_for: Vec<String> },
     /// Once a second.
     Progress(Progress),
+    /// A periodic checkpoint was written.
+    Saved { path: std::path::PathBuf, step: u64 },
+    /// A checkpoint could not be taken or written (the run goes on).
+    CheckpointFailed(String),
+    /// No checkpoint of step 0 could be taken: `ResetSimulation` with `SCOPE_STATE` is not
+    /// offered (the reason).
+    NoStateReset(String),
 }
 
 impl fmt::Display for Report {
@@ -183,6 +215,9 @@ impl fmt::Display for Report {
             Report::StepTimedOut { step, domain, timeout, waiting_for } => {
                 write!(f, "step {step} of {domain} timed out after {timeout:?} waiting for {}", waiting_for.join(", "))
             }
+            Report::Saved { path, step } => write!(f, "checkpoint of step {step}: {}", path.display()),
+            Report::CheckpointFailed(why) => write!(f, "checkpoint: {why}"),
+            Report::NoStateReset(why) => write!(f, "no state reset for this run: {why}"),
             Report::Progress(p) => write!(
                 f,
                 "t={:.1}s step {} participants {} overruns {} late max {:?} step timeouts {}",
@@ -241,6 +276,8 @@ pub struct Host {
     connections: Connections,
     /// The domains a [`StepOrder::Feedthrough`] step re-evaluates, in order (else none).
     reevaluate: Vec<usize>,
+    /// The checkpoint of step 0 (`ResetState`), once the run started.
+    initial: Option<Checkpoint>,
 }
 
 impl fmt::Debug for Host {
@@ -305,6 +342,7 @@ impl Host {
             paused_for: Duration::ZERO,
             connections,
             reevaluate,
+            initial: None,
         })
     }
 
@@ -386,9 +424,251 @@ impl Host {
             self.connections.apply(|i| domains.get(i).map(|d| d.subscribe()), &mut self.publish);
         }
         self.ticker = new_ticker(&self.opts);
+        self.take_initial(on_report);
+        if let Some(c) = self.opts.restore.take() {
+            self.restore(&c).map_err(HostError::Checkpoint)?;
+        }
         self.run_start = Instant::now();
-        self.publish_state(RunState::Playing, 0.0);
+        self.publish_state(RunState::Playing, self.last_sim());
         Ok(true)
+    }
+
+    /// The checkpoint of step 0, which `ResetState` goes back to; when it cannot be taken
+    /// (a component keeps no state), the run goes on without one and says why.
+    fn take_initial(&mut self, on_report: &mut dyn FnMut(Report)) {
+        match self.checkpoint(false) {
+            Ok(c) => {
+                self.initial = Some(c);
+                if let Some(ctl) = &self.control {
+                    ctl.shared.state_reset.store(true, Ordering::Release);
+                }
+            }
+            Err(e) => on_report(Report::NoStateReset(e.to_string())),
+        }
+    }
+
+    /// A checkpoint of the run as it stands, at a step boundary (between two steps, or
+    /// before the first): the framework's time, every domain's sets and each component's
+    /// state. Fails naming every component that keeps no state, unless `skip_stateless`
+    /// (they are then named in the checkpoint); components declared stateless
+    /// ([`HostOptions::stateless`]) are always left out that way.
+    pub fn checkpoint(&mut self, skip_stateless: bool) -> Result<Checkpoint, CheckpointError> {
+        let conns: Vec<Vec<StateConnection>> = self.fw.domains.iter().map(|d| d.state_connections()).collect();
+        let mut skipped = Vec::new();
+        let mut missing = Vec::new();
+        let mut asked: Vec<Vec<(&StateConnection, &[u8])>> = Vec::with_capacity(conns.len());
+        for (d, list) in self.fw.domains.iter().zip(&conns) {
+            let domain = &d.info().name;
+            let mut mine = Vec::new();
+            for (i, c) in list.iter().enumerate() {
+                if list[..i].iter().any(|o| o.name == c.name) {
+                    return Err(CheckpointError::SameName { domain: domain.clone(), name: c.name.clone() });
+                }
+                let skip = |why: &str| Skipped { domain: domain.clone(), name: c.name.clone(), why: why.into() };
+                if self.opts.stateless.contains(&c.name) {
+                    skipped.push(skip("stateless"));
+                } else if c.keeps_state {
+                    mine.push((c, &[][..]));
+                } else if skip_stateless {
+                    skipped.push(skip("keeps no state"));
+                } else {
+                    missing.push((domain.clone(), c.name.clone()));
+                }
+            }
+            asked.push(mine);
+        }
+        if !missing.is_empty() {
+            return Err(CheckpointError::KeepsNoState(missing));
+        }
+        let answers = self.exchange(StateRequest::Save, &asked)?;
+        let mut components = Vec::new();
+        for ((d, mine), answers) in self.fw.domains.iter().zip(&asked).zip(answers) {
+            for ((c, _), answer) in mine.iter().zip(answers) {
+                let failed = |why: String| CheckpointError::Component {
+                    domain: d.info().name.clone(),
+                    name: c.name.clone(),
+                    what: "save",
+                    why,
+                };
+                match answer {
+                    StateAnswer::Saved(state) => {
+                        components.push(ComponentState { domain: d.info().name.clone(), name: c.name.clone(), state })
+                    }
+                    StateAnswer::Failed(why) => return Err(failed(why)),
+                    _ => return Err(failed(format!("no answer within {:?}", self.opts.timeout))),
+                }
+            }
+        }
+        let domains = self
+            .fw
+            .domains
+            .iter()
+            .zip(&self.publish)
+            .zip(&conns)
+            .map(|((d, publish), list)| DomainState {
+                name: d.info().name.clone(),
+                layout_hash: d.info().layout_hash,
+                publish: publish.clone(),
+                subscribe: d.subscribe().to_vec(),
+                last_publish: d.last_publish().map(<[u8]>::to_vec),
+                seeded: d.seeded(),
+                due: list.iter().filter(|_| d.info().flags.event).map(|c| (c.name.clone(), c.due_index)).collect(),
+            })
+            .collect();
+        Ok(Checkpoint {
+            ddf: self.opts.ddf_name.clone(),
+            step_seconds: self.opts.step.as_secs_f64(),
+            next_index: self.ticker.next_k(),
+            steps: self.steps,
+            domains,
+            components,
+            skipped,
+        })
+    }
+
+    /// Asks the components for their states and collects the answers (the step timeout).
+    fn exchange(
+        &self,
+        kind: StateRequest,
+        asked: &[Vec<(&StateConnection, &[u8])>],
+    ) -> Result<Vec<Vec<StateAnswer>>, CheckpointError> {
+        self.fw
+            .exchange_states(kind, asked, self.opts.timeout)
+            .map_err(|source| CheckpointError::Domain { domain: self.opts.ddf_name.clone(), source })
+    }
+
+    /// Puts checkpoint `c` back at a step boundary: every component that kept a state takes
+    /// it back, every domain gets its sets back, and the run goes on from the checkpoint's
+    /// step. Checked first, as a whole: a checkpoint of another DDF, or one whose components
+    /// are not all in this run, is refused before anything changes.
+    pub fn restore(&mut self, c: &Checkpoint) -> Result<(), CheckpointError> {
+        let what = format!("the checkpoint of {}", c.ddf);
+        let layouts = self.fw.domains.iter().map(|d| {
+            let i = d.info();
+            (i.name.as_str(), i.layout_hash, i.publish.size as usize, i.subscribe.size as usize)
+        });
+        c.check_layouts(layouts, &what)?;
+        if (c.step_seconds - self.opts.step.as_secs_f64()).abs() > 1e-12 * c.step_seconds {
+            return Err(CheckpointError::Mismatch(format!(
+                "the checkpoint's step is {} s, this run's {} s",
+                c.step_seconds,
+                self.opts.step.as_secs_f64()
+            )));
+        }
+        let conns: Vec<Vec<StateConnection>> = self.fw.domains.iter().map(|d| d.state_connections()).collect();
+        let mut asked: Vec<Vec<(&StateConnection, &[u8])>> = vec![Vec::new(); conns.len()];
+        for s in &c.components {
+            let d = self.fw.domains.iter().position(|d| d.info().name == s.domain);
+            let found = d.and_then(|d| conns[d].iter().find(|x| x.name == s.name).map(|x| (d, x)));
+            match found {
+                Some((d, x)) if x.keeps_state => asked[d].push((x, &s.state)),
+                Some(_) => {
+                    return Err(CheckpointError::Mismatch(format!(
+                        "component '{}' of domain '{}' keeps no state in this run",
+                        s.name, s.domain
+                    )))
+                }
+                None => {
+                    return Err(CheckpointError::Mismatch(format!(
+                        "component '{}' of domain '{}' is in the checkpoint, not connected in this run",
+                        s.name, s.domain
+                    )))
+                }
+            }
+        }
+        for (d, list) in self.fw.domains.iter().zip(&conns) {
+            let domain = &d.info().name;
+            for x in list.iter().filter(|x| x.keeps_state) {
+                let saved = c.components.iter().any(|s| &s.domain == domain && s.name == x.name);
+                let skipped = c.skipped.iter().any(|s| &s.domain == domain && s.name == x.name);
+                if !saved && !skipped && !self.opts.stateless.contains(&x.name) {
+                    return Err(CheckpointError::Mismatch(format!(
+                        "component '{}' of domain '{domain}' keeps a state and the checkpoint has none for it",
+                        x.name
+                    )));
+                }
+            }
+        }
+        let answers = self.exchange(StateRequest::Restore, &asked)?;
+        for ((d, mine), answers) in self.fw.domains.iter().zip(&asked).zip(answers) {
+            for ((x, _), answer) in mine.iter().zip(answers) {
+                let failed = |why: String| CheckpointError::Component {
+                    domain: d.info().name.clone(),
+                    name: x.name.clone(),
+                    what: "restore",
+                    why,
+                };
+                match answer {
+                    StateAnswer::Restored => {}
+                    StateAnswer::Failed(why) => return Err(failed(why)),
+                    _ => return Err(failed(format!("no answer within {:?}", self.opts.timeout))),
+                }
+            }
+        }
+        for (i, d) in self.fw.domains.iter_mut().enumerate() {
+            let Some(saved) = c.domains.iter().find(|s| s.name == d.info().name) else { continue };
+            self.publish[i].copy_from_slice(&saved.publish);
+            d.restore_sets(&saved.subscribe, saved.last_publish.as_deref(), saved.seeded)
+                .map_err(|source| CheckpointError::Domain { domain: saved.name.clone(), source })?;
+            for x in &conns[i] {
+                if let Some((_, index)) = saved.due.iter().find(|(n, _)| *n == x.name) {
+                    d.set_due_index(x.slot, *index);
+                }
+            }
+        }
+        self.ticker.restart_at(c.next_index);
+        self.steps = c.steps;
+        self.publish_state(self.state(), self.last_sim());
+        Ok(())
+    }
+
+    /// A periodic checkpoint, if this step is one's.
+    fn periodic_checkpoint(&mut self, on_report: &mut dyn FnMut(Report)) {
+        let Some(p) = self.opts.checkpoint.clone() else { return };
+        if p.every == 0 || self.steps % p.every != 0 {
+            return;
+        }
+        let path = p.dir.join(format!("step-{:09}.{}", self.steps, crate::checkpoint::EXTENSION));
+        let saved = std::fs::create_dir_all(&p.dir)
+            .map_err(|source| CheckpointError::Io { path: p.dir.clone(), source })
+            .and_then(|()| self.checkpoint(false))
+            .and_then(|c| c.write(&path));
+        match saved {
+            Ok(()) => {
+                on_report(Report::Saved { path, step: self.steps });
+                if p.keep > 0 {
+                    crate::checkpoint::keep_newest(&p.dir, p.keep);
+                }
+            }
+            Err(e) => on_report(Report::CheckpointFailed(e.to_string())),
+        }
+    }
+
+    /// Carries out a checkpoint command at this step boundary.
+    fn checkpoint_command(&mut self, request: &Request) -> Result<(), Refusal> {
+        let refuse = |e: CheckpointError| Refusal(e.to_string());
+        match request {
+            Request::Save { path, skip_stateless } => {
+                let c = self.checkpoint(*skip_stateless).map_err(refuse)?;
+                c.write(std::path::Path::new(path)).map_err(refuse)
+            }
+            Request::Restore { path } => {
+                let c = Checkpoint::read(std::path::Path::new(path)).map_err(refuse)?;
+                self.restore(&c).map_err(refuse)
+            }
+            Request::ResetState => match self.initial.take() {
+                Some(c) => {
+                    let r = self.restore(&c).map_err(refuse);
+                    self.initial = Some(c);
+                    r
+                }
+                None => Err(Refusal(
+                    "reset_state: this run has no checkpoint of its step 0 (a component keeps no state; its log says which)"
+                        .into(),
+                )),
+            },
+            _ => Ok(()),
+        }
     }
 
     /// Waits for the next deadline and makes one step of every domain; its sinks take it.
@@ -583,6 +863,7 @@ impl Host {
                 break;
             }
             let tick = self.step(&mut on_report)?;
+            self.periodic_checkpoint(&mut on_report);
             if last_report.elapsed() >= Duration::from_secs(1) {
                 last_report = Instant::now();
                 on_report(Report::Progress(self.progress(tick.k + 1)));
@@ -617,6 +898,10 @@ impl Host {
                 }
                 Request::Step { .. } => {
                     let _ = cmd.reply.send(Err(Refusal("step: the run is playing; pause it first".into())));
+                }
+                // Between two steps is a step boundary: the run goes on playing afterwards.
+                ref r @ (Request::Save { .. } | Request::Restore { .. } | Request::ResetState) => {
+                    let _ = cmd.reply.send(self.checkpoint_command(r));
                 }
                 _ => {
                     let _ = cmd.reply.send(Ok(()));
@@ -659,6 +944,9 @@ impl Host {
                 Request::Reset => {
                     self.reset(RunState::Paused);
                     Ok(Ok(()))
+                }
+                ref r @ (Request::Save { .. } | Request::Restore { .. } | Request::ResetState) => {
+                    Ok(self.checkpoint_command(r))
                 }
                 _ => Ok(Ok(())),
             };

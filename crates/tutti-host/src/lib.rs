@@ -19,6 +19,7 @@
 //! stopped when dropped ([`ChildProcess`]), and a stop flag raised by Ctrl-C
 //! ([`stop_on_ctrl_c`]).
 
+pub mod checkpoint;
 mod child;
 pub mod connect;
 pub mod control;
@@ -30,7 +31,7 @@ mod ticker;
 
 pub use child::{ChildProcess, SpawnError, SIGINT, SIGTERM};
 pub use error::HostError;
-pub use host::{DomainStep, Host, HostOptions, Progress, Published, Report, StepDone, StepSink, Summary};
+pub use host::{DomainStep, Host, HostOptions, Periodic, Progress, Published, Report, StepDone, StepSink, Summary};
 pub use realtime::{enter_realtime, RealtimeOutcome, RealtimeRequest};
 pub use steps::{complete_all, parse_wait_for, publish_all, step_all, wait_for_writers, WaitForError, WriterWait};
 pub use ticker::{Tick, Ticker};

@@ -80,6 +80,8 @@ pub enum KeyError {
     /// A `params` entry the FMU cannot take.
     #[error("{who}: params: '{param}': {why}")]
     Param { who: String, param: String, why: ParamError },
+    #[error("checkpoint: every must be a number of steps above 0")]
+    CheckpointEvery,
     #[error("{who}: give `run` or `fmu`, not both")]
     RunAndFmu { who: String },
     #[error("{who}: `params` are an FMU's: give them with `fmu`")]

@@ -71,6 +71,8 @@ pub struct Framework {
     pub wait: WaitMode,
     /// `ordering`: how connections are applied within a step (default `delayed`).
     pub ordering: StepOrder,
+    /// `checkpoint`: saved every so many steps, its `dir` resolved.
+    pub checkpoint: Option<tutti_host::Periodic>,
 }
 
 impl Default for Framework {
@@ -87,6 +89,7 @@ impl Default for Framework {
             set: Vec::new(),
             wait: WaitMode::Block,
             ordering: StepOrder::Delayed,
+            checkpoint: None,
         }
     }
 }
@@ -136,6 +139,8 @@ pub struct Component {
     /// false` is declared but not started: `tutti ctl start NAME` starts it while the run
     /// goes on, and the run does not wait for it to connect.
     pub autostart: bool,
+    /// `stateless` (default false): it keeps no state, and a checkpoint leaves it out.
+    pub stateless: bool,
 }
 
 /// The `gateway` key: the gateway config file's keys, inline or in `config: FILE`.
@@ -210,6 +215,11 @@ impl Framework {
             set: k.set,
             wait: k.wait.unwrap_or(dflt.wait),
             ordering: k.ordering.unwrap_or(dflt.ordering),
+            checkpoint: k.checkpoint.map(|c| tutti_host::Periodic {
+                every: c.every,
+                dir: dir.join(c.dir.unwrap_or_else(|| PathBuf::from("checkpoints"))),
+                keep: c.keep.unwrap_or(0),
+            }),
         }
     }
 }
@@ -237,6 +247,7 @@ impl Component {
             max_restarts: k.max_restarts.unwrap_or(3),
             connect_timeout: k.connect_timeout.unwrap_or(Duration::from_secs(10)),
             autostart: k.autostart.unwrap_or(true),
+            stateless: k.stateless.unwrap_or(false),
         })
     }
 }

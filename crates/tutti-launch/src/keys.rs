@@ -118,6 +118,31 @@ pub struct FrameworkKeys {
         skip_serializing_if = "Option::is_none"
     )]
     pub ordering: Option<StepOrder>,
+    /// Save a checkpoint every `every` steps into `dir`, keeping the newest `keep`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub checkpoint: Option<CheckpointKeys>,
+}
+
+/// The `checkpoint` key of `framework` (docs/run.md, "Checkpoints").
+#[derive(Debug, Clone, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct CheckpointKeys {
+    /// Every this many steps (> 0).
+    #[serde(deserialize_with = "de_every")]
+    pub every: u64,
+    /// Relative to the launch file's directory (default `checkpoints`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub dir: Option<PathBuf>,
+    /// The newest this many are kept (default 0: all).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub keep: Option<usize>,
+}
+
+fn de_every<'de, D: Deserializer<'de>>(d: D) -> Result<u64, D::Error> {
+    then(d, |n: u64| match n {
+        0 => Err(KeyError::CheckpointEvery),
+        n => Ok(n),
+    })
 }
 
 /// One entry of `components` ([`crate::Component`] has the defaults).
@@ -156,6 +181,9 @@ pub struct ComponentKeys {
     pub connect_timeout: Option<Duration>,
     #[serde(skip_serializing_if = "Option::is_none")]
     pub autostart: Option<bool>,
+    /// The component keeps no state: a checkpoint leaves it out and says so.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub stateless: Option<bool>,
 }
 
 /// What a component runs, as its keys say.

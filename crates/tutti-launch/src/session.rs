@@ -35,6 +35,8 @@ pub struct RunOptions {
     /// Real-time scheduling for the stepping thread (`tutti run --realtime`), applied once
     /// the components have started, as `tutti host --realtime` applies it.
     pub realtime: Option<tutti_host::RealtimeRequest>,
+    /// Start from this checkpoint (`tutti run --restore`), put back before the first step.
+    pub restore: Option<Box<tutti_host::checkpoint::Checkpoint>>,
 }
 
 /// How a run ended.
@@ -84,6 +86,9 @@ pub fn run(
         connections: launch.connections.clone(),
         ordering: fw.ordering,
         ddf_name: launch.ddf.display().to_string(),
+        stateless: launch.components.iter().filter(|c| c.stateless).map(|c| c.name.clone()).collect(),
+        checkpoint: fw.checkpoint.clone(),
+        restore: opts.restore.clone(),
     };
     let mut host = Host::new(&launch.model, host_opts)?;
     for path in &fw.record {

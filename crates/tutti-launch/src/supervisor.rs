@@ -738,6 +738,8 @@ impl Actor {
         cmd.current_dir(&c.cwd)
             .envs(&c.env)
             .env("TUTTI_NAMESPACE", &self.opts.namespace)
+            // Its connections' name: a checkpoint finds its state again by it.
+            .env(tutti_core::shm::COMPONENT_ENV, &c.name)
             .stdin(Stdio::null())
             .stdout(Stdio::piped())
             .stderr(Stdio::piped());

@@ -8,6 +8,7 @@ use std::time::Duration;
 use tutti_core::ddf::Role;
 use tutti_core::shm::{Participant, ShmError, StepGate, WaitMode};
 
+use crate::checkpoint::{Callbacks, RTRestoreStateCallback_t, RTSaveStateCallback_t};
 use crate::codes::*;
 use crate::ffi::{bytes_in, bytes_out, c_str, guard, last_detail_ptr, write_out, CallResult, Failure};
 use crate::state::{check_size, leaf_by_key, leaf_by_path, leaf_in, state, Conn};
@@ -542,6 +543,30 @@ pub unsafe extern "C" fn RTGetSimulationTime(simTime: *mut c_double) -> RTAPIRet
         let t = state().exchange(Side::Subscribe, |c| Ok(c.participant.simulation_time()))?;
         // SAFETY: `simTime` is writable as the caller promises (NULL refused above).
         unsafe { write_out(simTime, "simTime", t) }
+    })
+}
+
+/// Checkpoints (tutti's extension, docs/rtapi.md "Checkpoints"): the current connection
+/// keeps a state that `save` hands over and `restore` takes back as bytes, so that `tutti ctl
+/// save` and `restore`, `tutti run --restore` and a ROS 2 `ResetSimulation` with SCOPE_STATE
+/// include it. Call it before RTConnect (the connection then says so from the start, and the
+/// run's checkpoint of step 0 has it) or after. The callbacks are called at a step boundary,
+/// from within RTSubscribeLock (or RTPublishLock for a connection that only writes) while it
+/// waits for the next step, in the calling thread, with `context`; they must not call the
+/// RTAPI. `save` sets `*buffer` to bytes it owns, valid until the next call into the
+/// component, and `*sizeBytes` to their length; both return 0 on success.
+/// RTAPI_ERROR_NULL_POINTER if either is NULL.
+#[no_mangle]
+pub extern "C" fn RTSetStateCallbacks(
+    save: RTSaveStateCallback_t,
+    restore: RTRestoreStateCallback_t,
+    context: *mut c_void,
+) -> RTAPIReturn_t {
+    guard("RTSetStateCallbacks", || {
+        let missing = |what: &str| Failure::new(RTAPI_ERROR_NULL_POINTER, format!("{what} is NULL"));
+        let save = save.ok_or_else(|| missing("save"))?;
+        let restore = restore.ok_or_else(|| missing("restore"))?;
+        state().set_callbacks(Callbacks { save, restore, context })
     })
 }
 

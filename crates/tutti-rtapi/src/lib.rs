@@ -10,6 +10,7 @@
 #![allow(non_snake_case)]
 
 pub mod api;
+pub mod checkpoint;
 pub mod codes;
 mod ffi;
 mod state;

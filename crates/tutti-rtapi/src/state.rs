@@ -66,6 +66,8 @@ pub struct State {
     wait: WaitMode,
     /// Keys for which `RTSetupRefMemRemoteConnection` was called: (card, PCI index).
     remote: BTreeMap<u32, (String, i32)>,
+    /// Keys for which `RTSetStateCallbacks` was called: their connections keep a state.
+    callbacks: BTreeMap<u32, crate::checkpoint::Callbacks>,
 }
 
 static STATE: Mutex<State> = Mutex::new(State {
@@ -75,6 +77,7 @@ static STATE: Mutex<State> = Mutex::new(State {
     skip_wait_to_go: false,
     wait: WaitMode::Block,
     remote: BTreeMap::new(),
+    callbacks: BTreeMap::new(),
 });
 
 /// The state, locked. A panic in an earlier call (caught by the guard) poisons the mutex;
@@ -186,17 +189,18 @@ pub fn connect(domain: &str, ddf_path: Option<&str>, timeout_seconds: i32) -> Ca
     if domain.is_empty() {
         return Err(Failure::new(RTAPI_ERROR_INVALID_ARGUMENT, "the domain name is empty"));
     }
-    let (key, skip, wait, remote) = {
+    let (key, skip, wait, remote, callbacks) = {
         let mut st = state();
         let key = st.current;
         st.ready_to_connect(key)?;
-        (key, st.skip_wait_to_go, st.wait, st.remote.get(&key).cloned())
+        (key, st.skip_wait_to_go, st.wait, st.remote.get(&key).cloned(), st.callbacks.get(&key).copied())
     };
     let opts = ConnectOptions {
         connect_timeout: timeout,
         timeout: if timeout.is_zero() { DEFAULT_LOCK_TIMEOUT } else { timeout },
         wait,
         skip_wait_to_go: skip,
+        state: callbacks.map(|c| tutti_core::shm::SharedState::new(Box::new(c))),
         ..ConnectOptions::default()
     };
     let shm = |e: ShmError| {
@@ -245,6 +249,17 @@ impl State {
             }
         }
         self.remote.insert(key, (card.to_string(), pci_index));
+        Ok(())
+    }
+
+    /// `RTSetStateCallbacks` on the current key: remembered for its later connections, and
+    /// in force at once on a connection it has.
+    pub fn set_callbacks(&mut self, callbacks: crate::checkpoint::Callbacks) -> CallResult {
+        let key = self.current;
+        if let Some(conn) = self.conn(key)?.as_mut() {
+            conn.participant.set_state_handler(Box::new(callbacks));
+        }
+        self.callbacks.insert(key, callbacks);
         Ok(())
     }
 

@@ -10,6 +10,7 @@ use super::handshake::{
 use super::segment::{
     self, namespace_from_env, DomainInfo, DomainStatus, Segment, WaitMode, Waited, Waiter, STATE_STOPPED,
 };
+use super::state::{self, StateAnswer, StateConnection, StateRequest};
 use super::{os, ShmError};
 use crate::ddf::{Model, Role};
 use crate::sync::Ordering;
@@ -95,6 +96,30 @@ impl Framework {
     pub fn domain(&mut self, name: &str) -> Option<&mut DomainHost> {
         self.domains.iter_mut().find(|d| d.info().name == name)
     }
+
+    /// Asks connections of every domain at once to save or restore their state (docs/run.md,
+    /// "Checkpoints") and collects their answers, waiting at most `timeout`: `asked[d]` lists
+    /// domain `d`'s connections, each with the bytes to take back for a restore. Call it at a
+    /// step boundary. The answers come in the same order.
+    pub fn exchange_states(
+        &self,
+        kind: StateRequest,
+        asked: &[Vec<(&StateConnection, &[u8])>],
+        timeout: Duration,
+    ) -> Result<Vec<Vec<StateAnswer>>, ShmError> {
+        let deadline = Instant::now() + timeout;
+        let mut requests = Vec::new();
+        for (d, conns) in self.domains.iter().zip(asked) {
+            if conns.is_empty() {
+                requests.push((&d.seg, 0, Vec::new()));
+                continue;
+            }
+            let files: Vec<(usize, &[u8])> = conns.iter().map(|(c, b)| (c.slot, *b)).collect();
+            let seq = d.seg.request_state(kind, &files)?;
+            requests.push((&d.seg, seq, conns.iter().map(|(c, _)| (c.slot, c.pid)).collect()));
+        }
+        Ok(state::collect_answers(&requests, kind, deadline))
+    }
 }
 
 /// What one step did.
@@ -163,6 +188,51 @@ impl DomainHost {
 
     pub fn connection_count(&self) -> u32 {
         self.seg.connection_count()
+    }
+
+    /// The participants' connections now, as a checkpoint sees them.
+    pub fn state_connections(&self) -> Vec<StateConnection> {
+        self.seg.state_connections()
+    }
+
+    /// Event-driven: connection `slot` is next due from index `index` (a checkpoint's).
+    pub fn set_due_index(&self, slot: usize, index: u64) {
+        if let Some(conn) = self.seg.conn_ctl(slot) {
+            conn.due_index.store(index, Ordering::Release);
+        }
+    }
+
+    /// The PUBLISH set of the last step (event-driven domains keep it to tell what changed).
+    pub fn last_publish(&self) -> Option<&[u8]> {
+        self.last_publish.as_deref()
+    }
+
+    /// Puts back the sets of a checkpoint at a step boundary: the SUBSCRIBE set (written into
+    /// the segment as the framework's own commit, so that participants and the next step read
+    /// it), the PUBLISH set of the last step (what an event-driven domain compares the next
+    /// with) and whether the domain was seeded.
+    pub fn restore_sets(
+        &mut self,
+        subscribe: &[u8],
+        last_publish: Option<&[u8]>,
+        seeded: bool,
+    ) -> Result<(), ShmError> {
+        let info = &self.seg.info;
+        if subscribe.len() != info.subscribe.size as usize {
+            return Err(ShmError::SizeMismatch {
+                domain: info.name.clone(),
+                role: Role::Subscribe,
+                expected: info.subscribe.size as usize,
+                got: subscribe.len(),
+            });
+        }
+        let sim_time = self.seg.sim_time();
+        self.seg.bucket(Role::Subscribe).write(subscribe, Stamp { step: self.step, sim_time });
+        self.subscribe.copy_from_slice(subscribe);
+        self.last_publish = last_publish.filter(|p| p.len() == info.publish.size as usize).map(<[u8]>::to_vec);
+        self.seg.header().seeded.store(u32::from(seeded), Ordering::Release);
+        self.seed_waited = true;
+        Ok(())
     }
 
     pub fn status(&self) -> DomainStatus {

@@ -28,6 +28,8 @@ pub mod os;
 mod participant;
 #[cfg(not(tutti_loom))]
 pub mod segment;
+#[cfg(not(tutti_loom))]
+pub mod state;
 
 pub use bucket::Stamp;
 #[cfg(not(tutti_loom))]
@@ -37,9 +39,11 @@ pub use framework::{DomainHost, Framework, FrameworkOptions, StepReport};
 #[cfg(not(tutti_loom))]
 pub use observer::{Look, Observer};
 #[cfg(not(tutti_loom))]
-pub use participant::{ConnectOptions, Participant, StepGate};
+pub use participant::{ConnectOptions, Participant, StepGate, COMPONENT_ENV};
 #[cfg(not(tutti_loom))]
 pub use segment::{
     check_namespace, list_domains, namespace_from_env, segment_name, segment_path, ConnKind, ConnectionInfo,
     DomainInfo, DomainStatus, LinkInfo, Segment, WaitMode,
 };
+#[cfg(not(tutti_loom))]
+pub use state::{SharedState, StateAnswer, StateConnection, StateError, StateHandler, StateRequest};

@@ -82,6 +82,7 @@ impl ShmConfig {
             wait: self.wait,
             skip_wait_to_go: true,
             kind: ConnKind::Remote,
+            state: None,
         }
     }
 }

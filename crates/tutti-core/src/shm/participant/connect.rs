@@ -31,6 +31,9 @@ impl Participant {
         };
         let me = os::current_process();
         let slot = seg.claim_slot(me, &opts.name, opts.kind)?;
+        if opts.state.is_some() {
+            seg.set_keeps_state(slot, true);
+        }
         let id = seg.conn_id(slot);
         let (pub_size, sub_size) = (seg.info.publish.size as usize, seg.info.subscribe.size as usize);
         let mut p = Participant {

@@ -7,6 +7,7 @@ use std::time::{Duration, Instant};
 
 use super::Participant;
 use crate::shm::segment::{Segment, WaitMode, Waited, Waiter, STATE_RUNNING};
+use crate::shm::state::SharedState;
 use crate::shm::{os, ShmError};
 use crate::sync::Ordering;
 
@@ -20,6 +21,7 @@ impl Participant {
             wait: self.opts.wait,
             timeout: self.opts.timeout,
             until,
+            state: if matches!(until, GateFor::Nothing) { None } else { self.opts.state.clone() },
         }
     }
 
@@ -43,7 +45,7 @@ pub(super) enum GateFor {
 
 /// A connection's wait for the framework, by value: the participant waits with it on its
 /// own segment, a [`StepGate`] on a segment it shares, with no borrow of the participant.
-#[derive(Debug, Clone, Copy)]
+#[derive(Debug, Clone)]
 pub(super) struct Waiting {
     slot: usize,
     id: u64,
@@ -51,6 +53,8 @@ pub(super) struct Waiting {
     wait: WaitMode,
     timeout: Duration,
     until: GateFor,
+    /// The connection's state handler: a wait answers the framework's state requests.
+    state: Option<SharedState>,
 }
 
 impl Waiting {
@@ -87,7 +91,12 @@ impl Waiting {
         let h = seg.header();
         let ctl = seg.step_ctl();
         let until = self.until;
+        let keeps_state = self.state.is_some() && !matches!(until, GateFor::Nothing);
+        let slot_index = self.slot;
         let mut ready = move || {
+            if keeps_state && seg.state_pending(slot_index) {
+                return Ok(true);
+            }
             Ok(match until {
                 GateFor::ReadAfter(last) => ctl.next_step(last).is_some(),
                 GateFor::PublishAfter { last, states } => {
@@ -116,6 +125,8 @@ impl Waiting {
             let deadline = Instant::now() + self.timeout;
             let step_before = h.pub_step.load(Ordering::Acquire);
             match waiter.wait(deadline, &mut ready, || self.check(seg, true))? {
+                // A state request: answered here, at the step boundary; then wait on.
+                Waited::Ready if self.state.as_ref().is_some_and(|h| seg.serve_state(self.slot, h)) => {}
                 Waited::Ready => return Ok(()),
                 Waited::TimedOut if !seg.step_wait_may_time_out(self.timeout) => {}
                 // Not due yet while the framework goes on stepping: nothing is late.

@@ -11,6 +11,7 @@ use std::time::{Duration, Instant};
 
 use super::os;
 use super::segment::{namespace_from_env, ConnKind, DomainInfo, Segment, WaitMode};
+use super::state::{SharedState, StateHandler};
 use crate::sync::Ordering;
 
 mod commit;
@@ -42,11 +43,21 @@ pub struct ConnectOptions {
     /// gateway) or an observer, not counted as a participant (the gateway's lock-step reader
     /// with `--every-step`, which the framework still waits for once it reads).
     pub kind: ConnKind,
+    /// The component keeps a state that a checkpoint saves and restores: said from the
+    /// connection on, so that the run's first checkpoint (at step 0) has it (docs/run.md,
+    /// "Checkpoints").
+    pub state: Option<SharedState>,
 }
+
+/// The environment variable a launcher names each component with (the default connection
+/// name): a checkpoint finds a component's state again by its domain and this name.
+pub const COMPONENT_ENV: &str = "TUTTI_COMPONENT";
 
 impl Default for ConnectOptions {
     fn default() -> Self {
-        let name = std::env::args().next().map(|a| a.rsplit('/').next().unwrap_or(&a).to_string()).unwrap_or_default();
+        let program =
+            || std::env::args().next().map(|a| a.rsplit('/').next().unwrap_or(&a).to_string()).unwrap_or_default();
+        let name = std::env::var(COMPONENT_ENV).ok().filter(|n| !n.is_empty()).unwrap_or_else(program);
         ConnectOptions {
             namespace: namespace_from_env(),
             name,
@@ -55,6 +66,7 @@ impl Default for ConnectOptions {
             wait: WaitMode::Block,
             skip_wait_to_go: false,
             kind: ConnKind::Participant,
+            state: None,
         }
     }
 }
@@ -96,6 +108,20 @@ pub struct Participant {
 }
 
 impl Participant {
+    /// From now on this connection keeps a state that `handler` saves and restores at the
+    /// framework's request (docs/run.md, "Checkpoints"); the requests are answered while the
+    /// connection waits for a step and at the start of each read.
+    pub fn set_state_handler(&mut self, handler: Box<dyn StateHandler>) {
+        self.opts.state = Some(SharedState::new(handler));
+        self.seg.set_keeps_state(self.slot, true);
+    }
+
+    /// Answers a state request of the framework now if one waits (a connection that reads
+    /// rarely, or never waits, calls it at its own step boundary); returns whether it did.
+    pub fn serve_state(&self) -> bool {
+        self.opts.state.as_ref().is_some_and(|h| self.seg.serve_state(self.slot, h))
+    }
+
     /// The domain as the segment describes it.
     pub fn info(&self) -> &DomainInfo {
         &self.seg.info

@@ -28,6 +28,8 @@ impl Participant {
     /// declared a lock-step reader and made to wait for the next step.
     pub(super) fn begin_read(&mut self) -> Result<(), ShmError> {
         self.check()?;
+        // A step boundary: a state request that came meanwhile is answered first.
+        self.serve_state();
         if self.seg.info.flags.synchronous {
             self.set_flag(CONN_SYNC_READER);
             if self.event_driven() {

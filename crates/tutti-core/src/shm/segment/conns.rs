@@ -137,6 +137,9 @@ impl Segment {
             c.commits.store(0, Ordering::Relaxed);
             c.missed.store(0, Ordering::Relaxed);
             c.peers.store(0, Ordering::Relaxed);
+            c.keeps_state.store(0, Ordering::Relaxed);
+            // Requests made before the connection came are not its to answer.
+            c.state_done.store(h.state_seq.load(Ordering::Acquire), Ordering::Relaxed);
             let mut bytes = [0u8; 48];
             let n = name.len().min(47);
             // Cut at a character boundary.
@@ -207,7 +210,7 @@ impl Segment {
 }
 
 /// The name a connection slot holds (written by `claim_slot`, NUL-padded).
-pub(super) fn conn_name(c: &ConnSlot) -> String {
+pub(crate) fn conn_name(c: &ConnSlot) -> String {
     let mut name = [0u8; 48];
     load_bytes(&c.name, &mut name);
     let end = name.iter().position(|&b| b == 0).unwrap_or(name.len());

@@ -12,8 +12,9 @@ use crate::sync::{AtomicU32, AtomicU64};
 /// `TUTTISHM`, little-endian.
 pub(crate) const MAGIC: u64 = u64::from_le_bytes(*b"TUTTISHM");
 /// Segment format version (2: header fields grouped by writer on separate cache lines; 3:
-/// DDS writers and observers counted apart from participants, 192-byte connection slots).
-pub const VERSION: u32 = 6;
+/// DDS writers and observers counted apart from participants, 192-byte connection slots; 7:
+/// a component's state saved and restored through the segment, `docs/run.md` "Checkpoints").
+pub const VERSION: u32 = 7;
 /// Bytes reserved for the header.
 pub(crate) const HEADER_BYTES: usize = 1024;
 /// Connection slots per domain.
@@ -121,6 +122,11 @@ pub(crate) struct Header {
     /// The PUBLISH items that changed at `changed_step`, a bit per item (by its index in the
     /// set; the last bit stands for every item from it on).
     pub changed_items: [AtomicU64; MASK_WORDS],
+    /// A request to the connections that keep a state ([`crate::shm::state`]): its number
+    /// (bumped once the request's files are in place) and what it asks.
+    pub state_seq: AtomicU64,
+    pub state_kind: AtomicU32,
+    pub _state_pad: AtomicU32,
     /// Written by participants on their reads and commits.
     pub _participants: LineBreak,
     pub ack_seq: AtomicU32,
@@ -175,7 +181,13 @@ pub(crate) struct ConnSlot {
     /// lookahead, how many steps the framework is ahead of its newest answer, the link's
     /// latest round trip (µs) and the steps that waited for the link; all 0 otherwise.
     pub link: [AtomicU64; 4],
-    pub _reserved: [AtomicU64; 3],
+    /// The connection keeps a state that it saves and restores on request
+    /// ([`crate::shm::state`]): 1, else 0.
+    pub keeps_state: AtomicU64,
+    /// The last state request the connection answered, with
+    /// [`STATE_FAILED`](crate::shm::state) set when it could not do it.
+    pub state_done: AtomicU64,
+    pub _reserved: [AtomicU64; 1],
 }
 
 const _: () = assert!(size_of::<Header>() <= HEADER_BYTES);

@@ -43,6 +43,7 @@ mod status;
 mod trust;
 mod wait;
 
+pub(crate) use conns::conn_name;
 pub use conns::ConnKind;
 use format::Header;
 pub use format::{DomainInfo, DEFAULT_CONNECTIONS, VERSION};
