@@ -206,7 +206,8 @@ fn the_simulation_services_drive_the_run_and_refuse_with_the_standard_codes(w: W
     for f in [20, 21, 24, 25, 26, 31, 32] {
         assert!(features.contains(&f), "feature {f} missing: {features:?}");
     }
-    assert!(!features.contains(&22) && !features.contains(&23), "tutti resets no state nor spawns: {features:?}");
+    // A run without components has its checkpoint of step 0: SCOPE_STATE goes back to it.
+    assert!(features.contains(&22) && !features.contains(&23), "tutti resets state, spawns nothing: {features:?}");
     assert_eq!(r[1]["state"]["state"].as_u64(), Some(STATE_PLAYING), "{:?}", r[1]);
     assert_eq!(result(&r[1]).0, OK);
     assert_eq!(result(&r[2]).0, OK, "{:?}", r[2]);
@@ -237,10 +238,8 @@ fn the_simulation_services_drive_the_run_and_refuse_with_the_standard_codes(w: W
     );
     assert_eq!(result(&r[3]).0, OK, "SCOPE_TIME: {:?}", r[3]);
     assert_eq!(result(&r[4]).0, OK, "SCOPE_DEFAULT: {:?}", r[4]);
-    for unsupported in &r[5..7] {
-        let (code, why) = result(unsupported);
-        assert!(code == FEATURE_UNSUPPORTED && why.contains("only SCOPE_DEFAULT and SCOPE_TIME"), "{unsupported:?}");
-    }
+    assert_eq!(result(&r[5]).0, OK, "SCOPE_STATE: {:?}", r[5]);
+    assert_eq!(result(&r[6]).0, OK, "SCOPE_ALL: {:?}", r[6]);
     assert_eq!(result(&r[7]).0, OK, "STOPPED: {:?}", r[7]);
     assert_eq!(r[8]["state"]["state"].as_u64(), Some(STATE_STOPPED));
     let (code, why) = result(&r[9]);

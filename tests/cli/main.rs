@@ -11,6 +11,7 @@
 #[macro_use]
 mod gateway;
 
+mod checkpoint;
 mod connect;
 mod ctl;
 mod ddf_invalid;

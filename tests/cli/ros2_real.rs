@@ -359,18 +359,18 @@ fn rclpy_steps_and_simulates_steps_with_feedback_and_cancel(ros: &Ros2, dom: u16
     assert!(in_order(&fb(&r[3]), 100_000, made), "feedback of {made} steps: {:?}", r[3]);
 }
 
-/// rclpy resets the run's time, is told why another scope, playing a playing run and stepping
-/// it are refused, and pauses the run again; returns the step it paused at.
+/// rclpy resets the run's time, is told why a scope tutti lacks (SPAWNED), playing a playing
+/// run and stepping it are refused, and pauses the run again; returns the step it paused at.
 fn rclpy_resets_and_is_told_why_a_request_is_refused(ros: &Ros2, dom: u16, ns: &str) -> u64 {
     let r = rclpy_calls(
         ros,
         dom,
-        r#"[["reset_simulation", 1], ["reset_simulation", 3], ["set_simulation_state", 1], ["set_simulation_state", 1],
+        r#"[["reset_simulation", 1], ["reset_simulation", 4], ["set_simulation_state", 1], ["set_simulation_state", 1],
             ["step_simulation", 1], ["set_simulation_state", 2]]"#,
     );
     assert_eq!(result(&r[0]).0, OK, "SCOPE_TIME: {:?}", r[0]);
     let (code, why) = result(&r[1]);
-    assert!(code == FEATURE_UNSUPPORTED && why.contains("only SCOPE_DEFAULT and SCOPE_TIME"), "{:?}", r[1]);
+    assert!(code == FEATURE_UNSUPPORTED && why.contains("spawns nothing"), "{:?}", r[1]);
     assert_eq!(result(&r[2]).0, OK);
     assert_eq!(result(&r[3]), (ALREADY_IN_TARGET_STATE, "already playing"));
     let (code, why) = result(&r[4]);

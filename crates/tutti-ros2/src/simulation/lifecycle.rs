@@ -76,8 +76,9 @@ impl Lifecycle {
         Lifecycle { no_stepping, stopped: false }
     }
 
-    /// `GetSimulatorFeatures`: what this run supports.
-    pub fn features(&self, action: bool) -> Vec<u16> {
+    /// `GetSimulatorFeatures`: what this run supports (`state_reset`: the run holds its
+    /// checkpoint of step 0, so SCOPE_STATE can go back to it).
+    pub fn features(&self, action: bool, state_reset: bool) -> Vec<u16> {
         let mut f = vec![
             feature::SIMULATION_RESET,
             feature::SIMULATION_RESET_TIME,
@@ -85,6 +86,9 @@ impl Lifecycle {
             feature::SIMULATION_STATE_SETTING,
             feature::SIMULATION_STATE_PAUSE,
         ];
+        if state_reset {
+            f.push(feature::SIMULATION_RESET_STATE);
+        }
         if self.no_stepping.is_none() {
             f.extend([feature::STEP_SIMULATION_SINGLE, feature::STEP_SIMULATION_MULTIPLE]);
             if action {
@@ -219,25 +223,23 @@ impl Lifecycle {
         }
     }
 
-    /// `ResetSimulation` with `scope`: time only (DEFAULT is taken as TIME: components keep
-    /// their state, as `tutti ctl reset` does).
+    /// `ResetSimulation` with `scope`: DEFAULT and TIME take the run's time back to 0 (its
+    /// components keep their state, as `tutti ctl reset` does); STATE, and ALL, go back to the
+    /// run's checkpoint of step 0, every value and component's state included (`tutti ctl
+    /// reset state`); SPAWNED alone is not supported (a run spawns nothing).
     pub fn reset(&mut self, ctl: &mut dyn Control, s: u8) -> Outcome {
-        if s != scope::DEFAULT && s != scope::TIME {
-            let mut parts = Vec::new();
-            for (bit, n) in [(scope::STATE, "STATE"), (scope::SPAWNED, "SPAWNED")] {
-                if s & bit != 0 && s != scope::ALL {
-                    parts.push(n);
-                }
-            }
-            let what = if s == scope::ALL { "SCOPE_ALL".to_string() } else { format!("scope {s}") };
-            let why = if parts.is_empty() {
-                format!("{what}: only SCOPE_DEFAULT and SCOPE_TIME are supported (the run's time goes back to 0; its components keep their state)")
-            } else {
-                format!("{what} ({}): only SCOPE_DEFAULT and SCOPE_TIME are supported (the run's time goes back to 0; its components keep their state)", parts.join(", "))
-            };
-            return Outcome::new(result::FEATURE_UNSUPPORTED, why);
-        }
-        match ctl.call(&Request::Reset) {
+        let request = if s == scope::DEFAULT || s == scope::TIME {
+            Request::Reset
+        } else if s & scope::STATE != 0 {
+            Request::ResetState
+        } else {
+            return Outcome::new(
+                result::FEATURE_UNSUPPORTED,
+                format!("scope {s}: SCOPE_DEFAULT, SCOPE_TIME, SCOPE_STATE and SCOPE_ALL are supported (a run spawns nothing)"),
+            );
+        };
+        self.stopped = false;
+        match ctl.call(&request) {
             Ok(_) => Outcome::ok(),
             Err(e) => failed("reset", &e),
         }
@@ -293,6 +295,7 @@ mod tests {
                 namespace: "t".into(),
                 pid: 1,
                 components: Vec::new(),
+                state_reset: false,
             })
         }
     }
@@ -342,9 +345,9 @@ mod tests {
         let mut a = Lifecycle::new(Some("every domain is asynchronous".into()));
         let o = a.step(&mut run, 1);
         assert_eq!((o.code, o.message.as_str()), (result::FEATURE_UNSUPPORTED, "every domain is asynchronous"));
-        assert!(!a.features(true).contains(&feature::STEP_SIMULATION_SINGLE));
-        assert!(l.features(true).contains(&feature::STEP_SIMULATION_ACTION));
-        assert!(!l.features(false).contains(&feature::STEP_SIMULATION_ACTION));
+        assert!(!a.features(true, false).contains(&feature::STEP_SIMULATION_SINGLE));
+        assert!(l.features(true, false).contains(&feature::STEP_SIMULATION_ACTION));
+        assert!(!l.features(false, false).contains(&feature::STEP_SIMULATION_ACTION));
     }
 
     #[test]
@@ -353,12 +356,16 @@ mod tests {
         assert_eq!(code(l.reset(&mut run, scope::TIME)), result::OK);
         assert_eq!(run.step, 0);
         assert_eq!(code(l.reset(&mut run, scope::DEFAULT)), result::OK);
-        for s in [scope::STATE, scope::SPAWNED, scope::ALL, scope::TIME | scope::STATE] {
-            let o = l.reset(&mut run, s);
-            assert_eq!(o.code, result::FEATURE_UNSUPPORTED, "{s}: {o:?}");
-            assert!(o.message.contains("only SCOPE_DEFAULT and SCOPE_TIME"), "{o:?}");
+        let o = l.reset(&mut run, scope::SPAWNED);
+        assert_eq!(o.code, result::FEATURE_UNSUPPORTED, "{o:?}");
+        assert!(o.message.contains("SCOPE_STATE"), "{o:?}");
+        for s in [scope::STATE, scope::ALL, scope::TIME | scope::STATE] {
+            assert_eq!(code(l.reset(&mut run, s)), result::OK, "{s}");
         }
         assert_eq!(run.got.iter().filter(|r| **r == Request::Reset).count(), 2);
+        assert_eq!(run.got.iter().filter(|r| **r == Request::ResetState).count(), 3);
+        assert!(l.features(true, true).contains(&feature::SIMULATION_RESET_STATE));
+        assert!(!l.features(true, false).contains(&feature::SIMULATION_RESET_STATE));
     }
 
     #[test]

@@ -47,6 +47,7 @@ pub mod state {
 pub mod feature {
     pub const SIMULATION_RESET: u16 = 20;
     pub const SIMULATION_RESET_TIME: u16 = 21;
+    pub const SIMULATION_RESET_STATE: u16 = 22;
     pub const SIMULATION_STATE_GETTING: u16 = 24;
     pub const SIMULATION_STATE_SETTING: u16 = 25;
     pub const SIMULATION_STATE_PAUSE: u16 = 26;
@@ -246,7 +247,9 @@ impl Simulation {
         let reply = |fields: Struct| Ok(Answer::Reply(fields.into()));
         match def.kind {
             Kind::GetFeatures => {
-                let features: Vec<Value> = self.life.features(true).into_iter().map(Value::from).collect();
+                // SCOPE_STATE only where the run holds its checkpoint of step 0.
+                let state_reset = ctl.call(&tutti_host::control::Request::State).is_ok_and(|s| s.state_reset);
+                let features: Vec<Value> = self.life.features(true, state_reset).into_iter().map(Value::from).collect();
                 let f = Struct::new().with("features", features).with("custom_info", custom_info());
                 reply(Struct::new().with("features", f))
             }

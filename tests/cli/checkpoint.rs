@@ -1,0 +1,236 @@
+//! Checkpoints (docs/run.md, "Checkpoints"): a run saved at step 500 and restored by a new
+//! run reproduces the straight run value by value (bit-identical doubles), and so does a
+//! restore into the run still going; a component that keeps no state fails `tutti ctl save`
+//! with its name (and is left out, named, when told); a checkpoint of another DDF, or a
+//! damaged one, is refused with the reason (exit 2) before anything runs.
+
+use tutti_test_support as common;
+
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+use std::time::Duration;
+
+use common::{wait_until, Proc, RemoveSegments};
+
+const LIMIT: Duration = Duration::from_secs(240);
+const WAIT: Duration = Duration::from_secs(120);
+
+/// A directory with the DDF, the C component `stateful` and a launch file per `files` entry.
+fn setup(files: &[(&str, String)]) -> tempfile::TempDir {
+    let dir = tempfile::tempdir().unwrap();
+    let src = common::repo_root().join("tests/checkpoint");
+    std::fs::copy(src.join("cosim.ddf"), dir.path().join("cosim.ddf")).unwrap();
+    common::compile_c(&src.join("stateful.c"), &dir.path().join("stateful"), &["-std=c99", "-Wall", "-Werror"]);
+    for (name, text) in files {
+        std::fs::write(dir.path().join(name), text).unwrap();
+    }
+    dir
+}
+
+/// A launch file: `stateful` (with `extra` arguments) fed back through a connection, stepping
+/// as fast as it goes (or `speed`), `steps` steps (0: until stopped), recording `record`, with
+/// `more` framework keys and component keys `component`.
+fn launch(steps: u64, speed: &str, record: &str, more: &str, component: &str) -> String {
+    let steps = if steps == 0 { String::new() } else { format!("steps: {steps}, ") };
+    format!(
+        r#"{{ ddf: "cosim.ddf",
+  framework: {{ step: "10ms", speed: {speed}, {steps}hold: true, timeout: "10s", record: ["{record}"]{more} }},
+  components: [ {{ name: "c", run: ["./stateful", "cosim.ddf", "plant"{component}], domain: "plant" }} ],
+  connections: ["plant/subscribe/y -> plant/publish/u"] }}"#
+    )
+}
+
+fn start(dir: &Path, file: &str, ns: &str, extra: &[&str]) -> Proc {
+    let mut cmd = common::tutti_command();
+    cmd.current_dir(dir).arg("run").arg(file).args(["-q", "--grace", "5s"]).args(extra).env("TUTTI_NAMESPACE", ns);
+    Proc::spawn("tutti run", cmd, LIMIT)
+}
+
+fn finish(mut run: Proc) {
+    assert_eq!(run.wait(WAIT), Some(0), "the run failed\n{}", run.dump());
+}
+
+/// `tutti ctl ARGS` in namespace `ns`: (exit status, stdout, stderr).
+fn ctl(ns: &str, args: &[&str], dir: &Path) -> (i32, String, String) {
+    let mut cmd = common::tutti_command();
+    cmd.current_dir(dir).arg("ctl").args(args).env("TUTTI_NAMESPACE", ns);
+    let (status, out, err) = common::run_with_timeout(cmd, WAIT);
+    (status.code().unwrap_or(-1), out, err)
+}
+
+/// A recording's rows in order: (step index, the row's values, as written).
+fn rows(csv: &Path) -> Vec<(u64, Vec<String>)> {
+    let text = std::fs::read_to_string(csv).unwrap_or_else(|e| panic!("{}: {e}", csv.display()));
+    let mut lines = text.lines();
+    let head: Vec<&str> = lines.next().expect("a header").split(',').collect();
+    let col = |name: &str| head.iter().position(|h| *h == name).unwrap_or_else(|| panic!("no {name} in {head:?}"));
+    let (sim, u, y) = (col("sim_time"), col("publish.u"), col("subscribe.y"));
+    lines
+        .map(|l| {
+            let f: Vec<&str> = l.split(',').collect();
+            let index = (f[sim].parse::<f64>().unwrap() / 0.01).round() as u64;
+            (index, vec![f[u].to_string(), f[y].to_string()])
+        })
+        .collect()
+}
+
+/// The straight run: 1,000 steps, as a map from step index to values.
+fn straight(dir: &Path, ns: &str) -> BTreeMap<u64, Vec<String>> {
+    finish(start(dir, "straight.json5", ns, &[]));
+    let all: BTreeMap<u64, Vec<String>> = rows(&dir.join("straight.csv")).into_iter().collect();
+    assert_eq!(all.len(), 1000, "the straight run's steps");
+    all
+}
+
+/// Every row of `part` equals the straight run's row of the same step, value by value.
+fn same_as(straight: &BTreeMap<u64, Vec<String>>, part: &[(u64, Vec<String>)], what: &str) {
+    assert!(!part.is_empty(), "{what}: no rows");
+    for (index, values) in part {
+        assert_eq!(straight.get(index), Some(values), "{what}: step index {index} differs from the straight run");
+    }
+}
+
+#[test]
+fn a_run_saved_at_step_500_and_restored_goes_on_as_the_straight_run() {
+    let ns = common::namespace("ckpsplit");
+    let _segments = RemoveSegments(ns.clone());
+    let every = r#", checkpoint: { every: 500, dir: "ck", keep: 1 }"#;
+    let dir = setup(&[
+        ("straight.json5", launch(1000, "0", "straight.csv", "", "")),
+        ("first.json5", launch(500, "0", "first.csv", every, "")),
+        ("second.json5", launch(1000, "0", "second.csv", "", "")),
+    ]);
+    let dir = dir.path();
+    let reference = straight(dir, &ns);
+
+    finish(start(dir, "first.json5", &ns, &[]));
+    let ckpt = dir.join("ck/step-000000500.tutti-checkpoint");
+    assert!(ckpt.exists(), "no checkpoint at step 500");
+    let first = rows(&dir.join("first.csv"));
+    assert_eq!(first.len(), 500);
+    same_as(&reference, &first, "the first half");
+
+    finish(start(dir, "second.json5", &ns, &["--restore", ckpt.to_str().unwrap()]));
+    let second = rows(&dir.join("second.csv"));
+    assert_eq!(
+        second.iter().map(|r| r.0).collect::<Vec<_>>(),
+        (500..1000).collect::<Vec<_>>(),
+        "the second half's steps"
+    );
+    same_as(&reference, &second, "the run restored from step 500");
+}
+
+#[test]
+fn a_restore_into_the_running_run_goes_back_to_step_500_and_on_as_the_straight_run() {
+    let ns = common::namespace("ckpinto");
+    let _segments = RemoveSegments(ns.clone());
+    // Paced (5 times real time): the test pauses it after its checkpoint at 500. Late steps
+    // are made, not skipped: the component is stepped at every step, as in the straight run.
+    let every = r#", catch_up: true, checkpoint: { every: 500, dir: "ck" }"#;
+    let dir = setup(&[
+        ("straight.json5", launch(1000, "0", "straight.csv", "", "")),
+        ("long.json5", launch(0, "5", "long.csv", every, "")),
+    ]);
+    let dir = dir.path();
+    let reference = straight(dir, &ns);
+
+    let run = start(dir, "long.json5", &ns, &[]);
+    let ckpt = dir.join("ck/step-000000500.tutti-checkpoint");
+    wait_until(format_args!("the checkpoint at step 500\n{}", run.dump()), WAIT, || ckpt.exists());
+    let (code, out, err) = ctl(&ns, &["pause"], dir);
+    assert_eq!(code, 0, "{out}{err}");
+    let (code, out, err) = ctl(&ns, &["restore", "ck/step-000000500.tutti-checkpoint"], dir);
+    assert_eq!(code, 0, "restore: {out}{err}\n{}", run.dump());
+    assert!(out.contains("paused"), "a restore leaves a paused run paused: {out}");
+    let (code, out, err) = ctl(&ns, &["resume"], dir);
+    assert_eq!(code, 0, "{out}{err}");
+    // Steps count from the checkpoint's again: the next periodic one is at step 1000.
+    let at_1000 = dir.join("ck/step-000001000.tutti-checkpoint");
+    wait_until("the checkpoint at step 1000", WAIT, || at_1000.exists());
+    let (code, out, err) = ctl(&ns, &["stop"], dir);
+    assert_eq!(code, 0, "{out}{err}");
+    finish(run);
+
+    let all = rows(&dir.join("long.csv"));
+    let back = all.windows(2).position(|w| w[1].0 < w[0].0).expect("the recording goes back to step 500") + 1;
+    assert_eq!(all[back].0, 500, "the restore went back to step index 500");
+    let after: Vec<(u64, Vec<String>)> = all[back..].iter().filter(|r| r.0 < 1000).cloned().collect();
+    assert_eq!(after.len(), 500, "steps 500 to 999 again");
+    same_as(&reference, &all[..back], "before the restore");
+    same_as(&reference, &after, "after the restore");
+}
+
+#[test]
+fn a_component_without_a_state_is_named_and_a_checkpoint_of_another_ddf_is_refused() {
+    let ns = common::namespace("ckpstateless");
+    let _segments = RemoveSegments(ns.clone());
+    let dir = setup(&[("nostate.json5", launch(0, "5", "n.csv", "", r#", "nostate""#))]);
+    let dir = dir.path();
+    let run = start(dir, "nostate.json5", &ns, &[]);
+    wait_until("the run playing", WAIT, || ctl(&ns, &["state"], dir).1.contains("playing"));
+    let (code, _, err) = ctl(&ns, &["save", "x.tutti-checkpoint"], dir);
+    assert_eq!(code, 2, "{err}");
+    assert!(err.contains("'c' (domain 'plant')") && err.contains("keep no state"), "{err}");
+    assert!(!dir.join("x.tutti-checkpoint").exists());
+    let (code, out, err) = ctl(&ns, &["save", "skip.tutti-checkpoint", "--skip-stateless"], dir);
+    assert_eq!(code, 0, "{out}{err}");
+    let c = tutti_host::checkpoint::Checkpoint::read(&dir.join("skip.tutti-checkpoint")).unwrap();
+    assert!(c.components.is_empty());
+    assert_eq!(
+        c.skipped.iter().map(|s| (s.name.as_str(), s.why.as_str())).collect::<Vec<_>>(),
+        [("c", "keeps no state")]
+    );
+
+    // Another DDF: the same domain with another item.
+    let other = dir.join("other.ddf");
+    let text = std::fs::read_to_string(dir.join("cosim.ddf")).unwrap().replace(r#"name="y""#, r#"name="z""#);
+    std::fs::write(&other, text).unwrap();
+    let model = tutti_core::ddf::load(&other).unwrap();
+    let mut foreign = c.clone();
+    foreign.domains[0].layout_hash = model.domains[0].layout_hash;
+    foreign.write(&dir.join("foreign.tutti-checkpoint")).unwrap();
+    let (code, _, err) = ctl(&ns, &["restore", "foreign.tutti-checkpoint"], dir);
+    assert_eq!(code, 2, "{err}");
+    assert!(err.contains("another DDF") && err.contains("layout hash"), "{err}");
+    // Truncated: refused, and the run goes on.
+    let bytes = std::fs::read(dir.join("skip.tutti-checkpoint")).unwrap();
+    std::fs::write(dir.join("cut.tutti-checkpoint"), &bytes[..bytes.len() / 2]).unwrap();
+    let (code, _, err) = ctl(&ns, &["restore", "cut.tutti-checkpoint"], dir);
+    assert_eq!(code, 2, "{err}");
+    assert!(err.contains("not a tutti checkpoint") || err.contains("damaged"), "{err}");
+    let (code, out, err) = ctl(&ns, &["stop"], dir);
+    assert_eq!(code, 0, "{out}{err}");
+    finish(run);
+
+    // `tutti run --restore` refuses it before anything starts.
+    let mut cmd = common::tutti_command();
+    cmd.current_dir(dir)
+        .args(["run", "nostate.json5", "--restore", "foreign.tutti-checkpoint"])
+        .env("TUTTI_NAMESPACE", &ns);
+    let (status, _, err) = common::run_with_timeout(cmd, WAIT);
+    assert_eq!(status.code(), Some(2), "{err}");
+    assert!(err.contains("another DDF"), "{err}");
+    assert!(!dir.join("n.csv.part").exists() && !Path::new(&format!("/dev/shm/tutti.{ns}.plant")).exists());
+}
+
+#[test]
+fn a_component_declared_stateless_is_left_out_by_name() {
+    let ns = common::namespace("ckpdeclared");
+    let _segments = RemoveSegments(ns.clone());
+    let text = launch(20, "0", "d.csv", r#", checkpoint: { every: 10, dir: "ck" }"#, r#", "nostate""#)
+        .replace(r#"domain: "plant" }"#, r#"domain: "plant", stateless: true }"#);
+    let dir = setup(&[("declared.json5", text)]);
+    let dir = dir.path();
+    finish(start(dir, "declared.json5", &ns, &[]));
+    let saved: Vec<PathBuf> = ["ck/step-000000010.tutti-checkpoint", "ck/step-000000020.tutti-checkpoint"]
+        .iter()
+        .map(|p| dir.join(p))
+        .collect();
+    for p in &saved {
+        let c = tutti_host::checkpoint::Checkpoint::read(p).unwrap_or_else(|e| panic!("{e}"));
+        assert_eq!(
+            c.skipped.iter().map(|s| (s.name.as_str(), s.why.as_str())).collect::<Vec<_>>(),
+            [("c", "stateless")]
+        );
+    }
+}
