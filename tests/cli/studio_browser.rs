@@ -374,7 +374,9 @@ fn compile_ramp(dir: &Path) -> PathBuf {
 
 /// (b) ddf/multiuav.ddf opened, its host started from the page, a C component connected:
 /// its connection appears in the table and the item it writes changes in the plot; killed
-/// with SIGKILL, its connection goes.
+/// with SIGKILL, its connection goes. Then run control: pause, step, resume, and a
+/// checkpoint saved (its file appears in the root), restored, and a file that is not one
+/// refused with the reason.
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn monitor_follows_a_host_started_from_the_page_and_a_c_component() {
     with_limit(async {
@@ -431,6 +433,36 @@ async fn monitor_follows_a_host_started_from_the_page_and_a_c_component() {
         w.until("three steps made", &format!("{state}.state === 'paused' && +{state}.step === {}", at + 3)).await;
         w.click("#resume-host").await;
         w.until("the run playing again", &format!("{state}.state === 'playing'")).await;
+
+        // A checkpoint of the run (no component is connected any more), to the file named in
+        // the field; it appears in the root and among those Restore offers, and is put back.
+        w.type_into("#checkpoint-path", "browser").await;
+        w.click("#save-checkpoint").await;
+        let result = "document.querySelector('#checkpoint-result')";
+        w.until(
+            "the checkpoint saved",
+            &format!("{result}.dataset.result === 'ok' && {result}.dataset.file === 'browser.tutti-checkpoint'"),
+        )
+        .await;
+        w.message_contains("checkpoint saved to browser.tutti-checkpoint").await;
+        let file = w.root.join("browser.tutti-checkpoint");
+        assert!(file.is_file(), "{} not written", file.display());
+        w.until(
+            "the checkpoint offered to Restore",
+            "document.querySelector(\"#checkpoints option[value='browser.tutti-checkpoint']\")",
+        )
+        .await;
+        w.click("#restore-checkpoint").await;
+        w.until(
+            "the checkpoint restored",
+            &format!("{result}.dataset.result === 'ok' && {result}.textContent.startsWith('restored')"),
+        )
+        .await;
+        // A file that is not a checkpoint: refused, with the run's reason in the page.
+        w.type_into("#checkpoint-path", "multiuav.ddf").await;
+        w.click("#restore-checkpoint").await;
+        w.until("the restore refused", &format!("{result}.dataset.result === 'error'")).await;
+        w.message_contains("not a tutti checkpoint").await;
 
         w.click("#stop-host").await;
         w.message_contains("stopped tutti host").await;

@@ -429,7 +429,10 @@ function follow() {
   mon.source.onerror = () => { $("live-state").textContent = "reconnecting…"; };
 }
 
-window.monitorShown = () => { if (!mon.source) follow(); };
+window.monitorShown = () => {
+  if (!mon.source) follow();
+  if (!$("run-bar").hidden) refreshCheckpoints();
+};
 
 function fmtNs(ns) {
   return ns >= 1e6 ? (ns / 1e6).toFixed(2) + " ms" : (ns / 1e3).toFixed(1) + " µs";
@@ -576,21 +579,60 @@ $("plot-add").addEventListener("click", () => {
 $("plot-clear").addEventListener("click", () => { mon.plotted = []; mon.series = {}; follow(); });
 $("start-host").addEventListener("click", () => runStart("host"));
 $("stop-host").addEventListener("click", () => runStop("host"));
+function showRunState(r) {
+  const state = $("run-state");
+  state.dataset.state = r.state;
+  state.dataset.step = String(r.step);
+  state.textContent = r.state + ", step " + r.step + ", t = " + r.sim_time.toFixed(3) + " s";
+  return state.textContent;
+}
+
 async function runControl(op) {
   const n = parseInt($("step-count").value, 10);
   try {
     const r = await api("POST", "run/control", op === "step" ? { op, n } : { op });
-    const state = $("run-state");
-    state.dataset.state = r.state;
-    state.dataset.step = String(r.step);
-    state.textContent = r.state + ", step " + r.step + ", t = " + r.sim_time.toFixed(3) + " s";
-    say("framework " + op + ": " + state.textContent, "ok");
+    say("framework " + op + ": " + showRunState(r), "ok");
   } catch (e) { fail(e); }
+}
+
+// The checkpoint files under the root, offered by the checkpoint field.
+async function refreshCheckpoints() {
+  try {
+    const r = await api("GET", "run/checkpoints");
+    $("checkpoints").replaceChildren(...r.checkpoints.map((p) => el("option", { value: p })));
+  } catch (e) { fail(e); }
+}
+
+// Save (op "save") or restore ("restore") a checkpoint of the framework: the file named in
+// the field; the result (the file, or the run's reason for refusing) beside the buttons.
+async function runCheckpoint(op) {
+  const path = $("checkpoint-path").value.trim();
+  const result = $("checkpoint-result");
+  result.dataset.result = "";
+  try {
+    const r = await api("POST", "run/control",
+      op === "save" ? { op, path, skip_stateless: $("skip-stateless").checked } : { op, path });
+    $("checkpoint-path").value = r.checkpoint;
+    result.dataset.result = "ok";
+    result.dataset.file = r.checkpoint;
+    result.title = "";
+    result.textContent = (op === "save" ? "saved " : "restored ") + r.checkpoint;
+    say("checkpoint " + (op === "save" ? "saved to " : "restored from ") + r.checkpoint + ": " + showRunState(r), "ok");
+    refreshCheckpoints();
+  } catch (e) {
+    result.dataset.result = "error";
+    result.dataset.file = "";
+    result.textContent = (op === "save" ? "not saved" : "not restored") + " (see the message above)";
+    result.title = e && e.error ? e.error : String(e);
+    fail(e);
+  }
 }
 
 $("pause-host").addEventListener("click", () => runControl("pause"));
 $("step-host").addEventListener("click", () => runControl("step"));
 $("reset-host").addEventListener("click", () => runControl("reset"));
 $("resume-host").addEventListener("click", () => runControl("resume"));
+$("save-checkpoint").addEventListener("click", () => runCheckpoint("save"));
+$("restore-checkpoint").addEventListener("click", () => runCheckpoint("restore"));
 $("start-gateway").addEventListener("click", () => runStart("gateway"));
 $("stop-gateway").addEventListener("click", () => runStop("gateway"));

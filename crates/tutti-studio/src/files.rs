@@ -123,6 +123,13 @@ impl Root {
     /// The DDFs under the root (`*.ddf`, hidden folders skipped), relative, sorted; at most
     /// `limit`, at most 8 folders deep.
     pub fn list_ddfs(&self, limit: usize) -> Vec<String> {
+        self.list_ending(".ddf", limit)
+    }
+
+    /// The files under the root whose names end with `suffix` (hidden files and folders and
+    /// `target` skipped; symlinks not followed), relative, sorted; at most `limit`, at most 8
+    /// folders deep.
+    pub fn list_ending(&self, suffix: &str, limit: usize) -> Vec<String> {
         let mut out = Vec::new();
         let mut stack = vec![(self.dir.clone(), 0)];
         while let Some((dir, depth)) = stack.pop() {
@@ -136,7 +143,7 @@ impl Root {
                 let Ok(ft) = e.file_type() else { continue };
                 if ft.is_dir() && depth < 8 {
                     stack.push((e.path(), depth + 1));
-                } else if ft.is_file() && name.ends_with(".ddf") && out.len() < limit {
+                } else if ft.is_file() && name.ends_with(suffix) && out.len() < limit {
                     out.push(self.relative(&e.path()));
                 }
             }

@@ -14,7 +14,8 @@
 //! | `POST /api/save` | atomic write of the product dialect (refusals: see [`editor::save`]) |
 //! | `GET /api/monitor` | Server-Sent Events at 10 Hz: domains, plotted items, runs ([`monitor`]) |
 //! | `POST /api/run/start`, `/api/run/stop` | a framework (in-process) or a `tutti gateway` child ([`run`]) |
-//! | `POST /api/run/control` | pause, step N, reset or resume the framework, through its control plane (`tutti ctl`) |
+//! | `POST /api/run/control` | pause, step N, reset or resume the framework, or save or restore a checkpoint of it (a file under the root), through its control plane (`tutti ctl`) |
+//! | `GET /api/run/checkpoints` | the checkpoint files under the root (`*.tutti-checkpoint`) |
 //!
 //! Safety: the server binds 127.0.0.1 unless told otherwise, and any other address needs
 //! the token made at start ([`Config::token`]); files are read and written only under the
@@ -180,6 +181,7 @@ pub fn router(state: Arc<AppState>) -> Router {
         .route("/run/start", post(run::start))
         .route("/run/stop", post(run::stop))
         .route("/run/control", post(run::control))
+        .route("/run/checkpoints", get(run::checkpoints))
         .method_not_allowed_fallback(request::method_not_allowed)
         .fallback(not_found)
         .layer(middleware::from_fn_with_state(state.clone(), require_token));

@@ -4,12 +4,14 @@
 //! ([`snapshot`]).
 //!
 //! The framework is `tutti-host`'s [`Host`], driven here as `tutti host` drives it, with the
-//! same log lines; its `pid` is the studio's own. The gateway is started as a child that dies
+//! same log lines; its `pid` is the studio's own. Pause, step, reset, resume, and the
+//! checkpoints' save and restore, reach it through its control plane ([`control`]), as
+//! `tutti ctl` reaches it. The gateway is started as a child that dies
 //! with the studio (SIGTERM, then SIGKILL after a grace period, when stopped).
 
 use std::collections::{HashMap, VecDeque};
 use std::io::{BufRead, BufReader, Read};
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex};
@@ -25,6 +27,7 @@ use tutti_host::control::{ControlClient, ControlError, Request};
 use tutti_host::{ChildProcess, Host, HostOptions, SIGTERM};
 
 use crate::error::ApiError;
+use crate::files::Root;
 use crate::request::ApiJson;
 use crate::AppState;
 
@@ -119,11 +122,14 @@ pub struct Runs {
     runs: Mutex<HashMap<Kind, Run>>,
     /// The `tutti` executable that runs a gateway.
     pub exe: Option<PathBuf>,
+    /// Held by a checkpoint save from choosing its file to the run's answer: the studio's
+    /// checkpoint saves take turns (two saves without a name never pick the same one).
+    checkpoint_turn: tokio::sync::Mutex<()>,
 }
 
 impl Runs {
     pub fn new(exe: Option<PathBuf>) -> Self {
-        Runs { runs: Mutex::new(HashMap::new()), exe }
+        Runs { runs: Mutex::new(HashMap::new()), exe, checkpoint_turn: tokio::sync::Mutex::new(()) }
     }
 
     /// Stops every run (the studio is stopping).
@@ -353,14 +359,71 @@ pub async fn stop(State(st): State<Arc<AppState>>, ApiJson(body): ApiJson<StopBo
 
 #[derive(Debug, Deserialize)]
 pub struct ControlBody {
-    /// `state`, `pause`, `resume`, `step` (with `n`) or `reset`.
+    /// `state`, `pause`, `resume`, `step` (with `n`), `reset`, `save` or `restore` (with
+    /// `path`).
     pub op: String,
     pub n: Option<u64>,
+    /// `save`: the checkpoint file to write, under the root ([`checkpoint_to_write`]);
+    /// `restore`: the checkpoint file to put back, under the root.
+    #[serde(default)]
+    pub path: Option<String>,
+    /// `save`: components that keep no state are left out (and named in the file) instead of
+    /// failing the save (`tutti ctl save --skip-stateless`).
+    #[serde(default)]
+    pub skip_stateless: bool,
 }
 
-/// `POST /api/run/control {op, n?}`: pauses, steps, resets or resumes the framework the
-/// studio started, through the run's control plane (as `tutti ctl` does); answers the run's
-/// state after it.
+/// What `/api/run/control` asks of the framework.
+enum Op {
+    /// A request as it is.
+    Plain(Request),
+    /// A checkpoint written to a file under the root.
+    Save,
+    /// A checkpoint put back from a file under the root.
+    Restore,
+}
+
+/// How a checkpoint file's name ends: `.tutti-checkpoint`.
+fn checkpoint_suffix() -> String {
+    format!(".{}", tutti_host::checkpoint::EXTENSION)
+}
+
+/// Where a checkpoint save writes, resolved as every file the studio writes ([`Root::for_write`]:
+/// under the root, or refused). `asked` gets `.tutti-checkpoint` appended when its name does not
+/// end with it, so that a save never writes over a DDF or any other file; without a name, the
+/// checkpoint is `STEM-N.tutti-checkpoint` in the root (`STEM`: the run's DDF's, `N`: the first
+/// not taken).
+fn checkpoint_to_write(root: &Root, asked: Option<&str>, ddf: &str) -> Result<PathBuf, ApiError> {
+    let suffix = checkpoint_suffix();
+    let name = match asked.map(str::trim).filter(|a| !a.is_empty()) {
+        Some(a) if a.ends_with('/') => {
+            return Err(ApiError::bad_request(format!("'{a}' names a folder: give the checkpoint file's name")))
+        }
+        Some(a) if a.ends_with(&suffix) => a.to_string(),
+        Some(a) => format!("{a}{suffix}"),
+        None => {
+            let stem = Path::new(ddf).file_stem().map_or_else(|| "run".into(), |s| s.to_string_lossy().into_owned());
+            (1u64..)
+                .map(|n| format!("{stem}-{n}{suffix}"))
+                .find(|n| root.dir().join(n).symlink_metadata().is_err())
+                .unwrap_or_default()
+        }
+    };
+    root.for_write(&name)
+}
+
+/// `GET /api/run/checkpoints`: the checkpoint files under the root (`*.tutti-checkpoint`,
+/// relative, sorted), which the page offers to Restore.
+pub async fn checkpoints(State(st): State<Arc<AppState>>) -> Json<Value> {
+    Json(json!({ "checkpoints": st.root.list_ending(&checkpoint_suffix(), 2000) }))
+}
+
+/// `POST /api/run/control {op, n?, path?, skip_stateless?}`: pauses, steps, resets or resumes
+/// the framework the studio started, or saves a checkpoint of it to a file under the root or
+/// restores one from there, through the run's control plane (as `tutti ctl` does); answers the
+/// run's state after it, with `checkpoint` (the file, relative to the root) for a save or a
+/// restore. A command the run refuses (a component that keeps no state, a file that is not a
+/// checkpoint or one of another DDF) is 409 `refused` with the run's reason.
 pub async fn control(
     State(st): State<Arc<AppState>>,
     ApiJson(body): ApiJson<ControlBody>,
@@ -372,27 +435,45 @@ pub async fn control(
             "the studio runs with --read-only: no run control",
         ));
     }
-    let request = match (body.op.as_str(), body.n) {
-        ("state", _) => Request::State,
-        ("pause", _) => Request::Pause,
-        ("resume", _) => Request::Resume,
-        ("reset", _) => Request::Reset,
-        ("step", Some(n)) if n > 0 => Request::Step { n },
+    let op = match (body.op.as_str(), body.n) {
+        ("state", _) => Op::Plain(Request::State),
+        ("pause", _) => Op::Plain(Request::Pause),
+        ("resume", _) => Op::Plain(Request::Resume),
+        ("reset", _) => Op::Plain(Request::Reset),
+        ("step", Some(n)) if n > 0 => Op::Plain(Request::Step { n }),
         ("step", _) => return Err(ApiError::bad_request("step needs n, a number of steps above 0")),
+        ("save", _) => Op::Save,
+        ("restore", _) => Op::Restore,
         (op, _) => {
             return Err(ApiError::bad_request(format!(
-                "unknown op '{op}': expected state, pause, resume, step or reset"
+                "unknown op '{op}': expected state, pause, resume, step, reset, save or restore"
             )))
         }
     };
-    let namespace = {
+    let _turn = match op {
+        Op::Save => Some(st.runs.checkpoint_turn.lock().await),
+        _ => None,
+    };
+    let (namespace, ddf) = {
         let mut runs = st.runs.runs.lock().map_err(|_| ApiError::bad_request("run state unavailable"))?;
         let run = runs.get_mut(&Kind::Host).ok_or_else(|| ApiError::not_found("no framework was started"))?;
         run.poll();
         if run.exit.is_some() {
             return Err(ApiError::conflict("stopped", "the framework has stopped"));
         }
-        run.namespace.clone()
+        (run.namespace.clone(), run.path.clone())
+    };
+    // The run is in this process: it gets the file's resolved, absolute path.
+    let (request, file) = match op {
+        Op::Plain(request) => (request, None),
+        Op::Save => {
+            let real = checkpoint_to_write(&st.root, body.path.as_deref(), &ddf)?;
+            (Request::Save { path: real.display().to_string(), skip_stateless: body.skip_stateless }, Some(real))
+        }
+        Op::Restore => {
+            let real = st.root.existing(body.path.as_deref().unwrap_or_default().trim())?;
+            (Request::Restore { path: real.display().to_string() }, Some(real))
+        }
     };
     let answer = tokio::task::spawn_blocking(move || {
         ControlClient::connect(&namespace, Duration::from_secs(30)).and_then(|mut c| c.request(&request))
@@ -400,7 +481,13 @@ pub async fn control(
     .await
     .map_err(|e| ApiError::new(StatusCode::INTERNAL_SERVER_ERROR, "control", e.to_string()))?;
     match answer {
-        Ok(status) => Ok(Json(serde_json::to_value(status).unwrap_or_default())),
+        Ok(status) => {
+            let mut answer = serde_json::to_value(status).unwrap_or_default();
+            if let (Some(file), Some(fields)) = (&file, answer.as_object_mut()) {
+                fields.insert("checkpoint".into(), st.root.relative(file).into());
+            }
+            Ok(Json(answer))
+        }
         Err(ControlError::Refused(why)) => Err(ApiError::conflict("refused", why.to_string())),
         Err(e) => Err(ApiError::new(StatusCode::SERVICE_UNAVAILABLE, "control", e.to_string())),
     }

@@ -348,6 +348,137 @@ fn run_control_refuses_what_it_must_and_keeps_the_log() {
     assert_eq!((status, body["code"].as_str()), (503, Some("no-exe")));
 }
 
+/// A framework started from the studio on `ddf` in a namespace of its own (`tag`), once
+/// its control plane serves (its first log line is written after that): the namespace.
+fn start_host_in(s: &Studio, ddf: &str, tag: &str) -> String {
+    let ns = format!("{tag}{}", std::process::id());
+    let (status, body) =
+        s.post("/api/run/start", json!({ "kind": "host", "path": ddf, "step": "10ms", "namespace": ns }));
+    assert_eq!(status, 200, "{body}");
+    let never = lazy(|| format!("the host's output never reached the log: {}", first_event(s, "")));
+    wait_for(never, std::time::Duration::from_secs(30), || {
+        Some(first_event(s, "")).filter(|ev| ev["runs"]["host"]["log"].to_string().contains("step 10ms"))
+    });
+    ns
+}
+
+#[test]
+fn run_control_saves_and_restores_checkpoints() {
+    use tutti_host::checkpoint::Checkpoint;
+    let s = studio_with(None, false, Some("/bin/echo"));
+    let control = |body: Value| s.post("/api/run/control", body);
+    let listed = || s.get("/api/run/checkpoints").1["checkpoints"].clone();
+    let (status, body) = control(json!({ "op": "save", "path": "early" }));
+    assert_eq!((status, body["code"].as_str()), (404, Some("not-found")), "no framework yet: {body}");
+    let ns = start_host_in(&s, "multiuav.ddf", "studiockpt");
+    assert_eq!(listed(), json!([]));
+
+    // A run without components: its checkpoint holds the domains only. The extension is
+    // added to a name without it.
+    let (status, saved) = control(json!({ "op": "save", "path": "first" }));
+    assert_eq!((status, saved["checkpoint"].as_str()), (200, Some("first.tutti-checkpoint")), "{saved}");
+    let first = Checkpoint::read(&s.root.join("first.tutti-checkpoint")).unwrap();
+    assert!(first.components.is_empty() && first.skipped.is_empty(), "{first:?}");
+    assert!(first.ddf.ends_with("multiuav.ddf"), "{}", first.ddf);
+    assert!(!first.domains.is_empty());
+
+    // Paused at step S, saved, stepped on, restored: back at step S, still paused.
+    let (status, paused) = control(json!({ "op": "pause" }));
+    assert_eq!((status, paused["state"].as_str()), (200, Some("paused")), "{paused}");
+    let at = paused["step"].as_u64().unwrap();
+    let (status, saved) = control(json!({ "op": "save", "path": "paused.tutti-checkpoint" }));
+    assert_eq!((status, saved["checkpoint"].as_str()), (200, Some("paused.tutti-checkpoint")), "{saved}");
+    assert_eq!(Checkpoint::read(&s.root.join("paused.tutti-checkpoint")).unwrap().next_index, at);
+    let (status, stepped) = control(json!({ "op": "step", "n": 5 }));
+    assert_eq!((status, stepped["step"].as_u64()), (200, Some(at + 5)), "{stepped}");
+    let (status, restored) = control(json!({ "op": "restore", "path": "paused.tutti-checkpoint" }));
+    assert_eq!(status, 200, "{restored}");
+    assert_eq!(restored["checkpoint"], "paused.tutti-checkpoint");
+    assert_eq!((restored["state"].as_str(), restored["step"].as_u64()), (Some("paused"), Some(at)), "{restored}");
+
+    // Without a name: the DDF's, numbered; listed for Restore.
+    let (status, saved) = control(json!({ "op": "save", "path": "" }));
+    assert_eq!((status, saved["checkpoint"].as_str()), (200, Some("multiuav-1.tutti-checkpoint")), "{saved}");
+    let (_, saved) = control(json!({ "op": "save" }));
+    assert_eq!(saved["checkpoint"], "multiuav-2.tutti-checkpoint", "{saved}");
+    assert_eq!(
+        listed(),
+        json!([
+            "first.tutti-checkpoint",
+            "multiuav-1.tutti-checkpoint",
+            "multiuav-2.tutti-checkpoint",
+            "paused.tutti-checkpoint"
+        ])
+    );
+    // A name of another file is never written over: the checkpoint goes beside it.
+    let ddf = std::fs::read(s.root.join("multiuav.ddf")).unwrap();
+    let (_, saved) = control(json!({ "op": "save", "path": "multiuav.ddf" }));
+    assert_eq!(saved["checkpoint"], "multiuav.ddf.tutti-checkpoint", "{saved}");
+    assert_eq!(std::fs::read(s.root.join("multiuav.ddf")).unwrap(), ddf);
+
+    // A file that is not a checkpoint: refused with the reason, the run untouched.
+    let (status, refused) = control(json!({ "op": "restore", "path": "multiuav.ddf" }));
+    assert_eq!((status, refused["code"].as_str()), (409, Some("refused")), "{refused}");
+    assert!(refused["error"].as_str().unwrap().contains("not a tutti checkpoint"), "{refused}");
+    std::fs::write(s.root.join("junk.tutti-checkpoint"), "PK not really").unwrap();
+    let (status, refused) = control(json!({ "op": "restore", "path": "junk.tutti-checkpoint" }));
+    assert_eq!((status, refused["code"].as_str()), (409, Some("refused")), "{refused}");
+    assert!(refused["error"].as_str().unwrap().contains("not a tutti checkpoint"), "{refused}");
+    let (_, state) = control(json!({ "op": "state" }));
+    assert_eq!((state["state"].as_str(), state["step"].as_u64()), (Some("paused"), Some(at)), "{state}");
+
+    // A component that keeps no state: a save fails naming it, unless told to skip it.
+    let component = tutti_core::shm::Participant::connect(
+        "multiuav_uav1",
+        tutti_core::shm::ConnectOptions {
+            namespace: ns.clone(),
+            name: "nostate".into(),
+            connect_timeout: std::time::Duration::from_secs(10),
+            skip_wait_to_go: true,
+            ..Default::default()
+        },
+    )
+    .unwrap();
+    let (status, refused) = control(json!({ "op": "save", "path": "stateless" }));
+    assert_eq!((status, refused["code"].as_str()), (409, Some("refused")), "{refused}");
+    let why = refused["error"].as_str().unwrap();
+    assert!(why.contains("keep no state") && why.contains("'nostate'"), "{refused}");
+    assert!(!s.root.join("stateless.tutti-checkpoint").exists());
+    let (status, saved) = control(json!({ "op": "save", "path": "stateless", "skip_stateless": true }));
+    assert_eq!((status, saved["checkpoint"].as_str()), (200, Some("stateless.tutti-checkpoint")), "{saved}");
+    let skipped = Checkpoint::read(&s.root.join("stateless.tutti-checkpoint")).unwrap().skipped;
+    assert_eq!(
+        skipped.iter().map(|k| (k.name.as_str(), k.domain.as_str())).collect::<Vec<_>>(),
+        [("nostate", "multiuav_uav1")]
+    );
+    drop(component);
+    // Missing files, no name, and paths outside the root: refused before the run is asked.
+    let (status, body) = control(json!({ "op": "restore", "path": "nothing.tutti-checkpoint" }));
+    assert_eq!(status, 404, "{body}");
+    let (status, body) = control(json!({ "op": "restore", "path": " " }));
+    assert_eq!(status, 400, "{body}");
+    for bad in ["../escape", "../../etc/passwd", "/tmp/escape", "../outside.ddf"] {
+        let (status, body) = control(json!({ "op": "save", "path": bad }));
+        assert_eq!((status, body["code"].as_str()), (403, Some("path")), "save {bad}: {body}");
+        assert!(body["error"].as_str().unwrap().contains("outside the studio's root"), "{body}");
+        let (status, body) = control(json!({ "op": "restore", "path": bad }));
+        assert!(status == 403 || status == 404, "restore {bad}: {status} {body}");
+    }
+    assert!(!s.root.join("../escape.tutti-checkpoint").exists());
+    let (status, body) = control(json!({ "op": "save", "path": "nofolder/" }));
+    assert_eq!(status, 400, "{body}");
+
+    let (status, body) = s.post("/api/run/stop", json!({ "kind": "host" }));
+    assert_eq!(status, 200, "{body}");
+    let (status, body) = control(json!({ "op": "save", "path": "late" }));
+    assert_eq!((status, body["code"].as_str()), (409, Some("stopped")), "{body}");
+    assert!(!s.root.join("late.tutti-checkpoint").exists());
+
+    let s = studio_with(None, true, Some("/bin/echo"));
+    let (status, body) = s.post("/api/run/control", json!({ "op": "save", "path": "x" }));
+    assert_eq!((status, body["code"].as_str()), (403, Some("read-only")));
+}
+
 #[test]
 fn requests_for_another_host_name_are_refused() {
     let s = studio(None, false);

@@ -245,12 +245,16 @@ fn write_private(path: &std::path::Path, bytes: &[u8]) -> std::io::Result<()> {
     f.write_all(bytes)
 }
 
-/// Collects the answers of the connections asked in several domains at once: `asked` holds,
-/// per domain, its segment, the request's number and the connections asked (slot, pid).
+/// One domain's request: its segment, the request's number and the connections asked (slot,
+/// pid).
+pub(crate) type Asked<'a> = (&'a Segment, u64, Vec<(usize, u32)>);
+
+/// Collects the answers of the connections asked in several domains at once (an [`Asked`]
+/// per domain).
 /// Waits until all answered or `deadline`; a connection that did not answer by then has
 /// [`StateAnswer::NoAnswer`], and its file is removed.
 pub(crate) fn collect_answers(
-    asked: &[(&Segment, u64, Vec<(usize, u32)>)],
+    asked: &[Asked<'_>],
     kind: StateRequest,
     deadline: Instant,
 ) -> Vec<Vec<StateAnswer>> {
