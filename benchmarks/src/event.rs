@@ -412,7 +412,6 @@ fn one_run(args: &Args, kind: Kind, round: u32) -> anyhow::Result<RunResult> {
         connections: vec![tutti_host::connect::parse_connection("ev/subscribe/y0 -> ev/publish/x")
             .context("the benchmark's connection")?],
         ddf_name: "the benchmark's DDF".into(),
-            ..Default::default()
         ..Default::default()
     };
     // Dropped on every way out of this function: the segments go with it, and the

@@ -54,6 +54,7 @@ fn a_component_is_restarted_stopped_and_started_mid_run_while_the_other_keeps_st
         namespace: Some(ns.clone()),
         grace: Duration::from_secs(3),
         realtime: None,
+        restore: None,
     };
     let stop = interrupt.clone();
     let run = std::thread::spawn(move || {

@@ -47,7 +47,6 @@ fn record(format: Format, dir: &Path) -> Summary {
         namespace: Some(ns),
         sets: vec!["rec/x=2.5".into(), "rec/n=7".into()],
         ddf_name: "rec.ddf".into(),
-            ..Default::default()
         ..HostOptions::default()
     };
     let mut host = Host::new(&model, opts).unwrap();
