@@ -18,7 +18,7 @@ use super::{CliResult, Failure};
     after_help = "Examples:\n  tutti ctl state\n  tutti ctl pause\n  tutti ctl step 7 --json\n  tutti ctl reset\n  tutti ctl save warm.tutti-checkpoint\n  tutti ctl restore warm.tutti-checkpoint\n  tutti ctl save run.tutti-checkpoint --skip-stateless\n  tutti ctl reset state\n  tutti ctl resume\n  tutti ctl restart ctrl\n  tutti ctl signal uav3 USR1\n  tutti ctl stop\n  TUTTI_NAMESPACE=lab2 tutti ctl state --json\n\nWhile paused, no step is made and no participant times out, however long the pause; `step N`\nmakes exactly N steps and pauses again. `save FILE` writes a checkpoint of the run (values and every\ncomponent's state) at the next step boundary, `restore FILE` puts one back, `reset state` goes back to\nthe run's step 0, states included (docs/run.md, Checkpoints). `stop` with no component ends the run and waits\nuntil it is gone. Only the user who started the run may control it. See docs/run.md."
 )]
 pub struct Args {
-    /// state, pause, resume, step N, reset [state], save FILE, restore FILE, stop,
+    /// state, pause, resume, step N, reset (or reset state), save FILE, restore FILE, stop,
     /// stop/restart/start COMPONENT, or signal COMPONENT SIGNAL (USR1, USR2, TERM, INT, HUP, …)
     #[arg(value_name = "COMMAND", required = true, num_args = 1..=3)]
     command: Vec<String>,

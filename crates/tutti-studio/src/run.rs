@@ -363,7 +363,7 @@ pub struct ControlBody {
     /// `path`).
     pub op: String,
     pub n: Option<u64>,
-    /// `save`: the checkpoint file to write, under the root ([`checkpoint_to_write`]);
+    /// `save`: the checkpoint file to write, under the root (`checkpoint_to_write`);
     /// `restore`: the checkpoint file to put back, under the root.
     #[serde(default)]
     pub path: Option<String>,

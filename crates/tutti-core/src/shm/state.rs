@@ -253,11 +253,7 @@ pub(crate) type Asked<'a> = (&'a Segment, u64, Vec<(usize, u32)>);
 /// per domain).
 /// Waits until all answered or `deadline`; a connection that did not answer by then has
 /// [`StateAnswer::NoAnswer`], and its file is removed.
-pub(crate) fn collect_answers(
-    asked: &[Asked<'_>],
-    kind: StateRequest,
-    deadline: Instant,
-) -> Vec<Vec<StateAnswer>> {
+pub(crate) fn collect_answers(asked: &[Asked<'_>], kind: StateRequest, deadline: Instant) -> Vec<Vec<StateAnswer>> {
     let mut answers: Vec<Vec<Option<StateAnswer>>> = asked.iter().map(|(_, _, c)| vec![None; c.len()]).collect();
     loop {
         let mut missing = false;
