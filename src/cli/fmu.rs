@@ -164,6 +164,15 @@ fn print_summary(path: &std::path::Path, fmu: &Fmu) {
             for (k, v) in &cs.attributes {
                 println!("  {k} = {v}");
             }
+            let missing = cs.missing_state_capabilities(md.fmi_version);
+            if missing.is_empty() {
+                println!("checkpoints:    yes (it saves and restores its state)");
+            } else {
+                println!(
+                    "checkpoints:    no (it does not declare {}: a component that keeps no state)",
+                    missing.join(", ")
+                );
+            }
         }
         None => println!("co-simulation:  no (tutti cannot run this FMU)"),
     }

@@ -9,7 +9,7 @@ use std::ffi::{c_char, c_uint, c_void, CString};
 
 use fmi::fmi2::binding::{self, Fmi2Binding};
 
-use crate::call::{text, CallStatus};
+use crate::call::{text, CallStatus, FmuState, StateFunctions};
 use crate::log_capture;
 
 extern "C" {
@@ -81,6 +81,15 @@ impl Fmi2Cs {
         r
     }
 
+    /// No call after Fatal (the standard allows none).
+    fn live(&self) -> Result<(), CallStatus> {
+        if self.fatal {
+            Err(CallStatus::Fatal)
+        } else {
+            Ok(())
+        }
+    }
+
     /// `fmi2Instantiate` for co-simulation; `None` when the FMU refuses (see the log).
     pub fn instantiate(binding: Fmi2Binding, instance_name: &str, guid: &str, resource_url: &str) -> Option<Fmi2Cs> {
         let callbacks = Box::new(binding::fmi2CallbackFunctions {
@@ -135,9 +144,7 @@ impl Fmi2Cs {
     }
 
     pub fn terminate(&mut self) -> Result<(), CallStatus> {
-        if self.fatal {
-            return Err(CallStatus::Fatal);
-        }
+        self.live()?;
         // SAFETY: a live component of this binding.
         self.note(unsafe { self.binding.fmi2Terminate(self.component) })
     }
@@ -174,6 +181,57 @@ impl Fmi2Cs {
         let v = i32::from(v);
         // SAFETY: one value reference, one value, both valid for the call.
         self.note(unsafe { self.binding.fmi2SetBoolean(self.component, &vr, 1, &v) })
+    }
+}
+
+/// The FMU-state functions, made only when the FMU declares `canGetAndSetFMUstate` and
+/// `canSerializeFMUstate`: `Fmu::instantiate` then checked that the library exports them, so
+/// the binding has each (it panics on a function it did not find).
+impl StateFunctions for Fmi2Cs {
+    fn get_state(&mut self) -> Result<FmuState, CallStatus> {
+        self.live()?;
+        let mut state: FmuState = std::ptr::null_mut();
+        // SAFETY: a live component; a NULL state asks the FMU for a new one.
+        self.note(unsafe { self.binding.fmi2GetFMUstate(self.component, &mut state) }).map(|()| state)
+    }
+
+    fn deserialize_state(&mut self, bytes: &[u8]) -> Result<FmuState, CallStatus> {
+        self.live()?;
+        let mut state: FmuState = std::ptr::null_mut();
+        // SAFETY: a live component; `bytes` is valid for its length; a NULL state asks the FMU
+        // for a new one.
+        let status = unsafe {
+            self.binding.fmi2DeSerializeFMUstate(self.component, bytes.as_ptr().cast(), bytes.len(), &mut state)
+        };
+        self.note(status).map(|()| state)
+    }
+
+    unsafe fn set_state(&mut self, state: FmuState) -> Result<(), CallStatus> {
+        self.live()?;
+        // SAFETY: a live component and a state of it (the caller's contract).
+        self.note(unsafe { self.binding.fmi2SetFMUstate(self.component, state) })
+    }
+
+    unsafe fn free_state(&mut self, mut state: FmuState) -> Result<(), CallStatus> {
+        self.live()?;
+        // SAFETY: a live component and a state of it, not used after (the caller's contract).
+        self.note(unsafe { self.binding.fmi2FreeFMUstate(self.component, &mut state) })
+    }
+
+    unsafe fn serialized_size(&mut self, state: FmuState) -> Result<usize, CallStatus> {
+        self.live()?;
+        let mut size = 0;
+        // SAFETY: a live component and a state of it (the caller's contract).
+        self.note(unsafe { self.binding.fmi2SerializedFMUstateSize(self.component, state, &mut size) }).map(|()| size)
+    }
+
+    unsafe fn serialize_state(&mut self, state: FmuState, out: &mut [u8]) -> Result<(), CallStatus> {
+        self.live()?;
+        // SAFETY: a live component and a state of it (the caller's contract); `out` is valid
+        // for its length.
+        let status =
+            unsafe { self.binding.fmi2SerializeFMUstate(self.component, state, out.as_mut_ptr().cast(), out.len()) };
+        self.note(status)
     }
 }
 

@@ -6,7 +6,7 @@ use std::ffi::{c_char, c_uint, c_void, CString};
 
 use fmi::fmi3::binding::{self, Fmi3Binding};
 
-use crate::call::CallStatus;
+use crate::call::{CallStatus, FmuState, StateFunctions};
 use crate::log_capture;
 
 /// Receives every message an FMI 3.0 FMU logs; the environment is the instance's name.
@@ -75,6 +75,15 @@ impl Fmi3Cs {
         r
     }
 
+    /// No call after Fatal (the standard allows none).
+    fn live(&self) -> Result<(), CallStatus> {
+        if self.fatal {
+            Err(CallStatus::Fatal)
+        } else {
+            Ok(())
+        }
+    }
+
     /// `fmi3InstantiateCoSimulation`; `None` when the FMU refuses (see the log).
     pub fn instantiate(binding: Fmi3Binding, instance_name: &str, token: &str, resources: &str) -> Option<Fmi3Cs> {
         let name = Box::new(CString::new(instance_name).ok()?);
@@ -124,9 +133,7 @@ impl Fmi3Cs {
     }
 
     pub fn terminate(&mut self) -> Result<(), CallStatus> {
-        if self.fatal {
-            return Err(CallStatus::Fatal);
-        }
+        self.live()?;
         // SAFETY: a live instance of this binding.
         self.note(unsafe { self.binding.fmi3Terminate(self.instance) })
     }
@@ -142,6 +149,55 @@ impl Fmi3Cs {
     get_set!(get_uint32, set_uint32, fmi3GetUInt32, fmi3SetUInt32, u32, 0);
     get_set!(get_uint64, set_uint64, fmi3GetUInt64, fmi3SetUInt64, u64, 0);
     get_set!(get_boolean, set_boolean, fmi3GetBoolean, fmi3SetBoolean, bool, false);
+}
+
+/// The FMU-state functions, made only when the FMU declares `canGetAndSetFMUState` and
+/// `canSerializeFMUState`: `Fmu::instantiate` then checked that the library exports them, so
+/// the binding has each (it panics on a function it did not find).
+impl StateFunctions for Fmi3Cs {
+    fn get_state(&mut self) -> Result<FmuState, CallStatus> {
+        self.live()?;
+        let mut state: FmuState = std::ptr::null_mut();
+        // SAFETY: a live instance; a NULL state asks the FMU for a new one.
+        self.note(unsafe { self.binding.fmi3GetFMUState(self.instance, &mut state) }).map(|()| state)
+    }
+
+    fn deserialize_state(&mut self, bytes: &[u8]) -> Result<FmuState, CallStatus> {
+        self.live()?;
+        let mut state: FmuState = std::ptr::null_mut();
+        // SAFETY: a live instance; `bytes` is valid for its length; a NULL state asks the FMU
+        // for a new one.
+        let status =
+            unsafe { self.binding.fmi3DeserializeFMUState(self.instance, bytes.as_ptr(), bytes.len(), &mut state) };
+        self.note(status).map(|()| state)
+    }
+
+    unsafe fn set_state(&mut self, state: FmuState) -> Result<(), CallStatus> {
+        self.live()?;
+        // SAFETY: a live instance and a state of it (the caller's contract).
+        self.note(unsafe { self.binding.fmi3SetFMUState(self.instance, state) })
+    }
+
+    unsafe fn free_state(&mut self, mut state: FmuState) -> Result<(), CallStatus> {
+        self.live()?;
+        // SAFETY: a live instance and a state of it, not used after (the caller's contract).
+        self.note(unsafe { self.binding.fmi3FreeFMUState(self.instance, &mut state) })
+    }
+
+    unsafe fn serialized_size(&mut self, state: FmuState) -> Result<usize, CallStatus> {
+        self.live()?;
+        let mut size = 0;
+        // SAFETY: a live instance and a state of it (the caller's contract).
+        self.note(unsafe { self.binding.fmi3SerializedFMUStateSize(self.instance, state, &mut size) }).map(|()| size)
+    }
+
+    unsafe fn serialize_state(&mut self, state: FmuState, out: &mut [u8]) -> Result<(), CallStatus> {
+        self.live()?;
+        // SAFETY: a live instance and a state of it (the caller's contract); `out` is valid
+        // for its length.
+        let status = unsafe { self.binding.fmi3SerializeFMUState(self.instance, state, out.as_mut_ptr(), out.len()) };
+        self.note(status)
+    }
 }
 
 impl Drop for Fmi3Cs {

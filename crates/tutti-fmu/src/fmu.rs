@@ -11,6 +11,7 @@ use fmi::traits::FmiImport as _;
 use tutti_core::ddf::Value;
 
 pub use crate::call::CallStatus;
+use crate::call::{self, FMI2_STATE_FUNCTIONS, FMI3_STATE_FUNCTIONS};
 use crate::fmi2::Fmi2Cs;
 use crate::fmi3::Fmi3Cs;
 use crate::log_capture;
@@ -44,15 +45,25 @@ pub enum LoadError {
     Instantiate { path: PathBuf, model: String, log: String },
 }
 
-/// An FMU call that returned Error or Fatal (or failed otherwise) while running.
+/// An FMU call that returned Error or Fatal (or failed otherwise) while running, or one the
+/// FMU does not support ([`CallStatus::Unsupported`]).
 #[derive(Debug, thiserror::Error)]
-#[error("FMU '{model}': {call} failed with status {status}{log}")]
+#[error("FMU '{model}': {call}{}{log}", outcome(.status))]
 pub struct CallError {
     pub model: String,
+    /// The call that failed; with [`CallStatus::Unsupported`], what the FMU cannot do and why.
     pub call: String,
     pub status: CallStatus,
     /// The FMU's log messages since the previous call, one per line, indented.
     pub log: String,
+}
+
+/// What [`CallError`] says after the call.
+fn outcome(status: &CallStatus) -> String {
+    match status {
+        CallStatus::Unsupported => String::new(),
+        status => format!(" failed with status {status}"),
+    }
 }
 
 /// Why the libpython a PythonFMU model needs could not be found or loaded.
@@ -129,10 +140,30 @@ const FMI3_SYMBOLS: &[&str] = &[
     "fmi3DoStep",
 ];
 
+/// The FMU-state functions of FMI `version`, for the capabilities `md`'s FMU declares
+/// (`canGetAndSetFMUstate`: get, set, free; `canSerializeFMUstate`: size, serialize,
+/// deserialize): declared, they must be there; undeclared, they are never called.
+fn state_symbols(md: &ModelDescription) -> impl Iterator<Item = &'static str> {
+    let names: &'static [&'static str; 6] = match md.fmi_version {
+        FmiVersion::Fmi2 => &FMI2_STATE_FUNCTIONS,
+        FmiVersion::Fmi3 => &FMI3_STATE_FUNCTIONS,
+    };
+    let cs = md.co_simulation.as_ref();
+    let get_set = cs.is_some_and(|cs| cs.can_get_and_set_fmu_state);
+    let serialize = cs.is_some_and(|cs| cs.can_serialize_fmu_state);
+    let part = |declared: bool, part: &'static [&'static str]| if declared { part } else { &[] };
+    part(get_set, &names[..3]).iter().chain(part(serialize, &names[3..])).copied()
+}
+
+/// Every FMI 2.0 function tutti may call on `md`'s FMU.
+fn fmi2_symbols(md: &ModelDescription) -> Vec<String> {
+    FMI2_SYMBOLS.iter().copied().chain(state_symbols(md)).map(String::from).collect()
+}
+
 /// Every FMI 3.0 function tutti may call on `md`'s FMU: a missing getter is an error at load
 /// time rather than a failed call later.
 fn fmi3_symbols(md: &ModelDescription) -> Vec<String> {
-    let mut out: Vec<String> = FMI3_SYMBOLS.iter().map(|s| s.to_string()).collect();
+    let mut out: Vec<String> = FMI3_SYMBOLS.iter().copied().chain(state_symbols(md)).map(String::from).collect();
     for v in &md.variables {
         let used = matches!(
             v.causality,
@@ -232,7 +263,9 @@ impl Fmu {
         let inner = match self.model.fmi_version {
             FmiVersion::Fmi2 => {
                 let import: fmi::fmi2::import::Fmi2Import = fmi::import::from_path(&self.path).map_err(import_err)?;
-                self.check_library(import.archive_path(), &entry, FMI2_SYMBOLS)?;
+                let symbols = fmi2_symbols(&self.model);
+                let symbols: Vec<&str> = symbols.iter().map(String::as_str).collect();
+                self.check_library(import.archive_path(), &entry, &symbols)?;
                 let _ = log_capture::take();
                 let binding = import.binding(self.model_identifier()?).map_err(import_err)?;
                 let url = import.canonical_resource_path_string();
@@ -253,7 +286,21 @@ impl Fmu {
                 Inner::V3 { inst: Box::new(inst), _import: Box::new(import) }
             }
         };
-        Ok(Instance { model: self.model.model_name.clone(), inner })
+        Ok(Instance { model: self.model.model_name.clone(), inner, no_state: self.no_state_reason() })
+    }
+
+    /// Why this FMU cannot save and restore its state (the capabilities it does not declare),
+    /// or `None` when it can.
+    fn no_state_reason(&self) -> Option<String> {
+        let version = self.model.fmi_version;
+        let missing = self.model.co_simulation.as_ref().map(|cs| cs.missing_state_capabilities(version))?;
+        if missing.is_empty() {
+            return None;
+        }
+        let missing: Vec<String> = missing.iter().map(|m| format!("{m}=\"true\"")).collect();
+        let python = self.model.generation_tool.as_deref().is_some_and(|t| t.starts_with("PythonFMU"));
+        let hint = if python { " (a PythonFMU model: build it with --handle-state --serialize-state)" } else { "" };
+        Some(format!("its modelDescription.xml does not declare {}{hint}", missing.join(" and ")))
     }
 
     fn instantiate_failed(&self) -> LoadError {
@@ -347,11 +394,71 @@ impl std::fmt::Debug for Inner {
 pub struct Instance {
     model: String,
     inner: Inner,
+    /// Why the FMU cannot save and restore its state (`None`: it can).
+    no_state: Option<String>,
 }
 
 impl Instance {
     fn fail(&self, call: impl Into<String>, status: CallStatus) -> CallError {
         CallError { model: self.model.clone(), call: call.into(), status, log: log_text() }
+    }
+
+    /// The FMU's model name (`modelName`).
+    pub fn model_name(&self) -> &str {
+        &self.model
+    }
+
+    /// Whether the FMU can save and restore its state: it declares `canGetAndSetFMUstate` and
+    /// `canSerializeFMUstate` (FMI 3.0: `canGetAndSetFMUState`, `canSerializeFMUState`).
+    pub fn can_save_state(&self) -> bool {
+        self.no_state.is_none()
+    }
+
+    /// The error of an FMU that cannot save and restore its state, for `what` it was asked.
+    fn no_state(&self, what: &str) -> Result<(), CallError> {
+        match &self.no_state {
+            None => Ok(()),
+            Some(why) => Err(CallError {
+                model: self.model.clone(),
+                call: format!("{what} is not possible: {why}"),
+                status: CallStatus::Unsupported,
+                log: String::new(),
+            }),
+        }
+    }
+
+    /// The error of a failed FMU-state call.
+    fn state_failed(&self, (call, status): call::StateFailure) -> CallError {
+        let names = match self.inner {
+            Inner::V2 { .. } => &FMI2_STATE_FUNCTIONS,
+            Inner::V3 { .. } => &FMI3_STATE_FUNCTIONS,
+        };
+        self.fail(names[call as usize], status)
+    }
+
+    /// The FMU's state as bytes (`getFMUState`, `serializeFMUState`, `freeFMUState`), which
+    /// [`restore_state`](Self::restore_state) takes back, in this instance or another of the
+    /// same FMU. An FMU that cannot ([`can_save_state`](Self::can_save_state)) is an error
+    /// ([`CallStatus::Unsupported`]) naming the capabilities it does not declare.
+    pub fn save_state(&mut self) -> Result<Vec<u8>, CallError> {
+        self.no_state("saving its state")?;
+        let r = match &mut self.inner {
+            Inner::V2 { inst, .. } => call::save_state(inst.as_mut()),
+            Inner::V3 { inst, .. } => call::save_state(inst.as_mut()),
+        };
+        r.map_err(|e| self.state_failed(e))
+    }
+
+    /// Takes back a state that [`save_state`](Self::save_state) gave (`deserializeFMUState`,
+    /// `setFMUState`, `freeFMUState`): the FMU continues from it. An FMU that cannot is an
+    /// error, as for `save_state`.
+    pub fn restore_state(&mut self, state: &[u8]) -> Result<(), CallError> {
+        self.no_state("restoring its state")?;
+        let r = match &mut self.inner {
+            Inner::V2 { inst, .. } => call::restore_state(inst.as_mut(), state),
+            Inner::V3 { inst, .. } => call::restore_state(inst.as_mut(), state),
+        };
+        r.map_err(|e| self.state_failed(e))
     }
 
     /// `setupExperiment` (FMI 2.0) and `enterInitializationMode` at `start`.

@@ -7,7 +7,8 @@
 //! * [`ddf`]: a DDF with one domain for an FMU, and the name mapping between both;
 //! * [`mapping`]: FMU variables paired with domain items, checked before the first step;
 //! * [`participant`]: the FMU as a participant, stepping with a synchronous framework or on
-//!   its own clock.
+//!   its own clock, and keeping its state for the framework's checkpoints when it can
+//!   ([`Instance::save_state`], [`Instance::restore_state`]).
 //!
 //! See docs/fmu.md.
 

@@ -44,11 +44,33 @@ impl FmiVersion {
 pub struct CoSimulation {
     pub model_identifier: String,
     pub can_handle_variable_communication_step_size: bool,
+    /// `canGetAndSetFMUstate` (FMI 3.0 `canGetAndSetFMUState`): the FMU copies its state and
+    /// takes a copy back.
     pub can_get_and_set_fmu_state: bool,
+    /// `canSerializeFMUstate` (FMI 3.0 `canSerializeFMUState`): the FMU turns such a copy into
+    /// bytes and back.
+    pub can_serialize_fmu_state: bool,
     pub needs_execution_tool: bool,
     pub can_be_instantiated_only_once_per_process: bool,
     /// Every capability attribute as written (name, value), for `inspect`.
     pub attributes: Vec<(String, String)>,
+}
+
+impl CoSimulation {
+    /// The capability attributes that saving and restoring the FMU's state (a checkpoint:
+    /// docs/fmu.md, "Checkpoints") needs and this FMU does not declare, spelt as FMI `version`
+    /// spells them; empty when it can.
+    pub fn missing_state_capabilities(&self, version: FmiVersion) -> Vec<&'static str> {
+        let (get_set, serialize) = match version {
+            FmiVersion::Fmi2 => ("canGetAndSetFMUstate", "canSerializeFMUstate"),
+            FmiVersion::Fmi3 => ("canGetAndSetFMUState", "canSerializeFMUState"),
+        };
+        [(self.can_get_and_set_fmu_state, get_set), (self.can_serialize_fmu_state, serialize)]
+            .into_iter()
+            .filter(|(declared, _)| !declared)
+            .map(|(_, name)| name)
+            .collect()
+    }
 }
 
 /// `<DefaultExperiment>`.
@@ -395,7 +417,9 @@ fn co_simulation(e: RawElement<'_>) -> Result<CoSimulation, ModelError> {
     Ok(CoSimulation {
         model_identifier: model_identifier(e)?,
         can_handle_variable_communication_step_size: flag(e, "canHandleVariableCommunicationStepSize")?,
+        // FMI 2.0 spells them `FMUstate`, FMI 3.0 `FMUState`; either is taken.
         can_get_and_set_fmu_state: flag(e, "canGetAndSetFMUstate")? || flag(e, "canGetAndSetFMUState")?,
+        can_serialize_fmu_state: flag(e, "canSerializeFMUstate")? || flag(e, "canSerializeFMUState")?,
         needs_execution_tool: flag(e, "needsExecutionTool")?,
         can_be_instantiated_only_once_per_process: flag(e, "canBeInstantiatedOnlyOncePerProcess")?,
         attributes: e
@@ -518,6 +542,33 @@ mod tests {
         assert_eq!(md.fmi_version, FmiVersion::Fmi3);
         assert_eq!(md.variable("k").unwrap().ty.ddf_type(md.fmi_version), Some(ScalarType::UInt16));
         assert!(md.variable("a").unwrap().is_array);
+    }
+
+    #[test]
+    fn the_state_capabilities_read_in_either_spelling_and_name_what_is_missing() {
+        let cs = |attrs: &str, version: &str| {
+            let token = if version == "2.0" { "guid" } else { "instantiationToken" };
+            let md = ModelDescription::parse(&format!(
+                r#"<fmiModelDescription fmiVersion="{version}" modelName="M" {token}="t">
+                <CoSimulation modelIdentifier="m" {attrs}/><ModelVariables/></fmiModelDescription>"#
+            ))
+            .unwrap();
+            md.co_simulation.unwrap()
+        };
+        let both = cs(r#"canGetAndSetFMUstate="true" canSerializeFMUstate="true""#, "2.0");
+        assert!(both.can_get_and_set_fmu_state && both.can_serialize_fmu_state);
+        assert!(both.missing_state_capabilities(FmiVersion::Fmi2).is_empty());
+        let fmi3 = cs(r#"canGetAndSetFMUState="true" canSerializeFMUState="true""#, "3.0");
+        assert!(fmi3.missing_state_capabilities(FmiVersion::Fmi3).is_empty());
+        let get_set_only = cs(r#"canGetAndSetFMUState="true""#, "3.0");
+        assert_eq!(get_set_only.missing_state_capabilities(FmiVersion::Fmi3), ["canSerializeFMUState"]);
+        let none = cs("", "2.0");
+        assert_eq!(none.missing_state_capabilities(FmiVersion::Fmi2), ["canGetAndSetFMUstate", "canSerializeFMUstate"]);
+        let e = ModelDescription::parse(
+            &FMI2.replace("modelIdentifier=\"m\"", "modelIdentifier=\"m\" canSerializeFMUstate=\"yes\""),
+        )
+        .unwrap_err();
+        assert!(e.message.contains("canSerializeFMUstate=\"yes\": expected true or false"), "{e}");
     }
 
     #[test]

@@ -14,15 +14,23 @@
 //!
 //! A failing FMU call ends this participant (an error with the FMU's log), never the
 //! framework: the connection is released on return.
+//!
+//! **Checkpoints** (docs/fmu.md): an FMU that can get, set and serialize its state keeps it
+//! for the framework's checkpoints. Its connection says so from the start (a
+//! [`StateHandler`] in [`ConnectOptions::state`]); the framework's requests are answered from
+//! inside the connection's waits, in the run loop's thread. The handler reaches the FMU
+//! through the core it shares with the run loop, which never holds it across a call into
+//! the participant.
 
 use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::{Arc, Mutex, MutexGuard, PoisonError};
 use std::time::{Duration, Instant};
 
 use tutti_core::ddf::{Domain, Value};
-use tutti_core::shm::{ConnectOptions, Participant, ShmError};
+use tutti_core::shm::{ConnectOptions, Participant, SharedState, ShmError, StateError, StateHandler};
 
 use crate::fmu::{CallError, Instance};
-use crate::mapping::Mapping;
+use crate::mapping::{Mapping, Pair};
 use crate::model::{Causality, ModelDescription};
 
 /// How the FMU steps (from the domain's `synchronous` flag).
@@ -37,7 +45,9 @@ pub enum StepMode {
 /// Options of an FMU participant.
 #[derive(Debug, Clone)]
 pub struct RunOptions {
-    /// How to connect (namespace, name shown in `tutti status`, timeouts).
+    /// How to connect (namespace, name shown in `tutti status`, timeouts). Its `state` is the
+    /// participant's own: [`FmuParticipant::connect`] sets it (the FMU's state handler, or
+    /// none for an FMU that cannot save its state).
     pub connect: ConnectOptions,
     /// The step of an asynchronous domain; in a synchronous one, the step used only when
     /// the framework has not published its period.
@@ -77,22 +87,40 @@ pub struct RunSummary {
     pub framework_stopped: bool,
 }
 
+/// What the run loop and the FMU's state handler share: the FMU and the participant's
+/// bookkeeping of it, which a checkpoint saves and restores together.
+#[derive(Debug)]
+struct Core {
+    instance: Instance,
+    /// The FMU's time once initialised.
+    time: Option<f64>,
+    steps: u64,
+    /// The last framework step read and its simulated time.
+    last_seen: Option<(u64, f64)>,
+}
+
+/// The lock on `core`; a panic while it was held leaves it usable (the FMU's own state is
+/// what it is either way).
+fn lock(core: &Mutex<Core>) -> MutexGuard<'_, Core> {
+    core.lock().unwrap_or_else(PoisonError::into_inner)
+}
+
 /// An FMU connected to a domain.
 #[derive(Debug)]
 pub struct FmuParticipant {
-    instance: Instance,
+    /// The FMU and its bookkeeping, shared with the state handler, which the connection calls
+    /// from inside its waits: locked through [`core`](Self::core) only, whose guard borrows
+    /// `self`, so no call into `participant` (they take `&mut self`) can be made with it held.
+    core: Arc<Mutex<Core>>,
     participant: Option<Participant>,
     mapping: Mapping,
     domain: String,
     mode: StepMode,
     fallback_step: f64,
-    /// The FMU's time once initialised.
-    time: Option<f64>,
-    steps: u64,
     max_steps: Option<u64>,
     framework_stopped: bool,
-    /// The last framework step read and its simulated time.
-    last_seen: Option<(u64, f64)>,
+    /// The connection keeps the FMU's state for checkpoints.
+    keeps_state: bool,
 }
 
 /// How long one wait for the framework's next step lasts before the run loop looks at its
@@ -146,8 +174,177 @@ pub fn set_params(md: &ModelDescription, instance: &mut Instance, params: &[(Str
     Ok(())
 }
 
+impl Core {
+    /// Initialises the FMU at `start` with `inputs` (values of `pairs`).
+    fn initialise(&mut self, start: f64, pairs: &[Pair], inputs: Vec<Value>) -> Result<(), CallError> {
+        self.instance.enter_initialization(start)?;
+        self.set_inputs(pairs, inputs)?;
+        self.instance.exit_initialization()?;
+        self.time = Some(start);
+        Ok(())
+    }
+
+    /// Sets the FMU's inputs: `values` of `pairs`.
+    fn set_inputs(&mut self, pairs: &[Pair], values: Vec<Value>) -> Result<(), CallError> {
+        pairs.iter().zip(values).try_for_each(|(pair, value)| self.instance.set(&pair.var, value))
+    }
+
+    /// The FMU's outputs: the values of `pairs`.
+    fn outputs(&mut self, pairs: &[Pair]) -> Result<Vec<Value>, CallError> {
+        pairs.iter().map(|pair| self.instance.get(&pair.var)).collect()
+    }
+
+    /// Brings the FMU to `start + h` with `inputs`: initialised at `start` first if it is not
+    /// yet, normally one `doStep(start, h)`; a gap (a step the framework made without this
+    /// FMU's answer: it timed out) is one longer step from the FMU's own time; a step that
+    /// ends where the FMU already is makes none (a repeated step: the framework's feedthrough
+    /// ordering evaluates the outputs again with new inputs; or the first step read raced
+    /// with the framework's next one).
+    fn advance(&mut self, start: f64, h: f64, pairs: &[Pair], inputs: Vec<Value>) -> Result<(), CallError> {
+        match self.time {
+            None => self.initialise(start, pairs, inputs)?,
+            Some(_) => self.set_inputs(pairs, inputs)?,
+        }
+        let now = self.time.unwrap_or(start);
+        let target = start + h;
+        if now == start {
+            // The usual case: exactly the framework's time and period.
+            self.instance.do_step(start, h)?;
+        } else if target > now {
+            self.instance.do_step(now, target - now)?;
+        } else {
+            return Ok(());
+        }
+        self.time = Some(target);
+        self.steps += 1;
+        Ok(())
+    }
+
+    /// The state a checkpoint keeps: a header of this participant's bookkeeping, then the
+    /// FMU's serialized state.
+    fn save(&mut self) -> Result<Vec<u8>, CallError> {
+        let fmu = self.instance.save_state()?;
+        Ok(Bookkeeping { time: self.time, steps: self.steps }.encode(&fmu))
+    }
+
+    /// Takes back a state [`save`](Self::save) gave. The next step's size is the period, as
+    /// for a steady step: the framework's last step seen is forgotten.
+    fn restore(&mut self, state: &[u8]) -> Result<(), RestoreError> {
+        let (kept, fmu) = Bookkeeping::decode(state)
+            .map_err(|why| RestoreError::Foreign { model: self.instance.model_name().to_string(), why })?;
+        self.instance.restore_state(fmu)?;
+        self.time = kept.time;
+        self.steps = kept.steps;
+        self.last_seen = None;
+        Ok(())
+    }
+}
+
+/// The participant's own part of a saved state, in a header before the FMU's:
+///
+/// | bytes | what |
+/// |---|---|
+/// | 0..8 | [`STATE_MAGIC`] |
+/// | 8..12 | [`STATE_VERSION`], little-endian |
+/// | 12..16 | flags, little-endian: bit 0, the FMU has a time (it was initialised) |
+/// | 16..24 | the FMU's time, an `f64`'s bits, little-endian (0 without one) |
+/// | 24..32 | the steps made, little-endian |
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct Bookkeeping {
+    time: Option<f64>,
+    steps: u64,
+}
+
+/// The first bytes of a state an FMU participant saved.
+const STATE_MAGIC: [u8; 8] = *b"tuttiFMU";
+/// The layout of [`Bookkeeping`]'s header.
+const STATE_VERSION: u32 = 1;
+const HEADER_LEN: usize = 32;
+const HAS_TIME: u32 = 1;
+
+impl Bookkeeping {
+    /// The header, followed by `fmu` (the FMU's serialized state).
+    fn encode(self, fmu: &[u8]) -> Vec<u8> {
+        let mut out = Vec::with_capacity(HEADER_LEN + fmu.len());
+        out.extend_from_slice(&STATE_MAGIC);
+        out.extend_from_slice(&STATE_VERSION.to_le_bytes());
+        out.extend_from_slice(&(if self.time.is_some() { HAS_TIME } else { 0 }).to_le_bytes());
+        out.extend_from_slice(&self.time.unwrap_or(0.0).to_bits().to_le_bytes());
+        out.extend_from_slice(&self.steps.to_le_bytes());
+        out.extend_from_slice(fmu);
+        out
+    }
+
+    /// The bookkeeping and the FMU's serialized state of `bytes`, or why they are not a state
+    /// [`encode`](Self::encode) made.
+    fn decode(bytes: &[u8]) -> Result<(Bookkeeping, &[u8]), ForeignState> {
+        let (header, fmu) = bytes.split_at_checked(HEADER_LEN).ok_or(ForeignState::Short(bytes.len()))?;
+        let word = |at: usize| u32::from_le_bytes(header[at..at + 4].try_into().expect("4 bytes of the header"));
+        let long = |at: usize| u64::from_le_bytes(header[at..at + 8].try_into().expect("8 bytes of the header"));
+        if header[..8] != STATE_MAGIC {
+            return Err(ForeignState::NoMark);
+        }
+        match (word(8), word(12)) {
+            (STATE_VERSION, flags) if flags & !HAS_TIME == 0 => {
+                let time = (flags & HAS_TIME != 0).then(|| f64::from_bits(long(16)));
+                Ok((Bookkeeping { time, steps: long(24) }, fmu))
+            }
+            (STATE_VERSION, flags) => Err(ForeignState::Flags(flags)),
+            (version, _) => Err(ForeignState::Version(version)),
+        }
+    }
+}
+
+/// Why bytes to restore are not a state an FMU participant saved.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, thiserror::Error)]
+enum ForeignState {
+    #[error("{0} bytes, fewer than its {HEADER_LEN}-byte header")]
+    Short(usize),
+    #[error("it does not begin with the mark of an FMU participant's state")]
+    NoMark,
+    #[error("its header is of version {0}; this tutti reads version {STATE_VERSION}")]
+    Version(u32),
+    #[error("unknown flags {0:#x} in its header")]
+    Flags(u32),
+}
+
+/// Why a state could not be taken back. The cause of `Foreign` is in the message, not a
+/// `source` (as for `LoadError`).
+#[derive(Debug, thiserror::Error)]
+enum RestoreError {
+    #[error("FMU '{model}': the state to restore is not one an FMU participant saved: {why}")]
+    Foreign { model: String, why: ForeignState },
+    #[error(transparent)]
+    Call(#[from] CallError),
+}
+
+/// The FMU participant's [`StateHandler`]: [`Core::save`] and [`Core::restore`].
+struct Checkpoints(Arc<Mutex<Core>>);
+
+// SAFETY: an FMU instance is not `Send` (it stays on the thread that created it), and neither
+// is `FmuParticipant`, which holds the other reference to the core. This handler is reachable
+// only through the `SharedState` given to that participant's connection, which the
+// `FmuParticipant` owns and never hands out (nor a `StepGate` of it); the connection calls a
+// handler only from inside its own waits and reads, in the thread that makes them
+// (`StateHandler`), which is the `FmuParticipant`'s. So the core is only ever used on that
+// thread, and the mutex keeps the handler and the run loop apart.
+unsafe impl Send for Checkpoints {}
+
+impl StateHandler for Checkpoints {
+    fn save(&mut self) -> Result<Vec<u8>, StateError> {
+        Ok(lock(&self.0).save()?)
+    }
+
+    fn restore(&mut self, state: &[u8]) -> Result<(), StateError> {
+        Ok(lock(&self.0).restore(state)?)
+    }
+}
+
 impl FmuParticipant {
-    /// Sets the parameters of `instance` and connects it to `domain` with `mapping`.
+    /// Sets the parameters of `instance` and connects it to `domain` with `mapping`. An FMU
+    /// that can save and restore its state ([`Instance::can_save_state`]) keeps it for the
+    /// framework's checkpoints from the connection on; another is a component that keeps no
+    /// state (docs/fmu.md, "Checkpoints").
     pub fn connect(
         md: &ModelDescription,
         mut instance: Instance,
@@ -156,23 +353,27 @@ impl FmuParticipant {
         opts: RunOptions,
     ) -> Result<FmuParticipant, RunError> {
         set_params(md, &mut instance, &opts.params)?;
+        let keeps_state = instance.can_save_state();
+        // Neither `Send` nor `Sync` (the instance is not): the core stays on this thread, the
+        // `Arc` and the mutex share it with the state handler there (see `Checkpoints`).
+        #[allow(clippy::arc_with_non_send_sync)]
+        let core = Arc::new(Mutex::new(Core { instance, time: None, steps: 0, last_seen: None }));
+        let state = keeps_state.then(|| SharedState::new(Box::new(Checkpoints(Arc::clone(&core)))));
         let name = domain.name.clone();
-        let participant = Participant::connect_checked(domain, opts.connect)
+        let participant = Participant::connect_checked(domain, ConnectOptions { state, ..opts.connect })
             .map_err(|source| RunError::Domain { domain: name.clone(), source })?;
         let mode =
             if domain.flags.synchronous { StepMode::Synchronous } else { StepMode::Asynchronous { step: opts.step } };
         Ok(FmuParticipant {
-            instance,
+            core,
             participant: Some(participant),
             mapping,
             domain: name,
             mode,
             fallback_step: opts.step.as_secs_f64(),
-            time: None,
-            steps: 0,
             max_steps: opts.max_steps,
             framework_stopped: false,
-            last_seen: None,
+            keeps_state,
         })
     }
 
@@ -180,9 +381,19 @@ impl FmuParticipant {
         self.mode
     }
 
+    /// Whether the connection keeps the FMU's state for the framework's checkpoints.
+    pub fn keeps_state(&self) -> bool {
+        self.keeps_state
+    }
+
     /// The FMU's time (`None` before the first step).
     pub fn time(&self) -> Option<f64> {
-        self.time
+        self.core().time
+    }
+
+    /// The FMU and its bookkeeping, locked. Never held across a call into the participant.
+    fn core(&self) -> MutexGuard<'_, Core> {
+        lock(&self.core)
     }
 
     fn shm(&self, source: ShmError) -> RunError {
@@ -194,65 +405,29 @@ impl FmuParticipant {
         self.participant.as_mut().expect("connected")
     }
 
-    /// Copies the inputs from the last PUBLISH snapshot into the FMU.
-    fn set_inputs(&mut self) -> Result<(), RunError> {
-        let inputs = std::mem::take(&mut self.mapping.inputs);
-        let mut result = Ok(());
-        for pair in &inputs {
-            let value: Value = {
-                let snap = self.participant().snapshot();
-                pair.leaf.ty.decode(&snap[pair.leaf.range()])
-            };
-            if let Err(e) = self.instance.set(&pair.var, value) {
-                result = Err(e.into());
-                break;
-            }
-        }
-        self.mapping.inputs = inputs;
-        result
+    /// The inputs' values in the last PUBLISH snapshot.
+    fn inputs(&self) -> Vec<Value> {
+        let snap = self.participant.as_ref().expect("connected").snapshot();
+        self.mapping.inputs.iter().map(|pair| pair.leaf.ty.decode(&snap[pair.leaf.range()])).collect()
     }
 
     /// Reads the outputs from the FMU, stages and commits them.
     fn commit_outputs(&mut self) -> Result<(), RunError> {
-        if !self.mapping.outputs.is_empty() {
-            // Synchronous: this commit answers the step just read.
-            self.participant().publish_lock().map_err(|e| self.shm(e))?;
-        }
-        let outputs = std::mem::take(&mut self.mapping.outputs);
-        let mut result = Ok(());
-        let mut buf = [0u8; 8];
-        for pair in &outputs {
-            match self.instance.get(&pair.var) {
-                Ok(v) => {
-                    let n = pair.leaf.ty.size() as usize;
-                    pair.leaf.ty.encode(v, &mut buf[..n]);
-                    if let Err(e) = self.participant().stage(&pair.leaf.path, &buf[..n]) {
-                        result = Err(self.shm(e));
-                        break;
-                    }
-                }
-                Err(e) => {
-                    result = Err(e.into());
-                    break;
-                }
-            }
-        }
-        self.mapping.outputs = outputs;
-        result?;
         if self.mapping.outputs.is_empty() {
             // Nothing to write: the FMU only reads, and the framework does not wait for it.
             return Ok(());
         }
-        self.participant().commit().map_err(|e| self.shm(e))
-    }
-
-    /// Initialises the FMU at `start` with the current inputs.
-    fn initialise(&mut self, start: f64) -> Result<(), RunError> {
-        self.instance.enter_initialization(start)?;
-        self.set_inputs()?;
-        self.instance.exit_initialization()?;
-        self.time = Some(start);
-        Ok(())
+        // Synchronous: this commit answers the step just read.
+        self.participant().publish_lock().map_err(|e| self.shm(e))?;
+        let values = self.core().outputs(&self.mapping.outputs)?;
+        let p = self.participant.as_mut().expect("connected");
+        let mut buf = [0u8; 8];
+        let staged = self.mapping.outputs.iter().zip(values).try_for_each(|(pair, v)| {
+            let n = pair.leaf.ty.size() as usize;
+            pair.leaf.ty.encode(v, &mut buf[..n]);
+            p.stage(&pair.leaf.path, &buf[..n])
+        });
+        staged.and_then(|()| p.commit()).map_err(|e| self.shm(e))
     }
 
     /// One step. Synchronous: waits for the framework's next step (at most `WAIT_SLICE`, 200 ms: a
@@ -270,42 +445,30 @@ impl FmuParticipant {
         let read = p.subscribe_lock();
         p.set_timeout(timeout);
         let step = read.map_err(|e| self.shm(e))?;
+        let inputs = self.inputs();
         let (start, h) = match self.mode {
             StepMode::Synchronous => {
                 let p = self.participant();
                 let sim = p.sim_time();
-                let period = p.period().map_or(self.fallback_step, |d| d.as_nanos() as f64 * 1e-9);
-                let h = step_size(period, self.last_seen, (step, sim));
-                self.last_seen = Some((step, sim));
+                // The simulated time of a step, as the framework says it; a framework paced
+                // faster or slower than the wall clock tells a period that is not it.
+                let seg = p.segment();
+                let period = seg
+                    .sim_step()
+                    .or_else(|| p.period().map(|d| d.as_nanos() as f64 * 1e-9))
+                    .unwrap_or(self.fallback_step);
+                let mut core = self.core();
+                let h = step_size(period, core.last_seen, (step, sim));
+                core.last_seen = Some((step, sim));
                 (sim, h)
             }
             StepMode::Asynchronous { step } => {
                 // Time k·h rather than a running sum: no drift over long runs.
                 let h = step.as_secs_f64();
-                (self.steps as f64 * h, h)
+                (self.core().steps as f64 * h, h)
             }
         };
-        match self.time {
-            None => self.initialise(start)?,
-            Some(_) => self.set_inputs()?,
-        }
-        let now = self.time.unwrap_or(start);
-        let target = start + h;
-        if now == start {
-            // The usual case: exactly the framework's time and period.
-            self.instance.do_step(start, h)?;
-        } else if target > now {
-            // A gap left by a step the framework made without this FMU's answer (it timed
-            // out): one longer step from the FMU's own time.
-            self.instance.do_step(now, target - now)?;
-        } else {
-            // Already there: a repeated step (the framework's feedthrough ordering evaluates
-            // the outputs again with new inputs), or the first step read raced with the
-            // framework's next one.
-            return self.commit_outputs();
-        }
-        self.time = Some(target);
-        self.steps += 1;
+        self.core().advance(start, h, &self.mapping.inputs, inputs)?;
         self.commit_outputs()
     }
 
@@ -314,9 +477,10 @@ impl FmuParticipant {
     pub fn run(mut self, stop: &AtomicBool) -> Result<RunSummary, RunError> {
         let result = self.run_loop(stop);
         self.finish();
+        let core = self.core();
         result.map(|()| RunSummary {
-            steps: self.steps,
-            time: self.time.unwrap_or(0.0),
+            steps: core.steps,
+            time: core.time.unwrap_or(0.0),
             framework_stopped: self.framework_stopped,
         })
     }
@@ -328,7 +492,7 @@ impl FmuParticipant {
     /// first, and the framework's initial exchange (docs/run.md, Connections) hands these
     /// outputs to the connected inputs of the first step. Elsewhere, nothing.
     pub fn seed(&mut self) -> Result<bool, RunError> {
-        if self.time.is_some() || self.mapping.outputs.is_empty() {
+        if self.core().time.is_some() || self.mapping.outputs.is_empty() {
             return Ok(false);
         }
         let p = self.participant();
@@ -338,9 +502,7 @@ impl FmuParticipant {
             return Ok(false);
         }
         let start = p.sim_time();
-        self.instance.enter_initialization(start)?;
-        self.instance.exit_initialization()?;
-        self.time = Some(start);
+        self.core().initialise(start, &[], Vec::new())?;
         self.commit_outputs()?;
         Ok(true)
     }
@@ -358,7 +520,7 @@ impl FmuParticipant {
         }
         let begin = Instant::now();
         let mut k: u32 = 0;
-        while !stop.load(Ordering::Acquire) && self.max_steps.map_or(true, |m| self.steps < m) {
+        while !stop.load(Ordering::Acquire) && self.max_steps.map_or(true, |m| self.core().steps < m) {
             match self.step() {
                 Ok(()) => {}
                 // A synchronous step that does not come within the timeout: the framework
@@ -392,7 +554,7 @@ impl FmuParticipant {
         if let Some(p) = self.participant.take() {
             p.disconnect();
         }
-        self.instance.terminate();
+        self.core().instance.terminate();
     }
 }
 
@@ -406,7 +568,28 @@ impl Drop for FmuParticipant {
 
 #[cfg(test)]
 mod tests {
-    use super::step_size;
+    use super::{step_size, Bookkeeping, ForeignState, HEADER_LEN, STATE_VERSION};
+
+    #[test]
+    fn the_bookkeeping_header_round_trips_and_refuses_what_it_did_not_write() {
+        for kept in [Bookkeeping { time: Some(0.07), steps: 7 }, Bookkeeping { time: None, steps: 0 }] {
+            let bytes = kept.encode(b"fmu state");
+            assert_eq!(bytes.len(), HEADER_LEN + 9);
+            assert_eq!(Bookkeeping::decode(&bytes), Ok((kept, &b"fmu state"[..])));
+        }
+        let good = Bookkeeping { time: Some(-0.0), steps: u64::MAX }.encode(&[]);
+        let (kept, fmu) = Bookkeeping::decode(&good).unwrap();
+        assert_eq!((kept.time.map(f64::to_bits), kept.steps, fmu), (Some((-0.0f64).to_bits()), u64::MAX, &[][..]));
+        assert_eq!(Bookkeeping::decode(&good[..HEADER_LEN - 1]), Err(ForeignState::Short(HEADER_LEN - 1)));
+        assert_eq!(Bookkeeping::decode(&[b'x'; HEADER_LEN]), Err(ForeignState::NoMark));
+        let mut newer = good.clone();
+        newer[8..12].copy_from_slice(&(STATE_VERSION + 1).to_le_bytes());
+        let e = Bookkeeping::decode(&newer).unwrap_err();
+        assert_eq!(e.to_string(), "its header is of version 2; this tutti reads version 1");
+        let mut flagged = good;
+        flagged[12] |= 2;
+        assert_eq!(Bookkeeping::decode(&flagged), Err(ForeignState::Flags(3)));
+    }
 
     #[test]
     fn the_step_is_the_period_unless_simulated_time_says_otherwise() {

@@ -28,14 +28,32 @@ pub fn libpython(py: &Path) -> PathBuf {
     PathBuf::from(String::from_utf8_lossy(&out.stdout).trim())
 }
 
-/// Builds tests/fmu/python/Lag.py into `dir/Lag.fmu` with pythonfmu (FMI 2.0 co-simulation).
+/// How a PythonFMU model is built ([`build_lag_with`]).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct PythonFmuOptions {
+    /// The FMU gets, sets and serializes its state (`pythonfmu build --handle-state
+    /// --serialize-state`: `canGetAndSetFMUstate` and `canSerializeFMUstate`), so that it
+    /// keeps its state in a checkpoint. Its state is its registered variables (as JSON).
+    pub state: bool,
+}
+
+/// Builds tests/fmu/python/Lag.py into `dir/Lag.fmu` with pythonfmu (FMI 2.0 co-simulation),
+/// without state handling: a component that keeps no state.
 pub fn build_lag(py: &Path, dir: &Path) -> PathBuf {
+    build_lag_with(py, dir, PythonFmuOptions::default())
+}
+
+/// Builds tests/fmu/python/Lag.py into `dir/Lag.fmu` with pythonfmu and `opts`.
+pub fn build_lag_with(py: &Path, dir: &Path, opts: PythonFmuOptions) -> PathBuf {
     let mut cmd = Command::new(py);
     cmd.args(["-m", "pythonfmu", "build", "-f"])
         .arg(repo().join("tests/fmu/python/Lag.py"))
         .arg("-d")
         .arg(dir)
         .current_dir(dir);
+    if opts.state {
+        cmd.args(["--handle-state", "--serialize-state"]);
+    }
     let (status, out, err) = run_with_timeout(cmd, Duration::from_secs(120));
     assert!(status.success(), "pythonfmu build failed:\n{out}\n{err}");
     let fmu = dir.join("Lag.fmu");
@@ -218,7 +236,8 @@ pub fn fmi3_headers() -> PathBuf {
     manifest.parent().unwrap().join("fmi-standard3/headers")
 }
 
-/// Builds tests/fmu/c/Integrator.c (FMI 3.0, C) into `dir/Integrator.fmu`.
+/// Builds tests/fmu/c/Integrator.c (FMI 3.0, C) into `dir/Integrator.fmu`; it keeps its state
+/// (`canGetAndSetFMUState`, `canSerializeFMUState`).
 pub fn build_integrator(dir: &Path) -> PathBuf {
     build_c_fmu(dir, "tests/fmu/c", &["Integrator.c", "stubs.c"], &fmi3_headers(), "Integrator")
 }

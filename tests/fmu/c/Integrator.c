@@ -1,13 +1,15 @@
 /*
  * Integrator: an FMI 3.0 co-simulation FMU written in C against the FMI 3.0 headers that the
- * `fmi-sys` crate ships (fmi-standard3/headers), built by tests/fmu_fmi3.rs into its temp dir.
+ * `fmi-sys` crate ships (fmi-standard3/headers), built into a test's temp dir by `build_integrator`
+ * (crates/tutti-test-support/src/fmu.rs).
  *
  *   y     += h * k * u      (Float64 output; u Float64 input, k Float64 tunable parameter)
  *   steps += 1              (Int32 output)
  *   rising = k * u > 0      (Boolean output)
  *
- * Only what a co-simulation importer calls is implemented; the other functions of the
- * standard are absent, which the importer must tolerate.
+ * Only what a co-simulation importer calls is implemented, and the FMU state (get, set, free,
+ * serialize, deserialize: a copy of the model's State); the other functions of the standard
+ * are stubs (stubs.c).
  */
 #include <stdlib.h>
 #include <string.h>
@@ -18,10 +20,15 @@
 
 enum { VR_TIME = 0, VR_U = 1, VR_K = 2, VR_Y = 3, VR_STEPS = 4, VR_RISING = 5 };
 
+/* Everything the model computes with: what an FMU state copies. */
 typedef struct {
     fmi3Float64 time, u, k, y;
     fmi3Int32 steps;
     fmi3Boolean rising;
+} State;
+
+typedef struct {
+    State s;
     fmi3InstanceEnvironment env;
     fmi3LogMessageCallback log;
     char *name;
@@ -51,7 +58,7 @@ fmi3Instance fmi3InstantiateCoSimulation(fmi3String instanceName, fmi3String ins
     Model *m = calloc(1, sizeof *m);
     if (!m)
         return NULL;
-    m->k = 1.0;
+    m->s.k = 1.0;
     m->env = instanceEnvironment;
     m->log = logMessage;
     m->name = strdup(instanceName ? instanceName : "");
@@ -71,7 +78,7 @@ fmi3Status fmi3EnterInitializationMode(fmi3Instance instance, fmi3Boolean tolera
                                        fmi3Float64 startTime, fmi3Boolean stopTimeDefined, fmi3Float64 stopTime)
 {
     (void)toleranceDefined, (void)tolerance, (void)stopTimeDefined, (void)stopTime;
-    ((Model *)instance)->time = startTime;
+    ((Model *)instance)->s.time = startTime;
     return fmi3OK;
 }
 
@@ -87,10 +94,10 @@ fmi3Status fmi3GetFloat64(fmi3Instance instance, const fmi3ValueReference vr[], 
         return fmi3Error;
     for (size_t i = 0; i < nvr; i++) {
         switch (vr[i]) {
-        case VR_TIME: values[i] = m->time; break;
-        case VR_U: values[i] = m->u; break;
-        case VR_K: values[i] = m->k; break;
-        case VR_Y: values[i] = m->y; break;
+        case VR_TIME: values[i] = m->s.time; break;
+        case VR_U: values[i] = m->s.u; break;
+        case VR_K: values[i] = m->s.k; break;
+        case VR_Y: values[i] = m->s.y; break;
         default: say(m, fmi3Error, "fmi3GetFloat64: not a Float64 variable"); return fmi3Error;
         }
     }
@@ -105,8 +112,8 @@ fmi3Status fmi3SetFloat64(fmi3Instance instance, const fmi3ValueReference vr[], 
         return fmi3Error;
     for (size_t i = 0; i < nvr; i++) {
         switch (vr[i]) {
-        case VR_U: m->u = values[i]; break;
-        case VR_K: m->k = values[i]; break;
+        case VR_U: m->s.u = values[i]; break;
+        case VR_K: m->s.k = values[i]; break;
         default: say(m, fmi3Error, "fmi3SetFloat64: not a settable Float64 variable"); return fmi3Error;
         }
     }
@@ -122,7 +129,7 @@ fmi3Status fmi3GetInt32(fmi3Instance instance, const fmi3ValueReference vr[], si
     for (size_t i = 0; i < nvr; i++) {
         if (vr[i] != VR_STEPS)
             return fmi3Error;
-        values[i] = m->steps;
+        values[i] = m->s.steps;
     }
     return fmi3OK;
 }
@@ -136,7 +143,7 @@ fmi3Status fmi3GetBoolean(fmi3Instance instance, const fmi3ValueReference vr[], 
     for (size_t i = 0; i < nvr; i++) {
         if (vr[i] != VR_RISING)
             return fmi3Error;
-        values[i] = m->rising;
+        values[i] = m->s.rising;
     }
     return fmi3OK;
 }
@@ -151,13 +158,103 @@ fmi3Status fmi3DoStep(fmi3Instance instance, fmi3Float64 currentCommunicationPoi
         say(m, fmi3Error, "fmi3DoStep: the step size must be positive");
         return fmi3Error;
     }
-    m->y += communicationStepSize * m->k * m->u;
-    m->steps += 1;
-    m->rising = m->k * m->u > 0;
-    m->time = currentCommunicationPoint + communicationStepSize;
+    m->s.y += communicationStepSize * m->s.k * m->s.u;
+    m->s.steps += 1;
+    m->s.rising = m->s.k * m->s.u > 0;
+    m->s.time = currentCommunicationPoint + communicationStepSize;
     *eventHandlingNeeded = fmi3False;
     *terminateSimulation = fmi3False;
     *earlyReturn = fmi3False;
-    *lastSuccessfulTime = m->time;
+    *lastSuccessfulTime = m->s.time;
+    return fmi3OK;
+}
+
+/* The FMU state: a heap copy of State, serialized as a tag and its bytes (read back by this
+ * same library only, as the standard allows). */
+#define STATE_TAG 0x494e5431u /* "INT1" */
+
+typedef struct {
+    unsigned int tag;
+    State s;
+} Serialized;
+
+fmi3Status fmi3GetFMUState(fmi3Instance instance, fmi3FMUState *FMUState)
+{
+    Model *m = instance;
+    State *copy = *FMUState ? *FMUState : malloc(sizeof *copy);
+    if (!copy) {
+        say(m, fmi3Error, "fmi3GetFMUState: out of memory");
+        return fmi3Error;
+    }
+    *copy = m->s;
+    *FMUState = copy;
+    return fmi3OK;
+}
+
+fmi3Status fmi3SetFMUState(fmi3Instance instance, fmi3FMUState FMUState)
+{
+    Model *m = instance;
+    if (!FMUState) {
+        say(m, fmi3Error, "fmi3SetFMUState: no state");
+        return fmi3Error;
+    }
+    m->s = *(const State *)FMUState;
+    return fmi3OK;
+}
+
+fmi3Status fmi3FreeFMUState(fmi3Instance instance, fmi3FMUState *FMUState)
+{
+    (void)instance;
+    if (FMUState) {
+        free(*FMUState);
+        *FMUState = NULL;
+    }
+    return fmi3OK;
+}
+
+fmi3Status fmi3SerializedFMUStateSize(fmi3Instance instance, fmi3FMUState FMUState, size_t *size)
+{
+    (void)instance, (void)FMUState;
+    *size = sizeof(Serialized);
+    return fmi3OK;
+}
+
+fmi3Status fmi3SerializeFMUState(fmi3Instance instance, fmi3FMUState FMUState, fmi3Byte serializedState[],
+                                 size_t size)
+{
+    Model *m = instance;
+    if (!FMUState || size != sizeof(Serialized)) {
+        say(m, fmi3Error, "fmi3SerializeFMUState: no state, or not the size fmi3SerializedFMUStateSize gave");
+        return fmi3Error;
+    }
+    Serialized out;
+    memset(&out, 0, sizeof out); /* the padding too: the same state, the same bytes */
+    out.tag = STATE_TAG;
+    out.s = *(const State *)FMUState;
+    memcpy(serializedState, &out, sizeof out);
+    return fmi3OK;
+}
+
+fmi3Status fmi3DeserializeFMUState(fmi3Instance instance, const fmi3Byte serializedState[], size_t size,
+                                   fmi3FMUState *FMUState)
+{
+    Model *m = instance;
+    Serialized in;
+    if (size != sizeof in) {
+        say(m, fmi3Error, "fmi3DeserializeFMUState: not an Integrator state (wrong size)");
+        return fmi3Error;
+    }
+    memcpy(&in, serializedState, sizeof in);
+    if (in.tag != STATE_TAG) {
+        say(m, fmi3Error, "fmi3DeserializeFMUState: not an Integrator state (wrong tag)");
+        return fmi3Error;
+    }
+    State *copy = malloc(sizeof *copy);
+    if (!copy) {
+        say(m, fmi3Error, "fmi3DeserializeFMUState: out of memory");
+        return fmi3Error;
+    }
+    *copy = in.s;
+    *FMUState = copy;
     return fmi3OK;
 }

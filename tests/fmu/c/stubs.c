@@ -11,14 +11,12 @@ void *fmi3InstantiateModelExchange(void) { return 0; }
 void *fmi3InstantiateScheduledExecution(void) { return 0; }
 int fmi3ActivateModelPartition(void) { return FMI3_ERROR; }
 int fmi3CompletedIntegratorStep(void) { return FMI3_ERROR; }
-int fmi3DeserializeFMUState(void) { return FMI3_ERROR; }
 int fmi3EnterConfigurationMode(void) { return FMI3_ERROR; }
 int fmi3EnterContinuousTimeMode(void) { return FMI3_ERROR; }
 int fmi3EnterEventMode(void) { return FMI3_ERROR; }
 int fmi3EnterStepMode(void) { return FMI3_ERROR; }
 int fmi3EvaluateDiscreteStates(void) { return FMI3_ERROR; }
 int fmi3ExitConfigurationMode(void) { return FMI3_ERROR; }
-int fmi3FreeFMUState(void) { return FMI3_ERROR; }
 int fmi3GetAdjointDerivative(void) { return FMI3_ERROR; }
 int fmi3GetBinary(void) { return FMI3_ERROR; }
 int fmi3GetClock(void) { return FMI3_ERROR; }
@@ -26,7 +24,6 @@ int fmi3GetContinuousStateDerivatives(void) { return FMI3_ERROR; }
 int fmi3GetContinuousStates(void) { return FMI3_ERROR; }
 int fmi3GetDirectionalDerivative(void) { return FMI3_ERROR; }
 int fmi3GetEventIndicators(void) { return FMI3_ERROR; }
-int fmi3GetFMUState(void) { return FMI3_ERROR; }
 int fmi3GetFloat32(void) { return FMI3_ERROR; }
 int fmi3GetInt16(void) { return FMI3_ERROR; }
 int fmi3GetInt64(void) { return FMI3_ERROR; }
@@ -46,14 +43,11 @@ int fmi3GetUInt32(void) { return FMI3_ERROR; }
 int fmi3GetUInt64(void) { return FMI3_ERROR; }
 int fmi3GetUInt8(void) { return FMI3_ERROR; }
 int fmi3GetVariableDependencies(void) { return FMI3_ERROR; }
-int fmi3SerializeFMUState(void) { return FMI3_ERROR; }
-int fmi3SerializedFMUStateSize(void) { return FMI3_ERROR; }
 int fmi3SetBinary(void) { return FMI3_ERROR; }
 int fmi3SetBoolean(void) { return FMI3_ERROR; }
 int fmi3SetClock(void) { return FMI3_ERROR; }
 int fmi3SetContinuousStates(void) { return FMI3_ERROR; }
 int fmi3SetDebugLogging(void) { return FMI3_ERROR; }
-int fmi3SetFMUState(void) { return FMI3_ERROR; }
 int fmi3SetFloat32(void) { return FMI3_ERROR; }
 int fmi3SetInt16(void) { return FMI3_ERROR; }
 int fmi3SetInt32(void) { return FMI3_ERROR; }

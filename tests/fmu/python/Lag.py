@@ -6,6 +6,12 @@ Outputs: y (lag of u), integral (of u), t (the time at the end of the step), cou
 made, an Integer), positive (y > 0, a Boolean). Parameters: tau (time constant), gain.
 Setting `fail_at` > 0 makes doStep refuse (with a log message at status Error) once the time
 reaches it; `raise_at` > 0 makes it raise a Python exception instead (status Fatal).
+
+Every value it computes with is a registered variable (inputs, parameters, outputs): it keeps
+no state besides them. Built with `pythonfmu build --handle-state --serialize-state`
+(`build_lag_with` in crates/tutti-test-support/src/fmu.rs), its FMU state, which PythonFMU
+makes of the registered variables (JSON, which keeps every float exactly), is all of it, so a
+restored Lag continues bit-identically (crates/tutti-fmu/tests/library.rs).
 """
 
 from pythonfmu import Boolean, Fmi2Causality, Fmi2Slave, Fmi2Variability, Integer, Real
