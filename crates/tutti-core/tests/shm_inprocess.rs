@@ -592,3 +592,81 @@ fn each_value_is_read_with_the_step_it_belongs_to() {
     let (_, s) = seg.try_read_set_stamped(Role::Subscribe, &mut buf, 100).unwrap();
     assert_eq!((step, s.step, s.sim_time), (STEPS + 1, STEPS, STEPS as f64 * 0.25));
 }
+
+/// A participant's state as a checkpoint sees it: a running sum, shared with the test.
+struct Sum(std::sync::Arc<std::sync::Mutex<f64>>);
+
+impl tutti_core::shm::StateHandler for Sum {
+    fn save(&mut self) -> Result<Vec<u8>, tutti_core::shm::StateError> {
+        Ok(self.0.lock().unwrap().to_ne_bytes().to_vec())
+    }
+    fn restore(&mut self, state: &[u8]) -> Result<(), tutti_core::shm::StateError> {
+        let bytes: [u8; 8] = state.try_into().map_err(|_| format!("{} bytes, not 8", state.len()))?;
+        *self.0.lock().unwrap() = f64::from_ne_bytes(bytes);
+        Ok(())
+    }
+}
+
+#[test]
+fn a_state_is_saved_and_restored_at_a_step_boundary_through_the_segment() {
+    use tutti_core::shm::{SharedState, StateAnswer, StateRequest};
+    let tag = "state";
+    let mut fw = Framework::create(&model(true, true, false), &fopts(tag)).unwrap();
+    let sum = std::sync::Arc::new(std::sync::Mutex::new(0.0));
+    let handler = SharedState::new(Box::new(Sum(sum.clone())));
+    let mut p = Participant::connect("d", ConnectOptions { state: Some(handler), ..copts(tag) }).unwrap();
+    let shared = sum.clone();
+    let t = std::thread::spawn(move || {
+        // Each step adds its input to the sum and answers it; the state requests are answered
+        // in the waits between.
+        while p.subscribe_lock().is_ok() {
+            let x = f64::from_ne_bytes(p.snapshot()[0..8].try_into().unwrap());
+            let now = {
+                let mut s = shared.lock().unwrap();
+                *s += x;
+                *s
+            };
+            if p.publish_lock().is_err() {
+                break;
+            }
+            p.stage("a", &now.to_ne_bytes()).unwrap();
+            if p.commit().is_err() {
+                break;
+            }
+        }
+    });
+    for k in 1..=3u64 {
+        fw.domains[0].step(&(k as f64).to_ne_bytes(), 0.0).unwrap();
+    }
+    // A connection without a state, here for the look only: the next step would wait for it.
+    let plain = Participant::connect("d", ConnectOptions { name: "plain".into(), ..copts(tag) }).unwrap();
+    let conns = fw.domains[0].state_connections();
+    drop(plain);
+    assert_eq!(conns.len(), 2, "{conns:?}");
+    let keeper = conns.iter().find(|c| c.name == "test").expect("the participant with a state");
+    assert!(keeper.keeps_state && !conns.iter().find(|c| c.name == "plain").unwrap().keeps_state);
+    let asked = [vec![(keeper, &[][..])]];
+    let saved = fw.exchange_states(StateRequest::Save, &asked, Duration::from_secs(20)).unwrap();
+    assert_eq!(saved[0], vec![StateAnswer::Saved(6.0f64.to_ne_bytes().to_vec())]);
+    fw.domains[0].step(&10.0f64.to_ne_bytes(), 0.0).unwrap();
+    assert_eq!(*sum.lock().unwrap(), 16.0);
+    let back = 6.0f64.to_ne_bytes();
+    let asked = [vec![(keeper, &back[..])]];
+    let restored = fw.exchange_states(StateRequest::Restore, &asked, Duration::from_secs(20)).unwrap();
+    assert_eq!(restored[0], vec![StateAnswer::Restored]);
+    assert_eq!(*sum.lock().unwrap(), 6.0);
+    // Bytes the handler refuses: its words come back.
+    let asked = [vec![(keeper, &b"xyz"[..])]];
+    let refused = fw.exchange_states(StateRequest::Restore, &asked, Duration::from_secs(20)).unwrap();
+    assert_eq!(refused[0], vec![StateAnswer::Failed("3 bytes, not 8".into())]);
+    fw.domains[0].step(&1.0f64.to_ne_bytes(), 0.0).unwrap();
+    assert_eq!(f64::from_ne_bytes(fw.domains[0].subscribe()[0..8].try_into().unwrap()), 7.0);
+    let files: Vec<_> = std::fs::read_dir("/dev/shm")
+        .unwrap()
+        .filter_map(|e| e.ok())
+        .filter(|e| e.file_name().to_string_lossy().contains(&format!("{}.d.state", ns(tag))))
+        .collect();
+    assert!(files.is_empty(), "state files left: {files:?}");
+    drop(fw);
+    t.join().unwrap();
+}
