@@ -557,8 +557,10 @@ impl Host {
         }
         let conns: Vec<Vec<StateConnection>> = self.fw.domains.iter().map(|d| d.state_connections()).collect();
         let mut asked: Vec<Vec<(&StateConnection, &[u8])>> = vec![Vec::new(); conns.len()];
+        let index: std::collections::HashMap<&str, usize> =
+            self.fw.domains.iter().enumerate().map(|(i, d)| (d.info().name.as_str(), i)).collect();
         for s in &c.components {
-            let d = self.fw.domains.iter().position(|d| d.info().name == s.domain);
+            let d = index.get(s.domain.as_str()).copied();
             let found = d.and_then(|d| conns[d].iter().find(|x| x.name == s.name).map(|x| (d, x)));
             match found {
                 Some((d, x)) if x.keeps_state => asked[d].push((x, &s.state)),
@@ -606,7 +608,7 @@ impl Host {
             }
         }
         for (i, d) in self.fw.domains.iter_mut().enumerate() {
-            let Some(saved) = c.domains.iter().find(|s| s.name == d.info().name) else { continue };
+            let Some(saved) = c.domain(i, &d.info().name) else { continue };
             self.publish[i].copy_from_slice(&saved.publish);
             d.restore_sets(&saved.subscribe, saved.last_publish.as_deref(), saved.seeded)
                 .map_err(|source| CheckpointError::Domain { domain: saved.name.clone(), source })?;
