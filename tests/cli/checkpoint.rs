@@ -24,7 +24,9 @@ const WAIT: Duration = Duration::from_secs(120);
 fn setup(files: &[(&str, String)], fmus: bool) -> Option<(tempfile::TempDir, Option<PathBuf>)> {
     let dir = tempfile::tempdir().unwrap();
     let src = common::repo_root().join("tests/checkpoint");
-    std::fs::copy(src.join("cosim.ddf"), dir.path().join("cosim.ddf")).unwrap();
+    for ddf in ["cosim.ddf", "plant.ddf"] {
+        std::fs::copy(src.join(ddf), dir.path().join(ddf)).unwrap();
+    }
     common::compile_c(&src.join("stateful.c"), &dir.path().join("stateful"), &["-std=c99", "-Wall", "-Werror"]);
     for (name, text) in files {
         std::fs::write(dir.path().join(name), text).unwrap();
@@ -53,17 +55,20 @@ const SYSTEM: &str = r#",
 /// component keys `component`.
 fn launch(steps: u64, speed: &str, record: &str, more: &str, component: &str, system: bool) -> String {
     let steps = if steps == 0 { String::new() } else { format!("steps: {steps}, ") };
-    let rest = if system {
-        SYSTEM.to_string()
+    // The C component alone has a DDF of its domain alone: no other domain waits for a seed.
+    let (ddf, rest) = if system {
+        ("cosim.ddf", SYSTEM)
     } else {
-        r#" ],
-  connections: ["plant/subscribe/y -> plant/publish/u"] }"#
-            .to_string()
+        (
+            "plant.ddf",
+            r#" ],
+  connections: ["plant/subscribe/y -> plant/publish/u"] }"#,
+        )
     };
     format!(
-        r#"{{ ddf: "cosim.ddf",
+        r#"{{ ddf: "{ddf}",
   framework: {{ step: "10ms", speed: {speed}, {steps}hold: true, timeout: "10s", record: ["{record}"]{more} }},
-  components: [ {{ name: "c", run: ["./stateful", "cosim.ddf", "plant"{component}], domain: "plant" }}{rest}"#
+  components: [ {{ name: "c", run: ["./stateful", "{ddf}", "plant"{component}], domain: "plant" }}{rest}"#
     )
 }
 
@@ -259,7 +264,7 @@ fn a_component_without_a_state_is_named_and_a_checkpoint_of_another_ddf_is_refus
 
     // Another DDF: the same domain with another item.
     let other = dir.join("other.ddf");
-    let text = std::fs::read_to_string(dir.join("cosim.ddf")).unwrap().replace(r#"name="y""#, r#"name="z""#);
+    let text = std::fs::read_to_string(dir.join("plant.ddf")).unwrap().replace(r#"name="y""#, r#"name="z""#);
     std::fs::write(&other, text).unwrap();
     let model = tutti_core::ddf::load(&other).unwrap();
     let mut foreign = c.clone();

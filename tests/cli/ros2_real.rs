@@ -15,7 +15,7 @@
 //!   warned once per endpoint; rmw_zenoh warns of a token or attachment it cannot read).
 //!
 //! Every ROS 2 process runs on loopback (`CYCLONEDDS_URI`; the router on a loopback port of its
-//! own), in a ROS domain of its test (142-149 and 51-54 on DDS, 60-66 on Zenoh), with its
+//! own), in a ROS domain of its test (142-149, 216 and 51-54 on DDS, 60-66 on Zenoh), with its
 //! logs in the test's temporary directory, and without the ros2cli daemon.
 
 use crate::gateway;
@@ -458,6 +458,88 @@ fn rclpy_is_told_why_a_run_of_asynchronous_domains_does_not_step() {
     let (code, why) = result(&r[2]);
     assert!(code == FEATURE_UNSUPPORTED && why.contains("asynchronous (simif_async)"), "{:?}", r[2]);
     assert_eq!(r[2]["status"].as_u64(), Some(ABORTED), "{:?}", r[2]);
+}
+
+/// rclpy resets a run of components that keep their state (the checkpoint tests' C component
+/// with RTSetStateCallbacks, fed back through a connection) with `ResetSimulation` SCOPE_STATE
+/// in the middle of the run: afterwards every value is the one at step 0 (the run's checkpoint
+/// of step 0: the domain's sets in the segment, and the component's own state), and stepping
+/// again reproduces the run's first steps value by value. `GetSimulatorFeatures` says
+/// SIMULATION_RESET_STATE (22).
+#[test]
+fn rclpy_resets_a_run_of_stateful_components_to_its_step_0_cyclone() {
+    let Some(ros) = Ros2::get(Eng::CYCLONE) else { return };
+    let (dom, ns) = (216, namespace("ros2state216_"));
+    let _segments = RemoveSegments(ns.clone());
+    let dir = tempfile::tempdir().unwrap();
+    let src = tutti_test_support::repo_root().join("tests/checkpoint");
+    std::fs::copy(src.join("plant.ddf"), dir.path().join("plant.ddf")).unwrap();
+    tutti_test_support::compile_c(&src.join("stateful.c"), &dir.path().join("stateful"), &["-std=c99", "-Wall"]);
+    let launch = format!(
+        r#"{{ ddf: "plant.ddf",
+  framework: {{ step: "10ms", speed: 2, hold: true, catch_up: true, timeout: "10s", record: ["run.csv"] }},
+  components: [ {{ name: "c", run: ["./stateful", "plant.ddf", "plant"], domain: "plant" }} ],
+  connections: ["plant/subscribe/y -> plant/publish/u"],
+  gateway: {{ ros_domain_id: {dom}, interface: ["127.0.0.1"], dds: "cyclone" }} }}"#
+    );
+    std::fs::write(dir.path().join("run.json5"), launch).unwrap();
+    let mut cmd = tutti_test_support::tutti_command();
+    cmd.current_dir(dir.path()).args(["run", "run.json5", "-q"]).env("TUTTI_NAMESPACE", &ns);
+    let mut run = Proc::spawn("tutti run", cmd, SECS(300));
+    // Playing: its components connected and its checkpoint of step 0 taken.
+    tutti_test_support::wait_until("the run playing", SECS(120), || {
+        let mut cmd = tutti_test_support::tutti_command();
+        cmd.args(["ctl", "state"]).env("TUTTI_NAMESPACE", &ns);
+        tutti_test_support::run_with_timeout(cmd, SECS(60)).1.starts_with("playing")
+    });
+
+    let r =
+        rclpy_calls(&ros, dom, r#"[["get_simulator_features"], ["set_simulation_state", 2], ["step_simulation", 20]]"#);
+    let features: Vec<u64> = r[0]["features"]
+        .as_array()
+        .unwrap_or_else(|| panic!("features: {r:?}\n{}", run.dump()))
+        .iter()
+        .filter_map(Value::as_u64)
+        .collect();
+    assert!(features.contains(&22), "SIMULATION_RESET_STATE: {features:?}");
+    assert_eq!(result(&r[2]).0, OK, "{:?}", r[2]);
+    let (_, before) = ctl_state(&ns);
+    assert!(before >= 20, "{before}");
+
+    let r = rclpy_calls(&ros, dom, r#"[["reset_simulation", 2]]"#);
+    assert_eq!(result(&r[0]).0, OK, "SCOPE_STATE: {:?}", r[0]);
+    let (state, _) = ctl_state(&ns);
+    assert_eq!(state, "paused", "a reset leaves a paused run paused");
+    // Every value is step 0's: the run's sets as the component seeded them, before any step.
+    let seg = tutti_core::shm::Segment::open(&ns, "plant").unwrap();
+    let mut set = [0u8; 8];
+    seg.read_set(Role::Subscribe, &mut set).unwrap();
+    assert_eq!(f64::from_ne_bytes(set), 0.0, "the component's seed");
+
+    let r = rclpy_calls(&ros, dom, r#"[["step_simulation", 40], ["set_simulation_state", 3]]"#);
+    assert_eq!(result(&r[0]).0, OK, "{:?}", r[0]);
+    assert_eq!(result(&r[1]).0, OK, "QUITTING: {:?}", r[1]);
+    let end = run.wait(SECS(60));
+    assert_eq!(end, Some(0), "QUITTING did not end the run well\n{}", run.dump());
+
+    // The recording: the run's first steps, then (after the reset) the same steps again.
+    let text = std::fs::read_to_string(dir.path().join("run.csv")).unwrap();
+    let mut lines = text.lines();
+    let head: Vec<&str> = lines.next().unwrap().split(',').collect();
+    let col = |n: &str| head.iter().position(|h| *h == n).unwrap();
+    let (sim, u, y) = (col("sim_time"), col("publish.u"), col("subscribe.y"));
+    let rows: Vec<(String, String, String)> = lines
+        .map(|l| {
+            let f: Vec<&str> = l.split(',').collect();
+            (f[sim].to_string(), f[u].to_string(), f[y].to_string())
+        })
+        .collect();
+    let back = rows.windows(2).position(|w| w[1].0 < w[0].0).expect("the time goes back to 0 at the reset") + 1;
+    let again = &rows[back..];
+    assert_eq!(again.len(), 40, "the 40 steps after the reset");
+    assert!(back >= 40, "at least 40 steps before it: {back}");
+    assert_eq!(again, &rows[..40], "the steps after the reset are the run's first steps again");
+    assert!(again.iter().any(|r| r.2 != "0"), "the component answered: {again:?}");
 }
 
 /// The values of each UAV's SUBSCRIBE set by step, from `tutti host --record` CSVs in `dir`
