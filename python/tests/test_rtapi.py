@@ -9,6 +9,7 @@ segments removed) at the end even when a test fails, and it stops by itself afte
 """
 
 import os
+import struct
 import subprocess
 import sys
 import tempfile
@@ -89,6 +90,16 @@ class Host:
                         out[int(words[1])] = float(v)
         return out
 
+    def send(self, line):
+        """A command on the host's stdin (its checkpoint commands: `save`, `restore …`)."""
+        self.proc.stdin.write(line + "\n")
+        self.proc.stdin.flush()
+
+    def answer(self, first):
+        """The words of the host's last line starting with `first`, or None."""
+        found = [w for w in list(self.lines) if w and w[0] == first]
+        return found[-1] if found else None
+
     def stop(self):
         if self.proc.poll() is None:
             try:
@@ -137,6 +148,54 @@ class RtapiTest(unittest.TestCase):
             self.assertTrue(wait_for(lambda: 43.5 in self.host.echoed("pyasync", "a").values()))
             with conn.reading():
                 self.assertGreater(conn.subscribe("x"), 0)
+
+    def test_state_callbacks_hand_the_state_over_and_take_it_back(self):
+        state = {"sum": 0.0, "broken": False}
+        restored = []
+
+        def save():
+            if state["broken"]:
+                raise RuntimeError("this state cannot be saved")
+            return struct.pack("<d", state["sum"])
+
+        def restore(data):
+            state["sum"] = struct.unpack("<d", data)[0]
+            restored.append(state["sum"])
+
+        stop = threading.Event()
+        with rt.connect("pysync", timeout=5, ddf=self.host.ddf, state=(save, restore)) as conn:
+
+            def loop():
+                # A step counter: the callbacks run in this thread, inside reading()'s wait.
+                while not stop.is_set():
+                    with conn.reading():
+                        conn.subscribe("x")
+                    state["sum"] += 1.0
+                    with conn.writing():
+                        conn.publish("a", state["sum"])
+
+            t = threading.Thread(target=loop, daemon=True)
+            t.start()
+            try:
+                self.assertTrue(wait_for(lambda: state["sum"] >= 5))
+                self.host.send("save")
+                self.assertTrue(wait_for(lambda: self.host.answer("saved")), self.host.lines[-3:])
+                _, domain, name, data = self.host.answer("saved")
+                self.assertEqual(domain, "pysync")
+                self.assertGreaterEqual(struct.unpack("<d", bytes.fromhex(data))[0], 5.0)
+                self.host.send(f"restore pysync {name} {struct.pack('<d', 1000.0).hex()}")
+                self.assertTrue(wait_for(lambda: self.host.answer("restored")), self.host.answer("failed"))
+                self.assertEqual(restored, [1000.0])
+                # The next steps go on from the state taken back.
+                self.assertTrue(wait_for(lambda: any(v > 1000 for v in self.host.echoed("pysync", "a").values())))
+                # A save that raises fails the request, naming it; the run goes on.
+                state["broken"] = True
+                self.host.send("save")
+                self.assertTrue(wait_for(lambda: self.host.answer("failed")))
+                self.assertIn("save callback returned", " ".join(self.host.answer("failed")))
+            finally:
+                stop.set()
+                t.join(timeout=20)
 
     def test_untyped_items_default_to_float64(self):
         with rt.connect("pyasync", timeout=5) as conn:

@@ -5,6 +5,11 @@
 //! With `--echo`, prints each domain's SUBSCRIBE float64 items after every step
 //! (`DOMAIN STEP ITEM=VALUE ...`).
 //!
+//! Checkpoints (docs/rtapi.md): a stdin line `save` asks every connection that keeps a state
+//! for it between two steps and prints `saved DOMAIN NAME HEX` for each (`failed DOMAIN NAME
+//! WHY` when it cannot); `restore DOMAIN NAME HEX` hands those bytes back and prints `restored
+//! DOMAIN NAME` (or `failed …`).
+//!
 //!     rtapi_test_host DDF PERIOD_MS MAX_SECONDS [--echo]
 
 use std::io::{BufRead, Write};
@@ -13,7 +18,7 @@ use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 use tutti_core::ddf::{self, Role, ScalarType};
-use tutti_core::shm::{Framework, FrameworkOptions};
+use tutti_core::shm::{Framework, FrameworkOptions, StateAnswer, StateRequest};
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let args: Vec<String> = std::env::args().collect();
@@ -33,11 +38,11 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     }
     let stop = Arc::new(AtomicBool::new(false));
     let stop2 = stop.clone();
+    let (commands, received) = std::sync::mpsc::channel::<String>();
     std::thread::spawn(move || {
         for line in std::io::stdin().lock().lines() {
-            if line.is_err() {
-                break;
-            }
+            let Ok(line) = line else { break };
+            let _ = commands.send(line);
         }
         stop2.store(true, Ordering::Release);
     });
@@ -70,8 +75,53 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                 writeln!(out, "{line}")?;
             }
         }
+        while let Ok(command) = received.try_recv() {
+            checkpoint(&fw, &command, &mut out)?;
+        }
         out.flush()?;
         std::thread::sleep(period);
     }
     Ok(())
+}
+
+/// A checkpoint command between two steps (see the module).
+fn checkpoint(fw: &Framework, command: &str, out: &mut impl Write) -> Result<(), Box<dyn std::error::Error>> {
+    let words: Vec<&str> = command.split_whitespace().collect();
+    let (kind, target) = match words.as_slice() {
+        ["save"] => (StateRequest::Save, None),
+        ["restore", domain, name, hex] => (StateRequest::Restore, Some((*domain, *name, unhex(hex)))),
+        _ => return Ok(()),
+    };
+    let conns: Vec<_> = fw.domains.iter().map(|d| d.state_connections()).collect();
+    let mut asked = Vec::new();
+    for (d, list) in fw.domains.iter().zip(&conns) {
+        let mine: Vec<_> = list
+            .iter()
+            .filter(|c| c.keeps_state)
+            .filter(|c| target.as_ref().map_or(true, |(dom, name, _)| *dom == d.info().name && *name == c.name))
+            .map(|c| (c, target.as_ref().map_or(&[][..], |t| &t.2[..])))
+            .collect();
+        asked.push(mine);
+    }
+    let answers = fw.exchange_states(kind, &asked, Duration::from_secs(10))?;
+    for ((d, mine), answers) in fw.domains.iter().zip(&asked).zip(answers) {
+        for ((c, _), answer) in mine.iter().zip(answers) {
+            let (domain, name) = (&d.info().name, &c.name);
+            match answer {
+                StateAnswer::Saved(bytes) => writeln!(out, "saved {domain} {name} {}", hex(&bytes))?,
+                StateAnswer::Restored => writeln!(out, "restored {domain} {name}")?,
+                StateAnswer::Failed(why) => writeln!(out, "failed {domain} {name} {why}")?,
+                StateAnswer::NoAnswer => writeln!(out, "failed {domain} {name} no answer")?,
+            }
+        }
+    }
+    Ok(())
+}
+
+fn hex(bytes: &[u8]) -> String {
+    bytes.iter().map(|b| format!("{b:02x}")).collect()
+}
+
+fn unhex(s: &str) -> Vec<u8> {
+    (0..s.len() / 2).filter_map(|i| u8::from_str_radix(s.get(2 * i..2 * i + 2)?, 16).ok()).collect()
 }
