@@ -96,6 +96,8 @@ pub enum CheckpointError {
     Component { domain: String, name: String, what: &'static str, why: String },
     #[error("cannot restore: {0}")]
     Mismatch(String),
+    #[error("cannot checkpoint: domain '{domain}' is joined to another site with a lookahead of {lookahead} steps, and the answers on their way over the link are not kept in a checkpoint (docs/run.md, \"Checkpoints\")")]
+    Lookahead { domain: String, lookahead: u64 },
     #[error("domain '{domain}': {source}")]
     Domain { domain: String, source: tutti_core::shm::ShmError },
 }

@@ -453,6 +453,13 @@ impl Host {
     /// (they are then named in the checkpoint); components declared stateless
     /// ([`HostOptions::stateless`]) are always left out that way.
     pub fn checkpoint(&mut self, skip_stateless: bool) -> Result<Checkpoint, CheckpointError> {
+        // The answers on their way across a link with a lookahead are the gateway's, not the
+        // run's: a checkpoint without them would restore a run that differs.
+        for d in &self.fw.domains {
+            if let Some(l) = d.status().connections.iter().find_map(|c| c.link) {
+                return Err(CheckpointError::Lookahead { domain: d.info().name.clone(), lookahead: l.lookahead });
+            }
+        }
         let conns: Vec<Vec<StateConnection>> = self.fw.domains.iter().map(|d| d.state_connections()).collect();
         let mut skipped = Vec::new();
         let mut missing = Vec::new();
@@ -1153,6 +1160,41 @@ mod tests {
         drop(host);
         let seg = tutti_core::shm::Segment::open(&ns, "probe");
         assert!(seg.is_err(), "the domain is removed with the host");
+    }
+
+    #[test]
+    fn a_checkpoint_puts_the_run_back_and_refuses_a_domain_with_a_lookahead() {
+        use tutti_core::shm::{ConnKind, ConnectOptions, LinkInfo, Participant};
+        let model = tutti_core::ddf::parse_str(&probe_ddf(), "probe.ddf").unwrap();
+        let ns = format!("hostlibc{}", std::process::id());
+        let mut host = Host::new(&model, HostOptions { duration: None, steps: Some(5), ..options(&ns) }).unwrap();
+        host.run_and_keep(&AtomicBool::new(false), |_| {}).unwrap();
+        let c = host.checkpoint(false).unwrap();
+        // Late steps are skipped: the index may be ahead of the count.
+        assert!(c.next_index >= 5 && (c.steps, c.components.len()) == (5, 0), "{c:?}");
+        assert_eq!(c.domains[0].publish, 7i32.to_ne_bytes(), "the --set value");
+        host.publish[0] = 9i32.to_ne_bytes().to_vec();
+        host.restore(&c).unwrap();
+        assert_eq!(
+            (host.publish[0].as_slice(), host.ticker.next_k(), host.steps),
+            (&7i32.to_ne_bytes()[..], c.next_index, 5)
+        );
+        let other = tutti_core::ddf::parse_str(&probe_ddf().replace("tick", "tock"), "other.ddf").unwrap();
+        let e = c.check_model(&other, "c").unwrap_err();
+        assert!(e.is_invalid() && e.to_string().contains("another DDF"), "{e}");
+
+        // A remote writer across a link with a lookahead (the gateway's).
+        let opts = ConnectOptions {
+            namespace: ns.clone(),
+            kind: ConnKind::Remote,
+            skip_wait_to_go: true,
+            ..ConnectOptions::default()
+        };
+        let remote = Participant::connect("probe", opts).unwrap();
+        remote.set_link(&LinkInfo { lookahead: 4, ..LinkInfo::default() });
+        let e = host.checkpoint(false).unwrap_err();
+        assert!(e.to_string().contains("lookahead of 4 steps"), "{e}");
+        drop(remote);
     }
 
     #[test]
