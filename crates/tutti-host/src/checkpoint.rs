@@ -445,6 +445,33 @@ mod tests {
     }
 
     #[test]
+    fn periodic_checkpoints_keep_the_newest_and_nothing_else_is_touched() {
+        let dir = tempfile::tempdir().unwrap();
+        for step in [500, 1000, 1500, 2000] {
+            sample().write(&dir.path().join(format!("step-{step:09}.{EXTENSION}"))).unwrap();
+        }
+        std::fs::write(dir.path().join("warm.tutti-checkpoint"), b"mine").unwrap();
+        std::fs::write(dir.path().join("notes.txt"), b"mine").unwrap();
+        keep_newest(dir.path(), 2);
+        let mut left: Vec<String> = std::fs::read_dir(dir.path())
+            .unwrap()
+            .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+            .collect();
+        left.sort();
+        assert_eq!(
+            left,
+            [
+                "notes.txt",
+                "step-000001500.tutti-checkpoint",
+                "step-000002000.tutti-checkpoint",
+                "warm.tutti-checkpoint"
+            ]
+        );
+        // Written through a file beside it: nothing half-written is left.
+        assert!(!left.iter().any(|f| f.ends_with(".part")));
+    }
+
+    #[test]
     fn a_truncated_or_altered_file_is_refused_with_its_reason() {
         let bytes = sample().to_bytes();
         for cut in [0, 10, bytes.len() / 2, bytes.len() - 1] {

@@ -1197,6 +1197,70 @@ mod tests {
         drop(remote);
     }
 
+    /// An event-driven participant due every 7 steps: a checkpoint keeps when it is next due,
+    /// and after a restore the run makes the steps it made after the checkpoint again, no
+    /// others (without the due index, the participant would be due where it last said, ahead).
+    #[test]
+    fn a_restore_puts_back_when_each_event_driven_connection_is_next_due() {
+        use tutti_core::shm::{ConnectOptions, Participant, ShmError};
+        let model = tutti_core::ddf::parse_str(
+            r#"<orchestra><domain name="ev"><synchronous>event</synchronous>
+            <set name="PUBLISH"><item name="x"><type>float64</type></item></set>
+            <set name="SUBSCRIBE"><item name="a"><type>float64</type></item></set>
+            </domain></orchestra>"#,
+            "event.ddf",
+        )
+        .unwrap();
+        let ns = format!("hostlibev{}", std::process::id());
+        let opts = HostOptions {
+            speed: f64::INFINITY,
+            duration: None,
+            sets: Vec::new(),
+            timeout: Duration::from_secs(20),
+            ..options(&ns)
+        };
+        let mut host = Host::new(&model, opts).unwrap();
+        let copts = ConnectOptions { namespace: ns.clone(), name: "b".into(), ..ConnectOptions::default() };
+        let mut p = Participant::connect("ev", copts).unwrap();
+        let b = std::thread::spawn(move || {
+            let mut seen = Vec::new();
+            loop {
+                p.request_time(p.simulation_time() + 0.007).unwrap();
+                match p.subscribe_lock() {
+                    Ok(_) => seen.push((p.simulation_time() * 1000.0).round() as u64),
+                    Err(ShmError::FrameworkStopped { .. }) => return seen,
+                    Err(e) => panic!("{e}"),
+                }
+            }
+        });
+        assert!(host.start(&AtomicBool::new(false), &mut |_| {}).unwrap());
+        let mut made = Vec::new();
+        let step = |host: &mut Host, made: &mut Vec<u64>| made.push(host.step(&mut |_| {}).unwrap().k);
+        while made.last().is_none_or(|&k| k < 20) {
+            step(&mut host, &mut made);
+        }
+        let c = host.checkpoint(true).unwrap();
+        assert_eq!(c.skipped.len(), 1, "b keeps no state: {c:?}");
+        let due = c.domains[0].due.clone();
+        assert_eq!(due.len(), 1, "{due:?}");
+        let before = made.len();
+        while made.last().is_some_and(|&k| k < 60) {
+            step(&mut host, &mut made);
+        }
+        host.restore(&c).unwrap();
+        let after = made.len();
+        for _ in 0..4 {
+            step(&mut host, &mut made);
+        }
+        drop(host);
+        let seen = b.join().unwrap();
+        assert!(made[..before].iter().all(|k| k % 7 == 0), "due every 7 steps: {made:?}");
+        let again: Vec<u64> = made[before..].iter().copied().take(4).collect();
+        assert_eq!(&made[after..], &again[..], "after the restore, the steps made after the checkpoint again");
+        assert_eq!(again[0], due[0].1, "the first of them is where the checkpoint said b is due");
+        assert!(seen.windows(2).filter(|w| w[1] < w[0]).count() == 1, "b went back once: {seen:?}");
+    }
+
     #[test]
     fn a_caller_paced_step_publishes_its_own_set_and_time_and_is_counted() {
         let model = tutti_core::ddf::parse_str(&probe_ddf(), "probe.ddf").unwrap();
