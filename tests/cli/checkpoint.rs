@@ -253,6 +253,10 @@ fn a_component_without_a_state_is_named_and_a_checkpoint_of_another_ddf_is_refus
     assert_eq!(code, 2, "{err}");
     assert!(err.contains("'c' (domain 'plant')") && err.contains("keep no state"), "{err}");
     assert!(!dir.join("x.tutti-checkpoint").exists());
+    // Nor has the run a checkpoint of its step 0 to reset to, and it says why.
+    let (code, _, err) = ctl(&ns, &["reset", "state"], dir);
+    assert_eq!(code, 2, "{err}");
+    assert!(err.contains("no checkpoint of its step 0") && err.contains("'c' (domain 'plant')"), "{err}");
     let (code, out, err) = ctl(&ns, &["save", "skip.tutti-checkpoint", "--skip-stateless"], dir);
     assert_eq!(code, 0, "{out}{err}");
     let c = tutti_host::checkpoint::Checkpoint::read(&dir.join("skip.tutti-checkpoint")).unwrap();

@@ -276,8 +276,8 @@ pub struct Host {
     connections: Connections,
     /// The domains a [`StepOrder::Feedthrough`] step re-evaluates, in order (else none).
     reevaluate: Vec<usize>,
-    /// The checkpoint of step 0 (`ResetState`), once the run started.
-    initial: Option<Checkpoint>,
+    /// The checkpoint of step 0 (`ResetState`) once the run started, or why there is none.
+    initial: Result<Checkpoint, String>,
 }
 
 impl fmt::Debug for Host {
@@ -342,7 +342,7 @@ impl Host {
             paused_for: Duration::ZERO,
             connections,
             reevaluate,
-            initial: None,
+            initial: Err("the run has not started".into()),
         })
     }
 
@@ -433,17 +433,20 @@ impl Host {
         Ok(true)
     }
 
-    /// The checkpoint of step 0, which `ResetState` goes back to; when it cannot be taken
-    /// (a component keeps no state), the run goes on without one and says why.
+    /// The checkpoint of step 0, which `ResetState` goes back to. When it cannot be taken
+    /// the run goes on without one; it says why where a component keeps a state (its user
+    /// meant to have one), and a refused `ResetState` says why always.
     fn take_initial(&mut self, on_report: &mut dyn FnMut(Report)) {
-        match self.checkpoint(false) {
-            Ok(c) => {
-                self.initial = Some(c);
+        let opted_in = self.fw.domains.iter().any(|d| d.state_connections().iter().any(|c| c.keeps_state));
+        self.initial = self.checkpoint(false).map_err(|e| e.to_string());
+        match &self.initial {
+            Ok(_) => {
                 if let Some(ctl) = &self.control {
                     ctl.shared.state_reset.store(true, Ordering::Release);
                 }
             }
-            Err(e) => on_report(Report::NoStateReset(e.to_string())),
+            Err(why) if opted_in => on_report(Report::NoStateReset(why.clone())),
+            Err(_) => {}
         }
     }
 
@@ -665,17 +668,15 @@ impl Host {
                 let c = Checkpoint::read(std::path::Path::new(path)).map_err(refuse)?;
                 self.restore(&c).map_err(refuse)
             }
-            Request::ResetState => match self.initial.take() {
-                Some(c) => {
-                    let r = self.restore(&c).map_err(refuse);
-                    self.initial = Some(c);
-                    r
-                }
-                None => Err(Refusal(
-                    "reset_state: this run has no checkpoint of its step 0 (a component keeps no state; its log says which)"
-                        .into(),
-                )),
-            },
+            Request::ResetState => {
+                let initial = std::mem::replace(&mut self.initial, Err(String::new()));
+                let r = match &initial {
+                    Ok(c) => self.restore(c).map_err(refuse),
+                    Err(why) => Err(Refusal(format!("reset_state: this run has no checkpoint of its step 0: {why}"))),
+                };
+                self.initial = initial;
+                r
+            }
             _ => Ok(()),
         }
     }
