@@ -65,6 +65,9 @@ pub struct HostOptions {
     pub restore: Option<Box<Checkpoint>>,
 }
 
+/// One domain's components' states, by name, as a save collected them.
+type Saved = Vec<(String, Vec<u8>)>;
+
 /// Checkpoints saved as the run goes (docs/run.md, "Checkpoints").
 #[derive(Debug, Clone, PartialEq)]
 pub struct Periodic {
@@ -492,21 +495,9 @@ impl Host {
         }
         let answers = self.exchange(StateRequest::Save, &asked)?;
         let mut components = Vec::new();
-        for ((d, mine), answers) in self.fw.domains.iter().zip(&asked).zip(answers) {
-            for ((c, _), answer) in mine.iter().zip(answers) {
-                let failed = |why: String| CheckpointError::Component {
-                    domain: d.info().name.clone(),
-                    name: c.name.clone(),
-                    what: "save",
-                    why,
-                };
-                match answer {
-                    StateAnswer::Saved(state) => {
-                        components.push(ComponentState { domain: d.info().name.clone(), name: c.name.clone(), state })
-                    }
-                    StateAnswer::Failed(why) => return Err(failed(why)),
-                    _ => return Err(failed(format!("no answer within {:?}", self.opts.timeout))),
-                }
+        for (d, saved) in self.fw.domains.iter().zip(answers) {
+            for (name, state) in saved {
+                components.push(ComponentState { domain: d.info().name.clone(), name, state });
             }
         }
         let domains = self
@@ -536,15 +527,45 @@ impl Host {
         })
     }
 
-    /// Asks the components for their states and collects the answers (the step timeout).
+    /// Asks the components for their states and collects the answers (the step timeout):
+    /// each domain's components by name, with the state each saved (nothing for a restore).
+    /// A component that failed or did not answer fails the whole, with its words.
     fn exchange(
         &self,
         kind: StateRequest,
         asked: &[Vec<(&StateConnection, &[u8])>],
-    ) -> Result<Vec<Vec<StateAnswer>>, CheckpointError> {
-        self.fw
+    ) -> Result<Vec<Saved>, CheckpointError> {
+        let answers = self
+            .fw
             .exchange_states(kind, asked, self.opts.timeout)
-            .map_err(|source| CheckpointError::Domain { domain: self.opts.ddf_name.clone(), source })
+            .map_err(|source| CheckpointError::Domain { domain: self.opts.ddf_name.clone(), source })?;
+        let what = match kind {
+            StateRequest::Save => "save",
+            StateRequest::Restore => "restore",
+        };
+        let mut out = Vec::with_capacity(answers.len());
+        for ((d, mine), answers) in self.fw.domains.iter().zip(asked).zip(answers) {
+            let mut got = Vec::new();
+            for ((c, _), answer) in mine.iter().zip(answers) {
+                let why = match answer {
+                    StateAnswer::Saved(state) => {
+                        got.push((c.name.clone(), state));
+                        continue;
+                    }
+                    StateAnswer::Restored => continue,
+                    StateAnswer::Failed(why) => why,
+                    StateAnswer::NoAnswer => format!("no answer within {:?}", self.opts.timeout),
+                };
+                return Err(CheckpointError::Component {
+                    domain: d.info().name.clone(),
+                    name: c.name.clone(),
+                    what,
+                    why,
+                });
+            }
+            out.push(got);
+        }
+        Ok(out)
     }
 
     /// Puts checkpoint `c` back at a step boundary: every component that kept a state takes
@@ -601,22 +622,7 @@ impl Host {
                 }
             }
         }
-        let answers = self.exchange(StateRequest::Restore, &asked)?;
-        for ((d, mine), answers) in self.fw.domains.iter().zip(&asked).zip(answers) {
-            for ((x, _), answer) in mine.iter().zip(answers) {
-                let failed = |why: String| CheckpointError::Component {
-                    domain: d.info().name.clone(),
-                    name: x.name.clone(),
-                    what: "restore",
-                    why,
-                };
-                match answer {
-                    StateAnswer::Restored => {}
-                    StateAnswer::Failed(why) => return Err(failed(why)),
-                    _ => return Err(failed(format!("no answer within {:?}", self.opts.timeout))),
-                }
-            }
-        }
+        self.exchange(StateRequest::Restore, &asked)?;
         for (i, d) in self.fw.domains.iter_mut().enumerate() {
             let Some(saved) = c.domain(i, &d.info().name) else { continue };
             self.publish[i].copy_from_slice(&saved.publish);
