@@ -79,16 +79,15 @@ impl Lifecycle {
     /// `GetSimulatorFeatures`: what this run supports (`state_reset`: the run holds its
     /// checkpoint of step 0, so SCOPE_STATE can go back to it).
     pub fn features(&self, action: bool, state_reset: bool) -> Vec<u16> {
-        let mut f = vec![
-            feature::SIMULATION_RESET,
-            feature::SIMULATION_RESET_TIME,
-            feature::SIMULATION_STATE_GETTING,
-            feature::SIMULATION_STATE_SETTING,
-            feature::SIMULATION_STATE_PAUSE,
-        ];
+        let mut f = vec![feature::SIMULATION_RESET, feature::SIMULATION_RESET_TIME];
         if state_reset {
             f.push(feature::SIMULATION_RESET_STATE);
         }
+        f.extend([
+            feature::SIMULATION_STATE_GETTING,
+            feature::SIMULATION_STATE_SETTING,
+            feature::SIMULATION_STATE_PAUSE,
+        ]);
         if self.no_stepping.is_none() {
             f.extend([feature::STEP_SIMULATION_SINGLE, feature::STEP_SIMULATION_MULTIPLE]);
             if action {
