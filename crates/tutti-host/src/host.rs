@@ -462,8 +462,8 @@ impl Host {
         // The answers on their way across a link with a lookahead are the gateway's, not the
         // run's: a checkpoint without them would restore a run that differs.
         for d in &self.fw.domains {
-            if let Some(l) = d.status().connections.iter().find_map(|c| c.link) {
-                return Err(CheckpointError::Lookahead { domain: d.info().name.clone(), lookahead: l.lookahead });
+            if let Some(lookahead) = d.lookahead() {
+                return Err(CheckpointError::Lookahead { domain: d.info().name.clone(), lookahead });
             }
         }
         let conns: Vec<Vec<StateConnection>> = self.fw.domains.iter().map(|d| d.state_connections()).collect();

@@ -195,6 +195,16 @@ impl DomainHost {
         self.seg.state_connections()
     }
 
+    /// The lookahead (steps) of a remote writer joined to this domain across a link to
+    /// another site, if one is (docs/run.md, "Sites and lookahead").
+    pub fn lookahead(&self) -> Option<u64> {
+        (0..self.seg.scan_len())
+            .filter_map(|i| self.seg.conn(i))
+            .filter(|c| c.active.load(Ordering::Acquire) != 0)
+            .map(|c| c.link[0].load(Ordering::Relaxed))
+            .find(|&k| k > 0)
+    }
+
     /// Event-driven: connection `slot` is next due from index `index` (a checkpoint's).
     pub fn set_due_index(&self, slot: usize, index: u64) {
         if let Some(conn) = self.seg.conn_ctl(slot) {
