@@ -53,6 +53,18 @@ impl fmt::Debug for SharedState {
     }
 }
 
+/// Why a connection could not answer a request: the text the framework reads back.
+#[derive(Debug, thiserror::Error)]
+enum ServeError {
+    /// The component's handler failed, in its own words.
+    #[error("{0}")]
+    Handler(StateError),
+    #[error("{}: {source}", path.display())]
+    Io { path: PathBuf, source: std::io::Error },
+    #[error("unknown state request {0}")]
+    UnknownRequest(u32),
+}
+
 /// What a request asks.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum StateRequest {
@@ -123,22 +135,23 @@ impl Segment {
         let seq = h.state_seq.load(Ordering::Acquire);
         let kind = h.state_kind.load(Ordering::Acquire);
         let path = self.state_file(slot);
-        let result: Result<(), String> = {
+        let result = {
             let mut handler = handler.0.lock().unwrap_or_else(|e| e.into_inner());
             match kind {
-                KIND_SAVE => handler.save().map_err(|e| e.to_string()).and_then(|bytes| {
-                    write_private(&path, &bytes).map_err(|e| format!("writing {}: {e}", path.display()))
+                KIND_SAVE => handler.save().map_err(ServeError::Handler).and_then(|bytes| {
+                    write_private(&path, &bytes).map_err(|source| ServeError::Io { path: path.clone(), source })
                 }),
                 KIND_RESTORE => std::fs::read(&path)
-                    .map_err(|e| format!("reading {}: {e}", path.display()))
-                    .and_then(|bytes| handler.restore(&bytes).map_err(|e| e.to_string())),
-                other => Err(format!("unknown state request {other}")),
+                    .map_err(|source| ServeError::Io { path: path.clone(), source })
+                    .and_then(|bytes| handler.restore(&bytes).map_err(ServeError::Handler)),
+                other => Err(ServeError::UnknownRequest(other)),
             }
         };
         let done = match result {
             Ok(()) => seq,
             Err(why) => {
-                let _ = write_private(&path, why.as_bytes());
+                // The framework reads the component's words from the file in its place.
+                let _ = write_private(&path, why.to_string().as_bytes());
                 seq | STATE_FAILED
             }
         };
