@@ -227,15 +227,8 @@ impl DomainHost {
         last_publish: Option<&[u8]>,
         seeded: bool,
     ) -> Result<(), ShmError> {
+        self.check_size(Role::Subscribe, subscribe.len())?;
         let info = &self.seg.info;
-        if subscribe.len() != info.subscribe.size as usize {
-            return Err(ShmError::SizeMismatch {
-                domain: info.name.clone(),
-                role: Role::Subscribe,
-                expected: info.subscribe.size as usize,
-                got: subscribe.len(),
-            });
-        }
         let sim_time = self.seg.sim_time();
         self.seg.bucket(Role::Subscribe).write(subscribe, Stamp { step: self.step, sim_time });
         self.subscribe.copy_from_slice(subscribe);
@@ -265,15 +258,8 @@ impl DomainHost {
     /// participants work in parallel. Returns how many dead connections were removed.
     pub fn publish_step(&mut self, publish: &[u8], sim_time: f64) -> Result<usize, ShmError> {
         self.seg.intact()?;
+        self.check_size(Role::Publish, publish.len())?;
         let info = &self.seg.info;
-        if publish.len() != info.publish.size as usize {
-            return Err(ShmError::SizeMismatch {
-                domain: info.name.clone(),
-                role: Role::Publish,
-                expected: info.publish.size as usize,
-                got: publish.len(),
-            });
-        }
         let (sync, states) = (info.flags.synchronous, info.flags.states);
         let mut removed = self.maybe_sweep();
         if sync && states && !self.seed_waited {
@@ -299,6 +285,16 @@ impl DomainHost {
         }
         segment::wake(&h.step_seq, &h.step_waiters);
         Ok(removed)
+    }
+
+    /// Whether `got` bytes are a whole set `role` of this domain.
+    fn check_size(&self, role: Role, got: usize) -> Result<(), ShmError> {
+        let info = &self.seg.info;
+        let expected = info.set(role).size as usize;
+        if got == expected {
+            return Ok(());
+        }
+        Err(ShmError::SizeMismatch { domain: info.name.clone(), role, expected, got })
     }
 
     /// Event-driven domains: the items of `publish` that differ from the last step's PUBLISH
