@@ -6,15 +6,15 @@ use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 use tutti_core::ddf::{Domain, Model};
-use tutti_core::shm::{
-    DomainHost, Framework, FrameworkOptions, StateAnswer, StateConnection, StateRequest, StepReport, WaitMode,
-};
+use tutti_core::shm::{DomainHost, Framework, FrameworkOptions, StepReport, WaitMode};
 
-use crate::checkpoint::{Checkpoint, CheckpointError, ComponentState, DomainState, Skipped};
+use crate::checkpoint::{Checkpoint, CheckpointError};
 use crate::connect::{ConnectionSpec, Connections, StepOrder};
 use crate::control::{Components, ControlPort, Refusal, Reply, Request, RunState};
 use crate::steps::{complete_all, publish_all, wait_for_writers};
 use crate::{HostError, Tick, Ticker};
+
+mod checkpoints;
 
 /// What a run is.
 #[derive(Debug, Clone)]
@@ -64,9 +64,6 @@ pub struct HostOptions {
     /// first step (`tutti run --restore`).
     pub restore: Option<Box<Checkpoint>>,
 }
-
-/// One domain's components' states, by name, as a save collected them.
-type Saved = Vec<(String, Vec<u8>)>;
 
 /// Checkpoints saved as the run goes (docs/run.md, "Checkpoints").
 #[derive(Debug, Clone, PartialEq)]
@@ -279,8 +276,9 @@ pub struct Host {
     connections: Connections,
     /// The domains a [`StepOrder::Feedthrough`] step re-evaluates, in order (else none).
     reevaluate: Vec<usize>,
-    /// The checkpoint of step 0 (`ResetState`) once the run started, or why there is none.
-    initial: Result<Checkpoint, String>,
+    /// The checkpoint of step 0 (`ResetState`), or why there is none; None until the run
+    /// starts.
+    initial: Option<Result<Checkpoint, CheckpointError>>,
 }
 
 impl fmt::Debug for Host {
@@ -345,7 +343,7 @@ impl Host {
             paused_for: Duration::ZERO,
             connections,
             reevaluate,
-            initial: Err("the run has not started".into()),
+            initial: None,
         })
     }
 
@@ -434,257 +432,6 @@ impl Host {
         self.run_start = Instant::now();
         self.publish_state(RunState::Playing, self.last_sim());
         Ok(true)
-    }
-
-    /// The checkpoint of step 0, which `ResetState` goes back to. When it cannot be taken
-    /// the run goes on without one; it says why where a component keeps a state (its user
-    /// meant to have one), and a refused `ResetState` says why always.
-    fn take_initial(&mut self, on_report: &mut dyn FnMut(Report)) {
-        let opted_in = self.fw.domains.iter().any(|d| d.state_connections().iter().any(|c| c.keeps_state));
-        self.initial = self.checkpoint(false).map_err(|e| e.to_string());
-        match &self.initial {
-            Ok(_) => {
-                if let Some(ctl) = &self.control {
-                    ctl.shared.state_reset.store(true, Ordering::Release);
-                }
-            }
-            Err(why) if opted_in => on_report(Report::NoStateReset(why.clone())),
-            Err(_) => {}
-        }
-    }
-
-    /// A checkpoint of the run as it stands, at a step boundary (between two steps, or
-    /// before the first): the framework's time, every domain's sets and each component's
-    /// state. Fails naming every component that keeps no state, unless `skip_stateless`
-    /// (they are then named in the checkpoint); components declared stateless
-    /// ([`HostOptions::stateless`]) are always left out that way.
-    pub fn checkpoint(&mut self, skip_stateless: bool) -> Result<Checkpoint, CheckpointError> {
-        // The answers on their way across a link with a lookahead are the gateway's, not the
-        // run's: a checkpoint without them would restore a run that differs.
-        for d in &self.fw.domains {
-            if let Some(lookahead) = d.lookahead() {
-                return Err(CheckpointError::Lookahead { domain: d.info().name.clone(), lookahead });
-            }
-        }
-        let conns: Vec<Vec<StateConnection>> = self.fw.domains.iter().map(|d| d.state_connections()).collect();
-        let mut skipped = Vec::new();
-        let mut missing = Vec::new();
-        let mut asked: Vec<Vec<(&StateConnection, &[u8])>> = Vec::with_capacity(conns.len());
-        for (d, list) in self.fw.domains.iter().zip(&conns) {
-            let domain = &d.info().name;
-            let mut mine = Vec::new();
-            for (i, c) in list.iter().enumerate() {
-                if list[..i].iter().any(|o| o.name == c.name) {
-                    return Err(CheckpointError::SameName { domain: domain.clone(), name: c.name.clone() });
-                }
-                let skip = |why: &str| Skipped { domain: domain.clone(), name: c.name.clone(), why: why.into() };
-                if self.opts.stateless.contains(&c.name) {
-                    skipped.push(skip("stateless"));
-                } else if c.keeps_state {
-                    mine.push((c, &[][..]));
-                } else if skip_stateless {
-                    skipped.push(skip("keeps no state"));
-                } else {
-                    missing.push((domain.clone(), c.name.clone()));
-                }
-            }
-            asked.push(mine);
-        }
-        if !missing.is_empty() {
-            return Err(CheckpointError::KeepsNoState(missing));
-        }
-        let answers = self.exchange(StateRequest::Save, &asked)?;
-        let mut components = Vec::new();
-        for (d, saved) in self.fw.domains.iter().zip(answers) {
-            for (name, state) in saved {
-                components.push(ComponentState { domain: d.info().name.clone(), name, state });
-            }
-        }
-        let domains = self
-            .fw
-            .domains
-            .iter()
-            .zip(&self.publish)
-            .zip(&conns)
-            .map(|((d, publish), list)| DomainState {
-                name: d.info().name.clone(),
-                layout_hash: d.info().layout_hash,
-                publish: publish.clone(),
-                subscribe: d.subscribe().to_vec(),
-                last_publish: d.last_publish().map(<[u8]>::to_vec),
-                seeded: d.seeded(),
-                due: list.iter().filter(|_| d.info().flags.event).map(|c| (c.name.clone(), c.due_index)).collect(),
-            })
-            .collect();
-        Ok(Checkpoint {
-            ddf: self.opts.ddf_name.clone(),
-            step_seconds: self.opts.step.as_secs_f64(),
-            next_index: self.ticker.next_k(),
-            steps: self.steps,
-            domains,
-            components,
-            skipped,
-        })
-    }
-
-    /// Asks the components for their states and collects the answers (the step timeout):
-    /// each domain's components by name, with the state each saved (nothing for a restore).
-    /// A component that failed or did not answer fails the whole, with its words.
-    fn exchange(
-        &self,
-        kind: StateRequest,
-        asked: &[Vec<(&StateConnection, &[u8])>],
-    ) -> Result<Vec<Saved>, CheckpointError> {
-        let answers = self
-            .fw
-            .exchange_states(kind, asked, self.opts.timeout)
-            .map_err(|source| CheckpointError::Domain { domain: self.opts.ddf_name.clone(), source })?;
-        let what = match kind {
-            StateRequest::Save => "save",
-            StateRequest::Restore => "restore",
-        };
-        let mut out = Vec::with_capacity(answers.len());
-        for ((d, mine), answers) in self.fw.domains.iter().zip(asked).zip(answers) {
-            let mut got = Vec::new();
-            for ((c, _), answer) in mine.iter().zip(answers) {
-                let why = match answer {
-                    StateAnswer::Saved(state) => {
-                        got.push((c.name.clone(), state));
-                        continue;
-                    }
-                    StateAnswer::Restored => continue,
-                    StateAnswer::Failed(why) => why,
-                    StateAnswer::NoAnswer => format!("no answer within {:?}", self.opts.timeout),
-                };
-                return Err(CheckpointError::Component {
-                    domain: d.info().name.clone(),
-                    name: c.name.clone(),
-                    what,
-                    why,
-                });
-            }
-            out.push(got);
-        }
-        Ok(out)
-    }
-
-    /// Puts checkpoint `c` back at a step boundary: every component that kept a state takes
-    /// it back, every domain gets its sets back, and the run goes on from the checkpoint's
-    /// step. Checked first, as a whole: a checkpoint of another DDF, or one whose components
-    /// are not all in this run, is refused before anything changes.
-    pub fn restore(&mut self, c: &Checkpoint) -> Result<(), CheckpointError> {
-        let what = format!("the checkpoint of {}", c.ddf);
-        let layouts = self.fw.domains.iter().map(|d| {
-            let i = d.info();
-            (i.name.as_str(), i.layout_hash, i.publish.size as usize, i.subscribe.size as usize)
-        });
-        c.check_layouts(layouts, &what)?;
-        if (c.step_seconds - self.opts.step.as_secs_f64()).abs() > 1e-12 * c.step_seconds {
-            return Err(CheckpointError::Mismatch(format!(
-                "the checkpoint's step is {} s, this run's {} s",
-                c.step_seconds,
-                self.opts.step.as_secs_f64()
-            )));
-        }
-        let conns: Vec<Vec<StateConnection>> = self.fw.domains.iter().map(|d| d.state_connections()).collect();
-        let mut asked: Vec<Vec<(&StateConnection, &[u8])>> = vec![Vec::new(); conns.len()];
-        let index: std::collections::HashMap<&str, usize> =
-            self.fw.domains.iter().enumerate().map(|(i, d)| (d.info().name.as_str(), i)).collect();
-        for s in &c.components {
-            let d = index.get(s.domain.as_str()).copied();
-            let found = d.and_then(|d| conns[d].iter().find(|x| x.name == s.name).map(|x| (d, x)));
-            match found {
-                Some((d, x)) if x.keeps_state => asked[d].push((x, &s.state)),
-                Some(_) => {
-                    return Err(CheckpointError::Mismatch(format!(
-                        "component '{}' of domain '{}' keeps no state in this run",
-                        s.name, s.domain
-                    )))
-                }
-                None => {
-                    return Err(CheckpointError::Mismatch(format!(
-                        "component '{}' of domain '{}' is in the checkpoint, not connected in this run",
-                        s.name, s.domain
-                    )))
-                }
-            }
-        }
-        for (d, list) in self.fw.domains.iter().zip(&conns) {
-            let domain = &d.info().name;
-            for x in list.iter().filter(|x| x.keeps_state) {
-                let saved = c.components.iter().any(|s| &s.domain == domain && s.name == x.name);
-                let skipped = c.skipped.iter().any(|s| &s.domain == domain && s.name == x.name);
-                if !saved && !skipped && !self.opts.stateless.contains(&x.name) {
-                    return Err(CheckpointError::Mismatch(format!(
-                        "component '{}' of domain '{domain}' keeps a state and the checkpoint has none for it",
-                        x.name
-                    )));
-                }
-            }
-        }
-        self.exchange(StateRequest::Restore, &asked)?;
-        for (i, d) in self.fw.domains.iter_mut().enumerate() {
-            let Some(saved) = c.domain(i, &d.info().name) else { continue };
-            self.publish[i].copy_from_slice(&saved.publish);
-            d.restore_sets(&saved.subscribe, saved.last_publish.as_deref(), saved.seeded)
-                .map_err(|source| CheckpointError::Domain { domain: saved.name.clone(), source })?;
-            for x in &conns[i] {
-                if let Some((_, index)) = saved.due.iter().find(|(n, _)| *n == x.name) {
-                    d.set_due_index(x.slot, *index);
-                }
-            }
-        }
-        self.ticker.restart_at(c.next_index);
-        self.steps = c.steps;
-        self.publish_state(self.state(), self.last_sim());
-        Ok(())
-    }
-
-    /// A periodic checkpoint, if this step is one's.
-    fn periodic_checkpoint(&mut self, on_report: &mut dyn FnMut(Report)) {
-        let Some(p) = self.opts.checkpoint.clone() else { return };
-        if p.every == 0 || self.steps % p.every != 0 {
-            return;
-        }
-        let path = p.dir.join(format!("step-{:09}.{}", self.steps, crate::checkpoint::EXTENSION));
-        let saved = std::fs::create_dir_all(&p.dir)
-            .map_err(|source| CheckpointError::Io { path: p.dir.clone(), source })
-            .and_then(|()| self.checkpoint(false))
-            .and_then(|c| c.write(&path));
-        match saved {
-            Ok(()) => {
-                on_report(Report::Saved { path, step: self.steps });
-                if p.keep > 0 {
-                    crate::checkpoint::keep_newest(&p.dir, p.keep);
-                }
-            }
-            Err(e) => on_report(Report::CheckpointFailed(e.to_string())),
-        }
-    }
-
-    /// Carries out a checkpoint command at this step boundary.
-    fn checkpoint_command(&mut self, request: &Request) -> Result<(), Refusal> {
-        let refuse = |e: CheckpointError| Refusal(e.to_string());
-        match request {
-            Request::Save { path, skip_stateless } => {
-                let c = self.checkpoint(*skip_stateless).map_err(refuse)?;
-                c.write(std::path::Path::new(path)).map_err(refuse)
-            }
-            Request::Restore { path } => {
-                let c = Checkpoint::read(std::path::Path::new(path)).map_err(refuse)?;
-                self.restore(&c).map_err(refuse)
-            }
-            Request::ResetState => {
-                let initial = std::mem::replace(&mut self.initial, Err(String::new()));
-                let r = match &initial {
-                    Ok(c) => self.restore(c).map_err(refuse),
-                    Err(why) => Err(Refusal(format!("reset_state: this run has no checkpoint of its step 0: {why}"))),
-                };
-                self.initial = initial;
-                r
-            }
-            _ => Ok(()),
-        }
     }
 
     /// Waits for the next deadline and makes one step of every domain; its sinks take it.
