@@ -344,21 +344,7 @@ fn large_run(args: &Args, dir: &Path, stop: &AtomicBool) -> anyhow::Result<Figur
 /// `tutti-demo uav` writes it (crates/tutti-uav-demo/src/sim.rs, `run_ddf`).
 fn uav_ddf() -> anyhow::Result<String> {
     const PAPER: &str = include_str!("../../ddf/multiuav.ddf");
-    const FMU_DOMAIN: &str = r#"
-  <domain name="uav1_altitude_filter">
-    <synchronous>yes</synchronous>
-    <multiplePublishAllowed>no</multiplePublishAllowed>
-    <states>no</states>
-    <set name="PUBLISH">
-      <item name="elevation"><type>float64</type><length>1</length></item>
-    </set>
-    <set name="SUBSCRIBE">
-      <item name="altitude"><type>float64</type><length>1</length></item>
-      <item name="climb_rate"><type>float64</type><length>1</length></item>
-      <item name="steps"><type>int32</type><length>1</length></item>
-    </set>
-  </domain>
-"#;
+    const FMU_DOMAIN: &str = include_str!("../../examples/uav/fmu-domain.xml");
     let end = PAPER.rfind("</orchestra>").context("ddf/multiuav.ddf has no </orchestra>")?;
     Ok(format!("{}{FMU_DOMAIN}{}", &PAPER[..end], &PAPER[end..]))
 }

@@ -48,24 +48,9 @@ const ROOT: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../..");
 /// The domain of the demo's FMU component (examples/fmu/altitude_filter, docs/fmu.md): the
 /// framework publishes UAV 1's elevation as it read it, the FMU answers with it filtered.
 pub const FMU_DOMAIN: &str = "uav1_altitude_filter";
-/// The FMU component's domain, added to the paper's four in the run's DDF.
-const FMU_DOMAIN_TEXT: &str = r#"
-  <!-- The UAV demo's FMU component (AltitudeFilter, run with `tutti fmu run`): UAV 1's
-       elevation in, filtered out. Not one of the paper's domains: the gateway leaves it out. -->
-  <domain name="uav1_altitude_filter">
-    <synchronous>yes</synchronous>
-    <multiplePublishAllowed>no</multiplePublishAllowed>
-    <states>no</states>
-    <set name="PUBLISH">
-      <item name="elevation"><type>float64</type><length>1</length></item>
-    </set>
-    <set name="SUBSCRIBE">
-      <item name="altitude"><type>float64</type><length>1</length></item>
-      <item name="climb_rate"><type>float64</type><length>1</length></item>
-      <item name="steps"><type>int32</type><length>1</length></item>
-    </set>
-  </domain>
-"#;
+/// The FMU component's domain, added to the paper's four in the run's DDF (also the
+/// checkpoint benchmark's: one file for both).
+const FMU_DOMAIN_TEXT: &str = include_str!("../../../examples/uav/fmu-domain.xml");
 
 /// The run's DDF: the paper's four domains and the FMU component's.
 pub fn run_ddf() -> anyhow::Result<String> {
