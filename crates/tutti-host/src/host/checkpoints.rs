@@ -36,7 +36,7 @@ impl Host {
     /// before the first): the framework's time, every domain's sets and each component's
     /// state. Fails naming every component that keeps no state, unless `skip_stateless`
     /// (they are then named in the checkpoint); components declared stateless
-    /// ([`HostOptions::stateless`]) are always left out that way.
+    /// ([`HostOptions::stateless`](super::HostOptions::stateless)) are always left out that way.
     pub fn checkpoint(&mut self, skip_stateless: bool) -> Result<Checkpoint, CheckpointError> {
         // The answers on their way across a link with a lookahead are the gateway's, not the
         // run's: a checkpoint without them would restore a run that differs.
