@@ -670,3 +670,76 @@ fn a_state_is_saved_and_restored_at_a_step_boundary_through_the_segment() {
     drop(fw);
     t.join().unwrap();
 }
+
+/// A handler that answers a save only once the test lets it: the framework gives up first.
+struct Late {
+    entered: std::sync::mpsc::Sender<()>,
+    go: std::sync::mpsc::Receiver<()>,
+}
+
+impl tutti_core::shm::StateHandler for Late {
+    fn save(&mut self) -> Result<Vec<u8>, tutti_core::shm::StateError> {
+        self.entered.send(()).unwrap();
+        self.go.recv().unwrap();
+        Ok(b"late".to_vec())
+    }
+    fn restore(&mut self, _: &[u8]) -> Result<(), tutti_core::shm::StateError> {
+        Ok(())
+    }
+}
+
+/// An answer that comes after the framework gave up on its request leaves no file behind,
+/// and the request is not answered again.
+#[test]
+fn an_answer_after_the_framework_gave_up_leaves_no_file() {
+    use tutti_core::shm::{SharedState, StateAnswer, StateRequest};
+    let tag = "statelate";
+    let fw = Framework::create(&model(false, true, false), &fopts(tag)).unwrap();
+    let (entered_tx, entered) = std::sync::mpsc::channel();
+    let (go, go_rx) = std::sync::mpsc::channel();
+    let handler = SharedState::new(Box::new(Late { entered: entered_tx, go: go_rx }));
+    let p = Participant::connect("d", ConnectOptions { state: Some(handler), ..copts(tag) }).unwrap();
+    let conns = fw.domains[0].state_connections();
+    assert!(conns[0].keeps_state, "the state is the connection's from its first moment: {conns:?}");
+    let served = std::thread::spawn(move || {
+        wait_until("the participant to answer", Duration::from_secs(60), || p.serve_state());
+        p
+    });
+    let asked = [vec![(&conns[0], &[][..])]];
+    std::thread::scope(|s| {
+        let asking = s.spawn(|| fw.exchange_states(StateRequest::Save, &asked, Duration::from_millis(100)).unwrap());
+        // The handler is in its save; the framework gives up on it meanwhile.
+        entered.recv_timeout(Duration::from_secs(60)).expect("the handler was asked");
+        assert_eq!(asking.join().unwrap()[0], vec![StateAnswer::NoAnswer]);
+    });
+    go.send(()).unwrap();
+    let p = served.join().unwrap();
+    let files: Vec<_> = std::fs::read_dir("/dev/shm")
+        .unwrap()
+        .filter_map(|e| e.ok())
+        .filter(|e| e.file_name().to_string_lossy().contains(&format!("{}.d.state", ns(tag))))
+        .collect();
+    assert!(files.is_empty(), "state files left: {files:?}");
+    assert!(!p.serve_state(), "a request given up on is not answered again");
+}
+
+/// A participant that connects while the framework holds wait-to-go answers a state request
+/// made before its first step (the checkpoint of step 0) from inside its connect.
+#[test]
+fn a_held_participant_answers_the_checkpoint_of_step_0() {
+    use tutti_core::shm::{SharedState, StateAnswer, StateRequest};
+    let tag = "stateheld";
+    let fw = Framework::create(&model(true, true, false), &FrameworkOptions { hold: true, ..fopts(tag) }).unwrap();
+    let sum = std::sync::Arc::new(std::sync::Mutex::new(4.5));
+    let handler = SharedState::new(Box::new(Sum(sum.clone())));
+    let t =
+        std::thread::spawn(move || Participant::connect("d", ConnectOptions { state: Some(handler), ..copts(tag) }));
+    wait_until("the participant to connect", Duration::from_secs(60), || fw.domains[0].connection_count() == 1);
+    let conns = fw.domains[0].state_connections();
+    let asked = [vec![(&conns[0], &[][..])]];
+    let saved = fw.exchange_states(StateRequest::Save, &asked, Duration::from_secs(20)).unwrap();
+    assert_eq!(saved[0], vec![StateAnswer::Saved(4.5f64.to_ne_bytes().to_vec())]);
+    assert!(!t.is_finished(), "the participant still waits for the framework's go");
+    fw.domains[0].set_hold(false);
+    t.join().unwrap().expect("connects once released");
+}

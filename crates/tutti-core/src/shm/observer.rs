@@ -123,7 +123,7 @@ impl Observer {
                         // A full connection table leaves the observer without its presence;
                         // it still observes.
                         presence.slot =
-                            s.claim_slot(super::os::current_process(), &presence.name, ConnKind::Observer).ok();
+                            s.claim_slot(super::os::current_process(), &presence.name, ConnKind::Observer, false).ok();
                     }
                     self.seg = Some(s);
                     fresh = true;

@@ -7,7 +7,7 @@
 //! a file per connection holding the bytes to take back), bumps the request's number and wakes
 //! the participants. A participant answers while it waits for the framework (the read of the
 //! next step: it has answered the last step and not started the next, so its state is the
-//! boundary's) and at the start of every read: it calls its handler, writes the saved bytes
+//! boundary's; or the framework's go, before its first step) and at the start of every read: it calls its handler, writes the saved bytes
 //! to its connection's file (or reads them from it), and marks the request answered in its
 //! slot. The framework collects the files and removes them.
 //!
@@ -111,10 +111,16 @@ impl Segment {
 
     /// Whether a request is waiting for connection `slot` (one that keeps a state).
     pub(crate) fn state_pending(&self, slot: usize) -> bool {
+        self.pending_request(slot).is_some()
+    }
+
+    /// The request waiting for connection `slot`: its number, and the slot's `state_done`
+    /// as it stood (an answer is stored only over that value, see [`Segment::serve_state`]).
+    fn pending_request(&self, slot: usize) -> Option<(u64, u64)> {
         let seq = self.header().state_seq.load(Ordering::Acquire);
-        self.conn(slot).is_some_and(|c| {
-            c.keeps_state.load(Ordering::Acquire) != 0 && c.state_done.load(Ordering::Acquire) & !STATE_FAILED < seq
-        })
+        let c = self.conn(slot)?;
+        let done = c.state_done.load(Ordering::Acquire);
+        (c.keeps_state.load(Ordering::Acquire) != 0 && done & !STATE_FAILED < seq).then_some((seq, done))
     }
 
     /// Says whether connection `slot` keeps a state; requests already made are not its.
@@ -127,12 +133,15 @@ impl Segment {
 
     /// Answers the request waiting for connection `slot` with `handler`, if one is; returns
     /// whether it did.
+    ///
+    /// The answer is stored over the slot's `state_done` as it was when the request was seen:
+    /// if the framework gave up on the request meanwhile ([`Segment::cancel_state`]), the
+    /// store fails and the file written for it is removed here, since nobody will collect it.
     pub(crate) fn serve_state(&self, slot: usize, handler: &SharedState) -> bool {
-        if !self.state_pending(slot) {
+        let Some((seq, before)) = self.pending_request(slot) else {
             return false;
-        }
+        };
         let h = self.header();
-        let seq = h.state_seq.load(Ordering::Acquire);
         let kind = h.state_kind.load(Ordering::Acquire);
         let path = self.state_file(slot);
         let result = {
@@ -155,8 +164,11 @@ impl Segment {
                 seq | STATE_FAILED
             }
         };
-        if let Some(c) = self.conn(slot) {
-            c.state_done.store(done, Ordering::Release);
+        let stored = self
+            .conn(slot)
+            .is_some_and(|c| c.state_done.compare_exchange(before, done, Ordering::AcqRel, Ordering::Acquire).is_ok());
+        if !stored {
+            let _ = std::fs::remove_file(&path);
         }
         h.ack_seq.fetch_add(1, Ordering::Release);
         wake(&h.ack_seq, &h.ack_waiters);
@@ -206,9 +218,11 @@ impl Segment {
             Ordering::Release,
         );
         let seq = h.state_seq.fetch_add(1, Ordering::AcqRel) + 1;
-        // Wake whoever waits: for a step, or (event-driven) on its own word.
+        // Wake whoever waits: for a step, for the framework's go (held), or (event-driven) on
+        // its own word.
         h.step_seq.fetch_add(1, Ordering::Release);
         wake(&h.step_seq, &h.step_waiters);
+        wake(&h.hold, &h.go_waiters);
         for (slot, _) in files {
             if let Some(c) = self.conn(*slot) {
                 c.due_seq.fetch_add(1, Ordering::Release);
@@ -242,11 +256,21 @@ impl Segment {
         })
     }
 
-    /// Removes the files of a request given up on.
-    pub(crate) fn drop_state_files(&self, slots: &[usize]) {
-        for slot in slots {
-            let _ = std::fs::remove_file(self.state_file(*slot));
+    /// Gives up on request `seq` for connection `slot`: marks it answered (failed) so that the
+    /// connection no longer answers it, and removes its file. A connection answering at the
+    /// same moment either stored its answer first (its file is removed here) or finds its
+    /// store refused and removes its file itself: no file outlives the request either way.
+    pub(crate) fn cancel_state(&self, slot: usize, seq: u64) {
+        if let Some(c) = self.conn(slot) {
+            let mut done = c.state_done.load(Ordering::Acquire);
+            while done & !STATE_FAILED < seq {
+                match c.state_done.compare_exchange(done, seq | STATE_FAILED, Ordering::AcqRel, Ordering::Acquire) {
+                    Ok(_) => break,
+                    Err(now) => done = now,
+                }
+            }
         }
+        let _ = std::fs::remove_file(self.state_file(slot));
     }
 }
 
@@ -265,7 +289,7 @@ pub(crate) type Asked<'a> = (&'a Segment, u64, Vec<(usize, u32)>);
 /// Collects the answers of the connections asked in several domains at once (an [`Asked`]
 /// per domain).
 /// Waits until all answered or `deadline`; a connection that did not answer by then has
-/// [`StateAnswer::NoAnswer`], and its file is removed.
+/// [`StateAnswer::NoAnswer`], and its request is given up on ([`Segment::cancel_state`]).
 pub(crate) fn collect_answers(asked: &[Asked<'_>], kind: StateRequest, deadline: Instant) -> Vec<Vec<StateAnswer>> {
     let mut answers: Vec<Vec<Option<StateAnswer>>> = asked.iter().map(|(_, _, c)| vec![None; c.len()]).collect();
     loop {
@@ -286,10 +310,12 @@ pub(crate) fn collect_answers(asked: &[Asked<'_>], kind: StateRequest, deadline:
     asked
         .iter()
         .zip(answers)
-        .map(|((seg, _, conns), out)| {
-            let slots: Vec<usize> = conns.iter().map(|c| c.0).collect();
-            let late: Vec<usize> = out.iter().zip(&slots).filter(|(a, _)| a.is_none()).map(|(_, s)| *s).collect();
-            seg.drop_state_files(&late);
+        .map(|((seg, seq, conns), out)| {
+            for ((slot, _), answer) in conns.iter().zip(&out) {
+                if answer.is_none() {
+                    seg.cancel_state(*slot, *seq);
+                }
+            }
             out.into_iter().map(|a| a.unwrap_or(StateAnswer::NoAnswer)).collect()
         })
         .collect()

@@ -30,10 +30,7 @@ impl Participant {
             std::thread::sleep(Duration::from_millis(5));
         };
         let me = os::current_process();
-        let slot = seg.claim_slot(me, &opts.name, opts.kind)?;
-        if opts.state.is_some() {
-            seg.set_keeps_state(slot, true);
-        }
+        let slot = seg.claim_slot(me, &opts.name, opts.kind, opts.state.is_some())?;
         let id = seg.conn_id(slot);
         let (pub_size, sub_size) = (seg.info.publish.size as usize, seg.info.subscribe.size as usize);
         let mut p = Participant {
@@ -143,12 +140,18 @@ impl Participant {
         self.wait_ready_to_go_until(Instant::now() + self.opts.connect_timeout)
     }
 
+    /// A state request made while it holds (the framework's checkpoint of step 0) is answered
+    /// here: the connection has not started, so its state is the boundary's.
     fn wait_ready_to_go_until(&self, deadline: Instant) -> Result<(), ShmError> {
         let h = self.seg.header();
         let w = self.waiter("hold");
-        match w.wait(deadline, || Ok(h.hold.load(Ordering::Acquire) == 0), || self.check_alive())? {
-            Waited::Ready => Ok(()),
-            Waited::TimedOut => Err(self.timeout("wait-to-go", self.opts.connect_timeout)),
+        let released_or_asked = || Ok(h.hold.load(Ordering::Acquire) == 0 || self.seg.state_pending(self.slot));
+        loop {
+            match w.wait(deadline, released_or_asked, || self.check_alive())? {
+                Waited::Ready if self.serve_state() => {}
+                Waited::Ready => return Ok(()),
+                Waited::TimedOut => return Err(self.timeout("wait-to-go", self.opts.connect_timeout)),
+            }
         }
     }
 

@@ -104,7 +104,15 @@ impl Segment {
 
     /// Claims a free connection slot for this process; returns its index. Only
     /// [`ConnKind::Participant`] slots count in [`connection_count`](Self::connection_count).
-    pub(crate) fn claim_slot(&self, me: ProcessId, name: &str, kind: ConnKind) -> Result<usize, ShmError> {
+    /// `keeps_state` is set before the slot is ready, so that a checkpoint never sees the
+    /// connection without it.
+    pub(crate) fn claim_slot(
+        &self,
+        me: ProcessId,
+        name: &str,
+        kind: ConnKind,
+        keeps_state: bool,
+    ) -> Result<usize, ShmError> {
         let h = self.header();
         for i in 0..self.capacity() {
             let Some(c) = self.conn(i) else { break };
@@ -137,7 +145,7 @@ impl Segment {
             c.commits.store(0, Ordering::Relaxed);
             c.missed.store(0, Ordering::Relaxed);
             c.peers.store(0, Ordering::Relaxed);
-            c.keeps_state.store(0, Ordering::Relaxed);
+            c.keeps_state.store(u64::from(keeps_state), Ordering::Relaxed);
             // Requests made before the connection came are not its to answer.
             c.state_done.store(h.state_seq.load(Ordering::Acquire), Ordering::Relaxed);
             let mut bytes = [0u8; 48];
