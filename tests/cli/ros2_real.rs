@@ -360,16 +360,28 @@ fn rclpy_steps_and_simulates_steps_with_feedback_and_cancel(ros: &Ros2, dom: u16
     assert!(in_order(&fb(&r[3]), 100_000, made), "feedback of {made} steps: {:?}", r[3]);
 }
 
-/// rclpy resets the run's time, is told why a scope tutti lacks (SPAWNED), playing a playing
-/// run and stepping it are refused, and pauses the run again; returns the step it paused at.
+/// rclpy resets the paused run's time and hears `/clock` say 0 at once, is told why a scope
+/// tutti lacks (SPAWNED), playing a playing run and stepping it are refused, and pauses the
+/// run again; returns the step it paused at.
 fn rclpy_resets_and_is_told_why_a_request_is_refused(ros: &Ros2, dom: u16, ns: &str) -> u64 {
     let r = rclpy_calls(
         ros,
         dom,
-        r#"[["reset_simulation", 1], ["reset_simulation", 4], ["set_simulation_state", 1], ["set_simulation_state", 1],
-            ["step_simulation", 1], ["set_simulation_state", 2]]"#,
+        r#"[["reset_simulation", 1], ["clock", 0.0], ["reset_simulation", 4], ["set_simulation_state", 1],
+            ["set_simulation_state", 1], ["step_simulation", 1], ["set_simulation_state", 2],
+            ["step_simulation", 3], ["reset_simulation", 1], ["clock", 0.0]]"#,
     );
     assert_eq!(result(&r[0]).0, OK, "SCOPE_TIME: {:?}", r[0]);
+    // Still paused: no step has put the new time out, the reset itself has (here, the first
+    // look of a clock whose first reader came with this client).
+    assert_eq!(r[1]["time"].as_f64(), Some(0.0), "/clock right after the reset: {:?}", r[1]);
+    // Paused again after 3 steps, with a clock that has been followed all along: it went on,
+    // then back to 0 with the reset, with no step after it.
+    let (back, heard) = (&r[9], r[9]["heard"].as_array().expect("the times heard"));
+    assert_eq!(result(&r[8]).0, OK, "SCOPE_TIME: {:?}", r[8]);
+    assert!(heard.iter().any(|t| t.as_f64() > Some(0.0)), "the clock went on before the reset: {back:?}");
+    assert_eq!(back["time"].as_f64(), Some(0.0), "/clock right after the second reset: {back:?}");
+    let r = &r[1..8];
     let (code, why) = result(&r[1]);
     assert!(code == FEATURE_UNSUPPORTED && why.contains("spawns nothing"), "{:?}", r[1]);
     assert_eq!(result(&r[2]).0, OK);

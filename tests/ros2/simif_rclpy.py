@@ -5,10 +5,14 @@ Usage: simif_rclpy.py CALLS [--namespace NS] [--timeout S]
 CALLS is JSON, a list of calls made in order:
   ["get_simulator_features"], ["get_simulation_state"], ["set_simulation_state", STATE],
   ["step_simulation", STEPS], ["reset_simulation", SCOPE],
-  ["simulate_steps", STEPS, CANCEL_AFTER]  (the action; CANCEL_AFTER feedbacks, 0: never cancel)
+  ["simulate_steps", STEPS, CANCEL_AFTER]  (the action; CANCEL_AFTER feedbacks, 0: never cancel),
+  ["clock", SECONDS]  (waits, at most 20 s, for /clock to say SECONDS; its subscription is made
+  before the first call, so a time published while the run is paused reaches it)
 Prints one JSON line per call: {"call": NAME, "result": CODE, "error_message": TEXT, ...} with
 "state" (get_simulation_state), "features" (get_simulator_features), and for the action
-"accepted", "feedback" ([[completed, remaining], ...]) and "status" (the goal's final status).
+"accepted", "feedback" ([[completed, remaining], ...]) and "status" (the goal's final status);
+for "clock", "time" (the last time /clock said, or null) and "heard" (every time it said since
+the last "clock" call).
 Exits 1 when a service or the action server does not show up or a call gets no answer.
 
 Runs with the ROS 2 workspace's environment (install/setup.bash) and RMW_IMPLEMENTATION.
@@ -17,9 +21,13 @@ import argparse
 import json
 import sys
 
+import time
+
 import rclpy
 from rclpy.action import ActionClient
 from rclpy.node import Node
+from rclpy.qos import QoSProfile, ReliabilityPolicy
+from rosgraph_msgs.msg import Clock
 from simulation_interfaces.action import SimulateSteps
 from simulation_interfaces.srv import (GetSimulationState, GetSimulatorFeatures, ResetSimulation,
                                        SetSimulationState, StepSimulation)
@@ -100,6 +108,37 @@ def simulate_steps(node, ns, steps, cancel_after, timeout):
     return out
 
 
+class ClockWatch:
+    """/clock as a use_sim_time node hears it (reliable, keep last 10)."""
+
+    def __init__(self, node):
+        self.last = None
+        self.since = []
+        qos = QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE)
+        node.create_subscription(Clock, '/clock', self.heard, qos)
+
+    def heard(self, m):
+        self.last = m.clock.sec + m.clock.nanosec * 1e-9
+        self.since.append(self.last)
+
+    def wait_for(self, node, seconds):
+        """Until /clock says SECONDS and nothing more comes for 0.5 s (the samples of earlier
+        steps drained); "heard" is every time heard since the last such call."""
+        end = time.monotonic() + 20.0
+        quiet_since = time.monotonic()
+        while time.monotonic() < end:
+            n = len(self.since)
+            rclpy.spin_once(node, timeout_sec=0.05)
+            if len(self.since) != n:
+                quiet_since = time.monotonic()
+            elif (self.last is not None and abs(self.last - seconds) <= 1e-9
+                  and time.monotonic() - quiet_since >= 0.5):
+                break
+        out = {'call': 'clock', 'time': self.last, 'heard': self.since}
+        self.since = []
+        return out
+
+
 def main():
     ap = argparse.ArgumentParser()
     ap.add_argument('calls')
@@ -109,10 +148,14 @@ def main():
     rclpy.init()
     node = Node('tutti_simif_rclpy')
     code = 0
+    calls = json.loads(a.calls)
+    clock = ClockWatch(node) if any(c[0] == 'clock' for c in calls) else None
     try:
-        for c in json.loads(a.calls):
+        for c in calls:
             name, args = c[0], c[1:]
-            if name == 'simulate_steps':
+            if name == 'clock':
+                out = clock.wait_for(node, args[0])
+            elif name == 'simulate_steps':
                 out = simulate_steps(node, a.namespace, args[0], args[1] if len(args) > 1 else 0, a.timeout)
             else:
                 out = call_service(node, a.namespace, name, args, a.timeout)

@@ -379,6 +379,14 @@ impl DomainHost {
         self.seg.header().all_due_step.store(self.step + 1, Ordering::Release);
     }
 
+    /// Sets the domain's simulated time back to `sim_time` (seconds) between two steps: the
+    /// run was reset or restored. Readers of [`Segment::time_resets`] see it at once.
+    pub fn reset_time(&self, sim_time: f64) {
+        let h = self.seg.header();
+        h.sim_time_bits.store(sim_time.to_bits(), Ordering::Release);
+        h.time_resets.fetch_add(1, Ordering::AcqRel);
+    }
+
     /// Says the simulated time of one step (seconds): the steps' indexes are their simulated
     /// times over it, and an event-driven participant turns a time it asks for into a step
     /// with it.

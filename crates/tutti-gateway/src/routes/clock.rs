@@ -5,8 +5,10 @@
 //! clock never paces or stalls the domain): each new step's simulated time is written once,
 //! at most every `1 / --clock-rate` seconds (the latest time goes out when the cap allows).
 //! Each time is its step's, read with it from the stamp of the framework's PUBLISH set; it
-//! goes back only when the run is reset (docs/run.md, "reset"). When the framework pauses or
-//! stops, nothing is written, so ROS 2 time stops too. The writer is RELIABLE, KEEP_LAST 1,
+//! goes back only when the run is reset or restored (docs/run.md, "reset"), and then at once,
+//! paused or not: the framework's word of a time set back (`Segment::time_resets`) puts its
+//! new time out without waiting for a step, as Gazebo's clock does. When the framework pauses
+//! or stops, nothing is written, so ROS 2 time stops too. The writer is RELIABLE, KEEP_LAST 1,
 //! VOLATILE: it matches rclcpp's `ClockQoS` subscriptions (BEST_EFFORT, KEEP_LAST 1) and
 //! reliable ones.
 
@@ -49,7 +51,8 @@ pub struct ClockPump {
     /// Shortest time between two samples (zero: one per step).
     min_interval: Duration,
     last_step: Option<u64>,
-    last_time: f64,
+    /// The framework's count of time resets as last seen.
+    last_reset: Option<u32>,
     next_allowed: Instant,
 }
 
@@ -71,7 +74,7 @@ impl ClockPump {
             activation,
             min_interval,
             last_step: None,
-            last_time: f64::NEG_INFINITY,
+            last_reset: None,
             next_allowed: Instant::now(),
         }
     }
@@ -93,7 +96,14 @@ impl Polled for ClockPump {
                 info!("/clock follows a new framework of its domain from its start");
             }
             self.last_step = None;
-            self.last_time = f64::NEG_INFINITY;
+            self.last_reset = None;
+        }
+        let resets = seg.time_resets();
+        if self.last_reset.replace(resets).is_some_and(|seen| seen != resets) {
+            // Set back between two steps: its new time now, whatever the rate cap.
+            let t = seg.sim_time();
+            info!(domain = %self.live.domain, "/clock goes back to {t} s with its run's reset");
+            return self.write(t, Instant::now(), stats);
         }
         // The step and its time, read as one: the framework's latest step and latest time
         // are two words, and a step published between the two loads paired a step with the
@@ -107,14 +117,21 @@ impl Polled for ClockPump {
             return false;
         }
         self.last_step = Some(step);
-        if t < self.last_time {
-            info!(domain = %self.live.domain, "/clock goes back to {t} s with its run's reset");
-        }
+        // While paused nothing moves, and the header's time is the run's now: a reset made
+        // before this clock began to follow the domain (its first reader came later) has set
+        // it back since the step.
+        let t = if seg.paused() { seg.sim_time() } else { t };
+        self.write(t, now, stats)
+    }
+}
+
+impl ClockPump {
+    /// Writes time `t` (seconds) at `now`.
+    fn write(&mut self, t: f64, now: Instant, stats: &Stats) -> bool {
         let body = clock::encode(&self.message, t);
         let ok = self.writer.write(&body);
         self.writer.flush();
         if ok {
-            self.last_time = t;
             self.next_allowed = now + self.min_interval;
             Stats::add(&stats.to_dds, 1);
         } else {

@@ -215,7 +215,9 @@ impl Host {
         }
         self.ticker.restart_at(c.next_index);
         self.steps = c.steps;
-        self.publish_state(self.state(), self.last_sim());
+        let now = self.last_sim();
+        self.fw.domains.iter().for_each(|d| d.reset_time(now));
+        self.publish_state(self.state(), now);
         Ok(())
     }
 

@@ -760,7 +760,11 @@ impl Host {
         self.ticker.restart_at(0);
         // Event-driven participants: each says anew, at the first step of the new time,
         // when it is next due.
-        self.fw.domains.iter().for_each(|d| d.all_due_next());
+        self.fw.domains.iter().for_each(|d| {
+            d.all_due_next();
+            // A clock that follows a domain says 0 at once, even while the run stays paused.
+            d.reset_time(0.0);
+        });
         self.publish_state(state, 0.0);
     }
 

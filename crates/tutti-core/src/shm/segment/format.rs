@@ -126,7 +126,10 @@ pub(crate) struct Header {
     /// (bumped once the request's files are in place) and what it asks.
     pub state_seq: AtomicU64,
     pub state_kind: AtomicU32,
-    pub _state_pad: AtomicU32,
+    /// Bumped each time the framework sets its simulated time back (a reset, a restore),
+    /// after `sim_time_bits` holds the new time: a clock that follows the domain says the new
+    /// time at once, without waiting for the next step.
+    pub time_resets: AtomicU32,
     /// Written by participants on their reads and commits.
     pub _participants: LineBreak,
     pub ack_seq: AtomicU32,

@@ -63,6 +63,13 @@ impl Segment {
         f64::from_bits(self.header().sim_time_bits.load(Ordering::Acquire))
     }
 
+    /// How many times the framework set its simulated time back
+    /// ([`DomainHost::reset_time`](crate::shm::DomainHost::reset_time)); [`sim_time`](Self::sim_time)
+    /// is then the time it was set to, until the next step.
+    pub fn time_resets(&self) -> u32 {
+        self.header().time_resets.load(Ordering::Acquire)
+    }
+
     /// The framework's step period, when it steps at a fixed rate (`None` when it has not
     /// said: it steps as fast as it can, or is driven from outside).
     pub fn period(&self) -> Option<Duration> {
