@@ -1,8 +1,9 @@
 """ROS 2's own type hashes of ROS 2 interface packages, computed from their sources.
 
-Usage: interface_hashes.py TARBALL DIR...
+Usage: interface_hashes.py TARBALL[,TARBALL...] DIR...
 
-TARBALL is tests/ros2/jazzy/jazzy-src.tar.xz; each DIR is the folder of one interface package in
+TARBALL is tests/ros2/jazzy/jazzy-src.tar.xz (and geometry2-jazzy-src.tar.xz beside it: several,
+comma-separated, are read as one tree); each DIR is the folder of one interface package in
 it (`ros2/rcl_interfaces/action_msgs`), the packages it depends on before it. Every `msg/*.msg`,
 `srv/*.srv` and `action/*.action` of each is read by rosidl's own parser
 (`rosidl_adapter.parser`) and written as the `.idl` that rosidl_adapter's templates make of it;
@@ -108,25 +109,27 @@ def to_idl(pkg, kind, path):
     return '\n'.join(lines)
 
 
-def extract(tarball, dirs, into):
+def extract(tarballs, dirs, into):
     prefixes = tuple(d.rstrip('/') + '/' for d in dirs)
-    with tarfile.open(tarball, 'r:xz') as tar:
-        members = [m for m in tar.getmembers() if m.name.startswith(prefixes) and (m.isfile() or m.isdir())]
-        if any(m.name.startswith('/') or '..' in pathlib.PurePosixPath(m.name).parts for m in members):
-            sys.exit(f'{tarball}: a path outside the archive')
-        tar.extractall(into, members=members)
+    for tarball in tarballs:
+        with tarfile.open(tarball, 'r:xz') as tar:
+            members = [m for m in tar.getmembers() if m.name.startswith(prefixes) and (m.isfile() or m.isdir())]
+            if any(m.name.startswith('/') or '..' in pathlib.PurePosixPath(m.name).parts for m in members):
+                sys.exit(f'{tarball}: a path outside the archive')
+            tar.extractall(into, members=members)
+    tarball = ', '.join(str(t) for t in tarballs)
     for d in dirs:
         if not (into / d / 'package.xml').is_file():
             sys.exit(f'{tarball}: no package in {d}')
 
 
 def main():
-    tarball, dirs = pathlib.Path(sys.argv[1]), sys.argv[2:]
+    tarballs, dirs = [pathlib.Path(t) for t in sys.argv[1].split(',')], sys.argv[2:]
     if not dirs:
         sys.exit(__doc__)
     with tempfile.TemporaryDirectory() as tmp:
         tmp = pathlib.Path(tmp)
-        extract(tarball, dirs, tmp / 'src')
+        extract(tarballs, dirs, tmp / 'src')
         include_paths = []
         for d in dirs:
             pkg_src = tmp / 'src' / d

@@ -20,8 +20,14 @@ fn interfaces() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("interfaces")
 }
 
-fn tarball() -> PathBuf {
-    tutti_test_support::repo_root().join("tests/ros2/jazzy/jazzy-src.tar.xz")
+/// The sources' tarballs, comma-separated as the scripts take them: ROS 2 Jazzy's, and
+/// geometry2's (tf2_msgs).
+fn tarball() -> std::ffi::OsString {
+    let dir = tutti_test_support::repo_root().join("tests/ros2/jazzy");
+    let mut list = dir.join("jazzy-src.tar.xz").into_os_string();
+    list.push(",");
+    list.push(dir.join("geometry2-jazzy-src.tar.xz"));
+    list
 }
 
 /// The folder of each package in the tarball, each after those it uses (`interfaces/SOURCES.txt`).
