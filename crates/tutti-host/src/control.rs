@@ -71,7 +71,7 @@ pub enum ComponentAction {
 }
 
 /// A command, as it travels on the socket: `{"op": "step", "n": 7}`.
-#[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(tag = "op", rename_all = "snake_case", deny_unknown_fields)]
 pub enum Request {
     /// The run's state; changes nothing.
@@ -84,6 +84,9 @@ pub enum Request {
     Step { n: u64 },
     /// Step count and simulated time back to zero.
     Reset,
+    /// Step at `factor` times real time from now on (a run paced by the wall clock; `tutti
+    /// ctl speed 2`, Foxglove's playback speed).
+    Speed { factor: f64 },
     /// Back to the run's first step boundary, every value and component's state included: the
     /// checkpoint taken at step 0 (docs/run.md, "Checkpoints").
     ResetState,
@@ -158,6 +161,44 @@ pub struct RunStatus {
     /// The run holds a checkpoint of its step 0, so `reset_state` can go back to it.
     #[serde(default)]
     pub state_reset: bool,
+    /// Simulated time over wall time (infinite: not paced by the wall clock).
+    #[serde(default = "one", with = "speed_text")]
+    pub speed: f64,
+    /// The simulated time the run ends at, when it has an end (`steps`, or `duration` of a
+    /// run paced by the wall clock).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub end_time: Option<f64>,
+}
+
+fn one() -> f64 {
+    1.0
+}
+
+/// A speed as JSON has it: a number, or `"inf"` (JSON has no infinity).
+mod speed_text {
+    use serde::{Deserialize, Deserializer, Serializer};
+
+    pub fn serialize<S: Serializer>(v: &f64, s: S) -> Result<S::Ok, S::Error> {
+        if v.is_finite() {
+            s.serialize_f64(*v)
+        } else {
+            s.serialize_str("inf")
+        }
+    }
+
+    pub fn deserialize<'de, D: Deserializer<'de>>(d: D) -> Result<f64, D::Error> {
+        #[derive(Deserialize)]
+        #[serde(untagged)]
+        enum Speed {
+            Number(f64),
+            Text(String),
+        }
+        match Speed::deserialize(d)? {
+            Speed::Number(v) => Ok(v),
+            Speed::Text(t) if t == "inf" => Ok(f64::INFINITY),
+            Speed::Text(t) => Err(serde::de::Error::custom(format!("'{t}' is not a speed"))),
+        }
+    }
 }
 
 /// An answer on the socket: `{"ok": true, "status": {…}}` or `{"ok": false, "error": "…"}`.
@@ -226,6 +267,10 @@ pub(crate) struct Shared {
     namespace: String,
     /// Whether the run holds its step-0 checkpoint.
     pub(crate) state_reset: AtomicBool,
+    /// The run's speed (f64 bits).
+    speed_bits: AtomicU64,
+    /// The simulated time it ends at (f64 bits; NaN: none).
+    end_bits: AtomicU64,
 }
 
 impl Shared {
@@ -233,6 +278,11 @@ impl Shared {
         self.step.store(step, Ordering::Relaxed);
         self.sim_bits.store(sim.to_bits(), Ordering::Relaxed);
         self.state.store(state as u8, Ordering::Release);
+    }
+
+    pub(crate) fn set_speed(&self, speed: f64, end_time: Option<f64>) {
+        self.speed_bits.store(speed.to_bits(), Ordering::Relaxed);
+        self.end_bits.store(end_time.unwrap_or(f64::NAN).to_bits(), Ordering::Relaxed);
     }
 
     pub(crate) fn state(&self) -> RunState {
@@ -248,6 +298,8 @@ impl Shared {
             pid: std::process::id(),
             components: components.map(|c| c.status()).unwrap_or_default(),
             state_reset: self.state_reset.load(Ordering::Acquire),
+            speed: f64::from_bits(self.speed_bits.load(Ordering::Relaxed)),
+            end_time: Some(f64::from_bits(self.end_bits.load(Ordering::Relaxed))).filter(|t| !t.is_nan()),
         }
     }
 }
@@ -297,6 +349,8 @@ impl ControlPort {
             sim_bits: AtomicU64::new(0),
             namespace: ns.to_string(),
             state_reset: AtomicBool::new(false),
+            speed_bits: AtomicU64::new(1f64.to_bits()),
+            end_bits: AtomicU64::new(f64::NAN.to_bits()),
         });
         let (tx, commands) = mpsc::channel();
         let closing = Arc::new(AtomicBool::new(false));

@@ -378,7 +378,9 @@ impl Host {
         stop: Arc<AtomicBool>,
         components: Option<Arc<dyn Components>>,
     ) -> Result<(), HostError> {
-        self.control = Some(ControlPort::serve(&self.namespace, stop, components)?);
+        let port = ControlPort::serve(&self.namespace, stop, components)?;
+        port.shared.set_speed(self.opts.speed, self.opts.end_time());
+        self.control = Some(port);
         Ok(())
     }
 
@@ -662,6 +664,9 @@ impl Host {
                 Request::Step { .. } => {
                     let _ = cmd.reply.send(Err(Refusal("step: the run is playing; pause it first".into())));
                 }
+                Request::Speed { factor } => {
+                    let _ = cmd.reply.send(self.set_speed(factor));
+                }
                 // Between two steps is a step boundary: the run goes on playing afterwards.
                 ref r @ (Request::Save { .. } | Request::Restore { .. } | Request::ResetState) => {
                     let _ = cmd.reply.send(self.checkpoint_command(r));
@@ -704,6 +709,7 @@ impl Host {
             let done = match cmd.request {
                 Request::Resume => return Ok(Some(cmd.reply)),
                 Request::Step { n } => self.steps_while_paused(n, on_report),
+                Request::Speed { factor } => Ok(self.set_speed(factor)),
                 Request::Reset => {
                     self.reset(RunState::Paused);
                     Ok(Ok(()))
@@ -755,6 +761,29 @@ impl Host {
         )))
     }
 
+    /// Steps at `factor` times real time from the next step on (the deadlines start again
+    /// from now, as after a pause).
+    fn set_speed(&mut self, factor: f64) -> Result<(), Refusal> {
+        if !(factor.is_finite() && factor > 0.0) || self.opts.step.div_f64(factor).is_zero() {
+            return Err(Refusal(format!(
+                "speed {factor}: a factor above 0 (1 = real time, 2 = twice as fast) whose period is not zero"
+            )));
+        }
+        if !self.opts.speed.is_finite() {
+            return Err(Refusal("speed: this run is not paced by the wall clock (it steps as fast as it can)".into()));
+        }
+        self.opts.speed = factor;
+        let mut ticker = new_ticker(&self.opts);
+        ticker.overruns = self.ticker.overruns;
+        ticker.max_late = self.ticker.max_late;
+        ticker.restart_at(self.ticker.next_k());
+        self.ticker = ticker;
+        if let Some(c) = &self.control {
+            c.shared.set_speed(factor, self.opts.end_time());
+        }
+        Ok(())
+    }
+
     /// Step count and simulated time back to zero; the run stays in `state`.
     fn reset(&mut self, state: RunState) {
         self.ticker.restart_at(0);
@@ -775,6 +804,17 @@ impl Host {
 }
 
 impl HostOptions {
+    /// The simulated time the run ends at, when it has an end: after `steps`, or after
+    /// `duration` of wall time at `speed`, whichever comes first.
+    pub fn end_time(&self) -> Option<f64> {
+        let by_steps = self.steps.map(|n| n as f64 * self.step.as_secs_f64());
+        let by_time = self.duration.filter(|_| self.speed.is_finite()).map(|d| d.as_secs_f64() * self.speed);
+        match (by_steps, by_time) {
+            (Some(a), Some(b)) => Some(a.min(b)),
+            (a, b) => a.or(b),
+        }
+    }
+
     /// The wall-clock period of a step: `step / speed`.
     pub fn period(&self) -> Duration {
         if self.speed.is_infinite() {

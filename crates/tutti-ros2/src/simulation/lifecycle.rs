@@ -295,6 +295,8 @@ mod tests {
                 pid: 1,
                 components: Vec::new(),
                 state_reset: false,
+                speed: 1.0,
+                end_time: None,
             })
         }
     }
