@@ -226,6 +226,8 @@ impl Args {
             http: HttpKeys { http: self.http },
             foxglove: FoxgloveKeys { foxglove: self.foxglove },
             plan: PlanKeys::default(),
+            // Config keys only: a list of entities is a file's.
+            entities: Default::default(),
         }
     }
 }
@@ -258,7 +260,8 @@ pub fn configured(
     flags: ConfigFile,
     config: Option<&Path>,
 ) -> Result<(GatewayOptions, ConfigFile), Failure> {
-    let keys = flags.layered(config).map_err(Failure::invalid)?;
+    // The entities are checked against the DDF where each stands in the file.
+    let keys = config::with_model(&model, || flags.layered(config)).map_err(Failure::invalid)?;
     let opts = GatewayOptions::configured(file, model, &keys).map_err(Failure::invalid)?;
     config::resolve(&opts).map_err(Failure::invalid)?;
     Ok((opts, keys))

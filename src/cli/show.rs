@@ -223,7 +223,7 @@ fn show_plan(args: &Args, model: Model, cfg: &Path) -> CliResult {
     let mut flags = ConfigFile::default();
     flags.gateway.qos_profile = args.qos_profile.map(Into::into);
     flags.engine.engine = args.engine;
-    let keys = flags.layered(Some(cfg)).map_err(Failure::invalid)?;
+    let keys = config::with_model(&model, || flags.layered(Some(cfg))).map_err(Failure::invalid)?;
     let mut opts = GatewayOptions::new(&args.file, model);
     if keys.engine.engine.is_none() {
         opts.engine = config::env::engine().map_err(Failure::invalid)?;

@@ -96,7 +96,8 @@ fn start_run(runner: Runner, ns: &str, dom: u16, dir: &Path) -> (SocketAddr, Pro
         Runner::Host | Runner::Separate => {
             cmd.args(["host", DDF, "--step", "5ms", "--record"]).arg(&mcap);
             if let Runner::Host = runner {
-                cmd.arg("--gateway").arg(config(dir, r#"{ foxglove: "127.0.0.1:0", clock: "gw_sync" }"#));
+                cmd.arg("--gateway")
+                    .arg(config(dir, &format!(r#"{{ foxglove: "127.0.0.1:0", clock: "gw_sync", {ENTITIES} }}"#)));
             }
             for c in CONNECT {
                 cmd.args(["--connect", c]);
@@ -109,7 +110,7 @@ fn start_run(runner: Runner, ns: &str, dom: u16, dir: &Path) -> (SocketAddr, Pro
                 "framework": { "step": "5ms", "record": ["run.mcap"] },
                 "connections": CONNECT,
                 "components": [],
-                "gateway": { "foxglove": "127.0.0.1:0", "clock": "gw_sync" },
+                "gateway": { "foxglove": "127.0.0.1:0", "clock": "gw_sync", "entities": [probe()] },
             });
             let file = dir.join("run.json5");
             std::fs::write(&file, launch.to_string()).expect("the launch file");
@@ -124,6 +125,8 @@ fn start_run(runner: Runner, ns: &str, dom: u16, dir: &Path) -> (SocketAddr, Pro
     if let Runner::Separate = runner {
         let mut gw = tutti_test_support::tutti_command();
         gw.args(["gateway", DDF, "--foxglove", "127.0.0.1:0", "--clock", "gw_sync", "--interface", "127.0.0.1"])
+            .arg("--config")
+            .arg(config(dir, &format!("{{ {ENTITIES} }}")))
             .args(["--ros-domain-id", &dom.to_string()])
             .env("TUTTI_NAMESPACE", ns)
             .env("RUST_LOG", "info,rustdds=off,ros2_client=off");
@@ -131,6 +134,15 @@ fn start_run(runner: Runner, ns: &str, dom: u16, dir: &Path) -> (SocketAddr, Pro
         return (foxglove_addr(&gw), host, Some(gw), mcap);
     }
     (foxglove_addr(&host), host, None, mcap)
+}
+
+/// An entity placed by gw_sync's PUBLISH item x, which is the simulated time (`@sim_time`):
+/// on `/tf` its translation is (t, t, t) at time t.
+const ENTITIES: &str = r#"entities: [{ name: "probe", frame: "world", domain: "gw_sync", set: "publish", cartesian: { x: "x", y: "x", z: "x" } }]"#;
+
+fn probe() -> Value {
+    serde_json::json!({ "name": "probe", "frame": "world", "domain": "gw_sync", "set": "publish",
+                        "cartesian": { "x": "x", "y": "x", "z": "x" } })
 }
 
 /// The steps the client asks the step service for while the run is paused.
@@ -164,9 +176,40 @@ fn foxglove_client_against(runner: Runner, tag: &str, doms: std::ops::RangeInclu
     the_channels_are_the_sets_with_the_recordings_schemas(&lines);
     let rec = recorded(&mcap, "/gw_sync/publish");
     each_message_is_the_recordings_of_its_step(&lines, &rec, &client);
+    the_entity_is_on_tf_where_its_set_places_it(&lines, &rec, &client);
     the_published_value_reached_the_framework(&lines, &mcap, &client);
     the_step_service_made_exactly_the_steps_asked_for(&lines);
+    playback_control_pauses_plays_and_sets_the_runs_speed(&lines);
     the_graph_and_the_time_are_the_runs(&lines, &rec);
+}
+
+/// Foxglove's playback control (requests sent as raw frames beside the npm client): the
+/// server offers it with the run's range; pause and play are the run's, the speed becomes the
+/// run's, a seek is refused with a status (a live run has no other time), and each request is
+/// answered with a playback state that has its id.
+fn playback_control_pauses_plays_and_sets_the_runs_speed(lines: &[Value]) {
+    let info = &of(lines, "serverInfo")[0];
+    assert!(info["capabilities"].as_array().unwrap().iter().any(|c| c == "playbackControl"), "{info}");
+    assert_eq!(info["dataStartTime"], serde_json::json!({ "sec": 0, "nsec": 0 }), "{info}");
+    assert!(info["dataEndTime"]["sec"].as_u64().unwrap() >= 86_400, "a run without an end: a day ahead: {info}");
+    let states = of(lines, "playback");
+    let by =
+        |id: &str| states.iter().find(|s| s["request"] == id).cloned().unwrap_or_else(|| panic!("no {id}: {states:?}"));
+    let (pause, play2, seek, play1) = (by("pause"), by("play2x"), by("seek"), by("play1x"));
+    assert_eq!((pause["status"].as_u64(), pause["run"]["state"].as_str()), (Some(1), Some("paused")), "{pause}");
+    assert_eq!((play2["status"].as_u64(), play2["speed"].as_f64()), (Some(0), Some(2.0)), "{play2}");
+    assert_eq!(
+        (play2["run"]["state"].as_str(), play2["run"]["speed"].as_f64()),
+        (Some("playing"), Some(2.0)),
+        "{play2}"
+    );
+    assert_eq!((seek["didSeek"].as_bool(), seek["run"]["speed"].as_f64()), (Some(false), Some(2.0)), "{seek}");
+    let refused =
+        of(lines, "status").into_iter().any(|s| s["message"].as_str().unwrap_or("").starts_with("seek: a live run"));
+    assert!(refused, "no status refusing the seek: {lines:?}");
+    assert_eq!((play1["run"]["speed"].as_f64(), play1["speed"].as_f64()), (Some(1.0), Some(1.0)), "{play1}");
+    let paused_at: u64 = pause["currentTime"].as_str().unwrap().parse().unwrap();
+    assert!(paused_at > 0, "the time the run paused at: {pause}");
 }
 
 /// The client's lines of kind `kind`.
@@ -197,6 +240,9 @@ fn start_client(node: &Path, addr: SocketAddr) -> Proc {
         "watchAt": 4 + 16,
         "watchHex": hex(&4.75f64.to_le_bytes()),
         "step": STEPS,
+        "tf": "/tf",
+        "tfCount": 10,
+        "playback": true,
     });
     let mut client = Command::new(node);
     client.current_dir(tutti_test_support::repo_root().join("tests/foxglove")).args([
@@ -231,6 +277,13 @@ fn the_channels_are_the_sets_with_the_recordings_schemas(lines: &[Value]) {
         assert_eq!((c["encoding"].as_str(), c["schemaEncoding"].as_str()), (Some("cdr"), Some("ros2msg")), "{c}");
     }
     assert_eq!(channel("/gw_sync/publish")["schemaName"], "gw_msgs/msg/GwSyncPublish");
+    let tf = channel("/tf");
+    assert_eq!(
+        (tf["schemaName"].as_str(), tf["encoding"].as_str()),
+        (Some("tf2_msgs/msg/TFMessage"), Some("cdr")),
+        "{tf}"
+    );
+    assert!(tf["schema"].as_str().unwrap().contains("MSG: geometry_msgs/msg/TransformStamped"), "{tf}");
     assert!(channel("/gw_async/publish")["schema"].as_str().unwrap().contains("float64[3] v"), "{chans}");
 }
 
@@ -255,6 +308,35 @@ fn each_message_is_the_recordings_of_its_step(lines: &[Value], rec: &BTreeMap<u6
         .map(|m| u64::from_le_bytes(unhex(m["hex"].as_str().unwrap())[20..28].try_into().unwrap()))
         .collect();
     assert!(xs.len() > 1, "one value only: {xs:?}");
+}
+
+/// The entity's transforms on `/tf` (what Foxglove's 3D panel draws): `world` to `probe`, at
+/// (t, t, t) for its step's simulated time t (`rec`: gw_sync's recorded steps), stamped t.
+fn the_entity_is_on_tf_where_its_set_places_it(lines: &[Value], rec: &BTreeMap<u64, (u64, Vec<u8>)>, client: &Proc) {
+    let tfs = of(lines, "tf");
+    assert_eq!(tfs.len(), 10, "{}", client.dump());
+    let m = tutti_ros2::registry().message("tf2_msgs/msg/TFMessage").unwrap();
+    let times: std::collections::BTreeSet<u64> = rec.values().map(|(t, _)| *t).collect();
+    let mut stamps = Vec::new();
+    for tf in &tfs {
+        let data = unhex(tf["hex"].as_str().unwrap());
+        let v = m.decode(&data[4..], true).unwrap_or_else(|e| panic!("not a TFMessage: {e}: {tf}"));
+        let t = &v.get("transforms").and_then(tutti_ros2::Value::as_array).expect("transforms")[0];
+        let f =
+            |path: &str| t.path(path).and_then(tutti_ros2::Value::as_f64).unwrap_or_else(|| panic!("{path} in {t:?}"));
+        let text = |path: &str| t.path(path).and_then(tutti_ros2::Value::as_str).unwrap_or_default().to_string();
+        assert_eq!((text("header.frame_id"), text("child_frame_id")), ("world".into(), "probe".into()), "{t:?}");
+        let ns = t.path("header.stamp.sec").and_then(tutti_ros2::Value::as_i64).unwrap() as u64 * 1_000_000_000
+            + t.path("header.stamp.nanosec").and_then(tutti_ros2::Value::as_u64).unwrap();
+        assert!(times.contains(&ns), "{ns} ns is no recorded step's time");
+        let x = f("transform.translation.x");
+        assert_eq!((x, f("transform.translation.y"), f("transform.translation.z")), (x, x, x), "{t:?}");
+        assert!((x * 1e9 - ns as f64).abs() < 1.0, "at {ns} ns the probe is at {x}: its item x is the time");
+        assert_eq!(f("transform.rotation.w"), 1.0, "{t:?}");
+        assert_eq!(tf["timestamp"].as_str().unwrap(), ns.to_string(), "the message's time is its stamp");
+        stamps.push(ns);
+    }
+    assert!(stamps.windows(2).all(|w| w[0] < w[1]), "not one per step, in order: {stamps:?}");
 }
 
 /// The published value reached the framework: it copied y into gw_async/publish/x, and

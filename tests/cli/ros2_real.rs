@@ -9,16 +9,20 @@
 //! * `launch-scripts/ros2_uav_listener.py` receives the UAV states, which agree with the run's
 //!   recording step by step;
 //! * an rclpy node with `use_sim_time` takes its time from the gateway's `/clock`;
+//! * during the UAV demo, rclpy's clients of the entity services and tf2_ros's listener get
+//!   each aircraft's pose as its own log has it ([`entities`]);
 //! * `ros2 node list`, `ros2 topic list -t`, `ros2 topic info -v` and `ros2 topic echo` show
 //!   the gateway's node and topics, and an rclpy publisher writes into a SUBSCRIBE set;
 //! * and none of them prints a warning or an error (before type hashes, rmw_cyclonedds
 //!   warned once per endpoint; rmw_zenoh warns of a token or attachment it cannot read).
 //!
 //! Every ROS 2 process runs on loopback (`CYCLONEDDS_URI`; the router on a loopback port of its
-//! own), in a ROS domain of its test (142-149, 216 and 51-54 on DDS, 60-66 on Zenoh), with its
+//! own), in a ROS domain of its test (142-149, 216-218 and 51-54 on DDS, 60-66 on Zenoh), with its
 //! logs in the test's temporary directory, and without the ros2cli daemon.
 
 use crate::gateway;
+
+mod entities;
 
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};

@@ -8,7 +8,9 @@
 //   subscribe: topic whose messages are printed, count: how many,
 //   publish: topic to advertise and write, schemaName, sampleHex: the CDR message to send,
 //   watch: topic read until its message has watchHex at byte watchAt (the framework read
-//          the sample), step: how many steps the step service makes while paused
+//          the sample), step: how many steps the step service makes while paused,
+//   tf: the entities' poses topic whose first tfCount messages are printed (optional),
+//   playback: true to drive the run with Foxglove's playback control requests
 // }
 // Every wait has its own deadline; the test's watchdog ends the process if it hangs anyway.
 
@@ -35,7 +37,44 @@ const within = (ms, what, promise) =>
 
 const ws = new WebSocket(url, [FoxgloveClient.SUPPORTED_SUBPROTOCOL]);
 const client = new FoxgloveClient({ ws });
-client.on("error", (e) => fail(e?.message ?? e));
+// The package knows no playback control (Foxglove's newer capability): its requests are sent
+// on the same socket as raw frames below, and the server's Playback State frames (opcode 5),
+// which the package does not know and reports as errors, are read here from the socket.
+client.on("error", (e) => {
+  const text = String(e?.message ?? e);
+  if (!text.includes("Unrecognized server opcode in binary message: 5")) fail(text);
+});
+const playbackStates = [];
+let playbackWaiter = null;
+ws.on("message", (data, isBinary) => {
+  // The client asks for ArrayBuffers.
+  const b = Buffer.from(data);
+  if (!isBinary || b[0] !== 5) return;
+  // op, status, current time (u64), speed (f32), did seek, request id (u32 length, UTF-8).
+  const idLen = b.readUInt32LE(15);
+  const state = {
+    status: b[1], currentTime: b.readBigUInt64LE(2).toString(), speed: b.readFloatLE(10), didSeek: b[14] === 1,
+    requestId: b.subarray(19, 19 + idLen).toString("utf8"),
+  };
+  playbackStates.push(state);
+  playbackWaiter?.(state);
+});
+const playback = (command, speed, seekNs, requestId) => {
+  const id = Buffer.from(requestId, "utf8");
+  const b = Buffer.alloc(19 + id.length);
+  b[0] = 3;
+  b[1] = command;
+  b.writeFloatLE(speed, 2);
+  b[6] = seekNs === null ? 0 : 1;
+  b.writeBigUInt64LE(BigInt(seekNs ?? 0), 7);
+  b.writeUInt32LE(id.length, 15);
+  id.copy(b, 19);
+  const answered = new Promise((resolve) => {
+    playbackWaiter = (s) => { if (s.requestId === requestId) resolve(s); };
+  });
+  ws.send(b);
+  return within(30000, `the playback state answering ${requestId}`, answered);
+};
 client.on("close", () => print({ kind: "closed" }));
 client.on("status", (s) => print({ kind: "status", level: s.level, message: s.message }));
 
@@ -87,7 +126,8 @@ const channel = (topic) => channels.get(topic) ?? fail(`no channel ${topic}`);
 
 try {
   const info = await within(30000, "serverInfo", serverInfo);
-  print({ kind: "serverInfo", capabilities: info.capabilities, protocol: ws.protocol });
+  print({ kind: "serverInfo", capabilities: info.capabilities, protocol: ws.protocol,
+          dataStartTime: info.dataStartTime, dataEndTime: info.dataEndTime });
   await within(30000, "advertise", advertised);
   await within(30000, "advertiseServices", servicesAdvertised);
   print({
@@ -116,6 +156,25 @@ try {
   }));
   got.forEach(print);
 
+  // 1b. The entities' poses on /tf, when asked.
+  if (cfg.tf) {
+    const tfs = [];
+    await within(60000, `${cfg.tfCount} messages on ${cfg.tf}`, new Promise((resolve) => {
+      const sub = client.subscribe(channel(cfg.tf).id);
+      handlers.set(sub, (m) => {
+        if (tfs.length < cfg.tfCount) {
+          tfs.push({ kind: "tf", timestamp: m.timestamp.toString(), hex: hex(m.data) });
+        }
+        if (tfs.length === cfg.tfCount) {
+          client.unsubscribe(sub);
+          handlers.delete(sub);
+          resolve();
+        }
+      });
+    }));
+    tfs.forEach(print);
+  }
+
   // 2. A sample published into a SUBSCRIBE set, until the framework is seen to read it.
   const sample = Buffer.from(cfg.sampleHex, "hex");
   const pub = client.advertise({ topic: cfg.publish, encoding: "cdr", schemaName: cfg.schemaName });
@@ -140,6 +199,15 @@ try {
   // 3. The run paused, stepped, resumed through the services.
   for (const [name, request] of [["/tutti/pause", {}], ["/tutti/step", { n: cfg.step }], ["/tutti/state", {}], ["/tutti/resume", {}]]) {
     print({ kind: "service", name, status: await call(name, request) });
+  }
+
+  // 3b. Foxglove's playback controls: pause, play at twice the speed, a seek (refused live),
+  // then back to real time.
+  if (cfg.playback) {
+    for (const [command, speed, seek, id] of [[1, 1, null, "pause"], [0, 2, null, "play2x"], [0, 2, 0, "seek"], [0, 1, null, "play1x"]]) {
+      const state = await playback(command, speed, seek, id);
+      print({ kind: "playback", request: id, ...state, run: await call("/tutti/state", {}) });
+    }
   }
 
   // 4. The connection graph.

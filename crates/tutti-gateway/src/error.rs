@@ -70,6 +70,9 @@ pub enum ConfigError {
     /// nesting too deep, an unknown key or a bad value.
     #[error(transparent)]
     File(#[from] tutti_config::Error),
+    /// An entity whose domain or items the DDF does not have.
+    #[error("{at}: {error}")]
+    Entity { at: String, error: crate::config::EntityError },
     /// A `topics` key that names no set of the DDF.
     #[error("{at}: the DDF has no set '{set}' (sets: {sets})")]
     NoSuchSet { at: String, set: String, sets: String },

@@ -15,11 +15,13 @@
 //! the same gateway inside the framework's process, where the framework's own PUBLISH sets
 //! go to DDS from its step (a `tutti_host::StepSink`). [`foxglove`] serves the same sets
 //! over the Foxglove WebSocket protocol; [`services`] offers ROS 2's `simulation_interfaces`
-//! services over the run's control plane.
+//! services over the run's control plane, and [`entities`] the run's bodies for the entity
+//! services.
 
 #![deny(unsafe_op_in_unsafe_fn)]
 
 pub mod config;
+pub mod entities;
 mod error;
 pub mod foxglove;
 pub mod http;

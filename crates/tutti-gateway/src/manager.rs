@@ -32,7 +32,7 @@ use crate::routes::from_dds::{self, Destination, Direct, RemoteWriter, Sample, T
 use crate::routes::from_step::{self, StepRoute};
 use crate::routes::mirror::{self, MirrorCounters};
 use crate::routes::to_dds::{self, Activation, Outgoing, Polled, ServedBy};
-use crate::routes::{clock, per_item, Counters, Event, ShmConfig};
+use crate::routes::{clock, per_item, poses, Counters, Event, ShmConfig};
 use crate::stats::{LogLimit, SetStats, Stats};
 use crate::{foxglove, http, GatewayError, GatewayOptions, TypeMode};
 
@@ -125,7 +125,9 @@ pub(crate) fn start(
         m.http = Some((thread, stop));
     }
     if let Some(addr) = m.opts.foxglove {
-        let counters = (0..m.plan.len()).map(|si| m.counters(si)).collect();
+        let mut counters: Vec<Counters> = (0..m.plan.len()).map(|si| m.counters(si)).collect();
+        // The entities' `/tf` channel counts in the totals only.
+        counters.push(Counters { total: m.stats.clone(), set: Default::default() });
         // Its `time` follows `/clock`'s domain, else the first.
         let time_domain = m.clock_domain.or((!m.domains.is_empty()).then_some(0));
         let (thread, bound) = foxglove::serve(addr, &rt, &m.opts, &m.plan, counters, m.cfg.clone(), time_domain)?;
@@ -249,11 +251,18 @@ impl Manager {
         if self.opts.mirror || self.opts.passive {
             return Ok(());
         }
+        let entities = crate::entities::DomainEntities::new(
+            &self.opts.entities,
+            &self.opts.model,
+            &self.cfg.namespace,
+            self.opts.timeout,
+        );
         let thread = crate::services::start(
             self.dds.clone(),
             &self.opts.ros_namespace,
             &self.cfg.namespace,
             &self.opts.model,
+            Box::new(entities),
             self.cfg.stop.clone(),
         );
         if let Some(thread) = self.permitted("*", "the simulation_interfaces services", thread)? {
@@ -395,6 +404,15 @@ impl Manager {
             let out = clock::route(&*self.dds, &d.name, &self.opts.ros_namespace, self.opts.clock_rate);
             if let Some(out) = self.permitted(&d.name, "/clock", out)? {
                 info!(domain = %d.name, "{}: the simulated time of {}", out.topics[0], d.name);
+                self.outgoing(di, None, out);
+            }
+        }
+        // The entities' poses, once, with the first entity's domain (a mirror's home serves them).
+        if !self.opts.mirror && self.opts.entities.first().is_some_and(|e| e.domain == d.name) {
+            let (o, cfg) = (&self.opts, &self.cfg);
+            let out = poses::route(&*self.dds, &o.entities, &o.model, cfg, &o.ros_namespace, o.pose_rate);
+            if let Some(out) = self.permitted(&d.name, "/tf", out)? {
+                info!("{} and {} pose topics: the entities' poses", out.topics[0], out.topics.len() - 1);
                 self.outgoing(di, None, out);
             }
         }

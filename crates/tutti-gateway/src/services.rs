@@ -1,5 +1,5 @@
-//! ROS 2's `simulation_interfaces` services and the action `simulate_steps` on the gateway's
-//! engine (docs/ros2.md): offered by a gateway in or beside a framework, not by a mirror nor a
+//! ROS 2's `simulation_interfaces` services (run control and entities) and the action
+//! `simulate_steps` on the gateway's engine (docs/ros2.md): offered by a gateway in or beside a framework, not by a mirror nor a
 //! passive gateway (`--passive`). What each call does is `tutti_ros2::simulation`'s; this
 //! module only wires it to the engine.
 //!
@@ -20,7 +20,9 @@ use std::time::{Duration, Instant};
 use tutti_core::ddf::Model;
 use tutti_engine::{EndpointId, Engine, PeerId, ReplyTo, Request, Responder, Service, TopicType, Writer};
 use tutti_ros2::simulation::action::{self, GoalId, GoalRun, Publisher};
-use tutti_ros2::simulation::{self, Answer, Goals, Lifecycle, RunControl, Simulation, FEEDBACK, SERVICES, STATUS};
+use tutti_ros2::simulation::{
+    self, Answer, Entities, Goals, Lifecycle, RunControl, Simulation, FEEDBACK, SERVICES, STATUS,
+};
 use tutti_ros2::Message;
 
 use crate::GatewayError;
@@ -77,6 +79,7 @@ pub fn start(
     ros_ns: &str,
     namespace: &str,
     model: &Model,
+    entities: Box<dyn Entities>,
     stop: Arc<AtomicBool>,
 ) -> Result<JoinHandle<()>, GatewayError> {
     let (tx, rx) = mpsc::sync_channel::<Msg>(QUEUE);
@@ -95,7 +98,7 @@ pub fn start(
         responders.push(engine.serve(&Service { name: &name, request: &request, response: &response }, sink)?);
     }
     let ctl = RunControl { namespace: namespace.to_string(), timeout: CONTROL_TIMEOUT };
-    let sim = Simulation { life: Lifecycle::new(simulation::no_stepping(model)), goals };
+    let sim = Simulation { life: Lifecycle::new(simulation::no_stepping(model)), goals, entities };
     let mut state = State { engine, responders, sim, ctl, done: tx, stop, waiting: Vec::new(), feedback_topic };
     std::thread::Builder::new()
         .name("tutti-gw-simif".into())

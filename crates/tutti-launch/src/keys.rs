@@ -602,15 +602,26 @@ impl<'de> Visitor<'de> for GatewayVisitor {
 
     fn visit_map<A: MapAccess<'de>>(self, map: A) -> Result<Gateway, A::Error> {
         let mut config: Option<String> = None;
-        let mut keys =
-            ConfigFile::deserialize(MapAccessDeserializer::new(Intercept { inner: map, config: &mut config }))?;
-        let fail = |e: KeyError| de::Error::custom(e);
         let (dir, ddf) = ctx(|c| (c.dir.clone(), c.ddf.as_ref().map(|(p, m)| (p.clone(), m.clone().ok()))));
+        let model = ddf.as_ref().and_then(|(_, m)| m.clone());
+        // With the DDF (pass 2), each entity is checked where it stands.
+        let read =
+            || ConfigFile::deserialize(MapAccessDeserializer::new(Intercept { inner: map, config: &mut config }));
+        let mut keys = match &model {
+            Some(m) => gateway_config::with_model(m, read),
+            None => read(),
+        }?;
+        let fail = |e: KeyError| de::Error::custom(e);
         let config = match config {
             Some(_) if keys != ConfigFile::default() => return Err(fail(KeyError::GatewayConfigAndKeys)),
             Some(file) => {
                 let path = dir.join(file);
-                keys = gateway_config::load(&path).map_err(|e| fail(KeyError::Gateway(Box::new(e))))?;
+                let load = || gateway_config::load(&path);
+                let loaded = match &model {
+                    Some(m) => gateway_config::with_model(m, load),
+                    None => load(),
+                };
+                keys = loaded.map_err(|e| fail(KeyError::Gateway(Box::new(e))))?;
                 Some(path)
             }
             None => None,

@@ -108,6 +108,11 @@ impl Registry {
         b.build()
     }
 
+    /// The text of the embedded `.msg` file of message `package/msg/name`, as ROS 2 ships it.
+    pub fn message_file(package: &str, name: &str) -> Option<&'static str> {
+        embedded::FILES.iter().find(|(p, k, n, _)| *p == package && *k == "msg" && *n == name).map(|f| f.3)
+    }
+
     /// The message named `name` (`std_msgs/msg/Float64`, `std_msgs::msg::dds_::Float64_`).
     pub fn message(&self, name: &str) -> Option<Message<'_>> {
         self.by_name.get(&key(name)?).map(|&i| self.at(i))

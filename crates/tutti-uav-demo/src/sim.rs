@@ -43,6 +43,8 @@ pub struct SimOptions {
 const DDF_TEXT: &str = include_str!("../../../ddf/multiuav.ddf");
 /// The scenario's launch file, with `${NAME}` values to fill in ([`launch_file`]).
 pub const LAUNCH_TEMPLATE: &str = include_str!("../../../examples/uav/uav-demo.json5");
+/// The gateway's config: the aircraft as ROS 2 entities.
+pub const GATEWAY_CONFIG: &str = include_str!("../../../examples/uav/gateway.json5");
 /// The source tree (C component, monitoring script, Python module, header).
 const ROOT: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../..");
 /// The domain of the demo's FMU component (examples/fmu/altitude_filter, docs/fmu.md): the
@@ -199,6 +201,8 @@ pub fn prepare(opts: &SimOptions, scenario: &Scenario, out: &Path) -> anyhow::Re
     // The gateway bridges the paper's domains, as it did before the FMU's was added.
     std::fs::create_dir_all(out.join("gateway"))?;
     std::fs::write(out.join("gateway/multiuav.ddf"), DDF_TEXT).context("writing gateway/multiuav.ddf")?;
+    // The four aircraft as ROS 2 entities (examples/uav/gateway.json5).
+    std::fs::write(out.join("gateway/uav.json5"), GATEWAY_CONFIG).context("writing gateway/uav.json5")?;
     let tutti_demo = std::env::current_exe().context("locating this executable")?;
     let tutti = crate::tutti_exe()?;
     // A private copy of librtapi: a rebuild during the run cannot pull it away.
@@ -298,6 +302,20 @@ pub fn simulate(opts: &SimOptions, scenario: &Scenario, out: &Path, interrupted:
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The gateway's config names the four aircraft, each item one of its domain's.
+    #[test]
+    fn the_gateway_config_declares_the_four_aircraft_as_entities() {
+        let model = tutti_core::ddf::parse_str(DDF_TEXT, "gateway/multiuav.ddf").unwrap();
+        let config = tutti_gateway::config::with_model(&model, || {
+            tutti_gateway::config::parse(GATEWAY_CONFIG, "gateway/uav.json5")
+        })
+        .unwrap();
+        let entities = config.entities.entities.unwrap_or_default();
+        let names: Vec<&str> = entities.iter().map(|e| e.name.as_str()).collect();
+        assert_eq!(names, ["uav1", "uav2", "uav3", "uav4"]);
+        assert!(entities.iter().zip(1..).all(|(e, n)| e.domain == format!("multiuav_uav{n}") && e.frame == "map"));
+    }
 
     fn opts() -> SimOptions {
         SimOptions {

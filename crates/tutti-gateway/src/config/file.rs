@@ -18,6 +18,7 @@ use tutti_core::mapping::Profile;
 use tutti_core::shm::WaitMode;
 use tutti_engine::keys::EngineKeys;
 
+use super::entities::EntityKeys;
 use super::plan::{PlanKeys, TopicRules};
 use super::values::{de_lookahead, de_namespace, de_period, de_profile, de_rate, de_span, de_types, de_wait};
 use super::{ClockSource, ConfigError, GatewayOptions, TypeMode};
@@ -41,6 +42,8 @@ pub struct ConfigFile {
     pub http: HttpKeys,
     /// Every other key: how the gateway bridges and runs.
     pub gateway: GatewayKeys,
+    /// `entities`, `pose_rate`.
+    pub entities: EntityKeys,
 }
 
 /// The gateway's own keys: how it maps, steps and names.
@@ -174,6 +177,8 @@ pub const KEYS: &[&str] = &[
     "allow",
     "deny",
     "topics",
+    "entities",
+    "pose_rate",
 ];
 
 impl<'de> Deserialize<'de> for ConfigFile {
@@ -201,7 +206,8 @@ impl<'de> Visitor<'de> for FileVisitor {
                 || take_into(&mut c.gateway, key, &mut map)?
                 || take_into(&mut c.plan, key, &mut map)?
                 || take_into(&mut c.foxglove, key, &mut map)?
-                || take_into(&mut c.http, key, &mut map)?;
+                || take_into(&mut c.http, key, &mut map)?
+                || take_into(&mut c.entities, key, &mut map)?;
             if !taken {
                 return Err(unowned(key));
             }
@@ -245,6 +251,7 @@ impl ConfigFile {
             foxglove: self.foxglove.over(lower.foxglove),
             http: self.http.over(lower.http),
             gateway: self.gateway.over(lower.gateway),
+            entities: self.entities.over(lower.entities),
         }
     }
 
@@ -291,6 +298,10 @@ impl ConfigFile {
         }
         if self.foxglove.foxglove.is_some() {
             opts.foxglove = self.foxglove.foxglove;
+        }
+        set(&mut opts.entities, &self.entities.entities);
+        if self.entities.pose_rate.is_some() {
+            opts.pose_rate = self.entities.pose_rate;
         }
         opts.rules = TopicRules::from_config(self)?;
         Ok(())

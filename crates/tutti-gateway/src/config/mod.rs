@@ -23,11 +23,13 @@ use tutti_ros2::names;
 
 use crate::engine::{EngineConfig, EngineKind};
 
+pub mod entities;
 pub mod file;
 pub mod plan;
 pub mod values;
 
 pub use crate::error::ConfigError;
+pub use entities::{with_model, Attitude, Entity, EntityError, Form};
 pub use file::{load, parse, ConfigFile, GatewayKeys, KEYS};
 pub use plan::{
     anchored, item_ros2_topics, item_topics, plan, resolve, set_key, LeftOut, Plan, PlanKeys, PlannedSet, QosOverride,
@@ -118,6 +120,11 @@ pub struct GatewayOptions {
     /// Offer no `simulation_interfaces` services (`crate::services`): the gateway bridges
     /// data and never controls the run.
     pub passive: bool,
+    /// The run's bodies as ROS 2 entities (docs/gateway.md, "Entities"), checked against the
+    /// DDF by [`resolve`].
+    pub entities: Vec<Entity>,
+    /// At most this many poses a second on `/tf` and `<entity>/pose` (None: one per step).
+    pub pose_rate: Option<f64>,
     /// Which sets are bridged, and per-topic QoS, rate and name (the config file's
     /// `allow`, `deny` and `topics`).
     pub rules: TopicRules,
@@ -228,6 +235,8 @@ impl GatewayOptions {
             lease: Duration::from_secs(1),
             every_step: false,
             passive: false,
+            entities: Vec::new(),
+            pose_rate: None,
             http: None,
             foxglove: None,
             rules: TopicRules::default(),

@@ -114,6 +114,8 @@ pub fn resolve(opts: &GatewayOptions) -> Result<Plan, ConfigError> {
     opts.lookahead.check(&opts.model, opts.types)?;
     let rules = &opts.rules;
     let at = |key: &str| in_source(&rules.source, key);
+    super::entities::check_all(&opts.entities, &opts.model)
+        .map_err(|error| ConfigError::Entity { at: at("entities"), error })?;
     let pkg = mapping::package_name(&opts.ddf_path);
     let hashes = tutti_ros2::idl::type_hashes(&opts.model, &pkg).unwrap_or_default();
     let ns = names::namespace(&opts.ros_namespace)?;

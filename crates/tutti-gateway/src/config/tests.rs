@@ -366,6 +366,7 @@ fn the_files_keys_are_the_sections_keys() {
         PlanKeys::KEYS,
         crate::foxglove::FoxgloveKeys::KEYS,
         crate::http::HttpKeys::KEYS,
+        super::entities::EntityKeys::KEYS,
     ]
     .concat();
     let mut a = owned.clone();
@@ -419,4 +420,75 @@ fn a_lookahead_is_refused_for_a_domain_that_cannot_have_one_naming_it() {
     assert!(e.contains(&asynchronous) && e.contains("asynchronous"), "{e}");
     // 0 is lock-step: allowed anywhere.
     parse_lookahead("0").unwrap().check(&model("multiuav.ddf"), TypeMode::PerItem).unwrap();
+}
+
+/// A UAV of ddf/multiuav.ddf as an entity, with `extra` keys in its `geodetic` block (or in
+/// the entry, after a comma).
+fn uav_entity(geodetic_items: &str, entry: &str) -> String {
+    format!(
+        "{{\n  entities: [\n    {{ name: \"uav1\", category: \"robot\", domain: \"multiuav_uav1\", set: \"subscribe\",{entry}\n      \
+         geodetic: {{ origin: [45.0, 7.0, 0], {geodetic_items} }} }},\n  ],\n}}"
+    )
+}
+
+const UAV_ITEMS: &str = r#"latitude: "Latitude", longitude: "Longitude", altitude: "Elevation", heading: "Heading""#;
+
+fn entities_of(text: &str) -> Result<ConfigFile, ConfigError> {
+    let model = tutti_core::ddf::load(repo("ddf/multiuav.ddf")).unwrap();
+    with_model(&model, || parse(text, "gw.json5"))
+}
+
+#[test]
+fn entities_are_read_and_checked_against_the_ddf() {
+    let text = uav_entity(&format!("{UAV_ITEMS}, speed: \"Airspeed\""), " tags: [\"air\"],");
+    let c = entities_of(&text).unwrap();
+    let e = &c.entities.entities.as_ref().unwrap()[0];
+    assert_eq!(
+        (e.name.as_str(), e.category, e.frame.as_str(), e.role),
+        ("uav1", 1, "world", tutti_core::ddf::Role::Subscribe)
+    );
+    assert!(matches!(&e.form, Form::Geodetic { speed: Some(s), .. } if s == "Airspeed"));
+    let mut o = opts("multiuav.ddf", &text).unwrap();
+    c.apply(&mut o).unwrap();
+    resolve(&o).unwrap();
+    assert_eq!(o.entities.len(), 1);
+}
+
+/// Each mistake names the file, the entity's line and column, the entity and what is wrong.
+#[test]
+fn entity_mistakes_are_refused_where_they_stand() {
+    let cases = [
+        (uav_entity(UAV_ITEMS, "").replace("multiuav_uav1", "uav9"), "the DDF has no domain 'uav9'"),
+        (uav_entity(&UAV_ITEMS.replace("\"Heading\"", "\"Bearing\""), ""), "no subscribe item 'Bearing' (its heading"),
+        (uav_entity(UAV_ITEMS, "").replace("subscribe", "both"), "set 'both': use publish or subscribe"),
+        (uav_entity(UAV_ITEMS, " category: \"plane\","), "duplicate field `category`"),
+        (uav_entity(UAV_ITEMS, "").replace("\"robot\"", "\"plane\""), "category 'plane': use one of object, robot"),
+        (uav_entity(UAV_ITEMS, "").replace("origin: [45.0", "origin: [95.0"), "a latitude within ±90°"),
+        (uav_entity("latitude: \"Latitude\"", ""), "missing field `longitude`"),
+        (uav_entity(UAV_ITEMS, " cartesian: { x: \"a\", y: \"b\", z: \"c\" },"), "not both"),
+        (uav_entity(UAV_ITEMS, "").replace("\"uav1\"", "\"uav 1\""), "entity 'uav 1'"),
+    ];
+    for (text, why) in cases {
+        let e = err(entities_of(&text));
+        assert!(e.contains(why), "{e}\n{text}");
+        assert!(e.starts_with("gw.json5:3:") || e.starts_with("gw.json5:4:"), "placed at the entity: {e}\n{text}");
+    }
+    // Items that are not one number: a boolean, an array.
+    let ddf = r#"<orchestra><domain name="d"><synchronous>no</synchronous><multiplePublishAllowed>yes</multiplePublishAllowed><states>no</states>
+      <set name="SUBSCRIBE"><item name="on"><type>boolean</type></item><item name="xy"><type>float64</type><length>2</length></item>
+      <item name="z"><type>float64</type></item></set></domain></orchestra>"#;
+    let model = tutti_core::ddf::parse_str(ddf, "d.ddf").unwrap();
+    for (x, ty) in [("on", "is boolean, not one number"), ("xy", "is an array of 2 float64, not one number")] {
+        let text = format!(
+            "{{ entities: [ {{ name: \"b\", domain: \"d\", set: \"subscribe\", cartesian: {{ x: \"{x}\", y: \"z\", z: \"z\" }} }} ] }}"
+        );
+        let e = err(with_model(&model, || parse(&text, "gw.json5")));
+        assert!(e.starts_with("gw.json5:1:") && e.contains(&format!("item '{x}' of domain 'd' (x) {ty}")), "{e}");
+    }
+    // Checked again without a DDF in scope, when the options are resolved (named by key).
+    let text = uav_entity(UAV_ITEMS, "").replace("multiuav_uav1", "uav9");
+    let e = err(resolved("multiuav.ddf", &text));
+    assert!(e.starts_with("gw.json5: entities: entity 'uav1': the DDF has no domain 'uav9'"), "{e}");
+    let twice = text.replace("uav9", "multiuav_uav1").replace("  ],", &format!("    {},\n  ],", "{ name: \"uav1\", domain: \"multiuav_uav2\", set: \"subscribe\", geodetic: { origin: [0,0,0], latitude: \"Latitude\", longitude: \"Longitude\", altitude: \"Elevation\", heading: \"Heading\" } }"));
+    assert!(err(resolved("multiuav.ddf", &twice)).contains("entity 'uav1' is declared twice"));
 }

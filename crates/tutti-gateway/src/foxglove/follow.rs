@@ -25,7 +25,9 @@ use tutti_core::shm::observer::{Look, Observer};
 use tutti_core::shm::segment::Segment;
 
 use super::protocol::sim_ns;
-use super::Shared;
+use super::{Shared, Source};
+use crate::entities::{DomainEntities, NewPoses};
+use tutti_ros2::simulation::entities::{self as ent, Entities};
 
 /// What the follower hands the sessions.
 #[derive(Debug, Clone)]
@@ -78,16 +80,20 @@ pub(crate) fn spawn(
 fn run(sh: &Shared, out: &broadcast::Sender<Out>, graph: &watch::Sender<Graph>, time_domain: Option<usize>) {
     let mut observers: Vec<Observer> = sh.domains.iter().map(|d| Observer::new(d.name.clone())).collect();
     let mut followed: Vec<Vec<Followed>> = sh.domains.iter().map(|_| Vec::new()).collect();
+    let mut poses = None;
     for ch in &sh.channels {
-        followed[ch.domain].push(Followed {
-            channel: ch.id,
-            role: ch.role,
-            codec: ch.codec.clone(),
-            last: None,
-            epoch: 0,
-            buf: vec![0; ch.codec.shm_size()],
-            body: Vec::new(),
-        });
+        match &ch.source {
+            Source::Set { domain, role, codec } => followed[*domain].push(Followed {
+                channel: ch.id,
+                role: *role,
+                codec: codec.clone(),
+                last: None,
+                epoch: 0,
+                buf: vec![0; codec.shm_size()],
+                body: Vec::new(),
+            }),
+            Source::Poses => poses = Some(PoseFollow::new(sh, ch.id)),
+        }
     }
     let (mut last_time, mut time_at) = (None::<u64>, Instant::now());
     let mut graph_at = Instant::now();
@@ -129,6 +135,11 @@ fn run(sh: &Shared, out: &broadcast::Sender<Out>, graph: &watch::Sender<Graph>, 
                 add_domain(&mut g, sh, di, seg);
             }
         }
+        if let Some(p) = &mut poses {
+            if let Some(msg) = p.read(sh, &observers) {
+                let _ = out.send(msg);
+            }
+        }
         if look_graph {
             graph_at = Instant::now();
             graph.send_if_modified(|old| {
@@ -163,13 +174,59 @@ impl Followed {
     }
 }
 
+/// The `/tf` channel: the entities' poses, read (as the gateway's `/tf` route reads them) when
+/// a step of one of their domains is new, or a client subscribed anew.
+struct PoseFollow {
+    channel: u32,
+    source: DomainEntities,
+    /// The entities' domains (indexes of the followed domains).
+    domains: Vec<usize>,
+    new: NewPoses,
+    epoch: u64,
+}
+
+impl PoseFollow {
+    fn new(sh: &Shared, channel: u32) -> PoseFollow {
+        let opts = &sh.entities;
+        let mut domains: Vec<usize> =
+            opts.iter().filter_map(|e| sh.domains.iter().position(|d| d.name == e.domain)).collect();
+        domains.sort_unstable();
+        domains.dedup();
+        let source = DomainEntities::new(opts, &sh.model, &sh.cfg.namespace, sh.cfg.timeout);
+        PoseFollow { channel, source, domains, new: NewPoses::default(), epoch: 0 }
+    }
+
+    /// The poses as a `TFMessage`, if a client listens and something moved.
+    fn read(&mut self, sh: &Shared, observers: &[Observer]) -> Option<Out> {
+        let ch = &sh.channels[self.channel as usize - 1];
+        if ch.subscribers.load(Ordering::Acquire) == 0 {
+            return None;
+        }
+        let epoch = ch.epoch.load(Ordering::Acquire);
+        let force = std::mem::replace(&mut self.epoch, epoch) != epoch;
+        let marks =
+            self.domains.iter().map(|&di| observers[di].segment().map(|s| (s.step(), s.time_resets()))).collect();
+        let bodies = self.new.take(marks, force, &mut self.source)?;
+        let time = bodies.iter().map(|b| b.sim_time).fold(0.0, f64::max);
+        let value = ent::tf_value(self.source.list().iter().zip(&bodies));
+        let body = ent::tf_message().encode(&value).ok()?;
+        let mut data = Vec::with_capacity(HEADER_LE.len() + body.len());
+        data.extend_from_slice(&HEADER_LE);
+        data.extend_from_slice(&body);
+        Some(Out::Message { channel: self.channel, time_ns: sim_ns(time), data: data.into() })
+    }
+}
+
 /// Domain `di`'s participants in the graph: the framework publishes the PUBLISH topic and
 /// subscribes the SUBSCRIBE topic; each participant subscribes the PUBLISH topic, and
 /// publishes the SUBSCRIBE topic once it has written it (DDS writers and Foxglove clients,
 /// through the gateway, are writers too).
 fn add_domain(g: &mut Graph, sh: &Shared, di: usize, seg: &Segment) {
     let status = seg.status();
-    let topic = |role: Role| sh.channels.iter().find(|c| c.domain == di && c.role == role).map(|c| c.topic.clone());
+    let topic = |role: Role| {
+        let of = |c: &&super::ChannelInfo| matches!(c.source, Source::Set { domain, role: r, .. } if domain == di && r == role);
+        sh.channels.iter().find(of).map(|c| c.topic.clone())
+    };
     let framework = format!("framework of {} (pid {})", status.domain, status.framework_pid);
     let (publish, subscribe) = (topic(Role::Publish), topic(Role::Subscribe));
     if let Some(t) = &publish {

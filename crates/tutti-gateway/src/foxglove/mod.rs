@@ -49,17 +49,22 @@ mod session;
 /// The default address of `--foxglove` given without one.
 pub const DEFAULT_ADDR: &str = "127.0.0.1:8765";
 
-/// One channel: a bridged set.
+/// What a channel carries: a bridged set, or the entities' poses (`/tf`).
+#[derive(Debug)]
+pub(crate) enum Source {
+    Set { domain: usize, role: Role, codec: Arc<SetCodec> },
+    Poses,
+}
+
+/// One channel: a bridged set, or `/tf`.
 #[derive(Debug)]
 pub(crate) struct ChannelInfo {
     /// Its id on the protocol (its index in [`Shared::channels`] plus 1).
     pub id: u32,
-    pub domain: usize,
-    pub role: Role,
+    pub source: Source,
     /// The ROS 2 topic name, as on DDS.
     pub topic: String,
     pub schema_name: String,
-    pub codec: Arc<SetCodec>,
     /// Subscriptions to it now, over all clients: the follower reads only subscribed sets.
     pub subscribers: AtomicUsize,
     /// Bumped by each new subscription: the follower then sends the current value again, so
@@ -81,6 +86,9 @@ pub(crate) struct DomainInfo {
 pub(crate) struct Shared {
     pub channels: Vec<ChannelInfo>,
     pub domains: Vec<DomainInfo>,
+    /// The entities (their poses go out on `/tf`) and the DDF they are of.
+    pub entities: Vec<crate::config::Entity>,
+    pub model: tutti_core::ddf::Model,
     pub cfg: ShmConfig,
     /// The messages every session sends first.
     pub advertise: String,
@@ -136,7 +144,7 @@ fn services() -> Vec<protocol::Service> {
 const BACKLOG: usize = 4096;
 
 /// Starts the server on `addr` for the sets `plan` of `opts` (each with its counters in
-/// `counters`), on runtime `rt`; the follower's thread ends with the gateway (`cfg.stop`),
+/// `counters`, then those of the entities' `/tf`), on runtime `rt`; the follower's thread ends with the gateway (`cfg.stop`),
 /// the sessions with the runtime. Returns the follower's thread and the address bound
 /// (port 0: one the system chose).
 pub(crate) fn serve(
@@ -152,7 +160,8 @@ pub(crate) fn serve(
     let defs = ros2msg::message_definitions(&opts.model, &package)?;
     let mut channels = Vec::with_capacity(plan.len());
     let mut advertised = Vec::with_capacity(plan.len());
-    for (i, (p, counters)) in plan.iter().zip(counters).enumerate() {
+    let mut counters = counters.into_iter();
+    for (i, (p, counters)) in plan.iter().zip(counters.by_ref()).enumerate() {
         let d = &opts.model.domains[p.domain];
         let schema = ros2msg::set_schema(&defs, &package, &d.name, p.role)?;
         let id = i as u32 + 1;
@@ -166,11 +175,36 @@ pub(crate) fn serve(
         });
         channels.push(ChannelInfo {
             id,
-            domain: p.domain,
-            role: p.role,
+            source: Source::Set {
+                domain: p.domain,
+                role: p.role,
+                codec: Arc::new(SetCodec::new(&d.set(p.role).layout)),
+            },
             topic: p.ros2_topic.clone(),
             schema_name: schema.name,
-            codec: Arc::new(SetCodec::new(&d.set(p.role).layout)),
+            subscribers: AtomicUsize::new(0),
+            epoch: AtomicU64::new(0),
+            counters,
+        });
+    }
+    // The entities' poses: `/tf`, for the 3D panel.
+    if let (false, Some(counters)) = (opts.entities.is_empty(), counters.next()) {
+        let id = channels.len() as u32 + 1;
+        let tf = tutti_ros2::simulation::entities::tf_message();
+        let topic = tutti_ros2::names::under(&opts.ros_namespace, tutti_ros2::simulation::entities::TF_TOPIC);
+        advertised.push(protocol::Channel {
+            id,
+            topic: topic.clone(),
+            encoding: "cdr".into(),
+            schema_name: tf.name().to_string(),
+            schema: ros2msg::message_schema(tf),
+            schema_encoding: "ros2msg".into(),
+        });
+        channels.push(ChannelInfo {
+            id,
+            source: Source::Poses,
+            topic,
+            schema_name: tf.name().to_string(),
             subscribers: AtomicUsize::new(0),
             epoch: AtomicU64::new(0),
             counters,
@@ -200,6 +234,8 @@ pub(crate) fn serve(
     let shared = Arc::new(Shared {
         channels,
         domains,
+        entities: opts.entities.clone(),
+        model: opts.model.clone(),
         cfg,
         advertise: protocol::ServerMessage::Advertise { channels: &advertised }.to_text(),
         services: protocol::ServerMessage::AdvertiseServices { services: &services() }.to_text(),

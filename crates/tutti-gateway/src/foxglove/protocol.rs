@@ -14,10 +14,12 @@ pub const SUBPROTOCOLS: [&str; 2] = ["foxglove.websocket.v1", "foxglove.sdk.v1"]
 const MESSAGE_DATA: u8 = 0x01;
 const TIME: u8 = 0x02;
 const SERVICE_CALL_RESPONSE: u8 = 0x03;
+const PLAYBACK_STATE: u8 = 0x05;
 
 /// Client binary opcodes.
 const CLIENT_MESSAGE_DATA: u8 = 0x01;
 const SERVICE_CALL_REQUEST: u8 = 0x02;
+const PLAYBACK_CONTROL_REQUEST: u8 = 0x03;
 
 /// Status levels.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -94,6 +96,11 @@ pub enum ServerMessage<'a> {
         supported_encodings: &'a [&'a str],
         metadata: &'a std::collections::BTreeMap<String, String>,
         session_id: &'a str,
+        /// The range of data (playback control): from the run's start to its end.
+        #[serde(skip_serializing_if = "Option::is_none")]
+        data_start_time: Option<Stamp>,
+        #[serde(skip_serializing_if = "Option::is_none")]
+        data_end_time: Option<Stamp>,
     },
     Status {
         level: u8,
@@ -177,12 +184,66 @@ pub enum ClientMessage {
 }
 
 /// Binary messages of a client.
-#[derive(Debug, Clone, PartialEq, Eq)]
+#[derive(Debug, Clone, PartialEq)]
 pub enum ClientBinary<'a> {
     /// Data on a channel the client advertised.
     MessageData { channel_id: u32, data: &'a [u8] },
     /// A service call.
     ServiceCall { service_id: u32, call_id: u32, encoding: &'a str, data: &'a [u8] },
+    /// Foxglove's playback controls.
+    Playback(PlaybackControl<'a>),
+}
+
+/// A time as the protocol's JSON has it.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+pub struct Stamp {
+    pub sec: u64,
+    pub nsec: u32,
+}
+
+impl Stamp {
+    pub fn of_ns(ns: u64) -> Stamp {
+        Stamp { sec: ns / 1_000_000_000, nsec: (ns % 1_000_000_000) as u32 }
+    }
+}
+
+/// A playback command (Foxglove's playback control).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum PlaybackCommand {
+    Play,
+    Pause,
+}
+
+/// What Foxglove's playback controls ask.
+#[derive(Debug, Clone, PartialEq)]
+pub struct PlaybackControl<'a> {
+    pub command: PlaybackCommand,
+    pub speed: f32,
+    /// Where to go, in nanoseconds, if the client sought.
+    pub seek: Option<u64>,
+    pub request_id: &'a str,
+}
+
+/// The server's playback status.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum PlaybackStatus {
+    Playing = 0,
+    Paused = 1,
+    Ended = 3,
+}
+
+/// A `Playback State` frame: the status, the time now (ns), the speed, whether a seek moved
+/// it, and the request it answers.
+pub fn playback_state(status: PlaybackStatus, time_ns: u64, speed: f32, did_seek: bool, request_id: &str) -> Vec<u8> {
+    let mut out = Vec::with_capacity(19 + request_id.len());
+    out.push(PLAYBACK_STATE);
+    out.push(status as u8);
+    out.extend_from_slice(&time_ns.to_le_bytes());
+    out.extend_from_slice(&speed.to_le_bytes());
+    out.push(u8::from(did_seek));
+    out.extend_from_slice(&(request_id.len() as u32).to_le_bytes());
+    out.extend_from_slice(request_id.as_bytes());
+    out
 }
 
 /// Why a client's binary message cannot be read.
@@ -196,6 +257,8 @@ pub enum BinaryError {
     Short { op: u8, len: usize },
     #[error("a service call's encoding is not UTF-8")]
     Encoding,
+    #[error("playback command {0} is neither play (0) nor pause (1)")]
+    PlaybackCommand(u8),
 }
 
 fn u32_at(b: &[u8], at: usize) -> Option<u32> {
@@ -217,6 +280,21 @@ pub fn parse_binary(b: &[u8]) -> Result<ClientBinary<'_>, BinaryError> {
             let encoding = b.get(13..13usize.saturating_add(len)).ok_or_else(short)?;
             let encoding = std::str::from_utf8(encoding).map_err(|_| BinaryError::Encoding)?;
             Ok(ClientBinary::ServiceCall { service_id, call_id, encoding, data: &b[13 + len..] })
+        }
+        // command u8, speed f32, had_seek u8, seek u64, request id (u32 length, UTF-8).
+        PLAYBACK_CONTROL_REQUEST => {
+            let command = match *b.get(1).ok_or_else(short)? {
+                0 => PlaybackCommand::Play,
+                1 => PlaybackCommand::Pause,
+                c => return Err(BinaryError::PlaybackCommand(c)),
+            };
+            let speed = f32::from_le_bytes(b.get(2..6).ok_or_else(short)?.try_into().map_err(|_| short())?);
+            let had_seek = *b.get(6).ok_or_else(short)? != 0;
+            let seek = u64::from_le_bytes(b.get(7..15).ok_or_else(short)?.try_into().map_err(|_| short())?);
+            let len = u32_at(b, 15).ok_or_else(short)? as usize;
+            let id = b.get(19..19usize.saturating_add(len)).ok_or_else(short)?;
+            let request_id = std::str::from_utf8(id).map_err(|_| BinaryError::Encoding)?;
+            Ok(ClientBinary::Playback(PlaybackControl { command, speed, seek: had_seek.then_some(seek), request_id }))
         }
         op => Err(BinaryError::Opcode(op)),
     }
@@ -288,6 +366,23 @@ mod tests {
         assert!(matches!(parse_binary(&[CLIENT_MESSAGE_DATA, 2]), Err(BinaryError::Short { .. })));
         assert_eq!(parse_binary(&[]), Err(BinaryError::Empty));
         assert_eq!(parse_binary(&[9]), Err(BinaryError::Opcode(9)));
+        // Playback control, laid out as the Foxglove SDK writes it.
+        let mut play = vec![PLAYBACK_CONTROL_REQUEST, 1];
+        play.extend_from_slice(&2.5f32.to_le_bytes());
+        play.push(1);
+        play.extend_from_slice(&1_500_000_000u64.to_le_bytes());
+        play.extend_from_slice(&2u32.to_le_bytes());
+        play.extend_from_slice(b"r7");
+        let want = PlaybackControl {
+            command: PlaybackCommand::Pause,
+            speed: 2.5,
+            seek: Some(1_500_000_000),
+            request_id: "r7",
+        };
+        assert_eq!(parse_binary(&play), Ok(ClientBinary::Playback(want)));
+        assert!(matches!(parse_binary(&play[..play.len() - 1]), Err(BinaryError::Short { .. })));
+        play[1] = 4;
+        assert_eq!(parse_binary(&play), Err(BinaryError::PlaybackCommand(4)));
     }
 
     #[test]
@@ -307,6 +402,8 @@ mod tests {
         assert_eq!(time(5), [2, 5, 0, 0, 0, 0, 0, 0, 0]);
         assert_eq!(service_response(1, 2, "json", b"{}")[..13], [3, 1, 0, 0, 0, 2, 0, 0, 0, 4, 0, 0, 0]);
         assert_eq!(sim_ns(0.005), 5_000_000);
+        let state = playback_state(PlaybackStatus::Paused, 7, 0.5, true, "ab");
+        assert_eq!(state, [5, 1, 7, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0x3f, 1, 2, 0, 0, 0, b'a', b'b']);
         assert_eq!(sim_ns(f64::NAN), 0);
         let info = ServerMessage::Status { level: 2, message: "x" }.to_text();
         assert_eq!(info, r#"{"op":"status","level":2,"message":"x"}"#);

@@ -1,8 +1,8 @@
 //! One client of the Foxglove server: a task on the manager's runtime that sends the
 //! follower's messages for the client's subscriptions, the simulated time and the
 //! connection graph, commits what the client publishes through a connection per
-//! advertised channel, and answers service calls from the control plane (called on the
-//! runtime's blocking pool, so that a `step N` does not hold up the session).
+//! advertised channel, and answers service calls and playback requests from the control plane
+//! (called on the runtime's blocking pool, so that a `step N` does not hold up the session).
 
 use std::collections::{BTreeSet, HashMap};
 use std::sync::atomic::{AtomicU64, Ordering};
@@ -13,11 +13,14 @@ use axum::extract::ws::{Message, WebSocket};
 use tokio::sync::{broadcast, mpsc};
 use tracing::{debug, info};
 use tutti_core::ddf::Role;
-use tutti_host::control::{ControlClient, ControlError};
+use tutti_host::control::{ControlClient, ControlError, Request, RunState, RunStatus};
 
 use super::follow::{Graph, Out};
-use super::protocol::{self, ClientBinary, ClientMessage, GraphService, GraphTopic, Level, ServerMessage};
-use super::{Shared, SERVICES};
+use super::protocol::{
+    self, ClientBinary, ClientMessage, GraphService, GraphTopic, Level, PlaybackCommand, PlaybackStatus, ServerMessage,
+    Stamp,
+};
+use super::{Shared, Source, SERVICES};
 use crate::routes::from_dds::{RemoteWriter, Sample};
 
 /// How long a service call waits for the run's answer (a `step N` is answered after N steps).
@@ -26,6 +29,7 @@ const CONTROL_TIMEOUT: Duration = Duration::from_secs(60);
 /// A channel the client advertised: the set it writes and its connection.
 struct Publishing {
     channel: usize,
+    codec: Arc<tutti_core::cdr::SetCodec>,
     writer: RemoteWriter,
 }
 
@@ -42,21 +46,40 @@ struct Session {
     publishing: HashMap<u32, Publishing>,
     /// The graph last sent, while the client follows it.
     graph: Option<Graph>,
+    /// The playback speed the client asked last (Foxglove's controls start at 1): every
+    /// request carries one, and only a change of it changes the run's speed.
+    speed: f32,
 }
 
 pub(crate) async fn run(mut ws: WebSocket, sh: Arc<Shared>) {
     let number = sh.next_client.fetch_add(1, Ordering::Relaxed);
     info!("Foxglove client {number} connected ({})", ws.protocol().and_then(|p| p.to_str().ok()).unwrap_or("?"));
-    let mut s = Session { sh: sh.clone(), number, subs: HashMap::new(), publishing: HashMap::new(), graph: None };
+    let mut s =
+        Session { sh: sh.clone(), number, subs: HashMap::new(), publishing: HashMap::new(), graph: None, speed: 1.0 };
     let mut out = sh.out.subscribe();
     let mut graph = sh.graph.clone();
     let (calls_tx, mut calls) = mpsc::unbounded_channel::<CallResult>();
+    let (playback_tx, mut playback) = mpsc::unbounded_channel::<Vec<Message>>();
+    // Playback control where there is a run to control: its range is the run's, from 0 to its
+    // end (or a day of simulated time after now, for a run without an end).
+    let ns = sh.cfg.namespace.clone();
+    let run = tokio::task::spawn_blocking(move || ControlClient::connect(&ns, PROBE_TIMEOUT)?.state()).await;
+    let range = run.ok().and_then(Result::ok).map(|st| {
+        let end = st.end_time.unwrap_or(st.sim_time + DAY);
+        (Stamp::of_ns(0), Stamp::of_ns(protocol::sim_ns(end)))
+    });
+    let mut capabilities = vec!["clientPublish", "services", "connectionGraph", "time"];
+    if range.is_some() {
+        capabilities.push("playbackControl");
+    }
     let info = ServerMessage::ServerInfo {
         name: &sh.server_name,
-        capabilities: &["clientPublish", "services", "connectionGraph", "time"],
+        capabilities: &capabilities,
         supported_encodings: &["cdr", "json"],
         metadata: &sh.metadata,
         session_id: &format!("{}-{number}", std::process::id()),
+        data_start_time: range.map(|r| r.0),
+        data_end_time: range.map(|r| r.1),
     }
     .to_text();
     let hello = [info, sh.advertise.clone(), sh.services.clone()];
@@ -68,7 +91,7 @@ pub(crate) async fn run(mut ws: WebSocket, sh: Arc<Shared>) {
         let sent = tokio::select! {
             msg = ws.recv() => match msg {
                 Some(Ok(Message::Text(t))) => s.on_text(&mut ws, t.as_str()).await,
-                Some(Ok(Message::Binary(b))) => s.on_binary(&mut ws, &b, &calls_tx).await,
+                Some(Ok(Message::Binary(b))) => s.on_binary(&mut ws, &b, &calls_tx, &playback_tx).await,
                 Some(Ok(Message::Close(_))) | None | Some(Err(_)) => false,
                 Some(Ok(_)) => true,
             },
@@ -87,6 +110,13 @@ pub(crate) async fn run(mut ws: WebSocket, sh: Arc<Shared>) {
                 }
                 Err(_) => false,
             },
+            Some(frames) = playback.recv() => {
+                let mut ok = true;
+                for f in frames {
+                    ok &= ws.send(f).await.is_ok();
+                }
+                ok
+            }
             Some((service, call, result)) = calls.recv() => {
                 let frame = match result {
                     Ok(json) => Message::Binary(protocol::service_response(service, call, "json", &json).into()),
@@ -189,13 +219,16 @@ impl Session {
             return Err(Refused::NoSuchTopic { topic: topic() });
         };
         let ch = &self.sh.channels[index];
-        if ch.role != Role::Subscribe {
-            return Err(Refused::PublishSet { topic: topic() });
-        }
+        let codec = match &ch.source {
+            Source::Set { role: Role::Subscribe, domain, codec } => (*domain, codec.clone()),
+            Source::Set { .. } => return Err(Refused::PublishSet { topic: topic() }),
+            Source::Poses => return Err(Refused::Poses { topic: topic() }),
+        };
+        let (domain, codec) = codec;
         if c.encoding != "cdr" {
             return Err(Refused::Encoding { topic: topic(), given: c.encoding.clone() });
         }
-        let d = &self.sh.domains[ch.domain];
+        let d = &self.sh.domains[domain];
         let name = format!("foxglove client {}", self.number);
         let writer = RemoteWriter::spawn(
             d.name.clone(),
@@ -210,19 +243,25 @@ impl Session {
         )
         .map_err(Refused::Thread)?;
         info!(domain = %d.name, "Foxglove client {} writes {} ({})", self.number, c.topic, ch.schema_name);
-        Ok(Publishing { channel: index, writer })
+        Ok(Publishing { channel: index, codec, writer })
     }
 
-    async fn on_binary(&mut self, ws: &mut WebSocket, b: &[u8], calls: &mpsc::UnboundedSender<CallResult>) -> bool {
+    async fn on_binary(
+        &mut self,
+        ws: &mut WebSocket,
+        b: &[u8],
+        calls: &mpsc::UnboundedSender<CallResult>,
+        playback: &mpsc::UnboundedSender<Vec<Message>>,
+    ) -> bool {
         let problem = match protocol::parse_binary(b) {
             Err(e) => e.to_string(),
             Ok(ClientBinary::MessageData { channel_id, data }) => match self.publishing.get(&channel_id) {
                 None => format!("channel {channel_id} was not advertised"),
                 Some(p) => {
                     let ch = &self.sh.channels[p.channel];
-                    match ch.codec.check(data) {
+                    match p.codec.check(data) {
                         Ok((le, body)) => {
-                            let _ = p.writer.send(Sample::Encoded { codec: &ch.codec, le, body });
+                            let _ = p.writer.send(Sample::Encoded { codec: &p.codec, le, body });
                             return true;
                         }
                         Err(e) => {
@@ -237,6 +276,21 @@ impl Session {
                     }
                 }
             },
+            Ok(ClientBinary::Playback(req)) => {
+                let (tx, ns) = (playback.clone(), self.sh.cfg.namespace.clone());
+                let speed = (req.speed != self.speed).then_some(req.speed);
+                self.speed = req.speed;
+                let req = OwnedPlayback {
+                    command: req.command,
+                    speed,
+                    seek: req.seek,
+                    request_id: req.request_id.to_string(),
+                };
+                tokio::task::spawn_blocking(move || {
+                    let _ = tx.send(playback_control(&ns, &req));
+                });
+                return true;
+            }
             Ok(ClientBinary::ServiceCall { service_id, call_id, encoding, data }) => {
                 match call(service_id, encoding, data) {
                     Ok(request) => {
@@ -323,6 +377,8 @@ pub(crate) enum Refused {
     NoSuchTopic { topic: String },
     #[error("'{topic}' is a PUBLISH set: only its framework writes it")]
     PublishSet { topic: String },
+    #[error("'{topic}' carries the entities' poses, which the gateway reads from their sets: write the sets")]
+    Poses { topic: String },
     #[error("'{topic}': publish in cdr encoding (given: {given})")]
     Encoding { topic: String, given: String },
     #[error("cannot start a thread: {0}")]
@@ -369,6 +425,62 @@ fn call(service: u32, encoding: &str, data: &[u8]) -> Result<Call, Refused> {
         4 => Ok(Call::State),
         other => Err(Refused::NoService(other)),
     }
+}
+
+/// How long a new session waits to learn whether there is a run to control.
+const PROBE_TIMEOUT: Duration = Duration::from_secs(2);
+/// The end of the playback range of a run without an end: this long after now (simulated s).
+const DAY: f64 = 86_400.0;
+
+/// A playback request, as the blocking pool takes it.
+struct OwnedPlayback {
+    command: PlaybackCommand,
+    /// A new speed, if the client changed it.
+    speed: Option<f32>,
+    seek: Option<u64>,
+    request_id: String,
+}
+
+/// Carries out Foxglove's playback request `req` on the run of namespace `ns` (speed, then
+/// play or pause), and the frames that answer it: a status where something was refused (a
+/// seek: a live run has no other time to go to), and the playback state after it.
+fn playback_control(ns: &str, req: &OwnedPlayback) -> Vec<Message> {
+    let mut frames = Vec::new();
+    let mut warn = |why: String| frames.push(Message::Text(protocol::status(Level::Warning, &why).into()));
+    if req.seek.is_some() {
+        warn("seek: a live run cannot go to another time (a recording can: tutti replay)".into());
+    }
+    let done = (|| -> Result<RunStatus, ControlError> {
+        let mut client = ControlClient::connect(ns, CONTROL_TIMEOUT)?;
+        if let Some(speed) = req.speed.map(f64::from) {
+            if let Err(e) = client.request(&Request::Speed { factor: speed }) {
+                warn(format!("speed {speed}: {e}"));
+            }
+        }
+        let now = client.state()?;
+        match (req.command, now.state) {
+            (PlaybackCommand::Play, RunState::Paused) => client.resume(),
+            (PlaybackCommand::Pause, RunState::Playing) => client.pause(),
+            _ => client.state(),
+        }
+    })();
+    let (status, time, speed) = match &done {
+        Ok(st) => {
+            let status = match st.state {
+                RunState::Playing | RunState::Ready => PlaybackStatus::Playing,
+                RunState::Paused => PlaybackStatus::Paused,
+                RunState::Stopped => PlaybackStatus::Ended,
+            };
+            (status, protocol::sim_ns(st.sim_time), if st.speed.is_finite() { st.speed as f32 } else { 0.0 })
+        }
+        Err(e) => {
+            warn(format!("playback: {e}"));
+            (PlaybackStatus::Ended, 0, req.speed.unwrap_or(1.0))
+        }
+    };
+    let state = protocol::playback_state(status, time, speed, false, &req.request_id);
+    frames.push(Message::Binary(state.into()));
+    frames
 }
 
 /// Carries out `c` on the run of namespace `ns`; the run's state after it, as JSON.

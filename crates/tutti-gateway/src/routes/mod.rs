@@ -34,6 +34,7 @@ pub mod from_step;
 mod lookahead;
 pub mod mirror;
 pub mod per_item;
+pub mod poses;
 pub mod to_dds;
 
 /// A DDS sample from a remote writer, for route `route`.

@@ -77,6 +77,30 @@ pub fn ros2msg_schema(defs: &Definitions, package: &str, ty: &str) -> Result<Str
     Ok(out)
 }
 
+/// The `ros2msg` schema of a ROS 2 message of the registry (`tf2_msgs/msg/TFMessage`): its
+/// `.msg` file, then that of every message it nests, each once, after its `MSG:` line.
+pub fn message_schema(m: crate::Message<'_>) -> String {
+    let mut out = String::new();
+    let (mut seen, mut todo) = (Vec::new(), vec![m]);
+    while let Some(m) = todo.pop() {
+        let name = m.name();
+        if seen.contains(name) {
+            continue;
+        }
+        let text = crate::Registry::message_file(&name.package, &name.name).unwrap_or_default();
+        if !seen.is_empty() {
+            if !out.ends_with('\n') {
+                out.push('\n');
+            }
+            out.push_str(&format!("{SEPARATOR}\nMSG: {name}\n"));
+        }
+        out.push_str(text);
+        seen.push(name.clone());
+        todo.extend(m.spec().fields.iter().rev().filter_map(|f| m.nested(&f.name)));
+    }
+    out
+}
+
 /// A set's schema as a channel names it: `PKG/msg/TYPE` and its `ros2msg` text.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct SetSchema {
@@ -94,6 +118,22 @@ pub fn set_schema(defs: &Definitions, package: &str, domain: &str, role: Role) -
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn an_interface_schema_carries_each_nested_message_once() {
+        let s = message_schema(crate::registry().message("tf2_msgs/msg/TFMessage").unwrap());
+        assert!(s.starts_with("geometry_msgs/TransformStamped[] transforms"), "{s}");
+        for nested in [
+            "geometry_msgs/msg/TransformStamped",
+            "std_msgs/msg/Header",
+            "builtin_interfaces/msg/Time",
+            "geometry_msgs/msg/Transform",
+            "geometry_msgs/msg/Vector3",
+            "geometry_msgs/msg/Quaternion",
+        ] {
+            assert_eq!(s.matches(&format!("MSG: {nested}\n")).count(), 1, "{nested} in {s}");
+        }
+    }
 
     #[test]
     fn schemas_carry_the_nested_bus_types_once() {

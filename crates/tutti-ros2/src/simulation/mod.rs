@@ -11,12 +11,14 @@
 //! (`tutti_engine::Engine::serve`); the gateway only wires the two together.
 
 pub mod action;
+pub mod entities;
 pub mod lifecycle;
 
 use tutti_core::ddf::Model;
 use tutti_core::mapping::{Durability, History, Ownership, Qos, Reliability};
 
 pub use self::action::{GoalId, Goals, Publisher, Stamp};
+pub use self::entities::{Body, Entities, EntityCall, EntityInfo, Pose};
 pub use self::lifecycle::{Control, Lifecycle, Outcome, RunControl};
 use crate::{registry, Message, Struct, Value};
 
@@ -77,6 +79,8 @@ pub enum Kind {
     SendGoal,
     GetResult,
     CancelGoal,
+    /// The entity services ([`entities`]).
+    Entity(EntityCall),
 }
 
 /// A service: its relative ROS name and its interface.
@@ -102,7 +106,8 @@ impl ServiceDef {
 /// The action's relative name; its services and topics are under `NAME/_action/`.
 pub const ACTION: &str = "simulate_steps";
 
-/// The services, in the order the gateway creates them: the five, then the action's.
+/// The services, in the order the gateway creates them: the five, the action's, then the
+/// entity services.
 pub const SERVICES: &[ServiceDef] = &[
     ServiceDef {
         name: "get_simulator_features",
@@ -135,6 +140,31 @@ pub const SERVICES: &[ServiceDef] = &[
         name: "simulate_steps/_action/cancel_goal",
         interface: "action_msgs/srv/CancelGoal",
         kind: Kind::CancelGoal,
+    },
+    ServiceDef {
+        name: "get_entities",
+        interface: "simulation_interfaces/srv/GetEntities",
+        kind: Kind::Entity(EntityCall::List),
+    },
+    ServiceDef {
+        name: "get_entity_state",
+        interface: "simulation_interfaces/srv/GetEntityState",
+        kind: Kind::Entity(EntityCall::State),
+    },
+    ServiceDef {
+        name: "get_entities_states",
+        interface: "simulation_interfaces/srv/GetEntitiesStates",
+        kind: Kind::Entity(EntityCall::States),
+    },
+    ServiceDef {
+        name: "get_entity_info",
+        interface: "simulation_interfaces/srv/GetEntityInfo",
+        kind: Kind::Entity(EntityCall::Info),
+    },
+    ServiceDef {
+        name: "set_entity_state",
+        interface: "simulation_interfaces/srv/SetEntityState",
+        kind: Kind::Entity(EntityCall::Set),
     },
 ];
 
@@ -232,10 +262,33 @@ fn custom_info() -> String {
 }
 
 /// The services of one run: the answer to each request.
-#[derive(Debug)]
 pub struct Simulation {
     pub life: Lifecycle,
     pub goals: std::sync::Arc<Goals>,
+    /// The run's entities (none: [`NoEntities`]).
+    pub entities: Box<dyn Entities>,
+}
+
+impl std::fmt::Debug for Simulation {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Simulation").field("life", &self.life).field("entities", &self.entities.list()).finish()
+    }
+}
+
+/// A run without entities: the entity services list none.
+#[derive(Debug, Default)]
+pub struct NoEntities;
+
+impl Entities for NoEntities {
+    fn list(&self) -> &[EntityInfo] {
+        &[]
+    }
+    fn read(&mut self, _: &[usize]) -> Result<Vec<Body>, String> {
+        Ok(Vec::new())
+    }
+    fn write(&mut self, _: usize, _: &Pose, _: [f64; 3]) -> Result<(), String> {
+        Err("this run has no entities".into())
+    }
 }
 
 impl Simulation {
@@ -249,7 +302,10 @@ impl Simulation {
             Kind::GetFeatures => {
                 // SCOPE_STATE only where the run holds its checkpoint of step 0.
                 let state_reset = ctl.call(&tutti_host::control::Request::State).is_ok_and(|s| s.state_reset);
-                let features: Vec<Value> = self.life.features(true, state_reset).into_iter().map(Value::from).collect();
+                let mut features = self.life.features(true, state_reset);
+                features.extend(entities::features(self.entities.list()));
+                features.sort_unstable();
+                let features: Vec<Value> = features.into_iter().map(Value::from).collect();
                 let f = Struct::new().with("features", features).with("custom_info", custom_info());
                 reply(Struct::new().with("features", f))
             }
@@ -289,6 +345,7 @@ impl Simulation {
                 let stamp = info.get("stamp").map(Stamp::of).unwrap_or_default();
                 Ok(Answer::Reply(self.goals.cancel_goal(&goal, stamp)))
             }
+            Kind::Entity(call) => Ok(Answer::Reply(entities::answer(call, def.name, req, self.entities.as_mut())?)),
         }
     }
 }
