@@ -371,6 +371,11 @@ mod tests {
         assert!(e.contains("unknown variant `sometimes`") && e.contains("`on-failure`"), "{e}");
         let e = error("{ ddf: \"cosim.ddf\", components: [\n { name: \"a\", run: [\"true\"], autostart: \"no\" } ] }");
         assert!(e.starts_with(":2:41:") && e.contains("expected a boolean"), "{e}");
+        // An entity of the gateway, checked against the DDF where it stands.
+        let e = error(
+            "{ ddf: \"cosim.ddf\",\n gateway: { entities: [\n { name: \"b\", domain: \"plant\", set: \"publish\",\n cartesian: { x: \"q\", y: \"x\", z: \"x\" } } ] } }",
+        );
+        assert!(e.starts_with(":3:2:") && e.contains("entity 'b': domain 'plant' has no publish item 'q'"), "{e}");
         let e = error("{ ddf: \"cosim.ddf\",\n framework: { speed: -4 } }");
         assert!(e.starts_with(":2:22:") && e.contains("speed: -4: must be a positive number"), "{e}");
         let (_dir, l) = check("{ ddf: \"cosim.ddf\", framework: { step: \"50ms\", speed: 4 } }");

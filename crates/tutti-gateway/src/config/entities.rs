@@ -292,7 +292,8 @@ pub fn check(e: &Entity, model: &Model) -> Result<(), EntityError> {
         let Some(leaf) = leaves.iter().find(|l| l.path == item) else {
             let items: Vec<&str> = leaves.iter().map(|l| l.path.as_str()).collect();
             let items = if items.is_empty() { "none".into() } else { items.join(", ") };
-            let why = format!("domain '{}' has no {} item '{item}' (its {what}; items: {items})", d.name, e.role.lower());
+            let why =
+                format!("domain '{}' has no {} item '{item}' (its {what}; items: {items})", d.name, e.role.lower());
             return Err(EntityError::Item { entity: e.name.clone(), why });
         };
         if leaf.length != 1 || leaf.ty == ScalarType::Boolean {
