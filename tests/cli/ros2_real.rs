@@ -17,7 +17,7 @@
 //!   warned once per endpoint; rmw_zenoh warns of a token or attachment it cannot read).
 //!
 //! Every ROS 2 process runs on loopback (`CYCLONEDDS_URI`; the router on a loopback port of its
-//! own), in a ROS domain of its test (142-149, 216-218 and 51-54 on DDS, 60-66 on Zenoh), with its
+//! own), in a ROS domain of its test (142-149, 216-219 and 51-54 on DDS, 60-66 on Zenoh), with its
 //! logs in the test's temporary directory, and without the ros2cli daemon.
 
 use crate::gateway;

@@ -1,7 +1,7 @@
 """rclpy's own clients of the gateway's entity services, and tf2_ros's listener of /tf
 (docs/ros2.md, "Entities"), during a run.
 
-Usage: entities_rclpy.py --states N [--every S] [--frame FRAME] [--timeout S]
+Usage: entities_rclpy.py --states N [--every S] [--frame FRAME] [--pose NAME] [--timeout S]
 
 Waits for the services; prints one JSON line per call:
   {"call": "get_entities", "filter": ..., "result": CODE, "entities": [...]} for no filter, a name
@@ -16,7 +16,9 @@ Waits for the services; prints one JSON line per call:
   {"call": "set_entity_state", "entity": NAME, "result": CODE, "error_message": ...} for the first;
   then, from a tf2_ros Buffer and TransformListener that listened all along, for each entity
   {"call": "tf", "child": NAME, "stamp": SECONDS, "t": [x, y, z], "q": [x, y, z, w]} (the latest
-  transform from FRAME), or {"call": "tf", "child": NAME, "error": TEXT}.
+  transform from FRAME), or {"call": "tf", "child": NAME, "error": TEXT}; and with --pose, the last
+  geometry_msgs/PoseStamped heard on /NAME/pose: {"call": "pose", "frame": ..., "stamp": SECONDS,
+  "p": [x, y, z], "q": [x, y, z, w]} (or {"call": "pose", "error": "none heard"}).
 Exits 1 when a service does not show up or a call gets no answer.
 """
 import argparse
@@ -27,6 +29,7 @@ import time
 import rclpy
 import rclpy.time
 import tf2_ros
+from geometry_msgs.msg import PoseStamped
 from rclpy.node import Node
 from simulation_interfaces.msg import EntityCategory
 from simulation_interfaces.srv import (GetEntities, GetEntitiesStates, GetEntityInfo, GetEntityState,
@@ -72,6 +75,7 @@ def main():
     ap.add_argument('--states', type=int, default=10)
     ap.add_argument('--every', type=float, default=0.5)
     ap.add_argument('--frame', default='map')
+    ap.add_argument('--pose')
     ap.add_argument('--timeout', type=float, default=60.0)
     a = ap.parse_args()
     rclpy.init()
@@ -79,6 +83,9 @@ def main():
     buffer = tf2_ros.Buffer()
     tf2_ros.TransformListener(buffer, node)
     calls = Calls(node, a.timeout)
+    poses = []
+    if a.pose:
+        node.create_subscription(PoseStamped, f'/{a.pose}/pose', poses.append, 10)
     out = lambda v: print(json.dumps(v), flush=True)  # noqa: E731
     code = 0
     try:
@@ -129,6 +136,14 @@ def main():
                      'q': [q.x, q.y, q.z, q.w]})
             except tf2_ros.TransformException as e:
                 out({'call': 'tf', 'child': name, 'error': str(e)})
+        if a.pose:
+            if poses:
+                m = poses[-1]
+                p, q = m.pose.position, m.pose.orientation
+                out({'call': 'pose', 'frame': m.header.frame_id, 'stamp': seconds(m.header.stamp),
+                     'p': [p.x, p.y, p.z], 'q': [q.x, q.y, q.z, q.w]})
+            else:
+                out({'call': 'pose', 'error': 'none heard'})
     except Failed as e:
         print(f'entities_rclpy: {e}', file=sys.stderr, flush=True)
         code = 1

@@ -6,7 +6,7 @@
 //!
 //! A read takes every set it needs at one step boundary: a set whose last write belongs to the
 //! step before the newest one seen (its writer is answering the newest step right now) is read
-//! again, until all agree or [`SETTLE`] has passed; a set older than that (its writer left)
+//! again, until all agree or 100 ms have passed; a set older than that (its writer left)
 //! is taken as it stands, each body stamped with the step its values were written for.
 
 use std::time::{Duration, Instant};

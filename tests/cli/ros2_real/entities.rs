@@ -100,8 +100,11 @@ fn rclpy_reads_the_uav_entities_and_their_tf_during_the_demo_cyclone() {
     let Some(ros) = Ros2::get(Eng::CYCLONE) else { return };
     let dir = tempfile::tempdir().expect("a temporary directory");
     let out = dir.path().join("uav");
-    let client =
-        ros.python(dom, "tests/ros2/entities_rclpy.py", &["--states", "12", "--every", "0.4", "--timeout", "120"]);
+    let client = ros.python(
+        dom,
+        "tests/ros2/entities_rclpy.py",
+        &["--states", "12", "--every", "0.4", "--pose", "uav2", "--timeout", "120"],
+    );
     let mut client = Proc::spawn("entities_rclpy", client, SECS(240));
     let mut demo = Command::new(workspace_bin("tutti-uav-demo", "tutti-demo"));
     demo.args(["uav", "--scenario", "short", "--duration", "30", "--speed", "1"])
@@ -201,6 +204,11 @@ fn rclpy_reads_the_uav_entities_and_their_tf_during_the_demo_cyclone() {
         "{transforms} of the 4 transforms are at a connected step of their UAV's log\n{}",
         client.dump()
     );
+    // UAV 2's pose topic, as its log has it.
+    let pose = of("pose").next().expect("the pose call");
+    assert_eq!(pose["frame"], "map", "{pose}");
+    let stamp = pose["stamp"].as_f64().unwrap_or_else(|| panic!("no pose heard: {pose}"));
+    assert!(check_pose(&logs, 2, stamp, &floats(&pose["p"]), &floats(&pose["q"]), None).is_some(), "{pose}");
 }
 
 /// `set_entity_state` moves the cart, whose items tutti may write (an asynchronous domain's
@@ -208,15 +216,30 @@ fn rclpy_reads_the_uav_entities_and_their_tf_during_the_demo_cyclone() {
 /// The beacon, in the PUBLISH set only the framework writes, is refused with the reason.
 #[test]
 fn rclpy_moves_an_entity_tutti_may_write_and_is_refused_one_it_may_not_cyclone() {
-    let dom = 218;
-    let Some(ros) = Ros2::get(Eng::CYCLONE) else { return };
-    let ns = namespace("ros2setent");
+    moves_an_entity_and_is_refused_one(Eng::CYCLONE, 218);
+}
+
+/// The same on the rustdds engine (rmw_cyclonedds's wire form of services).
+#[test]
+fn rclpy_moves_an_entity_tutti_may_write_and_is_refused_one_it_may_not_rustdds() {
+    moves_an_entity_and_is_refused_one(Eng::RUSTDDS, 219);
+}
+
+/// The same over rmw_zenoh, on the Zenoh engine.
+#[test]
+fn rclpy_moves_an_entity_tutti_may_write_and_is_refused_one_it_may_not_zenoh() {
+    moves_an_entity_and_is_refused_one(Eng::ZENOH, 64);
+}
+
+fn moves_an_entity_and_is_refused_one(e: Eng, dom: u16) {
+    let Some(ros) = Ros2::get(e) else { return };
+    let ns = namespace(&format!("ros2setent{dom}_"));
     let dir = tempfile::tempdir().expect("a temporary directory");
     let rec = dir.path().join("rec.csv");
     let config = tutti_test_support::repo_root().join("tests/gateway/entities.json5");
     let (config, rec_arg) = (config.display().to_string(), rec.display().to_string());
     let extra = [&config, "--record", &rec_arg, "--set", "arena/bx=4", "--set", "arena/by=5", "--set", "arena/bz=6"];
-    let (mut host, _segments) = ros.host(Eng::CYCLONE, "tests/gateway/entities.ddf", dom, &ns, &extra);
+    let (mut host, _segments) = ros.host(e, "tests/gateway/entities.ddf", dom, &ns, &extra);
     let calls = |args: &[&str]| -> Vec<Value> {
         let cmd = ros.python(dom, "tests/ros2/set_entity_rclpy.py", args);
         super::run_quietly("rclpy set_entity_state", cmd, SECS(120))
@@ -235,7 +258,8 @@ fn rclpy_moves_an_entity_tutti_may_write_and_is_refused_one_it_may_not_cyclone()
     assert!(result(&refused[0]).1.contains("PUBLISH set of domain 'arena'"), "{refused:?}");
     assert!(host.interrupt(SECS(30)).is_some(), "{}", host.dump());
     // The framework read the cart's new place.
-    let text = std::fs::read_to_string(dir.path().join("rec-arena.csv")).expect("the recording");
+    // One domain: the recording is the file named (several: one file per domain).
+    let text = std::fs::read_to_string(&rec).expect("the recording");
     let head: Vec<&str> = text.lines().next().unwrap().split(',').collect();
     let col = |n: &str| head.iter().position(|h| *h == n).unwrap_or_else(|| panic!("no {n} in {head:?}"));
     let (x, y, z, yaw) = (col("subscribe.x"), col("subscribe.y"), col("subscribe.z"), col("subscribe.yaw"));
