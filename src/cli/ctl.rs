@@ -1,4 +1,4 @@
-//! `tutti ctl state|pause|resume|step N|speed X|reset [state]|stop [--json]`, `tutti ctl save|restore
+//! `tutti ctl state|pause|resume|step N|speed X|seek T|reset [state]|stop [--json]`, `tutti ctl save|restore
 //! FILE` (checkpoints), and `tutti ctl
 //! restart|stop|start COMPONENT`, `tutti ctl signal COMPONENT SIGNAL`: acts on the run of the namespace through its control
 //! plane (`tutti_host::control`, docs/run.md).
@@ -15,10 +15,10 @@ use super::{CliResult, Failure};
 /// resume or stop it, or restart, stop and start the components of a `tutti run`.
 #[derive(Debug, clap::Args)]
 #[command(
-    after_help = "Examples:\n  tutti ctl state\n  tutti ctl pause\n  tutti ctl step 7 --json\n  tutti ctl speed 4\n  tutti ctl reset\n  tutti ctl save warm.tutti-checkpoint\n  tutti ctl restore warm.tutti-checkpoint\n  tutti ctl save run.tutti-checkpoint --skip-stateless\n  tutti ctl reset state\n  tutti ctl resume\n  tutti ctl restart ctrl\n  tutti ctl signal uav3 USR1\n  tutti ctl stop\n  TUTTI_NAMESPACE=lab2 tutti ctl state --json\n\nWhile paused, no step is made and no participant times out, however long the pause; `step N`\nmakes exactly N steps and pauses again; `speed X` steps at X times real time from now on. `save FILE` writes a checkpoint of the run (values and every\ncomponent's state) at the next step boundary, `restore FILE` puts one back, `reset state` goes back to\nthe run's step 0, states included (docs/run.md, Checkpoints). `stop` with no component ends the run and waits\nuntil it is gone. Only the user who started the run may control it. See docs/run.md."
+    after_help = "Examples:\n  tutti ctl state\n  tutti ctl pause\n  tutti ctl step 7 --json\n  tutti ctl speed 4\n  tutti ctl seek 12.5   # a replay: on from the recorded step at 12.5 s\n  tutti ctl reset\n  tutti ctl save warm.tutti-checkpoint\n  tutti ctl restore warm.tutti-checkpoint\n  tutti ctl save run.tutti-checkpoint --skip-stateless\n  tutti ctl reset state\n  tutti ctl resume\n  tutti ctl restart ctrl\n  tutti ctl signal uav3 USR1\n  tutti ctl stop\n  TUTTI_NAMESPACE=lab2 tutti ctl state --json\n\nWhile paused, no step is made and no participant times out, however long the pause; `step N`\nmakes exactly N steps and pauses again; `speed X` steps at X times real time from now on; `seek T` takes a replay (tutti replay) to its recorded step at T s. `save FILE` writes a checkpoint of the run (values and every\ncomponent's state) at the next step boundary, `restore FILE` puts one back, `reset state` goes back to\nthe run's step 0, states included (docs/run.md, Checkpoints). `stop` with no component ends the run and waits\nuntil it is gone. Only the user who started the run may control it. See docs/run.md."
 )]
 pub struct Args {
-    /// state, pause, resume, step N, speed X, reset (or reset state), save FILE, restore FILE, stop,
+    /// state, pause, resume, step N, speed X, seek T, reset (or reset state), save FILE, restore FILE, stop,
     /// stop/restart/start COMPONENT, or signal COMPONENT SIGNAL (USR1, USR2, TERM, INT, HUP, …)
     #[arg(value_name = "COMMAND", required = true, num_args = 1..=3)]
     command: Vec<String>,
@@ -89,12 +89,17 @@ fn request(words: &[String], skip_stateless: bool) -> anyhow::Result<Request> {
             Some(_) => Err(anyhow::anyhow!("speed X: '{}' is not a factor above 0", arg.unwrap_or_default())),
             None => Err(anyhow::anyhow!("speed needs X, the factor of real time (2: twice as fast)")),
         },
+        "seek" => match arg.map(str::parse::<f64>) {
+            Some(Ok(time)) if time.is_finite() && time >= 0.0 => Ok(Request::Seek { time }),
+            Some(_) => Err(anyhow::anyhow!("seek T: '{}' is not a simulated time in seconds", arg.unwrap_or_default())),
+            None => Err(anyhow::anyhow!("seek needs T, the simulated time (s) of the recorded step to go on from")),
+        },
         "stop" if arg.is_none() => Ok(Request::Stop),
         "stop" => component(ComponentAction::Stop),
         "restart" => component(ComponentAction::Restart),
         "start" => component(ComponentAction::Start),
         other => Err(anyhow::anyhow!(
-            "unknown command '{other}': expected state, pause, resume, step N, speed X, reset [state], save FILE, restore FILE, stop [COMPONENT], restart COMPONENT, start COMPONENT or signal COMPONENT SIGNAL"
+            "unknown command '{other}': expected state, pause, resume, step N, speed X, seek T, reset [state], save FILE, restore FILE, stop [COMPONENT], restart COMPONENT, start COMPONENT or signal COMPONENT SIGNAL"
         )),
     }
 }
@@ -165,7 +170,8 @@ mod tests {
         let err = |s: &str| request(&words(s), false).unwrap_err().to_string();
         assert_eq!(request(&words("step 7"), false).unwrap(), Request::Step { n: 7 });
         assert_eq!(request(&words("speed 2.5"), false).unwrap(), Request::Speed { factor: 2.5 });
-        for bad in ["speed", "speed 0", "speed -1", "speed inf", "speed fast"] {
+        assert_eq!(request(&words("seek 1.5"), false).unwrap(), Request::Seek { time: 1.5 });
+        for bad in ["speed", "speed 0", "speed -1", "speed inf", "speed fast", "seek", "seek -1", "seek later"] {
             assert!(request(&words(bad), false).is_err(), "{bad}");
         }
         assert_eq!(request(&words("stop"), false).unwrap(), Request::Stop);

@@ -141,7 +141,7 @@ pub fn run(args: Args) -> CliResult {
         );
     }
     let gateway = match &args.gateway {
-        Some(config) => Some(start_gateway(&args, &model, config.as_deref(), &mut host)?),
+        Some(config) => Some(start_gateway(&args.file, &model, config.as_deref(), args.quiet, "host", &mut host)?),
         None => None,
     };
     for path in &args.record {
@@ -170,21 +170,24 @@ pub fn run(args: Args) -> CliResult {
 }
 
 /// `--gateway [CONFIG]`: the gateway for `host`'s domains in this process, its sink added to
-/// the host (first, so DDS has each step before the recordings take it).
-fn start_gateway(
-    args: &Args,
+/// the host (first, so DDS has each step before the recordings take it); its status lines
+/// start with `who` (`host`, `replay`).
+pub fn start_gateway(
+    file: &std::path::Path,
     model: &tutti_core::ddf::Model,
     config: Option<&std::path::Path>,
+    quiet: bool,
+    who: &'static str,
     host: &mut Host,
 ) -> Result<InProcess, Failure> {
     super::gateway::init_logging();
     let flags = tutti_gateway::config::ConfigFile::default();
-    let (opts, keys) = super::gateway::configured(&args.file, model.clone(), flags, config)?;
-    let quiet = args.quiet || keys.gateway.quiet.unwrap_or(false);
+    let (opts, keys) = super::gateway::configured(file, model.clone(), flags, config)?;
+    let quiet = quiet || keys.gateway.quiet.unwrap_or(false);
     let status_every = keys.gateway.status_every.unwrap_or(Duration::from_secs(5));
     let on_status = Box::new(move |line: &str| {
         if !quiet {
-            eprintln!("host: gateway: {line}");
+            eprintln!("{who}: gateway: {line}");
         }
     });
     let (gw, sink) = tutti_gateway::in_process::start(opts, host.namespace(), status_every, on_status)

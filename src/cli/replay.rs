@@ -17,7 +17,7 @@ use super::{CliResult, Failure};
 /// Replay a recording: be the framework of its domains and republish its PUBLISH sets.
 #[derive(Debug, clap::Args)]
 #[command(
-    after_help = "Examples:\n  tutti replay run.mcap\n  tutti replay run.mcap --domain multiuav_uav2 --speed 0 --compare\n  tutti replay run.mcap --wait-for multiuav_uav2=1 --compare --json\n\nThe recording is an MCAP file written by `tutti host --record` or `tutti record` (the DDF\nis inside). With --compare the exit status is 1 when a step differs. See docs/recording.md."
+    after_help = "Examples:\n  tutti replay run.mcap\n  tutti replay run.mcap --domain multiuav_uav2 --speed 0 --compare\n  tutti replay run.mcap --wait-for multiuav_uav2=1 --compare --json\n  tutti replay run.mcap --gateway=foxglove.json5   # Foxglove plays, pauses and seeks it\n\nThe recording is an MCAP file written by `tutti host --record` or `tutti record` (the DDF\nis inside). With --compare the exit status is 1 when a step differs. See docs/recording.md."
 )]
 pub struct Args {
     /// The recording (`.mcap`).
@@ -48,6 +48,11 @@ pub struct Args {
     /// Print the summary (and the differences) as one JSON object on stdout.
     #[arg(long)]
     json: bool,
+    /// Run the DDS / ROS 2 gateway in this process, as `tutti host --gateway` does (the config
+    /// file is optional): the replayed sets go to DDS and to Foxglove, whose playback controls
+    /// pause, play, seek and set the speed of the replay. Give CONFIG as --gateway=CONFIG.
+    #[arg(long, value_name = "CONFIG", num_args = 0..=1, require_equals = true)]
+    gateway: Option<Option<PathBuf>>,
     /// Print no progress lines.
     #[arg(short, long)]
     quiet: bool,
@@ -82,8 +87,22 @@ pub fn run(args: Args) -> CliResult {
         wait_for: args.wait_for.clone(),
         namespace: None,
     };
-    let replay = Replay::new(recording, opts, &args.file).map_err(record_failure)?;
+    let model = recording.model.clone();
+    let mut replay = Replay::new(recording, opts, &args.file).map_err(record_failure)?;
     let stop = super::stop_flag()?;
+    // `tutti ctl` and the gateway's playback controls: pause, resume, seek, speed, stop.
+    replay.host_mut().serve_control(stop.clone(), None).map_err(|e| Failure::invalid(anyhow::Error::new(e)))?;
+    let gateway = match &args.gateway {
+        Some(config) => Some(super::host::start_gateway(
+            &args.file,
+            &model,
+            config.as_deref(),
+            args.quiet,
+            "replay",
+            replay.host_mut(),
+        )?),
+        None => None,
+    };
     let (quiet, shown) = (args.quiet, args.file.display().to_string());
     let summary = replay
         .run(&stop, |event| match &event {
@@ -93,6 +112,12 @@ pub fn run(args: Args) -> CliResult {
             _ => {}
         })
         .map_err(|e| anyhow::Error::new(e).context(format!("replaying {shown}")))?;
+    if let Some(gw) = gateway {
+        let stats = gw.stop();
+        if !quiet {
+            eprintln!("replay: gateway: stopped | {stats}");
+        }
+    }
     if !summary.started {
         return Ok(());
     }

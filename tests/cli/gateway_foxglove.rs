@@ -183,6 +183,81 @@ fn foxglove_client_against(runner: Runner, tag: &str, doms: std::ops::RangeInclu
     the_graph_and_the_time_are_the_runs(&lines, &rec);
 }
 
+/// Foxglove's playback controls on `tutti replay --gateway`: a recording of 600 steps of
+/// gw_sync (x is the simulated time, 1.5 s of wall time) replayed at a quarter of its pace; the npm client
+/// (`tests/foxglove/replay.mjs`) reads its messages, pauses, seeks back to 0.1 s and plays.
+/// The seek is answered with the step it went to; the messages after it go back there and on,
+/// in order; the range the server offers is the recording's.
+#[test]
+fn a_foxglove_client_pauses_seeks_and_plays_a_replay() {
+    let Some(node) = require_tool("node", "nodejs") else { return };
+    let ns = namespace("fgreplay");
+    let _segments = RemoveSegments(ns.clone());
+    let dir = tempfile::tempdir().expect("a temporary directory");
+    let mcap = dir.path().join("run.mcap");
+    let mut rec = tutti_test_support::tutti_command();
+    // At twice real time: the replay paces by the recording's wall clock.
+    rec.args(["host", DDF, "--step", "5ms", "--steps", "600", "--speed", "2", "-q", "--record"])
+        .arg(&mcap)
+        .args(["--connect", "@sim_time -> gw_sync/publish/x"])
+        .env("TUTTI_NAMESPACE", &ns);
+    let (status, _, err) = tutti_test_support::run_with_timeout(rec, SECS(120));
+    assert!(status.success(), "the recording run: {err}");
+    let mut replay = tutti_test_support::tutti_command();
+    replay
+        .args(["replay", "--speed", "0.25", "--domain", "gw_sync"])
+        .arg(&mcap)
+        .arg(format!("--gateway={}", config(dir.path(), r#"{ foxglove: "127.0.0.1:0", clock: "gw_sync" }"#)))
+        .env("TUTTI_NAMESPACE", &ns)
+        .env("ROS_DOMAIN_ID", dds_domain_in(61..=76).to_string())
+        .env("TUTTI_GATEWAY_INTERFACE", "127.0.0.1")
+        .env("RUST_LOG", "info,rustdds=off,ros2_client=off");
+    let mut replay = Proc::spawn("tutti replay --gateway", replay, SECS(240));
+    let addr = foxglove_addr(&replay);
+    let mut client = Command::new(node);
+    client.current_dir(tutti_test_support::repo_root().join("tests/foxglove")).args([
+        "replay.mjs",
+        &format!("ws://{addr}/"),
+        "/gw_sync/publish",
+        "100000000",
+    ]);
+    let mut client = Proc::spawn("foxglove replay client", client, SECS(180));
+    assert_eq!(client.wait(SECS(150)), Some(0), "the client failed\n{}\n{}", client.dump(), replay.dump());
+    let lines: Vec<Value> = client.stdout().lines().filter_map(|l| serde_json::from_str(l).ok()).collect();
+    let _ = replay.interrupt(SECS(60));
+
+    let info = &of(&lines, "serverInfo")[0];
+    assert!(info["capabilities"].as_array().unwrap().iter().any(|c| c == "playbackControl"), "{info}");
+    let times: Vec<u64> = recorded(&mcap, "/gw_sync/publish").values().map(|(t, _)| *t).collect();
+    let end = *times.iter().max().unwrap();
+    let end = serde_json::json!({ "sec": end / 1_000_000_000, "nsec": end % 1_000_000_000 });
+    assert_eq!(info["dataEndTime"], end, "the last recorded step's time: {info}");
+    let target = *times.iter().filter(|&&t| t >= 100_000_000).min().unwrap();
+    let states = of(&lines, "playback");
+    let by =
+        |id: &str| states.iter().find(|s| s["request"] == id).cloned().unwrap_or_else(|| panic!("no {id}: {states:?}"));
+    let (pause, seek, play) = (by("pause"), by("seek"), by("play"));
+    assert_eq!(pause["status"].as_u64(), Some(1), "{pause}");
+    assert_eq!((seek["status"].as_u64(), seek["didSeek"].as_bool()), (Some(1), Some(true)), "{seek}");
+    assert_eq!(seek["currentTime"], target.to_string(), "the recorded step at 0.1 s: {seek}");
+    assert_eq!(play["status"].as_u64(), Some(0), "{play}");
+    let stamps = |phase: &str| -> Vec<u64> {
+        of(&lines, "message")
+            .iter()
+            .filter(|m| m["phase"] == phase)
+            .map(|m| m["timestamp"].as_str().unwrap().parse().unwrap())
+            .collect()
+    };
+    let (before, after) = (stamps("before"), stamps("after"));
+    assert!(before.last().is_some_and(|&t| t > 200_000_000), "{before:?}");
+    // After the seek the replay goes on from there, in order: the messages go back to the
+    // target, and on (the server sends the latest value it finds: a loaded machine may skip
+    // a step, never send one out of order).
+    let last_before = *before.last().unwrap();
+    assert!(after.first().is_some_and(|&t| t >= target && t < last_before), "went back to {target}: {after:?}");
+    assert!(after.windows(2).all(|w| w[0] < w[1]), "{after:?}");
+}
+
 /// Foxglove's playback control (requests sent as raw frames beside the npm client): the
 /// server offers it with the run's range; pause and play are the run's, the speed becomes the
 /// run's, a seek is refused with a status (a live run has no other time), and each request is

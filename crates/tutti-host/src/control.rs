@@ -87,6 +87,9 @@ pub enum Request {
     /// Step at `factor` times real time from now on (a run paced by the wall clock; `tutti
     /// ctl speed 2`, Foxglove's playback speed).
     Speed { factor: f64 },
+    /// A replay: go on from the recorded step at `time` (simulated seconds; the first step at
+    /// or after it). A live run refuses it: it has no other time to go to.
+    Seek { time: f64 },
     /// Back to the run's first step boundary, every value and component's state included: the
     /// checkpoint taken at step 0 (docs/run.md, "Checkpoints").
     ResetState,
@@ -168,6 +171,9 @@ pub struct RunStatus {
     /// run paced by the wall clock).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub end_time: Option<f64>,
+    /// The run can go to another time (`seek`): a replay of a recording.
+    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+    pub seekable: bool,
 }
 
 fn one() -> f64 {
@@ -271,6 +277,8 @@ pub(crate) struct Shared {
     speed_bits: AtomicU64,
     /// The simulated time it ends at (f64 bits; NaN: none).
     end_bits: AtomicU64,
+    /// A replay, which can seek.
+    pub(crate) seekable: AtomicBool,
 }
 
 impl Shared {
@@ -300,6 +308,7 @@ impl Shared {
             state_reset: self.state_reset.load(Ordering::Acquire),
             speed: f64::from_bits(self.speed_bits.load(Ordering::Relaxed)),
             end_time: Some(f64::from_bits(self.end_bits.load(Ordering::Relaxed))).filter(|t| !t.is_nan()),
+            seekable: self.seekable.load(Ordering::Relaxed),
         }
     }
 }
@@ -351,6 +360,7 @@ impl ControlPort {
             state_reset: AtomicBool::new(false),
             speed_bits: AtomicU64::new(1f64.to_bits()),
             end_bits: AtomicU64::new(f64::NAN.to_bits()),
+            seekable: AtomicBool::new(false),
         });
         let (tx, commands) = mpsc::channel();
         let closing = Arc::new(AtomicBool::new(false));

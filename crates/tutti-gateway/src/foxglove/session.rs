@@ -441,20 +441,25 @@ struct OwnedPlayback {
     request_id: String,
 }
 
-/// Carries out Foxglove's playback request `req` on the run of namespace `ns` (speed, then
-/// play or pause), and the frames that answer it: a status where something was refused (a
-/// seek: a live run has no other time to go to), and the playback state after it.
+/// Carries out Foxglove's playback request `req` on the run of namespace `ns` (speed, seek,
+/// then play or pause), and the frames that answer it: a status where something was refused (a
+/// live run's seek: it has no other time to go to), and the playback state after it.
 fn playback_control(ns: &str, req: &OwnedPlayback) -> Vec<Message> {
     let mut frames = Vec::new();
     let mut warn = |why: String| frames.push(Message::Text(protocol::status(Level::Warning, &why).into()));
-    if req.seek.is_some() {
-        warn("seek: a live run cannot go to another time (a recording can: tutti replay)".into());
-    }
+    let mut sought = false;
     let done = (|| -> Result<RunStatus, ControlError> {
         let mut client = ControlClient::connect(ns, CONTROL_TIMEOUT)?;
         if let Some(speed) = req.speed.map(f64::from) {
             if let Err(e) = client.request(&Request::Speed { factor: speed }) {
                 warn(format!("speed {speed}: {e}"));
+            }
+        }
+        // A replay goes to the time asked for; a live run refuses, and says why.
+        if let Some(ns) = req.seek {
+            match client.request(&Request::Seek { time: ns as f64 / 1e9 }) {
+                Ok(_) => sought = true,
+                Err(e) => warn(e.to_string()),
             }
         }
         let now = client.state()?;
@@ -478,7 +483,7 @@ fn playback_control(ns: &str, req: &OwnedPlayback) -> Vec<Message> {
             (PlaybackStatus::Ended, 0, req.speed.unwrap_or(1.0))
         }
     };
-    let state = protocol::playback_state(status, time, speed, false, &req.request_id);
+    let state = protocol::playback_state(status, time, speed, sought, &req.request_id);
     frames.push(Message::Binary(state.into()));
     frames
 }

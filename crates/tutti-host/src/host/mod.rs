@@ -667,6 +667,9 @@ impl Host {
                 Request::Speed { factor } => {
                     let _ = cmd.reply.send(self.set_speed(factor));
                 }
+                Request::Seek { .. } => {
+                    let _ = cmd.reply.send(Err(no_seek()));
+                }
                 // Between two steps is a step boundary: the run goes on playing afterwards.
                 ref r @ (Request::Save { .. } | Request::Restore { .. } | Request::ResetState) => {
                     let _ = cmd.reply.send(self.checkpoint_command(r));
@@ -710,6 +713,7 @@ impl Host {
                 Request::Resume => return Ok(Some(cmd.reply)),
                 Request::Step { n } => self.steps_while_paused(n, on_report),
                 Request::Speed { factor } => Ok(self.set_speed(factor)),
+                Request::Seek { .. } => Ok(Err(no_seek())),
                 Request::Reset => {
                     self.reset(RunState::Paused);
                     Ok(Ok(()))
@@ -761,6 +765,35 @@ impl Host {
         )))
     }
 
+    /// For a loop of its own that steps this host (a replay, through
+    /// [`step_domains`](Self::step_domains)): answers the control plane's commands that came,
+    /// each with `answer`; how many there were.
+    /// The answer is sent once `answer` returns, so what it says of the run
+    /// ([`set_run_state`](Self::set_run_state)) is what the next `state` reads.
+    pub fn take_requests(&self, mut answer: impl FnMut(&Request, &Host) -> Result<(), Refusal>) -> usize {
+        let Some(c) = &self.control else { return 0 };
+        let mut n = 0;
+        while let Ok(cmd) = c.commands.try_recv() {
+            let _ = cmd.reply.send(answer(&cmd.request, self));
+            n += 1;
+        }
+        n
+    }
+
+    /// For a loop of its own: says the run's state and simulated time to the control plane.
+    pub fn set_run_state(&self, state: RunState, sim: f64) {
+        self.publish_state(state, sim);
+    }
+
+    /// For a replay: the control plane says the run can seek, ends at `end_time` (simulated
+    /// seconds) and plays at `speed`.
+    pub fn set_playback(&self, speed: f64, end_time: f64) {
+        if let Some(c) = &self.control {
+            c.shared.set_speed(speed, Some(end_time));
+            c.shared.seekable.store(true, Ordering::Relaxed);
+        }
+    }
+
     /// Steps at `factor` times real time from the next step on (the deadlines start again
     /// from now, as after a pause).
     fn set_speed(&mut self, factor: f64) -> Result<(), Refusal> {
@@ -801,6 +834,11 @@ impl Host {
     fn last_sim(&self) -> f64 {
         self.ticker.next_k().saturating_sub(1) as f64 * self.opts.step.as_secs_f64()
     }
+}
+
+/// Why a live run refuses `seek`.
+fn no_seek() -> Refusal {
+    Refusal("seek: a live run cannot go to another time (a recording can: tutti replay)".into())
 }
 
 impl HostOptions {

@@ -17,6 +17,7 @@ use serde::Serialize;
 use tutti_core::ddf::Domain;
 use tutti_core::shm::WaitMode;
 
+use tutti_host::control::{Refusal, Request, RunState};
 use tutti_host::{DomainStep, Host, HostOptions, Report};
 
 use super::{RecordedStep, Recording};
@@ -180,6 +181,47 @@ pub struct Replay {
     host: Host,
 }
 
+/// How long the replay's loop waits at most before it looks at the control plane again.
+const TURN: Duration = Duration::from_millis(10);
+
+/// What the control plane has made of the replay: paused or playing, at which speed, paced from
+/// where, a seek to make, and the simulated time of the last step replayed.
+struct Play {
+    paused: bool,
+    speed: f64,
+    /// The wall time and recorded log time the pacing counts from (None: from the next frame).
+    anchor: Option<(Instant, u64)>,
+    seek: Option<f64>,
+    sim: f64,
+}
+
+impl Play {
+    /// Answers a command of the control plane (`tutti ctl`, the Foxglove server's playback
+    /// control): pause, resume, seek, speed and stop; a replay has no steps of its own to make.
+    fn answer(&mut self, r: &Request, stop: &AtomicBool) -> Result<(), Refusal> {
+        match r {
+            Request::State => {}
+            Request::Pause => self.paused = true,
+            Request::Resume => (self.paused, self.anchor) = (false, None),
+            Request::Seek { time } if time.is_finite() && *time >= 0.0 => {
+                (self.seek, self.anchor) = (Some(*time), None)
+            }
+            Request::Seek { time } => return Err(Refusal(format!("seek {time}: a simulated time of 0 s or more"))),
+            Request::Speed { factor } if factor.is_finite() && *factor > 0.0 => {
+                (self.speed, self.anchor) = (*factor, None);
+            }
+            Request::Speed { factor } => return Err(Refusal(format!("speed {factor}: a factor above 0"))),
+            Request::Stop => stop.store(true, Ordering::SeqCst),
+            _ => {
+                return Err(Refusal(
+                    "a replay plays its recorded steps: pause, resume, seek, speed and stop apply to it".into(),
+                ))
+            }
+        }
+        Ok(())
+    }
+}
+
 /// The replay's position: the next step of each domain, and the domains that have step `k`.
 struct Cursor {
     next: Vec<usize>,
@@ -204,6 +246,12 @@ impl Replay {
         };
         let host = Host::new(&recording.model, host_opts)?;
         Ok(Replay { recording, opts, host })
+    }
+
+    /// Its framework, to serve the control plane on and to give sinks (a gateway) before
+    /// [`run`](Self::run).
+    pub fn host_mut(&mut self) -> &mut Host {
+        &mut self.host
     }
 
     /// Recorded steps, all domains together.
@@ -243,18 +291,46 @@ impl Replay {
     ) -> Result<(), RecordError> {
         let recorded = &self.recording.domains;
         let mut cursor = Cursor { next: vec![0; recorded.len()], frame: Vec::with_capacity(recorded.len()) };
-        let first_log = recorded.iter().filter_map(|d| d.steps.first()).map(|s| s.log_time).min().unwrap_or(0);
+        let end = recorded.iter().filter_map(|d| d.steps.last()).map(|s| s.sim_time).fold(0.0, f64::max);
+        self.host.set_playback(self.opts.speed, end);
         let start = Instant::now();
         let mut last_report = Instant::now();
-        while !stop.load(Ordering::SeqCst) && self.next_frame(&mut cursor) {
-            if self.opts.speed > 0.0 {
-                let log = cursor.frame.iter().map(|&i| self.step_of(&cursor, i).log_time).min().unwrap_or(first_log);
-                let due = Duration::from_secs_f64(log.saturating_sub(first_log) as f64 / 1e9 / self.opts.speed);
-                if let Some(wait) = due.checked_sub(start.elapsed()) {
-                    std::thread::sleep(wait);
+        let mut play = Play { paused: false, speed: self.opts.speed, anchor: None, seek: None, sim: 0.0 };
+        while !stop.load(Ordering::SeqCst) {
+            self.host.take_requests(|r, host| {
+                let answer = play.answer(r, stop);
+                if let Some(t) = play.seek.take() {
+                    play.sim = self.seek(&mut cursor, t);
+                }
+                // Said before the answer goes: a `state` after a pause, a resume or a seek
+                // reads what it did.
+                if !stop.load(Ordering::SeqCst) {
+                    host.set_run_state(if play.paused { RunState::Paused } else { RunState::Playing }, play.sim);
+                }
+                answer
+            });
+            if play.paused {
+                self.host.set_run_state(RunState::Paused, play.sim);
+                std::thread::sleep(TURN);
+                continue;
+            }
+            if !self.next_frame(&mut cursor) {
+                break;
+            }
+            if play.speed > 0.0 {
+                // Paced from the first frame after the start, a resume, a seek or a new speed.
+                let log = cursor.frame.iter().map(|&i| self.step_of(&cursor, i).log_time).min().unwrap_or(0);
+                let (t0, log0) = *play.anchor.get_or_insert((Instant::now(), log));
+                let due = Duration::from_secs_f64(log.saturating_sub(log0) as f64 / 1e9 / play.speed);
+                if let Some(wait) = due.checked_sub(t0.elapsed()) {
+                    // In turns, so that a pause or a seek is taken within one.
+                    std::thread::sleep(wait.min(TURN));
+                    continue;
                 }
             }
             self.step_frame(&cursor, summary, on_event)?;
+            play.sim = cursor.frame.iter().map(|&i| self.step_of(&cursor, i).sim_time).fold(0.0, f64::max);
+            self.host.set_run_state(RunState::Playing, play.sim);
             for &i in &cursor.frame {
                 cursor.next[i] += 1;
             }
@@ -271,8 +347,24 @@ impl Replay {
                 });
             }
         }
+        self.host.set_run_state(RunState::Stopped, play.sim);
         summary.elapsed = start.elapsed();
         Ok(())
+    }
+
+    /// Moves `cursor` to the first recorded step of each domain at or after simulated time `t`;
+    /// the earliest of their times (`t` past the end).
+    fn seek(&self, cursor: &mut Cursor, t: f64) -> f64 {
+        let mut at = f64::INFINITY;
+        for (next, d) in cursor.next.iter_mut().zip(&self.recording.domains) {
+            *next = d.steps.iter().position(|s| s.sim_time >= t - 1e-9).unwrap_or(d.steps.len());
+            at = d.steps.get(*next).map_or(at, |s| at.min(s.sim_time));
+        }
+        if at.is_finite() {
+            at
+        } else {
+            t
+        }
     }
 
     /// Finds the next recorded step number and the domains that have it; false at the end.

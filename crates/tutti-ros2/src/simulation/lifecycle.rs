@@ -297,6 +297,7 @@ mod tests {
                 state_reset: false,
                 speed: 1.0,
                 end_time: None,
+                seekable: false,
             })
         }
     }

@@ -1,0 +1,100 @@
+// Foxglove's playback controls on a replay (the npm package @foxglove/ws-protocol over `ws`),
+// run by tests/cli/gateway_foxglove.rs against `tutti replay --gateway`. The package has no
+// playback control: its requests go as raw frames on the client's socket, and the server's
+// Playback State frames (opcode 5) are read from the socket. Prints one JSON object a line.
+//
+//   node replay.mjs URL TOPIC SEEK_NS
+//
+// Reads 20 messages of TOPIC (and on, until one is stamped after twice SEEK_NS), pauses, seeks
+// back to SEEK_NS (staying paused), plays, and reads 20 more. Every wait has its own deadline; the test's watchdog ends the process if it hangs.
+import wsProtocol from "@foxglove/ws-protocol";
+import WebSocket from "ws";
+
+const { FoxgloveClient } = wsProtocol;
+const [url, topic, seekText] = process.argv.slice(2);
+const print = (o) => console.log(JSON.stringify(o));
+const fail = (why) => {
+  print({ kind: "error", why: String(why) });
+  process.exit(1);
+};
+const within = (ms, what, promise) =>
+  Promise.race([
+    promise,
+    new Promise((_, reject) => setTimeout(() => reject(new Error(`no ${what} within ${ms} ms`)), ms)),
+  ]);
+
+const ws = new WebSocket(url, [FoxgloveClient.SUPPORTED_SUBPROTOCOL]);
+const client = new FoxgloveClient({ ws });
+client.on("error", (e) => {
+  const text = String(e?.message ?? e);
+  if (!text.includes("Unrecognized server opcode in binary message: 5")) fail(text);
+});
+client.on("status", (s) => print({ kind: "status", level: s.level, message: s.message }));
+const serverInfo = new Promise((resolve) => client.on("serverInfo", resolve));
+const channels = new Map();
+const advertised = new Promise((resolve) => client.on("advertise", (cs) => {
+  for (const c of cs) channels.set(c.topic, c);
+  resolve();
+}));
+
+let waiter = null;
+ws.on("message", (data, isBinary) => {
+  const b = Buffer.from(data);
+  if (!isBinary || b[0] !== 5) return;
+  const idLen = b.readUInt32LE(15);
+  waiter?.({
+    status: b[1], currentTime: b.readBigUInt64LE(2).toString(), speed: b.readFloatLE(10), didSeek: b[14] === 1,
+    requestId: b.subarray(19, 19 + idLen).toString("utf8"),
+  });
+});
+const playback = (command, speed, seekNs, requestId) => {
+  const id = Buffer.from(requestId, "utf8");
+  const b = Buffer.alloc(19 + id.length);
+  b[0] = 3;
+  b[1] = command;
+  b.writeFloatLE(speed, 2);
+  b[6] = seekNs === null ? 0 : 1;
+  b.writeBigUInt64LE(BigInt(seekNs ?? 0), 7);
+  b.writeUInt32LE(id.length, 15);
+  id.copy(b, 19);
+  const answered = new Promise((resolve) => {
+    waiter = (s) => { if (s.requestId === requestId) resolve(s); };
+  });
+  ws.send(b);
+  return within(30000, `the playback state answering ${requestId}`, answered);
+};
+
+let phase = "before";
+let counts = { before: 0, after: 0 };
+let done = null;
+const seekNs = BigInt(seekText);
+client.on("message", (m) => {
+  if (phase === "paused" || counts[phase] >= 20) return;
+  print({ kind: "message", phase, timestamp: m.timestamp.toString() });
+  // Before the seek, on until the run is well past the time sought.
+  if (phase === "after" || m.timestamp > 2n * seekNs) counts[phase] += 1;
+  if (counts[phase] === 20) done?.();
+});
+const twenty = (what) => within(60000, `20 messages ${what}`, new Promise((resolve) => { done = resolve; }));
+
+try {
+  const info = await within(30000, "serverInfo", serverInfo);
+  print({ kind: "serverInfo", capabilities: info.capabilities, dataStartTime: info.dataStartTime, dataEndTime: info.dataEndTime });
+  await within(30000, "advertise", advertised);
+  const channel = channels.get(topic) ?? fail(`no channel ${topic}`);
+  const first = twenty("before the seek");
+  client.subscribe(channel.id);
+  await first;
+  phase = "paused";
+  print({ kind: "playback", request: "pause", ...(await playback(1, 1, null, "pause")) });
+  print({ kind: "playback", request: "seek", ...(await playback(1, 1, seekNs, "seek")) });
+  phase = "after";
+  const after = twenty("after the seek");
+  print({ kind: "playback", request: "play", ...(await playback(0, 1, null, "play")) });
+  await after;
+  print({ kind: "done" });
+  client.close();
+  process.exit(0);
+} catch (e) {
+  fail(e?.message ?? e);
+}
