@@ -187,7 +187,8 @@ fn foxglove_client_against(runner: Runner, tag: &str, doms: std::ops::RangeInclu
 /// gw_sync (x is the simulated time, 1.5 s of wall time) replayed at a quarter of its pace; the npm client
 /// (`tests/foxglove/replay.mjs`) reads its messages, pauses, seeks back to 0.1 s and plays.
 /// The seek is answered with the step it went to; the messages after it go back there and on,
-/// in order; the range the server offers is the recording's.
+/// in order; the range the server offers is the recording's; the entity's transforms are
+/// where the replayed set places it.
 #[test]
 fn a_foxglove_client_pauses_seeks_and_plays_a_replay() {
     let Some(node) = require_tool("node", "nodejs") else { return };
@@ -207,7 +208,10 @@ fn a_foxglove_client_pauses_seeks_and_plays_a_replay() {
     replay
         .args(["replay", "--speed", "0.25", "--domain", "gw_sync"])
         .arg(&mcap)
-        .arg(format!("--gateway={}", config(dir.path(), r#"{ foxglove: "127.0.0.1:0", clock: "gw_sync" }"#)))
+        .arg(format!(
+            "--gateway={}",
+            config(dir.path(), &format!(r#"{{ foxglove: "127.0.0.1:0", clock: "gw_sync", {ENTITIES} }}"#))
+        ))
         .env("TUTTI_NAMESPACE", &ns)
         .env("ROS_DOMAIN_ID", dds_domain_in(61..=76).to_string())
         .env("TUTTI_GATEWAY_INTERFACE", "127.0.0.1")
@@ -220,6 +224,7 @@ fn a_foxglove_client_pauses_seeks_and_plays_a_replay() {
         &format!("ws://{addr}/"),
         "/gw_sync/publish",
         "100000000",
+        "/tf",
     ]);
     let mut client = Proc::spawn("foxglove replay client", client, SECS(180));
     assert_eq!(client.wait(SECS(150)), Some(0), "the client failed\n{}\n{}", client.dump(), replay.dump());
@@ -248,6 +253,8 @@ fn a_foxglove_client_pauses_seeks_and_plays_a_replay() {
             .map(|m| m["timestamp"].as_str().unwrap().parse().unwrap())
             .collect()
     };
+    // The entity on /tf, where the replayed set places it.
+    the_entity_is_on_tf_where_its_set_places_it(&lines, &recorded(&mcap, "/gw_sync/publish"), &client);
     let (before, after) = (stamps("before"), stamps("after"));
     assert!(before.last().is_some_and(|&t| t > 200_000_000), "{before:?}");
     // After the seek the replay goes on from there, in order: the messages go back to the

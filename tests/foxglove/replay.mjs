@@ -3,15 +3,16 @@
 // playback control: its requests go as raw frames on the client's socket, and the server's
 // Playback State frames (opcode 5) are read from the socket. Prints one JSON object a line.
 //
-//   node replay.mjs URL TOPIC SEEK_NS
+//   node replay.mjs URL TOPIC SEEK_NS [TF]
 //
+// With TF (the entities' poses topic), its first 10 messages before the seek are printed too.
 // Reads 20 messages of TOPIC (and on, until one is stamped after twice SEEK_NS), pauses, seeks
 // back to SEEK_NS (staying paused), plays, and reads 20 more. Every wait has its own deadline; the test's watchdog ends the process if it hangs.
 import wsProtocol from "@foxglove/ws-protocol";
 import WebSocket from "ws";
 
 const { FoxgloveClient } = wsProtocol;
-const [url, topic, seekText] = process.argv.slice(2);
+const [url, topic, seekText, tfTopic] = process.argv.slice(2);
 const print = (o) => console.log(JSON.stringify(o));
 const fail = (why) => {
   print({ kind: "error", why: String(why) });
@@ -68,7 +69,17 @@ let phase = "before";
 let counts = { before: 0, after: 0 };
 let done = null;
 const seekNs = BigInt(seekText);
+let tfSub = null;
+let tfCount = 0;
+const hex = (view) => Buffer.from(view.buffer, view.byteOffset, view.byteLength).toString("hex");
 client.on("message", (m) => {
+  if (m.subscriptionId === tfSub) {
+    if (phase === "before" && tfCount < 10) {
+      tfCount += 1;
+      print({ kind: "tf", timestamp: m.timestamp.toString(), hex: hex(m.data) });
+    }
+    return;
+  }
   if (phase === "paused" || counts[phase] >= 20) return;
   print({ kind: "message", phase, timestamp: m.timestamp.toString() });
   // Before the seek, on until the run is well past the time sought.
@@ -83,8 +94,10 @@ try {
   await within(30000, "advertise", advertised);
   const channel = channels.get(topic) ?? fail(`no channel ${topic}`);
   const first = twenty("before the seek");
+  if (tfTopic) tfSub = client.subscribe((channels.get(tfTopic) ?? fail(`no channel ${tfTopic}`)).id);
   client.subscribe(channel.id);
   await first;
+  if (tfTopic && tfCount < 10) fail(`only ${tfCount} messages on ${tfTopic}`);
   phase = "paused";
   print({ kind: "playback", request: "pause", ...(await playback(1, 1, null, "pause")) });
   print({ kind: "playback", request: "seek", ...(await playback(1, 1, seekNs, "seek")) });

@@ -4,6 +4,7 @@
 Usage: entities_rclpy.py --states N [--every S] [--frame FRAME] [--pose NAME] [--timeout S]
 
 Waits for the services; prints one JSON line per call:
+  {"call": "get_simulator_features", "features": [...]};
   {"call": "get_entities", "filter": ..., "result": CODE, "entities": [...]} for no filter, a name
   filter, a category filter and a tags filter;
   {"call": "get_entity_info", "entity": NAME, "result": CODE, "category": C, "description": ..., "tags": [...]};
@@ -33,7 +34,7 @@ from geometry_msgs.msg import PoseStamped
 from rclpy.node import Node
 from simulation_interfaces.msg import EntityCategory
 from simulation_interfaces.srv import (GetEntities, GetEntitiesStates, GetEntityInfo, GetEntityState,
-                                       SetEntityState)
+                                       GetSimulatorFeatures, SetEntityState)
 
 
 class Failed(Exception):
@@ -89,6 +90,8 @@ def main():
     out = lambda v: print(json.dumps(v), flush=True)  # noqa: E731
     code = 0
     try:
+        r = calls.call(GetSimulatorFeatures, '/get_simulator_features', GetSimulatorFeatures.Request())
+        out({'call': 'get_simulator_features', 'features': list(r.features.features)})
         names = []
         for label, fill in [
                 ('', lambda f: None),

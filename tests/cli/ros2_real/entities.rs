@@ -125,6 +125,12 @@ fn rclpy_reads_the_uav_entities_and_their_tf_during_the_demo_cyclone() {
     let names = |c: &Value| -> Vec<String> {
         c["entities"].as_array().unwrap().iter().map(|e| e.as_str().unwrap().to_string()).collect()
     };
+    // The entity features beside the run's: tags, box bounds, categories, state and info
+    // getting; not state setting (no aircraft can be moved).
+    let features = of("get_simulator_features").next().expect("get_simulator_features");
+    let features: Vec<u64> = features["features"].as_array().unwrap().iter().filter_map(Value::as_u64).collect();
+    assert_eq!(&features[..5], [4, 6, 8, 10, 12], "{features:?}");
+    assert!(!features.contains(&11) && features.contains(&20), "{features:?}");
     // The list, and its filters: by name, by category, by tag.
     let lists: Vec<(String, Vec<String>)> =
         of("get_entities").map(|c| (c["filter"].as_str().unwrap().to_string(), names(c))).collect();
