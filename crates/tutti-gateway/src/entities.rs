@@ -12,14 +12,13 @@
 use std::time::{Duration, Instant};
 
 use tutti_core::ddf::{Leaf, Model, Role, ScalarType, Value as DdfValue};
-use tutti_core::shm::observer::Observer;
+use tutti_core::shm::observer::{Look, Observer};
 use tutti_core::shm::{ConnKind, ConnectOptions, Participant, Stamp};
 use tutti_ros2::simulation::entities::{
     geodesy, navigation_to_enu, navigation_velocity, quaternion, roll_pitch_yaw, Body, Entities, EntityInfo, Pose,
 };
 
 use crate::config::{Attitude, Entity, Form};
-use crate::routes::to_dds::look;
 
 /// The longest a read waits for the sets it takes to agree on one step.
 const SETTLE: Duration = Duration::from_millis(100);
@@ -113,7 +112,11 @@ impl DomainEntities {
     /// Reads source `i` once; its step's simulated time and the time of one step.
     fn read_source(&mut self, i: usize) -> Result<(Stamp, Option<f64>), String> {
         let s = &mut self.sources[i];
-        let Some((seg, _)) = look(&mut s.live, &self.namespace) else {
+        let seg = match s.live.look(&self.namespace) {
+            Look::Fresh | Look::Same => s.live.segment(),
+            _ => None,
+        };
+        let Some(seg) = seg else {
             return Err(format!("domain '{}' is not running", s.live.domain));
         };
         let size = seg.info.set(s.role).size as usize;

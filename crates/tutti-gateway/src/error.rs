@@ -72,7 +72,7 @@ pub enum ConfigError {
     File(#[from] tutti_config::Error),
     /// An entity whose domain or items the DDF does not have.
     #[error("{at}: {error}")]
-    Entity { at: String, error: crate::config::EntityError },
+    Entity { at: String, error: EntityError },
     /// A `topics` key that names no set of the DDF.
     #[error("{at}: the DDF has no set '{set}' (sets: {sets})")]
     NoSuchSet { at: String, set: String, sets: String },
@@ -132,4 +132,18 @@ pub enum ConfigError {
     /// `ROS_AUTOMATIC_DISCOVERY_RANGE=OFF` and no peers.
     #[error("ROS_AUTOMATIC_DISCOVERY_RANGE=OFF: no automatic discovery, so the gateway would find nobody; give the peers with --peer ADDR (or the config file's `peer`), or unset the variable")]
     DiscoveryOff,
+}
+
+/// Why an entity is refused.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+pub enum EntityError {
+    #[error("entity '{0}': {1}")]
+    Shape(String, String),
+    #[error("entity '{entity}': the DDF has no domain '{domain}' (domains: {domains})")]
+    NoDomain { entity: String, domain: String, domains: String },
+    /// An item its set does not have, or one that is not one number: what is wrong, in full.
+    #[error("entity '{entity}': {why}")]
+    Item { entity: String, why: String },
+    #[error("entity '{0}' is declared twice")]
+    Twice(String),
 }

@@ -16,6 +16,8 @@ use serde::{Deserialize, Deserializer};
 use tutti_config::sections::Section;
 use tutti_core::ddf::{Domain, Model, Role, ScalarType};
 
+pub use crate::error::EntityError;
+
 /// `entities: [...]`.
 #[derive(Debug, Clone, Default, PartialEq, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -163,20 +165,6 @@ struct WrittenCartesian {
     qy: Option<String>,
     qz: Option<String>,
     qw: Option<String>,
-}
-
-/// Why an entity is refused.
-#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
-pub enum EntityError {
-    #[error("entity '{0}': {1}")]
-    Shape(String, String),
-    #[error("entity '{entity}': the DDF has no domain '{domain}' (domains: {domains})")]
-    NoDomain { entity: String, domain: String, domains: String },
-    /// An item its set does not have, or one that is not one number: what is wrong, in full.
-    #[error("entity '{entity}': {why}")]
-    Item { entity: String, why: String },
-    #[error("entity '{0}' is declared twice")]
-    Twice(String),
 }
 
 /// `simulation_interfaces/msg/EntityCategory` by the names the file may give.
