@@ -272,9 +272,9 @@ fn the_gateway_is_a_ros2_node_in_ros_discovery_info(e: Eng) {
     assert_eq!(n["namespace"], "/");
     // 3 domains: 2 writers (PUBLISH, SUBSCRIBE) and 1 reader (SUBSCRIBE) each, besides
     // the node's own (parameter events); on Cyclone, the simulation services' too
-    // (docs/ros2.md): 8 request readers and reply writers (5 services, the action's 3), and
-    // the action's feedback and status writers.
-    let (readers, writers) = if e.name == "cyclone" { (8, 10) } else { (0, 0) };
+    // (docs/ros2.md): 13 request readers and reply writers (the 5 of run control, the 5 of
+    // entities, the action's 3), and the action's feedback and status writers.
+    let (readers, writers) = if e.name == "cyclone" { (13, 15) } else { (0, 0) };
     assert!(n["writers"].as_u64() >= Some(6 + writers), "{n}");
     assert_eq!(n["readers"], 3 + readers, "{n}");
 }
