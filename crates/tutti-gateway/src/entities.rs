@@ -16,9 +16,29 @@ use tutti_core::shm::observer::{Look, Observer};
 use tutti_core::shm::{ConnKind, ConnectOptions, Participant, Stamp};
 use tutti_ros2::simulation::entities::{
     geodesy, navigation_to_enu, navigation_velocity, quaternion, roll_pitch_yaw, Body, Entities, EntityInfo, Pose,
+    SourceError,
 };
 
 use crate::config::{Attitude, Entity, Form};
+
+/// Why an entity could not be read or written.
+#[derive(Debug, thiserror::Error)]
+pub enum EntityIoError {
+    #[error("domain '{domain}' is not running")]
+    NotRunning { domain: String },
+    #[error("domain '{domain}': its {role} set did not hold still")]
+    Unsteady { domain: String, role: Role },
+    #[error("domain '{domain}' as it runs has no {role} item '{path}'")]
+    NoItem { domain: String, role: &'static str, path: String },
+    #[error("item '{path}' lies beyond its set")]
+    Beyond { path: String },
+    /// The entity cannot be moved: why (a PUBLISH set, a synchronous domain).
+    #[error("{0}")]
+    ReadOnly(String),
+    /// Its write was refused by the core (a set another writer owns, …).
+    #[error(transparent)]
+    Shm(#[from] tutti_core::shm::ShmError),
+}
 
 /// The longest a read waits for the sets it takes to agree on one step.
 const SETTLE: Duration = Duration::from_millis(100);
@@ -110,26 +130,26 @@ impl DomainEntities {
     }
 
     /// Reads source `i` once; its step's simulated time and the time of one step.
-    fn read_source(&mut self, i: usize) -> Result<(Stamp, Option<f64>), String> {
+    fn read_source(&mut self, i: usize) -> Result<(Stamp, Option<f64>), EntityIoError> {
         let s = &mut self.sources[i];
         let seg = match s.live.look(&self.namespace) {
             Look::Fresh | Look::Same => s.live.segment(),
             _ => None,
         };
         let Some(seg) = seg else {
-            return Err(format!("domain '{}' is not running", s.live.domain));
+            return Err(EntityIoError::NotRunning { domain: s.live.domain.clone() });
         };
         let size = seg.info.set(s.role).size as usize;
         s.buf.resize(size, 0);
         let Some((_, stamp)) = seg.try_read_set_stamped(s.role, &mut s.buf, READ_TRIES) else {
-            return Err(format!("domain '{}': its {} set did not hold still", s.live.domain, s.role));
+            return Err(EntityIoError::Unsteady { domain: s.live.domain.clone(), role: s.role });
         };
         s.stamp = stamp;
         Ok((stamp, seg.sim_step()))
     }
 
     /// Reads the sources in `which` at one step boundary (see the module's words).
-    fn read_sources(&mut self, which: &[usize]) -> Result<(), String> {
+    fn read_sources(&mut self, which: &[usize]) -> Result<(), EntityIoError> {
         let end = Instant::now() + SETTLE;
         loop {
             let mut stamps = Vec::with_capacity(which.len());
@@ -150,19 +170,20 @@ impl DomainEntities {
     }
 
     /// The number item `path` of source `i` holds.
-    fn number(&self, i: usize, path: &str) -> Result<f64, String> {
+    fn number(&self, i: usize, path: &str) -> Result<f64, EntityIoError> {
         let s = &self.sources[i];
-        let seg = s.live.segment().ok_or_else(|| format!("domain '{}' is not running", s.live.domain))?;
-        let leaf =
-            seg.info.set(s.role).leaf(path).ok_or_else(|| {
-                format!("domain '{}' as it runs has no {} item '{path}'", s.live.domain, s.role.lower())
-            })?;
-        let bytes = s.buf.get(leaf.range()).ok_or_else(|| format!("item '{path}' lies beyond its set"))?;
+        let seg = s.live.segment().ok_or_else(|| EntityIoError::NotRunning { domain: s.live.domain.clone() })?;
+        let leaf = seg.info.set(s.role).leaf(path).ok_or_else(|| EntityIoError::NoItem {
+            domain: s.live.domain.clone(),
+            role: s.role.lower(),
+            path: path.to_string(),
+        })?;
+        let bytes = s.buf.get(leaf.range()).ok_or_else(|| EntityIoError::Beyond { path: path.to_string() })?;
         Ok(leaf.ty.decode(bytes).as_f64())
     }
 
     /// Entity `k`'s body from its source's bytes.
-    fn body(&self, k: usize) -> Result<Body, String> {
+    fn body(&self, k: usize) -> Result<Body, EntityIoError> {
         let i = self.source_of[k];
         let get = |path: &str| self.number(i, path);
         let opt = |path: &Option<String>| path.as_deref().map_or(Ok(0.0), get);
@@ -292,17 +313,25 @@ impl Entities for DomainEntities {
         &self.info
     }
 
-    fn read(&mut self, which: &[usize]) -> Result<Vec<Body>, String> {
+    fn read(&mut self, which: &[usize]) -> Result<Vec<Body>, SourceError> {
         let mut sources: Vec<usize> = which.iter().map(|&k| self.source_of[k]).collect();
         sources.sort_unstable();
         sources.dedup();
         self.read_sources(&sources)?;
-        which.iter().map(|&k| self.body(k)).collect()
+        Ok(which.iter().map(|&k| self.body(k)).collect::<Result<_, _>>()?)
     }
 
-    fn write(&mut self, k: usize, pose: &Pose, velocity: [f64; 3]) -> Result<(), String> {
+    fn write(&mut self, k: usize, pose: &Pose, velocity: [f64; 3]) -> Result<(), SourceError> {
+        Ok(self.commit(k, pose, velocity)?)
+    }
+}
+
+impl DomainEntities {
+    /// Writes entity `k`'s items for `pose` and `velocity` in one commit of a connection of its
+    /// own, which leaves at once.
+    fn commit(&self, k: usize, pose: &Pose, velocity: [f64; 3]) -> Result<(), EntityIoError> {
         if let Some(why) = &self.info[k].read_only {
-            return Err(why.clone());
+            return Err(EntityIoError::ReadOnly(why.clone()));
         }
         let e = &self.entities[k];
         let opts = ConnectOptions {
@@ -314,16 +343,15 @@ impl Entities for DomainEntities {
             skip_wait_to_go: true,
             ..Default::default()
         };
-        let failed = |e: tutti_core::shm::ShmError| e.to_string();
-        let mut p = Participant::connect(&e.domain, opts).map_err(failed)?;
-        p.publish_lock().map_err(failed)?;
+        let mut p = Participant::connect(&e.domain, opts)?;
+        p.publish_lock()?;
         for (path, v) in self.items_for(k, pose, velocity) {
-            let (_, leaf) = p.leaf(Role::Subscribe, &path).map_err(failed)?;
+            let (_, leaf) = p.leaf(Role::Subscribe, &path)?;
             let bytes = encode(leaf, v);
-            p.stage(&path, &bytes).map_err(failed)?;
+            p.stage(&path, &bytes)?;
         }
-        let done = p.commit().map_err(failed);
+        let done = p.commit();
         p.disconnect();
-        done
+        Ok(done?)
     }
 }

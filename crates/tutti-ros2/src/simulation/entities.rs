@@ -47,6 +47,9 @@ pub struct EntityInfo {
     pub read_only: Option<String>,
 }
 
+/// Why a source could not read or write an entity, in its own words.
+pub type SourceError = Box<dyn std::error::Error + Send + Sync>;
+
 /// Where the entities' states come from and go to.
 pub trait Entities: Send {
     /// The entities, in the order the services list them.
@@ -54,10 +57,10 @@ pub trait Entities: Send {
     /// The bodies of entities `which` (indexes into [`list`](Self::list)), read at one step
     /// boundary (each as last written: an entity whose writer is gone keeps its last step's);
     /// or why they cannot be read now (the domain is not running).
-    fn read(&mut self, which: &[usize]) -> Result<Vec<Body>, String>;
+    fn read(&mut self, which: &[usize]) -> Result<Vec<Body>, SourceError>;
     /// Moves entity `i` to `pose` (velocity `velocity`): its items are written as the
     /// mapping says. Err: why not (refused with `RESULT_OPERATION_FAILED`).
-    fn write(&mut self, i: usize, pose: &Pose, velocity: [f64; 3]) -> Result<(), String>;
+    fn write(&mut self, i: usize, pose: &Pose, velocity: [f64; 3]) -> Result<(), SourceError>;
 }
 
 /// `simulation_interfaces/msg/SimulatorFeatures` values of the entity services.
@@ -348,7 +351,7 @@ fn filtered(list: &[EntityInfo], filters: Option<&Value>, source: &mut dyn Entit
             ))
         }
     };
-    let bodies = source.read(&out).map_err(|why| Outcome::new(result::OPERATION_FAILED, &why))?;
+    let bodies = source.read(&out).map_err(|why| Outcome::new(result::OPERATION_FAILED, why.to_string()))?;
     let keep: Vec<bool> = bodies.iter().map(|b| inside(b.pose.position)).collect();
     let mut k = keep.iter();
     out.retain(|_| k.next().copied().unwrap_or(false));
@@ -393,7 +396,7 @@ pub fn answer(
         },
         EntityCall::States => {
             let read = filtered(&list, req.get("filters"), source).and_then(|which| {
-                Ok((source.read(&which).map_err(|w| Outcome::new(result::OPERATION_FAILED, &w))?, which))
+                Ok((source.read(&which).map_err(|w| Outcome::new(result::OPERATION_FAILED, w.to_string()))?, which))
             });
             match read {
                 Ok((bodies, which)) => {
@@ -408,7 +411,7 @@ pub fn answer(
         EntityCall::State => match named(req)? {
             Ok(i) => match source.read(&[i]) {
                 Ok(bodies) => with(ok()).with("state", state_value(&bodies[0], &list[i].frame)),
-                Err(why) => with(Outcome::new(result::OPERATION_FAILED, &why)),
+                Err(why) => with(Outcome::new(result::OPERATION_FAILED, why.to_string())),
             },
             Err(o) => with(o),
         },
@@ -456,7 +459,7 @@ fn set(e: &EntityInfo, i: usize, req: &Value, source: &mut dyn Entities) -> Outc
     let velocity = read_vector(state.and_then(|s| s.path("twist.linear")));
     match source.write(i, &pose, velocity) {
         Ok(()) => Outcome::new(result::OK, ""),
-        Err(why) => Outcome::new(result::OPERATION_FAILED, &why),
+        Err(why) => Outcome::new(result::OPERATION_FAILED, why.to_string()),
     }
 }
 
@@ -504,10 +507,10 @@ mod tests {
         fn list(&self) -> &[EntityInfo] {
             &self.0
         }
-        fn read(&mut self, which: &[usize]) -> Result<Vec<Body>, String> {
+        fn read(&mut self, which: &[usize]) -> Result<Vec<Body>, SourceError> {
             Ok(which.iter().map(|&i| self.1[i]).collect())
         }
-        fn write(&mut self, i: usize, pose: &Pose, velocity: [f64; 3]) -> Result<(), String> {
+        fn write(&mut self, i: usize, pose: &Pose, velocity: [f64; 3]) -> Result<(), SourceError> {
             self.1[i] = Body { pose: *pose, velocity, sim_time: 2.0 };
             Ok(())
         }

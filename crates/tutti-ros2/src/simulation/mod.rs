@@ -18,7 +18,7 @@ use tutti_core::ddf::Model;
 use tutti_core::mapping::{Durability, History, Ownership, Qos, Reliability};
 
 pub use self::action::{GoalId, Goals, Publisher, Stamp};
-pub use self::entities::{Body, Entities, EntityCall, EntityInfo, Pose};
+pub use self::entities::{Body, Entities, EntityCall, EntityInfo, Pose, SourceError};
 pub use self::lifecycle::{Control, Lifecycle, Outcome, RunControl};
 use crate::{registry, Message, Struct, Value};
 
@@ -283,10 +283,10 @@ impl Entities for NoEntities {
     fn list(&self) -> &[EntityInfo] {
         &[]
     }
-    fn read(&mut self, _: &[usize]) -> Result<Vec<Body>, String> {
+    fn read(&mut self, _: &[usize]) -> Result<Vec<Body>, SourceError> {
         Ok(Vec::new())
     }
-    fn write(&mut self, _: usize, _: &Pose, _: [f64; 3]) -> Result<(), String> {
+    fn write(&mut self, _: usize, _: &Pose, _: [f64; 3]) -> Result<(), SourceError> {
         Err("this run has no entities".into())
     }
 }
