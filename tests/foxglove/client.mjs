@@ -17,6 +17,7 @@
 // The package is CommonJS for Node: its exports come as the default import.
 import wsProtocol from "@foxglove/ws-protocol";
 import WebSocket from "ws";
+import { isPlaybackState, playbackControl, within } from "./playback.mjs";
 
 const { FoxgloveClient } = wsProtocol;
 
@@ -29,52 +30,15 @@ const fail = (why) => {
 };
 const hex = (view) =>
   Buffer.from(view.buffer, view.byteOffset, view.byteLength).toString("hex");
-const within = (ms, what, promise) =>
-  Promise.race([
-    promise,
-    new Promise((_, reject) => setTimeout(() => reject(new Error(`no ${what} within ${ms} ms`)), ms)),
-  ]);
 
 const ws = new WebSocket(url, [FoxgloveClient.SUPPORTED_SUBPROTOCOL]);
 const client = new FoxgloveClient({ ws });
-// The package knows no playback control (Foxglove's newer capability): its requests are sent
-// on the same socket as raw frames below, and the server's Playback State frames (opcode 5),
-// which the package does not know and reports as errors, are read here from the socket.
+// The package knows no playback control (Foxglove's newer capability): playback.mjs sends its
+// requests as raw frames on the same socket and reads the answers from it.
 client.on("error", (e) => {
-  const text = String(e?.message ?? e);
-  if (!text.includes("Unrecognized server opcode in binary message: 5")) fail(text);
+  if (!isPlaybackState(e)) fail(e?.message ?? e);
 });
-const playbackStates = [];
-let playbackWaiter = null;
-ws.on("message", (data, isBinary) => {
-  // The client asks for ArrayBuffers.
-  const b = Buffer.from(data);
-  if (!isBinary || b[0] !== 5) return;
-  // op, status, current time (u64), speed (f32), did seek, request id (u32 length, UTF-8).
-  const idLen = b.readUInt32LE(15);
-  const state = {
-    status: b[1], currentTime: b.readBigUInt64LE(2).toString(), speed: b.readFloatLE(10), didSeek: b[14] === 1,
-    requestId: b.subarray(19, 19 + idLen).toString("utf8"),
-  };
-  playbackStates.push(state);
-  playbackWaiter?.(state);
-});
-const playback = (command, speed, seekNs, requestId) => {
-  const id = Buffer.from(requestId, "utf8");
-  const b = Buffer.alloc(19 + id.length);
-  b[0] = 3;
-  b[1] = command;
-  b.writeFloatLE(speed, 2);
-  b[6] = seekNs === null ? 0 : 1;
-  b.writeBigUInt64LE(BigInt(seekNs ?? 0), 7);
-  b.writeUInt32LE(id.length, 15);
-  id.copy(b, 19);
-  const answered = new Promise((resolve) => {
-    playbackWaiter = (s) => { if (s.requestId === requestId) resolve(s); };
-  });
-  ws.send(b);
-  return within(30000, `the playback state answering ${requestId}`, answered);
-};
+const playback = playbackControl(ws);
 client.on("close", () => print({ kind: "closed" }));
 client.on("status", (s) => print({ kind: "status", level: s.level, message: s.message }));
 

@@ -10,6 +10,7 @@
 // back to SEEK_NS (staying paused), plays, and reads 20 more. Every wait has its own deadline; the test's watchdog ends the process if it hangs.
 import wsProtocol from "@foxglove/ws-protocol";
 import WebSocket from "ws";
+import { isPlaybackState, playbackControl, within } from "./playback.mjs";
 
 const { FoxgloveClient } = wsProtocol;
 const [url, topic, seekText, tfTopic] = process.argv.slice(2);
@@ -18,17 +19,11 @@ const fail = (why) => {
   print({ kind: "error", why: String(why) });
   process.exit(1);
 };
-const within = (ms, what, promise) =>
-  Promise.race([
-    promise,
-    new Promise((_, reject) => setTimeout(() => reject(new Error(`no ${what} within ${ms} ms`)), ms)),
-  ]);
 
 const ws = new WebSocket(url, [FoxgloveClient.SUPPORTED_SUBPROTOCOL]);
 const client = new FoxgloveClient({ ws });
 client.on("error", (e) => {
-  const text = String(e?.message ?? e);
-  if (!text.includes("Unrecognized server opcode in binary message: 5")) fail(text);
+  if (!isPlaybackState(e)) fail(e?.message ?? e);
 });
 client.on("status", (s) => print({ kind: "status", level: s.level, message: s.message }));
 const serverInfo = new Promise((resolve) => client.on("serverInfo", resolve));
@@ -38,32 +33,7 @@ const advertised = new Promise((resolve) => client.on("advertise", (cs) => {
   resolve();
 }));
 
-let waiter = null;
-ws.on("message", (data, isBinary) => {
-  const b = Buffer.from(data);
-  if (!isBinary || b[0] !== 5) return;
-  const idLen = b.readUInt32LE(15);
-  waiter?.({
-    status: b[1], currentTime: b.readBigUInt64LE(2).toString(), speed: b.readFloatLE(10), didSeek: b[14] === 1,
-    requestId: b.subarray(19, 19 + idLen).toString("utf8"),
-  });
-});
-const playback = (command, speed, seekNs, requestId) => {
-  const id = Buffer.from(requestId, "utf8");
-  const b = Buffer.alloc(19 + id.length);
-  b[0] = 3;
-  b[1] = command;
-  b.writeFloatLE(speed, 2);
-  b[6] = seekNs === null ? 0 : 1;
-  b.writeBigUInt64LE(BigInt(seekNs ?? 0), 7);
-  b.writeUInt32LE(id.length, 15);
-  id.copy(b, 19);
-  const answered = new Promise((resolve) => {
-    waiter = (s) => { if (s.requestId === requestId) resolve(s); };
-  });
-  ws.send(b);
-  return within(30000, `the playback state answering ${requestId}`, answered);
-};
+const playback = playbackControl(ws);
 
 let phase = "before";
 let counts = { before: 0, after: 0 };

@@ -593,6 +593,16 @@ fn each_value_is_read_with_the_step_it_belongs_to() {
     assert_eq!((step, s.step, s.sim_time), (STEPS + 1, STEPS, STEPS as f64 * 0.25));
 }
 
+/// No state file of domain `d` of test `tag` is left in /dev/shm.
+fn assert_no_state_files(tag: &str) {
+    let files: Vec<_> = std::fs::read_dir("/dev/shm")
+        .unwrap()
+        .filter_map(|e| e.ok())
+        .filter(|e| e.file_name().to_string_lossy().contains(&format!("{}.d.state", ns(tag))))
+        .collect();
+    assert!(files.is_empty(), "state files left: {files:?}");
+}
+
 /// A participant's state as a checkpoint sees it: a running sum, shared with the test.
 struct Sum(std::sync::Arc<std::sync::Mutex<f64>>);
 
@@ -661,12 +671,7 @@ fn a_state_is_saved_and_restored_at_a_step_boundary_through_the_segment() {
     assert_eq!(refused[0], vec![StateAnswer::Failed("3 bytes, not 8".into())]);
     fw.domains[0].step(&1.0f64.to_ne_bytes(), 0.0).unwrap();
     assert_eq!(f64::from_ne_bytes(fw.domains[0].subscribe()[0..8].try_into().unwrap()), 7.0);
-    let files: Vec<_> = std::fs::read_dir("/dev/shm")
-        .unwrap()
-        .filter_map(|e| e.ok())
-        .filter(|e| e.file_name().to_string_lossy().contains(&format!("{}.d.state", ns(tag))))
-        .collect();
-    assert!(files.is_empty(), "state files left: {files:?}");
+    assert_no_state_files(tag);
     drop(fw);
     t.join().unwrap();
 }
@@ -714,12 +719,7 @@ fn an_answer_after_the_framework_gave_up_leaves_no_file() {
     });
     go.send(()).unwrap();
     let p = served.join().unwrap();
-    let files: Vec<_> = std::fs::read_dir("/dev/shm")
-        .unwrap()
-        .filter_map(|e| e.ok())
-        .filter(|e| e.file_name().to_string_lossy().contains(&format!("{}.d.state", ns(tag))))
-        .collect();
-    assert!(files.is_empty(), "state files left: {files:?}");
+    assert_no_state_files(tag);
     assert!(!p.serve_state(), "a request given up on is not answered again");
 }
 
