@@ -28,6 +28,7 @@ import sys
 import time
 
 import rclpy
+import rclpy_end
 import rclpy.time
 import tf2_ros
 from geometry_msgs.msg import PoseStamped
@@ -152,7 +153,7 @@ def main():
         code = 1
     finally:
         node.destroy_node()
-        rclpy.try_shutdown()
+        rclpy_end.shutdown()
     return code
 
 

@@ -13,12 +13,10 @@ import json
 import time
 
 import rclpy
-from rclpy.impl.implementation_singleton import rclpy_implementation
+import rclpy_end
 from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from rclpy.qos import QoSProfile, ReliabilityPolicy
-
-RCLError = rclpy_implementation.RCLError
 
 
 def message_class(type_name):
@@ -62,12 +60,7 @@ def main():
         return 0
     finally:
         node.destroy_node()
-        try:
-            rclpy.try_shutdown()
-        except RCLError:
-            # Ctrl-C: rclpy's SIGINT handler may be shutting the context down at this moment
-            # (on rmw_zenoh, closing the session takes a while), which try_shutdown misses.
-            pass
+        rclpy_end.shutdown()
 
 
 if __name__ == '__main__':

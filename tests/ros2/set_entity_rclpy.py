@@ -16,6 +16,7 @@ import sys
 import time
 
 import rclpy
+import rclpy_end
 from rclpy.node import Node
 from simulation_interfaces.srv import GetEntityState, SetEntityState
 
@@ -61,7 +62,7 @@ def main():
                           'q': [o.x, o.y, o.z, o.w]}), flush=True)
     finally:
         node.destroy_node()
-        rclpy.try_shutdown()
+        rclpy_end.shutdown()
     return 0
 
 

@@ -13,6 +13,7 @@ import sys
 import time
 
 import rclpy
+import rclpy_end
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.qos import QoSProfile, ReliabilityPolicy
@@ -52,7 +53,7 @@ def main():
             print(f'clock {c}', flush=True)
     finally:
         node.destroy_node()
-        rclpy.try_shutdown()
+        rclpy_end.shutdown()
     return 0 if len(clocks) >= samples else 1
 
 

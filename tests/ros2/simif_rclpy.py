@@ -24,6 +24,7 @@ import sys
 import time
 
 import rclpy
+import rclpy_end
 from rclpy.action import ActionClient
 from rclpy.node import Node
 from rclpy.qos import QoSProfile, ReliabilityPolicy
@@ -165,7 +166,7 @@ def main():
         code = 1
     finally:
         node.destroy_node()
-        rclpy.try_shutdown()
+        rclpy_end.shutdown()
     return code
 
 
