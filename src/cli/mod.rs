@@ -21,10 +21,20 @@ mod studio;
 
 pub use tutti_exit::{enter_realtime, load_ddf, CliResult, Failure, RealtimeArgs};
 
+/// `tutti --version`: the version, the commit built and the gateway's engines (build.rs).
+const VERSION: &str = concat!(
+    env!("CARGO_PKG_VERSION"),
+    " (commit ",
+    env!("TUTTI_BUILD_COMMIT"),
+    "; engines: ",
+    env!("TUTTI_BUILD_ENGINES"),
+    ")"
+);
+
 #[derive(Debug, Parser)]
 #[command(
     name = "tutti",
-    version,
+    version = VERSION,
     about = "Real-time co-simulation data layer: shared-memory domains described by a DDF, an RTAPI for C, Rust and Python components, and a DDS / ROS 2 gateway",
     after_help = "Examples:\n  tutti check ddf/multiuav.ddf\n  tutti show ddf/multiuav.ddf --json\n  tutti idl ddf/multiuav.ddf --out idl/multiuav\n\nEnvironment:\n  TUTTI_NAMESPACE   namespace of the shared-memory segments (default: tutti)\n  ROS_DOMAIN_ID     DDS domain of the gateway when --ros-domain-id is absent"
 )]
