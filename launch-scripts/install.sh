@@ -3,18 +3,20 @@
 # as they would against the product:
 #
 #   PREFIX/include/RTAPI.h
-#   PREFIX/lib/librtapi.so.0.1.0, librtapi.so.0 (the SONAME), librtapi.so, librtapi.a
+#   PREFIX/lib/librtapi.so.VERSION, librtapi.so.0 (the SONAME), librtapi.so, librtapi.a
 #   PREFIX/lib/libOpalOrchestra.so            the product's library name (its clients' builds
 #                                             look for OpalOrchestra and RTAPI.h): the same
 #                                             library with its own SONAME, so that it works
 #                                             alone in a directory of its own
-# Libraries are installed stripped of debug information.
+# Libraries and the CLI are installed stripped of debug information.
 #   PREFIX/lib/pkgconfig/rtapi.pc             pkg-config --cflags --libs rtapi
 #   PREFIX/lib/cmake/tutti/tuttiConfig.cmake  find_package(tutti) -> imported target tutti::rtapi
 #   PREFIX/bin/tutti                          the CLI, when it was built
 #
-# Usage: launch-scripts/install.sh [--prefix DIR] [--build-dir DIR] [--no-cli]
+# Usage: launch-scripts/install.sh [--prefix DIR] [--destdir DIR] [--build-dir DIR] [--no-cli]
 #   --prefix DIR     where to install (default /usr/local)
+#   --destdir DIR    stage the files under DIR/PREFIX, as a package is built, while the
+#                    pkg-config file names PREFIX (PREFIX must then be absolute)
 #   --build-dir DIR  take the built library from DIR (e.g. target/debug) instead of
 #                    target/release, which is built (cargo build --release -p tutti-rtapi)
 #                    unless it is newer than every source it is made of
@@ -25,16 +27,19 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 
 prefix=/usr/local
+destdir=""
 build_dir=""
 cli=yes
 while [ $# -gt 0 ]; do
     case "$1" in
         --prefix) prefix="${2:?--prefix needs a directory}"; shift 2 ;;
         --prefix=*) prefix="${1#--prefix=}"; shift ;;
+        --destdir) destdir="${2:?--destdir needs a directory}"; shift 2 ;;
+        --destdir=*) destdir="${1#--destdir=}"; shift ;;
         --build-dir) build_dir="${2:?--build-dir needs a directory}"; shift 2 ;;
         --build-dir=*) build_dir="${1#--build-dir=}"; shift ;;
         --no-cli) cli=no; shift ;;
-        -h|--help) sed -n '2,22p' "$0" | sed 's/^# \{0,1\}//'; exit 0 ;;
+        -h|--help) sed -n '2,24p' "$0" | sed 's/^# \{0,1\}//'; exit 0 ;;
         *) echo "install.sh: unknown argument '$1' (see --help)" >&2; exit 2 ;;
     esac
 done
@@ -60,11 +65,19 @@ done
 
 version=$(sed -n 's/^version *= *"\(.*\)"/\1/p' Cargo.toml | head -1)
 major=${version%%.*}
-prefix=$(mkdir -p "$prefix" && cd "$prefix" && pwd)
-lib="$prefix/lib"
-mkdir -p "$prefix/include" "$lib/pkgconfig" "$lib/cmake/tutti"
+if [ -n "$destdir" ]; then
+    case "$prefix" in /*) ;; *) echo "install.sh: --destdir needs an absolute --prefix, not '$prefix'" >&2; exit 2 ;; esac
+    mkdir -p "$destdir"
+    destdir=$(cd "$destdir" && pwd)
+else
+    prefix=$(mkdir -p "$prefix" && cd "$prefix" && pwd)
+fi
+# Files go under $root; what they say of where they are names $prefix.
+root="$destdir$prefix"
+lib="$root/lib"
+mkdir -p "$root/include" "$lib/pkgconfig" "$lib/cmake/tutti"
 
-install -m 0644 include/RTAPI.h "$prefix/include/RTAPI.h"
+install -m 0644 include/RTAPI.h "$root/include/RTAPI.h"
 install -m 0755 "$build_dir/librtapi.so" "$lib/librtapi.so.$version"
 install -m 0644 "$build_dir/librtapi.a" "$lib/librtapi.a"
 strip --strip-unneeded "$lib/librtapi.so.$version"
@@ -83,8 +96,9 @@ cc -shared -o "$lib/libOpalOrchestra.so" -Wl,-soname,libOpalOrchestra.so \
     -Wl,--whole-archive "$lib/librtapi.a" -Wl,--no-whole-archive -lpthread -ldl -lm
 strip --strip-unneeded "$lib/libOpalOrchestra.so"
 if [ "$cli" = yes ] && [ -x "$build_dir/tutti" ]; then
-    mkdir -p "$prefix/bin"
-    install -m 0755 "$build_dir/tutti" "$prefix/bin/tutti"
+    mkdir -p "$root/bin"
+    install -m 0755 "$build_dir/tutti" "$root/bin/tutti"
+    strip --strip-debug "$root/bin/tutti"
 fi
 
 cat > "$lib/pkgconfig/rtapi.pc" <<PC
@@ -134,7 +148,7 @@ else()
 endif()
 CMAKE
 
-echo "installed the RTAPI $version under $prefix"
+echo "installed the RTAPI $version under $root"
 echo "  C/C++:  pkg-config --cflags --libs rtapi   (PKG_CONFIG_PATH=$lib/pkgconfig)"
 echo "  CMake:  find_package(tutti) with CMAKE_PREFIX_PATH=$prefix -> tutti::rtapi"
 echo "  Python: pip install ./python"

@@ -10,8 +10,8 @@
     print(rt.connection_count("multiuav_uav2"))
 
 The library is found through the environment variable TUTTI_RTAPI_LIB (a path to
-librtapi.so), else in ../target/release then ../target/debug relative to this file (a
-checkout), else where an installed RTAPI is (launch-scripts/install.sh): pkg-config's
+librtapi.so), else the one the `tutti` wheel carries (tutti/lib/ beside this file), else in
+../target/release then ../target/debug relative to this file (a checkout), else where an installed RTAPI is (launch-scripts/install.sh): pkg-config's
 `rtapi` package, then the system's library path, then /usr/local/lib.
 
 Item types: with a DDF (connect(..., ddf=PATH)) every item is converted according to its
@@ -85,6 +85,10 @@ def _find_library():
     if env:
         return env
     here = os.path.dirname(os.path.abspath(__file__))
+    # The wheel's own library (the `tutti` package beside this module), before anything else.
+    bundled = os.path.join(here, "tutti", "lib", "librtapi.so.0")
+    if os.path.exists(bundled):
+        return bundled
     for profile in ("release", "debug"):
         path = os.path.join(here, "..", "target", profile, "librtapi.so")
         if os.path.exists(path):

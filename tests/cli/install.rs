@@ -14,12 +14,12 @@ const LIMIT: Duration = Duration::from_secs(300);
 
 /// `tutti host` in its own namespace, stopped (SIGINT: it removes its segments) when dropped,
 /// and what it may have left removed after it.
-struct HostGuard {
+pub(crate) struct HostGuard {
     _host: common::Proc,
     _segments: common::RemoveSegments,
 }
 
-fn run(cmd: Command, what: &str) -> String {
+pub(crate) fn run(cmd: Command, what: &str) -> String {
     let (status, out, err) = common::run_with_timeout(cmd, LIMIT);
     assert!(status.success(), "{what} failed ({status}):\n{out}\n{err}");
     out
@@ -31,7 +31,7 @@ fn reads_from_the_host(exe: &Path, ns: &str, what: &str) {
 }
 
 /// As [`reads_from_the_host`], for the program `c` runs (with its own environment).
-fn reads_from_the_host_with(mut c: Command, ns: &str, what: &str) {
+pub(crate) fn reads_from_the_host_with(mut c: Command, ns: &str, what: &str) {
     c.env("TUTTI_NAMESPACE", ns).arg(common::repo_root().join("ddf/multiuav.ddf")).args([
         "multiuav_uav2",
         "Z",
@@ -94,9 +94,13 @@ fn install_into(prefix: &Path) {
 
 /// `tutti host` of ddf/multiuav.ddf in namespace `ns`, with multiuav_uav2/Z = 1.5.
 fn start_host(ns: &str) -> HostGuard {
-    let mut host = common::tutti_command();
-    host.args(["host", "ddf/multiuav.ddf", "--step", "2ms", "-q", "--set", "multiuav_uav2/Z=1.5"])
-        .env("TUTTI_NAMESPACE", ns);
+    start_host_with(common::tutti_command(), ns)
+}
+
+/// As [`start_host`], with the `tutti` that `host` runs (an installed one).
+pub(crate) fn start_host_with(mut host: Command, ns: &str) -> HostGuard {
+    let ddf = common::repo_root().join("ddf/multiuav.ddf");
+    host.arg("host").arg(ddf).args(["--step", "2ms", "-q", "--set", "multiuav_uav2/Z=1.5"]).env("TUTTI_NAMESPACE", ns);
     let opts =
         common::Spawn { watchdog: Duration::from_secs(1800), grace: Duration::from_secs(5), ..Default::default() };
     HostGuard {
@@ -217,15 +221,23 @@ fn a_pip_installed_module_reads_from_the_host(dir: &Path, prefix: &Path, pc_path
         .arg(&pysrc)
         .current_dir(dir);
     run(pip, "pip install ./python");
+    let mut py = python_component(&venv, dir, ns);
+    py.env("PKG_CONFIG_PATH", pc_path);
+    let out = run(py, "the pip-installed Python component");
+    assert!(out.contains("z 1.5"), "{out}");
+    assert!(out.contains(&prefix.join("lib/librtapi.so.0").display().to_string()), "the installed library: {out}");
+}
+
+/// A Python component of `venv` (run in `dir`, outside the checkout, with no
+/// `TUTTI_RTAPI_LIB` or `PYTHONPATH`) that reads multiuav_uav2/Z for 5 steps from the host of
+/// namespace `ns` and prints `z VALUE LIBRARY`: what it read and the library it loaded.
+pub(crate) fn python_component(venv: &Path, dir: &Path, ns: &str) -> Command {
     let script = "import tutti_rtapi as rt\nwith rt.connect('multiuav_uav2', timeout=30) as c:\n    for _ in range(5):\n        with c.reading():\n            z = c.subscribe('Z')\n        with c.writing():\n            c.publish('Elevation', 2 * z)\nprint('z', z, rt._find_library())\n";
     let mut py = Command::new(venv.join("bin/python"));
     py.args(["-c", script])
         .current_dir(dir)
         .env("TUTTI_NAMESPACE", ns)
-        .env("PKG_CONFIG_PATH", pc_path)
         .env_remove("TUTTI_RTAPI_LIB")
         .env_remove("PYTHONPATH");
-    let out = run(py, "the pip-installed Python component");
-    assert!(out.contains("z 1.5"), "{out}");
-    assert!(out.contains(&prefix.join("lib/librtapi.so.0").display().to_string()), "the installed library: {out}");
+    py
 }

@@ -40,6 +40,7 @@ mod hostile_files;
 mod idl_generated;
 mod idl_tools;
 mod install;
+mod package;
 mod record_mcap;
 mod replay;
 mod ros2_real;
