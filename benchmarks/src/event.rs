@@ -334,7 +334,7 @@ fn model(kind: Kind, outputs: usize) -> anyhow::Result<ddf::Model> {
 }
 
 /// The process's CPU time so far, every thread, user and system.
-fn process_cpu() -> Duration {
+pub(crate) fn process_cpu() -> Duration {
     let t = rustix::time::clock_gettime(rustix::time::ClockId::ProcessCPUTime);
     Duration::new(t.tv_sec.max(0) as u64, t.tv_nsec.clamp(0, 999_999_999) as u32)
 }

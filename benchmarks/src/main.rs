@@ -18,6 +18,7 @@ mod iceoryx;
 mod peers;
 mod record;
 mod rtapi;
+mod scale;
 mod shm;
 mod sites;
 mod studio;
@@ -46,6 +47,9 @@ enum What {
     /// What recording costs a real-time host: step lateness without a recording, with MCAP
     /// and with CSV, and MB per minute.
     Record(record::Args),
+    /// What a step costs as participants and domains grow (barrier, hub, leaves, ring), next
+    /// to HELICS federates in the same run.
+    Scale(scale::Args),
     /// Round trips through shared-memory domains, next to iceoryx2 in the same run.
     Shm(shm::Args),
     /// Lock-step between two sites joined by a slow link (two network namespaces), per
@@ -72,6 +76,7 @@ fn main() -> ExitCode {
         What::Event(a) => event::run(a),
         What::Gateway(a) => gateway::run(a),
         What::Record(a) => record::run(a),
+        What::Scale(a) => scale::run(a),
         What::Shm(a) => shm::run(a),
         What::Sites(a) => sites::run(a),
         What::RtapiThreads(a) => rtapi::run(a).map_err(Into::into),

@@ -11,6 +11,7 @@
 #[macro_use]
 mod gateway;
 
+mod bench_scale;
 mod checkpoint;
 mod connect;
 mod ctl;

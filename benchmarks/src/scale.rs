@@ -1,0 +1,473 @@
+//! `tutti-bench scale`: what a step costs as participants and domains grow, in the shapes of
+//! HELICS's own benchmarks, next to HELICS federates in the same run.
+//!
+//! tutti's shapes, each participant a thread of this process with its own connection, the
+//! framework a `Host` in this process stepping as fast as they go (`speed: inf`):
+//!
+//! * **barrier**: one synchronous domain, N participants that lock and commit nothing: the
+//!   step's cost alone;
+//! * **hub**: one synchronous domain, N participants each reading the framework's item and
+//!   committing its own item of the one SUBSCRIBE set;
+//! * **leaves**: N synchronous domains of one participant each, one framework;
+//! * **ring**: N domains in a chain, participant i reading domain i's input and writing its
+//!   output, which a connection copies to domain i+1's input (the last to the first).
+//!
+//! HELICS (`benchmarks/src/helics_scale.c`, compiled here against the C library of the
+//! `helics` wheel from PyPI): barrier and hub (a hub federate, HELICS's framework, and N
+//! federates depending on it; in the barrier nothing is published) and ring, one thread per
+//! federate on one in-process core, time-stepped.
+//!
+//! Every run's counts are checked (each participant or federate answered every step) before
+//! its figures are printed.
+
+use std::path::PathBuf;
+use std::process::Command;
+use std::sync::atomic::AtomicBool;
+use std::thread::JoinHandle;
+use std::time::{Duration, Instant};
+
+use anyhow::{bail, Context as _};
+use serde_json::{json, Value};
+use tutti_core::ddf;
+use tutti_core::parse::parse_wait;
+use tutti_core::shm::{ConnectOptions, Participant, ShmError, WaitMode};
+use tutti_host::{Host, HostOptions, Report};
+
+use crate::event::process_cpu;
+use crate::{nearest_rank, CliResult};
+
+const HELICS_SRC: &str = include_str!("helics_scale.c");
+
+#[derive(Debug, clap::Args)]
+#[command(
+    after_help = "Examples:\n  tutti-bench scale\n  tutti-bench scale --n 2,8,32,128 --steps 5000 --json\n  tutti-bench scale --shapes hub --wait spin --no-helics"
+)]
+pub struct Args {
+    /// Participants (threads) per run, comma-separated.
+    #[arg(long, value_delimiter = ',', default_value = "2,8,32")]
+    n: Vec<usize>,
+    /// Steps per run.
+    #[arg(long, default_value_t = 2000, value_parser = clap::value_parser!(u64).range(1..))]
+    steps: u64,
+    /// The shapes to run, comma-separated: barrier, hub, leaves, ring.
+    #[arg(long, value_delimiter = ',', default_value = "barrier,hub,leaves,ring")]
+    shapes: Vec<Shape>,
+    /// How the framework and every participant wait: block (futex), spin or poll:DURATION.
+    #[arg(long, default_value = "block", value_parser = parse_wait)]
+    wait: WaitMode,
+    /// Leave HELICS out (it is looked for in the repository's .venv, or HELICS_INSTALL).
+    #[arg(long)]
+    no_helics: bool,
+    /// Print one JSON object instead of the table.
+    #[arg(long)]
+    json: bool,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum Shape {
+    Barrier,
+    Hub,
+    Leaves,
+    Ring,
+}
+
+impl Shape {
+    fn name(self) -> &'static str {
+        match self {
+            Shape::Barrier => "barrier",
+            Shape::Hub => "hub",
+            Shape::Leaves => "leaves",
+            Shape::Ring => "ring",
+        }
+    }
+
+    /// Domains of the shape's DDF for N participants.
+    fn domains(self, n: usize) -> usize {
+        match self {
+            Shape::Barrier | Shape::Hub => 1,
+            Shape::Leaves | Shape::Ring => n,
+        }
+    }
+
+    /// Whether HELICS has the shape (leaves are N federates that exchange nothing: its barrier).
+    fn helics(self) -> bool {
+        self != Shape::Leaves
+    }
+}
+
+/// One run's figures, tutti's or HELICS's.
+#[derive(Debug, Clone)]
+struct Figures {
+    system: &'static str,
+    shape: Shape,
+    n: usize,
+    steps: u64,
+    wall_s: f64,
+    cpu_s: f64,
+    p50_us: f64,
+    p99_us: f64,
+}
+
+impl Figures {
+    fn steps_per_s(&self) -> f64 {
+        self.steps as f64 / self.wall_s
+    }
+
+    fn cpu_us_per_step(&self) -> f64 {
+        self.cpu_s * 1e6 / self.steps as f64
+    }
+
+    fn to_json(&self) -> Value {
+        json!({
+            "system": self.system, "shape": self.shape.name(), "n": self.n, "steps": self.steps,
+            "steps_per_s": self.steps_per_s(), "wall_s": self.wall_s, "cpu_us_per_step": self.cpu_us_per_step(),
+            "step_us": { "p50": self.p50_us, "p99": self.p99_us },
+        })
+    }
+}
+
+pub fn run(args: Args) -> CliResult {
+    let cpus = std::thread::available_parallelism().map_or(0, |n| n.get());
+    let helics = if args.no_helics { None } else { Some(Helics::build()?) };
+    if !args.json {
+        println!(
+            "scale: {} steps per run, speed inf, wait {:?}, one thread per participant (federate), {cpus} CPUs, unpinned; HELICS {}",
+            args.steps,
+            args.wait,
+            helics.as_ref().map_or("left out".to_string(), |h| format!("{} (inproc core, C federates)", h.version))
+        );
+        println!(
+            "{:<8} {:>4}  {:>11} {:>9} {:>9} {:>11}  {:>11} {:>9} {:>9} {:>11}  {:>8}",
+            "shape",
+            "N",
+            "tutti st/s",
+            "p50 µs",
+            "p99 µs",
+            "CPU µs/st",
+            "HELICS st/s",
+            "p50 µs",
+            "p99 µs",
+            "CPU µs/st",
+            "ratio"
+        );
+    }
+    let mut all = Vec::new();
+    for &shape in &args.shapes {
+        for &n in &args.n {
+            eprintln!("bench scale: {} N={n}: tutti", shape.name());
+            let ours = tutti_run(&args, shape, n)?;
+            let theirs = match (&helics, shape.helics()) {
+                (Some(h), true) => {
+                    eprintln!("bench scale: {} N={n}: HELICS", shape.name());
+                    Some(h.run(shape, n, args.steps)?)
+                }
+                _ => None,
+            };
+            if !args.json {
+                print_row(&ours, theirs.as_ref());
+            }
+            all.push(ours);
+            all.extend(theirs);
+        }
+    }
+    if args.json {
+        let out = json!({
+            "benchmark": "scale",
+            "steps": args.steps,
+            "wait": format!("{:?}", args.wait),
+            "cpus": cpus,
+            "helics": helics.as_ref().map(|h| h.version.clone()),
+            "runs": all.iter().map(Figures::to_json).collect::<Vec<_>>(),
+        });
+        println!("{}", serde_json::to_string(&out).context("writing JSON")?);
+    }
+    Ok(())
+}
+
+fn print_row(ours: &Figures, theirs: Option<&Figures>) {
+    let peer = theirs.map_or(format!("{:>11} {:>9} {:>9} {:>11}  {:>8}", "-", "-", "-", "-", "-"), |t| {
+        format!(
+            "{:>11.0} {:>9.1} {:>9.1} {:>11.1}  {:>7.1}x",
+            t.steps_per_s(),
+            t.p50_us,
+            t.p99_us,
+            t.cpu_us_per_step(),
+            ours.steps_per_s() / t.steps_per_s()
+        )
+    });
+    println!(
+        "{:<8} {:>4}  {:>11.0} {:>9.1} {:>9.1} {:>11.1}  {peer}",
+        ours.shape.name(),
+        ours.n,
+        ours.steps_per_s(),
+        ours.p50_us,
+        ours.p99_us,
+        ours.cpu_us_per_step()
+    );
+}
+
+/// The shape's DDF: domains `d0..`, each with an input `x` (PUBLISH) and, for N participants
+/// of one domain, outputs `y0..y{N-1}` (SUBSCRIBE; one `y0` per domain otherwise).
+fn model(shape: Shape, n: usize) -> anyhow::Result<ddf::Model> {
+    let outputs = if shape.domains(n) == 1 { n } else { 1 };
+    let items: String = (0..outputs).map(|i| format!(r#"<item name="y{i}"><type>float64</type></item>"#)).collect();
+    let domains: String = (0..shape.domains(n))
+        .map(|d| {
+            format!(
+                r#"<domain name="d{d}"><synchronous>yes</synchronous><multiplePublishAllowed>yes</multiplePublishAllowed><states>no</states>
+                <set name="PUBLISH"><item name="x"><type>float64</type></item></set><set name="SUBSCRIBE">{items}</set></domain>"#
+            )
+        })
+        .collect();
+    ddf::parse_str(&format!("<orchestra>{domains}</orchestra>"), "scale-bench.ddf").context("the benchmark's DDF")
+}
+
+/// Participant `i`: which domain it joins and which output it writes (none in a barrier).
+fn place(shape: Shape, i: usize) -> (String, Option<String>) {
+    match shape {
+        Shape::Barrier => ("d0".into(), None),
+        Shape::Hub => ("d0".into(), Some(format!("y{i}"))),
+        Shape::Leaves | Shape::Ring => (format!("d{i}"), Some("y0".into())),
+    }
+}
+
+/// Answers every step until the framework stops; returns the steps answered.
+fn participant(namespace: String, shape: Shape, i: usize, wait: WaitMode) -> Result<u64, ShmError> {
+    let (domain, output) = place(shape, i);
+    let opts = ConnectOptions {
+        namespace,
+        wait,
+        name: format!("p{i}"),
+        connect_timeout: Duration::from_secs(60),
+        timeout: Duration::from_secs(30),
+        ..Default::default()
+    };
+    let mut p = Participant::connect(&domain, opts)?;
+    let x = p.leaf(ddf::Role::Publish, "x")?.0;
+    let y = output.map(|o| p.leaf(ddf::Role::Subscribe, &o)).transpose()?.map(|l| l.0);
+    let mut answered = 0u64;
+    loop {
+        match p.subscribe_lock() {
+            Ok(_) => {}
+            Err(ShmError::FrameworkStopped { .. }) => return Ok(answered),
+            Err(e) => return Err(e),
+        }
+        let read = match y {
+            Some(_) => p.snapshot_item(x).and_then(|b| b.try_into().ok()).map_or(0.0, f64::from_ne_bytes),
+            None => 0.0,
+        };
+        p.publish_lock()?;
+        if let Some(y) = y {
+            p.stage_at(y, &(read + 1.0).to_ne_bytes())?;
+        }
+        p.commit()?;
+        answered += 1;
+    }
+}
+
+fn tutti_run(args: &Args, shape: Shape, n: usize) -> anyhow::Result<Figures> {
+    let model = model(shape, n)?;
+    let namespace = format!("{}{}x{n}", namespace_prefix(), shape.name());
+    let connections = match shape {
+        Shape::Ring => (0..n)
+            .map(|i| tutti_host::connect::parse_connection(&format!("d{i}/subscribe/y0 -> d{}/publish/x", (i + 1) % n)))
+            .collect::<Result<Vec<_>, _>>()
+            .context("the ring's connections")?,
+        _ => Vec::new(),
+    };
+    let opts = HostOptions {
+        step: Duration::from_millis(1),
+        speed: f64::INFINITY,
+        steps: Some(args.steps),
+        timeout: Duration::from_secs(30),
+        wait: args.wait,
+        namespace: Some(namespace.clone()),
+        hold_until_start: true,
+        connections,
+        ddf_name: "the benchmark's DDF".into(),
+        ..Default::default()
+    };
+    // Dropped on every way out: the segments go with it and the participants' next call
+    // returns "framework stopped".
+    let mut host = Host::new(&model, opts).context("creating the domains")?;
+    let threads: Vec<JoinHandle<Result<u64, ShmError>>> = (0..n)
+        .map(|i| {
+            let ns = namespace.clone();
+            let wait = args.wait;
+            std::thread::spawn(move || participant(ns, shape, i, wait))
+        })
+        .collect();
+    let stepped = drive(&mut host, args.steps, n);
+    drop(host);
+    let mut failed = None;
+    for (i, t) in threads.into_iter().enumerate() {
+        let answered = t.join().map_err(|_| anyhow::anyhow!("participant {i} panicked")).and_then(|r| {
+            let steps = r.with_context(|| format!("participant {i}"))?;
+            if steps != args.steps {
+                bail!("participant {i} answered {steps} of {} steps", args.steps);
+            }
+            Ok(())
+        });
+        if let Err(e) = answered {
+            failed.get_or_insert(e);
+        }
+    }
+    let (wall, cpu, mut times) = stepped?;
+    if let Some(e) = failed {
+        return Err(e.context(format!("{} N={n}", shape.name())));
+    }
+    times.sort();
+    let us = |q: f64| nearest_rank(&times, q).as_secs_f64() * 1e6;
+    Ok(Figures {
+        system: "tutti",
+        shape,
+        n,
+        steps: args.steps,
+        wall_s: wall.as_secs_f64(),
+        cpu_s: cpu.as_secs_f64(),
+        p50_us: us(0.5),
+        p99_us: us(0.99),
+    })
+}
+
+/// The runs' namespaces begin with TUTTI_NAMESPACE when set (a test's own), else with one of
+/// this process's; each run's is `PREFIXSHAPExN`.
+pub(crate) fn namespace_prefix() -> String {
+    std::env::var("TUTTI_NAMESPACE").unwrap_or_else(|_| format!("benchscale{}x", std::process::id()))
+}
+
+/// Waits for every participant, starts the host and makes its steps, timing each call;
+/// returns the wall and CPU time of the steps and each step's time.
+fn drive(host: &mut Host, steps: u64, n: usize) -> anyhow::Result<(Duration, Duration, Vec<Duration>)> {
+    let deadline = Instant::now() + Duration::from_secs(60);
+    let connected = |h: &Host| h.framework().domains.iter().map(|d| d.connection_count() as usize).sum::<usize>();
+    while connected(host) < n {
+        if Instant::now() >= deadline {
+            bail!("{} of {n} participants connected within 60 s", connected(host));
+        }
+        std::thread::sleep(Duration::from_millis(1));
+    }
+    let stop = AtomicBool::new(false);
+    let mut timeouts = 0u64;
+    let mut on_report = |r: Report| {
+        if let Report::StepTimedOut { .. } = r {
+            timeouts += 1;
+            eprintln!("bench scale: {r}");
+        }
+    };
+    let cpu0 = process_cpu();
+    let t0 = Instant::now();
+    if !host.start(&stop, &mut on_report).context("starting the run")? {
+        bail!("the run stopped before it started");
+    }
+    let mut times = Vec::with_capacity(steps as usize);
+    let mut next = 0u64;
+    while next < steps {
+        let s = Instant::now();
+        next = host.step(&mut on_report).context("a step")?.k + 1;
+        times.push(s.elapsed());
+    }
+    let (wall, cpu) = (t0.elapsed(), process_cpu().saturating_sub(cpu0));
+    if timeouts > 0 {
+        bail!("{timeouts} step(s) timed out");
+    }
+    Ok((wall, cpu, times))
+}
+
+/// The HELICS federates' program, compiled against the `helics` wheel's C library.
+struct Helics {
+    exe: PathBuf,
+    version: String,
+    _dir: tempfile::TempDir,
+}
+
+impl Helics {
+    /// HELICS's install tree: HELICS_INSTALL, else the `helics` package of the repository's
+    /// .venv (launch-scripts/test.sh installs it).
+    fn install() -> anyhow::Result<PathBuf> {
+        if let Some(dir) = std::env::var_os("HELICS_INSTALL") {
+            return Ok(dir.into());
+        }
+        let py = tutti_test_support::repo_root().join(".venv/bin/python");
+        let out = Command::new(&py)
+            .args(["-c", "import helics, os; print(os.path.join(os.path.dirname(helics.__file__), 'install'))"])
+            .output()
+            .with_context(|| format!("running {}", py.display()))?;
+        if !out.status.success() {
+            bail!(
+                "no HELICS: {} cannot import helics (pip install helics==3.6.1, or set HELICS_INSTALL, or --no-helics)",
+                py.display()
+            );
+        }
+        Ok(PathBuf::from(String::from_utf8_lossy(&out.stdout).trim()))
+    }
+
+    fn build() -> anyhow::Result<Helics> {
+        let install = Self::install()?;
+        let (include, lib) = (install.join("include"), install.join("lib64"));
+        if !include.join("helics/helics.h").is_file() {
+            bail!("{} has no include/helics/helics.h", install.display());
+        }
+        let dir = tempfile::tempdir().context("a temporary directory")?;
+        let src = dir.path().join("helics_scale.c");
+        std::fs::write(&src, HELICS_SRC).context("writing the HELICS program")?;
+        let exe = dir.path().join("helics_scale");
+        let out = Command::new("cc")
+            .args(["-O2", "-std=gnu11", "-Wall", "-Wextra", "-Werror"])
+            .arg(&src)
+            .arg(format!("-I{}", include.display()))
+            .arg(format!("-L{}", lib.display()))
+            .arg("-lhelics")
+            .arg(format!("-Wl,-rpath,{}", lib.display()))
+            .arg("-lpthread")
+            .arg("-o")
+            .arg(&exe)
+            .output()
+            .context("running cc")?;
+        if !out.status.success() {
+            bail!("compiling the HELICS federates failed:\n{}", String::from_utf8_lossy(&out.stderr));
+        }
+        let mut h = Helics { exe, version: String::new(), _dir: dir };
+        let probe = h.output(Shape::Barrier, 1, 1)?;
+        h.version = probe["version"].as_str().unwrap_or("?").to_string();
+        Ok(h)
+    }
+
+    fn output(&self, shape: Shape, n: usize, steps: u64) -> anyhow::Result<Value> {
+        let out = tutti_test_support::run_with_timeout(
+            {
+                let mut c = Command::new(&self.exe);
+                c.args([shape.name(), &n.to_string(), &steps.to_string()]);
+                c
+            },
+            Duration::from_secs(900),
+        );
+        let (status, stdout, stderr) = out;
+        if !status.success() {
+            bail!("HELICS {} N={n} failed ({status}): {stderr}", shape.name());
+        }
+        // HELICS logs on stdout too: the figures are the last line, one JSON object.
+        let line = stdout.lines().rev().find(|l| l.starts_with('{')).unwrap_or_default();
+        serde_json::from_str(line).with_context(|| format!("HELICS's output: {stdout}"))
+    }
+
+    fn run(&self, shape: Shape, n: usize, steps: u64) -> anyhow::Result<Figures> {
+        let v = self.output(shape, n, steps)?;
+        let granted: Vec<u64> = v["granted"].as_array().into_iter().flatten().filter_map(Value::as_u64).collect();
+        let federates = v["federates"].as_u64().unwrap_or(0) as usize;
+        if granted.len() != federates || granted.iter().any(|&g| g != steps) {
+            bail!("HELICS {} N={n}: federates granted {granted:?} of {steps} steps", shape.name());
+        }
+        let f = |k: &str| v[k].as_f64().with_context(|| format!("HELICS's {k}: {v}"));
+        Ok(Figures {
+            system: "HELICS",
+            shape,
+            n,
+            steps,
+            wall_s: f("wall_s")?,
+            cpu_s: f("cpu_s")?,
+            p50_us: f("p50_us")?,
+            p99_us: f("p99_us")?,
+        })
+    }
+}
