@@ -26,11 +26,8 @@ const SHM_DIR: &str = "/dev/shm";
 pub fn run_iceoryx2_pingpong(size: usize, iterations: usize, cpu_ping: usize, cpu_pong: usize) -> Vec<f64> {
     assert!(size >= 8, "payload must hold the 8-byte sequence number");
     let yield_spin = cpu_ping == cpu_pong;
-    static RUN: AtomicUsize = AtomicUsize::new(0);
-    let tag = format!("{}_{}", std::process::id(), RUN.fetch_add(1, Ordering::Relaxed));
-    remove_stale_runs();
+    let (tag, mut guard) = run_tag();
     pin_current_thread(cpu_ping);
-    let mut guard = RunGuard { tag: tag.clone(), child: None };
     let r = ping(&tag, size, iterations, cpu_pong, yield_spin, &mut guard);
     drop(guard); // stops child (if still alive) and removes this run's files
     r.unwrap_or_else(|e| panic!("iceoryx2 ping-pong failed: {e}"))
@@ -63,7 +60,7 @@ fn config(tag: &str) -> Res<Config> {
 fn root_dir(tag: &str) -> String {
     format!("/tmp/iceoryx2_pp{tag}/")
 }
-fn node(tag: &str) -> Res<Node<ipc::Service>> {
+pub(crate) fn node(tag: &str) -> Res<Node<ipc::Service>> {
     Ok(NodeBuilder::new()
         .config(&config(tag)?)
         // Disabled: otherwise iceoryx2 installs SIGINT/SIGTERM handlers and Ctrl-C would not stop
@@ -194,8 +191,17 @@ fn pin_current_thread(cpu: usize) {
     }
 }
 
+/// A run's own tag (its config's root dir and shm prefix), with the guard that removes its
+/// files when dropped; earlier runs' files whose process is gone are removed first.
+pub(crate) fn run_tag() -> (String, RunGuard) {
+    static RUN: AtomicUsize = AtomicUsize::new(0);
+    let tag = format!("{}_{}", std::process::id(), RUN.fetch_add(1, Ordering::Relaxed));
+    remove_stale_runs();
+    (tag.clone(), RunGuard { tag, child: None })
+}
+
 /// Kills the child if still running and removes everything iceoryx2 created for this run.
-struct RunGuard {
+pub(crate) struct RunGuard {
     tag: String,
     child: Option<ChildProcess>,
 }

@@ -13,6 +13,7 @@ use clap::{Parser, Subcommand};
 mod checkpoint;
 mod ddf;
 mod event;
+mod fanout;
 mod gateway;
 mod iceoryx;
 mod peers;

@@ -17,6 +17,9 @@
 //! federates depending on it; in the barrier nothing is published) and ring, one thread per
 //! federate on one in-process core, time-stepped.
 //!
+//! * **fan-out** (`fanout.rs`): one writer, R readers of an asynchronous set, next to
+//!   iceoryx2's publish-subscribe with as many subscribers.
+//!
 //! Every run's counts are checked (each participant or federate answered every step) before
 //! its figures are printed.
 
@@ -34,6 +37,7 @@ use tutti_core::shm::{ConnectOptions, Participant, ShmError, WaitMode};
 use tutti_host::{Host, HostOptions, Report};
 
 use crate::event::process_cpu;
+use crate::fanout::{self, FanOut};
 use crate::{nearest_rank, CliResult};
 
 const HELICS_SRC: &str = include_str!("helics_scale.c");
@@ -49,9 +53,15 @@ pub struct Args {
     /// Steps per run.
     #[arg(long, default_value_t = 2000, value_parser = clap::value_parser!(u64).range(1..))]
     steps: u64,
-    /// The shapes to run, comma-separated: barrier, hub, leaves, ring.
-    #[arg(long, value_delimiter = ',', default_value = "barrier,hub,leaves,ring")]
+    /// The shapes to run, comma-separated: barrier, hub, leaves, ring, fan-out.
+    #[arg(long, value_delimiter = ',', default_value = "barrier,hub,leaves,ring,fan-out")]
     shapes: Vec<Shape>,
+    /// Readers of the fan-out shape, comma-separated.
+    #[arg(long, value_delimiter = ',', default_value = "1,10,100,200")]
+    readers: Vec<usize>,
+    /// Writes per fan-out run.
+    #[arg(long, default_value_t = 20_000)]
+    writes: usize,
     /// How the framework and every participant wait: block (futex), spin or poll:DURATION.
     #[arg(long, default_value = "block", value_parser = parse_wait)]
     wait: WaitMode,
@@ -69,6 +79,7 @@ pub enum Shape {
     Hub,
     Leaves,
     Ring,
+    FanOut,
 }
 
 impl Shape {
@@ -78,20 +89,21 @@ impl Shape {
             Shape::Hub => "hub",
             Shape::Leaves => "leaves",
             Shape::Ring => "ring",
+            Shape::FanOut => "fan-out",
         }
     }
 
     /// Domains of the shape's DDF for N participants.
     fn domains(self, n: usize) -> usize {
         match self {
-            Shape::Barrier | Shape::Hub => 1,
+            Shape::Barrier | Shape::Hub | Shape::FanOut => 1,
             Shape::Leaves | Shape::Ring => n,
         }
     }
 
     /// Whether HELICS has the shape (leaves are N federates that exchange nothing: its barrier).
     fn helics(self) -> bool {
-        self != Shape::Leaves
+        !matches!(self, Shape::Leaves | Shape::FanOut)
     }
 }
 
@@ -129,7 +141,8 @@ impl Figures {
 pub fn run(args: Args) -> CliResult {
     let cpus = std::thread::available_parallelism().map_or(0, |n| n.get());
     let helics = if args.no_helics { None } else { Some(Helics::build()?) };
-    if !args.json {
+    let steps = args.shapes.iter().any(|&s| s != Shape::FanOut);
+    if !args.json && steps {
         println!(
             "scale: {} steps per run, speed inf, wait {:?}, one thread per participant (federate), {cpus} CPUs, unpinned; HELICS {}",
             args.steps,
@@ -152,7 +165,7 @@ pub fn run(args: Args) -> CliResult {
         );
     }
     let mut all = Vec::new();
-    for &shape in &args.shapes {
+    for &shape in args.shapes.iter().filter(|&&s| s != Shape::FanOut) {
         for &n in &args.n {
             eprintln!("bench scale: {} N={n}: tutti", shape.name());
             let ours = tutti_run(&args, shape, n)?;
@@ -170,6 +183,7 @@ pub fn run(args: Args) -> CliResult {
             all.extend(theirs);
         }
     }
+    let fanout = if args.shapes.contains(&Shape::FanOut) { fan_out(&args)? } else { Vec::new() };
     if args.json {
         let out = json!({
             "benchmark": "scale",
@@ -178,10 +192,36 @@ pub fn run(args: Args) -> CliResult {
             "cpus": cpus,
             "helics": helics.as_ref().map(|h| h.version.clone()),
             "runs": all.iter().map(Figures::to_json).collect::<Vec<_>>(),
+            "fan_out": fanout.iter().map(FanOut::to_json).collect::<Vec<_>>(),
         });
         println!("{}", serde_json::to_string(&out).context("writing JSON")?);
     }
     Ok(())
+}
+
+/// The fan-out runs, tutti's and iceoryx2's for each reader count (a table but with --json).
+fn fan_out(args: &Args) -> anyhow::Result<Vec<FanOut>> {
+    if !args.json {
+        println!("\nfan-out: one writer, R readers, {} writes of 8 bytes, one thread; the writer's call", args.writes);
+        println!(
+            "{:>8}  {:>14} {:>14}  {:>17} {:>17}",
+            "readers", "tutti p50 ns", "p99 ns", "iceoryx2 p50 ns", "p99 ns"
+        );
+    }
+    let mut out = Vec::new();
+    for &r in &args.readers {
+        eprintln!("bench scale: fan-out R={r}");
+        let ours = fanout::tutti(&format!("{}fanoutx{r}", namespace_prefix()), r, args.writes)?;
+        let theirs = fanout::iceoryx2(r, args.writes)?;
+        if !args.json {
+            println!(
+                "{r:>8}  {:>14.0} {:>14.0}  {:>17.0} {:>17.0}",
+                ours.p50_ns, ours.p99_ns, theirs.p50_ns, theirs.p99_ns
+            );
+        }
+        out.extend([ours, theirs]);
+    }
+    Ok(out)
 }
 
 fn print_row(ours: &Figures, theirs: Option<&Figures>) {
@@ -225,7 +265,7 @@ fn model(shape: Shape, n: usize) -> anyhow::Result<ddf::Model> {
 /// Participant `i`: which domain it joins and which output it writes (none in a barrier).
 fn place(shape: Shape, i: usize) -> (String, Option<String>) {
     match shape {
-        Shape::Barrier => ("d0".into(), None),
+        Shape::Barrier | Shape::FanOut => ("d0".into(), None),
         Shape::Hub => ("d0".into(), Some(format!("y{i}"))),
         Shape::Leaves | Shape::Ring => (format!("d{i}"), Some("y0".into())),
     }

@@ -1,6 +1,6 @@
 //! `tutti-bench scale` in small (N <= 8, few steps): every shape runs to its end next to
-//! HELICS, and every participant and federate answered every step (the benchmark checks the
-//! counts and fails otherwise). No time is asserted: the figures are docs/benchmarks.md's.
+//! HELICS (fan-out next to iceoryx2), and every participant and federate answered every step
+//! and every reader read every write (the benchmark checks the counts and fails otherwise). No time is asserted: the figures are docs/benchmarks.md's.
 
 use tutti_test_support as common;
 
@@ -8,15 +8,18 @@ use std::process::Command;
 use std::time::Duration;
 
 #[test]
-fn bench_scale_runs_every_shape_next_to_helics_with_every_step_answered() {
+fn bench_scale_runs_every_shape_next_to_its_peer_with_every_step_answered() {
     let Some(_) = common::python(&["helics"]) else { return };
     let Some(_) = common::require_tool("cc", "gcc") else { return };
     let ns = common::namespace("scale");
     let shapes = ["barrier", "hub", "leaves", "ring"];
     let ns_of = |shape: &str, n: u64| format!("{ns}{shape}x{n}");
-    let _segments: Vec<_> = shapes.iter().flat_map(|s| [2, 8].map(|n| common::RemoveSegments(ns_of(s, n)))).collect();
+    let mut namespaces: Vec<String> = shapes.iter().flat_map(|s| [2, 8].map(|n| ns_of(s, n))).collect();
+    namespaces.extend([1, 10].map(|r| ns_of("fanout", r)));
+    let _segments: Vec<_> = namespaces.iter().cloned().map(common::RemoveSegments).collect();
     let mut cmd = Command::new(common::workspace_bin("tutti-bench", "tutti-bench"));
-    cmd.args(["scale", "--n", "2,8", "--steps", "200", "--json"]).env("TUTTI_NAMESPACE", &ns);
+    cmd.args(["scale", "--n", "2,8", "--steps", "200", "--readers", "1,10", "--writes", "500", "--json"])
+        .env("TUTTI_NAMESPACE", &ns);
     let (status, out, err) = common::run_with_timeout(cmd, Duration::from_secs(600));
     assert!(status.success(), "tutti-bench scale failed ({status}):\n{out}\n{err}");
     let v: serde_json::Value = serde_json::from_str(out.trim()).unwrap_or_else(|e| panic!("{e}: {out}"));
@@ -32,10 +35,16 @@ fn bench_scale_runs_every_shape_next_to_helics_with_every_step_answered() {
         }
     }
     assert!(runs.iter().all(|r| r["steps"] == 200 && r["steps_per_s"].as_f64().is_some_and(|s| s > 0.0)), "{v}");
-    for shape in shapes {
-        for n in [2, 8] {
-            let left = common::segments_of(&ns_of(shape, n));
-            assert!(left.is_empty(), "{shape} N={n} left {left:?}");
+    let fan = v["fan_out"].as_array().expect("fan_out");
+    for r in [1u64, 10] {
+        for system in ["tutti", "iceoryx2"] {
+            let found: Vec<_> = fan.iter().filter(|f| f["readers"] == r && f["system"] == system).collect();
+            assert_eq!(found.len(), 1, "{system} fan-out to {r} in {v}");
+            assert_eq!(found[0]["writes"], 500, "{v}");
         }
+    }
+    for ns in &namespaces {
+        let left = common::segments_of(ns);
+        assert!(left.is_empty(), "{ns} left {left:?}");
     }
 }
