@@ -325,6 +325,7 @@ fn tutti_run(args: &Args, shape: Shape, n: usize) -> anyhow::Result<Figures> {
         hold_until_start: true,
         connections,
         ddf_name: "the benchmark's DDF".into(),
+        slots: n as u32 + 1,
         ..Default::default()
     };
     // Dropped on every way out: the segments go with it and the participants' next call

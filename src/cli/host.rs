@@ -53,6 +53,9 @@ pub struct Args {
     /// How the framework waits for participants: block, spin, or poll:DURATION.
     #[arg(long, default_value = "block", value_parser = parse_wait)]
     wait: WaitMode,
+    /// Connection slots per domain: participants, recorders and gateways at once.
+    #[arg(long, default_value_t = tutti_core::shm::DEFAULT_CONNECTIONS, value_parser = clap::value_parser!(u32).range(1..=4096))]
+    slots: u32,
     /// Give a PUBLISH item a value: DOMAIN/ITEM=VALUE (repeatable; arrays get it in every element).
     #[arg(long = "set", value_name = "DOMAIN/ITEM=VALUE")]
     sets: Vec<String>,
@@ -105,6 +108,7 @@ impl Args {
             connections: self.connections.clone(),
             ordering: self.ordering,
             ddf_name: self.file.display().to_string(),
+            slots: self.slots,
             ..Default::default()
         }
     }

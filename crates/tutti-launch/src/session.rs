@@ -89,6 +89,9 @@ pub fn run(
         stateless: launch.components.iter().filter(|c| c.stateless).map(|c| c.name.clone()).collect(),
         checkpoint: fw.checkpoint.clone(),
         restore: opts.restore.clone(),
+        // Room in every domain for each component, with some to spare for recorders,
+        // gateways and tools (`tutti status`, a monitor): a large launch file just works.
+        slots: (launch.components.len() as u32 + 16).clamp(tutti_core::shm::DEFAULT_CONNECTIONS, 4096),
     };
     let mut host = Host::new(&launch.model, host_opts)?;
     for path in &fw.record {

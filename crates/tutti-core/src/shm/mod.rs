@@ -43,7 +43,7 @@ pub use participant::{ConnectOptions, Participant, StepGate, COMPONENT_ENV};
 #[cfg(not(tutti_loom))]
 pub use segment::{
     check_namespace, list_domains, namespace_from_env, segment_name, segment_path, ConnKind, ConnectionInfo,
-    DomainInfo, DomainStatus, LinkInfo, Segment, WaitMode,
+    DomainInfo, DomainStatus, LinkInfo, Segment, WaitMode, DEFAULT_CONNECTIONS,
 };
 #[cfg(not(tutti_loom))]
 pub use state::{SharedState, StateAnswer, StateConnection, StateError, StateHandler, StateRequest};

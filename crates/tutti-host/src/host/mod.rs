@@ -63,6 +63,9 @@ pub struct HostOptions {
     /// Start from this checkpoint: put back once the components have connected, before the
     /// first step (`tutti run --restore`).
     pub restore: Option<Box<Checkpoint>>,
+    /// Connection slots per domain: how many participants, recorders and gateways one domain
+    /// takes at once (default 64, at most 4096; `tutti host --slots`).
+    pub slots: u32,
 }
 
 /// Checkpoints saved as the run goes (docs/run.md, "Checkpoints").
@@ -97,6 +100,7 @@ impl Default for HostOptions {
             stateless: Vec::new(),
             checkpoint: None,
             restore: None,
+            slots: tutti_core::shm::DEFAULT_CONNECTIONS,
         }
     }
 }
@@ -311,6 +315,7 @@ impl Host {
             timeout: opts.timeout,
             wait: opts.wait,
             hold: opts.hold.is_some() || !opts.wait_for.is_empty() || opts.hold_until_start,
+            connections: opts.slots,
             ..Default::default()
         };
         if let Some(ns) = &opts.namespace {
