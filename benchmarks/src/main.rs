@@ -60,6 +60,9 @@ enum What {
     /// looping on RTSubscribeLock, next to a one-thread client.
     RtapiThreads(rtapi::Args),
     Studio(studio::Args),
+    /// (internal) a participant process of `tutti-bench scale --processes`.
+    #[command(hide = true)]
+    ScalePart(scale::PartArgs),
     /// (internal) the pong side of `tutti-bench shm`.
     #[command(hide = true)]
     ShmPong(shm::PongArgs),
@@ -78,6 +81,7 @@ fn main() -> ExitCode {
         What::Gateway(a) => gateway::run(a),
         What::Record(a) => record::run(a),
         What::Scale(a) => scale::run(a),
+        What::ScalePart(a) => scale::part(a),
         What::Shm(a) => shm::run(a),
         What::Sites(a) => sites::run(a),
         What::RtapiThreads(a) => rtapi::run(a).map_err(Into::into),

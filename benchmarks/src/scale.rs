@@ -1,8 +1,9 @@
 //! `tutti-bench scale`: what a step costs as participants and domains grow, in the shapes of
 //! HELICS's own benchmarks, next to HELICS federates in the same run.
 //!
-//! tutti's shapes, each participant a thread of this process with its own connection, the
-//! framework a `Host` in this process stepping as fast as they go (`speed: inf`):
+//! tutti's shapes, each participant a thread of this process with its own connection (with
+//! `--processes`, a process of its own: this program as `scale-part`), the framework a `Host`
+//! in this process stepping as fast as they go (`speed: inf`):
 //!
 //! * **barrier**: one synchronous domain, N participants that lock and commit nothing: the
 //!   step's cost alone;
@@ -24,7 +25,7 @@
 //! its figures are printed.
 
 use std::path::PathBuf;
-use std::process::Command;
+use std::process::{Command, Stdio};
 use std::sync::atomic::AtomicBool;
 use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
@@ -34,7 +35,7 @@ use serde_json::{json, Value};
 use tutti_core::ddf;
 use tutti_core::parse::parse_wait;
 use tutti_core::shm::{ConnectOptions, Participant, ShmError, WaitMode};
-use tutti_host::{Host, HostOptions, Report};
+use tutti_host::{ChildProcess, Host, HostOptions, Report};
 
 use crate::event::process_cpu;
 use crate::fanout::{self, FanOut};
@@ -65,6 +66,9 @@ pub struct Args {
     /// How the framework and every participant wait: block (futex), spin or poll:DURATION.
     #[arg(long, default_value = "block", value_parser = parse_wait)]
     wait: WaitMode,
+    /// Participants are processes (this program again) instead of threads.
+    #[arg(long)]
+    processes: bool,
     /// Leave HELICS out (it is looked for in the repository's .venv, or HELICS_INSTALL).
     #[arg(long)]
     no_helics: bool,
@@ -144,9 +148,10 @@ pub fn run(args: Args) -> CliResult {
     let steps = args.shapes.iter().any(|&s| s != Shape::FanOut);
     if !args.json && steps {
         println!(
-            "scale: {} steps per run, speed inf, wait {:?}, one thread per participant (federate), {cpus} CPUs, unpinned; HELICS {}",
+            "scale: {} steps per run, speed inf, wait {:?}, one {} per participant (a thread per federate), {cpus} CPUs, unpinned; HELICS {}",
             args.steps,
             args.wait,
+            if args.processes { "process" } else { "thread" },
             helics.as_ref().map_or("left out".to_string(), |h| format!("{} (inproc core, C federates)", h.version))
         );
         println!(
@@ -271,8 +276,28 @@ fn place(shape: Shape, i: usize) -> (String, Option<String>) {
     }
 }
 
-/// Answers every step until the framework stops; returns the steps answered.
-fn participant(namespace: String, shape: Shape, i: usize, wait: WaitMode) -> Result<u64, ShmError> {
+/// Hidden: one participant of `tutti-bench scale --processes`, as a process of its own.
+#[derive(Debug, clap::Args)]
+pub struct PartArgs {
+    namespace: String,
+    #[arg(value_enum)]
+    shape: Shape,
+    index: usize,
+    #[arg(value_parser = parse_wait)]
+    wait: WaitMode,
+}
+
+/// `tutti-bench scale-part`: answers every step until the framework stops, then prints the
+/// steps answered and the CPU time spent from the first of them, in ns.
+pub fn part(a: PartArgs) -> CliResult {
+    let (answered, cpu) = participant(a.namespace, a.shape, a.index, a.wait).context("the participant")?;
+    println!("{answered} {}", cpu.as_nanos());
+    Ok(())
+}
+
+/// Answers every step until the framework stops; returns the steps answered and the CPU time
+/// of this process from the first of them (of every thread: a process's figure).
+fn participant(namespace: String, shape: Shape, i: usize, wait: WaitMode) -> Result<(u64, Duration), ShmError> {
     let (domain, output) = place(shape, i);
     let opts = ConnectOptions {
         namespace,
@@ -286,12 +311,16 @@ fn participant(namespace: String, shape: Shape, i: usize, wait: WaitMode) -> Res
     let x = p.leaf(ddf::Role::Publish, "x")?.0;
     let y = output.map(|o| p.leaf(ddf::Role::Subscribe, &o)).transpose()?.map(|l| l.0);
     let mut answered = 0u64;
+    let mut cpu0 = None;
     loop {
         match p.subscribe_lock() {
             Ok(_) => {}
-            Err(ShmError::FrameworkStopped { .. }) => return Ok(answered),
+            Err(ShmError::FrameworkStopped { .. }) => {
+                return Ok((answered, cpu0.map_or(Duration::ZERO, |c| process_cpu().saturating_sub(c))));
+            }
             Err(e) => return Err(e),
         }
+        cpu0.get_or_insert_with(process_cpu);
         let read = match y {
             Some(_) => p.snapshot_item(x).and_then(|b| b.try_into().ok()).map_or(0.0, f64::from_ne_bytes),
             None => 0.0,
@@ -331,36 +360,17 @@ fn tutti_run(args: &Args, shape: Shape, n: usize) -> anyhow::Result<Figures> {
     // Dropped on every way out: the segments go with it and the participants' next call
     // returns "framework stopped".
     let mut host = Host::new(&model, opts).context("creating the domains")?;
-    let threads: Vec<JoinHandle<Result<u64, ShmError>>> = (0..n)
-        .map(|i| {
-            let ns = namespace.clone();
-            let wait = args.wait;
-            std::thread::spawn(move || participant(ns, shape, i, wait))
-        })
-        .collect();
+    let participants = Participants::start(args, &namespace, shape, n)?;
     let stepped = drive(&mut host, args.steps, n);
     drop(host);
-    let mut failed = None;
-    for (i, t) in threads.into_iter().enumerate() {
-        let answered = t.join().map_err(|_| anyhow::anyhow!("participant {i} panicked")).and_then(|r| {
-            let steps = r.with_context(|| format!("participant {i}"))?;
-            if steps != args.steps {
-                bail!("participant {i} answered {steps} of {} steps", args.steps);
-            }
-            Ok(())
-        });
-        if let Err(e) = answered {
-            failed.get_or_insert(e);
-        }
-    }
+    let ended = participants.finish(args.steps);
     let (wall, cpu, mut times) = stepped?;
-    if let Some(e) = failed {
-        return Err(e.context(format!("{} N={n}", shape.name())));
-    }
+    let children_cpu = ended.map_err(|e| e.context(format!("{} N={n}", shape.name())))?;
+    let cpu = cpu + children_cpu;
     times.sort();
     let us = |q: f64| nearest_rank(&times, q).as_secs_f64() * 1e6;
     Ok(Figures {
-        system: "tutti",
+        system: if args.processes { "tutti (processes)" } else { "tutti" },
         shape,
         n,
         steps: args.steps,
@@ -369,6 +379,90 @@ fn tutti_run(args: &Args, shape: Shape, n: usize) -> anyhow::Result<Figures> {
         p50_us: us(0.5),
         p99_us: us(0.99),
     })
+}
+
+/// A run's participants: threads of this process, or processes of their own.
+enum Participants {
+    Threads(Vec<JoinHandle<Result<(u64, Duration), ShmError>>>),
+    Processes(Vec<ChildProcess>),
+}
+
+impl Participants {
+    fn start(args: &Args, namespace: &str, shape: Shape, n: usize) -> anyhow::Result<Participants> {
+        if !args.processes {
+            let threads = (0..n)
+                .map(|i| {
+                    let (ns, wait) = (namespace.to_string(), args.wait);
+                    std::thread::spawn(move || participant(ns, shape, i, wait))
+                })
+                .collect();
+            return Ok(Participants::Threads(threads));
+        }
+        let exe = std::env::current_exe().context("this program's path")?;
+        let wait = match args.wait {
+            WaitMode::Block => "block".to_string(),
+            WaitMode::Spin => "spin".to_string(),
+            WaitMode::Poll(d) => format!("poll:{}ns", d.as_nanos()),
+        };
+        let children = (0..n)
+            .map(|i| {
+                let mut cmd = Command::new(&exe);
+                cmd.args(["scale-part", namespace, shape.name(), &i.to_string(), &wait])
+                    .stdin(Stdio::null())
+                    .stdout(Stdio::piped());
+                let child = ChildProcess::spawn(&format!("participant {i}"), cmd, None)?;
+                Ok(child.stop_on_drop(Some(tutti_host::SIGTERM), Duration::from_secs(2)))
+            })
+            .collect::<anyhow::Result<Vec<_>>>()?;
+        Ok(Participants::Processes(children))
+    }
+
+    /// Waits for every participant's end and checks that each answered `steps` steps;
+    /// returns the CPU time the processes spent (zero for threads: this process's counts it).
+    fn finish(self, steps: u64) -> anyhow::Result<Duration> {
+        let mut failed = None;
+        let mut cpu = Duration::ZERO;
+        let mut check = |i: usize, r: anyhow::Result<(u64, Duration)>| match r {
+            Ok((answered, _)) if answered != steps => {
+                failed.get_or_insert(anyhow::anyhow!("participant {i} answered {answered} of {steps} steps"));
+            }
+            Ok((_, c)) => cpu += c,
+            Err(e) => {
+                failed.get_or_insert(e.context(format!("participant {i}")));
+            }
+        };
+        match self {
+            Participants::Threads(threads) => {
+                for (i, t) in threads.into_iter().enumerate() {
+                    let r = t.join().map_err(|_| anyhow::anyhow!("panicked")).and_then(|r| Ok(r?));
+                    check(i, r.map(|(a, _)| (a, Duration::ZERO)));
+                }
+            }
+            Participants::Processes(children) => {
+                for (i, mut c) in children.into_iter().enumerate() {
+                    check(i, process_result(&mut c));
+                }
+            }
+        }
+        failed.map_or(Ok(cpu), Err)
+    }
+}
+
+/// A participant process's answer (its exit and the line it printed).
+fn process_result(c: &mut ChildProcess) -> anyhow::Result<(u64, Duration)> {
+    let status = c.wait(Duration::from_secs(30)).context("still running 30 s after the run")?;
+    let mut out = String::new();
+    if let Some(mut stdout) = c.child.stdout.take() {
+        std::io::Read::read_to_string(&mut stdout, &mut out).context("reading its output")?;
+    }
+    if !status.success() {
+        bail!("exited with {status}");
+    }
+    let mut words = out.split_whitespace().map(str::parse::<u64>);
+    match (words.next(), words.next()) {
+        (Some(Ok(answered)), Some(Ok(ns))) => Ok((answered, Duration::from_nanos(ns))),
+        _ => bail!("printed '{}', not its count", out.trim()),
+    }
 }
 
 /// The runs' namespaces begin with TUTTI_NAMESPACE when set (a test's own), else with one of

@@ -48,3 +48,24 @@ fn bench_scale_runs_every_shape_next_to_its_peer_with_every_step_answered() {
         assert!(left.is_empty(), "{ns} left {left:?}");
     }
 }
+
+/// The same with every participant a process of its own (`--processes`): each answered every
+/// step, and each process ended.
+#[test]
+fn bench_scale_with_participant_processes_answers_every_step() {
+    let ns = common::namespace("scaleproc");
+    let namespaces: Vec<String> = [2, 8].map(|n| format!("{ns}hubx{n}")).to_vec();
+    let _segments: Vec<_> = namespaces.iter().cloned().map(common::RemoveSegments).collect();
+    let mut cmd = Command::new(common::workspace_bin("tutti-bench", "tutti-bench"));
+    cmd.args(["scale", "--shapes", "hub", "--n", "2,8", "--steps", "100", "--processes", "--no-helics", "--json"])
+        .env("TUTTI_NAMESPACE", &ns);
+    let (status, out, err) = common::run_with_timeout(cmd, Duration::from_secs(300));
+    assert!(status.success(), "tutti-bench scale --processes failed ({status}):\n{out}\n{err}");
+    let v: serde_json::Value = serde_json::from_str(out.trim()).unwrap_or_else(|e| panic!("{e}: {out}"));
+    let runs = v["runs"].as_array().expect("runs");
+    assert_eq!(runs.len(), 2, "{v}");
+    assert!(runs.iter().all(|r| r["system"] == "tutti (processes)" && r["steps"] == 100), "{v}");
+    for ns in &namespaces {
+        assert!(common::segments_of(ns).is_empty(), "{ns} left segments");
+    }
+}
