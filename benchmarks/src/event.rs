@@ -11,16 +11,15 @@
 //! Per run it prints the steps per second, the CPU time of the whole process (user + system,
 //! every thread) per step, and the wall time of each `Host::step` call.
 
-use std::sync::atomic::AtomicBool;
 use std::thread::JoinHandle;
-use std::time::{Duration, Instant};
+use std::time::Duration;
 
 use anyhow::{bail, Context as _};
 use serde_json::json;
 use tutti_core::ddf;
 use tutti_core::parse::{parse_duration, parse_wait};
 use tutti_core::shm::{ConnectOptions, Participant, ShmError, WaitMode};
-use tutti_host::{Host, HostOptions, Report};
+use tutti_host::{Host, HostOptions};
 
 use crate::{nearest_rank, CliResult};
 
@@ -333,12 +332,6 @@ fn model(kind: Kind, outputs: usize) -> anyhow::Result<ddf::Model> {
     ddf::parse_str(&text, "event-bench.ddf").context("the benchmark's DDF")
 }
 
-/// The process's CPU time so far, every thread, user and system.
-pub(crate) fn process_cpu() -> Duration {
-    let t = rustix::time::clock_gettime(rustix::time::ClockId::ProcessCPUTime);
-    Duration::new(t.tv_sec.max(0) as u64, t.tv_nsec.clamp(0, 999_999_999) as u32)
-}
-
 /// What one participant did in a run.
 #[derive(Debug, Clone, Copy)]
 struct Answered {
@@ -449,48 +442,18 @@ fn one_run(args: &Args, kind: Kind, round: u32) -> anyhow::Result<RunResult> {
     Ok(RunResult { kind, round, answered, ..stepped })
 }
 
-/// Waits for `count` connections, starts the host and makes its steps, timing each call.
+/// The host's run, as [`crate::drive::drive`] makes it, in this benchmark's figures.
 fn drive(host: &mut Host, args: &Args, count: usize) -> anyhow::Result<RunResult> {
-    let deadline = Instant::now() + Duration::from_secs(30);
-    while (host.framework().domains[0].connection_count() as usize) < count {
-        if Instant::now() >= deadline {
-            bail!("{} of {count} participants connected within 30 s", host.framework().domains[0].connection_count());
-        }
-        std::thread::sleep(Duration::from_millis(1));
-    }
-    let stop = AtomicBool::new(false);
-    let mut timeouts = 0u64;
-    let mut on_report = |r: Report| {
-        if let Report::StepTimedOut { .. } = r {
-            timeouts += 1;
-            eprintln!("bench event: {r}");
-        }
-    };
-    let cpu0 = process_cpu();
-    let t0 = Instant::now();
-    if !host.start(&stop, &mut on_report).context("starting the run")? {
-        bail!("the run stopped before it started");
-    }
-    let mut step_times = Vec::with_capacity(args.steps as usize);
-    let mut next = 0u64;
-    while next < args.steps {
-        let s = Instant::now();
-        let tick = host.step(&mut on_report).context("a step")?;
-        step_times.push(s.elapsed());
-        next = tick.k + 1;
-    }
-    let wall = t0.elapsed();
-    let cpu = process_cpu().saturating_sub(cpu0);
-    step_times.sort();
+    let d = crate::drive::drive(host, args.steps, count, "event")?;
     Ok(RunResult {
         kind: Kind::Event,
         round: 0,
-        steps: next,
-        made: step_times.len() as u64,
-        wall,
-        cpu,
-        step_times,
-        step_timeouts: timeouts,
+        steps: d.steps,
+        made: d.step_times.len() as u64,
+        wall: d.wall,
+        cpu: d.cpu,
+        step_times: d.step_times,
+        step_timeouts: d.timeouts,
         answered: Vec::new(),
     })
 }

@@ -12,6 +12,7 @@ use clap::{Parser, Subcommand};
 
 mod checkpoint;
 mod ddf;
+mod drive;
 mod event;
 mod fanout;
 mod gateway;

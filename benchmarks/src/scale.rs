@@ -26,18 +26,17 @@
 
 use std::path::PathBuf;
 use std::process::{Command, Stdio};
-use std::sync::atomic::AtomicBool;
 use std::thread::JoinHandle;
-use std::time::{Duration, Instant};
+use std::time::Duration;
 
 use anyhow::{bail, Context as _};
 use serde_json::{json, Value};
 use tutti_core::ddf;
 use tutti_core::parse::parse_wait;
 use tutti_core::shm::{ConnectOptions, Participant, ShmError, WaitMode};
-use tutti_host::{ChildProcess, Host, HostOptions, Report};
+use tutti_host::{ChildProcess, Host, HostOptions};
 
-use crate::event::process_cpu;
+use crate::drive::{drive, process_cpu};
 use crate::fanout::{self, FanOut};
 use crate::{nearest_rank, CliResult};
 
@@ -361,14 +360,16 @@ fn tutti_run(args: &Args, shape: Shape, n: usize) -> anyhow::Result<Figures> {
     // returns "framework stopped".
     let mut host = Host::new(&model, opts).context("creating the domains")?;
     let participants = Participants::start(args, &namespace, shape, n)?;
-    let stepped = drive(&mut host, args.steps, n);
+    let stepped = drive(&mut host, args.steps, n, "scale");
     drop(host);
     let ended = participants.finish(args.steps);
-    let (wall, cpu, mut times) = stepped?;
+    let d = stepped?;
+    if d.timeouts > 0 {
+        bail!("{} N={n}: {} step(s) timed out", shape.name(), d.timeouts);
+    }
     let children_cpu = ended.map_err(|e| e.context(format!("{} N={n}", shape.name())))?;
-    let cpu = cpu + children_cpu;
-    times.sort();
-    let us = |q: f64| nearest_rank(&times, q).as_secs_f64() * 1e6;
+    let (wall, cpu) = (d.wall, d.cpu + children_cpu);
+    let us = |q: f64| nearest_rank(&d.step_times, q).as_secs_f64() * 1e6;
     Ok(Figures {
         system: if args.processes { "tutti (processes)" } else { "tutti" },
         shape,
@@ -469,44 +470,6 @@ fn process_result(c: &mut ChildProcess) -> anyhow::Result<(u64, Duration)> {
 /// this process's; each run's is `PREFIXSHAPExN`.
 pub(crate) fn namespace_prefix() -> String {
     std::env::var("TUTTI_NAMESPACE").unwrap_or_else(|_| format!("benchscale{}x", std::process::id()))
-}
-
-/// Waits for every participant, starts the host and makes its steps, timing each call;
-/// returns the wall and CPU time of the steps and each step's time.
-fn drive(host: &mut Host, steps: u64, n: usize) -> anyhow::Result<(Duration, Duration, Vec<Duration>)> {
-    let deadline = Instant::now() + Duration::from_secs(60);
-    let connected = |h: &Host| h.framework().domains.iter().map(|d| d.connection_count() as usize).sum::<usize>();
-    while connected(host) < n {
-        if Instant::now() >= deadline {
-            bail!("{} of {n} participants connected within 60 s", connected(host));
-        }
-        std::thread::sleep(Duration::from_millis(1));
-    }
-    let stop = AtomicBool::new(false);
-    let mut timeouts = 0u64;
-    let mut on_report = |r: Report| {
-        if let Report::StepTimedOut { .. } = r {
-            timeouts += 1;
-            eprintln!("bench scale: {r}");
-        }
-    };
-    let cpu0 = process_cpu();
-    let t0 = Instant::now();
-    if !host.start(&stop, &mut on_report).context("starting the run")? {
-        bail!("the run stopped before it started");
-    }
-    let mut times = Vec::with_capacity(steps as usize);
-    let mut next = 0u64;
-    while next < steps {
-        let s = Instant::now();
-        next = host.step(&mut on_report).context("a step")?.k + 1;
-        times.push(s.elapsed());
-    }
-    let (wall, cpu) = (t0.elapsed(), process_cpu().saturating_sub(cpu0));
-    if timeouts > 0 {
-        bail!("{timeouts} step(s) timed out");
-    }
-    Ok((wall, cpu, times))
 }
 
 /// The HELICS federates' program, compiled against the `helics` wheel's C library.
