@@ -21,6 +21,7 @@ mod peers;
 mod record;
 mod rtapi;
 mod scale;
+mod scale_plot;
 mod shm;
 mod sites;
 mod studio;

@@ -74,6 +74,10 @@ pub struct Args {
     /// Print one JSON object instead of the table.
     #[arg(long)]
     json: bool,
+    /// Also draw the step's p50 against N, tutti and HELICS per shape, as this PNG (and an SVG
+    /// beside it).
+    #[arg(long, value_name = "FILE.png")]
+    plot: Option<PathBuf>,
 }
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
@@ -86,7 +90,7 @@ pub enum Shape {
 }
 
 impl Shape {
-    fn name(self) -> &'static str {
+    pub fn name(self) -> &'static str {
         match self {
             Shape::Barrier => "barrier",
             Shape::Hub => "hub",
@@ -112,14 +116,14 @@ impl Shape {
 
 /// One run's figures, tutti's or HELICS's.
 #[derive(Debug, Clone)]
-struct Figures {
-    system: &'static str,
-    shape: Shape,
-    n: usize,
+pub struct Figures {
+    pub system: &'static str,
+    pub shape: Shape,
+    pub n: usize,
     steps: u64,
     wall_s: f64,
     cpu_s: f64,
-    p50_us: f64,
+    pub p50_us: f64,
     p99_us: f64,
 }
 
@@ -188,6 +192,10 @@ pub fn run(args: Args) -> CliResult {
         }
     }
     let fanout = if args.shapes.contains(&Shape::FanOut) { fan_out(&args)? } else { Vec::new() };
+    if let Some(path) = &args.plot {
+        crate::scale_plot::plot(path, &all, cpus)?;
+        eprintln!("bench scale: drew {} and its SVG", path.display());
+    }
     if args.json {
         let out = json!({
             "benchmark": "scale",

@@ -1,71 +1,15 @@
 //! The two pictures of the demo, after Figures 5 and 6 of the paper, drawn with plotters as
-//! SVG, then rasterised to PNG by resvg with the same font (plotters' own bitmap text places
-//! glyphs unevenly). Text is measured and drawn with a TrueType font loaded at run time
-//! (DejaVu Sans from Debian's fonts-dejavu-core, or the file in `TUTTI_FONT`), so no
-//! fontconfig development package is needed to build.
+//! SVG and rasterised to PNG in the font `tutti-plot` finds.
 
-use std::path::{Path, PathBuf};
-use std::sync::OnceLock;
+use std::path::Path;
 
-use anyhow::Context;
 use plotters::coord::types::RangedCoordf64;
 use plotters::coord::Shift;
 use plotters::prelude::*;
-use plotters::style::FontStyle;
+use tutti_plot::{font, write_svg_and_png};
 
 use crate::analysis::{observed_windows, RunData};
 use crate::scenario::{Scenario, UAVS};
-
-/// Where the font is looked for, in order (after `TUTTI_FONT`).
-pub const FONT_CANDIDATES: &[&str] = &[
-    "/usr/share/fonts/truetype/dejavu/DejaVuSans.ttf",
-    "/usr/share/fonts/TTF/DejaVuSans.ttf",
-    "/usr/share/fonts/dejavu/DejaVuSans.ttf",
-    "/usr/share/fonts/truetype/liberation/LiberationSans-Regular.ttf",
-];
-
-/// The font registered, or None when none was found.
-static FONT: OnceLock<Option<PathBuf>> = OnceLock::new();
-
-/// Registers the sans-serif font once (for plotters' text measurement); returns its file.
-/// An error names what to install.
-fn font() -> anyhow::Result<PathBuf> {
-    let r = FONT.get_or_init(|| {
-        let mut candidates: Vec<PathBuf> = std::env::var_os("TUTTI_FONT").map(PathBuf::from).into_iter().collect();
-        candidates.extend(FONT_CANDIDATES.iter().map(PathBuf::from));
-        for path in candidates {
-            let Ok(bytes) = std::fs::read(&path) else { continue };
-            let bytes: &'static [u8] = Box::leak(bytes.into_boxed_slice());
-            if plotters::style::register_font("sans-serif", FontStyle::Normal, bytes).is_ok() {
-                let _ = plotters::style::register_font("sans-serif", FontStyle::Bold, bytes);
-                return Some(path);
-            }
-        }
-        None
-    });
-    r.clone().context("no TrueType font found: install Debian's fonts-dejavu-core, or set TUTTI_FONT to a .ttf file")
-}
-
-/// Writes `svg` to `path` with the extension `.svg`, and its rasterisation to `path` (PNG),
-/// text in the font of `font_file`.
-fn write_svg_and_png(svg: &str, path: &Path, font_file: &Path) -> anyhow::Result<()> {
-    let svg_path = path.with_extension("svg");
-    std::fs::write(&svg_path, svg).with_context(|| format!("writing {}", svg_path.display()))?;
-    let mut opt = resvg::usvg::Options::default();
-    let db = opt.fontdb_mut();
-    db.load_font_data(std::fs::read(font_file).with_context(|| format!("reading {}", font_file.display()))?);
-    let family = db.faces().next().and_then(|f| f.families.first()).map(|f| f.0.clone());
-    if let Some(family) = family {
-        db.set_sans_serif_family(family);
-    }
-    let tree = resvg::usvg::Tree::from_str(svg, &opt).context("reading the drawn SVG")?;
-    let size = tree.size().to_int_size();
-    let mut pixmap =
-        resvg::tiny_skia::Pixmap::new(size.width(), size.height()).context("an empty or too large picture")?;
-    pixmap.fill(resvg::tiny_skia::Color::WHITE);
-    resvg::render(&tree, resvg::tiny_skia::Transform::default(), &mut pixmap.as_mut());
-    pixmap.save_png(path).with_context(|| format!("writing {}", path.display()))
-}
 
 /// A darker shade of `c`, for the dots drawn over its solid line.
 fn darker(c: RGBColor) -> RGBColor {
@@ -164,7 +108,7 @@ pub fn figure5(path: &Path, s: &Scenario, d: &RunData) -> anyhow::Result<()> {
     let font_file = font()?;
     let mut svg = String::new();
     draw_figure5(SVGBackend::with_string(&mut svg, (1400, 820)).into_drawing_area(), s, d)?;
-    write_svg_and_png(&svg, path, &font_file)
+    Ok(write_svg_and_png(&svg, path, &font_file)?)
 }
 
 fn draw_figure5<DB: DrawingBackend>(root: DrawingArea<DB, Shift>, s: &Scenario, d: &RunData) -> anyhow::Result<()>
@@ -254,7 +198,7 @@ pub fn figure6(path: &Path, s: &Scenario, d: &RunData) -> anyhow::Result<()> {
     let font_file = font()?;
     let mut svg = String::new();
     draw_figure6(SVGBackend::with_string(&mut svg, (1400, 1000)).into_drawing_area(), s, d)?;
-    write_svg_and_png(&svg, path, &font_file)
+    Ok(write_svg_and_png(&svg, path, &font_file)?)
 }
 
 fn draw_figure6<DB: DrawingBackend>(root: DrawingArea<DB, Shift>, s: &Scenario, d: &RunData) -> anyhow::Result<()>
