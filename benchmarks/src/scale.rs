@@ -38,6 +38,7 @@ use tutti_host::{ChildProcess, Host, HostOptions};
 
 use crate::drive::{drive, process_cpu};
 use crate::fanout::{self, FanOut};
+use crate::scale_plot::Series;
 use crate::{nearest_rank, CliResult};
 
 const HELICS_SRC: &str = include_str!("helics_scale.c");
@@ -90,7 +91,7 @@ pub enum Shape {
 }
 
 impl Shape {
-    pub fn name(self) -> &'static str {
+    fn name(self) -> &'static str {
         match self {
             Shape::Barrier => "barrier",
             Shape::Hub => "hub",
@@ -116,14 +117,14 @@ impl Shape {
 
 /// One run's figures, tutti's or HELICS's.
 #[derive(Debug, Clone)]
-pub struct Figures {
-    pub system: &'static str,
-    pub shape: Shape,
-    pub n: usize,
+struct Figures {
+    system: &'static str,
+    shape: Shape,
+    n: usize,
     steps: u64,
     wall_s: f64,
     cpu_s: f64,
-    pub p50_us: f64,
+    p50_us: f64,
     p99_us: f64,
 }
 
@@ -193,7 +194,7 @@ pub fn run(args: Args) -> CliResult {
     }
     let fanout = if args.shapes.contains(&Shape::FanOut) { fan_out(&args)? } else { Vec::new() };
     if let Some(path) = &args.plot {
-        crate::scale_plot::plot(path, &all, cpus)?;
+        plot(path, &all, cpus)?;
         eprintln!("bench scale: drew {} and its SVG", path.display());
     }
     if args.json {
@@ -209,6 +210,24 @@ pub fn run(args: Args) -> CliResult {
         println!("{}", serde_json::to_string(&out).context("writing JSON")?);
     }
     Ok(())
+}
+
+/// `--plot`: each system's p50 step time against N, a line per shape (HELICS dashed).
+fn plot(path: &std::path::Path, runs: &[Figures], cpus: usize) -> anyhow::Result<()> {
+    let mut series: Vec<Series> = Vec::new();
+    for r in runs {
+        let point = (r.n as f64, r.p50_us);
+        match series.iter_mut().find(|s| s.system == r.system && s.shape == r.shape.name()) {
+            Some(s) => s.points.push(point),
+            None => series.push(Series {
+                system: r.system,
+                shape: r.shape.name(),
+                dashed: r.system == "HELICS",
+                points: vec![point],
+            }),
+        }
+    }
+    crate::scale_plot::plot(path, &series, cpus)
 }
 
 /// The fan-out runs, tutti's and iceoryx2's for each reader count (a table but with --json).

@@ -6,29 +6,36 @@ use std::path::Path;
 use plotters::prelude::*;
 use tutti_plot::{font, write_svg_and_png};
 
-use crate::scale::{Figures, Shape};
-
-/// One colour per shape (colour-blind-safe palette).
-fn color(shape: Shape) -> RGBColor {
-    match shape {
-        Shape::Barrier => RGBColor(0, 114, 178),
-        Shape::Hub => RGBColor(213, 94, 0),
-        Shape::Leaves => RGBColor(0, 158, 115),
-        Shape::Ring => RGBColor(204, 121, 167),
-        Shape::FanOut => RGBColor(86, 180, 233),
-    }
+/// One line of the plot: a system's step p50 (µs) against N for one shape.
+#[derive(Debug)]
+pub struct Series {
+    pub system: &'static str,
+    pub shape: &'static str,
+    /// Solid, or dashed (a peer's).
+    pub dashed: bool,
+    pub points: Vec<(f64, f64)>,
 }
 
-/// Draws the runs' p50 step times against N.
-pub fn plot(path: &Path, runs: &[Figures], cpus: usize) -> anyhow::Result<()> {
+/// One colour per shape, in the order the shapes first appear (colour-blind-safe palette).
+const COLORS: [RGBColor; 5] = [
+    RGBColor(0, 114, 178),
+    RGBColor(213, 94, 0),
+    RGBColor(0, 158, 115),
+    RGBColor(204, 121, 167),
+    RGBColor(86, 180, 233),
+];
+
+/// Draws `series` on log scales.
+pub fn plot(path: &Path, series: &[Series], cpus: usize) -> anyhow::Result<()> {
     let font_file = font()?;
     let mut svg = String::new();
     {
         let root = SVGBackend::with_string(&mut svg, (1100, 700)).into_drawing_area();
         root.fill(&WHITE)?;
-        let n_max = runs.iter().map(|r| r.n).max().unwrap_or(2).max(4) as f64;
-        let p_min = runs.iter().map(|r| r.p50_us).fold(f64::INFINITY, f64::min).max(0.1);
-        let p_max = runs.iter().map(|r| r.p50_us).fold(1.0, f64::max);
+        let all = || series.iter().flat_map(|s| s.points.iter().copied());
+        let n_max = all().map(|p| p.0).fold(4.0, f64::max);
+        let p_min = all().map(|p| p.1).fold(f64::INFINITY, f64::min).max(0.1);
+        let p_max = all().map(|p| p.1).fold(1.0, f64::max);
         let mut chart = ChartBuilder::on(&root)
             .caption(format!("Step time (p50) against participants, {cpus} CPUs"), ("sans-serif", 24))
             .margin(20)
@@ -43,30 +50,24 @@ pub fn plot(path: &Path, runs: &[Figures], cpus: usize) -> anyhow::Result<()> {
             .y_label_formatter(&|y| format!("{y:.0}"))
             .label_style(("sans-serif", 16))
             .draw()?;
-        for shape in [Shape::Barrier, Shape::Hub, Shape::Leaves, Shape::Ring] {
-            for system in ["tutti", "tutti (processes)", "HELICS"] {
-                let points: Vec<(f64, f64)> = runs
-                    .iter()
-                    .filter(|r| r.shape == shape && r.system == system)
-                    .map(|r| (r.n as f64, r.p50_us))
-                    .collect();
-                if points.is_empty() {
-                    continue;
-                }
-                let c = color(shape);
-                let dashed = if system == "HELICS" { " (dashed)" } else { "" };
-                let label = format!("{system} {}{dashed}", shape.name());
-                let style = c.stroke_width(3);
-                let series = if system == "HELICS" {
-                    chart.draw_series(DashedLineSeries::new(points.clone(), 10, 6, style))?
-                } else {
-                    chart.draw_series(LineSeries::new(points.clone(), style))?
-                };
-                series
-                    .label(label)
-                    .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 24, y)], c.stroke_width(3)));
-                chart.draw_series(points.iter().map(|&p| Circle::new(p, 4, c.filled())))?;
-            }
+        let mut shapes: Vec<&str> = Vec::new();
+        for s in series.iter().filter(|s| !s.points.is_empty()) {
+            let i = shapes.iter().position(|&n| n == s.shape).unwrap_or_else(|| {
+                shapes.push(s.shape);
+                shapes.len() - 1
+            });
+            let c = COLORS[i % COLORS.len()];
+            let style = c.stroke_width(3);
+            let drawn = if s.dashed {
+                chart.draw_series(DashedLineSeries::new(s.points.clone(), 10, 6, style))?
+            } else {
+                chart.draw_series(LineSeries::new(s.points.clone(), style))?
+            };
+            let dashed = if s.dashed { " (dashed)" } else { "" };
+            drawn
+                .label(format!("{} {}{dashed}", s.system, s.shape))
+                .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 24, y)], c.stroke_width(3)));
+            chart.draw_series(s.points.iter().map(|&p| Circle::new(p, 4, c.filled())))?;
         }
         chart
             .configure_series_labels()
