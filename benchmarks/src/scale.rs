@@ -63,7 +63,7 @@ pub struct Args {
     /// Writes per fan-out run.
     #[arg(long, default_value_t = 20_000)]
     writes: usize,
-    /// How the framework and every participant wait: block (futex), spin or poll:DURATION.
+    /// How the framework and every participant wait: block (futex), spin, adaptive[:DURATION] or poll:DURATION.
     #[arg(long, default_value = "block", value_parser = parse_wait)]
     wait: WaitMode,
     /// Participants are processes (this program again) instead of threads.
@@ -431,6 +431,7 @@ impl Participants {
             WaitMode::Block => "block".to_string(),
             WaitMode::Spin => "spin".to_string(),
             WaitMode::Poll(d) => format!("poll:{}ns", d.as_nanos()),
+            WaitMode::Adaptive(d) => format!("adaptive:{}ns", d.as_nanos()),
         };
         let children = (0..n)
             .map(|i| {

@@ -12,7 +12,7 @@ use crate::shm::WaitMode;
 pub enum ParseError {
     #[error("'{0}' is not a duration: a number and a unit, like 10ms, 500us, 2s or 1min")]
     Duration(String),
-    #[error("'{0}': use block, spin or poll:DURATION (e.g. poll:50us)")]
+    #[error("'{0}': use block, spin, adaptive[:DURATION] or poll:DURATION (e.g. poll:50us)")]
     Wait(String),
 }
 
@@ -21,14 +21,17 @@ pub fn parse_duration(s: &str) -> Result<Duration, ParseError> {
     humantime::parse_duration(s.trim()).map_err(|_| ParseError::Duration(s.to_string()))
 }
 
-/// A wait mode: `block`, `spin` or `poll:DURATION`.
+/// A wait mode: `block`, `spin`, `adaptive` (the spin this machine suits, then block),
+/// `adaptive:DURATION` or `poll:DURATION`.
 pub fn parse_wait(s: &str) -> Result<WaitMode, ParseError> {
     match s {
         "block" => Ok(WaitMode::Block),
         "spin" => Ok(WaitMode::Spin),
-        _ => match s.strip_prefix("poll:") {
-            Some(d) => parse_duration(d).map(WaitMode::Poll),
-            None => Err(ParseError::Wait(s.to_string())),
+        "adaptive" => Ok(WaitMode::adaptive()),
+        _ => match (s.strip_prefix("poll:"), s.strip_prefix("adaptive:")) {
+            (Some(d), _) => parse_duration(d).map(WaitMode::Poll),
+            (_, Some(d)) => parse_duration(d).map(WaitMode::Adaptive),
+            _ => Err(ParseError::Wait(s.to_string())),
         },
     }
 }
@@ -44,7 +47,9 @@ mod tests {
         assert!(parse_duration("10").unwrap_err().to_string().contains("a number and a unit"));
         assert_eq!(parse_wait("poll:50us"), Ok(WaitMode::Poll(Duration::from_micros(50))));
         assert_eq!(parse_wait("spin"), Ok(WaitMode::Spin));
+        assert_eq!(parse_wait("adaptive:20us"), Ok(WaitMode::Adaptive(Duration::from_micros(20))));
+        assert!(matches!(parse_wait("adaptive"), Ok(WaitMode::Adaptive(_))));
         assert_eq!(parse_wait("poll:x"), Err(ParseError::Duration("x".into())));
-        assert!(parse_wait("sleep").unwrap_err().to_string().contains("block, spin or poll"));
+        assert!(parse_wait("sleep").unwrap_err().to_string().contains("block, spin, adaptive[:DURATION] or poll"));
     }
 }

@@ -114,7 +114,11 @@ fn live_segment_is_refused_with_its_pid() {
 
 #[test]
 fn wait_modes_all_work() {
-    for mode in [WaitMode::Spin, WaitMode::Poll(Duration::from_micros(50)), WaitMode::Block] {
+    // Adaptive twice: a spin long enough to catch most hand-offs, and one so short that the
+    // waits go on to block.
+    let adaptive = [WaitMode::Adaptive(Duration::from_millis(5)), WaitMode::Adaptive(Duration::from_nanos(1))];
+    for mode in [WaitMode::Spin, WaitMode::Poll(Duration::from_micros(50)), WaitMode::Block].into_iter().chain(adaptive)
+    {
         let tag = format!("mode{mode:?}").replace(|c: char| !c.is_ascii_alphanumeric(), "");
         let mut fw =
             Framework::create(&model(true, true, false), &FrameworkOptions { wait: mode, ..fopts(&tag) }).unwrap();

@@ -399,6 +399,7 @@ fn ser_wait<S: Serializer>(w: &Option<WaitMode>, s: S) -> Result<S::Ok, S::Error
         Some(WaitMode::Block) => s.serialize_str("block"),
         Some(WaitMode::Spin) => s.serialize_str("spin"),
         Some(WaitMode::Poll(d)) => s.serialize_str(&format!("poll:{}", duration_text(*d))),
+        Some(WaitMode::Adaptive(d)) => s.serialize_str(&format!("adaptive:{}", duration_text(*d))),
         None => s.serialize_none(),
     }
 }

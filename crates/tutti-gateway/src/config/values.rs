@@ -49,11 +49,11 @@ pub fn parse_period(s: &str) -> Result<Duration, ConfigError> {
     Ok(d)
 }
 
-/// A wait mode (`block`, `spin`, `poll:DURATION`) whose poll interval is at most
+/// A wait mode (`block`, `spin`, `adaptive[:DURATION]`, `poll:DURATION`) whose time is at most
 /// [`MAX_DURATION`].
 pub fn parse_wait_mode(s: &str) -> Result<WaitMode, ConfigError> {
     match parse_wait(s)? {
-        WaitMode::Poll(d) if d > MAX_DURATION => {
+        WaitMode::Poll(d) | WaitMode::Adaptive(d) if d > MAX_DURATION => {
             Err(ConfigError::Duration { value: s.to_string(), why: "longer than 365 days" })
         }
         w => Ok(w),
@@ -100,7 +100,7 @@ macro_rules! parsed {
 parsed! {
     de_period -> Duration = parse_period, "a duration above zero like \"10ms\", \"2s\" or \"1min\"";
     de_span -> Duration = parse_span, "a duration like \"10ms\", \"2s\" or \"1min\"";
-    de_wait -> WaitMode = parse_wait_mode, "\"block\", \"spin\" or \"poll:DURATION\"";
+    de_wait -> WaitMode = parse_wait_mode, "\"block\", \"spin\", \"adaptive[:DURATION]\" or \"poll:DURATION\"";
     de_types -> TypeMode = parse_types, "\"typed\" or \"per-item\"";
     de_profile -> Profile = parse_profile, "\"ros2\" or \"dds\"";
     de_namespace -> String = parse_namespace, "a ROS namespace like \"sim1\"";

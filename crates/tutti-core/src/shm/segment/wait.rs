@@ -17,6 +17,20 @@ pub enum WaitMode {
     Poll(Duration),
     /// Sleep in the kernel (futex) until woken: no CPU use, a wake-up costs tens of µs.
     Block,
+    /// Spin for at most the given time from the start of each wait, then sleep in the kernel
+    /// as `Block` does: a hand-off that comes soon costs no wake-up, a long wait no CPU.
+    Adaptive(Duration),
+}
+
+impl WaitMode {
+    /// `adaptive` without a time: the spin this machine suits. With fewer than 4 cores a
+    /// spinning waiter takes the core the thread it waits for needs (`tutti-bench scale` on 2
+    /// cores: spinning 5-15x slower than blocking), so it does not spin at all; with more, it
+    /// spins up to 50 µs, about three times a blocking hand-off to another core (15-17 µs).
+    pub fn adaptive() -> WaitMode {
+        let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
+        WaitMode::Adaptive(if cores >= 4 { Duration::from_micros(50) } else { Duration::ZERO })
+    }
 }
 
 /// Waits for a condition, spinning, polling or blocking on a futex word, with a deadline
@@ -46,8 +60,15 @@ impl Waiter<'_> {
         mut ready: impl FnMut() -> Result<bool, E>,
         mut check: impl FnMut() -> Result<(), E>,
     ) -> Result<Waited, E> {
-        let mut next_check = Instant::now() + self.check_every;
+        let start = Instant::now();
+        let mut next_check = start + self.check_every;
         let mut spins: u32 = 0;
+        // Adaptive: spinning for this long, then blocking.
+        let spin_for = match self.mode {
+            WaitMode::Adaptive(d) => Some(d),
+            _ => None,
+        };
+        let mut spinning = self.mode == WaitMode::Spin || spin_for.is_some_and(|d| !d.is_zero());
         loop {
             let seen = self.futex.load(Ordering::Acquire);
             if ready()? {
@@ -55,7 +76,7 @@ impl Waiter<'_> {
             }
             // Time is read once every 64 turns while spinning: Instant::now costs ~25 ns.
             spins = spins.wrapping_add(1);
-            let now = if self.mode == WaitMode::Spin && spins % 64 != 0 { None } else { Some(Instant::now()) };
+            let now = if spinning && spins % 64 != 0 { None } else { Some(Instant::now()) };
             if let Some(now) = now {
                 if now >= deadline {
                     return Ok(Waited::TimedOut);
@@ -64,13 +85,16 @@ impl Waiter<'_> {
                     check()?;
                     next_check = now + self.check_every;
                 }
+                if spin_for.is_some_and(|d| now.duration_since(start) >= d) {
+                    spinning = false;
+                }
                 match self.mode {
                     // Give the core away now and then: on an overloaded machine a pure spin
                     // can starve the very process it waits for.
-                    WaitMode::Spin if spins % 4096 == 0 => std::thread::yield_now(),
-                    WaitMode::Spin => std::hint::spin_loop(),
+                    WaitMode::Spin | WaitMode::Adaptive(_) if spinning && spins % 4096 == 0 => std::thread::yield_now(),
+                    WaitMode::Spin | WaitMode::Adaptive(_) if spinning => std::hint::spin_loop(),
                     WaitMode::Poll(d) => std::thread::sleep(d.min(deadline - now)),
-                    WaitMode::Block => {
+                    WaitMode::Spin | WaitMode::Adaptive(_) | WaitMode::Block => {
                         self.waiters.fetch_add(1, Ordering::SeqCst);
                         // Re-test after announcing ourselves: the other side bumps the word
                         // and then checks the waiter count, so one of us sees the other.
