@@ -46,7 +46,7 @@ pub struct Args {
     /// Leave out the warm-up round.
     #[arg(long)]
     no_warmup: bool,
-    /// How the framework and every participant wait: block (futex), spin, adaptive[:DURATION] or poll:DURATION.
+    /// How the framework and every participant wait: block (futex), spin, adaptive, adaptive:DURATION or poll:DURATION.
     #[arg(long, default_value = "block", value_parser = parse_wait)]
     wait: WaitMode,
     /// Print one JSON object instead of the table.

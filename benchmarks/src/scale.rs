@@ -63,7 +63,7 @@ pub struct Args {
     /// Writes per fan-out run.
     #[arg(long, default_value_t = 20_000)]
     writes: usize,
-    /// How the framework and every participant wait: block (futex), spin, adaptive[:DURATION] or poll:DURATION.
+    /// How the framework and every participant wait: block (futex), spin, adaptive, adaptive:DURATION or poll:DURATION.
     #[arg(long, default_value = "block", value_parser = parse_wait)]
     wait: WaitMode,
     /// Participants are processes (this program again) instead of threads.

@@ -50,7 +50,7 @@ pub struct Args {
     /// Longest wait for the participants of a synchronous step, and for a seed.
     #[arg(long, default_value = tutti_core::defaults::STEP_TIMEOUT_TEXT, value_parser = parse_duration)]
     timeout: Duration,
-    /// How the framework waits for participants: block, spin, adaptive[:DURATION] (spin, then block), or poll:DURATION.
+    /// How the framework waits for participants: block, spin, adaptive or adaptive:DURATION (spin, then block), or poll:DURATION.
     #[arg(long, default_value = "block", value_parser = parse_wait)]
     wait: WaitMode,
     /// Connection slots per domain: participants, recorders and gateways at once.
