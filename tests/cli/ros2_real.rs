@@ -257,8 +257,15 @@ fn complaints(lines: &[String]) -> Vec<&String> {
 fn run_quietly(name: &str, cmd: Command, limit: Duration) -> Vec<String> {
     let mut p = Proc::spawn(name, cmd, limit + SECS(10));
     let code = p.wait(limit);
-    assert_eq!(code, Some(0), "{name} failed\n{}", p.dump());
     let lines = p.lines();
+    // rmw_zenoh's own teardown, after everything asked was answered: its Zenoh session to
+    // `rmw_zenohd` did not close within Zenoh's fixed 10 s on a loaded machine, and rcl's
+    // shutdown fails with exit status 1 (ros2cli; our rclpy scripts note it and exit 0,
+    // tests/ros2/rclpy_end.py). tutti is not party to that session.
+    let zenoh_close_timed_out = code == Some(1)
+        && lines.iter().any(|l| l.contains("close operation timed out"))
+        && lines.iter().any(|l| l.contains("Failed to close the session"));
+    assert!(code == Some(0) || zenoh_close_timed_out, "{name} failed ({code:?})\n{}", p.dump());
     let bad = complaints(&lines);
     assert!(bad.is_empty(), "{name} complained:\n{bad:#?}\n{}", p.dump());
     lines
