@@ -71,7 +71,8 @@ pub fn tutti(namespace: &str, readers: usize, writes: usize) -> anyhow::Result<F
     };
     let domain = &mut fw.domains[0];
     let mut times = Vec::with_capacity(writes);
-    for k in 0..(crate::warmup(writes) + writes) as u64 {
+    let warm = crate::warmup(writes);
+    for k in 0..(warm + writes) as u64 {
         let bytes = k.to_ne_bytes();
         let t0 = Instant::now();
         domain.publish_step(&bytes, k as f64).context("publishing")?;
@@ -83,7 +84,7 @@ pub fn tutti(namespace: &str, readers: usize, writes: usize) -> anyhow::Result<F
                 bail!("tutti fan-out: reader {i} read {got:?} after write {k}");
             }
         }
-        if k >= crate::warmup(writes) as u64 {
+        if k >= warm as u64 {
             times.push(dt);
         }
     }
@@ -107,7 +108,8 @@ pub fn iceoryx2(readers: usize, writes: usize) -> anyhow::Result<FanOut> {
         let publisher = svc.publisher_builder().create()?;
         let subs = (0..readers).map(|_| svc.subscriber_builder().create()).collect::<Result<Vec<_>, _>>()?;
         let mut times = Vec::with_capacity(writes);
-        for k in 0..(crate::warmup(writes) + writes) as u64 {
+        let warm = crate::warmup(writes);
+        for k in 0..(warm + writes) as u64 {
             let t0 = Instant::now();
             publisher.loan_uninit()?.write_payload(k).send()?;
             let dt = t0.elapsed();
@@ -117,7 +119,7 @@ pub fn iceoryx2(readers: usize, writes: usize) -> anyhow::Result<FanOut> {
                     return Err(format!("iceoryx2 fan-out: subscriber {i} received {got:?} after send {k}").into());
                 }
             }
-            if k >= crate::warmup(writes) as u64 {
+            if k >= warm as u64 {
                 times.push(dt);
             }
         }

@@ -1,11 +1,27 @@
 //! `tutti-bench scale` in small (N <= 8, few steps): every shape runs to its end next to
 //! HELICS (fan-out next to iceoryx2), and every participant and federate answered every step
-//! and every reader read every write (the benchmark checks the counts and fails otherwise). No time is asserted: the figures are docs/benchmarks.md's.
+//! and every reader read every write (the benchmark checks the counts and fails otherwise).
+//! No time is asserted: the figures are docs/benchmarks.md's.
 
 use tutti_test_support as common;
 
 use std::process::Command;
 use std::time::Duration;
+
+/// `tutti-bench scale ARGS --json` in namespace prefix `ns` (its runs' segments removed
+/// whatever happens, and checked gone after it): what it printed, which must be JSON.
+fn scale(ns: &str, namespaces: &[String], args: &[&str], limit: Duration) -> serde_json::Value {
+    let _segments: Vec<_> = namespaces.iter().cloned().map(common::RemoveSegments).collect();
+    let mut cmd = Command::new(common::workspace_bin("tutti-bench", "tutti-bench"));
+    cmd.arg("scale").args(args).arg("--json").env("TUTTI_NAMESPACE", ns);
+    let (status, out, err) = common::run_with_timeout(cmd, limit);
+    assert!(status.success(), "tutti-bench scale {args:?} failed ({status}):\n{out}\n{err}");
+    for ns in namespaces {
+        let left = common::segments_of(ns);
+        assert!(left.is_empty(), "{ns} left {left:?}");
+    }
+    serde_json::from_str(out.trim()).unwrap_or_else(|e| panic!("{e}: {out}"))
+}
 
 #[test]
 fn bench_scale_runs_every_shape_next_to_its_peer_with_every_step_answered() {
@@ -16,13 +32,8 @@ fn bench_scale_runs_every_shape_next_to_its_peer_with_every_step_answered() {
     let ns_of = |shape: &str, n: u64| format!("{ns}{shape}x{n}");
     let mut namespaces: Vec<String> = shapes.iter().flat_map(|s| [2, 8].map(|n| ns_of(s, n))).collect();
     namespaces.extend([1, 10].map(|r| ns_of("fanout", r)));
-    let _segments: Vec<_> = namespaces.iter().cloned().map(common::RemoveSegments).collect();
-    let mut cmd = Command::new(common::workspace_bin("tutti-bench", "tutti-bench"));
-    cmd.args(["scale", "--n", "2,8", "--steps", "200", "--readers", "1,10", "--writes", "500", "--json"])
-        .env("TUTTI_NAMESPACE", &ns);
-    let (status, out, err) = common::run_with_timeout(cmd, Duration::from_secs(600));
-    assert!(status.success(), "tutti-bench scale failed ({status}):\n{out}\n{err}");
-    let v: serde_json::Value = serde_json::from_str(out.trim()).unwrap_or_else(|e| panic!("{e}: {out}"));
+    let args = ["--n", "2,8", "--steps", "200", "--readers", "1,10", "--writes", "500"];
+    let v = scale(&ns, &namespaces, &args, Duration::from_secs(600));
     assert!(v["helics"].as_str().is_some_and(|h| h.starts_with("3.")), "{v}");
     let runs = v["runs"].as_array().expect("runs");
     for shape in shapes {
@@ -43,10 +54,6 @@ fn bench_scale_runs_every_shape_next_to_its_peer_with_every_step_answered() {
             assert_eq!(found[0]["writes"], 500, "{v}");
         }
     }
-    for ns in &namespaces {
-        let left = common::segments_of(ns);
-        assert!(left.is_empty(), "{ns} left {left:?}");
-    }
 }
 
 /// The same with every participant a process of its own (`--processes`): each answered every
@@ -55,17 +62,9 @@ fn bench_scale_runs_every_shape_next_to_its_peer_with_every_step_answered() {
 fn bench_scale_with_participant_processes_answers_every_step() {
     let ns = common::namespace("scaleproc");
     let namespaces: Vec<String> = [2, 8].map(|n| format!("{ns}hubx{n}")).to_vec();
-    let _segments: Vec<_> = namespaces.iter().cloned().map(common::RemoveSegments).collect();
-    let mut cmd = Command::new(common::workspace_bin("tutti-bench", "tutti-bench"));
-    cmd.args(["scale", "--shapes", "hub", "--n", "2,8", "--steps", "100", "--processes", "--no-helics", "--json"])
-        .env("TUTTI_NAMESPACE", &ns);
-    let (status, out, err) = common::run_with_timeout(cmd, Duration::from_secs(300));
-    assert!(status.success(), "tutti-bench scale --processes failed ({status}):\n{out}\n{err}");
-    let v: serde_json::Value = serde_json::from_str(out.trim()).unwrap_or_else(|e| panic!("{e}: {out}"));
+    let args = ["--shapes", "hub", "--n", "2,8", "--steps", "100", "--processes", "--no-helics"];
+    let v = scale(&ns, &namespaces, &args, Duration::from_secs(300));
     let runs = v["runs"].as_array().expect("runs");
     assert_eq!(runs.len(), 2, "{v}");
     assert!(runs.iter().all(|r| r["system"] == "tutti (processes)" && r["steps"] == 100), "{v}");
-    for ns in &namespaces {
-        assert!(common::segments_of(ns).is_empty(), "{ns} left segments");
-    }
 }
