@@ -46,8 +46,8 @@ pub struct Args {
     /// Leave out the warm-up round.
     #[arg(long)]
     no_warmup: bool,
-    /// How the framework and every participant wait: block (futex), spin, adaptive, adaptive:DURATION or poll:DURATION.
-    #[arg(long, default_value = "block", value_parser = parse_wait)]
+    /// How the framework and every participant wait: adaptive (yield up to 50 µs, then block; the default), adaptive:DURATION, block (futex), spin or poll:DURATION.
+    #[arg(long, default_value = "adaptive", value_parser = parse_wait)]
     wait: WaitMode,
     /// Print one JSON object instead of the table.
     #[arg(long)]

@@ -122,7 +122,7 @@ pub struct Args {
     /// Longest shared-memory wait; with --mirror, the framework's step timeout (default 1s).
     #[arg(long, value_name = "DURATION", value_parser = config::parse_period)]
     timeout: Option<Duration>,
-    /// How shared-memory waits wait: block (the default), spin, adaptive or adaptive:DURATION (spin, then block), or poll:DURATION.
+    /// How shared-memory waits wait: adaptive (yield up to 50 µs, then block; the default), adaptive:DURATION, block, spin or poll:DURATION.
     #[arg(long, value_name = "MODE", value_parser = config::parse_wait_mode)]
     wait: Option<WaitMode>,
     /// How often an idle asynchronous set is checked for changes (default 500us; 0: keep

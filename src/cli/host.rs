@@ -50,8 +50,8 @@ pub struct Args {
     /// Longest wait for the participants of a synchronous step, and for a seed.
     #[arg(long, default_value = tutti_core::defaults::STEP_TIMEOUT_TEXT, value_parser = parse_duration)]
     timeout: Duration,
-    /// How the framework waits for participants: block, spin, adaptive or adaptive:DURATION (spin, then block), or poll:DURATION.
-    #[arg(long, default_value = "block", value_parser = parse_wait)]
+    /// How the framework waits for participants: adaptive (yield up to 50 µs, then block; the default), adaptive:DURATION, block, spin or poll:DURATION.
+    #[arg(long, default_value = "adaptive", value_parser = parse_wait)]
     wait: WaitMode,
     /// Connection slots per domain: participants, recorders and gateways at once.
     #[arg(long, default_value_t = tutti_core::shm::DEFAULT_CONNECTIONS, value_parser = clap::value_parser!(u32).range(1..=4096))]

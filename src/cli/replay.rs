@@ -42,8 +42,8 @@ pub struct Args {
     /// Longest wait for the participants of a synchronous step.
     #[arg(long, default_value = tutti_core::defaults::STEP_TIMEOUT_TEXT, value_parser = parse_duration)]
     timeout: Duration,
-    /// How the framework waits for participants: block, spin, adaptive or adaptive:DURATION (spin, then block), or poll:DURATION.
-    #[arg(long, default_value = "block", value_parser = parse_wait)]
+    /// How the framework waits for participants: adaptive (yield up to 50 µs, then block; the default), adaptive:DURATION, block, spin or poll:DURATION.
+    #[arg(long, default_value = "adaptive", value_parser = parse_wait)]
     wait: WaitMode,
     /// Print the summary (and the differences) as one JSON object on stdout.
     #[arg(long)]

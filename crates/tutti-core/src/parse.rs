@@ -12,7 +12,7 @@ use crate::shm::WaitMode;
 pub enum ParseError {
     #[error("'{0}' is not a duration: a number and a unit, like 10ms, 500us, 2s or 1min")]
     Duration(String),
-    #[error("'{0}': use block, spin, adaptive[:DURATION] or poll:DURATION (e.g. poll:50us)")]
+    #[error("'{0}': use adaptive[:DURATION], block, spin or poll:DURATION (e.g. poll:50us)")]
     Wait(String),
 }
 
@@ -21,7 +21,7 @@ pub fn parse_duration(s: &str) -> Result<Duration, ParseError> {
     humantime::parse_duration(s.trim()).map_err(|_| ParseError::Duration(s.to_string()))
 }
 
-/// A wait mode: `block`, `spin`, `adaptive` (the spin this machine suits, then block),
+/// A wait mode: `adaptive` (yield up to 50 µs, then block: the default), `block`, `spin`,
 /// `adaptive:DURATION` or `poll:DURATION`.
 pub fn parse_wait(s: &str) -> Result<WaitMode, ParseError> {
     match s {
@@ -48,8 +48,10 @@ mod tests {
         assert_eq!(parse_wait("poll:50us"), Ok(WaitMode::Poll(Duration::from_micros(50))));
         assert_eq!(parse_wait("spin"), Ok(WaitMode::Spin));
         assert_eq!(parse_wait("adaptive:20us"), Ok(WaitMode::Adaptive(Duration::from_micros(20))));
-        assert!(matches!(parse_wait("adaptive"), Ok(WaitMode::Adaptive(_))));
+        // The default: a yield of 50 µs, then a block.
+        assert_eq!(parse_wait("adaptive"), Ok(WaitMode::Adaptive(Duration::from_micros(50))));
+        assert_eq!(WaitMode::default(), WaitMode::adaptive());
         assert_eq!(parse_wait("poll:x"), Err(ParseError::Duration("x".into())));
-        assert!(parse_wait("sleep").unwrap_err().to_string().contains("block, spin, adaptive[:DURATION] or poll"));
+        assert!(parse_wait("sleep").unwrap_err().to_string().contains("adaptive[:DURATION], block, spin or poll"));
     }
 }

@@ -67,7 +67,7 @@ pub struct Framework {
     pub record: Vec<PathBuf>,
     /// `set`: `DOMAIN/ITEM=VALUE` PUBLISH values.
     pub set: Vec<String>,
-    /// `wait`: how the framework waits for participants (default block).
+    /// `wait`: how the framework waits for participants (default `adaptive`).
     pub wait: WaitMode,
     /// `ordering`: how connections are applied within a step (default `delayed`).
     pub ordering: StepOrder,
@@ -87,7 +87,7 @@ impl Default for Framework {
             catch_up: false,
             record: Vec::new(),
             set: Vec::new(),
-            wait: WaitMode::Block,
+            wait: WaitMode::adaptive(),
             ordering: StepOrder::Delayed,
             checkpoint: None,
         }

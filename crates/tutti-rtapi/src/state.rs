@@ -75,7 +75,7 @@ static STATE: Mutex<State> = Mutex::new(State {
     next_key: DEFAULT_KEY + 1,
     current: DEFAULT_KEY,
     skip_wait_to_go: false,
-    wait: WaitMode::Block,
+    wait: WaitMode::adaptive(),
     remote: BTreeMap::new(),
     callbacks: BTreeMap::new(),
 });

@@ -39,7 +39,7 @@ impl Default for FrameworkOptions {
         FrameworkOptions {
             namespace: namespace_from_env(),
             timeout: crate::defaults::STEP_TIMEOUT,
-            wait: WaitMode::Block,
+            wait: WaitMode::adaptive(),
             connections: segment::DEFAULT_CONNECTIONS,
             mode: 0o600,
             hold: false,

@@ -221,7 +221,7 @@ impl GatewayOptions {
             namespace: tutti_core::shm::segment::namespace_from_env(),
             interfaces: Vec::new(),
             timeout: tutti_core::defaults::STEP_TIMEOUT,
-            wait: WaitMode::Block,
+            wait: WaitMode::adaptive(),
             poll: Duration::from_micros(500),
             discovery_every: Duration::from_millis(200),
             engine: EngineKind::default(),

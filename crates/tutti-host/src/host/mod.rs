@@ -88,7 +88,7 @@ impl Default for HostOptions {
             steps: None,
             catch_up: false,
             timeout: tutti_core::defaults::STEP_TIMEOUT,
-            wait: WaitMode::Block,
+            wait: WaitMode::adaptive(),
             namespace: None,
             sets: Vec::new(),
             hold: None,

@@ -63,7 +63,7 @@ impl Default for ConnectOptions {
             name,
             connect_timeout: Duration::from_secs(5),
             timeout: Duration::from_secs(5),
-            wait: WaitMode::Block,
+            wait: WaitMode::adaptive(),
             skip_wait_to_go: false,
             kind: ConnKind::Participant,
             state: None,

@@ -8,28 +8,38 @@ use serde::Serialize;
 use crate::shm::os;
 use crate::sync::{AtomicU32, Ordering};
 
-/// How a connection or the framework waits for the other side.
+/// How a connection or the framework waits for the other side (docs/timing.md, "Waits").
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
 pub enum WaitMode {
     /// Busy-wait: lowest latency, one core at 100 %.
     Spin,
     /// Check every given interval (the product's "flag delay").
     Poll(Duration),
-    /// Sleep in the kernel (futex) until woken: no CPU use, a wake-up costs tens of µs.
+    /// Sleep in the kernel (futex) until woken: no CPU use, but a wake-up costs a context
+    /// switch, and tens of µs where it wakes a core that went idle.
     Block,
-    /// Spin for at most the given time from the start of each wait, then sleep in the kernel
-    /// as `Block` does: a hand-off that comes soon costs no wake-up, a long wait no CPU.
+    /// Yield the core for at most the given time from the start of each wait, then sleep in
+    /// the kernel as `Block` does: a hand-off that comes soon costs no wake-up, a long wait
+    /// no CPU. The default ([`WaitMode::adaptive`]).
     Adaptive(Duration),
 }
 
 impl WaitMode {
-    /// `adaptive` without a time: the spin this machine suits. With fewer than 4 cores a
-    /// spinning waiter takes the core the thread it waits for needs (`tutti-bench scale` on 2
-    /// cores: spinning 5-15x slower than blocking), so it does not spin at all; with more, it
-    /// spins up to 50 µs, about three times a blocking hand-off to another core (15-17 µs).
-    pub fn adaptive() -> WaitMode {
-        let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
-        WaitMode::Adaptive(if cores >= 4 { Duration::from_micros(50) } else { Duration::ZERO })
+    /// How long the default wait yields before it sleeps.
+    pub const ADAPTIVE_SPIN: Duration = Duration::from_micros(50);
+
+    /// `adaptive` without a time, the default: yields up to [`ADAPTIVE_SPIN`](Self::ADAPTIVE_SPIN),
+    /// then blocks. 50 µs covers a hand-off between two participants with room to spare
+    /// (3-4 µs yielding, 35-50 µs blocking on 2 cores; `tutti-bench scale`, docs/benchmarks.md
+    /// "Scale"), and costs a run paced at 1 kHz at most 5 % of a core per waiter.
+    pub const fn adaptive() -> WaitMode {
+        WaitMode::Adaptive(Self::ADAPTIVE_SPIN)
+    }
+}
+
+impl Default for WaitMode {
+    fn default() -> WaitMode {
+        WaitMode::adaptive()
     }
 }
 
@@ -63,52 +73,49 @@ impl Waiter<'_> {
         let start = Instant::now();
         let mut next_check = start + self.check_every;
         let mut spins: u32 = 0;
-        // Adaptive: spinning for this long, then blocking.
-        let spin_for = match self.mode {
-            WaitMode::Adaptive(d) => Some(d),
-            _ => None,
-        };
-        let mut spinning = self.mode == WaitMode::Spin || spin_for.is_some_and(|d| !d.is_zero());
         loop {
             let seen = self.futex.load(Ordering::Acquire);
             if ready()? {
                 return Ok(Waited::Ready);
             }
-            // Time is read once every 64 turns while spinning: Instant::now costs ~25 ns.
             spins = spins.wrapping_add(1);
-            let now = if spinning && spins % 64 != 0 { None } else { Some(Instant::now()) };
-            if let Some(now) = now {
-                if now >= deadline {
-                    return Ok(Waited::TimedOut);
-                }
-                if now >= next_check {
-                    check()?;
-                    next_check = now + self.check_every;
-                }
-                if spin_for.is_some_and(|d| now.duration_since(start) >= d) {
-                    spinning = false;
-                }
-                match self.mode {
-                    // Give the core away now and then: on an overloaded machine a pure spin
-                    // can starve the very process it waits for.
-                    WaitMode::Spin | WaitMode::Adaptive(_) if spinning && spins % 4096 == 0 => std::thread::yield_now(),
-                    WaitMode::Spin | WaitMode::Adaptive(_) if spinning => std::hint::spin_loop(),
-                    WaitMode::Poll(d) => std::thread::sleep(d.min(deadline - now)),
-                    WaitMode::Spin | WaitMode::Adaptive(_) | WaitMode::Block => {
-                        self.waiters.fetch_add(1, Ordering::SeqCst);
-                        // Re-test after announcing ourselves: the other side bumps the word
-                        // and then checks the waiter count, so one of us sees the other.
-                        if !ready()? {
-                            let limit = (deadline - now)
-                                .min(next_check.saturating_duration_since(now))
-                                .max(Duration::from_micros(50));
-                            os::futex_wait(self.futex, seen, limit);
-                        }
-                        self.waiters.fetch_sub(1, Ordering::SeqCst);
-                    }
-                }
-            } else {
+            // A pure spin reads the time once every 64 turns (Instant::now costs ~25 ns); the
+            // other waits, whose turns cost a system call, at every turn.
+            if self.mode == WaitMode::Spin && spins % 64 != 0 {
                 std::hint::spin_loop();
+                continue;
+            }
+            let now = Instant::now();
+            if now >= deadline {
+                return Ok(Waited::TimedOut);
+            }
+            if now >= next_check {
+                check()?;
+                next_check = now + self.check_every;
+            }
+            match self.mode {
+                // Give the core away now and then: on an overloaded machine a pure spin can
+                // starve the very process it waits for.
+                WaitMode::Spin if spins % 4096 == 0 => std::thread::yield_now(),
+                WaitMode::Spin => std::hint::spin_loop(),
+                // While its spin lasts an adaptive wait yields at every turn: a thread that is
+                // runnable on this core (the one that will answer, where threads outnumber
+                // cores) runs at once, and with none the turn comes straight back. The core
+                // never goes idle, so the answer costs no wake-up of a sleeping core.
+                WaitMode::Adaptive(d) if now.duration_since(start) < d => std::thread::yield_now(),
+                WaitMode::Poll(d) => std::thread::sleep(d.min(deadline - now)),
+                WaitMode::Adaptive(_) | WaitMode::Block => {
+                    self.waiters.fetch_add(1, Ordering::SeqCst);
+                    // Re-test after announcing ourselves: the other side bumps the word
+                    // and then checks the waiter count, so one of us sees the other.
+                    if !ready()? {
+                        let limit = (deadline - now)
+                            .min(next_check.saturating_duration_since(now))
+                            .max(Duration::from_micros(50));
+                        os::futex_wait(self.futex, seen, limit);
+                    }
+                    self.waiters.fetch_sub(1, Ordering::SeqCst);
+                }
             }
         }
     }
