@@ -45,7 +45,7 @@ const HELICS_SRC: &str = include_str!("helics_scale.c");
 
 #[derive(Debug, clap::Args)]
 #[command(
-    after_help = "Examples:\n  tutti-bench scale\n  tutti-bench scale --n 2,8,32,128 --steps 5000 --json\n  tutti-bench scale --shapes hub --wait spin --no-helics"
+    after_help = "Examples:\n  tutti-bench scale\n  tutti-bench scale --n 2,8,32,128 --steps 5000 --json\n  tutti-bench scale --shapes hub --wait spin --no-helics\n  tutti-bench scale --shapes barrier,hub --cpu 0   # everything on one core, HELICS too"
 )]
 pub struct Args {
     /// Participants (threads) per run, comma-separated.
@@ -63,12 +63,17 @@ pub struct Args {
     /// Writes per fan-out run.
     #[arg(long, default_value_t = 20_000)]
     writes: usize,
-    /// How the framework and every participant wait: block (futex), spin, adaptive, adaptive:DURATION or poll:DURATION.
-    #[arg(long, default_value = "block", value_parser = parse_wait)]
+    /// How the framework and every participant wait: adaptive (yield up to 50 µs, then block; the default), adaptive:DURATION, block (futex), spin or poll:DURATION.
+    #[arg(long, default_value = "adaptive", value_parser = parse_wait)]
     wait: WaitMode,
     /// Participants are processes (this program again) instead of threads.
     #[arg(long)]
     processes: bool,
+    /// Run everything on this one CPU: the framework, every participant (threads, or
+    /// processes with --processes) and the HELICS program, which inherit this process's
+    /// affinity. Default: the scheduler places them.
+    #[arg(long, value_name = "CPU")]
+    cpu: Option<usize>,
     /// Leave HELICS out (it is looked for in the repository's .venv, or HELICS_INSTALL).
     #[arg(long)]
     no_helics: bool,
@@ -148,11 +153,16 @@ impl Figures {
 
 pub fn run(args: Args) -> CliResult {
     let cpus = std::thread::available_parallelism().map_or(0, |n| n.get());
+    // Before any thread or process starts: they all inherit it.
+    if let Some(cpu) = args.cpu {
+        tutti_core::shm::os::pin_to_cpu(cpu).with_context(|| format!("pinning the benchmark to CPU {cpu} (--cpu)"))?;
+    }
+    let placement = args.cpu.map_or("unpinned".to_string(), |c| format!("all on CPU {c}"));
     let helics = if args.no_helics { None } else { Some(Helics::build()?) };
     let steps = args.shapes.iter().any(|&s| s != Shape::FanOut);
     if !args.json && steps {
         println!(
-            "scale: {} steps per run, speed inf, wait {:?}, one {} per participant (a thread per federate), {cpus} CPUs, unpinned; HELICS {}",
+            "scale: {} steps per run, speed inf, wait {:?}, one {} per participant (a thread per federate), {cpus} CPUs, {placement}; HELICS {}",
             args.steps,
             args.wait,
             if args.processes { "process" } else { "thread" },
@@ -203,6 +213,7 @@ pub fn run(args: Args) -> CliResult {
             "steps": args.steps,
             "wait": format!("{:?}", args.wait),
             "cpus": cpus,
+            "cpu": args.cpu,
             "helics": helics.as_ref().map(|h| h.version.clone()),
             "runs": all.iter().map(Figures::to_json).collect::<Vec<_>>(),
             "fan_out": fanout.iter().map(FanOut::to_json).collect::<Vec<_>>(),
