@@ -230,8 +230,12 @@ impl Link<'_> {
         while self.published.front().is_some_and(|(k, _)| *k < m) {
             self.published.pop_front();
         }
-        if let Some((_, t)) = self.published.front().filter(|(k, _)| *k == m) {
-            let rtt = at.saturating_duration_since(*t);
+        // An answer that arrived before this thread saw its step published (the thread was
+        // not scheduled meanwhile: a loaded machine) has no round trip to measure; the
+        // latest one measured stands.
+        if let Some(rtt) =
+            self.published.front().filter(|(k, _)| *k == m).and_then(|(_, t)| at.checked_duration_since(*t))
+        {
             self.set.rtt_us.store(u64::try_from(rtt.as_micros()).unwrap_or(u64::MAX), Ordering::Relaxed);
         }
         self.answers.push_back((m, payload));
@@ -267,5 +271,51 @@ impl Link<'_> {
             self.answers.pop_front();
             SetStats::add(Some(self.set), |s| &s.dropped, &st.out.counters.total.late, 1);
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use std::sync::mpsc::channel;
+
+    use tutti_core::cdr::TypedSample;
+
+    use super::*;
+
+    fn answer(step: u64) -> Payload {
+        Payload::Set(TypedSample { step, sim_time: 0.0, data: Vec::new() })
+    }
+
+    /// The round trip of a step is measured from when this thread saw it published; an answer
+    /// that came before that (the thread was not scheduled meanwhile) measures nothing, and the
+    /// latest round trip measured stands, never a round trip of 0.
+    #[test]
+    fn an_answer_that_arrived_before_its_step_was_seen_published_measures_no_round_trip() {
+        let (_tx, rx) = channel();
+        let (pending, set) = (AtomicUsize::new(3), SetStats::default());
+        let mut link = Link {
+            rx: &rx,
+            pending: &pending,
+            set: &set,
+            answers: VecDeque::new(),
+            published: VecDeque::new(),
+            newest: None,
+            gaps: LogLimit::new(Duration::from_secs(5)),
+        };
+        let t0 = Instant::now();
+        link.published(1);
+        link.take((answer(1), t0 + Duration::from_micros(700)));
+        let measured = set.rtt_us.load(Ordering::Relaxed);
+        assert!(measured > 0 && measured <= 700, "{measured}");
+        // Step 2 seen published after its answer arrived.
+        let arrived = Instant::now();
+        std::thread::sleep(Duration::from_millis(2));
+        link.published(2);
+        link.take((answer(2), arrived));
+        assert_eq!(set.rtt_us.load(Ordering::Relaxed), measured);
+        // Both answers are queued in order all the same.
+        let steps: Vec<u64> = link.answers.iter().map(|(m, _)| *m).collect();
+        assert_eq!(steps, [1, 2]);
+        assert_eq!(link.newest, Some(2));
     }
 }
