@@ -145,7 +145,14 @@ RUSTFLAGS="--cfg tutti_loom" CARGO_TARGET_DIR=target/loom cargo test -p tutti-co
 
 step "test suite"
 cargo build --workspace --locked --quiet
-cargo test --workspace --locked --no-fail-fast
+# The output is kept, and when a test fails, the head of each failure's report is printed
+# again at the end, where a CI log's tail shows it (the targets after a failing one run on).
+if ! cargo test --workspace --locked --no-fail-fast 2>&1 | tee target/test-output.log; then
+    echo "=== the failures, the first 40 lines of each (target/test-output.log has them whole) ===" >&2
+    awk '/^---- .* stdout ----$/ { on = 1; n = 0 } /^failures:$/ { on = 0 } on && n++ < 40' \
+        target/test-output.log >&2
+    exit 101
+fi
 
 # The tests must leave no shared-memory segment behind.
 leftover=$(comm -13 <(echo "$segments_before" | sort) <(segments | sort) || true)
