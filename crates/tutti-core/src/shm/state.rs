@@ -88,6 +88,9 @@ pub struct StateConnection {
     pub keeps_state: bool,
     /// Event-driven: the index (simulated time over the step) from which it is next due.
     pub due_index: u64,
+    /// A remote writer across a link to another site that keeps a state (its lookahead's
+    /// answers on their way: the gateway's).
+    pub remote: bool,
 }
 
 /// A connection's answer to a request.
@@ -175,7 +178,8 @@ impl Segment {
         true
     }
 
-    /// The participants' connections (not DDS writers, not observers), for a checkpoint.
+    /// The participants' connections for a checkpoint: not observers, and not remote writers
+    /// (DDS writers through the gateway) unless they keep a state.
     pub(crate) fn state_connections(&self) -> Vec<StateConnection> {
         use crate::shm::handshake::{CONN_OBSERVER, CONN_REMOTE};
         let mut out = Vec::new();
@@ -185,15 +189,19 @@ impl Segment {
             if pid == 0 || c.ready.load(Ordering::Acquire) == 0 {
                 continue;
             }
-            if c.flags.load(Ordering::Acquire) & (CONN_OBSERVER | CONN_REMOTE) != 0 {
+            let flags = c.flags.load(Ordering::Acquire);
+            let keeps_state = c.keeps_state.load(Ordering::Acquire) != 0;
+            let remote = flags & CONN_REMOTE != 0;
+            if flags & CONN_OBSERVER != 0 || (remote && !keeps_state) {
                 continue;
             }
             out.push(StateConnection {
                 slot: i,
                 pid,
                 name: super::segment::conn_name(c),
-                keeps_state: c.keeps_state.load(Ordering::Acquire) != 0,
+                keeps_state,
                 due_index: c.due_index.load(Ordering::Acquire),
+                remote,
             });
         }
         out
