@@ -29,7 +29,7 @@ use std::time::{Duration, Instant};
 use tokio::sync::mpsc::UnboundedSender;
 use tracing::{debug, info, warn};
 use tutti_core::mapping::Qos;
-use tutti_core::shm::{Participant, ShmError};
+use tutti_core::shm::{ConnectOptions, Participant, SharedState, ShmError};
 
 use super::{Counters, Event, Inbound, ShmConfig};
 use crate::cdr::{CdrError, Payload, SetCodec, TypedSample};
@@ -294,7 +294,7 @@ impl RemoteWriter {
         let ls = Arc::new(Lockstep { tx, shared: shared.clone(), ahead: ahead > 0 });
         thread::Builder::new().name("tutti-gw-writer".into()).stack_size(256 << 10).spawn(move || {
             if ahead > 0 {
-                super::lookahead::run(&shared, &rx, &cfg)
+                super::lookahead::run(shared, rx, &cfg)
             } else {
                 run(&shared, rx, cfg)
             }
@@ -344,6 +344,16 @@ pub(super) struct LockstepState {
     pub(super) state: Mutex<WriterState>,
 }
 
+#[cfg(test)]
+impl LockstepState {
+    /// A writer's shared state with no connection, K steps of lookahead.
+    pub(super) fn for_tests(ahead: u64) -> Arc<LockstepState> {
+        let counters = Counters { total: Arc::default(), set: Arc::default() };
+        let out = Delivery::new("d".into(), "w".into(), counters, Arc::default(), ahead);
+        Arc::new(LockstepState { pending: AtomicUsize::new(0), state: Mutex::new(WriterState { out, part: None }) })
+    }
+}
+
 /// A synchronous remote writer's delivery and its connection (None: not connected).
 #[derive(Debug)]
 pub(super) struct WriterState {
@@ -377,7 +387,7 @@ impl Lockstep {
 /// hung) has its connection released, so that the domain stops waiting for it; its next
 /// sample connects it again.
 fn run(ls: &LockstepState, rx: Receiver<(Payload, Instant)>, cfg: ShmConfig) {
-    let connect = |out: &Delivery| connect(out, &cfg);
+    let connect = |out: &Delivery| connect(out, &cfg, None);
     {
         let mut st = ls.state.lock().unwrap_or_else(PoisonError::into_inner);
         let WriterState { out, part } = &mut *st;
@@ -428,10 +438,11 @@ fn run(ls: &LockstepState, rx: Receiver<(Payload, Instant)>, cfg: ShmConfig) {
     }
 }
 
-/// The connection of a synchronous domain's remote writer, or None (the domain is not there).
-pub(super) fn connect(out: &Delivery, cfg: &ShmConfig) -> Option<Participant> {
-    let mut p =
-        Participant::connect(&out.domain, cfg.connect_options(out.name.clone(), Duration::from_millis(100))).ok()?;
+/// The connection of a synchronous domain's remote writer, or None (the domain is not there);
+/// with `state`, one that keeps a state (a lookahead's queue).
+pub(super) fn connect(out: &Delivery, cfg: &ShmConfig, state: Option<SharedState>) -> Option<Participant> {
+    let opts = ConnectOptions { state, ..cfg.connect_options(out.name.clone(), Duration::from_millis(100)) };
+    let mut p = Participant::connect(&out.domain, opts).ok()?;
     if p.info().flags.event {
         // In an event-driven domain a DDS writer is due where its inputs changed, and its
         // sample answers the step (docs/timing.md).
