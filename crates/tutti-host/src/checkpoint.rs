@@ -64,6 +64,9 @@ pub struct ComponentState {
     pub domain: String,
     pub name: String,
     pub state: Vec<u8>,
+    /// The gateway's link to another site with a lookahead (its answers on their way), not a
+    /// component of this run: a restore waits for it to connect, and finds it by its domain.
+    pub remote: bool,
 }
 
 /// A component left out of a checkpoint.
@@ -96,7 +99,7 @@ pub enum CheckpointError {
     Component { domain: String, name: String, what: &'static str, why: String },
     #[error("cannot restore: {0}")]
     Mismatch(String),
-    #[error("cannot checkpoint: domain '{domain}' is joined to another site with a lookahead of {lookahead} steps, and the answers on their way over the link are not kept in a checkpoint (docs/run.md, \"Checkpoints\")")]
+    #[error("cannot checkpoint: domain '{domain}' is joined to another site with a lookahead of {lookahead} steps, and its gateway does not keep the answers on their way over the link (one older than this tutti): they would be missing from the checkpoint (docs/run.md, \"Checkpoints\")")]
     Lookahead { domain: String, lookahead: u64 },
     #[error("domain '{domain}': {source}")]
     Domain { domain: String, source: tutti_core::shm::ShmError },
@@ -152,6 +155,9 @@ struct ManifestComponent {
     domain: String,
     name: String,
     state: Span,
+    /// A link's queue ([`ComponentState::remote`]); absent for a component.
+    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+    remote: bool,
 }
 
 impl Checkpoint {
@@ -179,7 +185,12 @@ impl Checkpoint {
         let components = self
             .components
             .iter()
-            .map(|c| ManifestComponent { domain: c.domain.clone(), name: c.name.clone(), state: put(&c.state) })
+            .map(|c| ManifestComponent {
+                domain: c.domain.clone(),
+                name: c.name.clone(),
+                state: put(&c.state),
+                remote: c.remote,
+            })
             .collect();
         let manifest = Manifest {
             format: FORMAT.into(),
@@ -291,7 +302,7 @@ impl Checkpoint {
         let mut components = Vec::with_capacity(m.components.len());
         for c in m.components {
             let state = part(&format!("component '{}' of domain '{}'", c.name, c.domain), c.state)?;
-            components.push(ComponentState { domain: c.domain, name: c.name, state });
+            components.push(ComponentState { domain: c.domain, name: c.name, state, remote: c.remote });
         }
         Ok(Checkpoint {
             ddf: m.ddf,
@@ -432,7 +443,15 @@ mod tests {
                 seeded: true,
                 due: vec![("c".into(), 7)],
             }],
-            components: vec![ComponentState { domain: "d".into(), name: "c".into(), state: vec![42; 100] }],
+            components: vec![
+                ComponentState { domain: "d".into(), name: "c".into(), state: vec![42; 100], remote: false },
+                ComponentState {
+                    domain: "d".into(),
+                    name: "dds-writer 01 lookahead 4".into(),
+                    state: vec![7; 9],
+                    remote: true,
+                },
+            ],
             skipped: vec![Skipped { domain: "d".into(), name: "s".into(), why: "stateless".into() }],
         }
     }

@@ -40,7 +40,12 @@ fn sample() -> Checkpoint {
                 due: vec![],
             },
         ],
-        components: vec![ComponentState { domain: "plant".into(), name: "c".into(), state: vec![9; 40] }],
+        components: vec![ComponentState {
+            domain: "plant".into(),
+            name: "c".into(),
+            state: vec![9; 40],
+            remote: false,
+        }],
         skipped: vec![Skipped { domain: "ctrl".into(), name: "s".into(), why: "stateless".into() }],
     }
 }

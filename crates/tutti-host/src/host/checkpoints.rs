@@ -10,8 +10,9 @@ use super::{Host, Report};
 use crate::checkpoint::{Checkpoint, CheckpointError, ComponentState, DomainState, Skipped};
 use crate::control::{Refusal, Request};
 
-/// One domain's components' states, by name, as a save collected them.
-type Saved = Vec<(String, Vec<u8>)>;
+/// One domain's components' states, by name, as a save collected them (and whether each is
+/// a link's, [`ComponentState::remote`]).
+type Saved = Vec<(String, Vec<u8>, bool)>;
 
 impl Host {
     /// The checkpoint of step 0, which `ResetState` goes back to. When it cannot be taken
@@ -38,14 +39,15 @@ impl Host {
     /// (they are then named in the checkpoint); components declared stateless
     /// ([`HostOptions::stateless`](super::HostOptions::stateless)) are always left out that way.
     pub fn checkpoint(&mut self, skip_stateless: bool) -> Result<Checkpoint, CheckpointError> {
-        // The answers on their way across a link with a lookahead are the gateway's, not the
-        // run's: a checkpoint without them would restore a run that differs.
-        for d in &self.fw.domains {
-            if let Some(lookahead) = d.lookahead() {
+        let conns: Vec<Vec<StateConnection>> = self.fw.domains.iter().map(|d| d.state_connections()).collect();
+        // The answers on their way across a link with a lookahead are kept by the gateway's
+        // connection (a remote one that keeps a state); without them a restored run would
+        // differ.
+        for (d, list) in self.fw.domains.iter().zip(&conns) {
+            if let Some(lookahead) = d.lookahead().filter(|_| !list.iter().any(|c| c.remote)) {
                 return Err(CheckpointError::Lookahead { domain: d.info().name.clone(), lookahead });
             }
         }
-        let conns: Vec<Vec<StateConnection>> = self.fw.domains.iter().map(|d| d.state_connections()).collect();
         let mut skipped = Vec::new();
         let mut missing = Vec::new();
         let mut asked: Vec<Vec<(&StateConnection, &[u8])>> = Vec::with_capacity(conns.len());
@@ -57,7 +59,9 @@ impl Host {
                     return Err(CheckpointError::SameName { domain: domain.clone(), name: c.name.clone() });
                 }
                 let skip = |why: &str| Skipped { domain: domain.clone(), name: c.name.clone(), why: why.into() };
-                if self.opts.stateless.contains(&c.name) {
+                if c.remote {
+                    mine.push((c, &[][..]));
+                } else if self.opts.stateless.contains(&c.name) {
                     skipped.push(skip("stateless"));
                 } else if c.keeps_state {
                     mine.push((c, &[][..]));
@@ -75,8 +79,8 @@ impl Host {
         let answers = self.exchange(StateRequest::Save, &asked)?;
         let mut components = Vec::new();
         for (d, saved) in self.fw.domains.iter().zip(answers) {
-            for (name, state) in saved {
-                components.push(ComponentState { domain: d.info().name.clone(), name, state });
+            for (name, state, remote) in saved {
+                components.push(ComponentState { domain: d.info().name.clone(), name, state, remote });
             }
         }
         let domains = self
@@ -92,7 +96,11 @@ impl Host {
                 subscribe: d.subscribe().to_vec(),
                 last_publish: d.last_publish().map(<[u8]>::to_vec),
                 seeded: d.seeded(),
-                due: list.iter().filter(|_| d.info().flags.event).map(|c| (c.name.clone(), c.due_index)).collect(),
+                due: list
+                    .iter()
+                    .filter(|c| d.info().flags.event && !c.remote)
+                    .map(|c| (c.name.clone(), c.due_index))
+                    .collect(),
             })
             .collect();
         Ok(Checkpoint {
@@ -128,7 +136,7 @@ impl Host {
             for ((c, _), answer) in mine.iter().zip(answers) {
                 let why = match answer {
                     StateAnswer::Saved(state) => {
-                        got.push((c.name.clone(), state));
+                        got.push((c.name.clone(), state, c.remote));
                         continue;
                     }
                     StateAnswer::Restored => continue,
@@ -165,19 +173,25 @@ impl Host {
                 self.opts.step.as_secs_f64()
             )));
         }
-        let conns: Vec<Vec<StateConnection>> = self.fw.domains.iter().map(|d| d.state_connections()).collect();
-        let mut asked: Vec<Vec<(&StateConnection, &[u8])>> = vec![Vec::new(); conns.len()];
         let index: std::collections::HashMap<&str, usize> =
             self.fw.domains.iter().enumerate().map(|(i, d)| (d.info().name.as_str(), i)).collect();
+        let conns = self.connections_for(c, &index);
+        let mut asked: Vec<Vec<(&StateConnection, &[u8])>> = vec![Vec::new(); conns.len()];
         for s in &c.components {
             let d = index.get(s.domain.as_str()).copied();
-            let found = d.and_then(|d| conns[d].iter().find(|x| x.name == s.name).map(|x| (d, x)));
+            let found = d.and_then(|d| find(&conns[d], s).map(|x| (d, x)));
             match found {
                 Some((d, x)) if x.keeps_state => asked[d].push((x, &s.state)),
                 Some(_) => {
                     return Err(CheckpointError::Mismatch(format!(
                         "component '{}' of domain '{}' keeps no state in this run",
                         s.name, s.domain
+                    )))
+                }
+                None if s.remote => {
+                    return Err(CheckpointError::Mismatch(format!(
+                        "domain '{}' was joined to another site ('{}'), and no link of this run joined it within {:?}",
+                        s.domain, s.name, self.opts.timeout
                     )))
                 }
                 None => {
@@ -188,10 +202,16 @@ impl Host {
                 }
             }
         }
-        for (d, list) in self.fw.domains.iter().zip(&conns) {
+        for (i, (d, list)) in self.fw.domains.iter().zip(&conns).enumerate() {
             let domain = &d.info().name;
             for x in list.iter().filter(|x| x.keeps_state) {
-                let saved = c.components.iter().any(|s| &s.domain == domain && s.name == x.name);
+                let saved = c.components.iter().any(|s| &s.domain == domain && find(list, s) == Some(x));
+                if x.remote && !saved {
+                    // A link that had not joined at the checkpoint: it joins again at the next
+                    // step (no state: nothing on its way).
+                    asked[i].push((x, &[][..]));
+                    continue;
+                }
                 let skipped = c.skipped.iter().any(|s| &s.domain == domain && s.name == x.name);
                 if !saved && !skipped && !self.opts.stateless.contains(&x.name) {
                     return Err(CheckpointError::Mismatch(format!(
@@ -219,6 +239,29 @@ impl Host {
         self.fw.domains.iter().for_each(|d| d.reset_time(now));
         self.publish_state(self.state(), now);
         Ok(())
+    }
+
+    /// The connections of every domain (by `index`) that checkpoint `c` restores; waits (the
+    /// step timeout at most) for the links to other sites `c` holds to connect: in a new run
+    /// the gateway joins them once it has found the other site.
+    fn connections_for(
+        &self,
+        c: &Checkpoint,
+        index: &std::collections::HashMap<&str, usize>,
+    ) -> Vec<Vec<StateConnection>> {
+        let deadline = std::time::Instant::now() + self.opts.timeout;
+        loop {
+            let conns: Vec<Vec<StateConnection>> = self.fw.domains.iter().map(|d| d.state_connections()).collect();
+            let waiting = c
+                .components
+                .iter()
+                .filter(|s| s.remote)
+                .any(|s| index.get(s.domain.as_str()).is_some_and(|&d| find(&conns[d], s).is_none()));
+            if !waiting || std::time::Instant::now() >= deadline {
+                return conns;
+            }
+            std::thread::sleep(std::time::Duration::from_millis(20));
+        }
     }
 
     /// A periodic checkpoint, if this step is one's.
@@ -270,4 +313,17 @@ impl Host {
             _ => Ok(()),
         }
     }
+}
+
+/// The connection of `list` that saved state `s`: a component by its name; a link to
+/// another site by its name, else the one link of its domain (the name shows the other
+/// site's gateway, which has another identity once that site started again).
+fn find<'a>(list: &'a [StateConnection], s: &ComponentState) -> Option<&'a StateConnection> {
+    list.iter().find(|x| x.name == s.name && x.remote == s.remote).or_else(|| {
+        let mut links = list.iter().filter(|x| s.remote && x.remote);
+        match (links.next(), links.next()) {
+            (Some(x), None) => Some(x),
+            _ => None,
+        }
+    })
 }

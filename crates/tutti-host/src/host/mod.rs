@@ -1024,7 +1024,8 @@ mod tests {
         let e = c.check_model(&other, "c").unwrap_err();
         assert!(e.is_invalid() && e.to_string().contains("another DDF"), "{e}");
 
-        // A remote writer across a link with a lookahead (the gateway's).
+        // A remote writer across a link with a lookahead that keeps no state of the link (a
+        // gateway older than this one keeps none): its answers on their way would be missing.
         let opts = ConnectOptions {
             namespace: ns.clone(),
             kind: ConnKind::Remote,
