@@ -73,6 +73,8 @@ pub struct Framework {
     pub ordering: StepOrder,
     /// `checkpoint`: saved every so many steps, its `dir` resolved.
     pub checkpoint: Option<tutti_host::Periodic>,
+    /// `wait_for`: (domain, writers) the first step waits for.
+    pub wait_for: Vec<(String, usize)>,
 }
 
 impl Default for Framework {
@@ -90,6 +92,7 @@ impl Default for Framework {
             wait: WaitMode::adaptive(),
             ordering: StepOrder::Delayed,
             checkpoint: None,
+            wait_for: Vec::new(),
         }
     }
 }
@@ -220,6 +223,7 @@ impl Framework {
                 dir: dir.join(c.dir.unwrap_or_else(|| PathBuf::from("checkpoints"))),
                 keep: c.keep.unwrap_or(0),
             }),
+            wait_for: k.wait_for.into_iter().collect(),
         }
     }
 }

@@ -121,6 +121,10 @@ pub struct FrameworkKeys {
     /// Save a checkpoint every `every` steps into `dir`, keeping the newest `keep`.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub checkpoint: Option<CheckpointKeys>,
+    /// `{ DOMAIN: N }`: the first step waits until N writers of the domain have connected
+    /// (as `tutti host --wait-for DOMAIN=N`): another site's link, a component not launched.
+    #[serde(default, skip_serializing_if = "std::collections::BTreeMap::is_empty")]
+    pub wait_for: std::collections::BTreeMap<String, usize>,
 }
 
 /// The `checkpoint` key of `framework` (docs/run.md, "Checkpoints").

@@ -81,7 +81,7 @@ pub fn run(
         namespace: opts.namespace.clone(),
         sets: fw.set.clone(),
         hold: None,
-        wait_for: Vec::new(),
+        wait_for: fw.wait_for.clone(),
         hold_until_start: fw.hold,
         connections: launch.connections.clone(),
         ordering: fw.ordering,
