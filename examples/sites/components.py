@@ -4,11 +4,16 @@
     python3 components.py cart          # home: a cart (1 kg, viscous friction), pushed by `force`
     python3 components.py operator      # away: sets the cart's target position
     python3 components.py controller    # away: answers each step of `link` with a force
+    python3 components.py controller 1  # the same towards a fixed target (no operator)
+
+The cart keeps its state for checkpoints (docs/run.md, "Checkpoints": `tutti ctl save` of the
+home run); the controller has none (its force is a function of the step it answers).
 
 They speak the RTAPI through the Python binding (python/tutti_rtapi.py; PYTHONPATH set by the
 launch files) and end when their framework does.
 """
 
+import struct
 import sys
 import time
 
@@ -19,13 +24,13 @@ MASS, FRICTION = 1.0, 0.5  # kg, N s/m
 KP, KD = 4.0, 3.0  # the controller's gains (N/m, N s/m)
 
 
-def connect(domain, ddf, patience=60.0):
+def connect(domain, ddf, patience=60.0, state=None):
     """Connects to `domain`, waiting up to `patience` seconds for it to exist (the other
-    site's mirror creates `link` once it has started)."""
+    site's mirror creates `link` once it has started); `state`: (save, restore)."""
     deadline = time.monotonic() + patience
     while True:
         try:
-            return rt.connect(domain, timeout=10, ddf=ddf)
+            return rt.connect(domain, timeout=10, ddf=ddf, state=state)
         except rt.RTAPIError as e:
             if e.name != "RTAPI_ERROR_DOMAIN_NOT_FOUND" or time.monotonic() > deadline:
                 raise
@@ -49,15 +54,23 @@ def ended(e):
 
 
 def cart():
-    position, velocity = 0.0, 0.0
-    with connect("cart", "home.ddf") as conn:
+    s = [0.0, 0.0]  # position, velocity
+
+    def restore(data):
+        s[:] = struct.unpack("<2d", data)
+
+    with connect("cart", "home.ddf", state=(lambda: struct.pack("<2d", *s), restore)) as conn:
+        # The seed (the domain has states=yes): the state before the first step.
+        with conn.writing():
+            conn.publish("position", s[0])
+            conn.publish("velocity", s[1])
         while True:
             (force,) = read(conn, "force")
-            velocity += (force - FRICTION * velocity) / MASS * STEP
-            position += velocity * STEP
+            s[1] += (force - FRICTION * s[1]) / MASS * STEP
+            s[0] += s[1] * STEP
             with conn.writing():
-                conn.publish("position", position)
-                conn.publish("velocity", velocity)
+                conn.publish("position", s[0])
+                conn.publish("velocity", s[1])
 
 
 def operator():
@@ -70,12 +83,12 @@ def operator():
             time.sleep(0.05)
 
 
-def controller():
+def controller(fixed=None):
     link = connect("link", "home.ddf")
-    target = connect("target", "away.ddf")
+    target = connect("target", "away.ddf") if fixed is None else None
     while True:
         position, velocity = read(link, "position", "velocity")
-        (goal,) = read(target, "position")
+        (goal,) = read(target, "position") if target else (fixed,)
         with link.writing():
             link.publish("force", KP * (goal - position) - KD * velocity)
 
@@ -85,7 +98,7 @@ if __name__ == "__main__":
     if role is None:
         sys.exit("usage: components.py cart|operator|controller")
     try:
-        role()
+        role(*[float(a) for a in sys.argv[2:3]])
     except rt.RTAPIError as e:
         if not ended(e):
             raise

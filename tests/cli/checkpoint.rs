@@ -100,7 +100,7 @@ fn ctl(ns: &str, args: &[&str], dir: &Path) -> (i32, String, String) {
 }
 
 /// One CSV file's rows in order: (step index, every value of the row, as written).
-fn csv_rows(csv: &Path) -> Vec<(u64, Vec<String>)> {
+pub(crate) fn csv_rows(csv: &Path) -> Vec<(u64, Vec<String>)> {
     let text = std::fs::read_to_string(csv).unwrap_or_else(|e| panic!("{}: {e}", csv.display()));
     let mut lines = text.lines();
     let head: Vec<&str> = lines.next().expect("a header").split(',').collect();
@@ -150,7 +150,7 @@ fn straight(dir: &Path, ns: &str, preload: Option<&Path>) -> BTreeMap<u64, Vec<S
 }
 
 /// Every row of `part` equals the straight run's row of the same step, value by value.
-fn same_as(straight: &BTreeMap<u64, Vec<String>>, part: &[(u64, Vec<String>)], what: &str) {
+pub(crate) fn same_as(straight: &BTreeMap<u64, Vec<String>>, part: &[(u64, Vec<String>)], what: &str) {
     assert!(!part.is_empty(), "{what}: no rows");
     for (index, values) in part {
         assert_eq!(straight.get(index), Some(values), "{what}: step index {index} differs from the straight run");

@@ -14,6 +14,7 @@ use std::thread;
 use std::time::Duration;
 
 use gateway::*;
+use tutti_test_support::RemoveSegments;
 
 fn a_component_on_the_mirror_side_drives_an_asynchronous_domain(e: Eng) {
     let (dom, home, away) = (e.dom(109), e.ns("gwtest109a"), e.ns("gwtest109b"));
@@ -479,35 +480,9 @@ fn a_mirror_that_joins_a_running_home_starts_at_its_current_step(e: Eng) {
 /// cart's state 10 steps before, exactly.
 #[test]
 fn the_two_site_example_brings_the_home_cart_to_the_target_set_on_the_other_site() {
-    let Some(py) = tutti_test_support::python(&["ctypes"]) else { return };
-    let repo = tutti_test_support::repo_root();
-    let dir = tempfile::tempdir().unwrap();
-    // The example where it is in the repository, so its relative paths hold; its recording
-    // goes to the temporary folder.
-    let site = dir.path().join("examples/sites");
-    std::fs::create_dir_all(&site).unwrap();
-    for f in std::fs::read_dir(repo.join("examples/sites")).unwrap() {
-        let f = f.unwrap().path();
-        std::fs::copy(&f, site.join(f.file_name().unwrap())).unwrap();
-    }
-    std::os::unix::fs::symlink(repo.join("python"), dir.path().join("python")).unwrap();
-    let lib = tutti_test_support::rtapi_lib_dir().join("librtapi.so");
-    let path = format!(
-        "{}:{}:{}",
-        tutti_test_support::tutti_exe().parent().unwrap().display(),
-        py.parent().unwrap().display(),
-        std::env::var("PATH").unwrap_or_default()
-    );
-    let run = |name: &str, launch: &str, ns: &str| {
-        let mut cmd = tutti_test_support::tutti_command();
-        cmd.args(["run", &site.join(launch).display().to_string()])
-            .env("TUTTI_NAMESPACE", ns)
-            .env("ROS_DOMAIN_ID", "47")
-            .env("ROS_LOCALHOST_ONLY", "1")
-            .env("TUTTI_RTAPI_LIB", &lib)
-            .env("PATH", &path);
-        Proc::spawn(name, cmd, SECS(180))
-    };
+    let Some(ex) = SitesExample::new("47") else { return };
+    let site = &ex.site;
+    let run = |name: &str, launch: &str, ns: &str| ex.run(name, launch, ns, &[]);
     let mut away = run("the other site", "away.json5", &tutti_test_support::namespace("sites_b"));
     let mut home = run("the home site", "home.json5", &tutti_test_support::namespace("sites_a"));
     let code = home.wait(SECS(120));
@@ -548,6 +523,168 @@ fn the_two_site_example_brings_the_home_cart_to_the_target_set_on_the_other_site
     }
     let (_, p, v, _) = rows[rows.len() - 1];
     assert!((p - 0.5).abs() < 0.02 && v.abs() < 0.05, "the cart ended at {p} m, {v} m/s, not at 0.5 m\n{}", dump());
+}
+
+/// The two-site example (examples/sites) in a temporary folder, as a user runs it.
+struct SitesExample {
+    _dir: tempfile::TempDir,
+    /// `examples/sites` in it (its relative paths hold: `python` beside `examples`).
+    site: std::path::PathBuf,
+    /// PATH with this build's `tutti` and the tests' Python first.
+    path: String,
+    lib: std::path::PathBuf,
+    ros_domain_id: String,
+}
+
+impl SitesExample {
+    /// None where Python is missing (a failure under CI=true).
+    fn new(ros_domain_id: &str) -> Option<SitesExample> {
+        let py = tutti_test_support::python(&["ctypes"])?;
+        let repo = tutti_test_support::repo_root();
+        let dir = tempfile::tempdir().unwrap();
+        // The example where it is in the repository, so its relative paths hold; its
+        // recording goes to the temporary folder.
+        let site = dir.path().join("examples/sites");
+        std::fs::create_dir_all(&site).unwrap();
+        for f in std::fs::read_dir(repo.join("examples/sites")).unwrap() {
+            let f = f.unwrap().path();
+            std::fs::copy(&f, site.join(f.file_name().unwrap())).unwrap();
+        }
+        std::os::unix::fs::symlink(repo.join("python"), dir.path().join("python")).unwrap();
+        let path = format!(
+            "{}:{}:{}",
+            tutti_test_support::tutti_exe().parent().unwrap().display(),
+            py.parent().unwrap().display(),
+            std::env::var("PATH").unwrap_or_default()
+        );
+        let lib = tutti_test_support::rtapi_lib_dir().join("librtapi.so");
+        Some(SitesExample { _dir: dir, site, path, lib, ros_domain_id: ros_domain_id.into() })
+    }
+
+    /// `tutti run LAUNCH EXTRA...` in namespace `ns`.
+    fn run(&self, name: &str, launch: &str, ns: &str, extra: &[&str]) -> Proc {
+        let mut cmd = tutti_test_support::tutti_command();
+        cmd.args(["run", &self.site.join(launch).display().to_string()])
+            .args(extra)
+            .env("TUTTI_NAMESPACE", ns)
+            .env("ROS_DOMAIN_ID", &self.ros_domain_id)
+            .env("ROS_LOCALHOST_ONLY", "1")
+            .env("TUTTI_RTAPI_LIB", &self.lib)
+            .env("PATH", &self.path);
+        Proc::spawn(name, cmd, SECS(240))
+    }
+
+    /// `tutti ctl ARGS` in namespace `ns`: its exit status and output.
+    fn ctl(&self, ns: &str, args: &[&str]) -> (i32, String) {
+        let mut cmd = tutti_test_support::tutti_command();
+        cmd.current_dir(&self.site).arg("ctl").args(args).env("TUTTI_NAMESPACE", ns);
+        let (status, out, err) = tutti_test_support::run_with_timeout(cmd, SECS(120));
+        (status.code().unwrap_or(-1), format!("{out}{err}"))
+    }
+}
+
+/// A run of the two-site example saved and restored (docs/run.md, "Checkpoints"): the home
+/// site's checkpoint holds the answers on their way over the link (the lookahead's queue), so
+/// that a new run restored from it at step 300, and the run itself restored into while it
+/// goes on, read every value the straight run read, step by step (the other site's controller
+/// steers towards a fixed target, so the home's values are a function of the home's alone).
+/// The home waits for the link before its first step (`wait_for`).
+fn a_run_across_sites_is_saved_and_restored_with_the_answers_on_their_way(e: Eng) {
+    let dom = e.dom_beside(227).to_string();
+    let Some(ex) = SitesExample::new(&dom) else { return };
+    let (ns_a, ns_b) = (tutti_test_support::namespace(&e.ns("ckla")), tutti_test_support::namespace(&e.ns("cklb")));
+    let _segments = (RemoveSegments(ns_a.clone()), RemoveSegments(ns_b.clone()));
+    let engine = if e.name == Eng::ZENOH.name {
+        format!(r#"engine: "zenoh", zenoh_connect: ["{}"], "#, gateway::zenoh_router().endpoint())
+    } else {
+        format!(r#"engine: "{}", "#, e.name)
+    };
+    let write = |name: &str, text: String| std::fs::write(ex.site.join(name), text).unwrap();
+    write("ck-mirror.json5", format!(r#"{{ {engine}allow: ["link/.*"], lookahead: {{ link: 10 }}, timeout: "10s" }}"#));
+    write(
+        "ck-away.json5",
+        r#"{ ddf: "away.ddf", framework: { step: "10ms" },
+  components: [
+    { name: "mirror", run: ["tutti", "gateway", "home.ddf", "--mirror", "--config", "ck-mirror.json5"] },
+    { name: "controller", run: ["python3", "components.py", "controller", "1"], env: { PYTHONPATH: "../../python" } } ] }"#
+            .into(),
+    );
+    let home = |name: &str, steps: u64, speed: u32, more: &str| {
+        let steps = if steps == 0 { String::new() } else { format!("steps: {steps}, ") };
+        write(
+            name,
+            format!(
+                r#"{{ ddf: "home.ddf",
+  framework: {{ step: "10ms", {steps}speed: {speed}, catch_up: true, timeout: "10s", wait_for: {{ link: 1 }}, record: ["{}.csv"]{more} }},
+  connections: ["cart/subscribe/position -> link/publish/position", "cart/subscribe/velocity -> link/publish/velocity",
+                "link/subscribe/force -> cart/publish/force"],
+  components: [ {{ name: "cart", run: ["python3", "components.py", "cart"], domain: "cart", env: {{ PYTHONPATH: "../../python" }} }} ],
+  gateway: {{ {engine}allow: ["link/.*"], lookahead: {{ link: 10 }} }} }}"#,
+                name.trim_end_matches(".json5")
+            ),
+        )
+    };
+    home("warm.json5", 30, 0, "");
+    home("straight.json5", 600, 0, "");
+    home("first.json5", 300, 0, r#", checkpoint: { every: 300, dir: "ck" }"#);
+    home("second.json5", 600, 0, "");
+    // Paced (5 times real time), so that the test can pause it after its checkpoint at 300.
+    home("long.json5", 0, 5, r#", checkpoint: { every: 300, dir: "ckl" }"#);
+    let mut away = ex.run("the other site", "ck-away.json5", &ns_b, &[]);
+    let finish = |mut p: Proc, away: &Proc| {
+        assert_eq!(p.wait(SECS(180)), Some(0), "the home run failed\n{}\n{}", p.dump(), away.dump());
+    };
+    let link = |stem: &str| crate::checkpoint::csv_rows(&ex.site.join(format!("{stem}-link.csv")));
+
+    // The other site's controller becomes a writer of `link` with its first answer (until
+    // then the mirror's steps do not wait for it, and answer with the initial force): a short
+    // run first, so that every run after it meets the other site as it is from then on.
+    finish(ex.run("a first short run", "warm.json5", &ns_a, &[]), &away);
+    finish(ex.run("the straight run", "straight.json5", &ns_a, &[]), &away);
+    let straight: std::collections::BTreeMap<u64, Vec<String>> = link("straight").into_iter().collect();
+    assert_eq!(straight.len(), 600, "the straight run's steps");
+    // The link answered: the force is the controller's, not the initial 0, after step 10.
+    assert!(straight.values().skip(20).all(|v| v[2] != "0"), "{straight:?}");
+
+    finish(ex.run("the first half", "first.json5", &ns_a, &[]), &away);
+    let ckpt = ex.site.join("ck/step-000000300.tutti-checkpoint");
+    let c = tutti_host::checkpoint::Checkpoint::read(&ckpt).unwrap_or_else(|e| panic!("{e}\n{}", away.dump()));
+    let queue = c.components.iter().find(|s| s.remote).expect("the link's queue is in the checkpoint");
+    assert_eq!(queue.domain, "link");
+    crate::checkpoint::same_as(&straight, &link("first"), "the first half");
+
+    let second = ex.run("the run restored", "second.json5", &ns_a, &["--restore", ckpt.to_str().unwrap()]);
+    finish(second, &away);
+    let rows = link("second");
+    assert_eq!(rows.iter().map(|r| r.0).collect::<Vec<_>>(), (300..600).collect::<Vec<_>>(), "the second half's steps");
+    crate::checkpoint::same_as(&straight, &rows, "the run restored from step 300");
+
+    let run = ex.run("the long run", "long.json5", &ns_a, &[]);
+    let at_300 = ex.site.join("ckl/step-000000300.tutti-checkpoint");
+    tutti_test_support::wait_until(format_args!("the checkpoint at step 300\n{}", run.dump()), SECS(120), || {
+        at_300.exists()
+    });
+    let ctl = |args: &[&str]| {
+        let (code, out) = ex.ctl(&ns_a, args);
+        assert_eq!(code, 0, "tutti ctl {args:?}: {out}\n{}\n{}", run.dump(), away.dump());
+    };
+    ctl(&["pause"]);
+    ctl(&["restore", at_300.to_str().unwrap()]);
+    ctl(&["resume"]);
+    let at_600 = ex.site.join("ckl/step-000000600.tutti-checkpoint");
+    tutti_test_support::wait_until(format_args!("the checkpoint at step 600\n{}", run.dump()), SECS(120), || {
+        at_600.exists()
+    });
+    ctl(&["stop"]);
+    finish(run, &away);
+    let all = link("long");
+    let back = all.windows(2).position(|w| w[1].0 < w[0].0).expect("the recording goes back to step 300") + 1;
+    assert_eq!(all[back].0, 300, "the restore went back to step index 300");
+    let after: Vec<(u64, Vec<String>)> = all[back..].iter().filter(|r| r.0 < 600).cloned().collect();
+    assert_eq!(after.len(), 300, "steps 300 to 599 again");
+    crate::checkpoint::same_as(&straight, &all[..back], "before the restore");
+    crate::checkpoint::same_as(&straight, &after, "after the restore");
+    assert_eq!(away.interrupt(SECS(30)), Some(0), "the other site did not stop well\n{}", away.dump());
 }
 
 /// On Zenoh, across the wire through two routers, one per site (eclipse-zenoh's,
@@ -798,6 +935,7 @@ per_engine!(
 // The gateway on the other side is the peer: these run on Zenoh too, both gateways meeting at
 // a router (docs/gateway.md, "Zenoh").
 per_any_engine!(
+    a_run_across_sites_is_saved_and_restored_with_the_answers_on_their_way,
     a_component_on_the_mirror_side_drives_an_asynchronous_domain,
     a_component_on_the_mirror_side_takes_part_in_lock_step,
     a_mirrored_domain_with_a_lookahead_answers_each_step_k_steps_later,
