@@ -105,10 +105,9 @@ pub(super) fn run(ls: Arc<LockstepState>, rx: Receiver<(Payload, Instant)>, cfg:
             // the restored one (before this run's first, in a new run) have their answers from
             // the checkpoint.
             let n = locked as i64 - k_ahead as i64;
-            let restored = link.restored.is_some_and(|b| n <= b);
             match locked {
                 0 => Some(None),
-                _ if n >= start && (n > 0 || restored) => Some(Some(n)),
+                _ if n >= start && (n > 0 || link.is_restored(n)) => Some(Some(n)),
                 _ => None,
             }
         };
@@ -136,7 +135,7 @@ pub(super) fn run(ls: Arc<LockstepState>, rx: Receiver<(Payload, Instant)>, cfg:
                     }
                     // A restored step whose answer the checkpoint did not have (the link had
                     // not joined yet): it cannot come.
-                    None if n.is_some_and(|n| link.restored.is_some_and(|b| n <= b)) => break Outcome::Hold,
+                    None if n.is_some_and(|n| link.is_restored(n)) => break Outcome::Hold,
                     None => {}
                 }
             }
@@ -305,13 +304,28 @@ impl Link {
         }
     }
 
+    /// Whether step `n`'s answer came from a checkpoint (a step up to the one restored).
+    fn is_restored(&self, n: i64) -> bool {
+        self.restored.is_some_and(|b| n <= b)
+    }
+
+    /// Drops the answers at the front of the queue whose step `drop` says, counting them as
+    /// late; returns how many.
+    fn drop_front_while(&mut self, out: &Delivery, drop: impl Fn(i64) -> bool) -> u64 {
+        let mut dropped = 0;
+        while self.answers.front().is_some_and(|(m, _)| drop(*m)) {
+            self.answers.pop_front();
+            SetStats::add(Some(&*self.set), |s| &s.dropped, &out.counters.total.late, 1);
+            dropped += 1;
+        }
+        dropped
+    }
+
     /// Drops the answers to steps before `n` (late: the framework has left the step they
     /// were due at), counting them.
     fn drop_before(&mut self, n: Option<i64>, out: &Delivery) {
-        let Some(n) = n else { return };
-        while self.answers.front().is_some_and(|(m, _)| *m < n) {
-            self.answers.pop_front();
-            SetStats::add(Some(&*self.set), |s| &s.dropped, &out.counters.total.late, 1);
+        if let Some(n) = n {
+            self.drop_front_while(out, |m| m < n);
         }
     }
 
@@ -319,12 +333,7 @@ impl Link {
     /// published yet, so they come from an earlier life of the domain (a run before this one,
     /// whose answers the other site still sent), counted as late.
     fn drop_stale(&mut self, locked: u64, out: &Delivery) {
-        let mut stale = 0;
-        while self.answers.front().is_some_and(|(m, _)| *m > locked as i64) {
-            self.answers.pop_front();
-            SetStats::add(Some(&*self.set), |s| &s.dropped, &out.counters.total.late, 1);
-            stale += 1;
-        }
+        let stale = self.drop_front_while(out, |m| m > locked as i64);
         if stale > 0 && self.gaps.allow().is_some() {
             info!(domain = %out.domain, "{}: {stale} answers to steps after step {locked} dropped: they answer an earlier run's steps", out.name);
         }
@@ -335,9 +344,8 @@ impl Link {
     fn wait_for_answer(&mut self, n: u64, lease: Duration) -> Result<(), StateError> {
         let since = Instant::now();
         while self.newest.map_or(true, |m| m < n) {
-            let left = lease.saturating_sub(since.elapsed());
-            match self.rx.recv_timeout(left) {
-                Ok(m) => self.take(m),
+            match self.recv_timeout(lease.saturating_sub(since.elapsed())) {
+                Ok(()) => {}
                 Err(RecvTimeoutError::Timeout) => {
                     return Err(format!(
                         "the answer to step {n} did not come over the link within {lease:?} (the lease); the answers on their way cannot be told apart from later ones"

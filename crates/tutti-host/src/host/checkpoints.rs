@@ -205,7 +205,8 @@ impl Host {
         for (i, (d, list)) in self.fw.domains.iter().zip(&conns).enumerate() {
             let domain = &d.info().name;
             for x in list.iter().filter(|x| x.keeps_state) {
-                let saved = c.components.iter().any(|s| &s.domain == domain && find(list, s) == Some(x));
+                // Found for one of the checkpoint's states above.
+                let saved = asked[i].iter().any(|(y, _)| std::ptr::eq(*y, x));
                 if x.remote && !saved {
                     // A link that had not joined at the checkpoint: it joins again at the next
                     // step (no state: nothing on its way).
