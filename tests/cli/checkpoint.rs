@@ -92,7 +92,7 @@ fn finish(mut run: Proc) {
 }
 
 /// `tutti ctl ARGS` in namespace `ns`: (exit status, stdout, stderr).
-fn ctl(ns: &str, args: &[&str], dir: &Path) -> (i32, String, String) {
+pub(crate) fn ctl(ns: &str, args: &[&str], dir: &Path) -> (i32, String, String) {
     let mut cmd = common::tutti_command();
     cmd.current_dir(dir).arg("ctl").args(args).env("TUTTI_NAMESPACE", ns);
     let (status, out, err) = common::run_with_timeout(cmd, WAIT);
@@ -147,6 +147,19 @@ fn straight(dir: &Path, ns: &str, preload: Option<&Path>) -> BTreeMap<u64, Vec<S
     let all: BTreeMap<u64, Vec<String>> = rows(dir, "straight").into_iter().collect();
     assert_eq!(all.len(), 1000, "the straight run's steps");
     all
+}
+
+/// A recording's rows: (step index, every value of the step).
+pub(crate) type Row = (u64, Vec<String>);
+
+/// A recording of a run restored into at step index `at` while it went on to `end` and past:
+/// (the rows before the restore, the rows from `at` to `end` made again after it).
+pub(crate) fn split_at_restore(all: &[Row], at: u64, end: u64) -> (&[Row], Vec<Row>) {
+    let back = all.windows(2).position(|w| w[1].0 < w[0].0).expect("the recording goes back at the restore") + 1;
+    assert_eq!(all[back].0, at, "the restore went back to step index {at}");
+    let after: Vec<Row> = all[back..].iter().filter(|r| r.0 < end).cloned().collect();
+    assert_eq!(after.len() as u64, end - at, "steps {at} to {} again", end - 1);
+    (&all[..back], after)
 }
 
 /// Every row of `part` equals the straight run's row of the same step, value by value.
@@ -233,11 +246,8 @@ fn a_restore_into_the_running_run_goes_back_to_step_500_and_on_as_the_straight_r
     finish(run);
 
     let all = rows(dir, "long");
-    let back = all.windows(2).position(|w| w[1].0 < w[0].0).expect("the recording goes back to step 500") + 1;
-    assert_eq!(all[back].0, 500, "the restore went back to step index 500");
-    let after: Vec<(u64, Vec<String>)> = all[back..].iter().filter(|r| r.0 < 1000).cloned().collect();
-    assert_eq!(after.len(), 500, "steps 500 to 999 again");
-    same_as(&reference, &all[..back], "before the restore");
+    let (before, after) = split_at_restore(&all, 500, 1000);
+    same_as(&reference, before, "before the restore");
     same_as(&reference, &after, "after the restore");
 }
 

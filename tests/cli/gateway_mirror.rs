@@ -573,14 +573,6 @@ impl SitesExample {
             .env("PATH", &self.path);
         Proc::spawn(name, cmd, SECS(240))
     }
-
-    /// `tutti ctl ARGS` in namespace `ns`: its exit status and output.
-    fn ctl(&self, ns: &str, args: &[&str]) -> (i32, String) {
-        let mut cmd = tutti_test_support::tutti_command();
-        cmd.current_dir(&self.site).arg("ctl").args(args).env("TUTTI_NAMESPACE", ns);
-        let (status, out, err) = tutti_test_support::run_with_timeout(cmd, SECS(120));
-        (status.code().unwrap_or(-1), format!("{out}{err}"))
-    }
 }
 
 /// A run of the two-site example saved and restored (docs/run.md, "Checkpoints"): the home
@@ -665,8 +657,8 @@ fn a_run_across_sites_is_saved_and_restored_with_the_answers_on_their_way(e: Eng
         at_300.exists()
     });
     let ctl = |args: &[&str]| {
-        let (code, out) = ex.ctl(&ns_a, args);
-        assert_eq!(code, 0, "tutti ctl {args:?}: {out}\n{}\n{}", run.dump(), away.dump());
+        let (code, out, err) = crate::checkpoint::ctl(&ns_a, args, &ex.site);
+        assert_eq!(code, 0, "tutti ctl {args:?}: {out}{err}\n{}\n{}", run.dump(), away.dump());
     };
     ctl(&["pause"]);
     ctl(&["restore", at_300.to_str().unwrap()]);
@@ -678,11 +670,8 @@ fn a_run_across_sites_is_saved_and_restored_with_the_answers_on_their_way(e: Eng
     ctl(&["stop"]);
     finish(run, &away);
     let all = link("long");
-    let back = all.windows(2).position(|w| w[1].0 < w[0].0).expect("the recording goes back to step 300") + 1;
-    assert_eq!(all[back].0, 300, "the restore went back to step index 300");
-    let after: Vec<(u64, Vec<String>)> = all[back..].iter().filter(|r| r.0 < 600).cloned().collect();
-    assert_eq!(after.len(), 300, "steps 300 to 599 again");
-    crate::checkpoint::same_as(&straight, &all[..back], "before the restore");
+    let (before, after) = crate::checkpoint::split_at_restore(&all, 300, 600);
+    crate::checkpoint::same_as(&straight, before, "before the restore");
     crate::checkpoint::same_as(&straight, &after, "after the restore");
     assert_eq!(away.interrupt(SECS(30)), Some(0), "the other site did not stop well\n{}", away.dump());
 }
