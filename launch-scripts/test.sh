@@ -14,6 +14,8 @@ cd "$(dirname "$0")/.."
 # Each step says when it starts (seconds since this script did), so that a slow one shows.
 step() { printf '\n== [%ss] %s\n' "$SECONDS" "$*"; }
 . launch-scripts/lib.sh
+# A CI run builds once: incremental compilation's caches would only take disk.
+if [ "${CI:-}" = true ]; then export CARGO_INCREMENTAL=0; fi
 
 # --- Debian packages: DDS peers and tools for the interop tests, what the Cyclone engine's
 # build needs (cmake, libclang for bindgen, libssl-dev for its DDS Security plugins; openssl
@@ -144,6 +146,10 @@ step "loom model checks (seqlock bucket, lock-step handshake)"
 RUSTFLAGS="--cfg tutti_loom" CARGO_TARGET_DIR=target/loom cargo test -p tutti-core --test loom --release --locked
 
 step "test suite"
+# The disk and memory the builds have left, printed again if the suite fails, so that a build
+# killed or cut short for lack of either shows it.
+room() { df -h . | tail -n 1; free -m | sed -n 2p; }
+room
 cargo build --workspace --locked --quiet
 # The output is kept, and when a test fails, the head of each failure's report is printed
 # again at the end, where a CI log's tail shows it (the targets after a failing one run on).
@@ -151,6 +157,12 @@ if ! cargo test --workspace --locked --no-fail-fast 2>&1 | tee target/test-outpu
     echo "=== the failures, the first 40 lines of each (target/test-output.log has them whole) ===" >&2
     awk '/^---- .* stdout ----$/ { on = 1; n = 0 } /^failures:$/ { on = 0 } on && n++ < 40' \
         target/test-output.log >&2
+    # A build that failed: its errors and the linker's own messages, without the linker's
+    # command line (thousands of characters that would push them out of a log's tail).
+    echo "=== build errors, if any ===" >&2
+    grep -E '^(error|warning: unused)|^ *= note: +[^ "]|ld: |collect2|No space|Killed|terminated with signal' target/test-output.log |
+        cut -c1-400 | head -n 40 >&2 || true
+    room >&2
     exit 101
 fi
 
