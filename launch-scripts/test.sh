@@ -160,7 +160,7 @@ if ! cargo test --workspace --locked --no-fail-fast 2>&1 | tee target/test-outpu
     # A build that failed: its errors and the linker's own messages, without the linker's
     # command line (thousands of characters that would push them out of a log's tail).
     echo "=== build errors, if any ===" >&2
-    grep -E '^(error|warning: unused)|^ *= note: +[^ "]|ld: |collect2|No space|Killed|terminated with signal' target/test-output.log |
+    grep -E '^error|^ *= note: +[^ "]|ld: |collect2|No space|Killed|terminated with signal' target/test-output.log |
         cut -c1-400 | head -n 40 >&2 || true
     room >&2
     exit 101
